@@ -1,0 +1,1 @@
+"""The launcher (process supervisor), the ``slipstack`` command, launch and scene files."""

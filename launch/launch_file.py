@@ -1,0 +1,179 @@
+"""Launch files (TOML): which nodes, their parameters, remappings, respawn policy.
+
+Format::
+
+    [launch]
+    description = "what this graph does"
+    duration_s = 0            # stop by itself after this long (0: run until Ctrl-C)
+
+    [args]                    # launch arguments, overridden by `name:=value`
+    rate_hz = 1000.0
+
+    [[node]]
+    name = "source"           # instance name (unique); topics/logs use it
+    type = "wrench_source"    # a node type from `slipstack run --help`
+    params = { rate_hz = "$(rate_hz)" }   # "$(arg)" is replaced by a launch argument
+    remap = { "ft/wrench" = "ft/raw" }    # default topic -> topic in this graph
+    respawn = false           # restart it when it dies
+    respawn_delay_s = 0.5
+    respawn_max_retries = 3
+    required = false          # when it exits, the whole launch stops
+    transport = "ipc"         # or "tcp" (binds 127.0.0.1 on a free port)
+    enabled = true            # may be "$(arg)": leave a node out of this run
+
+A value that is exactly ``"$(name)"`` takes the argument's type; inside a longer
+string it is substituted as text.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from slipstack.lib.errors import ConfigError
+from slipstack.nodes.catalog import node_class
+from slipstack.nodes.node import Node, make_params
+
+__all__ = ["NodeEntry", "LaunchFile", "load_launch_file", "default_launch_file", "launch_files_dir"]
+
+_SUBST = re.compile(r"\$\((\w+)\)")
+_NODE_KEYS = {"name", "type", "params", "remap", "respawn", "respawn_delay_s", "respawn_max_retries",
+              "required", "transport", "enabled"}
+
+
+@dataclass
+class NodeEntry:
+    """One node instance of a launch file, with its parameters resolved."""
+
+    name: str
+    type: str
+    cls: type[Node]
+    params: dict[str, Any] = field(default_factory=dict)
+    remap: dict[str, str] = field(default_factory=dict)
+    respawn: bool = False
+    respawn_delay_s: float = 0.5
+    respawn_max_retries: int = 3
+    required: bool = False
+    transport: str = "ipc"
+
+    def instance(self) -> Node:
+        """Build the node object (validates the parameters)."""
+        return self.cls(make_params(self.cls.Params, self.params, self.name))
+
+    def output_topics(self, node: Node) -> dict[str, str]:
+        return {n: self.remap.get(o.topic, o.topic) for n, o in node.outputs.items()}
+
+    def input_topics(self, node: Node) -> dict[str, str]:
+        return {n: self.remap.get(i.topic, i.topic) for n, i in node.inputs.items()}
+
+
+@dataclass
+class LaunchFile:
+    path: Path
+    description: str
+    duration_s: float
+    args: dict[str, Any]
+    nodes: list[NodeEntry]
+
+
+def launch_files_dir() -> Path:
+    """The folder of the launch files shipped with slipstack."""
+    return Path(__file__).parent / "files"
+
+
+def default_launch_file() -> Path:
+    """The graph ``slipstack launch`` runs with no file."""
+    return launch_files_dir() / "default.toml"
+
+
+def _substitute(value: Any, args: dict[str, Any], where: str) -> Any:
+    if isinstance(value, dict):
+        return {k: _substitute(v, args, f"{where}.{k}") for k, v in value.items()}
+    if isinstance(value, list):
+        return [_substitute(v, args, where) for v in value]
+    if not isinstance(value, str):
+        return value
+
+    def lookup(name: str) -> Any:
+        if name not in args:
+            raise ConfigError(f"{where}: unknown launch argument $({name}); declared: {', '.join(sorted(args)) or 'none'}")
+        return args[name]
+
+    whole = _SUBST.fullmatch(value)
+    if whole:
+        return lookup(whole.group(1))
+    return _SUBST.sub(lambda m: str(lookup(m.group(1))), value)
+
+
+def _typed_override(default: Any, text: str, name: str) -> Any:
+    if isinstance(default, bool):
+        if text.lower() in ("true", "1", "yes", "on"):
+            return True
+        if text.lower() in ("false", "0", "no", "off"):
+            return False
+        raise ConfigError(f"launch argument {name} is a bool; got {text!r}")
+    if isinstance(default, (int, float)):
+        try:
+            return type(default)(text)
+        except ValueError:
+            raise ConfigError(f"launch argument {name} is a {type(default).__name__}; got {text!r}") from None
+    return text
+
+
+def resolve_path(value: str, base: Path, folder: str) -> Path:
+    """Resolve a file named in a launch file: as given, next to it, or a shipped name."""
+    for cand in (Path(value), base / value, Path(__file__).parent / folder / value,
+                 Path(__file__).parent / folder / f"{value}.toml"):
+        if cand.is_file():
+            return cand.resolve()
+    raise ConfigError(f"cannot find {value!r} (looked next to {base} and in the shipped {folder}/)")
+
+
+def load_launch_file(path: str | Path | None, overrides: dict[str, str] | None = None) -> LaunchFile:
+    """Read and validate a launch file; ``overrides`` are ``name:=value`` arguments.
+
+    Raises:
+        ConfigError: naming the file and key that is wrong.
+    """
+    p = default_launch_file() if path is None else resolve_path(str(path), Path.cwd(), "files")
+    try:
+        data = tomllib.loads(p.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{p}: not valid TOML ({exc})") from None
+    args = dict(data.get("args", {}))
+    for name, text in (overrides or {}).items():
+        if name not in args:
+            raise ConfigError(f"{p.name}: no launch argument {name!r}; declared: {', '.join(sorted(args)) or 'none'}")
+        args[name] = _typed_override(args[name], text, name)
+    meta = data.get("launch", {})
+    entries: list[NodeEntry] = []
+    for k, raw in enumerate(data.get("node", [])):
+        where = f"{p.name}: node[{k}]"
+        unknown = set(raw) - _NODE_KEYS
+        if unknown:
+            raise ConfigError(f"{where}: unknown key(s) {sorted(unknown)}; allowed: {sorted(_NODE_KEYS)}")
+        raw = _substitute(raw, args, where)
+        if not raw.get("enabled", True):
+            continue
+        if "type" not in raw:
+            raise ConfigError(f"{where}: missing 'type'")
+        name = raw.get("name", raw["type"])
+        if raw.get("transport", "ipc") not in ("ipc", "tcp"):
+            raise ConfigError(f"{where}: transport must be 'ipc' or 'tcp'")
+        entry = NodeEntry(
+            name=name, type=raw["type"], cls=node_class(raw["type"]), params=dict(raw.get("params", {})),
+            remap=dict(raw.get("remap", {})), respawn=bool(raw.get("respawn", False)),
+            respawn_delay_s=float(raw.get("respawn_delay_s", 0.5)),
+            respawn_max_retries=int(raw.get("respawn_max_retries", 3)),
+            required=bool(raw.get("required", False)), transport=raw.get("transport", "ipc"),
+        )
+        entry.instance()  # fail now, naming the node, if a parameter is wrong
+        entries.append(entry)
+    names = [e.name for e in entries]
+    dupes = {n for n in names if names.count(n) > 1}
+    if dupes:
+        raise ConfigError(f"{p.name}: node names must be unique; repeated: {sorted(dupes)}")
+    return LaunchFile(p, str(meta.get("description", "")), float(_substitute(meta.get("duration_s", 0), args, "launch.duration_s")), args, entries)

@@ -1,0 +1,304 @@
+"""``slipstack launch``: start a graph of node processes and supervise it.
+
+Starts nodes subscribers-first (reverse topological order of the topic graph, so a
+publisher's subscribers exist before its data flows), waits for each to report
+ready, forwards every log line prefixed with ``[node]``, respawns crashed nodes per
+their policy, and on SIGINT/SIGTERM stops them in reverse start order with
+SIGINT → SIGTERM → SIGKILL escalation. Children get a parent-death signal, so even a
+SIGKILLed launcher leaves no orphans behind.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import selectors
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import msgpack
+import zmq
+
+from slipstack.lib.errors import ConfigError, SlipstackError
+from slipstack.launch.launch_file import LaunchFile, NodeEntry, load_launch_file
+from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
+from slipstack.nodes.graph_info import write_graph
+from slipstack.nodes.transport import ipc_endpoint, make_run_dir
+
+__all__ = ["Launcher", "add_parser", "main_launch"]
+
+READY_TIMEOUT_S = 20.0
+STOP_GRACE_S = 0.4       # per node, after SIGINT, before the next node is told to stop
+TERM_AFTER_S = 1.5       # from the start of shutdown: SIGTERM whoever is left
+KILL_AFTER_S = 2.5       # from the start of shutdown: SIGKILL whoever is left
+
+
+def _free_tcp_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@dataclass
+class _Child:
+    entry: NodeEntry
+    endpoint: str
+    spec_path: Path
+    proc: subprocess.Popen | None = None
+    restarts: int = 0
+    respawn_at: float | None = None
+    buffer: bytes = b""
+    outputs: dict[str, str] = field(default_factory=dict)
+    inputs: dict[str, str] = field(default_factory=dict)
+
+
+class Launcher:
+    """Run the graph of ``launch``; ``echo`` receives every log line."""
+
+    def __init__(self, launch: LaunchFile, *, echo: Callable[[str], None] | None = None) -> None:
+        self.launch = launch
+        self.echo = echo or (lambda line: print(line, flush=True))
+        self.run_dir = make_run_dir()
+        self.zctx = zmq.Context.instance()
+        self.control_ep = f"ipc://{self.run_dir}/launcher.ctl"
+        self.control = self.zctx.socket(zmq.PULL)
+        self.control.setsockopt(zmq.LINGER, 0)
+        self.control.bind(self.control_ep)
+        self.selector = selectors.DefaultSelector()
+        self.children: dict[str, _Child] = {}
+        self.order: list[str] = []
+        self._stop_requested = False
+        self.exit_code = 0
+        self._wire()
+
+    # -- wiring ---------------------------------------------------------------------------
+    def _wire(self) -> None:
+        nodes = {e.name: e.instance() for e in self.launch.nodes}
+        for e in self.launch.nodes:
+            ep = f"tcp://127.0.0.1:{_free_tcp_port()}" if e.transport == "tcp" else ipc_endpoint(self.run_dir, e.name)
+            child = _Child(e, ep, self.run_dir / f"{e.name}.spec.json")
+            child.outputs = {t: type(nodes[e.name]).outputs[n].type.TYPE for n, t in e.output_topics(nodes[e.name]).items()}
+            child.inputs = {t: type(nodes[e.name]).inputs[n].type.TYPE for n, t in e.input_topics(nodes[e.name]).items()}
+            self.children[e.name] = child
+        publishers: dict[str, list[str]] = {}
+        for name, c in self.children.items():
+            for topic in c.outputs:
+                publishers.setdefault(topic, []).append(name)
+        for name, c in self.children.items():
+            expected = {
+                topic: sum(1 for other in self.children.values() if topic in other.inputs)
+                for topic in c.outputs
+            }
+            spec = {
+                "name": name,
+                "pub": c.endpoint,
+                "subs": {t: [self.children[p].endpoint for p in publishers.get(t, [])] for t in c.inputs},
+                "remap": c.entry.remap,
+                "expected_subscribers": {t: n for t, n in expected.items() if n},
+                "control": self.control_ep,
+                "params": c.entry.params,
+            }
+            c.spec_path.write_text(json.dumps(spec, indent=1))
+        self.order = self._start_order(publishers)
+
+    def _start_order(self, publishers: dict[str, list[str]]) -> list[str]:
+        """Subscribers before publishers: reverse topological order, back edges ignored."""
+        downstream = {
+            name: [o for o, oc in self.children.items() if o != name and set(oc.inputs) & set(c.outputs)]
+            for name, c in self.children.items()
+        }
+        seen: set[str] = set()
+        post: list[str] = []
+
+        def visit(n: str) -> None:
+            seen.add(n)
+            for m in downstream[n]:
+                if m not in seen:
+                    visit(m)
+            post.append(n)
+
+        for name in self.children:  # launch-file order breaks ties
+            if name not in seen:
+                visit(name)
+        return post  # post-order: every node after all it feeds (cycles cut where entered)
+
+    # -- processes --------------------------------------------------------------------------
+    def _spawn(self, c: _Child) -> None:
+        cmd = [sys.executable, "-m", "slipstack.launch.cli", "run", c.entry.type, "--spec", str(c.spec_path)]
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        c.proc = subprocess.Popen(
+            cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+            env=env, preexec_fn=set_parent_death_signal, start_new_session=True,
+        )
+        os.set_blocking(c.proc.stdout.fileno(), False)
+        self.selector.register(c.proc.stdout, selectors.EVENT_READ, c)
+        c.buffer = b""
+
+    def _forward_logs(self, timeout: float) -> None:
+        for key, _ in self.selector.select(timeout):
+            c: _Child = key.data
+            try:
+                chunk = key.fileobj.read()
+            except (OSError, ValueError):
+                chunk = b""
+            if not chunk:
+                self.selector.unregister(key.fileobj)
+                if c.buffer:
+                    self.echo(f"[{c.entry.name}] {c.buffer.decode(errors='replace')}")
+                    c.buffer = b""
+                continue
+            c.buffer += chunk
+            *lines, c.buffer = c.buffer.split(b"\n")
+            for line in lines:
+                self.echo(f"[{c.entry.name}] {line.decode(errors='replace')}")
+
+    def _wait_ready(self, names: set[str], timeout: float) -> None:
+        deadline = time.monotonic() + timeout
+        pending = set(names)
+        while pending:
+            if self._stop_requested:
+                raise SlipstackError("interrupted while starting")
+            while self.control.poll(0):
+                event = msgpack.unpackb(self.control.recv())
+                if event.get("event") == "ready":
+                    pending.discard(event.get("node"))
+            for name in list(pending):
+                proc = self.children[name].proc
+                if proc is not None and proc.poll() is not None:
+                    self._forward_logs(0.05)
+                    raise SlipstackError(
+                        f"node {name} ({self.children[name].entry.type}) exited with code {proc.returncode} "
+                        f"before it was ready; see its log lines above"
+                    )
+            if time.monotonic() > deadline:
+                raise SlipstackError(f"node(s) {', '.join(sorted(pending))} not ready after {timeout:.0f} s")
+            self._forward_logs(0.01)
+
+    def _write_graph(self) -> None:
+        write_graph(self.run_dir, {
+            "run_dir": str(self.run_dir),
+            "launcher_pid": os.getpid(),
+            "launch_file": str(self.launch.path),
+            "started_ns": time.time_ns(),
+            "nodes": {
+                name: {"type": c.entry.type, "pid": c.proc.pid if c.proc else None, "pub": c.endpoint,
+                       "inputs": c.inputs, "outputs": c.outputs, "restarts": c.restarts}
+                for name, c in self.children.items()
+            },
+        })
+
+    def _on_signal(self, signum: int, frame: object) -> None:
+        self._stop_requested = True
+
+    # -- the run ------------------------------------------------------------------------------
+    def run(self) -> int:
+        """Start, supervise until a signal, the duration or a required node ends; stop."""
+        old = {s: signal.signal(s, self._on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+        started: list[str] = []
+        try:
+            for name in self.order:
+                self._spawn(self.children[name])
+                started.append(name)
+                self._wait_ready({name}, READY_TIMEOUT_S)
+            self._write_graph()
+            self.echo(f"[launch] {len(started)} nodes ready: {', '.join(started)}; run dir {self.run_dir}")
+            self._supervise()
+        except SlipstackError as exc:
+            self.echo(f"[launch] error: {exc}")
+            self.exit_code = 1
+        finally:
+            self._shutdown(started)
+            for s, h in old.items():
+                signal.signal(s, h)
+            self.control.close(linger=0)
+        return self.exit_code
+
+    def _supervise(self) -> None:
+        end = time.monotonic() + self.launch.duration_s if self.launch.duration_s > 0 else None
+        while not self._stop_requested:
+            if end is not None and time.monotonic() >= end:
+                self.echo(f"[launch] duration {self.launch.duration_s:g} s reached")
+                return
+            self._forward_logs(0.05)
+            while self.control.poll(0):
+                self.control.recv()  # ready reports of respawned nodes
+            now = time.monotonic()
+            for name, c in self.children.items():
+                if c.respawn_at is not None and now >= c.respawn_at:
+                    c.respawn_at = None
+                    c.restarts += 1
+                    self.echo(f"[launch] respawning {name} (restart {c.restarts}/{c.entry.respawn_max_retries})")
+                    self._spawn(c)
+                    self._write_graph()
+                    continue
+                if c.proc is None or c.respawn_at is not None or c.proc.poll() is None:
+                    continue
+                code = c.proc.returncode
+                self._forward_logs(0.0)
+                self.echo(f"[launch] node {name} exited with code {code}")
+                if c.entry.required:
+                    self.echo(f"[launch] {name} is required; stopping the launch")
+                    if code != 0:
+                        self.exit_code = 1
+                    return
+                if c.entry.respawn and c.restarts < c.entry.respawn_max_retries:
+                    c.respawn_at = now + c.entry.respawn_delay_s
+                else:
+                    c.proc = None
+                    if c.entry.respawn:
+                        self.echo(f"[launch] {name} used up its {c.entry.respawn_max_retries} restarts; not respawning")
+
+    def _shutdown(self, started: list[str]) -> None:
+        t0 = time.monotonic()
+        live = [self.children[n] for n in reversed(started) if self.children[n].proc is not None]
+        for c in live:
+            if c.proc.poll() is None:
+                c.proc.send_signal(signal.SIGINT)
+                deadline = time.monotonic() + STOP_GRACE_S
+                while c.proc.poll() is None and time.monotonic() < deadline:
+                    self._forward_logs(0.01)
+        escalations = ((TERM_AFTER_S, signal.SIGTERM), (KILL_AFTER_S, signal.SIGKILL))
+        for after, sig in escalations:
+            while any(c.proc.poll() is None for c in live) and time.monotonic() - t0 < after:
+                self._forward_logs(0.02)
+            for c in live:
+                if c.proc.poll() is None:
+                    self.echo(f"[launch] {c.entry.name} still running; sending {sig.name}")
+                    c.proc.send_signal(sig)
+        for c in live:
+            c.proc.wait()
+        self._forward_logs(0.0)
+        shutil.rmtree(self.run_dir, ignore_errors=True)
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "launch", help="run a graph (default: the simulated rig and the full stack)",
+        description="Run a graph of nodes from a TOML launch file; name:=value sets launch arguments.",
+    )
+    p.add_argument("file", nargs="?", help="launch file (path or shipped name); default: the default graph")
+    p.add_argument("args", nargs="*", metavar="name:=value", help="launch argument overrides")
+    p.add_argument("--show-args", action="store_true", help="print the launch arguments and exit")
+    p.set_defaults(func=main_launch)
+
+
+def main_launch(args: argparse.Namespace) -> int:
+    positional = list(args.args)
+    file = args.file
+    if file is not None and ":=" in file:  # `slipstack launch name:=value` with the default file
+        positional.insert(0, file)
+        file = None
+    launch = load_launch_file(file, parse_assignments(positional))
+    if args.show_args:
+        for name, value in launch.args.items():
+            print(f"{name} := {value!r}")
+        return 0
+    return Launcher(launch).run()

@@ -1,0 +1,1 @@
+"""Device wire-protocol codecs: bytes in, values out (PROTOCOLS.md)."""

@@ -1,0 +1,14 @@
+"""Typed message records and their MessagePack encoding.
+
+>>> from slipstack.messages import Wrench, encode, decode
+"""
+
+from slipstack.messages.base import Header, Message, decode, encode, registry, validate
+from slipstack.messages.types import (
+    STATUS_OK, Contact, Cor, Diagnostics, GripCommand, RigTruth, Slip, TactileFrame, Wrench,
+)
+
+__all__ = [
+    "Header", "Message", "decode", "encode", "registry", "validate", "STATUS_OK",
+    "Contact", "Cor", "Diagnostics", "GripCommand", "RigTruth", "Slip", "TactileFrame", "Wrench",
+]

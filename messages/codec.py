@@ -1,0 +1,98 @@
+"""MessagePack encoding of slipstack messages.
+
+Wire format of one frame payload (a msgpack array, positional like msgspec's
+array-like structs; new fields may only be appended, with defaults)::
+
+    [type_name: str, version: int,
+     [stamp_ns, seq, pub_ns, {source_name: stamp_ns}],   # the header
+     [field_0, field_1, ...]]                              # the body, declared order
+
+numpy arrays travel as msgpack extension type 1 (see :func:`pack_array`):
+``u8 len(dtype) | dtype str (ascii, e.g. "<f8") | u8 ndim | u32 LE × ndim shape | raw bytes``
+— compact and exact, never lists of floats.
+"""
+
+from __future__ import annotations
+
+import struct
+from typing import Any
+
+import msgpack
+import numpy as np
+
+from slipstack.lib.errors import DecodeError
+
+__all__ = ["ARRAY_EXT", "ALLOWED_DTYPES", "pack_array", "unpack_array", "packb", "unpackb"]
+
+ARRAY_EXT = 1
+ALLOWED_DTYPES = frozenset({"<f8", "<f4", "<i8", "<i4", "<u2", "|u1", "|b1"})
+_U32 = struct.Struct("<I")
+
+
+def pack_array(arr: np.ndarray) -> msgpack.ExtType:
+    """Encode a numpy array as extension type :data:`ARRAY_EXT` (little-endian, C order)."""
+    a = np.ascontiguousarray(arr)
+    dt = a.dtype.newbyteorder("<") if a.dtype.byteorder == ">" else a.dtype
+    code = dt.str
+    if code not in ALLOWED_DTYPES:
+        raise TypeError(f"array dtype {a.dtype} cannot be sent; use one of {sorted(ALLOWED_DTYPES)}")
+    a = a.astype(dt, copy=False)
+    head = bytes([len(code)]) + code.encode() + bytes([a.ndim]) + b"".join(_U32.pack(n) for n in a.shape)
+    return msgpack.ExtType(ARRAY_EXT, head + a.tobytes())
+
+
+def unpack_array(data: bytes) -> np.ndarray:
+    """Decode :func:`pack_array` output; raises :class:`DecodeError` on any inconsistency."""
+    try:
+        n = data[0]
+        code = data[1 : 1 + n].decode("ascii")
+        ndim = data[1 + n]
+        off = 2 + n
+        shape = tuple(_U32.unpack_from(data, off + 4 * k)[0] for k in range(ndim))
+        off += 4 * ndim
+    except (IndexError, UnicodeDecodeError, struct.error) as exc:
+        raise DecodeError(f"array: truncated or corrupt header ({exc})") from None
+    if code not in ALLOWED_DTYPES:
+        raise DecodeError(f"array: dtype {code!r} is not allowed")
+    dtype = np.dtype(code)
+    count = int(np.prod(shape, dtype=np.int64)) if shape else 1
+    if len(data) - off != count * dtype.itemsize:
+        raise DecodeError(
+            f"array: {len(data) - off} data bytes do not match shape {shape} of {code}"
+        )
+    arr = np.frombuffer(data, dtype=dtype, count=count, offset=off).reshape(shape)
+    return arr
+
+
+def _default(obj: Any) -> Any:
+    if isinstance(obj, np.ndarray):
+        return pack_array(obj)
+    if isinstance(obj, np.generic):
+        return obj.item()
+    raise TypeError(f"cannot encode {type(obj).__name__}")
+
+
+def _ext_hook(code: int, data: bytes) -> Any:
+    if code != ARRAY_EXT:
+        raise DecodeError(f"unknown msgpack extension type {code}")
+    return unpack_array(data)
+
+
+_packer_default = _default
+
+
+def packb(obj: Any) -> bytes:
+    """Encode a tree of builtins and numpy arrays to MessagePack bytes."""
+    return msgpack.packb(obj, default=_packer_default, use_bin_type=True)
+
+
+def unpackb(payload: bytes) -> Any:
+    """Decode MessagePack bytes; any failure becomes :class:`DecodeError`."""
+    try:
+        return msgpack.unpackb(
+            payload, ext_hook=_ext_hook, raw=False, strict_map_key=True, use_list=True
+        )
+    except DecodeError:
+        raise
+    except Exception as exc:  # msgpack raises a zoo of types on garbage
+        raise DecodeError(f"payload: not a valid MessagePack frame ({type(exc).__name__}: {exc})") from None

@@ -1,0 +1,1 @@
+"""Nodes: thin adapters from topics to ``slipstack.lib`` calls, and tools on the bus."""

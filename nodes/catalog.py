@@ -1,0 +1,30 @@
+"""Which node types exist: the names ``slipstack run NODE`` and launch files use."""
+
+from __future__ import annotations
+
+import importlib
+
+from slipstack.lib.errors import ConfigError
+from slipstack.nodes.node import Node
+
+__all__ = ["NODE_TYPES", "node_class"]
+
+NODE_TYPES: dict[str, str] = {
+    "wrench_source": "slipstack.nodes.demo:WrenchSource",
+    "relay": "slipstack.nodes.demo:Relay",
+    "sink": "slipstack.nodes.demo:Sink",
+}
+
+
+def node_class(type_name: str) -> type[Node]:
+    """Import and return the node class registered as ``type_name``.
+
+    Raises:
+        ConfigError: unknown name (the message lists the known ones).
+    """
+    try:
+        path = NODE_TYPES[type_name]
+    except KeyError:
+        raise ConfigError(f"unknown node type {type_name!r}; known: {', '.join(sorted(NODE_TYPES))}") from None
+    module, _, cls = path.partition(":")
+    return getattr(importlib.import_module(module), cls)

@@ -1,0 +1,158 @@
+"""What both executors share: publishing, receiving, counting, diagnostics.
+
+A :class:`NodeHost` wraps one node. The executor gives it a clock and a ``send``
+function; the host fills headers, encodes, decodes and validates incoming frames,
+detects sequence gaps, runs handlers without letting them raise, and keeps every
+counter that ``diagnostics`` reports.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+import traceback
+from collections import defaultdict, deque
+from typing import Any, Callable
+
+import numpy as np
+
+from slipstack.lib.errors import DecodeError
+from slipstack.messages import Diagnostics, Header, Message, decode, encode
+from slipstack.nodes.node import Node
+
+__all__ = ["NodeHost", "DIAGNOSTICS_TOPIC"]
+
+DIAGNOSTICS_TOPIC = "diagnostics"
+
+
+class NodeHost:
+    """Runs one node's handlers for an executor.
+
+    Args:
+        node: the node object.
+        name: the instance name in the graph (defaults to the node class's name).
+        clock: returns executor time in ns.
+        send: ``send(topic, payload)`` puts an encoded frame on the bus.
+        remap: default topic name → topic name used in this graph.
+        measure_handlers: time handlers with the wall clock for diagnostics (off in
+            the deterministic in-process executor).
+        log: writes one line.
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        clock: Callable[[], int],
+        send: Callable[[str, bytes], None],
+        *,
+        name: str | None = None,
+        remap: dict[str, str] | None = None,
+        measure_handlers: bool = True,
+        log: Callable[[str], None] | None = None,
+    ) -> None:
+        self.node = node
+        self.name = name or node.name
+        self.clock = clock
+        self._send = send
+        remap = remap or {}
+        self.input_topics = {n: remap.get(i.topic, i.topic) for n, i in node.inputs.items()}
+        self.output_topics = {n: remap.get(o.topic, o.topic) for n, o in node.outputs.items()}
+        self._seq: dict[str, int] = {n: 0 for n in node.outputs}
+        self._last_seq: dict[str, int] = {}
+        self.counters: dict[str, float] = defaultdict(int)
+        self.status = "ok"
+        self.detail = ""
+        self.last_error = ""
+        self._diag_seq = 0
+        self._measure = measure_handlers
+        self._durations: deque[int] = deque(maxlen=2000)
+        self._log = log or (lambda text: print(text, file=sys.stderr, flush=True))
+        self._handlers = {n: getattr(node, f"on_{n}") for n in node.inputs}
+        self._timer_handlers = {n: getattr(node, f"on_timer_{n}") for n in node.timers}
+
+    # -- the Context a handler sees -------------------------------------------------
+    def now_ns(self) -> int:
+        return self.clock()
+
+    def publish(self, output: str, msg: Message, *, stamp_ns: int, sources: dict[str, int] | None = None) -> None:
+        seq = self._seq[output]
+        self._seq[output] = seq + 1
+        header = Header(int(stamp_ns), seq, self.clock(), sources or {})
+        topic = self.output_topics[output]
+        self._send(topic, encode(dataclasses.replace(msg, header=header)))
+        self.counters[f"out.{topic}.published"] += 1
+
+    def count(self, name: str, increment: int = 1) -> None:
+        self.counters[name] += increment
+
+    def set_status(self, status: str, detail: str = "") -> None:
+        self.status, self.detail = status, detail
+
+    def log(self, text: str) -> None:
+        self._log(text)
+
+    # -- receiving ---------------------------------------------------------------------
+    def receive(self, input_name: str, payload: bytes) -> Message | None:
+        """Decode and validate one frame; count it; ``None`` if rejected."""
+        topic = self.input_topics[input_name]
+        self.counters[f"in.{topic}.received"] += 1
+        try:
+            msg = decode(payload, self.node.inputs[input_name].type)
+        except DecodeError as exc:
+            self.counters[f"in.{topic}.rejected"] += 1
+            self.last_error = f"{topic}: {exc}"
+            return None
+        seq = msg.header.seq
+        last = self._last_seq.get(topic)
+        if last is not None and seq > last + 1:
+            self.counters[f"in.{topic}.lost"] += seq - last - 1
+        self._last_seq[topic] = seq
+        return msg
+
+    def count_dropped(self, input_name: str, n: int) -> None:
+        """Count frames skipped on purpose (drain-to-latest, queue overflow)."""
+        if n:
+            self.counters[f"in.{self.input_topics[input_name]}.dropped"] += n
+
+    def _guarded(self, label: str, fn: Callable[..., None], *args: Any) -> None:
+        t0 = time.perf_counter_ns() if self._measure else 0
+        try:
+            fn(*args)
+        except Exception:  # a handler bug must not kill the control loop
+            self.counters["handler_errors"] += 1
+            self.status = "error"
+            self.detail = f"{label} raised; see log"
+            self._log(f"error in {label}:\n{traceback.format_exc().rstrip()}")
+        if self._measure:
+            self._durations.append(time.perf_counter_ns() - t0)
+
+    def dispatch(self, input_name: str, msg: Message) -> None:
+        """Run the input's handler; exceptions are counted and logged, never raised."""
+        self._guarded(f"on_{input_name}", self._handlers[input_name], msg, self)
+
+    def fire_timer(self, timer: str) -> None:
+        self._guarded(f"on_timer_{timer}", self._timer_handlers[timer], self)
+
+    def call(self, label: str, fn: Callable[..., None], *args: Any) -> None:
+        """Run any node callback (start, stop, on_readable) under the same guard."""
+        self._guarded(label, fn, *args)
+
+    # -- diagnostics -------------------------------------------------------------------
+    def diagnostics(self) -> bytes:
+        """Encode the node's current :class:`Diagnostics` frame."""
+        counters = dict(self.counters)
+        if self._durations:
+            d = np.fromiter(self._durations, dtype=np.int64)
+            counters["handler.p50_us"] = float(np.percentile(d, 50)) / 1e3
+            counters["handler.p99_us"] = float(np.percentile(d, 99)) / 1e3
+        now = self.clock()
+        msg = Diagnostics(
+            node=self.name,
+            status=self.status if not self.detail else f"{self.status}: {self.detail}",
+            counters=counters,
+            last_error=self.last_error,
+            header=Header(now, self._diag_seq, now, {}),
+        )
+        self._diag_seq += 1
+        return encode(msg)

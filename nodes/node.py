@@ -1,0 +1,182 @@
+"""The node model: named inputs and outputs, one handler per input, parameters.
+
+A node is executor-agnostic: the same object runs in the process executor
+(ZeroMQ, wall clock) and the in-process executor (no sockets, simulated clock).
+Handlers read time only from ``ctx.now_ns()``.
+
+Declaring a node::
+
+    class Relay(Node):
+        '''Republish wrenches unchanged.'''
+        name = "relay"
+        inputs = {"wrench": Input("ft/wrench", Wrench)}
+        outputs = {"out": Output("ft/relayed", Wrench)}
+
+        def on_wrench(self, msg: Wrench, ctx: Context) -> None:
+            ctx.publish("out", msg, stamp_ns=msg.header.stamp_ns)
+
+Timers are inputs too: ``timers = {"tick": 0.001}`` calls ``on_timer_tick(ctx)``
+every millisecond of executor time, paced by absolute deadlines.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import typing
+from dataclasses import dataclass
+from typing import Any, ClassVar, Protocol
+
+from slipstack.lib.errors import ConfigError
+from slipstack.messages import Message
+
+__all__ = ["Input", "Output", "Node", "Context", "IoSource", "NoParams", "make_params", "param_help"]
+
+
+@dataclass(frozen=True)
+class Input:
+    """A subscription.
+
+    topic: default topic name (a launch file may remap it).
+    type: message type expected; other types are rejected and counted.
+    policy: ``latest`` (drain to the newest, count the skipped ones as dropped — for
+        control data) or ``queue`` (handle every message, bounded by ``depth``).
+    """
+
+    topic: str
+    type: type[Message]
+    policy: str = "latest"
+    depth: int = 100
+
+    def __post_init__(self) -> None:
+        if self.policy not in ("latest", "queue"):
+            raise ConfigError(f"input policy must be 'latest' or 'queue', got {self.policy!r}")
+
+
+@dataclass(frozen=True)
+class Output:
+    """A publication: default topic name and message type."""
+
+    topic: str
+    type: type[Message]
+
+
+class Context(Protocol):
+    """What an executor gives a handler."""
+
+    def now_ns(self) -> int:
+        """Executor time in integer nanoseconds (monotonic or simulated)."""
+
+    def publish(self, output: str, msg: Message, *, stamp_ns: int, sources: dict[str, int] | None = None) -> None:
+        """Publish ``msg`` on the named output; the executor fills the header."""
+
+    def count(self, name: str, increment: int = 1) -> None:
+        """Add to a node-specific counter reported on ``diagnostics``."""
+
+    def set_status(self, status: str, detail: str = "") -> None:
+        """Set the node's status string reported on ``diagnostics``."""
+
+    def log(self, text: str) -> None:
+        """Write one log line (the launcher prefixes it with the node name)."""
+
+
+class IoSource(Protocol):
+    """A file descriptor a node wants watched (serial port, UDP socket)."""
+
+    def fileno(self) -> int: ...
+
+
+@dataclass(frozen=True)
+class NoParams:
+    """A node without parameters."""
+
+
+class Node:
+    """Base class of all nodes; subclasses declare the class attributes below."""
+
+    name: ClassVar[str] = "node"
+    inputs: ClassVar[dict[str, Input]] = {}
+    outputs: ClassVar[dict[str, Output]] = {}
+    timers: ClassVar[dict[str, float]] = {}
+    Params: ClassVar[type] = NoParams
+
+    def __init__(self, params: Any = None) -> None:
+        self.params = params if params is not None else self.Params()
+
+    def start(self, ctx: Context) -> None:
+        """Called once before the first message (open devices here)."""
+
+    def stop(self, ctx: Context) -> None:
+        """Called once on shutdown (close devices here)."""
+
+    def io_sources(self) -> list[IoSource]:
+        """Descriptors to watch; ``on_readable(source, ctx)`` is called when one is readable."""
+        return []
+
+    def on_readable(self, source: IoSource, ctx: Context) -> None:
+        """Handle a readable descriptor returned by :meth:`io_sources`."""
+
+
+def _coerce(value: Any, hint: Any, name: str) -> Any:
+    origin = typing.get_origin(hint) or hint
+    if origin is typing.Union or str(origin) == "types.UnionType":
+        args = [a for a in typing.get_args(hint) if a is not type(None)]
+        if value is None or value == "none":
+            return None
+        return _coerce(value, args[0], name)
+    try:
+        if origin is bool:
+            if isinstance(value, str):
+                if value.lower() in ("1", "true", "yes", "on"):
+                    return True
+                if value.lower() in ("0", "false", "no", "off"):
+                    return False
+                raise ValueError(value)
+            return bool(value)
+        if origin in (int, float, str):
+            if origin is int and isinstance(value, float) and not value.is_integer():
+                raise ValueError(value)
+            return origin(value)
+        if origin in (list, tuple):
+            if isinstance(value, str):
+                value = [v for v in value.split(",") if v]
+            (item,) = typing.get_args(hint)[:1] or (str,)
+            return origin(_coerce(v, item, name) for v in value)
+        if origin is dict:
+            return dict(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"parameter {name}: cannot read {value!r} as {getattr(origin, '__name__', origin)}") from None
+    return value
+
+
+def make_params(params_cls: type, values: dict[str, Any], node_name: str = "node") -> Any:
+    """Build a params dataclass from loose values (launch file, ``name:=value``).
+
+    Raises:
+        ConfigError: an unknown name (listing the known ones) or an unreadable value.
+    """
+    hints = typing.get_type_hints(params_cls)
+    known = {f.name for f in dataclasses.fields(params_cls)}
+    unknown = sorted(set(values) - known)
+    if unknown:
+        raise ConfigError(
+            f"{node_name}: unknown parameter(s) {', '.join(unknown)}; known: {', '.join(sorted(known)) or 'none'}"
+        )
+    coerced = {k: _coerce(v, hints[k], f"{node_name}.{k}") for k, v in values.items()}
+    try:
+        return params_cls(**coerced)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{node_name}: {exc}") from None
+
+
+def param_help(params_cls: type) -> list[tuple[str, str, str, str]]:
+    """Rows ``(name, type, default, help)`` for ``--help`` output."""
+    hints = typing.get_type_hints(params_cls)
+    rows = []
+    for f in dataclasses.fields(params_cls):
+        default = f.default if f.default is not dataclasses.MISSING else (
+            f.default_factory() if f.default_factory is not dataclasses.MISSING else "(required)"
+        )
+        hint = hints[f.name]
+        type_name = getattr(hint, "__name__", str(hint).replace("typing.", ""))
+        rows.append((f.name, type_name, repr(default), f.metadata.get("help", "")))
+    return rows

@@ -1,0 +1,235 @@
+"""The process executor: one node in one OS process, ZeroMQ PUB/SUB, monotonic clock.
+
+Life cycle: bind the XPUB, connect the SUBs, call ``node.start``, report *ready* to
+the launcher, then hold all data flow (timers, device I/O, handlers) until every
+subscriber the launch graph expects has subscribed — so nobody misses the first
+message — and run the loop until SIGINT/SIGTERM. Timers are paced by absolute
+deadlines; inputs are drained to the newest frame (``latest``) or queued
+(``queue``); every drop and rejected frame is counted and published on
+``diagnostics``.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+import msgpack
+import zmq
+
+from slipstack.nodes.host import DIAGNOSTICS_TOPIC, NodeHost
+from slipstack.nodes.node import Node
+from slipstack.nodes.transport import make_pub, make_sub
+
+__all__ = ["RunSpec", "ProcessExecutor"]
+
+_DRAIN_LIMIT = 5000  # frames read from one socket per wake-up before others get a turn
+
+
+@dataclass
+class RunSpec:
+    """How one node process is wired (written by the launcher, or built by hand).
+
+    pub: endpoint to bind (``ipc://…`` or ``tcp://…``); ``None`` for a pure sink.
+    subs: topic → endpoints publishing it.
+    expected_subscribers: topic → number of subscriptions to wait for before data flows.
+    control: the launcher's PULL endpoint for the ready report, or ``None``.
+    """
+
+    name: str
+    pub: str | None = None
+    subs: dict[str, list[str]] = field(default_factory=dict)
+    remap: dict[str, str] = field(default_factory=dict)
+    expected_subscribers: dict[str, int] = field(default_factory=dict)
+    control: str | None = None
+    diagnostics_period_s: float = 1.0
+    handshake_timeout_s: float = 10.0
+
+
+class _Stop(Exception):
+    pass
+
+
+class ProcessExecutor:
+    """Run ``node`` as this process's only node, wired by ``spec``."""
+
+    def __init__(self, node: Node, spec: RunSpec) -> None:
+        self.node = node
+        self.spec = spec
+        self.zctx = zmq.Context.instance()
+        self.pub = make_pub(self.zctx, spec.pub) if spec.pub else None
+        self.host = NodeHost(node, time.monotonic_ns, self._send, name=spec.name, remap=spec.remap, log=self._log)
+        self.subs: dict[str, zmq.Socket] = {}
+        for input_name, topic in self.host.input_topics.items():
+            policy = node.inputs[input_name]
+            hwm = 1000 if policy.policy == "queue" else 100
+            self.subs[input_name] = make_sub(self.zctx, spec.subs.get(topic, []), topic, rcvhwm=hwm)
+        self._sub_topic = {sock: (name, self.host.input_topics[name].encode()) for name, sock in self.subs.items()}
+        self._queues = {n: deque(maxlen=i.depth) for n, i in node.inputs.items() if i.policy == "queue"}
+        self._subscriptions: dict[bytes, int] = {}
+        self._stopping = False
+
+    # -- plumbing -----------------------------------------------------------------------
+    def _log(self, text: str) -> None:
+        print(text, file=sys.stderr, flush=True)
+
+    def _send(self, topic: str, payload: bytes) -> None:
+        if self.pub is None:
+            raise RuntimeError(f"node {self.spec.name} has no publish endpoint")
+        try:
+            self.pub.send_multipart((topic.encode(), payload), flags=zmq.NOBLOCK, copy=True)
+        except zmq.Again:
+            self.host.count(f"out.{topic}.dropped_hwm")
+
+    def _read_subscriptions(self) -> None:
+        while True:
+            try:
+                frame = self.pub.recv(zmq.NOBLOCK)
+            except zmq.Again:
+                return
+            if frame:
+                delta = 1 if frame[0] == 1 else -1
+                self._subscriptions[frame[1:]] = self._subscriptions.get(frame[1:], 0) + delta
+
+    def _subscribers_joined(self) -> bool:
+        self._read_subscriptions()
+        return all(
+            self._subscriptions.get(topic.encode(), 0) >= n for topic, n in self.spec.expected_subscribers.items()
+        )
+
+    def _report(self, event: str) -> None:
+        if not self.spec.control:
+            return
+        sock = self.zctx.socket(zmq.PUSH)
+        sock.setsockopt(zmq.LINGER, 1000)
+        sock.connect(self.spec.control)
+        sock.send(msgpack.packb({"node": self.spec.name, "event": event, "pid": os.getpid()}))
+        sock.close()
+
+    def _on_signal(self, signum: int, frame: Any) -> None:
+        self._stopping = True
+
+    # -- the loop -----------------------------------------------------------------------
+    def _wait_for_subscribers(self) -> None:
+        deadline = time.monotonic() + self.spec.handshake_timeout_s
+        while not self._subscribers_joined():
+            if self._stopping:
+                raise _Stop
+            if time.monotonic() > deadline:
+                missing = {
+                    t: f"{self._subscriptions.get(t.encode(), 0)}/{n}"
+                    for t, n in self.spec.expected_subscribers.items()
+                    if self._subscriptions.get(t.encode(), 0) < n
+                }
+                self._log(f"warning: subscribers still missing after {self.spec.handshake_timeout_s} s: {missing}; starting anyway")
+                return
+            time.sleep(0.002)
+
+    def _drain(self, input_name: str, sock: zmq.Socket) -> None:
+        want = self._sub_topic[sock][1]
+        host = self.host
+        latest = None
+        kept = 0
+        queue = self._queues.get(input_name)
+        for _ in range(_DRAIN_LIMIT):
+            try:
+                parts = sock.recv_multipart(zmq.NOBLOCK, copy=True)
+            except zmq.Again:
+                break
+            if len(parts) != 2 or parts[0] != want:
+                if len(parts) != 2:
+                    host.count(f"in.{host.input_topics[input_name]}.rejected")
+                    host.last_error = f"{host.input_topics[input_name]}: expected [topic, payload], got {len(parts)} parts"
+                continue
+            msg = host.receive(input_name, parts[1])
+            if msg is None:
+                continue
+            if queue is None:
+                latest = msg
+                kept += 1
+            else:
+                if len(queue) == queue.maxlen:
+                    host.count_dropped(input_name, 1)
+                queue.append(msg)
+        if queue is None:
+            if latest is not None:
+                host.count_dropped(input_name, kept - 1)
+                host.dispatch(input_name, latest)
+        else:
+            while queue:
+                host.dispatch(input_name, queue.popleft())
+
+    def run(self) -> int:
+        """Run until SIGINT/SIGTERM; returns the process exit code."""
+        signal.signal(signal.SIGINT, self._on_signal)
+        signal.signal(signal.SIGTERM, self._on_signal)
+        host = self.host
+        try:
+            host.call("start", self.node.start, host)
+            self._report("ready")
+            if self.pub is not None:
+                self._wait_for_subscribers()
+            self._loop()
+        except _Stop:
+            pass
+        finally:
+            host.call("stop", self.node.stop, host)
+            if self.pub is not None:
+                self._send(DIAGNOSTICS_TOPIC, host.diagnostics())
+            for sock in [*self.subs.values(), *([self.pub] if self.pub else [])]:
+                sock.close(linger=0)
+        return 0
+
+    def _loop(self) -> None:
+        host = self.host
+        poller = zmq.Poller()
+        for sock in self.subs.values():
+            poller.register(sock, zmq.POLLIN)
+        if self.pub is not None:
+            poller.register(self.pub, zmq.POLLIN)
+        io = {}
+        for src in self.node.io_sources():
+            poller.register(src.fileno(), zmq.POLLIN)
+            io[src.fileno()] = src
+        now = time.monotonic_ns()
+        deadlines = {t: now + round(p * 1e9) for t, p in self.node.timers.items()}
+        periods = {t: round(p * 1e9) for t, p in self.node.timers.items()}
+        diag_period = round(self.spec.diagnostics_period_s * 1e9)
+        next_diag = now + diag_period
+        while not self._stopping:
+            now = time.monotonic_ns()
+            next_due = min([next_diag, *deadlines.values()])
+            wait_ns = next_due - now
+            if wait_ns >= 1_000_000:
+                events = dict(poller.poll(min(wait_ns // 1_000_000, 50)))
+            else:
+                events = dict(poller.poll(0))
+                if not events and wait_ns > 0:
+                    time.sleep(wait_ns / 1e9)
+            for input_name, sock in self.subs.items():
+                if sock in events:
+                    self._drain(input_name, sock)
+            if self.pub is not None and self.pub in events:
+                self._read_subscriptions()
+            for fd, src in io.items():
+                if fd in events:
+                    host.call("on_readable", self.node.on_readable, src, host)
+            now = time.monotonic_ns()
+            for timer, due in deadlines.items():
+                if now >= due:
+                    host.fire_timer(timer)
+                    period = periods[timer]
+                    behind = (now - due) // period
+                    if behind:
+                        host.count(f"timer.{timer}.overruns", behind)
+                    deadlines[timer] = due + (behind + 1) * period
+            if now >= next_diag and self.pub is not None:
+                self._send(DIAGNOSTICS_TOPIC, host.diagnostics())
+                next_diag += diag_period
+            elif now >= next_diag:
+                next_diag += diag_period

@@ -1,0 +1,73 @@
+"""ZeroMQ transport details: endpoints, socket options, the run directory.
+
+Frames are multipart ``[topic, msgpack payload]``. Each publishing node binds one
+XPUB socket (verbose, so it sees every subscription and can wait for its
+subscribers: the readiness handshake against slow joiners); each input connects
+one SUB socket to every endpoint that publishes its topic.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import zmq
+
+from slipstack.lib.errors import ConfigError
+
+__all__ = ["make_run_dir", "ipc_endpoint", "make_pub", "make_sub", "RUN_ROOT_ENV", "run_root"]
+
+RUN_ROOT_ENV = "SLIPSTACK_RUN_ROOT"
+IPC_PATH_MAX = 107  # Linux sun_path limit (libzmq zmq_ipc)
+
+
+def run_root() -> Path:
+    """Where run directories live: ``$SLIPSTACK_RUN_ROOT`` or ``/tmp/slipstack-<uid>``."""
+    root = os.environ.get(RUN_ROOT_ENV) or os.path.join(tempfile.gettempdir(), f"slipstack-{os.getuid()}")
+    path = Path(root)
+    path.mkdir(mode=0o700, parents=True, exist_ok=True)
+    return path
+
+
+def make_run_dir(prefix: str = "run") -> Path:
+    """A new private (mode 0700) run directory for one launched graph."""
+    return Path(tempfile.mkdtemp(prefix=f"{prefix}-", dir=run_root()))
+
+
+def ipc_endpoint(run_dir: Path, name: str) -> str:
+    """The ``ipc://`` endpoint of node ``name`` inside ``run_dir``.
+
+    Raises:
+        ConfigError: if the path exceeds the 107-character limit of Linux.
+    """
+    path = str(run_dir / f"{name}.pub")
+    if len(path) > IPC_PATH_MAX:
+        raise ConfigError(
+            f"ipc path {path} is {len(path)} characters; Linux allows {IPC_PATH_MAX}. "
+            f"Set {RUN_ROOT_ENV} to a shorter directory."
+        )
+    return f"ipc://{path}"
+
+
+def make_pub(ctx: zmq.Context, endpoint: str, *, sndhwm: int = 1000) -> zmq.Socket:
+    """Bind a verbose XPUB socket (subscriptions are visible for the handshake)."""
+    sock = ctx.socket(zmq.XPUB)
+    sock.setsockopt(zmq.LINGER, 0)
+    sock.setsockopt(zmq.SNDHWM, sndhwm)
+    sock.setsockopt(zmq.XPUB_VERBOSE, 1)
+    sock.bind(endpoint)
+    return sock
+
+
+def make_sub(ctx: zmq.Context, endpoints: list[str], topic: str | None, *, rcvhwm: int = 1000) -> zmq.Socket:
+    """Connect a SUB socket to ``endpoints``, subscribed to ``topic`` (all if ``None``)."""
+    sock = ctx.socket(zmq.SUB)
+    sock.setsockopt(zmq.LINGER, 0)
+    sock.setsockopt(zmq.RCVHWM, rcvhwm)
+    sock.setsockopt(zmq.RECONNECT_IVL, 20)
+    sock.setsockopt(zmq.RECONNECT_IVL_MAX, 200)
+    sock.setsockopt(zmq.SUBSCRIBE, b"" if topic is None else topic.encode())
+    for ep in endpoints:
+        sock.connect(ep)
+    return sock
