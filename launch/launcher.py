@@ -58,6 +58,7 @@ class _Child:
     buffer: bytes = b""
     outputs: dict[str, str] = field(default_factory=dict)
     inputs: dict[str, str] = field(default_factory=dict)
+    inject: dict[str, str] = field(default_factory=dict)
 
 
 class Launcher:
@@ -87,6 +88,7 @@ class Launcher:
             child = _Child(e, ep, self.run_dir / f"{e.name}.spec.json")
             child.outputs = {t: type(nodes[e.name]).outputs[n].type.TYPE for n, t in e.output_topics(nodes[e.name]).items()}
             child.inputs = {t: type(nodes[e.name]).inputs[n].type.TYPE for n, t in e.input_topics(nodes[e.name]).items()}
+            child.inject = {t: ipc_endpoint(self.run_dir, f"{e.name}.in{k}") for k, t in enumerate(child.inputs)}
             self.children[e.name] = child
         publishers: dict[str, list[str]] = {}
         for name, c in self.children.items():
@@ -102,6 +104,7 @@ class Launcher:
                 "pub": c.endpoint,
                 "subs": {t: [self.children[p].endpoint for p in publishers.get(t, [])] for t in c.inputs},
                 "remap": c.entry.remap,
+                "inject": c.inject,
                 "expected_subscribers": {t: n for t, n in expected.items() if n},
                 "control": self.control_ep,
                 "params": c.entry.params,
@@ -190,7 +193,7 @@ class Launcher:
             "started_ns": time.time_ns(),
             "nodes": {
                 name: {"type": c.entry.type, "pid": c.proc.pid if c.proc else None, "pub": c.endpoint,
-                       "inputs": c.inputs, "outputs": c.outputs, "restarts": c.restarts}
+                       "inputs": c.inputs, "outputs": c.outputs, "inject": c.inject, "restarts": c.restarts}
                 for name, c in self.children.items()
             },
         })

@@ -4,7 +4,9 @@
 
     {"run_dir": str, "launcher_pid": int, "started_ns": int,
      "nodes": {name: {"type": str, "pid": int | null, "pub": endpoint,
-                      "inputs": {topic: message type}, "outputs": {topic: message type}}}}
+                      "inputs": {topic: message type}, "outputs": {topic: message type},
+                      "inject": {topic: endpoint the node's SUB binds, for `topic pub`},
+                      "restarts": int}}}
 
 ``<run root>/current`` is a symlink to the newest run directory; tools use it
 unless ``--run-dir`` or ``$SLIPSTACK_RUN_DIR`` names another.

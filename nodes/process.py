@@ -37,6 +37,8 @@ class RunSpec:
 
     pub: endpoint to bind (``ipc://…`` or ``tcp://…``); ``None`` for a pure sink.
     subs: topic → endpoints publishing it.
+    inject: topic → endpoint this node's SUB socket for that topic also *binds*, so a
+        tool (``topic pub``, a fault injector) can connect a PUB to it and reach the node.
     expected_subscribers: topic → number of subscriptions to wait for before data flows.
     control: the launcher's PULL endpoint for the ready report, or ``None``.
     """
@@ -45,6 +47,7 @@ class RunSpec:
     pub: str | None = None
     subs: dict[str, list[str]] = field(default_factory=dict)
     remap: dict[str, str] = field(default_factory=dict)
+    inject: dict[str, str] = field(default_factory=dict)
     expected_subscribers: dict[str, int] = field(default_factory=dict)
     control: str | None = None
     diagnostics_period_s: float = 1.0
@@ -69,6 +72,8 @@ class ProcessExecutor:
             policy = node.inputs[input_name]
             hwm = 1000 if policy.policy == "queue" else 100
             self.subs[input_name] = make_sub(self.zctx, spec.subs.get(topic, []), topic, rcvhwm=hwm)
+            if topic in spec.inject:
+                self.subs[input_name].bind(spec.inject[topic])
         self._sub_topic = {sock: (name, self.host.input_topics[name].encode()) for name, sock in self.subs.items()}
         self._queues = {n: deque(maxlen=i.depth) for n, i in node.inputs.items() if i.policy == "queue"}
         self._subscriptions: dict[bytes, int] = {}
@@ -170,7 +175,13 @@ class ProcessExecutor:
         signal.signal(signal.SIGTERM, self._on_signal)
         host = self.host
         try:
-            host.call("start", self.node.start, host)
+            self.node.start(host)
+        except Exception as exc:  # cannot start: say why, exit non-zero, the launcher names us
+            self._log(f"cannot start: {type(exc).__name__}: {exc}")
+            for sock in [*self.subs.values(), *([self.pub] if self.pub else [])]:
+                sock.close(linger=0)
+            return 1
+        try:
             self._report("ready")
             if self.pub is not None:
                 self._wait_for_subscribers()

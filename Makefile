@@ -1,0 +1,22 @@
+# Quick start: `make run` (the default stack on the simulated rig) and `make test`.
+# Both create ./.venv and install slipstack into it on first use.
+VENV ?= .venv
+PY := $(VENV)/bin/python
+
+.PHONY: run test bench
+
+$(VENV)/.installed: pyproject.toml
+	python3 -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e '.[test]'
+	touch $@
+
+run: $(VENV)/.installed
+	$(VENV)/bin/slipstack launch
+
+test: $(VENV)/.installed
+	$(PY) -m pytest -q
+
+bench: $(VENV)/.installed
+	$(PY) -m pip install -q -e '.[test,bench]'
+	@echo "benchmarks are scripts: ls tests/bench/; run e.g. $(PY) tests/bench/bench_math.py --help"

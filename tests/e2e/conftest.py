@@ -1,0 +1,97 @@
+"""Fixtures that launch real graphs: the launcher as a subprocess, real sockets."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pytest
+
+PY = sys.executable
+
+
+class LaunchedGraph:
+    """A ``slipstack launch`` subprocess with its own run root; collects its output."""
+
+    def __init__(self, args: list[str], run_root: Path) -> None:
+        self.env = dict(os.environ, SLIPSTACK_RUN_ROOT=str(run_root), PYTHONUNBUFFERED="1")
+        self.run_root = run_root
+        self.log_path = run_root / "launch.log"
+        self._log = open(self.log_path, "wb")
+        self.proc = subprocess.Popen(
+            [PY, "-m", "slipstack.launch.cli", "launch", *args],
+            stdout=self._log, stderr=subprocess.STDOUT, env=self.env,
+        )
+
+    def wait_ready(self, timeout: float = 60.0) -> dict:
+        graph = self.run_root / "current" / "graph.json"
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if self.proc.poll() is not None:
+                raise AssertionError(f"launcher exited early ({self.proc.returncode}):\n{self.log()}")
+            if graph.exists():
+                return json.loads(graph.read_text())
+            time.sleep(0.05)
+        raise AssertionError(f"graph not ready after {timeout} s:\n{self.log()}")
+
+    def graph(self) -> dict:
+        return json.loads((self.run_root / "current" / "graph.json").read_text())
+
+    def cli(self, *args: str, timeout: float = 30.0) -> subprocess.CompletedProcess:
+        """Run ``slipstack ARGS`` against this graph; returns the completed process."""
+        return subprocess.run(
+            [PY, "-m", "slipstack.launch.cli", *args], env=self.env, capture_output=True,
+            text=True, timeout=timeout,
+        )
+
+    def log(self) -> str:
+        self._log.flush()
+        return self.log_path.read_text(errors="replace")
+
+    def stop(self, sig: int = signal.SIGINT, timeout: float = 10.0) -> int:
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+            try:
+                self.proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        self._log.close()
+        return self.proc.returncode
+
+
+@pytest.fixture
+def run_root():
+    """A short private run root (ipc paths must stay under 107 characters)."""
+    with tempfile.TemporaryDirectory(prefix="ss-", dir="/tmp") as d:
+        yield Path(d)
+
+
+@pytest.fixture
+def launch(run_root):
+    """``launch(*args)`` starts a graph; every graph is stopped at teardown."""
+    graphs: list[LaunchedGraph] = []
+
+    def start(*args: str) -> LaunchedGraph:
+        g = LaunchedGraph(list(args), run_root)
+        graphs.append(g)
+        return g
+
+    yield start
+    for g in graphs:
+        g.stop(signal.SIGKILL if g.proc.poll() is None else signal.SIGINT)
+
+
+def pid_alive(pid: int) -> bool:
+    """True if ``pid`` exists and is not a zombie."""
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().split(")")[-1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False

@@ -1,0 +1,56 @@
+"""Message validation: each error names the field."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from slipstack.lib.errors import DecodeError
+from slipstack.messages import Header, TactileFrame, Wrench, decode, encode
+from slipstack.messages.codec import packb
+
+
+def _wrench_body(**over):
+    body = {"force": np.array([1.0, 2.0, 3.0]), "torque": np.zeros(3), "frame": "sensor", "device_seq": 7, "status": "ok"}
+    body.update(over)
+    return packb(["slipstack/Wrench", 1, [10, 2, 11, {}], list(body.values())])
+
+
+def test_wrench_round_trip_is_compact_and_exact():
+    w = Wrench(force=np.array([0.1, -2.5, 9.81]), torque=np.array([1e-3, 0, -1e-3]), header=Header(5, 1, 6, {"ft": 5}))
+    payload = encode(w)
+    assert len(payload) < 130  # arrays as raw bytes, not lists of floats
+    back = decode(payload, Wrench)
+    assert np.array_equal(back.force, w.force) and back.header == w.header
+
+
+@pytest.mark.parametrize(
+    ("over", "field", "why"),
+    [
+        ({"force": np.array([1.0, 2.0])}, "slipstack/Wrench.force", "shape"),
+        ({"force": np.array([1.0, np.nan, 0.0])}, "slipstack/Wrench.force", "NaN"),
+        ({"torque": [0.0, 0.0, 0.0]}, "slipstack/Wrench.torque", "expected an array"),
+        ({"device_seq": 1.5}, "slipstack/Wrench.device_seq", "expected int"),
+        ({"status": 3}, "slipstack/Wrench.status", "expected str"),
+        ({"force": np.array([1, 2, 3], dtype=np.int32)}, "slipstack/Wrench.force", "dtype"),
+    ],
+)
+def test_bad_fields_are_named(over, field, why):
+    with pytest.raises(DecodeError) as err:
+        decode(_wrench_body(**over), Wrench)
+    assert field in str(err.value) and why in str(err.value)
+
+
+def test_wrong_type_and_version_are_rejected():
+    t = TactileFrame(pressure_pa=np.zeros(4, np.float32), saturated=np.zeros(4, bool), dead=np.zeros(4, bool), rows=2, cols=2)
+    with pytest.raises(DecodeError, match="expected 'slipstack/Wrench'"):
+        decode(encode(t), Wrench)
+    with pytest.raises(DecodeError, match="version"):
+        decode(packb(["slipstack/Wrench", 99, [0, 0, 0, {}], []]), Wrench)
+    with pytest.raises(DecodeError, match="missing"):
+        decode(packb(["slipstack/Wrench", 1, [0, 0, 0, {}], [np.zeros(3)]]), Wrench)
+
+
+def test_tactile_frame_of_256_taxels_is_about_1_2_kb():
+    t = TactileFrame(pressure_pa=np.ones(256, np.float32), saturated=np.zeros(256, bool), dead=np.zeros(256, bool))
+    assert 1200 < len(encode(t)) < 1700
