@@ -7,7 +7,7 @@ Format::
     duration_s = 0            # stop by itself after this long (0: run until Ctrl-C)
 
     [args]                    # launch arguments, overridden by `name:=value`
-    rate_hz = 1000.0
+    rate_hz = 1000.0          # built in: $(run_dir), this run's private directory
 
     [[node]]
     name = "source"           # instance name (unique); topics/logs use it
@@ -132,8 +132,13 @@ def resolve_path(value: str, base: Path, folder: str) -> Path:
     raise ConfigError(f"cannot find {value!r} (looked next to {base} and in the shipped {folder}/)")
 
 
-def load_launch_file(path: str | Path | None, overrides: dict[str, str] | None = None) -> LaunchFile:
+def load_launch_file(
+    path: str | Path | None, overrides: dict[str, str] | None = None, *, builtins: dict[str, Any] | None = None
+) -> LaunchFile:
     """Read and validate a launch file; ``overrides`` are ``name:=value`` arguments.
+
+    ``builtins`` are arguments the launcher provides (``run_dir``: this run's private
+    directory, for device links and recordings); a file cannot override them.
 
     Raises:
         ConfigError: naming the file and key that is wrong.
@@ -148,6 +153,7 @@ def load_launch_file(path: str | Path | None, overrides: dict[str, str] | None =
         if name not in args:
             raise ConfigError(f"{p.name}: no launch argument {name!r}; declared: {', '.join(sorted(args)) or 'none'}")
         args[name] = _typed_override(args[name], text, name)
+    args.update(builtins or {})
     meta = data.get("launch", {})
     entries: list[NodeEntry] = []
     for k, raw in enumerate(data.get("node", [])):

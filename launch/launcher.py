@@ -30,7 +30,9 @@ import zmq
 from slipstack.lib.errors import ConfigError, SlipstackError
 from slipstack.launch.launch_file import LaunchFile, NodeEntry, load_launch_file
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
+from slipstack.messages import Diagnostics
 from slipstack.nodes.graph_info import write_graph
+from slipstack.nodes.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.transport import ipc_endpoint, make_run_dir
 
 __all__ = ["Launcher", "add_parser", "main_launch"]
@@ -61,13 +63,34 @@ class _Child:
     inject: dict[str, str] = field(default_factory=dict)
 
 
+class Console:
+    """Prints log lines; on a terminal, ``STATUS`` lines are redrawn in place on one line."""
+
+    def __init__(self, stream=None) -> None:
+        self.stream = stream or sys.stdout
+        self.live = self.stream.isatty()
+        self._status_shown = False
+
+    def __call__(self, line: str) -> None:
+        is_status = line.split("] ", 1)[-1].startswith("STATUS ")
+        if self.live and is_status:
+            self.stream.write("\r\x1b[K" + line)
+            self._status_shown = True
+        else:
+            if self._status_shown:
+                self.stream.write("\r\x1b[K")
+                self._status_shown = False
+            self.stream.write(line + "\n")
+        self.stream.flush()
+
+
 class Launcher:
     """Run the graph of ``launch``; ``echo`` receives every log line."""
 
-    def __init__(self, launch: LaunchFile, *, echo: Callable[[str], None] | None = None) -> None:
+    def __init__(self, launch: LaunchFile, run_dir: Path, *, echo: Callable[[str], None] | None = None) -> None:
         self.launch = launch
-        self.echo = echo or (lambda line: print(line, flush=True))
-        self.run_dir = make_run_dir()
+        self.echo = echo or Console()
+        self.run_dir = run_dir
         self.zctx = zmq.Context.instance()
         self.control_ep = f"ipc://{self.run_dir}/launcher.ctl"
         self.control = self.zctx.socket(zmq.PULL)
@@ -87,6 +110,7 @@ class Launcher:
             ep = f"tcp://127.0.0.1:{_free_tcp_port()}" if e.transport == "tcp" else ipc_endpoint(self.run_dir, e.name)
             child = _Child(e, ep, self.run_dir / f"{e.name}.spec.json")
             child.outputs = {t: type(nodes[e.name]).outputs[n].type.TYPE for n, t in e.output_topics(nodes[e.name]).items()}
+            child.outputs[DIAGNOSTICS_TOPIC] = Diagnostics.TYPE  # every node publishes it
             child.inputs = {t: type(nodes[e.name]).inputs[n].type.TYPE for n, t in e.input_topics(nodes[e.name]).items()}
             child.inject = {t: ipc_endpoint(self.run_dir, f"{e.name}.in{k}") for k, t in enumerate(child.inputs)}
             self.children[e.name] = child
@@ -299,9 +323,16 @@ def main_launch(args: argparse.Namespace) -> int:
     if file is not None and ":=" in file:  # `slipstack launch name:=value` with the default file
         positional.insert(0, file)
         file = None
-    launch = load_launch_file(file, parse_assignments(positional))
+    run_dir = make_run_dir()
+    try:
+        launch = load_launch_file(file, parse_assignments(positional), builtins={"run_dir": str(run_dir)})
+    except SlipstackError:
+        shutil.rmtree(run_dir, ignore_errors=True)
+        raise
     if args.show_args:
+        shutil.rmtree(run_dir, ignore_errors=True)
         for name, value in launch.args.items():
-            print(f"{name} := {value!r}")
+            if name != "run_dir":
+                print(f"{name} := {value!r}")
         return 0
-    return Launcher(launch).run()
+    return Launcher(launch, run_dir).run()

@@ -13,6 +13,7 @@ NODE_TYPES: dict[str, str] = {
     "wrench_source": "slipstack.nodes.demo:WrenchSource",
     "relay": "slipstack.nodes.demo:Relay",
     "sink": "slipstack.nodes.demo:Sink",
+    "monitor": "slipstack.nodes.monitor:Monitor",
 }
 
 

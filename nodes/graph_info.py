@@ -68,6 +68,6 @@ def topic_endpoints(graph: dict[str, Any]) -> dict[str, list[str]]:
     for node in graph["nodes"].values():
         if not node.get("pub"):
             continue
-        for topic in [*node["outputs"], "diagnostics"]:
+        for topic in node["outputs"]:  # includes "diagnostics": every node publishes it
             out.setdefault(topic, []).append(node["pub"])
     return out

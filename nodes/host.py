@@ -65,6 +65,7 @@ class NodeHost:
         self.detail = ""
         self.last_error = ""
         self._diag_seq = 0
+        self.shutdown_requested = False
         self._measure = measure_handlers
         self._durations: deque[int] = deque(maxlen=2000)
         self._log = log or (lambda text: print(text, file=sys.stderr, flush=True))
@@ -91,6 +92,9 @@ class NodeHost:
 
     def log(self, text: str) -> None:
         self._log(text)
+
+    def shutdown(self) -> None:
+        self.shutdown_requested = True
 
     # -- receiving ---------------------------------------------------------------------
     def receive(self, input_name: str, payload: bytes) -> Message | None:

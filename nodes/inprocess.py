@@ -99,6 +99,8 @@ class InProcessExecutor:
             t_ns, _, _, item = heapq.heappop(self._queue)
             self.now = max(self.now, t_ns)
             kind = item[0]
+            if item[1].shutdown_requested:
+                continue
             if kind == "frame":
                 _, host, input_name, payload = item
                 msg = host.receive(input_name, payload)

@@ -78,6 +78,9 @@ class Context(Protocol):
     def log(self, text: str) -> None:
         """Write one log line (the launcher prefixes it with the node name)."""
 
+    def shutdown(self) -> None:
+        """Ask the executor to stop this node after the current handler (e.g. a scene ended)."""
+
 
 class IoSource(Protocol):
     """A file descriptor a node wants watched (serial port, UDP socket)."""
@@ -109,7 +112,11 @@ class Node:
         """Called once on shutdown (close devices here)."""
 
     def io_sources(self) -> list[IoSource]:
-        """Descriptors to watch; ``on_readable(source, ctx)`` is called when one is readable."""
+        """Descriptors to watch now; ``on_readable(source, ctx)`` is called when one is readable.
+
+        Asked again on every loop turn, so a device that reconnects on a new descriptor
+        is picked up; keep it cheap.
+        """
         return []
 
     def on_readable(self, source: IoSource, ctx: Context) -> None:

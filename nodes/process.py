@@ -169,6 +169,16 @@ class ProcessExecutor:
             while queue:
                 host.dispatch(input_name, queue.popleft())
 
+    def _watch_io(self, poller: zmq.Poller, io: dict[int, object]) -> dict[int, object]:
+        """Keep the poller in step with the node's current descriptors."""
+        current = {src.fileno(): src for src in self.node.io_sources()}
+        if current.keys() != io.keys():
+            for fd in io.keys() - current.keys():
+                poller.unregister(fd)
+            for fd in current.keys() - io.keys():
+                poller.register(fd, zmq.POLLIN)
+        return current
+
     def run(self) -> int:
         """Run until SIGINT/SIGTERM; returns the process exit code."""
         signal.signal(signal.SIGINT, self._on_signal)
@@ -203,16 +213,14 @@ class ProcessExecutor:
             poller.register(sock, zmq.POLLIN)
         if self.pub is not None:
             poller.register(self.pub, zmq.POLLIN)
-        io = {}
-        for src in self.node.io_sources():
-            poller.register(src.fileno(), zmq.POLLIN)
-            io[src.fileno()] = src
+        io: dict[int, object] = {}
         now = time.monotonic_ns()
         deadlines = {t: now + round(p * 1e9) for t, p in self.node.timers.items()}
         periods = {t: round(p * 1e9) for t, p in self.node.timers.items()}
         diag_period = round(self.spec.diagnostics_period_s * 1e9)
         next_diag = now + diag_period
-        while not self._stopping:
+        while not (self._stopping or host.shutdown_requested):
+            io = self._watch_io(poller, io)
             now = time.monotonic_ns()
             next_due = min([next_diag, *deadlines.values()])
             wait_ns = next_due - now

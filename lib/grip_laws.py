@@ -1,0 +1,497 @@
+"""Grip-force laws of the paper's §V (MATH.md §5), bounds, rate limit and fail-safe.
+
+Every law maps one control step's load to a desired normal force ``f_n`` (N) on the
+pad, bounded to ``[f_nom, f_max]``:
+
+========================  ================================================================
+registry name             law
+========================  ================================================================
+``"linear"``              §V-A: ``f_n = |f_t| / (σ μ)``
+``"ft13"``                (13): ``f_n = |f_t|/μ + |τ|/β + k``  (paper: ``k = 2 N``)
+``"ft13_sigma"``          Fig. 12 variant of (13): ``f_n = (|f_t|/μ + |τ|/β) / σ``
+``"tactile14"``           (14): raise ``f_n`` by ``δf_n`` while the tactile test (11) fails
+``"exact"``               ``f_n = γ f_n / σ`` with ``γ`` the load factor of MATH.md §4.1
+========================  ================================================================
+
+each followed by ``min(max(·, f_nom), f_max)``. Loads are in the pad frame ``F``
+(MATH.md §1): ``f_t = (f_x, f_y)`` in N, ``τ`` about ``z`` through the pad origin in
+N·m, ``β`` in m (``τ/f_n`` at slip), ``μ`` and ``σ`` dimensionless, ``σ ≤ 1`` the
+safety factor (paper: ``σ = 0.5``, ``μ = 0.45``).
+
+A law is stateless: it never raises on bad data. A required input that is NaN/Inf
+gives reason ``"fail-safe"`` with ``f_n_desired = f_max`` (the only never-release
+answer without memory). :class:`GripGovernor` is what a controller runs: it adds the
+memory a law lacks — staleness and sensor status checks, holding the last commanded
+force in fail-safe (never lower), and the actuator rate limit (:class:`RateLimiter`).
+Time is passed in (integer ns stamps, float s steps); nothing here reads a clock.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import ClassVar, Literal, Mapping, Sequence
+
+from slipstack.lib.errors import ConfigError
+
+__all__ = [
+    "GripReason",
+    "GripDecision",
+    "GripInput",
+    "bound_demand",
+    "linear_demand",
+    "ft13_demand",
+    "ft13_sigma_demand",
+    "tactile14_increment",
+    "exact_demand",
+    "GripLaw",
+    "LinearLaw",
+    "Ft13Law",
+    "Ft13SigmaLaw",
+    "Tactile14Law",
+    "ExactLaw",
+    "LAWS",
+    "make_law",
+    "RateLimiter",
+    "GripGovernor",
+]
+
+_NAN = float("nan")
+
+
+class GripReason(str, Enum):
+    """Why the command has its value (compares equal to its string value)."""
+
+    NOMINAL = "nominal"  # the law asks for no more than f_nom
+    SLIP = "slip"  # the law asks for more than f_nom (load, failed test, raised grip held)
+    SATURATED = "saturated"  # the law asks for more than f_max: clipped to f_max
+    FAIL_SAFE = "fail-safe"  # invalid or stale input: last safe grip held
+
+
+@dataclass(frozen=True)
+class GripDecision:
+    """One grip command.
+
+    Attributes:
+        f_n_desired: commanded normal force, N (finite, never NaN).
+        law: registry name of the law that produced it.
+        reason: see :class:`GripReason`.
+        raw: the law's demand before the ``[f_nom, f_max]`` bounds and the rate limit,
+            N (``inf`` when a division by a zero capacity asks for unbounded force;
+            in fail-safe the value commanded).
+        detail: human-readable cause for ``"fail-safe"`` (which input, which limit).
+    """
+
+    f_n_desired: float
+    law: str
+    reason: GripReason
+    raw: float
+    detail: str = ""
+
+
+@dataclass(frozen=True)
+class GripInput:
+    """Everything a law may need for one control step; unused fields may stay NaN.
+
+    Attributes:
+        f_t: tangential load ``(f_x, f_y)`` in ``F``, N.
+        tau: torque about ``z`` through the pad origin, N·m.
+        f_n: normal force now applied (measured by fusion), N — used by ``tactile14``
+            (the value it raises or holds) and ``exact`` (the force ``γ`` refers to).
+        gamma: load factor ``γ`` (MATH.md §4.1) at ``f_n``, dimensionless.
+        n_c: ``n(p_c) = τ + f_t × p_c``, torque of the load about the COR, N·m.
+        t_c: ``T(p_c) = μ Σ φ_i |p_i − p_c|``, resistible torque about the COR, N·m.
+        sum_dist_m: ``Σ_{i∈A} |p_i − p_c|`` over the taxels in contact, m.
+        n_contact: ``N_A``, number of taxels in contact.
+    """
+
+    f_t: tuple[float, float] = (_NAN, _NAN)
+    tau: float = _NAN
+    f_n: float = _NAN
+    gamma: float = _NAN
+    n_c: float = _NAN
+    t_c: float = _NAN
+    sum_dist_m: float = _NAN
+    n_contact: int = 0
+
+    @property
+    def f_t_abs(self) -> float:
+        """``|f_t|`` in N (NaN if a component is NaN)."""
+        return math.hypot(float(self.f_t[0]), float(self.f_t[1]))
+
+
+# ---------------------------------------------------------------- the formulas
+
+
+def linear_demand(f_t_abs: float, mu: float, sigma: float) -> float:
+    """§V-A: least safe ``f_n = |f_t| / (σ μ)`` in N, before bounds."""
+    return f_t_abs / (sigma * mu)
+
+
+def ft13_demand(f_t_abs: float, tau_abs: float, mu: float, beta_m: float, k_n: float) -> float:
+    """Paper (13): ``f_n = |f_t|/μ + |τ|/β + k`` in N (``τ`` N·m, ``β`` m, ``k`` N)."""
+    return f_t_abs / mu + tau_abs / beta_m + k_n
+
+
+def ft13_sigma_demand(f_t_abs: float, tau_abs: float, mu: float, beta_m: float, sigma: float) -> float:
+    """Fig. 12 variant of (13): ``f_n = (|f_t|/μ + |τ|/β) / σ`` in N."""
+    return (f_t_abs / mu + tau_abs / beta_m) / sigma
+
+
+def tactile14_increment(
+    n_c: float,
+    t_c: float,
+    sum_dist_m: float,
+    n_contact: int,
+    mu: float,
+    sigma: float,
+    increment: Literal["total", "per_taxel"] = "total",
+) -> float:
+    """Paper (14): normal-force increment that makes test (11) hold again, N.
+
+    Adding ``δφ`` to each of the ``N_A`` taxels in contact raises the resistible
+    torque about ``p_c`` by ``μ δφ Σ_{i∈A}|p_i − p_c|``; asking it to cover the excess
+    ``|n(p_c)| − T(p_c)`` with safety factor ``σ`` gives::
+
+        δφ   = (|n(p_c)| − T(p_c)) / (σ μ Σ_{i∈A} |p_i − p_c|)    per taxel
+        δf_n = N_A · δφ                                           total
+
+    ``increment="total"`` (default) returns ``δf_n``; ``"per_taxel"`` returns ``δφ``,
+    the quantity the paper prints under the name ``δf_n``. ``|n|`` is used so that
+    both senses of rotation count (MATH.md §4.2). Returns 0 when (11) holds and
+    ``inf`` when it fails with no lever arm (``Σ|p_i − p_c| = 0``: point contact,
+    no torsional capacity can be bought by squeezing).
+    """
+    excess = abs(n_c) - t_c
+    if not excess > 0.0:
+        return 0.0
+    if not sum_dist_m > 0.0:
+        return math.inf
+    dphi = excess / (sigma * mu * sum_dist_m)
+    return dphi * n_contact if increment == "total" else dphi
+
+
+def exact_demand(gamma: float, f_n: float, sigma: float) -> float:
+    """``f_n* / σ = γ f_n / σ`` in N: least holding force with margin (MATH.md §4.1)."""
+    return gamma * f_n / sigma
+
+
+def bound_demand(raw: float, f_nom_n: float, f_max_n: float, law: str) -> GripDecision:
+    """Clip a finite or ``+inf`` demand (N) to ``[f_nom, f_max]`` and classify it."""
+    if raw > f_max_n:
+        return GripDecision(f_max_n, law, GripReason.SATURATED, raw)
+    if raw > f_nom_n:
+        return GripDecision(raw, law, GripReason.SLIP, raw)
+    return GripDecision(f_nom_n, law, GripReason.NOMINAL, raw)
+
+
+# ---------------------------------------------------------------- laws with parameters
+
+
+def _check_positive(name: str, value: float) -> None:
+    if not (math.isfinite(value) and value > 0.0):
+        raise ConfigError(f"grip law parameter {name} must be a finite number > 0, got {value!r}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class GripLaw:
+    """Base of the laws: the bounds ``0 ≤ f_nom_n ≤ f_max_n`` (N, ``f_max_n > 0``)."""
+
+    name: ClassVar[str] = ""
+    needs: ClassVar[tuple[str, ...]] = ()
+    f_nom_n: float
+    f_max_n: float
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.f_nom_n) and math.isfinite(self.f_max_n)
+                and 0.0 <= self.f_nom_n <= self.f_max_n and self.f_max_n > 0.0):
+            raise ConfigError(
+                f"grip law {self.name!r} needs 0 <= f_nom_n <= f_max_n, f_max_n > 0 (N); "
+                f"got f_nom_n={self.f_nom_n!r}, f_max_n={self.f_max_n!r}"
+            )
+
+    def demand(self, inp: GripInput, dt_s: float) -> float:
+        """The law's unbounded demand in N (inputs already checked finite)."""
+        raise NotImplementedError
+
+    def decide(self, inp: GripInput, dt_s: float = 0.0) -> GripDecision:
+        """Bounded decision for one step; ``dt_s`` (s) is only used by ``tactile14``."""
+        bad = [k for k in self.needs if not _finite(getattr(inp, k))]
+        if bad:
+            return GripDecision(self.f_max_n, self.name, GripReason.FAIL_SAFE, self.f_max_n,
+                                f"non-finite input {', '.join(bad)}")
+        raw = self.demand(inp, dt_s)
+        if math.isnan(raw):  # e.g. 0·inf in exotic inputs: treat like bad input
+            return GripDecision(self.f_max_n, self.name, GripReason.FAIL_SAFE, self.f_max_n,
+                                "law evaluated to NaN")
+        return bound_demand(raw, self.f_nom_n, self.f_max_n, self.name)
+
+
+def _finite(value: object) -> bool:
+    """True for a finite number or a sequence of finite numbers; False for anything else."""
+    try:
+        items = list(value) if hasattr(value, "__iter__") else [value]  # type: ignore[call-overload]
+        return all(math.isfinite(float(v)) for v in items)
+    except (TypeError, ValueError):
+        return False
+
+
+@dataclass(frozen=True, kw_only=True)
+class LinearLaw(GripLaw):
+    """§V-A linear σ-law. ``mu`` (μ_s), ``sigma`` in (0, 1]."""
+
+    name: ClassVar[str] = "linear"
+    needs: ClassVar[tuple[str, ...]] = ("f_t",)
+    mu: float = 0.45
+    sigma: float = 0.5
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_positive("mu", self.mu)
+        _check_sigma(self.sigma)
+
+    def demand(self, inp: GripInput, dt_s: float) -> float:
+        return linear_demand(inp.f_t_abs, self.mu, self.sigma)
+
+
+def _check_sigma(sigma: float) -> None:
+    if not (math.isfinite(sigma) and 0.0 < sigma <= 1.0):
+        raise ConfigError(f"grip law parameter sigma must be in (0, 1], got {sigma!r}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Ft13Law(GripLaw):
+    """Paper (13). ``mu``, ``beta_m`` (m), offset ``k_n`` ≥ 0 (N, paper 2 N)."""
+
+    name: ClassVar[str] = "ft13"
+    needs: ClassVar[tuple[str, ...]] = ("f_t", "tau")
+    mu: float = 0.45
+    beta_m: float
+    k_n: float = 2.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_positive("mu", self.mu)
+        _check_positive("beta_m", self.beta_m)
+        if not (math.isfinite(self.k_n) and self.k_n >= 0.0):
+            raise ConfigError(f"grip law parameter k_n must be a finite force >= 0 N, got {self.k_n!r}")
+
+    def demand(self, inp: GripInput, dt_s: float) -> float:
+        return ft13_demand(inp.f_t_abs, abs(inp.tau), self.mu, self.beta_m, self.k_n)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Ft13SigmaLaw(GripLaw):
+    """Fig. 12 variant of (13). ``mu``, ``beta_m`` (m), ``sigma`` in (0, 1]."""
+
+    name: ClassVar[str] = "ft13_sigma"
+    needs: ClassVar[tuple[str, ...]] = ("f_t", "tau")
+    mu: float = 0.45
+    beta_m: float
+    sigma: float = 0.5
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_positive("mu", self.mu)
+        _check_positive("beta_m", self.beta_m)
+        _check_sigma(self.sigma)
+
+    def demand(self, inp: GripInput, dt_s: float) -> float:
+        return ft13_sigma_demand(inp.f_t_abs, abs(inp.tau), self.mu, self.beta_m, self.sigma)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Tactile14Law(GripLaw):
+    """Paper (14), both sensors: raise while the tactile test (11) fails.
+
+    Test (11) fails iff ``|n(p_c)| > T(p_c)``; then the demand is
+    ``f_n + δf_n`` (see :func:`tactile14_increment`; ``increment`` selects the total
+    ``N_A·δφ``, default, or the paper's per-taxel ``δφ``). While (11) holds the law
+    does not release: with ``decay_n_per_s = 0`` (default, as in the paper) it holds
+    the present ``f_n``; with ``decay_n_per_s > 0`` (N/s) it lowers the demand by
+    ``decay_n_per_s · dt_s`` per step, towards ``f_nom``. ``f_n`` is the force now
+    applied (N).
+    """
+
+    name: ClassVar[str] = "tactile14"
+    needs: ClassVar[tuple[str, ...]] = ("f_n", "n_c", "t_c", "sum_dist_m")
+    mu: float = 0.45
+    sigma: float = 0.5
+    increment: Literal["total", "per_taxel"] = "total"
+    decay_n_per_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_positive("mu", self.mu)
+        _check_sigma(self.sigma)
+        if self.increment not in ("total", "per_taxel"):
+            raise ConfigError(f"tactile14 increment must be 'total' or 'per_taxel', got {self.increment!r}")
+        if not (math.isfinite(self.decay_n_per_s) and self.decay_n_per_s >= 0.0):
+            raise ConfigError(
+                f"tactile14 decay_n_per_s must be a finite rate >= 0 N/s, got {self.decay_n_per_s!r}")
+
+    def demand(self, inp: GripInput, dt_s: float) -> float:
+        if abs(inp.n_c) > inp.t_c:  # test (11) fails
+            return inp.f_n + tactile14_increment(inp.n_c, inp.t_c, inp.sum_dist_m, inp.n_contact,
+                                                 self.mu, self.sigma, self.increment)
+        step = self.decay_n_per_s * dt_s if math.isfinite(dt_s) and dt_s > 0.0 else 0.0
+        return inp.f_n - step
+
+
+@dataclass(frozen=True, kw_only=True)
+class ExactLaw(GripLaw):
+    """Exact law ``γ f_n / σ``; assumes the pressure shape scales with ``f_n``."""
+
+    name: ClassVar[str] = "exact"
+    needs: ClassVar[tuple[str, ...]] = ("gamma", "f_n")
+    sigma: float = 0.5
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_sigma(self.sigma)
+
+    def demand(self, inp: GripInput, dt_s: float) -> float:
+        return exact_demand(inp.gamma, inp.f_n, self.sigma)
+
+
+LAWS: Mapping[str, type[GripLaw]] = {
+    cls.name: cls for cls in (LinearLaw, Ft13Law, Ft13SigmaLaw, Tactile14Law, ExactLaw)
+}
+
+
+def make_law(name: str, **params: object) -> GripLaw:
+    """Build a law from its registry name and keyword parameters (node parameters).
+
+    Raises:
+        ConfigError: unknown name, unknown/missing parameter, or a value out of range.
+    """
+    cls = LAWS.get(name)
+    if cls is None:
+        raise ConfigError(f"unknown grip law {name!r}; choose one of {sorted(LAWS)}")
+    try:
+        return cls(**params)  # type: ignore[arg-type]
+    except TypeError as exc:
+        raise ConfigError(f"grip law {name!r}: {exc}") from None
+
+
+# ---------------------------------------------------------------- actuator and fail-safe
+
+
+class RateLimiter:
+    """Slew-rate limit of the commanded force, N/s.
+
+    ``step(target_n, dt_s)`` moves the output towards ``target_n`` by at most
+    ``max_rate_n_per_s · dt_s`` up and ``max_fall_rate_n_per_s · dt_s`` down
+    (default: the same rate). The first call without ``initial_n`` passes the target
+    through. ``dt_s ≤ 0`` or non-finite holds the output.
+    """
+
+    def __init__(self, max_rate_n_per_s: float, *, max_fall_rate_n_per_s: float | None = None,
+                 initial_n: float | None = None) -> None:
+        fall = max_rate_n_per_s if max_fall_rate_n_per_s is None else max_fall_rate_n_per_s
+        for label, rate in (("max_rate_n_per_s", max_rate_n_per_s), ("max_fall_rate_n_per_s", fall)):
+            if not (rate > 0.0):  # inf allowed: no limit
+                raise ConfigError(f"rate limiter {label} must be > 0 N/s, got {rate!r}")
+        if initial_n is not None and not math.isfinite(initial_n):
+            raise ConfigError(f"rate limiter initial_n must be a finite force in N, got {initial_n!r}")
+        self.max_rise_n_per_s = float(max_rate_n_per_s)
+        self.max_fall_n_per_s = float(fall)
+        self._value = initial_n
+
+    @property
+    def value(self) -> float | None:
+        """Last output in N (``None`` before the first step without ``initial_n``)."""
+        return self._value
+
+    def step(self, target_n: float, dt_s: float) -> float:
+        """Next output in N; ``target_n`` must be finite (callers guarantee it)."""
+        if self._value is None:
+            self._value = float(target_n)
+            return self._value
+        dt = dt_s if math.isfinite(dt_s) and dt_s > 0.0 else 0.0
+        lo = self._value - self.max_fall_n_per_s * dt
+        hi = self._value + self.max_rise_n_per_s * dt
+        self._value = min(max(float(target_n), lo), hi)
+        return self._value
+
+    def reset(self, value_n: float) -> None:
+        """Set the output (N), e.g. to the measured actuator force."""
+        self._value = float(value_n)
+
+
+@dataclass
+class GripGovernor:
+    """The controller state around a law: staleness, status, hold, rate limit.
+
+    Each :meth:`step` gets the time now and the stamps of the inputs it used
+    (integer ns, one clock). The step is *fail-safe* when any input is older than
+    ``timeout_ns`` (or no stamp is given), when ``status_ok`` is false, or when the
+    law reports non-finite input; the command then stays at the last commanded force
+    (never lower, never released, reason ``"fail-safe"``). Otherwise the law's bounded
+    demand passes through the rate limiter (time between steps from ``now_ns``; the
+    first step has ``dt = 0``, so it commands ``initial_n``, default ``f_nom``).
+    Recovery needs no latch: the next valid step resumes, rate-limited.
+
+    Attributes:
+        law: the grip law.
+        timeout_ns: largest accepted input age, ns.
+        max_rate_n_per_s: actuator force slew limit when raising, N/s.
+        max_fall_rate_n_per_s: slew limit when lowering, N/s (default: the same).
+        initial_n: command before the first valid step, N (default ``f_nom``).
+    """
+
+    law: GripLaw
+    timeout_ns: int
+    max_rate_n_per_s: float
+    max_fall_rate_n_per_s: float | None = None
+    initial_n: float | None = None
+    _limiter: RateLimiter = field(init=False, repr=False)
+    _last_now_ns: int | None = field(init=False, default=None, repr=False)
+    _in_fail_safe: bool = field(init=False, default=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not self.timeout_ns > 0:
+            raise ConfigError(f"grip governor timeout_ns must be > 0 ns, got {self.timeout_ns!r}")
+        start = self.law.f_nom_n if self.initial_n is None else self.initial_n
+        if not (math.isfinite(start) and self.law.f_nom_n <= start <= self.law.f_max_n):
+            raise ConfigError(f"grip governor initial_n must lie in [f_nom_n, f_max_n], got {start!r}")
+        self._limiter = RateLimiter(self.max_rate_n_per_s, max_fall_rate_n_per_s=self.max_fall_rate_n_per_s,
+                                    initial_n=start)
+
+    @property
+    def last_n(self) -> float:
+        """Last commanded normal force, N."""
+        return float(self._limiter.value)  # type: ignore[arg-type]  # set in __post_init__
+
+    @property
+    def in_fail_safe(self) -> bool:
+        """Whether the last step held the grip."""
+        return self._in_fail_safe
+
+    def step(self, inp: GripInput, *, now_ns: int, stamps_ns: Sequence[int],
+             status_ok: bool = True) -> GripDecision:
+        """One control step; returns the command (never NaN, never raises)."""
+        last = self._last_now_ns
+        dt_s = 0.0 if last is None or now_ns <= last else (now_ns - last) * 1e-9
+        self._last_now_ns = now_ns if last is None else max(now_ns, last)
+        cause = self._stale_cause(now_ns, stamps_ns) or ("" if status_ok else "input status not ok")
+        if not cause:
+            decision = self.law.decide(inp, dt_s)
+            if decision.reason is not GripReason.FAIL_SAFE:
+                self._in_fail_safe = False
+                commanded = self._limiter.step(decision.f_n_desired, dt_s)
+                return GripDecision(commanded, decision.law, decision.reason, decision.raw)
+            cause = decision.detail
+        self._in_fail_safe = True
+        held = self.last_n
+        return GripDecision(held, self.law.name, GripReason.FAIL_SAFE, held, cause)
+
+    def _stale_cause(self, now_ns: int, stamps_ns: Sequence[int]) -> str:
+        """Why the inputs are stale ('' if fresh); stamps in the future count as fresh."""
+        if len(stamps_ns) == 0:
+            return "no input stamps"
+        age_ns = now_ns - min(stamps_ns)
+        if age_ns > self.timeout_ns:
+            return f"input age {age_ns * 1e-6:.3f} ms > timeout {self.timeout_ns * 1e-6:.3f} ms"
+        return ""

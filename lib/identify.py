@@ -1,0 +1,402 @@
+"""Friction identification from a ramp recording (MATH.md §6, the paper's Fig. 4).
+
+At (nearly) constant ``f_n`` with a slowly rising tangential load the ratio
+``μ(t) = |f_t|/f_n`` rises, peaks at ``μ_s`` when slip starts and settles to ``μ_d``;
+with a rising torque ``β(t) = |τ|/f_n`` (m) peaks at ``β_s`` and settles to ``β_d``.
+:func:`identify_mu` and :func:`identify_beta` run one estimator on that ratio:
+
+1. Reject samples with a non-finite value or ``f_n < min_normal_force_n`` (counted).
+2. Smooth the ratio with a centred moving average of ``smooth_window_s`` (rounded to
+   an odd number of samples, using the median sample spacing) and take its maximum
+   ``k*`` as the peak region. With an object displacement (or rotation) the onset is
+   instead the first sample whose displacement from its initial value exceeds
+   ``slip_threshold_m`` (``slip_threshold_rad``), and ``k*`` is searched up to it.
+3. Fit a straight line to the raw ratio on the rising ramp, ``fit_window_s`` before
+   the smoothing-affected zone ``[k* − w/2, …)``; its residual std is the noise level
+   ``s_r``. The onset (ratio-based) is the sample before the first of two successive
+   samples, after the fitted zone, that fall below the line by ``drop_sigma · s_r``.
+4. ``static`` = the line at the onset, with the standard error of that prediction;
+   ``dynamic`` = mean of the raw ratio from ``settle_s`` after the onset to the end,
+   with its standard error corrected for lag-1 autocorrelation (AR(1):
+   ``s/√n · √((1+ρ)/(1−ρ))``).
+
+The peak's *prominence* is ``min(static, max smoothed ratio) − dynamic`` (the smoothed
+maximum guards against a line extrapolated past a knee).
+
+Statuses: ``ok``; ``no-clear-peak`` (prominence ``< min_prominence_sigma · s_r``: the
+drop is not resolved, ``μ_s ≈ μ_d``, estimates given but flagged; when the ratio
+levels off at a knee — best fit of ``a + b·min(t − t_k, 0)`` — the knee gives the
+onset and ``static = dynamic``);
+``no-onset`` (the ratio is still rising at the end, the ramp does not rise, or the
+displacement never crosses its threshold: ``static`` is then the largest smoothed
+ratio seen, a lower bound); ``insufficient-data``; ``bad-input`` (shapes, time not
+increasing). Nothing here raises on data; :class:`IdentifyConfig` raises
+:class:`ConfigError` on bad settings.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.ndimage import uniform_filter1d
+
+from slipstack.lib.errors import ConfigError
+
+__all__ = ["IdentifyStatus", "IdentifyConfig", "RampEstimate", "identify_mu", "identify_beta"]
+
+_NAN = float("nan")
+_MIN_FIT_SAMPLES = 5
+_MIN_PLATEAU_SAMPLES = 5
+
+
+class IdentifyStatus(str, Enum):
+    """Outcome of an identification (compares equal to its string value)."""
+
+    OK = "ok"
+    NO_CLEAR_PEAK = "no-clear-peak"
+    NO_ONSET = "no-onset"
+    INSUFFICIENT_DATA = "insufficient-data"
+    BAD_INPUT = "bad-input"
+
+
+@dataclass(frozen=True)
+class IdentifyConfig:
+    """Settings of the ramp estimator (all times in s).
+
+    Attributes:
+        smooth_window_s: moving-average window for locating the peak, s.
+        fit_window_s: length of the rising ramp fitted before the peak, s.
+        settle_s: time after the onset skipped before the dynamic plateau, s.
+        drop_sigma: the drop that marks the onset, in units of the ramp noise ``s_r``.
+        min_prominence_sigma: least ``static − dynamic`` (in ``s_r``) for a clear peak.
+        min_slope_t: least t-statistic of the ramp slope for a rising ramp.
+        slip_threshold_m: displacement that means slip, m (force ramps).
+        slip_threshold_rad: rotation that means slip, rad (torque ramps).
+        min_normal_force_n: samples with smaller ``f_n`` (N) are rejected.
+    """
+
+    smooth_window_s: float = 0.02
+    fit_window_s: float = 0.5
+    settle_s: float = 0.1
+    drop_sigma: float = 4.0
+    min_prominence_sigma: float = 3.0
+    min_slope_t: float = 3.0
+    slip_threshold_m: float = 1e-4
+    slip_threshold_rad: float = 1e-2
+    min_normal_force_n: float = 1e-3
+
+    def __post_init__(self) -> None:
+        for name in ("smooth_window_s", "fit_window_s", "drop_sigma", "min_prominence_sigma",
+                     "slip_threshold_m", "slip_threshold_rad", "min_normal_force_n"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ConfigError(f"identify setting {name} must be a finite number > 0, got {value!r}")
+        for name in ("settle_s", "min_slope_t"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ConfigError(f"identify setting {name} must be a finite number >= 0, got {value!r}")
+
+
+@dataclass(frozen=True)
+class RampEstimate:
+    """Static/dynamic coefficients and slip onset from one ramp.
+
+    Attributes:
+        quantity: ``"mu"`` (dimensionless) or ``"beta"`` (m).
+        status: see :class:`IdentifyStatus`; ``message`` says which test decided it.
+        static: ``μ_s`` / ``β_s`` (NaN if not estimated; a lower bound for ``no-onset``).
+        static_se: standard error of ``static`` (same unit).
+        dynamic: ``μ_d`` / ``β_d`` (NaN if not estimated).
+        dynamic_se: standard error of ``dynamic`` (same unit).
+        onset_t_s: slip-onset time, s (NaN if none).
+        onset_index: index of the onset sample in the input arrays (-1 if none).
+        onset_interval_s: ``(earliest, latest)`` times the onset can be at, s.
+        onset_source: ``"ratio"``, ``"displacement"`` or ``"none"``.
+        prominence: height of the peak above ``dynamic`` (see module doc; same unit).
+        noise_std: residual std ``s_r`` of the ratio on the ramp (same unit).
+        n_used: samples used; ``n_rejected``: samples rejected in step 1.
+        smooth_window: moving-average window, samples.
+    """
+
+    quantity: str
+    status: IdentifyStatus
+    message: str
+    static: float = _NAN
+    static_se: float = _NAN
+    dynamic: float = _NAN
+    dynamic_se: float = _NAN
+    onset_t_s: float = _NAN
+    onset_index: int = -1
+    onset_interval_s: tuple[float, float] = (_NAN, _NAN)
+    onset_source: str = "none"
+    prominence: float = _NAN
+    noise_std: float = _NAN
+    n_used: int = 0
+    n_rejected: int = 0
+    smooth_window: int = 0
+
+    @property
+    def ok(self) -> bool:
+        """True when status is ``ok``."""
+        return self.status is IdentifyStatus.OK
+
+
+def identify_mu(t_s: ArrayLike, f_n_n: ArrayLike, f_t_n: ArrayLike, *,
+                displacement_m: ArrayLike | None = None,
+                config: IdentifyConfig = IdentifyConfig()) -> RampEstimate:
+    """``μ_s``, ``μ_d`` and slip onset from a tangential-force ramp.
+
+    Args:
+        t_s: sample times, s, shape ``(N,)``, strictly increasing.
+        f_n_n: normal force, N, shape ``(N,)``.
+        f_t_n: tangential force in ``F``, N: shape ``(N, 2)`` or magnitudes ``(N,)``.
+        displacement_m: optional object displacement along the load, m, ``(N,)``
+            or ``(N, 2)`` (its norm is used).
+        config: estimator settings.
+    """
+    return _identify("mu", t_s, f_n_n, f_t_n, displacement_m, config.slip_threshold_m, config)
+
+
+def identify_beta(t_s: ArrayLike, f_n_n: ArrayLike, tau_nm: ArrayLike, *,
+                  rotation_rad: ArrayLike | None = None,
+                  config: IdentifyConfig = IdentifyConfig()) -> RampEstimate:
+    """``β_s``, ``β_d`` (m) and slip onset from a torque ramp (``|τ|/f_n``).
+
+    Args:
+        t_s: sample times, s, shape ``(N,)``, strictly increasing.
+        f_n_n: normal force, N, shape ``(N,)``.
+        tau_nm: torque about the pad normal, N·m, shape ``(N,)``.
+        rotation_rad: optional object rotation about the normal, rad, ``(N,)``.
+        config: estimator settings.
+    """
+    return _identify("beta", t_s, f_n_n, tau_nm, rotation_rad, config.slip_threshold_rad, config)
+
+
+# ---------------------------------------------------------------- implementation
+
+
+def _magnitude(a: np.ndarray, n: int) -> np.ndarray | None:
+    """``|a|`` per sample for shape ``(n,)`` or ``(n, k)``; None on any other shape."""
+    if a.ndim == 1 and a.shape[0] == n:
+        return np.abs(a)
+    if a.ndim == 2 and a.shape[0] == n:
+        return np.sqrt(np.sum(a * a, axis=1))
+    return None
+
+
+def _from_start(a: np.ndarray) -> np.ndarray:
+    """``a`` minus its first finite sample (displacement from the start)."""
+    rows = a if a.ndim > 1 else a[:, None] if a.ndim == 1 else a.reshape(1, -1)
+    finite = np.flatnonzero(np.all(np.isfinite(rows), axis=1))
+    return a - a[finite[0]] if finite.size else a
+
+
+def _identify(quantity: str, t_raw: ArrayLike, fn_raw: ArrayLike, load_raw: ArrayLike,
+              motion_raw: ArrayLike | None, motion_threshold: float,
+              cfg: IdentifyConfig) -> RampEstimate:
+    try:
+        t = np.asarray(t_raw, dtype=float)
+        fn = np.asarray(fn_raw, dtype=float)
+        load_arr = np.asarray(load_raw, dtype=float)
+        motion_arr = None if motion_raw is None else np.asarray(motion_raw, dtype=float)
+    except (TypeError, ValueError) as exc:
+        return RampEstimate(quantity, IdentifyStatus.BAD_INPUT, f"inputs are not numeric arrays: {exc}")
+    n = t.shape[0] if t.ndim == 1 else -1
+    load = _magnitude(load_arr, n)
+    motion = None if motion_arr is None else _magnitude(_from_start(motion_arr), n)
+    if n < 0 or fn.shape != (n,) or load is None or (motion_arr is not None and motion is None):
+        return RampEstimate(quantity, IdentifyStatus.BAD_INPUT,
+                            f"shapes do not match: t {t.shape}, f_n {fn.shape}, load {load_arr.shape}")
+    with np.errstate(all="ignore"):
+        keep = np.isfinite(t) & np.isfinite(fn) & np.isfinite(load) & (fn >= cfg.min_normal_force_n)
+        keep &= np.isfinite(load / np.where(keep, fn, 1.0))
+        if motion is not None:
+            keep &= np.isfinite(motion)
+    index = np.flatnonzero(keep)
+    n_rejected = n - index.size
+    if index.size < 2 * _MIN_FIT_SAMPLES:
+        return RampEstimate(quantity, IdentifyStatus.INSUFFICIENT_DATA,
+                            f"{index.size} valid samples (f_n >= {cfg.min_normal_force_n} N, finite)",
+                            n_used=int(index.size), n_rejected=n_rejected)
+    t, ratio = t[index], load[index] / fn[index]
+    dt = np.diff(t)
+    if not np.all(dt > 0.0):
+        return RampEstimate(quantity, IdentifyStatus.BAD_INPUT, "time stamps are not strictly increasing",
+                            n_used=int(index.size), n_rejected=n_rejected)
+    step = float(np.median(dt))
+    with np.errstate(all="ignore"):  # absurd magnitudes give a status, not warnings
+        return _RampFit(quantity, t, ratio, None if motion is None else motion[index], motion_threshold,
+                        index, n_rejected, step, cfg).run()
+
+
+class _RampFit:
+    """One estimation on clean, sorted samples; ``index`` maps back to the input."""
+
+    def __init__(self, quantity: str, t: np.ndarray, ratio: np.ndarray, motion: np.ndarray | None,
+                 motion_threshold: float, index: np.ndarray, n_rejected: int, step: float,
+                 cfg: IdentifyConfig) -> None:
+        self.quantity, self.t, self.r, self.motion = quantity, t, ratio, motion
+        self.motion_threshold, self.index, self.cfg = motion_threshold, index, cfg
+        self.w = 2 * int(round(cfg.smooth_window_s / step / 2.0)) + 1
+        self.fit_len = max(_MIN_FIT_SAMPLES, int(round(cfg.fit_window_s / step)))
+        self.settle = int(round(cfg.settle_s / step))
+        self.common = {"n_used": int(t.size), "n_rejected": n_rejected, "smooth_window": self.w}
+
+    def result(self, status: IdentifyStatus, message: str, **fields: object) -> RampEstimate:
+        return RampEstimate(self.quantity, status, message, **fields, **self.common)  # type: ignore[arg-type]
+
+    def run(self) -> RampEstimate:
+        n, h = self.r.size, self.w // 2
+        smooth = uniform_filter1d(self.r, self.w, mode="nearest")
+        moved = None
+        if self.motion is not None:
+            crossed = np.flatnonzero(self.motion > self.motion_threshold)
+            if crossed.size == 0:
+                unit = "m" if self.quantity == "mu" else "rad"
+                return self.result(IdentifyStatus.NO_ONSET,
+                                   f"motion never exceeds {self.motion_threshold:g} {unit}",
+                                   static=float(smooth.max()))
+            moved = int(crossed[0])
+        limit = n if moved is None else min(n, moved + self.w + 1)
+        k_peak = int(np.argmax(smooth[:limit]))
+        if moved is None and k_peak >= n - 1 - self.w - self.settle - _MIN_PLATEAU_SAMPLES:
+            return self._knee(float(smooth[k_peak]), "ratio peaks at the end of the record, "
+                              "too late for a settled plateau")
+        fit_end = max(0, k_peak - h)
+        fit_start = max(0, fit_end - self.fit_len)
+        if fit_end - fit_start < _MIN_FIT_SAMPLES:
+            return self.result(IdentifyStatus.INSUFFICIENT_DATA,
+                               f"only {fit_end - fit_start} ramp samples before the peak")
+        line = _LineFit(self.t[fit_start:fit_end], self.r[fit_start:fit_end])
+        if not line.slope_t >= self.cfg.min_slope_t:
+            return self._knee(float(smooth[k_peak]), f"ratio does not rise before its peak (slope t = "
+                              f"{line.slope_t:.2f} < {self.cfg.min_slope_t})")
+        onset, lo, source = self._onset(line, fit_end, k_peak, moved)
+        static = float(line.at(self.t[onset]))
+        plateau = self.r[min(n, onset + 1 + self.settle):]
+        common = dict(static=static, static_se=line.se_at(self.t[onset]), onset_t_s=float(self.t[onset]),
+                      onset_index=int(self.index[onset]), onset_source=source, noise_std=line.s_r,
+                      onset_interval_s=(float(self.t[lo]), float(self.t[min(onset + 1, n - 1)])))
+        if plateau.size < _MIN_PLATEAU_SAMPLES:
+            return self.result(IdentifyStatus.INSUFFICIENT_DATA,
+                               f"only {plateau.size} samples after onset + settle ({self.cfg.settle_s} s)",
+                               **common)
+        dynamic, dynamic_se = _mean_ar1(plateau)
+        prominence = min(static, float(smooth[k_peak])) - dynamic
+        if not prominence >= self.cfg.min_prominence_sigma * line.s_r:
+            knee = self._knee(float(smooth[k_peak]), "no drop")
+            if knee.status is IdentifyStatus.NO_CLEAR_PEAK:  # a ramp that levels off
+                return knee
+            return self.result(IdentifyStatus.NO_CLEAR_PEAK,
+                               f"static - dynamic = {prominence:.4g} < {self.cfg.min_prominence_sigma} "
+                               f"x noise {line.s_r:.3g}", dynamic=dynamic, dynamic_se=dynamic_se,
+                               prominence=prominence, **common)
+        return self.result(IdentifyStatus.OK, f"peak {prominence / max(line.s_r, 1e-300):.1f} x noise",
+                           dynamic=dynamic, dynamic_se=dynamic_se, prominence=prominence, **common)
+
+    def _knee(self, peak: float, why: str) -> RampEstimate:
+        """No rising ramp right before a peak: look for a ramp that levels off (a knee).
+
+        Fits ``r ≈ a + b·min(t − t_k, 0)`` over the whole record. A significant rise
+        (slope t-statistic ``≥ min_slope_t``) followed by at least ``fit_window_s`` of
+        level ratio means it levels off without a drop: slip with ``μ_s ≈ μ_d``, or a
+        load that stopped rising — only a displacement can tell. Reported as
+        ``no-clear-peak`` with ``static = dynamic`` = the level after the knee, onset =
+        the knee. Otherwise ``no-onset`` (``why``), ``static`` = ``peak``, a lower bound.
+        """
+        k, knee_t = _hinge(self.t, self.r)
+        plateau = self.r[k:]
+        if not (knee_t >= self.cfg.min_slope_t and k >= _MIN_FIT_SAMPLES
+                and plateau.size >= max(self.fit_len, _MIN_PLATEAU_SAMPLES)):
+            return self.result(IdentifyStatus.NO_ONSET, f"{why}; no knee either", static=peak)
+        dynamic, dynamic_se = _mean_ar1(plateau)
+        return self.result(IdentifyStatus.NO_CLEAR_PEAK,
+                           "ratio levels off without a drop (static ~ dynamic, or the load stopped "
+                           "rising: pass the displacement to tell)", static=dynamic, static_se=dynamic_se,
+                           dynamic=dynamic, dynamic_se=dynamic_se, onset_t_s=float(self.t[k]),
+                           onset_index=int(self.index[k]), onset_source="ratio", prominence=0.0,
+                           onset_interval_s=(float(self.t[max(k - self.w, 0)]),
+                                             float(self.t[min(k + self.w, self.r.size - 1)])))
+
+    def _onset(self, line: "_LineFit", fit_end: int, k_peak: int, moved: int | None) -> tuple[int, int, str]:
+        """(onset, earliest, source): onset = last sample on the ramp before the drop."""
+        if moved is not None:
+            return max(moved - 1, 0), max(moved - 1, 0), "displacement"
+        n = self.r.size
+        stop = min(n, k_peak + 2 * self.w + self.fit_len)
+        span = np.arange(fit_end, stop)
+        under = self.r[span] < line.at(self.t[span]) - self.cfg.drop_sigma * line.s_r
+        below = under[:-1] & under[1:]  # two in a row: one noise spike is not a drop
+        if not below.any():  # no resolved drop: the peak of the smoothed ratio
+            return k_peak, max(fit_end, k_peak - self.w // 2), "ratio"
+        first = int(span[np.argmax(below)])
+        onset = max(first - 1, fit_end)
+        on_line = np.flatnonzero(self.r[fit_end:first] >= line.at(self.t[fit_end:first]) - line.s_r)
+        earliest = fit_end + int(on_line[-1]) if on_line.size else fit_end
+        return onset, min(earliest, onset), "ratio"
+
+
+class _LineFit:
+    """Least-squares line ``r ≈ a + b (t − t̄)`` with prediction standard errors."""
+
+    def __init__(self, t: np.ndarray, r: np.ndarray) -> None:
+        self.t_mean = float(t.mean())
+        dt = t - self.t_mean
+        self.sxx = float(dt @ dt)
+        self.n = t.size
+        self.a = float(r.mean())
+        self.b = float(dt @ (r - self.a) / self.sxx) if self.sxx > 0 else 0.0
+        resid = r - self.a - self.b * dt
+        self.s_r = float(math.sqrt(resid @ resid / max(self.n - 2, 1)))
+        se_b = self.s_r / math.sqrt(self.sxx) if self.sxx > 0 else math.inf
+        self.slope_t = self.b / se_b if se_b > 0 else (math.inf if self.b > 0 else 0.0)
+
+    def at(self, t: np.ndarray | float) -> np.ndarray | float:
+        return self.a + self.b * (t - self.t_mean)
+
+    def se_at(self, t: float) -> float:
+        """Standard error of the fitted mean at ``t``."""
+        return self.s_r * math.sqrt(1.0 / self.n + (t - self.t_mean) ** 2 / self.sxx)
+
+
+def _hinge(t: np.ndarray, r: np.ndarray) -> tuple[int, float]:
+    """Best knee ``k`` of ``r ≈ a + b·min(t − t_k, 0)``: ``(k, t-statistic of b)``.
+
+    All breakpoints are scored at once from prefix sums (O(N)).
+    """
+    n = t.size
+    t, r = t - t.mean(), r - r.mean()  # centred: the prefix sums below cancel less
+    k = np.arange(1, n - 1)
+    tk = t[k]
+    ct, ctt = np.cumsum(t), np.cumsum(t * t)
+    ctr, cr = np.cumsum(t * r), np.cumsum(r)
+    sx = ct[k - 1] - k * tk  # sums over i < k of x_i = t_i − t_k
+    sxx = ctt[k - 1] - 2.0 * tk * ct[k - 1] + k * tk * tk
+    sxr = ctr[k - 1] - tk * cr[k - 1]
+    sr, srr = cr[-1], float(r @ r)
+    vxx = sxx - sx * sx / n
+    vxy = sxr - sx * sr / n
+    vyy = srr - sr * sr / n
+    sse = np.where(vxx > 0, vyy - vxy * vxy / vxx, np.inf)  # caller silences 0/0 warnings
+    best = int(np.argmin(sse))
+    if not (vxx[best] > 0 and math.isfinite(sse[best])):
+        return int(k[best]), 0.0
+    b = vxy[best] / vxx[best]
+    s_r = math.sqrt(max(float(sse[best]), 0.0) / max(n - 2, 1))
+    t_stat = b * math.sqrt(vxx[best]) / s_r if s_r > 0 else (math.inf if b > 0 else 0.0)
+    return int(k[best]), float(t_stat)
+
+
+def _mean_ar1(x: np.ndarray) -> tuple[float, float]:
+    """Mean and its standard error corrected for lag-1 autocorrelation ``ρ ∈ [0, 0.99]``."""
+    mean = float(x.mean())
+    d = x - mean
+    var = float(d @ d)
+    rho = float(d[1:] @ d[:-1] / var) if var > 0 else 0.0
+    rho = min(max(rho, 0.0), 0.99)
+    se = math.sqrt(var / (x.size - 1) / x.size) * math.sqrt((1 + rho) / (1 - rho))
+    return mean, se

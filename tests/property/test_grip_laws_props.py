@@ -1,0 +1,120 @@
+"""Properties of the grip laws and the governor (MATH.md §5)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from slipstack.lib.grip_laws import (
+    ExactLaw,
+    Ft13Law,
+    Ft13SigmaLaw,
+    GripGovernor,
+    GripInput,
+    GripLaw,
+    GripReason,
+    LinearLaw,
+    Tactile14Law,
+    tactile14_increment,
+)
+
+F_NOM, F_MAX = 2.0, 40.0
+LAWS: list[GripLaw] = [
+    LinearLaw(f_nom_n=F_NOM, f_max_n=F_MAX),
+    Ft13Law(beta_m=0.008, f_nom_n=F_NOM, f_max_n=F_MAX),
+    Ft13SigmaLaw(beta_m=0.008, f_nom_n=F_NOM, f_max_n=F_MAX),
+    Tactile14Law(decay_n_per_s=5.0, f_nom_n=F_NOM, f_max_n=F_MAX),
+    Tactile14Law(increment="per_taxel", f_nom_n=F_NOM, f_max_n=F_MAX),
+    ExactLaw(f_nom_n=F_NOM, f_max_n=F_MAX),
+]
+
+anything = st.floats(allow_nan=True, allow_infinity=True)
+sane = st.floats(min_value=-1e4, max_value=1e4, allow_nan=False)
+magnitude = st.floats(min_value=0.0, max_value=1e3, allow_nan=False)
+
+
+@st.composite
+def inputs(draw: st.DrawFn, value: st.SearchStrategy[float] = anything) -> GripInput:
+    return GripInput(f_t=(draw(value), draw(value)), tau=draw(value), f_n=draw(value),
+                     gamma=draw(value), n_c=draw(value), t_c=draw(value),
+                     sum_dist_m=draw(value), n_contact=draw(st.integers(0, 256)))
+
+
+@settings(max_examples=150, deadline=None)
+@given(law=st.sampled_from(LAWS), inp=inputs(), dt=anything)
+def test_output_always_finite_and_bounded(law: GripLaw, inp: GripInput, dt: float) -> None:
+    d = law.decide(inp, dt)
+    assert math.isfinite(d.f_n_desired)
+    assert F_NOM <= d.f_n_desired <= F_MAX
+    assert not math.isnan(d.raw)
+
+
+STATIC = [law for law in LAWS if isinstance(law, (LinearLaw, Ft13Law, Ft13SigmaLaw))]
+
+
+@settings(max_examples=100, deadline=None)
+@given(law=st.sampled_from(STATIC), fx=sane, fy=sane, tau=sane, scale=st.floats(1.0, 10.0))
+def test_static_laws_monotone_in_load(law: GripLaw, fx: float, fy: float, tau: float, scale: float) -> None:
+    small = law.decide(GripInput(f_t=(fx, fy), tau=tau))
+    large = law.decide(GripInput(f_t=(fx * scale, fy * scale), tau=tau * scale))
+    assert large.raw >= small.raw - 1e-9 * abs(small.raw)
+    assert large.f_n_desired >= small.f_n_desired
+
+
+@settings(max_examples=100, deadline=None)
+@given(fx=sane, fy=sane, tau=sane, scale=st.floats(0.01, 100.0))
+def test_scaling_of_load(fx: float, fy: float, tau: float, scale: float) -> None:
+    # linear and ft13_sigma are homogeneous of degree 1 in (f_t, τ); ft13 is, after k.
+    lin, ft13, ft13s = STATIC
+    base = GripInput(f_t=(fx, fy), tau=tau)
+    scaled = GripInput(f_t=(fx * scale, fy * scale), tau=tau * scale)
+    assert lin.decide(scaled).raw == pytest.approx(scale * lin.decide(base).raw, rel=1e-9, abs=1e-9)
+    assert ft13s.decide(scaled).raw == pytest.approx(scale * ft13s.decide(base).raw, rel=1e-9, abs=1e-9)
+    k = ft13.k_n  # type: ignore[attr-defined]
+    expected = scale * (ft13.decide(base).raw - k)
+    assert ft13.decide(scaled).raw - k == pytest.approx(expected, rel=1e-9, abs=1e-9)
+
+
+@settings(max_examples=100, deadline=None)
+@given(n_c=sane, t_c=magnitude, dist=st.floats(1e-4, 1.0), n_a=st.integers(1, 256),
+       scale=st.floats(0.01, 100.0))
+def test_tactile14_increment_scales_with_torque_and_counts_taxels(
+    n_c: float, t_c: float, dist: float, n_a: int, scale: float
+) -> None:
+    total = tactile14_increment(n_c, t_c, dist, n_a, 0.45, 0.5)
+    per = tactile14_increment(n_c, t_c, dist, n_a, 0.45, 0.5, "per_taxel")
+    assert total == pytest.approx(n_a * per, rel=1e-12)
+    assert tactile14_increment(n_c * scale, t_c * scale, dist, n_a, 0.45, 0.5) == pytest.approx(
+        scale * total, rel=1e-9, abs=1e-12)
+    # The raised force makes test (11) hold with margin σ: μ δφ Σ|p − c| = (|n| − T)/σ.
+    if total > 0:
+        assert 0.45 * per * dist == pytest.approx((abs(n_c) - t_c) / 0.5, rel=1e-9)
+
+
+steps = st.lists(
+    st.tuples(inputs(st.one_of(sane, anything)), st.integers(0, 30_000_000), st.integers(0, 120_000_000),
+              st.booleans()),
+    min_size=1, max_size=30,
+)
+
+
+@settings(max_examples=100, deadline=None)
+@given(law=st.sampled_from(LAWS), seq=steps)
+def test_governor_finite_bounded_rate_limited_and_holds(
+    law: GripLaw, seq: list[tuple[GripInput, int, int, bool]]
+) -> None:
+    rate = 300.0
+    gov = GripGovernor(law, timeout_ns=50_000_000, max_rate_n_per_s=rate)
+    now, last = 0, gov.last_n
+    for inp, advance, age, ok in seq:
+        now += advance
+        d = gov.step(inp, now_ns=now, stamps_ns=[now - age], status_ok=ok)
+        assert math.isfinite(d.f_n_desired) and not math.isnan(d.raw)
+        assert F_NOM <= d.f_n_desired <= F_MAX
+        assert abs(d.f_n_desired - last) <= rate * advance * 1e-9 + 1e-9
+        if d.reason is GripReason.FAIL_SAFE:
+            assert d.f_n_desired == last  # held: never below (nor above) the last command
+        last = d.f_n_desired

@@ -1,0 +1,252 @@
+"""Grip laws (MATH.md §5): hand-checked values, bounds, rate limit, fail-safe."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from slipstack.lib.errors import ConfigError
+from slipstack.lib.grip_laws import (
+    LAWS,
+    ExactLaw,
+    Ft13Law,
+    Ft13SigmaLaw,
+    GripGovernor,
+    GripInput,
+    GripReason,
+    LinearLaw,
+    RateLimiter,
+    Tactile14Law,
+    make_law,
+    tactile14_increment,
+)
+
+MS = 1_000_000  # ns per ms
+NAN = float("nan")
+
+
+# ---------------------------------------------------------------- the laws, by hand
+
+
+def test_linear_law_hand_value() -> None:
+    # |f_t| = |(3, 4)| = 5 N; f_n = 5 / (σ μ) = 5 / (0.5 · 0.5) = 20 N, inside [1, 30].
+    law = LinearLaw(mu=0.5, sigma=0.5, f_nom_n=1.0, f_max_n=30.0)
+    d = law.decide(GripInput(f_t=(3.0, 4.0)))
+    assert d.f_n_desired == pytest.approx(20.0)
+    assert d.raw == pytest.approx(20.0)
+    assert d.reason is GripReason.SLIP and d.reason == "slip"
+    assert d.law == "linear"
+    pair = GripInput(f_t=np.array([3.0, 4.0]))  # type: ignore[arg-type]  # numpy works too
+    assert law.decide(pair).f_n_desired == pytest.approx(20.0)
+
+
+def test_linear_law_paper_parameters() -> None:
+    # Paper σ = 0.5, μ = 0.45: |f_t| = 0.9 N -> 0.9 / 0.225 = 4 N.
+    d = LinearLaw(f_nom_n=1.0, f_max_n=30.0).decide(GripInput(f_t=(0.9, 0.0)))
+    assert d.f_n_desired == pytest.approx(4.0)
+
+
+def test_bounds_nominal_and_saturated() -> None:
+    # |f_t| = 0.5 N -> raw 0.5 / 0.25 = 2 N < f_nom = 5 N -> 5 N, nominal.
+    low = LinearLaw(mu=0.5, sigma=0.5, f_nom_n=5.0, f_max_n=15.0).decide(GripInput(f_t=(0.3, 0.4)))
+    assert (low.f_n_desired, low.reason, low.raw) == (5.0, GripReason.NOMINAL, pytest.approx(2.0))
+    # |f_t| = 5 N -> raw 20 N > f_max = 15 N -> 15 N, saturated, raw kept.
+    high = LinearLaw(mu=0.5, sigma=0.5, f_nom_n=5.0, f_max_n=15.0).decide(GripInput(f_t=(3.0, 4.0)))
+    assert (high.f_n_desired, high.reason, high.raw) == (15.0, GripReason.SATURATED, pytest.approx(20.0))
+
+
+def test_ft13_hand_value() -> None:
+    # |f_t|/μ = 5 / 0.5 = 10 N; |τ|/β = 0.02 N·m / 0.01 m = 2 N; + k = 2 N -> 14 N.
+    law = Ft13Law(mu=0.5, beta_m=0.01, k_n=2.0, f_nom_n=1.0, f_max_n=30.0)
+    d = law.decide(GripInput(f_t=(3.0, 4.0), tau=-0.02))
+    assert d.f_n_desired == pytest.approx(14.0)
+    # No load: raw = k = 2 N, above f_nom = 1 N.
+    assert law.decide(GripInput(f_t=(0.0, 0.0), tau=0.0)).raw == pytest.approx(2.0)
+
+
+def test_ft13_sigma_hand_value() -> None:
+    # (|f_t|/μ + |τ|/β)/σ = (10 + 2) / 0.5 = 24 N.
+    law = Ft13SigmaLaw(mu=0.5, beta_m=0.01, sigma=0.5, f_nom_n=1.0, f_max_n=30.0)
+    assert law.decide(GripInput(f_t=(3.0, 4.0), tau=0.02)).f_n_desired == pytest.approx(24.0)
+
+
+def test_exact_law_hand_value() -> None:
+    # γ f_n / σ = 0.8 · 10 N / 0.5 = 16 N.
+    law = ExactLaw(sigma=0.5, f_nom_n=1.0, f_max_n=30.0)
+    assert law.decide(GripInput(gamma=0.8, f_n=10.0)).f_n_desired == pytest.approx(16.0)
+
+
+# Test (11) fails: |n| = 0.05 N·m > T = 0.03 N·m, excess 0.02 N·m; σ = μ = 0.5, Σ|p_i − p_c| = 0.08 m:
+# δφ = 0.02 / (0.5 · 0.5 · 0.08) = 0.02 / 0.02 = 1 N per taxel; N_A = 10 -> δf_n = 10 N.
+FAILING = GripInput(f_n=5.0, n_c=0.05, t_c=0.03, sum_dist_m=0.08, n_contact=10)
+
+
+def test_tactile14_increment_total_and_per_taxel() -> None:
+    assert tactile14_increment(0.05, 0.03, 0.08, 10, 0.5, 0.5) == pytest.approx(10.0)
+    assert tactile14_increment(0.05, 0.03, 0.08, 10, 0.5, 0.5, "per_taxel") == pytest.approx(1.0)
+    # Opposite sense of rotation counts the same (|n|).
+    assert tactile14_increment(-0.05, 0.03, 0.08, 10, 0.5, 0.5) == pytest.approx(10.0)
+    # Test holds (|n| = 0.02 <= 0.03): no increment.
+    assert tactile14_increment(0.02, 0.03, 0.08, 10, 0.5, 0.5) == 0.0
+    # Fails with no lever arm (point contact): unbounded.
+    assert tactile14_increment(0.05, 0.03, 0.0, 1, 0.5, 0.5) == math.inf
+
+
+def test_tactile14_law_raises_by_total_or_per_taxel() -> None:
+    total = Tactile14Law(mu=0.5, sigma=0.5, f_nom_n=1.0, f_max_n=30.0)
+    per = Tactile14Law(mu=0.5, sigma=0.5, increment="per_taxel", f_nom_n=1.0, f_max_n=30.0)
+    assert total.decide(FAILING).f_n_desired == pytest.approx(15.0)  # 5 + 10
+    assert per.decide(FAILING).f_n_desired == pytest.approx(6.0)  # 5 + 1
+    assert total.decide(FAILING).reason is GripReason.SLIP
+
+
+def test_tactile14_holds_or_decays_when_test_passes() -> None:
+    passing = GripInput(f_n=8.0, n_c=0.02, t_c=0.03, sum_dist_m=0.08, n_contact=10)
+    hold = Tactile14Law(mu=0.5, sigma=0.5, f_nom_n=1.0, f_max_n=30.0)
+    assert hold.decide(passing, dt_s=0.5).f_n_desired == pytest.approx(8.0)
+    # Decay 2 N/s for 0.5 s: 8 − 1 = 7 N; never below f_nom (1 N) even after 100 s.
+    decay = Tactile14Law(mu=0.5, sigma=0.5, decay_n_per_s=2.0, f_nom_n=1.0, f_max_n=30.0)
+    assert decay.decide(passing, dt_s=0.5).f_n_desired == pytest.approx(7.0)
+    far = decay.decide(passing, dt_s=100.0)
+    assert (far.f_n_desired, far.reason) == (1.0, GripReason.NOMINAL)
+
+
+def test_tactile14_point_contact_saturates() -> None:
+    law = Tactile14Law(f_nom_n=1.0, f_max_n=30.0)
+    d = law.decide(GripInput(f_n=5.0, n_c=0.01, t_c=0.0, sum_dist_m=0.0, n_contact=1))
+    assert (d.f_n_desired, d.reason, d.raw) == (30.0, GripReason.SATURATED, math.inf)
+
+
+@pytest.mark.parametrize("bad", [NAN, math.inf, -math.inf])
+def test_law_non_finite_input_is_fail_safe_not_nan(bad: float) -> None:
+    law = LinearLaw(f_nom_n=1.0, f_max_n=30.0)
+    d = law.decide(GripInput(f_t=(bad, 1.0)))
+    assert (d.f_n_desired, d.reason) == (30.0, GripReason.FAIL_SAFE)
+    assert math.isfinite(d.raw) and "f_t" in d.detail
+
+
+# ---------------------------------------------------------------- registry and config
+
+
+def test_registry_names() -> None:
+    assert set(LAWS) == {"linear", "ft13", "ft13_sigma", "tactile14", "exact"}
+    law = make_law("ft13", beta_m=0.01, f_nom_n=1.0, f_max_n=30.0)
+    assert isinstance(law, Ft13Law) and law.k_n == 2.0 and law.mu == 0.45
+
+
+@pytest.mark.parametrize(
+    ("name", "params", "words"),
+    [
+        ("nope", {}, "unknown grip law"),
+        ("ft13", {"f_nom_n": 1.0, "f_max_n": 30.0}, "beta_m"),
+        ("linear", {"f_nom_n": 1.0, "f_max_n": 30.0, "sigma": 1.5}, "sigma"),
+        ("linear", {"f_nom_n": 40.0, "f_max_n": 30.0}, "f_nom_n"),
+        ("linear", {"f_nom_n": 1.0, "f_max_n": 30.0, "mu": 0.0}, "mu"),
+        ("linear", {"f_nom_n": 1.0, "f_max_n": 30.0, "colour": 1}, "colour"),
+        ("tactile14", {"f_nom_n": 1.0, "f_max_n": 30.0, "increment": "each"}, "increment"),
+    ],
+)
+def test_config_errors_say_what_to_fix(name: str, params: dict, words: str) -> None:
+    with pytest.raises(ConfigError, match=words):
+        make_law(name, **params)
+
+
+# ---------------------------------------------------------------- rate limiter
+
+
+def test_rate_limiter_rise_and_fall() -> None:
+    lim = RateLimiter(100.0, max_fall_rate_n_per_s=10.0, initial_n=5.0)
+    assert lim.step(20.0, 0.05) == pytest.approx(10.0)  # 5 + 100 · 0.05
+    assert lim.step(20.0, 0.1) == pytest.approx(20.0)  # 10 + 10 would pass 20: reaches target
+    assert lim.step(0.0, 0.1) == pytest.approx(19.0)  # 20 − 10 · 0.1
+    assert lim.step(0.0, -1.0) == pytest.approx(19.0)  # time going back: hold
+    assert lim.step(0.0, NAN) == pytest.approx(19.0)
+
+
+def test_rate_limiter_first_step_passes_through() -> None:
+    lim = RateLimiter(1.0)
+    assert lim.value is None
+    assert lim.step(7.0, 0.0) == 7.0
+    lim.reset(3.0)  # e.g. to the measured actuator force
+    assert lim.step(10.0, 0.5) == pytest.approx(3.5)  # 3 + 1 N/s · 0.5 s
+
+
+def test_rate_limiter_rejects_bad_rate() -> None:
+    with pytest.raises(ConfigError, match="max_rate_n_per_s"):
+        RateLimiter(0.0)
+
+
+# ---------------------------------------------------------------- governor: fail-safe
+
+
+def _governor() -> GripGovernor:
+    # Linear law μ = σ = 0.5, bounds [2, 30] N, 200 N/s actuator, 50 ms timeout.
+    law = LinearLaw(mu=0.5, sigma=0.5, f_nom_n=2.0, f_max_n=30.0)
+    return GripGovernor(law, timeout_ns=50 * MS, max_rate_n_per_s=200.0)
+
+
+LOAD = GripInput(f_t=(3.0, 4.0))  # law demand 20 N
+
+
+def test_governor_rate_limits_from_initial() -> None:
+    gov = _governor()
+    first = gov.step(LOAD, now_ns=0, stamps_ns=[0])
+    assert first.f_n_desired == 2.0 and first.raw == pytest.approx(20.0)  # dt = 0: initial f_nom
+    # 10 ms at 200 N/s = 2 N per step: 4, 6, ..., 20 at 90 ms, then held at 20.
+    out = [gov.step(LOAD, now_ns=k * 10 * MS, stamps_ns=[k * 10 * MS]).f_n_desired for k in range(1, 12)]
+    assert out[:3] == pytest.approx([4.0, 6.0, 8.0])
+    assert out[8:] == pytest.approx([20.0, 20.0, 20.0])
+
+
+def _raised() -> GripGovernor:
+    gov = _governor()
+    for k in range(11):
+        gov.step(LOAD, now_ns=k * 10 * MS, stamps_ns=[k * 10 * MS])
+    assert gov.last_n == pytest.approx(20.0)
+    return gov
+
+
+def test_stale_input_holds_never_releases() -> None:
+    gov = _raised()
+    # Newest stamp 100 ms, now 200 ms: age 100 ms > 50 ms. The (stale) load is zero,
+    # which would release to f_nom: the governor holds 20 N instead.
+    d = gov.step(GripInput(f_t=(0.0, 0.0)), now_ns=200 * MS, stamps_ns=[100 * MS, 190 * MS])
+    assert (d.f_n_desired, d.reason) == (pytest.approx(20.0), GripReason.FAIL_SAFE)
+    assert "age 100.000 ms > timeout 50.000 ms" in d.detail
+    assert gov.in_fail_safe
+
+
+def test_nan_and_bad_status_hold() -> None:
+    gov = _raised()
+    nan = gov.step(GripInput(f_t=(NAN, 0.0)), now_ns=110 * MS, stamps_ns=[110 * MS])
+    status = gov.step(GripInput(f_t=(0.0, 0.0)), now_ns=120 * MS, stamps_ns=[120 * MS], status_ok=False)
+    none = gov.step(GripInput(f_t=(0.0, 0.0)), now_ns=130 * MS, stamps_ns=[])
+    for d in (nan, status, none):
+        assert d.reason is GripReason.FAIL_SAFE
+        assert d.f_n_desired == pytest.approx(20.0) and math.isfinite(d.raw)
+    assert "status" in status.detail and "stamps" in none.detail
+
+
+def test_recovery_is_rate_limited() -> None:
+    gov = _raised()
+    gov.step(GripInput(f_t=(0.0, 0.0)), now_ns=300 * MS, stamps_ns=[0])  # stale: hold 20
+    # Fresh zero load 10 ms later: falls by 200 N/s · 10 ms = 2 N, not straight to f_nom.
+    d = gov.step(GripInput(f_t=(0.0, 0.0)), now_ns=310 * MS, stamps_ns=[310 * MS])
+    assert (d.f_n_desired, d.reason) == (pytest.approx(18.0), GripReason.NOMINAL)
+    assert not gov.in_fail_safe
+
+
+def test_governor_fail_safe_before_any_input_holds_initial() -> None:
+    gov = _governor()
+    d = gov.step(LOAD, now_ns=0, stamps_ns=[-(100 * MS)])
+    assert (d.f_n_desired, d.reason) == (2.0, GripReason.FAIL_SAFE)
+
+
+def test_governor_config_errors() -> None:
+    law = LinearLaw(f_nom_n=2.0, f_max_n=30.0)
+    with pytest.raises(ConfigError, match="timeout_ns"):
+        GripGovernor(law, timeout_ns=0, max_rate_n_per_s=1.0)
+    with pytest.raises(ConfigError, match="initial_n"):
+        GripGovernor(law, timeout_ns=1, max_rate_n_per_s=1.0, initial_n=40.0)
