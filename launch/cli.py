@@ -12,20 +12,15 @@ __all__ = ["main", "build_parser"]
 
 def build_parser() -> argparse.ArgumentParser:
     from slipstack.launch import launcher, run_node
+    from slipstack.nodes import bag_tools, topic_tools
 
     parser = argparse.ArgumentParser(
         prog="slipstack",
         description="Slip detection and control as a ZeroMQ node graph (after Melchiorri 2000).",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    launcher.add_parser(sub)
-    run_node.add_parser(sub)
-    for module in ("slipstack.nodes.topic_tools", "slipstack.nodes.bag_tools"):
-        try:
-            mod = __import__(module, fromlist=["add_parser"])
-        except ImportError:
-            continue
-        mod.add_parser(sub)
+    for module in (launcher, run_node, topic_tools, bag_tools):
+        module.add_parser(sub)
     return parser
 
 
@@ -38,6 +33,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         return 130
+    except BrokenPipeError:  # output piped into `head` and closed: not an error
+        sys.stderr.close()
+        return 0
 
 
 if __name__ == "__main__":

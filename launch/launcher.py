@@ -109,18 +109,20 @@ class Launcher:
         for e in self.launch.nodes:
             ep = f"tcp://127.0.0.1:{_free_tcp_port()}" if e.transport == "tcp" else ipc_endpoint(self.run_dir, e.name)
             child = _Child(e, ep, self.run_dir / f"{e.name}.spec.json")
-            child.outputs = {t: type(nodes[e.name]).outputs[n].type.TYPE for n, t in e.output_topics(nodes[e.name]).items()}
+            child.outputs = {t: nodes[e.name].outputs[n].type.TYPE for n, t in e.output_topics(nodes[e.name]).items()}
             child.outputs[DIAGNOSTICS_TOPIC] = Diagnostics.TYPE  # every node publishes it
-            child.inputs = {t: type(nodes[e.name]).inputs[n].type.TYPE for n, t in e.input_topics(nodes[e.name]).items()}
+            child.inputs = {t: nodes[e.name].inputs[n].type.TYPE for n, t in e.input_topics(nodes[e.name]).items()}
             child.inject = {t: ipc_endpoint(self.run_dir, f"{e.name}.in{k}") for k, t in enumerate(child.inputs)}
             self.children[e.name] = child
         publishers: dict[str, list[str]] = {}
         for name, c in self.children.items():
             for topic in c.outputs:
                 publishers.setdefault(topic, []).append(name)
+        taps = [tapped for tapped in (self._tapped_topics(nodes[n]) for n in self.children) if tapped is not None]
         for name, c in self.children.items():
             expected = {
                 topic: sum(1 for other in self.children.values() if topic in other.inputs)
+                + sum(1 for tapped in taps if not tapped or topic in tapped)
                 for topic in c.outputs
             }
             spec = {
@@ -135,6 +137,13 @@ class Launcher:
             }
             c.spec_path.write_text(json.dumps(spec, indent=1))
         self.order = self._start_order(publishers)
+
+    @staticmethod
+    def _tapped_topics(node: object) -> set[str] | None:
+        """Topics a bus tap (the recorder) subscribes to: a set, empty for all; None if no tap."""
+        if not getattr(node, "taps_bus", False):
+            return None
+        return set(node.params.topics)
 
     def _start_order(self, publishers: dict[str, list[str]]) -> list[str]:
         """Subscribers before publishers: reverse topological order, back edges ignored."""
@@ -160,7 +169,7 @@ class Launcher:
     # -- processes --------------------------------------------------------------------------
     def _spawn(self, c: _Child) -> None:
         cmd = [sys.executable, "-m", "slipstack.launch.cli", "run", c.entry.type, "--spec", str(c.spec_path)]
-        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        env = dict(os.environ, PYTHONUNBUFFERED="1", SLIPSTACK_RUN_DIR=str(self.run_dir))
         c.proc = subprocess.Popen(
             cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
             env=env, preexec_fn=set_parent_death_signal, start_new_session=True,
@@ -209,11 +218,12 @@ class Launcher:
                 raise SlipstackError(f"node(s) {', '.join(sorted(pending))} not ready after {timeout:.0f} s")
             self._forward_logs(0.01)
 
-    def _write_graph(self) -> None:
+    def _write_graph(self, state: str = "running") -> None:
         write_graph(self.run_dir, {
             "run_dir": str(self.run_dir),
             "launcher_pid": os.getpid(),
             "launch_file": str(self.launch.path),
+            "state": state,
             "started_ns": time.time_ns(),
             "nodes": {
                 name: {"type": c.entry.type, "pid": c.proc.pid if c.proc else None, "pub": c.endpoint,
@@ -231,6 +241,7 @@ class Launcher:
         old = {s: signal.signal(s, self._on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
         started: list[str] = []
         try:
+            self._write_graph("starting")  # endpoints are known now; tools may attach early
             for name in self.order:
                 self._spawn(self.children[name])
                 started.append(name)

@@ -14,6 +14,9 @@ NODE_TYPES: dict[str, str] = {
     "relay": "slipstack.nodes.demo:Relay",
     "sink": "slipstack.nodes.demo:Sink",
     "monitor": "slipstack.nodes.monitor:Monitor",
+    "grip_controller": "slipstack.nodes.grip_controller:GripController",
+    "recorder": "slipstack.nodes.recorder:Recorder",
+    "player": "slipstack.nodes.player:Player",
 }
 
 

@@ -2,7 +2,8 @@
 
 ``<run_dir>/graph.json``::
 
-    {"run_dir": str, "launcher_pid": int, "started_ns": int,
+    {"run_dir": str, "launcher_pid": int, "started_ns": int, "launch_file": str,
+     "state": "starting" (endpoints known, nodes coming up) | "running" (all ready),
      "nodes": {name: {"type": str, "pid": int | null, "pub": endpoint,
                       "inputs": {topic: message type}, "outputs": {topic: message type},
                       "inject": {topic: endpoint the node's SUB binds, for `topic pub`},

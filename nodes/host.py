@@ -59,7 +59,7 @@ class NodeHost:
         self.input_topics = {n: remap.get(i.topic, i.topic) for n, i in node.inputs.items()}
         self.output_topics = {n: remap.get(o.topic, o.topic) for n, o in node.outputs.items()}
         self._seq: dict[str, int] = {n: 0 for n in node.outputs}
-        self._last_seq: dict[str, int] = {}
+        self._last_seq: dict[tuple[str, str], int] = {}
         self.counters: dict[str, float] = defaultdict(int)
         self.status = "ok"
         self.detail = ""
@@ -84,6 +84,11 @@ class NodeHost:
         self._send(topic, encode(dataclasses.replace(msg, header=header)))
         self.counters[f"out.{topic}.published"] += 1
 
+    def publish_raw(self, topic: str, payload: bytes) -> None:
+        """Put an already-encoded frame on the bus unchanged (recording playback)."""
+        self._send(topic, payload)
+        self.counters[f"out.{topic}.published"] += 1
+
     def count(self, name: str, increment: int = 1) -> None:
         self.counters[name] += increment
 
@@ -97,8 +102,13 @@ class NodeHost:
         self.shutdown_requested = True
 
     # -- receiving ---------------------------------------------------------------------
-    def receive(self, input_name: str, payload: bytes) -> Message | None:
-        """Decode and validate one frame; count it; ``None`` if rejected."""
+    def receive(self, input_name: str, payload: bytes, origin: str = "") -> Message | None:
+        """Decode and validate one frame; count it; ``None`` if rejected.
+
+        ``origin`` names the stream the frame came from (the publisher's endpoint, or
+        ``"inject"`` for frames put in by tools): sequence gaps are tracked per topic and
+        origin, and a sequence that goes back (a respawned publisher) is no loss.
+        """
         topic = self.input_topics[input_name]
         self.counters[f"in.{topic}.received"] += 1
         try:
@@ -108,10 +118,10 @@ class NodeHost:
             self.last_error = f"{topic}: {exc}"
             return None
         seq = msg.header.seq
-        last = self._last_seq.get(topic)
+        last = self._last_seq.get((topic, origin))
         if last is not None and seq > last + 1:
             self.counters[f"in.{topic}.lost"] += seq - last - 1
-        self._last_seq[topic] = seq
+        self._last_seq[(topic, origin)] = seq
         return msg
 
     def count_dropped(self, input_name: str, n: int) -> None:

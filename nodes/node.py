@@ -69,6 +69,9 @@ class Context(Protocol):
     def publish(self, output: str, msg: Message, *, stamp_ns: int, sources: dict[str, int] | None = None) -> None:
         """Publish ``msg`` on the named output; the executor fills the header."""
 
+    def publish_raw(self, topic: str, payload: bytes) -> None:
+        """Send an encoded frame as is (header included); for bus tools such as the player."""
+
     def count(self, name: str, increment: int = 1) -> None:
         """Add to a node-specific counter reported on ``diagnostics``."""
 

@@ -29,6 +29,7 @@ from slipstack.nodes.transport import make_pub, make_sub
 __all__ = ["RunSpec", "ProcessExecutor"]
 
 _DRAIN_LIMIT = 5000  # frames read from one socket per wake-up before others get a turn
+_TIMER_CATCH_UP = 20  # late ticks of one timer fired per loop turn before ticks are skipped
 
 
 @dataclass
@@ -67,14 +68,19 @@ class ProcessExecutor:
         self.zctx = zmq.Context.instance()
         self.pub = make_pub(self.zctx, spec.pub) if spec.pub else None
         self.host = NodeHost(node, time.monotonic_ns, self._send, name=spec.name, remap=spec.remap, log=self._log)
-        self.subs: dict[str, zmq.Socket] = {}
+        # One SUB socket per (input, publisher endpoint), plus one bound for injection:
+        # sequence gaps are then tracked per publisher, so several publishers on one
+        # topic (``diagnostics``) or an injecting tool never look like loss.
+        self._sub_topic: dict[zmq.Socket, tuple[str, bytes, str]] = {}
         for input_name, topic in self.host.input_topics.items():
-            policy = node.inputs[input_name]
-            hwm = 1000 if policy.policy == "queue" else 100
-            self.subs[input_name] = make_sub(self.zctx, spec.subs.get(topic, []), topic, rcvhwm=hwm)
+            hwm = 1000 if node.inputs[input_name].policy == "queue" else 100
+            for origin in spec.subs.get(topic, []):
+                sock = make_sub(self.zctx, [origin], topic, rcvhwm=hwm)
+                self._sub_topic[sock] = (input_name, topic.encode(), origin)
             if topic in spec.inject:
-                self.subs[input_name].bind(spec.inject[topic])
-        self._sub_topic = {sock: (name, self.host.input_topics[name].encode()) for name, sock in self.subs.items()}
+                sock = make_sub(self.zctx, [], topic, rcvhwm=hwm)
+                sock.bind(spec.inject[topic])
+                self._sub_topic[sock] = (input_name, topic.encode(), "inject")
         self._queues = {n: deque(maxlen=i.depth) for n, i in node.inputs.items() if i.policy == "queue"}
         self._subscriptions: dict[bytes, int] = {}
         self._stopping = False
@@ -101,11 +107,14 @@ class ProcessExecutor:
                 delta = 1 if frame[0] == 1 else -1
                 self._subscriptions[frame[1:]] = self._subscriptions.get(frame[1:], 0) + delta
 
+    def _subscribers_of(self, topic: str) -> int:
+        """Subscriptions matching ``topic`` (ZeroMQ filters are prefixes; b"" taps all)."""
+        t = topic.encode()
+        return sum(n for prefix, n in self._subscriptions.items() if t.startswith(prefix))
+
     def _subscribers_joined(self) -> bool:
         self._read_subscriptions()
-        return all(
-            self._subscriptions.get(topic.encode(), 0) >= n for topic, n in self.spec.expected_subscribers.items()
-        )
+        return all(self._subscribers_of(t) >= n for t, n in self.spec.expected_subscribers.items())
 
     def _report(self, event: str) -> None:
         if not self.spec.control:
@@ -127,16 +136,16 @@ class ProcessExecutor:
                 raise _Stop
             if time.monotonic() > deadline:
                 missing = {
-                    t: f"{self._subscriptions.get(t.encode(), 0)}/{n}"
+                    t: f"{self._subscribers_of(t)}/{n}"
                     for t, n in self.spec.expected_subscribers.items()
-                    if self._subscriptions.get(t.encode(), 0) < n
+                    if self._subscribers_of(t) < n
                 }
                 self._log(f"warning: subscribers still missing after {self.spec.handshake_timeout_s} s: {missing}; starting anyway")
                 return
             time.sleep(0.002)
 
     def _drain(self, input_name: str, sock: zmq.Socket) -> None:
-        want = self._sub_topic[sock][1]
+        _, want, origin = self._sub_topic[sock]
         host = self.host
         latest = None
         kept = 0
@@ -151,7 +160,7 @@ class ProcessExecutor:
                     host.count(f"in.{host.input_topics[input_name]}.rejected")
                     host.last_error = f"{host.input_topics[input_name]}: expected [topic, payload], got {len(parts)} parts"
                 continue
-            msg = host.receive(input_name, parts[1])
+            msg = host.receive(input_name, parts[1], origin)
             if msg is None:
                 continue
             if queue is None:
@@ -188,7 +197,7 @@ class ProcessExecutor:
             self.node.start(host)
         except Exception as exc:  # cannot start: say why, exit non-zero, the launcher names us
             self._log(f"cannot start: {type(exc).__name__}: {exc}")
-            for sock in [*self.subs.values(), *([self.pub] if self.pub else [])]:
+            for sock in [*self._sub_topic, *([self.pub] if self.pub else [])]:
                 sock.close(linger=0)
             return 1
         try:
@@ -202,14 +211,14 @@ class ProcessExecutor:
             host.call("stop", self.node.stop, host)
             if self.pub is not None:
                 self._send(DIAGNOSTICS_TOPIC, host.diagnostics())
-            for sock in [*self.subs.values(), *([self.pub] if self.pub else [])]:
+            for sock in [*self._sub_topic, *([self.pub] if self.pub else [])]:
                 sock.close(linger=0)
         return 0
 
     def _loop(self) -> None:
         host = self.host
         poller = zmq.Poller()
-        for sock in self.subs.values():
+        for sock in self._sub_topic:
             poller.register(sock, zmq.POLLIN)
         if self.pub is not None:
             poller.register(self.pub, zmq.POLLIN)
@@ -230,7 +239,7 @@ class ProcessExecutor:
                 events = dict(poller.poll(0))
                 if not events and wait_ns > 0:
                     time.sleep(wait_ns / 1e9)
-            for input_name, sock in self.subs.items():
+            for sock, (input_name, _, _) in self._sub_topic.items():
                 if sock in events:
                     self._drain(input_name, sock)
             if self.pub is not None and self.pub in events:
@@ -240,13 +249,17 @@ class ProcessExecutor:
                     host.call("on_readable", self.node.on_readable, src, host)
             now = time.monotonic_ns()
             for timer, due in deadlines.items():
-                if now >= due:
+                period = periods[timer]
+                fired = 0
+                while now >= due and fired < _TIMER_CATCH_UP:  # late ticks are made up, not lost
                     host.fire_timer(timer)
-                    period = periods[timer]
-                    behind = (now - due) // period
-                    if behind:
-                        host.count(f"timer.{timer}.overruns", behind)
-                    deadlines[timer] = due + (behind + 1) * period
+                    due += period
+                    fired += 1
+                if now >= due:  # hopelessly behind: skip ahead and say so
+                    skipped = (now - due) // period + 1
+                    host.count(f"timer.{timer}.skipped", skipped)
+                    due += skipped * period
+                deadlines[timer] = due
             if now >= next_diag and self.pub is not None:
                 self._send(DIAGNOSTICS_TOPIC, host.diagnostics())
                 next_diag += diag_period

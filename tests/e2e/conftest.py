@@ -36,7 +36,9 @@ class LaunchedGraph:
             if self.proc.poll() is not None:
                 raise AssertionError(f"launcher exited early ({self.proc.returncode}):\n{self.log()}")
             if graph.exists():
-                return json.loads(graph.read_text())
+                content = json.loads(graph.read_text())
+                if content.get("state") == "running":
+                    return content
             time.sleep(0.05)
         raise AssertionError(f"graph not ready after {timeout} s:\n{self.log()}")
 

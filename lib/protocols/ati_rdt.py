@@ -1,0 +1,95 @@
+"""ATI Net F/T and Axia80 Raw Data Transfer (RDT) over UDP.
+
+Sources: ATI Net F/T manual 9620-05, Axia80 manual, netft_utils
+``netft_rdt_driver.cpp`` (see PROTOCOLS.md). All fields big-endian.
+
+Request (8 bytes, to UDP port 49152)::
+
+    u16 0x1234 | u16 command | u32 sample count (0 = endless)
+
+Record (36 bytes; buffered mode packs several in one datagram)::
+
+    u32 rdt_sequence (from 1 per request) | u32 ft_sequence (internal, 7000/s) |
+    u32 status | int32 x6 Fx Fy Fz Tx Ty Tz (counts)
+
+Force N = counts / counts-per-force, torque N·m = counts / counts-per-torque; both
+scales are read from the sensor (1,000,000 is typical, not fixed).
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+from enum import IntEnum
+from typing import Sequence
+
+import numpy as np
+
+__all__ = [
+    "PORT", "RECORD_LENGTH", "RATE_HZ", "Command", "RdtRecord", "encode_request", "decode_request",
+    "encode_record", "decode_records", "to_wrench",
+]
+
+PORT = 49152
+HEADER = 0x1234
+RECORD_LENGTH = 36
+RATE_HZ = 7000.0
+
+_REQUEST = struct.Struct(">HHI")
+_RECORD = struct.Struct(">III6i")
+
+
+class Command(IntEnum):
+    """RDT request commands."""
+
+    STOP = 0x0000
+    REALTIME = 0x0002
+    BUFFERED = 0x0003
+    MULTI_UNIT = 0x0004
+    RESET_LATCH = 0x0041
+    BIAS = 0x0042
+
+
+@dataclass(frozen=True)
+class RdtRecord:
+    """One RDT record; ``counts`` (6,) int64 are Fx Fy Fz Tx Ty Tz in sensor counts."""
+
+    rdt_sequence: int
+    ft_sequence: int
+    status: int
+    counts: np.ndarray
+
+
+def encode_request(command: int, sample_count: int = 0) -> bytes:
+    """8-byte RDT request."""
+    return _REQUEST.pack(HEADER, command, sample_count)
+
+
+def decode_request(data: bytes) -> tuple[int, int] | None:
+    """(command, sample count) of a request; None if not an 8-byte 0x1234 request."""
+    if len(data) != _REQUEST.size:
+        return None
+    header, command, count = _REQUEST.unpack(data)
+    return (command, count) if header == HEADER else None
+
+
+def encode_record(rdt_sequence: int, ft_sequence: int, status: int, counts: Sequence[int]) -> bytes:
+    """36-byte record; counts are clipped to int32; sequences wrap at 2**32."""
+    c = np.clip(np.rint(np.asarray(counts, float)), -(2**31), 2**31 - 1).astype(int)
+    return _RECORD.pack(rdt_sequence & 0xFFFFFFFF, ft_sequence & 0xFFFFFFFF, status & 0xFFFFFFFF, *c)
+
+
+def decode_records(datagram: bytes) -> list[RdtRecord] | None:
+    """Records of one datagram; None unless its length is a positive multiple of 36."""
+    n = len(datagram)
+    if n == 0 or n % RECORD_LENGTH:
+        return None
+    return [
+        RdtRecord(r[0], r[1], r[2], np.array(r[3:], dtype=np.int64))
+        for r in _RECORD.iter_unpack(datagram)
+    ]
+
+
+def to_wrench(record: RdtRecord, counts_per_force: float, counts_per_torque: float) -> tuple[np.ndarray, np.ndarray]:
+    """(force N (3,), torque N·m (3,)) of a record, sensor frame."""
+    return record.counts[:3] / counts_per_force, record.counts[3:] / counts_per_torque

@@ -1,0 +1,126 @@
+"""Table-driven CRC-16 with the parameters of the device protocols (PROTOCOLS.md).
+
+One implementation, parameterised in the Rocksoft/Williams style (polynomial,
+initial value, bit order, final XOR) plus one extra switch that the DSACON32 needs:
+
+=================  ======  ======  ========  ========  ======  ==========================
+name               poly    init    refin     table     xorout  check("123456789")
+=================  ======  ======  ========  ========  ======  ==========================
+CRC-16/MODBUS      0x8005  0xFFFF  yes       reflected 0x0000  0x4B37 (Robotiq FT 300)
+CRC-16/X-25        0x1021  0xFFFF  yes       reflected 0xFFFF  0x906E (Bota serial)
+DSACON32           0x1021  0xFFFF  yes       MSB-first 0x0000  0x6EB4 (Weiss DSACON32)
+CRC-16/CCITT-FALSE 0x1021  0xFFFF  no        MSB-first 0x0000  0x29B1 (``framed`` option)
+=================  ======  ======  ========  ========  ======  ==========================
+
+*refin* selects the register update: reflected (LSB-first)
+``crc = (crc >> 8) ^ T[(crc ^ byte) & 0xFF]`` or MSB-first
+``crc = ((crc << 8) & 0xFFFF) ^ T[((crc >> 8) ^ byte) & 0xFF]``. *table* selects how the
+256-entry table is built: from the bit-reversed polynomial shifted right (reflected,
+what every Rocksoft-model reflected CRC uses) or from the normal polynomial shifted
+left (MSB-first). The DSACON32 firmware (SCHUNK SDHLibrary ``dsa.cpp``) combines an
+MSB-first CCITT table with the reflected update; that is not any catalogued CRC (it is
+*not* CCITT-FALSE, whose check value is 0x29B1), and it is the only combination that
+reproduces both the check value 0x6EB4 and the packet CRCs printed in PROTOCOLS.md
+(``AA AA AA 0B 01 00 00 CB FB``).
+
+The loop is pure Python (about 60 ns per byte); MSB-first 0x1021 CRCs
+(CCITT-FALSE) use ``binascii.crc_hqx``, which is C.
+"""
+
+from __future__ import annotations
+
+import binascii
+from dataclasses import dataclass, field
+
+__all__ = [
+    "Crc16",
+    "CRC16_MODBUS",
+    "CRC16_X25",
+    "CRC16_DSACON32",
+    "CRC16_CCITT_FALSE",
+]
+
+
+def _reflect16(value: int) -> int:
+    return int(f"{value:016b}"[::-1], 2)
+
+
+def _make_table(poly: int, reflected_table: bool) -> tuple[int, ...]:
+    table = []
+    if reflected_table:
+        rpoly = _reflect16(poly)
+        for i in range(256):
+            c = i
+            for _ in range(8):
+                c = (c >> 1) ^ rpoly if c & 1 else c >> 1
+            table.append(c)
+    else:
+        for i in range(256):
+            c = i << 8
+            for _ in range(8):
+                c = ((c << 1) ^ poly) & 0xFFFF if c & 0x8000 else (c << 1) & 0xFFFF
+            table.append(c)
+    return tuple(table)
+
+
+@dataclass(frozen=True)
+class Crc16:
+    """A CRC-16 algorithm; call it on bytes to get the CRC as an int in [0, 0xFFFF].
+
+    Parameters
+    ----------
+    name: label used in messages.
+    poly: generator polynomial in normal (MSB-first) notation, e.g. 0x1021.
+    init: register value before the first byte.
+    refin: reflected (LSB-first, right-shifting) register update.
+    xorout: XOR applied to the register after the last byte.
+    check: expected CRC of ``b"123456789"``; verified at construction.
+    reflected_table: build the table reflected; ``None`` means "same as refin"
+        (every Rocksoft-model CRC); DSACON32 uses ``refin=True, reflected_table=False``.
+    """
+
+    name: str
+    poly: int
+    init: int
+    refin: bool
+    xorout: int
+    check: int
+    reflected_table: bool | None = None
+    _table: tuple[int, ...] = field(init=False, repr=False, compare=False)
+    _hqx: bool = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        refl = self.refin if self.reflected_table is None else self.reflected_table
+        object.__setattr__(self, "_table", _make_table(self.poly, refl))
+        # binascii.crc_hqx is the MSB-first 0x1021 CRC in C: use it where it applies
+        object.__setattr__(self, "_hqx", self.poly == 0x1021 and not self.refin and not refl)
+        got = self(b"123456789")
+        if got != self.check:  # a wrong table is a programming error, caught at import
+            raise ValueError(f"{self.name}: check value {got:#06x} != {self.check:#06x}")
+
+    def __call__(self, data: bytes | bytearray | memoryview, init: int | None = None) -> int:
+        """CRC of *data*; *init* overrides the initial register (for chaining)."""
+        t = self._table
+        c = self.init if init is None else init
+        if self._hqx:
+            return binascii.crc_hqx(data, c) ^ self.xorout
+        if self.refin:
+            for b in data:
+                c = (c >> 8) ^ t[(c ^ b) & 0xFF]
+        else:
+            for b in data:
+                c = ((c << 8) & 0xFFFF) ^ t[((c >> 8) ^ b) & 0xFF]
+        return c ^ self.xorout
+
+
+#: Modbus RTU (Robotiq FT 300); transmitted little-endian.
+CRC16_MODBUS = Crc16("CRC-16/MODBUS", poly=0x8005, init=0xFFFF, refin=True, xorout=0x0000, check=0x4B37)
+#: X-25 (Bota serial sensors); transmitted little-endian.
+CRC16_X25 = Crc16("CRC-16/X-25", poly=0x1021, init=0xFFFF, refin=True, xorout=0xFFFF, check=0x906E)
+#: Weiss DSACON32: MSB-first CCITT table, reflected update, no final XOR; little-endian.
+CRC16_DSACON32 = Crc16(
+    "CRC-16/DSACON32", poly=0x1021, init=0xFFFF, refin=True, xorout=0x0000, check=0x6EB4,
+    reflected_table=False,
+)
+#: CCITT-FALSE (offered by the generic ``framed`` format).
+CRC16_CCITT_FALSE = Crc16("CRC-16/CCITT-FALSE", poly=0x1021, init=0xFFFF, refin=False, xorout=0x0000, check=0x29B1)

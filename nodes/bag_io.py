@@ -1,0 +1,632 @@
+"""Recordings on disk: MCAP files of slipstack frames (write, read, inspect, replay).
+
+File layout (one MCAP file per recording, https://mcap.dev/spec):
+
+* message_encoding ``msgpack``: every message's data is the frame payload exactly as
+  it travelled on the bus (``messages/codec.py`` wire format), so a replay decodes
+  the very bytes a node received.
+* one channel per (topic, message type); channel metadata ``{"type", "version"}``.
+* schema encoding :data:`SCHEMA_ENCODING` (a slipstack-specific name, allowed by the
+  MCAP spec for custom encodings): a JSON document describing the type's wire
+  layout and fields (name, wire type, dtype, shape, units) — see
+  :func:`message_schema`. A payload whose type is unknown gets schema id 0.
+* ``log_time``: receive time at the recorder, **wall clock** ns since the Unix epoch
+  (the MCAP convention, ``time.time_ns``); ``publish_time`` = ``header.pub_ns`` and
+  ``sequence`` = ``header.seq`` (both from the publisher: ``pub_ns`` is on the
+  publisher's CLOCK_MONOTONIC, not the wall clock).
+* a metadata record :data:`CLOCK_METADATA` written first, holding
+  ``wall_minus_monotonic_ns`` of the recording host, so receive times can be put on
+  the stamps' monotonic clock (:func:`replay_into`).
+* chunked (zstd) and indexed; the writer closes a chunk when it exceeds
+  ``chunk_size`` bytes **or** is older than ``flush_period_s``, and flushes it to the
+  OS, so a ``kill -9`` loses at most the chunk in progress. :func:`read_recording`
+  reads such an unfinished file up to its last intact chunk.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import typing
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable, Iterator, NamedTuple
+
+import numpy as np
+from mcap.records import Channel, Chunk, Footer, Message as McapMessage, Metadata, Schema
+from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.writer import CompressionType, Writer
+
+from slipstack.lib.errors import DecodeError, SlipstackError
+from slipstack.messages import Message, decode, registry
+from slipstack.messages.codec import packb, unpackb
+from slipstack.nodes.inprocess import InProcessExecutor
+from slipstack.nodes.node import Node
+
+__all__ = [
+    "SCHEMA_ENCODING", "MESSAGE_ENCODING", "CLOCK_METADATA", "RecordingError", "RecordedFrame",
+    "RecordingWriter", "read_recording", "TopicInfo", "RecordingInfo", "recording_info",
+    "message_schema", "json_schema", "to_json", "export_recording", "peek_header", "publisher_key",
+    "clock_offset_ns", "restamp",
+    "replay_into", "same_output", "match_outputs",
+]
+
+MESSAGE_ENCODING = "msgpack"
+SCHEMA_ENCODING = "slipstack-fields+json"
+CLOCK_METADATA = "slipstack.clock"
+DEFAULT_CHUNK_SIZE = 256 * 1024
+DEFAULT_FLUSH_PERIOD_S = 1.0
+
+
+class RecordingError(SlipstackError):
+    """A recording cannot be read (not MCAP, truncated when ``tolerant=False``, corrupt)."""
+
+
+class RecordedFrame(NamedTuple):
+    """One recorded frame: receive time (wall-clock ns), topic, payload as on the bus."""
+
+    log_time_ns: int
+    topic: str
+    payload: bytes
+    publish_time_ns: int = 0
+    sequence: int = 0
+
+
+# -- schemas ------------------------------------------------------------------------------
+
+_WIRE = "[type, version, [stamp_ns, seq, pub_ns, {source: stamp_ns}], [fields in order]]"
+
+
+def _field_rows(cls: type[Message]) -> list[dict[str, Any]]:
+    hints = typing.get_type_hints(cls)
+    rows = []
+    for f in dataclasses.fields(cls):
+        if f.name == "header":
+            continue
+        spec = f.metadata.get("array")
+        if spec is not None:
+            row = {"name": f.name, "type": "array", "dtype": spec.dtype, "shape": list(spec.shape)}
+        else:
+            hint = hints[f.name]
+            row = {"name": f.name, "type": getattr(typing.get_origin(hint) or hint, "__name__", str(hint))}
+        row["units"] = f.metadata.get("doc", "")
+        rows.append(row)
+    return rows
+
+
+def message_schema(cls: type[Message]) -> dict[str, Any]:
+    """The :data:`SCHEMA_ENCODING` document of a message type (JSON-serialisable).
+
+    ``{"type", "version", "wire", "header": [...], "fields": [{"name", "type",
+    "dtype"?, "shape"?, "units"}]}``; ``shape`` entries ``null`` are free; ``units``
+    is the field's declared unit (``""`` if none).
+    """
+    return {
+        "type": cls.TYPE,
+        "version": cls.VERSION,
+        "wire": _WIRE,
+        "header": ["stamp_ns:int", "seq:int", "pub_ns:int", "sources:{str:int}"],
+        "fields": _field_rows(cls),
+    }
+
+
+_JSON_TYPES = {"float": {"type": ["number", "string"]}, "int": {"type": "integer"}, "bool": {"type": "boolean"},
+               "str": {"type": "string"}, "dict": {"type": "object"}}
+
+
+def json_schema(cls: type[Message]) -> dict[str, Any]:
+    """A JSON Schema (draft 2020-12) for :func:`to_json` of ``cls`` (used by the Foxglove export)."""
+    props: dict[str, Any] = {
+        "header": {
+            "type": "object",
+            "properties": {
+                "stamp_ns": {"type": "integer"}, "seq": {"type": "integer"}, "pub_ns": {"type": "integer"},
+                "sources": {"type": "object", "additionalProperties": {"type": "integer"}},
+            },
+        }
+    }
+    for row in _field_rows(cls):
+        if row["type"] == "array":
+            kind = np.dtype(row["dtype"]).kind
+            item = {"b": {"type": "boolean"}, "f": {"type": ["number", "string"]}}.get(kind, {"type": "integer"})
+            entry: dict[str, Any] = {"type": "array", "items": item}
+        else:
+            entry = dict(_JSON_TYPES[row["type"]])
+        if row["units"]:
+            entry["description"] = row["units"]
+        props[row["name"]] = entry
+    return {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": cls.TYPE, "type": "object",
+            "properties": props}
+
+
+def _jsonable(v: Any) -> Any:
+    if isinstance(v, np.ndarray):
+        return [_jsonable(x) for x in v.tolist()] if v.dtype.kind == "f" else v.tolist()
+    if isinstance(v, float) and not math.isfinite(v):
+        return "nan" if math.isnan(v) else ("inf" if v > 0 else "-inf")
+    if isinstance(v, dict):
+        return {k: _jsonable(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_jsonable(x) for x in v]
+    return v
+
+
+def to_json(msg: Message) -> dict[str, Any]:
+    """A message as JSON-ready builtins: arrays become lists; ±inf/NaN become strings."""
+    h = msg.header
+    out: dict[str, Any] = {"header": {"stamp_ns": h.stamp_ns, "seq": h.seq, "pub_ns": h.pub_ns,
+                                      "sources": dict(h.sources)}}
+    for name in msg._body_fields:  # type: ignore[attr-defined]
+        out[name] = _jsonable(getattr(msg, name))
+    return out
+
+
+# -- frame headers without a full decode --------------------------------------------------
+
+class FrameHeader(NamedTuple):
+    type_name: str
+    version: int
+    stamp_ns: int
+    seq: int
+    pub_ns: int
+    first_field: Any
+
+
+def peek_header(payload: bytes) -> FrameHeader | None:
+    """Type, version and header of a payload (no validation); ``None`` if malformed."""
+    try:
+        type_name, version, (stamp, seq, pub, _sources), body = unpackb(payload)
+        return FrameHeader(str(type_name), int(version), int(stamp), int(seq), int(pub),
+                           body[0] if body else None)
+    except (DecodeError, TypeError, ValueError):
+        return None
+
+
+def publisher_key(topic: str, head: FrameHeader | None) -> str:
+    """Whose sequence counter a frame follows: the topic, or ``diagnostics/<node>``.
+
+    Sequence numbers are per publisher and topic (``Header.seq``); every node
+    publishes ``diagnostics``, whose first field names the node.
+    """
+    if head is not None and head.type_name == "slipstack/Diagnostics":
+        return f"{topic}/{head.first_field}"
+    return topic
+
+
+# -- writing ------------------------------------------------------------------------------
+
+class RecordingWriter:
+    """Write frames to an MCAP file (see the module docstring for the layout).
+
+    Args:
+        path: output file (parent folders are created).
+        chunk_size: close a chunk above this many bytes.
+        flush_period_s: close and flush a chunk at most this long (s, in log time)
+            after its first message, so a crash loses at most that much.
+        wall_minus_monotonic_ns: the host's ``time.time_ns() - time.monotonic_ns()``,
+            stored as :data:`CLOCK_METADATA` (``None``: not stored).
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        *,
+        chunk_size: int = DEFAULT_CHUNK_SIZE,
+        flush_period_s: float = DEFAULT_FLUSH_PERIOD_S,
+        wall_minus_monotonic_ns: int | None = None,
+    ) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._fh = open(self.path, "wb")
+        self._writer = Writer(self._fh, chunk_size=chunk_size, compression=CompressionType.ZSTD)
+        self._writer.start(profile="", library="slipstack")
+        if wall_minus_monotonic_ns is not None:
+            self._writer.add_metadata(CLOCK_METADATA, {"wall_minus_monotonic_ns": str(int(wall_minus_monotonic_ns))})
+            self._fh.flush()
+        self._flush_period_ns = round(flush_period_s * 1e9)
+        self._chunk_opened_ns: int | None = None
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[tuple[str, str], int] = {}
+        self.counts: dict[str, int] = defaultdict(int)
+        self.closed = False
+
+    def _channel(self, topic: str, head: FrameHeader | None) -> int:
+        type_name = head.type_name if head else ""
+        key = (topic, type_name)
+        cid = self._channels.get(key)
+        if cid is None:
+            cls = registry.get(type_name)
+            schema_id = 0
+            if cls is not None:
+                schema_id = self._schemas.get(type_name, 0)
+                if not schema_id:
+                    data = json.dumps(message_schema(cls)).encode()
+                    schema_id = self._writer.register_schema(type_name, SCHEMA_ENCODING, data)
+                    self._schemas[type_name] = schema_id
+            meta = {"type": type_name, "version": str(head.version) if head else ""}
+            cid = self._writer.register_channel(topic, MESSAGE_ENCODING, schema_id, meta)
+            self._channels[key] = cid
+        return cid
+
+    def write(self, topic: str, payload: bytes, log_time_ns: int) -> None:
+        """Append one frame received at ``log_time_ns`` (wall-clock ns)."""
+        head = peek_header(payload)
+        cid = self._channel(topic, head)
+        self._writer.add_message(
+            cid, int(log_time_ns), bytes(payload),
+            publish_time=head.pub_ns if head else 0, sequence=(head.seq & 0xFFFFFFFF) if head else 0,
+        )
+        self.counts[topic] += 1
+        if self._chunk_opened_ns is None:
+            self._chunk_opened_ns = int(log_time_ns)
+        self.tick(int(log_time_ns))
+
+    def tick(self, now_ns: int) -> None:
+        """Flush the chunk in progress if it is older than the flush period (call when idle too)."""
+        if self._chunk_opened_ns is not None and now_ns - self._chunk_opened_ns >= self._flush_period_ns:
+            self.flush()
+
+    def flush(self) -> None:
+        """Close the chunk in progress and hand it to the OS (survives ``kill -9``)."""
+        self._writer.flush()
+        self._chunk_opened_ns = None
+
+    def close(self) -> None:
+        """Finish the file: last chunk, summary, indexes, footer. Idempotent."""
+        if not self.closed:
+            self.closed = True
+            self._writer.finish()
+            self._fh.close()
+
+    def __enter__(self) -> "RecordingWriter":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+# -- reading ------------------------------------------------------------------------------
+
+@dataclass
+class _ScanState:
+    channels: dict[int, Channel] = field(default_factory=dict)
+    schemas: dict[int, Schema] = field(default_factory=dict)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    chunks: int = 0
+    finished: bool = False
+    truncated_at: int | None = None
+    error: str = ""
+
+
+def _scan(path: str | os.PathLike, state: _ScanState, tolerant: bool) -> Iterator[McapMessage]:
+    """Messages in file order; fills ``state``. Stops at the first damaged record if tolerant."""
+    try:
+        fh = open(path, "rb")
+    except OSError as exc:
+        raise RecordingError(f"cannot open recording {path}: {exc}") from None
+    with fh:
+        reader = StreamReader(fh, emit_chunks=True, validate_crcs=True)
+        try:
+            for rec in reader.records:
+                if isinstance(rec, Chunk):
+                    inner = breakup_chunk(rec, validate_crc=True)
+                    state.chunks += 1
+                else:
+                    inner = [rec]
+                for r in inner:
+                    if isinstance(r, McapMessage):
+                        yield r
+                    elif isinstance(r, Channel):
+                        state.channels[r.id] = r
+                    elif isinstance(r, Schema):
+                        state.schemas[r.id] = r
+                    elif isinstance(r, Metadata):
+                        state.metadata[r.name] = dict(r.metadata)
+                    elif isinstance(r, Footer):
+                        state.finished = True
+        except Exception as exc:  # noqa: BLE001 — any damage ends the readable part
+            # A file cut by kill -9 ends inside a record: mcap raises EndOfFile (an
+            # McapError); a torn or corrupt chunk gives a CRC, struct or zstd error.
+            state.truncated_at = fh.tell()
+            state.error = f"{type(exc).__name__}: {exc}"
+            if not tolerant:
+                raise RecordingError(f"recording {path} is damaged or unfinished ({state.error})") from None
+
+
+def read_recording(
+    path: str | os.PathLike, topics: Iterable[str] | None = None, *, tolerant: bool = True
+) -> Iterator[RecordedFrame]:
+    """Iterate the recorded frames in file (= receive) order.
+
+    Args:
+        path: an MCAP file written by :class:`RecordingWriter` (or any MCAP file).
+        topics: keep only these topics (``None``: all).
+        tolerant: read an unfinished file (no summary, e.g. after ``kill -9``) up to
+            its last intact chunk; ``False`` raises :class:`RecordingError` instead.
+    """
+    wanted = None if topics is None else set(topics)
+    state = _ScanState()
+    for m in _scan(path, state, tolerant):
+        topic = state.channels[m.channel_id].topic
+        if wanted is None or topic in wanted:
+            yield RecordedFrame(m.log_time, topic, m.data, m.publish_time, m.sequence)
+
+
+@dataclass(frozen=True)
+class TopicInfo:
+    """Per-topic numbers of a recording.
+
+    rate_hz: (count − 1) / (last − first receive time). seq_gaps: sequence numbers
+    missing between consecutive frames of each publisher (a restart, where seq goes
+    back, is not a gap).
+    """
+
+    topic: str
+    types: tuple[str, ...]
+    count: int
+    rate_hz: float
+    seq_gaps: int
+    first_seq: int
+    last_seq: int
+
+
+@dataclass(frozen=True)
+class RecordingInfo:
+    """What ``slipstack bag info`` prints. Times are wall-clock ns (log time)."""
+
+    path: Path
+    size_bytes: int
+    finished: bool
+    chunk_count: int
+    message_count: int
+    start_ns: int
+    end_ns: int
+    topics: dict[str, TopicInfo]
+    damage: str = ""
+
+    @property
+    def duration_s(self) -> float:
+        return (self.end_ns - self.start_ns) / 1e9 if self.message_count else 0.0
+
+
+def recording_info(path: str | os.PathLike) -> RecordingInfo:
+    """Scan a recording (finished or not) and count what it holds."""
+    state = _ScanState()
+    counts: dict[str, int] = defaultdict(int)
+    first: dict[str, int] = {}
+    last: dict[str, int] = {}
+    types: dict[str, set[str]] = defaultdict(set)
+    seq_first: dict[str, int] = {}
+    seq_last: dict[str, int] = {}
+    gaps: dict[str, int] = defaultdict(int)
+    last_seq_by_pub: dict[str, int] = {}
+    for m in _scan(path, state, tolerant=True):
+        ch = state.channels[m.channel_id]
+        topic = ch.topic
+        counts[topic] += 1
+        first.setdefault(topic, m.log_time)
+        last[topic] = m.log_time
+        types[topic].add(ch.metadata.get("type", ""))
+        head = peek_header(m.data)
+        seq = head.seq if head else m.sequence
+        seq_first.setdefault(topic, seq)
+        seq_last[topic] = seq
+        key = publisher_key(topic, head)
+        prev = last_seq_by_pub.get(key)
+        if prev is not None and seq > prev + 1:
+            gaps[topic] += seq - prev - 1
+        last_seq_by_pub[key] = seq
+    topics = {
+        t: TopicInfo(
+            t, tuple(sorted(types[t])), counts[t],
+            (counts[t] - 1) / ((last[t] - first[t]) / 1e9) if last[t] > first[t] else 0.0,
+            gaps[t], seq_first[t], seq_last[t],
+        )
+        for t in sorted(counts)
+    }
+    return RecordingInfo(
+        Path(path), os.path.getsize(path), state.finished, state.chunks, sum(counts.values()),
+        min(first.values(), default=0), max(last.values(), default=0), topics, state.error,
+    )
+
+
+def clock_offset_ns(path: str | os.PathLike, frames: list[RecordedFrame] | None = None) -> int:
+    """Wall minus monotonic clock of the recording host, ns: log time − this = receive
+    time on the stamps' clock.
+
+    From the :data:`CLOCK_METADATA` record; without one, estimated from ``frames`` as
+    min(log time − publish time) (i.e. assuming the fastest frame took no time).
+    """
+    state = _ScanState()
+    for _ in _scan(path, state, tolerant=True):
+        break  # the metadata record precedes the first chunk
+    meta = state.metadata.get(CLOCK_METADATA)
+    if meta:
+        return int(meta["wall_minus_monotonic_ns"])
+    frames = frames if frames is not None else list(read_recording(path))
+    return min((f.log_time_ns - f.publish_time_ns for f in frames), default=0)
+
+
+def restamp(payload: bytes, delta_ns: int) -> bytes:
+    """The payload with ``stamp_ns``, ``pub_ns`` and every ``sources`` stamp shifted by ``delta_ns``.
+
+    Type, version, seq and body are unchanged (arrays are re-packed bit-exact).
+
+    Raises:
+        DecodeError: the payload is not a slipstack frame.
+    """
+    top = unpackb(payload)
+    try:
+        type_name, version, (stamp, seq, pub, sources), body = top
+        header = [stamp + delta_ns, seq, pub + delta_ns, {k: v + delta_ns for k, v in sources.items()}]
+    except (TypeError, ValueError, AttributeError):
+        raise DecodeError("payload: expected [type, version, [stamp_ns, seq, pub_ns, sources], body]") from None
+    return packb([type_name, version, header, body])
+
+
+# -- export -------------------------------------------------------------------------------
+
+def export_recording(path: str | os.PathLike, out: str | os.PathLike, fmt: str = "mcap-json") -> int:
+    """Export a recording to JSON; returns the number of messages written.
+
+    fmt ``mcap-json``: an MCAP file with message_encoding ``json`` and ``jsonschema``
+    schemas (opens in Foxglove). ``jsonl``: one line per message,
+    ``{"log_time_ns", "topic", "type", "message"}``. Arrays become lists; ±inf and
+    NaN become the strings ``"inf"``, ``"-inf"``, ``"nan"``. Frames that do not decode
+    are skipped (and not counted).
+    """
+    if fmt not in ("mcap-json", "jsonl"):
+        raise RecordingError(f"unknown export format {fmt!r}; use mcap-json or jsonl")
+    if Path(out).resolve() == Path(path).resolve():
+        raise RecordingError(f"export output {out} is the recording itself; choose another path")
+    n = 0
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    with open(out, "wb") as fh:
+        writer = None
+        channels: dict[tuple[str, str], int] = {}
+        schemas: dict[str, int] = {}
+        if fmt == "mcap-json":
+            writer = Writer(fh, chunk_size=DEFAULT_CHUNK_SIZE, compression=CompressionType.ZSTD)
+            writer.start(profile="", library="slipstack")
+        for frame in read_recording(path):
+            try:
+                msg = decode(frame.payload)
+            except DecodeError:
+                continue
+            body = to_json(msg)
+            if writer is None:
+                line = {"log_time_ns": frame.log_time_ns, "topic": frame.topic, "type": msg.TYPE, "message": body}
+                fh.write(json.dumps(line).encode() + b"\n")
+            else:
+                key = (frame.topic, msg.TYPE)
+                if key not in channels:
+                    if msg.TYPE not in schemas:
+                        schemas[msg.TYPE] = writer.register_schema(
+                            msg.TYPE, "jsonschema", json.dumps(json_schema(type(msg))).encode())
+                    channels[key] = writer.register_channel(frame.topic, "json", schemas[msg.TYPE])
+                writer.add_message(channels[key], frame.log_time_ns, json.dumps(body).encode(),
+                                   publish_time=frame.publish_time_ns, sequence=frame.sequence)
+            n += 1
+        if writer is not None:
+            writer.finish()
+    return n
+
+
+# -- replay into a node -------------------------------------------------------------------
+
+def replay_into(
+    node: Node,
+    path: str | os.PathLike,
+    input_topics: Iterable[str] | None = None,
+    *,
+    timing: str = "receive",
+    remap: dict[str, str] | None = None,
+) -> dict[str, list[Message]]:
+    """Feed a recording's input frames to one node in an :class:`InProcessExecutor`.
+
+    Args:
+        node: a fresh node object (its state starts empty).
+        input_topics: topics to feed (default: the node's input topics after ``remap``).
+        timing: ``receive`` feeds each frame at the recorder's receive time put on the
+            monotonic clock of the stamps (log time − :data:`CLOCK_METADATA` offset;
+            if absent, the offset is estimated as min(log time − pub_ns)) — the
+            interleaving of topics the live graph saw; ``stamp`` feeds at
+            ``header.stamp_ns`` (sample order). Either way ``ctx.now_ns()`` is on the
+            stamps' clock, so ages (now − stamp) stay meaningful.
+        remap: the node's default topic → topic (as in its launch entry).
+
+    Returns:
+        topic → messages the node published (decoded, in publication order).
+
+    The payloads fed are the recorded bytes, so the node decodes exactly what it
+    received live. Outputs reproduce the live ones in body, ``stamp_ns`` and
+    ``sources`` when the node derives them from its inputs; ``pub_ns`` (executor
+    time) differs, and ``seq`` differs if the recording began mid-stream — compare
+    with :func:`same_output` / :func:`match_outputs`.
+    """
+    if timing not in ("receive", "stamp"):
+        raise ValueError(f"timing must be 'receive' or 'stamp', got {timing!r}")
+    remap = remap or {}
+    topics = set(input_topics) if input_topics is not None else {
+        remap.get(i.topic, i.topic) for i in node.inputs.values()
+    }
+    frames = list(read_recording(path, topics))
+    events = []
+    if timing == "stamp":
+        for f in frames:
+            head = peek_header(f.payload)
+            if head is not None:
+                events.append((head.stamp_ns, f.topic, f.payload))
+    else:
+        offset = clock_offset_ns(path, frames)
+        events = [(f.log_time_ns - offset, f.topic, f.payload) for f in frames]
+    start = min((t for t, _, _ in events), default=0)
+    ex = InProcessExecutor([node], remaps={node.name: remap}, start_ns=start)
+    ex.feed(events)
+    ex.run()
+    ex.stop()
+    return dict(ex.published)
+
+
+def same_output(a: Message, b: Message, *, check_seq: bool = False) -> str | None:
+    """``None`` if ``a`` and ``b`` are the same output, else the first differing field.
+
+    Same means: same type, equal ``header.stamp_ns`` and ``header.sources`` (and
+    ``header.seq`` if ``check_seq``), and equal body fields (arrays: same dtype, shape
+    and values, NaN equal to NaN). ``header.pub_ns`` is ignored: it is executor time.
+    """
+    if type(a) is not type(b):
+        return f"type ({a.TYPE} vs {b.TYPE})"
+    for label, x, y in (("header.stamp_ns", a.header.stamp_ns, b.header.stamp_ns),
+                        ("header.sources", a.header.sources, b.header.sources)):
+        if x != y:
+            return f"{label} ({x!r} vs {y!r})"
+    if check_seq and a.header.seq != b.header.seq:
+        return f"header.seq ({a.header.seq} vs {b.header.seq})"
+    for name in a._body_fields:  # type: ignore[attr-defined]
+        x, y = getattr(a, name), getattr(b, name)
+        if isinstance(x, np.ndarray):
+            if x.dtype != y.dtype or x.shape != y.shape or not np.array_equal(x, y, equal_nan=x.dtype.kind == "f"):
+                return name
+        elif x != y and not (isinstance(x, float) and math.isnan(x) and isinstance(y, float) and math.isnan(y)):
+            return f"{name} ({x!r} vs {y!r})"
+    return None
+
+
+class OutputMatch(NamedTuple):
+    """Result of :func:`match_outputs`: pairs compared, mismatches, unmatched counts."""
+
+    matched: int
+    mismatches: list[tuple[int, str]]
+    only_recorded: int
+    only_replayed: int
+
+
+def match_outputs(recorded: list[Message], replayed: list[Message]) -> OutputMatch:
+    """Pair recorded and replayed outputs by ``header.stamp_ns`` and compare each pair.
+
+    A recording starts and ends mid-stream, so outputs whose inputs (or whose
+    outputs) fall outside it are counted as unmatched, not as mismatches.
+    mismatches: ``(stamp_ns, what differs)`` from :func:`same_output`.
+    """
+    by_stamp: dict[int, list[Message]] = defaultdict(list)
+    for m in replayed:
+        by_stamp[m.header.stamp_ns].append(m)
+    matched = 0
+    mismatches = []
+    only_recorded = 0
+    for m in recorded:
+        bucket = by_stamp.get(m.header.stamp_ns)
+        if not bucket:
+            only_recorded += 1
+            continue
+        other = bucket.pop(0)
+        matched += 1
+        diff = same_output(m, other)
+        if diff is not None:
+            mismatches.append((m.header.stamp_ns, diff))
+    only_replayed = sum(len(v) for v in by_stamp.values())
+    return OutputMatch(matched, mismatches, only_recorded, only_replayed)

@@ -1,0 +1,536 @@
+"""Driver back-ends chosen by URL: bytes from a device → decoded samples.
+
+URL grammar (query parameters optional unless marked)::
+
+    rdt://HOST[:PORT]         ATI Net F/T / Axia RDT over UDP (port 49152)
+        cpf=1000000 cpt=1000000   counts per N / per N·m (read them from the sensor)
+    robotiq://PATH            Robotiq FT 300 (Modbus RTU, 19200 baud)
+        stop_ms=500 echo_ms=200   0xFF stop burst length; echo wait before retrying
+    bota://PATH               Bota serial F/T (460800 baud)
+    dsacon32://PATH           Weiss DSACON32 (115200 baud)
+        fps=30 rle=0 matrix=0 reply_ms=500
+    m1616://PATH              16×16 module, header AA AB AC (115200 baud)
+    framed://PATH?header=HEX  generic framed tactile (lib/protocols/framed.py)
+        rows=16 cols=16 dtype=u16|u8|u12 endian=le|be order=row|col trailer=0
+        checksum=none|sum8|crc16|crc16-ccitt
+
+    common: baud=…  rate_hz=…  (nominal sample rate; defaults: rdt 7000, robotiq 100,
+            bota 200, dsacon32 = fps, m1616/framed 100)
+            stale_ms=…  (default 2.5 sample periods) backoff_ms=50 backoff_max_ms=2000
+
+PATH is absolute (three slashes: ``robotiq:///dev/ttyUSB0``). An unknown scheme or
+key, or a bad value, raises ConfigError naming it.
+
+Every back-end has ``open(now_ns)``, ``fileno()``, ``poll(now_ns) -> list[Sample]``,
+``next_deadline_ns()``, ``counters`` (dict), ``status`` (:class:`LinkStatus` after
+the last poll) and ``close()``. Times are the caller's clock in integer ns; nothing
+blocks. The node wrapper waits for ``fileno()`` to become readable or for
+``next_deadline_ns()``, calls ``poll`` and publishes the samples; it re-reads
+``fileno()`` after every poll because a reconnect changes it.
+
+Counters: ``frames`` decoded samples, ``crc_errors`` frames failing their integrity
+check, ``rejected_bytes`` bytes/datagrams bytes in no frame, ``gaps`` samples missing
+by device sequence (RDT only; other devices carry no sequence), ``reconnects``
+successful reopens; plus ``flushed_bytes`` (discarded on purpose during a
+handshake), ``handshake_failures``, ``ignored_packets`` (valid packets of no use),
+``bad_frames`` (valid CRC, inconsistent content), ``requests`` (RDT start requests).
+
+Sensor values are in the sensor's frame; no frame transform is applied.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from enum import Enum
+from typing import Callable, ClassVar, Union
+from urllib.parse import parse_qs, urlsplit
+
+import numpy as np
+
+from slipstack.lib.errors import ConfigError
+from slipstack.lib.protocols import ati_rdt, bota, dsacon32, m1616, robotiq
+from slipstack.lib.protocols.framed import FramedCodec, FramedFormat
+from slipstack.lib.protocols.stream import Deframer
+
+from . import Freshness, LinkStatus
+from .serial_link import SerialLink
+from .udp_link import UdpLink
+
+__all__ = [
+    "FtSample", "TactileSample", "Sample", "Backend", "RdtBackend", "RobotiqBackend",
+    "BotaBackend", "Dsacon32Backend", "FramedBackend", "backend_from_url", "SCHEMES",
+]
+
+
+@dataclass(frozen=True, slots=True)
+class FtSample:
+    """One force/torque sample, sensor frame.
+
+    stamp_ns: caller's clock at the poll() that decoded it (ns).
+    force_n: (3,) float64, N. torque_nm: (3,) float64, N·m.
+    device_seq: device sequence number (RDT rdt_sequence) or None.
+    device_time_s: device clock (Bota timestamp) in s, or None.
+    status: device status word, 0 = no flag (RDT status, Bota status bits).
+    """
+
+    stamp_ns: int
+    force_n: np.ndarray
+    torque_nm: np.ndarray
+    device_seq: int | None = None
+    device_time_s: float | None = None
+    status: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class TactileSample:
+    """One tactile frame: raw counts (rows, cols) uint16, row = y, col = x.
+
+    stamp_ns: caller's clock at the poll() that decoded it (ns).
+    device_time_s: controller clock (DSACON32 ms timestamp) in s, or None.
+    device_seq: device sequence number or None (no tactile protocol has one).
+    status: device flags, 0 = none.
+    """
+
+    stamp_ns: int
+    counts: np.ndarray
+    device_time_s: float | None = None
+    device_seq: int | None = None
+    status: int = 0
+
+
+Sample = Union[FtSample, TactileSample]
+
+
+class _Params:
+    """Query parameters with typed getters; ``finish()`` rejects unused keys."""
+
+    def __init__(self, url: str, query: str) -> None:
+        self.url = url
+        self._q = {k: v[-1] for k, v in parse_qs(query, keep_blank_values=True).items()}
+        self._used: set[str] = set()
+
+    def get(self, key: str, default: object, conv: Callable[[str], object]) -> object:
+        self._used.add(key)
+        if key not in self._q:
+            return default
+        try:
+            return conv(self._q[key])
+        except ValueError as e:
+            raise ConfigError(f"{self.url}: bad value for {key!r}: {self._q[key]!r} ({e})") from e
+
+    def finish(self) -> None:
+        unknown = set(self._q) - self._used
+        if unknown:
+            raise ConfigError(f"{self.url}: unknown parameter(s) {sorted(unknown)}; known: {sorted(self._used)}")
+
+
+class Backend(ABC):
+    """Common state machine: link, staleness, counters (module docstring)."""
+
+    kind: ClassVar[str]  # "ft" or "tactile"
+    default_rate_hz: ClassVar[float] = 100.0
+
+    def __init__(self, url: str, params: _Params) -> None:
+        self.url = url
+        self.rate_hz = float(params.get("rate_hz", self.default_rate_hz, float))
+        if self.rate_hz <= 0:
+            raise ConfigError(f"{url}: rate_hz must be > 0")
+        self.stale_after_s = float(params.get("stale_ms", 2500.0 / self.rate_hz, float)) / 1e3
+        self.backoff_min_s = float(params.get("backoff_ms", 50.0, float)) / 1e3
+        self.backoff_max_s = float(params.get("backoff_max_ms", 2000.0, float)) / 1e3
+        self.status = LinkStatus.DISCONNECTED
+        self._samples = Freshness(self.stale_after_s)
+        self._own = dict(frames=0, crc_errors=0, rejected_bytes=0, gaps=0, flushed_bytes=0,
+                         handshake_failures=0, ignored_packets=0, bad_frames=0)
+
+    # --- interface used by the node wrapper -------------------------------------
+    def open(self, now_ns: int) -> None:
+        """Start connecting; never raises for an absent device (status says so)."""
+        self._link.open(now_ns)
+        self._update_status(now_ns)
+
+    def fileno(self) -> int | None:
+        """Descriptor to wait on, None while disconnected; re-read after every poll."""
+        return self._link.fileno()
+
+    def close(self) -> None:
+        """Stop the device stream if possible and release the port/socket."""
+        if self._link.is_open:
+            self._goodbye()
+        self._link.close()
+        self.status = LinkStatus.DISCONNECTED
+
+    def poll(self, now_ns: int) -> list[Sample]:
+        """Read what is available, advance the handshake, return decoded samples."""
+        samples = self._poll(now_ns)
+        if samples:
+            self._samples.touch(now_ns)
+        self._update_status(now_ns)
+        return samples
+
+    def next_deadline_ns(self) -> int | None:
+        """Latest time to call poll() again without input (stale, retry or handshake timer)."""
+        stale_at = self._samples.deadline_ns() if self.status is LinkStatus.OK else None
+        times = [t for t in (stale_at, self._link.next_attempt_ns(), self._timer_ns()) if t is not None]
+        return min(times) if times else None
+
+    @property
+    def counters(self) -> dict[str, int]:
+        """Snapshot of the counters (module docstring)."""
+        c = dict(self._own)
+        c["reconnects"] = self._link.reconnects
+        return c
+
+    # --- for subclasses ---------------------------------------------------------
+    _link: Union[SerialLink, UdpLink]
+
+    @abstractmethod
+    def _poll(self, now_ns: int) -> list[Sample]: ...
+
+    def _timer_ns(self) -> int | None:
+        return None
+
+    def _goodbye(self) -> None:
+        """Last words to the device before close (e.g. stop streaming)."""
+
+    def _update_status(self, now_ns: int) -> None:
+        if not self._link.is_open:
+            self.status = LinkStatus.DISCONNECTED
+        elif self._samples.is_stale(now_ns):
+            self.status = LinkStatus.STALE
+        else:
+            self.status = LinkStatus.OK
+
+
+class _SerialBackend(Backend):
+    """A back-end on a serial port with a deframer (subclasses add handshakes)."""
+
+    default_baud: ClassVar[int]
+
+    def __init__(self, url: str, path: str, params: _Params) -> None:
+        super().__init__(url, params)
+        baud = int(params.get("baud", self.default_baud, int))
+        self._link = SerialLink(path, baudrate=baud, stale_after_s=self.stale_after_s,
+                                backoff_min_s=self.backoff_min_s, backoff_max_s=self.backoff_max_s,
+                                on_open=self._on_open)
+        self._deframer: Deframer | None = None
+
+    @property
+    def counters(self) -> dict[str, int]:
+        c = super().counters
+        if self._deframer is not None:
+            d = self._deframer.counts
+            c["crc_errors"] += d.crc_errors
+            c["rejected_bytes"] += d.rejected_bytes
+        c["write_shortfall"] = self._link.write_shortfall
+        return c
+
+    def _on_open(self, now_ns: int) -> None:
+        if self._deframer is not None:
+            self._deframer.reset()
+
+    def _write(self, data: bytes, now_ns: int) -> None:
+        self._link.write(data, now_ns)
+
+
+class RobotiqBackend(_SerialBackend):
+    """Robotiq FT 300: stop any stream (0xFF burst), request streaming, check the echo."""
+
+    kind = "ft"
+    default_rate_hz = robotiq.RATE_HZ
+    default_baud = robotiq.BAUDRATE
+    _STOPPING, _REQUESTING, _STREAMING = range(3)
+    _FF_BURST = bytes([robotiq.STOP_BYTE]) * 16
+    _FF_EVERY_NS = 8_000_000  # 16 bytes per 8 ms ≈ the 19200-baud line rate
+
+    def __init__(self, url: str, path: str, params: _Params) -> None:
+        super().__init__(url, path, params)
+        self.stop_ns = int(float(params.get("stop_ms", 500.0, float)) * 1e6)
+        self.echo_ns = int(float(params.get("echo_ms", 200.0, float)) * 1e6)
+        self._deframer = Deframer(robotiq.StreamCodec())
+        self._state = self._STOPPING
+        self._timer = 0
+        self._next_ff = 0
+        self._rx = bytearray()
+
+    def _on_open(self, now_ns: int) -> None:
+        super()._on_open(now_ns)
+        self._state = self._STOPPING
+        self._timer = now_ns + self.stop_ns
+        self._next_ff = now_ns
+
+    def _timer_ns(self) -> int | None:
+        if not self._link.is_open or self._state == self._STREAMING:
+            return None
+        return min(self._timer, self._next_ff) if self._state == self._STOPPING else self._timer
+
+    def _poll(self, now_ns: int) -> list[Sample]:
+        data = self._link.read(now_ns)
+        if not self._link.is_open:
+            return []
+        if self._state == self._STOPPING:
+            self._own["flushed_bytes"] += len(data)
+            if now_ns >= self._timer:
+                self._rx.clear()
+                self._write(robotiq.START_STREAM_REQUEST, now_ns)
+                self._state, self._timer = self._REQUESTING, now_ns + self.echo_ns
+            elif now_ns >= self._next_ff:
+                self._write(self._FF_BURST, now_ns)
+                self._next_ff = now_ns + self._FF_EVERY_NS
+            return []
+        if self._state == self._REQUESTING:
+            self._rx += data
+            i = self._rx.find(robotiq.START_STREAM_ECHO)
+            if i < 0:
+                if now_ns >= self._timer:
+                    self._own["handshake_failures"] += 1
+                    self._own["rejected_bytes"] += len(self._rx)
+                    self._on_open(now_ns)
+                return []
+            self._own["rejected_bytes"] += i
+            data = bytes(self._rx[i + len(robotiq.START_STREAM_ECHO):])
+            self._state = self._STREAMING
+        frames = self._deframer.feed(data)
+        self._own["frames"] += len(frames)
+        return [FtSample(now_ns, f.force_n, f.torque_nm) for f in frames]
+
+
+class BotaBackend(_SerialBackend):
+    """Bota serial F/T: sends ``R`` (run) on open, then decodes the stream."""
+
+    kind = "ft"
+    default_rate_hz = bota.RATE_HZ
+    default_baud = bota.BAUDRATE
+
+    def __init__(self, url: str, path: str, params: _Params) -> None:
+        super().__init__(url, path, params)
+        self._deframer = Deframer(bota.StreamCodec())
+
+    def _on_open(self, now_ns: int) -> None:
+        super()._on_open(now_ns)
+        self._write(bota.RUN_COMMAND, now_ns)
+
+    def _poll(self, now_ns: int) -> list[Sample]:
+        frames = self._deframer.feed(self._link.read(now_ns))
+        self._own["frames"] += len(frames)
+        return [FtSample(now_ns, f.force_n, f.torque_nm, None, f.timestamp_us * 1e-6, f.status) for f in frames]
+
+
+class FramedBackend(_SerialBackend):
+    """Push-only framed tactile stream (generic format or the M1616 preset)."""
+
+    kind = "tactile"
+    default_baud = 115200
+
+    def __init__(self, url: str, path: str, params: _Params, fmt: FramedFormat) -> None:
+        super().__init__(url, path, params)
+        self.format = fmt
+        self._deframer = Deframer(FramedCodec(fmt))
+
+    def _poll(self, now_ns: int) -> list[Sample]:
+        frames = self._deframer.feed(self._link.read(now_ns))
+        self._own["frames"] += len(frames)
+        return [TactileSample(now_ns, counts) for counts in frames]
+
+
+class _DsaState(Enum):
+    STOPPING = "stopping"
+    QUERYING = "querying"
+    CONFIGURING = "configuring"
+    STREAMING = "streaming"
+
+
+class Dsacon32Backend(_SerialBackend):
+    """DSACON32: stop push mode, query matrix info 0..matrix, start push mode."""
+
+    kind = "tactile"
+    default_baud = dsacon32.BAUDRATE
+
+    def __init__(self, url: str, path: str, params: _Params) -> None:
+        self.fps = int(params.get("fps", 30, int))
+        if not 0 < self.fps < 65536:
+            raise ConfigError(f"{url}: fps must be in 1..65535")
+        self.default_rate_hz = float(self.fps)
+        super().__init__(url, path, params)
+        self.rle = bool(params.get("rle", 0, int))
+        self.matrix = int(params.get("matrix", 0, int))
+        self.reply_ns = int(float(params.get("reply_ms", 500.0, float)) * 1e6)
+        self._codec = dsacon32.PacketCodec(allow_empty=False)
+        self._deframer = Deframer(self._codec)
+        self.matrices: list[dsacon32.MatrixInfo] = []
+        self._state = _DsaState.STOPPING
+        self._timer = 0
+
+    def _on_open(self, now_ns: int) -> None:
+        super()._on_open(now_ns)
+        self.matrices = []
+        self._send(dsacon32.encode_configure_acquisition(0, 0), _DsaState.STOPPING, now_ns)
+
+    def _send(self, packet: bytes, state: _DsaState, now_ns: int) -> None:
+        self._write(packet, now_ns)
+        self._state, self._timer = state, now_ns + self.reply_ns
+
+    def _timer_ns(self) -> int | None:
+        if not self._link.is_open or self._state is _DsaState.STREAMING:
+            return None
+        return self._timer
+
+    def _goodbye(self) -> None:
+        self._link.write(dsacon32.encode_configure_acquisition(0, 0), 0)
+
+    def _poll(self, now_ns: int) -> list[Sample]:
+        packets = self._deframer.feed(self._link.read(now_ns))
+        out: list[Sample] = []
+        for p in packets:
+            sample = self._handle(p, now_ns)
+            if sample is not None:
+                out.append(sample)
+        if self._link.is_open and self._state is not _DsaState.STREAMING and now_ns >= self._timer:
+            self._own["handshake_failures"] += 1
+            self._on_open(now_ns)
+        self._own["frames"] += len(out)
+        return out
+
+    def _handle(self, p: dsacon32.Packet, now_ns: int) -> TactileSample | None:
+        st = self._state
+        if p.id == dsacon32.PacketId.FRAME and st is _DsaState.STREAMING:
+            n_before = sum(m.cells_x * m.cells_y for m in self.matrices[:-1])
+            m = self.matrices[-1]
+            frame = dsacon32.decode_frame_payload(p.payload, n_before + m.cells_x * m.cells_y)
+            if frame is None:
+                self._own["bad_frames"] += 1
+                return None
+            counts = frame.counts[n_before:].reshape(m.cells_y, m.cells_x)
+            return TactileSample(now_ns, counts, frame.timestamp_ms * 1e-3)
+        if p.id == dsacon32.PacketId.CONFIGURE_ACQUISITION and st in (_DsaState.STOPPING, _DsaState.CONFIGURING):
+            if dsacon32.decode_error_reply(p.payload) != 0:
+                self._own["handshake_failures"] += 1
+                self._on_open(now_ns)
+            elif st is _DsaState.STOPPING:
+                self._send(dsacon32.encode_query_matrix_info(0), _DsaState.QUERYING, now_ns)
+            else:
+                self._state = _DsaState.STREAMING
+            return None
+        if p.id == dsacon32.PacketId.MATRIX_INFO and st is _DsaState.QUERYING:
+            info = dsacon32.decode_matrix_info(p.payload)
+            if info is None or info.error != 0 or info.cells_x * info.cells_y == 0:
+                self._own["handshake_failures"] += 1
+                self._on_open(now_ns)
+                return None
+            self.matrices.append(info)
+            if len(self.matrices) <= self.matrix:
+                self._send(dsacon32.encode_query_matrix_info(len(self.matrices)), _DsaState.QUERYING, now_ns)
+            else:
+                n = sum(m.cells_x * m.cells_y for m in self.matrices)
+                self._codec.max_length = self._codec.header_length + max(64, 5 + 2 * n) + 2
+                flags = dsacon32.AcquisitionFlags.ACQUIRE | dsacon32.AcquisitionFlags.INTERNAL_TRIGGER
+                if self.rle:
+                    flags |= dsacon32.AcquisitionFlags.RLE
+                self._send(dsacon32.encode_configure_acquisition(flags, self.fps), _DsaState.CONFIGURING, now_ns)
+            return None
+        self._own["ignored_packets"] += 1
+        return None
+
+
+class RdtBackend(Backend):
+    """ATI RDT over UDP: start request on open, re-request after backoff_ms of silence
+    (an ICMP refusal then marks it disconnected), count rdt_sequence gaps."""
+
+    kind = "ft"
+    default_rate_hz = ati_rdt.RATE_HZ
+
+    def __init__(self, url: str, host: str, port: int, params: _Params) -> None:
+        super().__init__(url, params)
+        self.counts_per_force = float(params.get("cpf", 1e6, float))
+        self.counts_per_torque = float(params.get("cpt", 1e6, float))
+        if self.counts_per_force <= 0 or self.counts_per_torque <= 0:
+            raise ConfigError(f"{url}: cpf and cpt must be > 0")
+        self._link = UdpLink(host, port, stale_after_s=self.stale_after_s, backoff_min_s=self.backoff_min_s,
+                             backoff_max_s=self.backoff_max_s, on_open=self._request)
+        self._own["requests"] = 0
+        self._last_seq: int | None = None
+        self._last_request_ns = 0
+
+    def _request(self, now_ns: int) -> None:
+        self._last_seq = None
+        self._last_request_ns = now_ns
+        self._own["requests"] += 1
+        self._link.send(ati_rdt.encode_request(ati_rdt.Command.REALTIME, 0), now_ns)
+
+    def _goodbye(self) -> None:
+        self._link.send(ati_rdt.encode_request(ati_rdt.Command.STOP, 0), 0)
+
+    def _timer_ns(self) -> int | None:
+        return self._rerequest_at() if self._link.is_open else None
+
+    def _poll(self, now_ns: int) -> list[Sample]:
+        out: list[Sample] = []
+        cpf, cpt = self.counts_per_force, self.counts_per_torque
+        for datagram in self._link.recv(now_ns):
+            records = ati_rdt.decode_records(datagram)
+            if records is None:
+                self._own["rejected_bytes"] += len(datagram)
+                continue
+            for r in records:
+                seq = r.rdt_sequence
+                if self._last_seq is not None and seq > self._last_seq + 1:
+                    self._own["gaps"] += seq - self._last_seq - 1
+                self._last_seq = seq
+                out.append(FtSample(now_ns, r.counts[:3] / cpf, r.counts[3:] / cpt, seq, None, r.status))
+        self._own["frames"] += len(out)
+        if not out and self._link.is_open and now_ns >= self._rerequest_at():
+            self._request(now_ns)  # silent for backoff_ms: the sensor may have rebooted
+        return out
+
+    def _rerequest_at(self) -> int:
+        """Re-request after backoff_ms without samples (and since the last request);
+        a short stale spell must not restart the stream (and its sequence)."""
+        quiet = self._link.backoff.min_ns
+        last = self._samples.last_ns
+        return max(self._last_request_ns, last if last is not None else 0) + quiet
+
+
+def _serial_path(url: str, netloc: str, path: str) -> str:
+    if netloc or not path.startswith("/"):
+        raise ConfigError(f"{url}: a serial back-end needs an absolute path, e.g. robotiq:///dev/ttyUSB0")
+    return path
+
+
+def backend_from_url(url: str) -> Backend:
+    """Construct (not open) the back-end a URL names; ConfigError if the URL is invalid."""
+    parts = urlsplit(url)
+    scheme = parts.scheme.lower()
+    params = _Params(url, parts.query)
+    if scheme == "rdt":
+        if not parts.hostname:
+            raise ConfigError(f"{url}: rdt needs a host, e.g. rdt://192.168.1.1:49152")
+        try:
+            port = parts.port or ati_rdt.PORT
+        except ValueError as e:
+            raise ConfigError(f"{url}: bad port") from e
+        backend: Backend = RdtBackend(url, parts.hostname, port, params)
+    elif scheme in ("robotiq", "bota", "dsacon32"):
+        cls = {"robotiq": RobotiqBackend, "bota": BotaBackend, "dsacon32": Dsacon32Backend}[scheme]
+        backend = cls(url, _serial_path(url, parts.netloc, parts.path), params)
+    elif scheme in ("m1616", "framed"):
+        path = _serial_path(url, parts.netloc, parts.path)
+        if scheme == "m1616":
+            fmt = m1616.FORMAT
+        else:
+            fmt = FramedFormat(
+                header=params.get("header", b"", bytes.fromhex),  # type: ignore[arg-type]
+                rows=params.get("rows", 16, int), cols=params.get("cols", 16, int),  # type: ignore[arg-type]
+                dtype=params.get("dtype", "u16", str), endian=params.get("endian", "le", str),  # type: ignore[arg-type]
+                order=params.get("order", "row", str), trailer=params.get("trailer", 0, int),  # type: ignore[arg-type]
+                checksum=params.get("checksum", "none", str),  # type: ignore[arg-type]
+            )
+        backend = FramedBackend(url, path, params, fmt)
+    else:
+        raise ConfigError(f"{url}: unknown scheme {parts.scheme!r}; known: {sorted(SCHEMES)}")
+    params.finish()
+    return backend
+
+
+#: URL schemes and the kind of sample each yields.
+SCHEMES = {"rdt": "ft", "robotiq": "ft", "bota": "ft", "dsacon32": "tactile", "m1616": "tactile", "framed": "tactile"}

@@ -1,0 +1,123 @@
+"""grip_controller: the grip-force law of MATH.md §5 behind a fail-safe governor.
+
+Inputs: ``slip`` (triggers a step), ``contact`` and ``cor`` (newest values).
+Output: ``grip/command``. A watchdog timer holds the last safe grip, with reason
+``fail-safe``, when the inputs go stale or report a bad status — it never releases
+on stale data.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from slipstack.lib.grip_laws import LAWS, GripDecision, GripGovernor, GripInput, GripReason, make_law
+from slipstack.lib.pad import PadGeometry
+from slipstack.messages import Contact, Cor, GripCommand, Slip
+from slipstack.nodes.node import Context, Input, Node, Output
+
+__all__ = ["GripController", "GripControllerParams"]
+
+
+@dataclass(frozen=True)
+class GripControllerParams:
+    law: str = field(default="exact", metadata={"help": f"grip law: one of {sorted(LAWS)}"})
+    f_nom_n: float = field(default=2.0, metadata={"help": "lowest commanded normal force (N)"})
+    f_max_n: float = field(default=40.0, metadata={"help": "highest commanded normal force (N)"})
+    mu: float = field(default=0.45, metadata={"help": "static friction coefficient used by the law"})
+    sigma: float = field(default=0.5, metadata={"help": "safety factor sigma <= 1"})
+    beta_m: float = field(default=2.5e-3, metadata={"help": "torsional coefficient beta (m) for ft13 laws"})
+    k_n: float = field(default=2.0, metadata={"help": "offset k (N) of law (13)"})
+    increment: str = field(default="total", metadata={"help": "(14): 'total' N_A*dphi or 'per_taxel' dphi"})
+    decay_n_per_s: float = field(default=0.0, metadata={"help": "(14): release rate while (11) holds (N/s)"})
+    max_rate_n_per_s: float = field(default=200.0, metadata={"help": "actuator slew limit (N/s)"})
+    timeout_ms: float = field(default=20.0, metadata={"help": "inputs older than this hold the grip (ms)"})
+    watchdog_ms: float = field(default=5.0, metadata={"help": "how often staleness is checked (ms)"})
+
+
+class GripController(Node):
+    """Commands the normal force from the slip verdict, contact load and COR."""
+
+    name = "grip_controller"
+    inputs = {
+        "slip": Input("slip", Slip),
+        "contact": Input("contact", Contact),
+        "cor": Input("cor", Cor),
+    }
+    outputs = {"command": Output("grip/command", GripCommand)}
+    Params = GripControllerParams
+
+    def __init__(self, params: GripControllerParams | None = None) -> None:
+        super().__init__(params)
+        p = self.params
+        law_cls = LAWS.get(p.law)
+        accepted = {f.name for f in dataclasses.fields(law_cls)} if law_cls else set()
+        law_params = {k: v for k, v in dataclasses.asdict(p).items() if k in accepted}
+        self.law = make_law(p.law, **law_params)
+        self.governor = GripGovernor(self.law, timeout_ns=round(p.timeout_ms * 1e6), max_rate_n_per_s=p.max_rate_n_per_s)
+        self.timers = {"watchdog": p.watchdog_ms / 1e3}
+        self.contact: Contact | None = None
+        self.cor: Cor | None = None
+        self.slip: Slip | None = None
+        self._last_publish_ns = 0
+
+    def on_contact(self, msg: Contact, ctx: Context) -> None:
+        self.contact = msg
+
+    def on_cor(self, msg: Cor, ctx: Context) -> None:
+        self.cor = msg
+
+    def on_slip(self, msg: Slip, ctx: Context) -> None:
+        self.slip = msg
+        self._step(ctx)
+
+    def on_timer_watchdog(self, ctx: Context) -> None:
+        if self.slip is None:
+            return  # nothing commanded yet: the actuator keeps its own initial grip
+        if ctx.now_ns() - self._last_publish_ns > self.governor.timeout_ns:
+            self._step(ctx)  # stale inputs: the governor holds the grip and says so
+
+    def _step(self, ctx: Context) -> None:
+        now = ctx.now_ns()
+        inp, stamps, ok = self._gather()
+        decision = self.governor.step(inp, now_ns=now, stamps_ns=stamps, status_ok=ok)
+        stamp = max(stamps) if stamps else now
+        sources = {"slip": self.slip.header.stamp_ns} if self.slip else {}
+        if self.contact is not None:
+            sources.update(self.contact.header.sources)
+        self._publish(decision, stamp, sources, ctx)
+
+    def _gather(self) -> tuple[GripInput, list[int], bool]:
+        c, s, r = self.contact, self.slip, self.cor
+        if c is None or s is None:
+            return GripInput(), [], False
+        stamps = [c.header.stamp_ns, s.header.stamp_ns]
+        ok = c.status == "ok" and s.status == "ok"
+        n_c = t_c = sum_dist = math.nan
+        n_contact = int(np.count_nonzero(c.mask)) if c.mask.size else 0
+        if r is not None and self.law.name == "tactile14":
+            stamps.append(r.header.stamp_ns)
+            if r.case in ("rotation", "on-taxel") and c.phi.size:
+                pad = PadGeometry(c.rows, c.cols, c.pitch_m)
+                dist = np.linalg.norm(pad.positions[c.mask] - r.p_c, axis=1)
+                n_c, t_c, sum_dist = r.load_torque, r.torque_capacity, float(dist.sum())
+            else:  # translation or no COR: (11) cannot fail by rotation; hold
+                n_c, t_c, sum_dist = 0.0, 1.0, 1.0
+        inp = GripInput(f_t=(float(c.f_t[0]), float(c.f_t[1])), tau=c.tau, f_n=c.f_n, gamma=s.gamma,
+                        n_c=n_c, t_c=t_c, sum_dist_m=sum_dist, n_contact=n_contact)
+        return inp, stamps, ok
+
+    def _publish(self, d: GripDecision, stamp: int, sources: dict[str, int], ctx: Context) -> None:
+        reason = d.reason.value if isinstance(d.reason, GripReason) else str(d.reason)
+        if reason == "fail-safe":
+            ctx.count("grip.fail_safe_steps")
+            if d.detail:
+                ctx.set_status("fail-safe", d.detail)
+        else:
+            ctx.set_status("ok")
+        ctx.publish("command", GripCommand(f_n_desired=float(d.f_n_desired), law=d.law, reason=reason),
+                    stamp_ns=stamp, sources=sources)
+        self._last_publish_ns = ctx.now_ns()

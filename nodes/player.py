@@ -1,0 +1,252 @@
+"""The player: publish a recording on the bus with its original timing.
+
+Frames are sent at the recorder's receive times, relative to the first played frame,
+divided by ``rate``. Payloads go out exactly as recorded — original headers, stamps
+and sequence numbers — unless *restamp* is on: then every frame's ``stamp_ns``,
+``pub_ns`` and each ``sources`` stamp are shifted by one offset Δ (per pass of the
+loop) chosen so the first frame's receive time maps to "now" on the player's clock;
+``seq``, bodies and spacing of the stamps stay as recorded (at ``rate`` ≠ 1 the
+stamps keep the recorded spacing, not the played one).
+
+Two front ends share :class:`Playback`:
+
+* ``slipstack bag play`` (:func:`play`): binds its own XPUB (``--endpoint``) and
+  connects it to the *inject* endpoints (``graph.json``) of the running nodes that
+  subscribe to the played topics, so they receive the frames;
+* the ``player`` node type in a launch file: outputs are the recording's topics, so
+  the launcher wires subscribers to it (needs the launcher to read a node's outputs
+  from the instance; see the report on issue 6).
+"""
+
+from __future__ import annotations
+
+import bisect
+import os
+import signal
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import zmq
+
+from slipstack.lib.errors import ConfigError
+from slipstack.messages import registry
+from slipstack.nodes.bag_io import RecordedFrame, clock_offset_ns, peek_header, read_recording, restamp
+from slipstack.nodes.graph_info import find_run_dir, read_graph
+from slipstack.nodes.host import DIAGNOSTICS_TOPIC
+from slipstack.nodes.node import Context, Node, Output
+from slipstack.nodes.transport import ipc_endpoint, make_pub
+
+__all__ = ["Playback", "Player", "PlayerParams", "load_frames", "play"]
+
+
+def load_frames(path: str, topics: list[str] | None = None, start_offset_s: float = 0.0) -> list[RecordedFrame]:
+    """The frames to play: ``topics`` only (``None``/empty: all but ``diagnostics`` — every
+    live node publishes its own), from ``start_offset_s`` seconds after the recording's
+    first frame.
+
+    Raises:
+        ConfigError: nothing left to play.
+    """
+    frames = list(read_recording(path, topics or None))
+    if not topics:
+        frames = [f for f in frames if f.topic != DIAGNOSTICS_TOPIC]
+    if frames and start_offset_s > 0:
+        t0 = frames[0].log_time_ns + round(start_offset_s * 1e9)
+        frames = frames[bisect.bisect_left([f.log_time_ns for f in frames], t0):]
+    if not frames:
+        raise ConfigError(f"{path}: no frames to play (topics {topics or 'all'}, start offset {start_offset_s} s)")
+    return frames
+
+
+class Playback:
+    """Which frames are due when, for a player whose clock reads ``now_ns``.
+
+    Args:
+        frames: in receive order.
+        rate: playback speed (2.0 plays twice as fast).
+        loop: start over after the last frame.
+        restamp_offset_ns: ``None`` keeps the recorded headers; otherwise the
+            recording's wall − monotonic offset (:func:`clock_offset_ns`), used to
+            shift stamps so the first frame is stamped "now" (module docstring).
+    """
+
+    def __init__(self, frames: list[RecordedFrame], rate: float = 1.0, loop: bool = False,
+                 restamp_offset_ns: int | None = None) -> None:
+        if not rate > 0:
+            raise ConfigError(f"playback rate must be > 0, got {rate}")
+        self.frames = frames
+        self.rate = rate
+        self.loop = loop
+        self._restamp_offset = restamp_offset_ns
+        self._t_rec0 = frames[0].log_time_ns
+        self._start_ns: int | None = None
+        self._delta = 0
+        self._i = 0
+        self.passes = 0
+        self.sent = 0
+
+    @property
+    def done(self) -> bool:
+        return self._i >= len(self.frames) and not self.loop
+
+    def _begin(self, now_ns: int) -> None:
+        self._start_ns = now_ns
+        self._i = 0
+        if self._restamp_offset is not None:
+            self._delta = now_ns - (self._t_rec0 - self._restamp_offset)
+
+    def next_due_ns(self) -> int | None:
+        """When the next frame is due on the player's clock (``None`` before start or when done)."""
+        if self._start_ns is None or self._i >= len(self.frames):
+            return None
+        return self._start_ns + round((self.frames[self._i].log_time_ns - self._t_rec0) / self.rate)
+
+    def due(self, now_ns: int) -> list[tuple[str, bytes]]:
+        """``(topic, payload)`` of every frame due at ``now_ns``; the first call starts playback."""
+        if self._start_ns is None:
+            self._begin(now_ns)
+        out = []
+        while True:
+            if self._i >= len(self.frames):
+                if not self.loop:
+                    break
+                self.passes += 1
+                self._begin(now_ns)
+            t = self.next_due_ns()
+            if t is None or t > now_ns:
+                break
+            f = self.frames[self._i]
+            payload = f.payload if self._restamp_offset is None else restamp(f.payload, self._delta)
+            out.append((f.topic, payload))
+            self._i += 1
+        self.sent += len(out)
+        return out
+
+
+# -- the launch-file node ---------------------------------------------------------------
+
+@dataclass(frozen=True)
+class PlayerParams:
+    path: str = field(default="", metadata={"help": "recording (.mcap) to play"})
+    topics: list[str] = field(default_factory=list, metadata={"help": "topics to play; empty: all but diagnostics"})
+    rate: float = field(default=1.0, metadata={"help": "playback speed factor"})
+    loop: bool = field(default=False, metadata={"help": "start over at the end"})
+    restamp: bool = field(default=False, metadata={"help": "shift header stamps to the player's clock"})
+    start_offset_s: float = field(default=0.0, metadata={"help": "skip this much of the start (s)"})
+
+
+class Player(Node):
+    """Plays a recording on the bus; its outputs are the recording's topics."""
+
+    name = "player"
+    timers = {"tick": 0.001}
+    Params = PlayerParams
+
+    def __init__(self, params: PlayerParams | None = None) -> None:
+        super().__init__(params)
+        p = self.params
+        if not p.path:
+            raise ConfigError("player: parameter path (the recording to play) is required")
+        frames = load_frames(p.path, list(p.topics), p.start_offset_s)
+        types: dict[str, str] = {}
+        for f in frames:
+            types.setdefault(f.topic, _type_of(f.payload))
+        self.outputs = {t: Output(t, registry[name]) for t, name in types.items() if name in registry}
+        offset = clock_offset_ns(p.path, frames) if p.restamp else None
+        self.playback = Playback(frames, p.rate, p.loop, offset)
+
+    def on_timer_tick(self, ctx: Context) -> None:
+        for topic, payload in self.playback.due(ctx.now_ns()):
+            ctx.publish_raw(topic, payload)
+        if self.playback.done:
+            ctx.set_status("done", f"{self.playback.sent} frames played")
+
+
+def _type_of(payload: bytes) -> str:
+    head = peek_header(payload)
+    return head.type_name if head else ""
+
+
+# -- the command line -------------------------------------------------------------------
+
+def play(
+    path: str,
+    *,
+    topics: list[str] | None = None,
+    rate: float = 1.0,
+    loop: bool = False,
+    start_offset_s: float = 0.0,
+    restamp_stamps: bool = False,
+    endpoint: str | None = None,
+    run_dir: str | None = None,
+    wait_s: float = 2.0,
+    echo: Callable[[str], None] = lambda s: print(s, file=sys.stderr, flush=True),
+) -> int:
+    """``slipstack bag play``: publish until done or SIGINT/SIGTERM; returns frames sent.
+
+    The XPUB binds ``endpoint`` (default ``ipc://<run dir>/player-<pid>.pub``) and connects
+    to the inject endpoint of every running node that subscribes to a played topic;
+    playback starts once they have all subscribed (or after ``wait_s``).
+
+    Raises:
+        ConfigError: neither ``endpoint`` nor a running graph.
+    """
+    frames = load_frames(path, topics, start_offset_s)
+    played = {f.topic for f in frames}
+    injects: list[tuple[str, str]] = []
+    rd = None
+    try:
+        rd = find_run_dir(run_dir)
+    except ConfigError:
+        if endpoint is None:
+            raise
+    if rd is not None:
+        for node in read_graph(rd)["nodes"].values():
+            injects += [(t, ep) for t, ep in node.get("inject", {}).items() if t in played]
+    endpoint = endpoint or ipc_endpoint(rd, f"player-{os.getpid()}")  # one path per player: ipc binds steal
+    zctx = zmq.Context.instance()
+    sock = make_pub(zctx, endpoint, sndhwm=100_000)
+    for _, ep in injects:
+        sock.connect(ep)
+    stopping = False
+
+    def on_signal(signum: int, frame: Any) -> None:
+        nonlocal stopping
+        stopping = True
+
+    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        _wait_for_subscriptions(sock, injects, wait_s)
+        echo(f"playing {path}: {len(frames)} frames on {', '.join(sorted(played))} at {rate:g}x "
+             f"from {endpoint}, into {len(injects)} subscriber(s)")
+        pb = Playback(frames, rate, loop, clock_offset_ns(path, frames) if restamp_stamps else None)
+        while not stopping and not pb.done:
+            for topic, payload in pb.due(time.monotonic_ns()):
+                sock.send_multipart((topic.encode(), payload), copy=True)
+            nxt = pb.next_due_ns()
+            if nxt is not None:
+                wait = nxt - time.monotonic_ns()
+                if wait > 0:
+                    time.sleep(min(wait, 50_000_000) / 1e9)
+        echo(f"played {pb.sent} frames ({pb.passes} loops)")
+        return pb.sent
+    finally:
+        sock.close(linger=1000)
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
+def _wait_for_subscriptions(sock: zmq.Socket, injects: list[tuple[str, str]], wait_s: float) -> None:
+    """Wait until each connected inject SUB has subscribed (XPUB_VERBOSE shows them)."""
+    want: dict[bytes, int] = {}
+    for topic, _ in injects:
+        want[topic.encode()] = want.get(topic.encode(), 0) + 1
+    seen: dict[bytes, int] = {}
+    deadline = time.monotonic() + wait_s
+    while any(seen.get(t, 0) < n for t, n in want.items()) and time.monotonic() < deadline:
+        if sock.poll(20):
+            frame = sock.recv()
+            if frame[:1] == b"\x01":
+                seen[frame[1:]] = seen.get(frame[1:], 0) + 1

@@ -1,0 +1,242 @@
+"""``slipstack topic echo``: print a topic's messages as they arrive.
+
+One SUB socket per publisher (from ``graph.json``), so sequence gaps are counted
+per publisher (``diagnostics`` has one publisher per node); a sequence number that
+does not go up is a restart (a respawned node starts again at 0), not a loss.
+Frames are drained in batches and printed with one buffered write per batch, which
+keeps up with a 1 kHz topic. A slow terminal never blocks the graph: the SUB
+queues are bounded (``--qos-depth``); when they fill, the publisher drops frames for
+this subscriber only, and the gap shows up here as lost messages on stderr.
+A frame that fails to decode is reported on stderr with the decoder's reason and
+skipped.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import os
+import sys
+import time
+from dataclasses import dataclass
+from typing import Any, Callable, TextIO
+
+import numpy as np
+import zmq
+
+from slipstack.lib.errors import ConfigError, DecodeError
+from slipstack.messages import Message, decode
+from slipstack.nodes.topic_format import as_tree, check_field, csv_cell, flatten, pick, render_yaml
+from slipstack.nodes.topic_tools import load_graph, resolve_topic
+from slipstack.nodes.transport import make_sub
+
+__all__ = ["SeqTracker", "MessagePrinter", "add_arguments", "main_echo"]
+
+BATCH = 500  # frames read from one publisher before the output is written
+_FILTER_BUILTINS = {f.__name__: f for f in (abs, all, any, len, max, min, round, sum, float, int, bool, str)}
+
+
+@dataclass
+class SeqTracker:
+    """Sequence numbers of one publisher on one topic.
+
+    lost: messages missing from gaps (seq jumped forward by more than one).
+    restarts: times the sequence went back (the publisher restarted).
+    """
+
+    last: int | None = None
+    lost: int = 0
+    restarts: int = 0
+
+    def update(self, seq: int) -> int:
+        """Record ``seq``; returns how many messages went missing just before it."""
+        gap = 0
+        if self.last is not None:
+            if seq > self.last + 1:
+                gap = seq - self.last - 1
+            elif seq <= self.last:
+                self.restarts += 1
+        self.lost += gap
+        self.last = seq
+        return gap
+
+
+class MessagePrinter:
+    """Turns messages into output text: YAML blocks, one field, or CSV rows.
+
+    Args:
+        field: ``a.b`` path to print instead of the whole message (``None``: all).
+        csv_mode: one CSV row per message, after a header row (columns from the first).
+        no_arr: hide array values.
+        truncate: array values shown before ``'...'``.
+    """
+
+    def __init__(self, *, field: str | None, csv_mode: bool, no_arr: bool, truncate: int) -> None:
+        self.field = field
+        self.csv_mode = csv_mode
+        self.no_arr = no_arr
+        self.truncate = truncate
+        self.columns: list[str] | None = None
+        self._buf = io.StringIO()
+        self._csv = csv.writer(self._buf, lineterminator="\n")
+
+    def format(self, msg: Message) -> str | None:
+        """Text for one message, or ``None`` if it lacks the requested field."""
+        tree: Any = as_tree(msg)
+        if self.field is not None:
+            found, tree = pick(tree, self.field)
+            if not found:
+                return None
+        if not self.csv_mode:
+            if self.field is not None and not isinstance(tree, dict):
+                return "\n".join(render_yaml(tree, no_arr=self.no_arr, truncate=self.truncate)).lstrip() + "\n---\n"
+            return "\n".join(render_yaml(tree, no_arr=self.no_arr, truncate=self.truncate)) + "\n---\n"
+        cells = dict(flatten(tree, "" if self.field is None else self.field, no_arr=self.no_arr))
+        self._buf.seek(0)
+        self._buf.truncate()
+        if self.columns is None:
+            self.columns = list(cells)
+            self._csv.writerow(self.columns)
+        self._csv.writerow([csv_cell(cells.get(c)) for c in self.columns])
+        return self._buf.getvalue()
+
+
+def _compile_filter(expr: str | None) -> Callable[[Message], bool] | None:
+    if expr is None:
+        return None
+    try:
+        code = compile(expr, "<--filter>", "eval")
+    except SyntaxError as exc:
+        raise ConfigError(f"--filter {expr!r} is not a Python expression: {exc.msg}") from None
+    env = {"__builtins__": _FILTER_BUILTINS, "np": np}
+    return lambda m: bool(eval(code, env, {"m": m}))  # noqa: S307 - the user's own expression, as in ros2
+
+
+def _write(stream: TextIO, text: str) -> None:
+    if text:
+        stream.write(text)
+        stream.flush()
+
+
+def main_echo(args: argparse.Namespace) -> int:
+    """Run ``topic echo``; returns 0, or 1 if ``--timeout`` passed without any message."""
+    _, graph = load_graph(args.run_dir)
+    info = resolve_topic(graph, args.topic)
+    cls = info.message_type()
+    if args.field:
+        check_field(cls, args.field)
+    keep = _compile_filter(args.filter)
+    publishers = [e for e in info.publishers if e.address]
+    if not publishers:
+        raise ConfigError(f"topic {info.name} has no publisher in this graph")
+    limit = 1 if args.once else args.count
+    printer = MessagePrinter(field=args.field, csv_mode=args.csv, no_arr=args.no_arr, truncate=args.truncate_length)
+
+    ctx = zmq.Context.instance()
+    topic_b = info.name.encode()
+    socks = {make_sub(ctx, [e.address], info.name, rcvhwm=args.qos_depth): e.node for e in publishers}
+    trackers = {node: SeqTracker() for node in socks.values()}
+    poller = zmq.Poller()
+    for s in socks:
+        poller.register(s, zmq.POLLIN)
+    out, err = sys.stdout, sys.stderr
+    printed = rejected = 0
+    filter_failed = False
+    last_msg = time.monotonic()
+    try:
+        while limit is None or printed < limit:
+            ready = dict(poller.poll(200))
+            if not ready:
+                if args.timeout is not None and time.monotonic() - last_msg > args.timeout:
+                    if printed == 0:
+                        print(f"topic echo: no message on {info.name} within {args.timeout:g} s", file=err)
+                        return 1
+                    return 0
+                continue
+            last_msg = time.monotonic()
+            chunks: list[str] = []
+            notes: list[str] = []
+            for sock in ready:
+                node = socks[sock]
+                for _ in range(BATCH):
+                    try:
+                        topic, *rest = sock.recv_multipart(zmq.NOBLOCK)
+                    except zmq.Again:
+                        break
+                    if topic != topic_b:
+                        continue  # a longer topic sharing the subscription prefix
+                    try:
+                        if len(rest) != 1:
+                            raise DecodeError(f"expected [topic, payload], got {len(rest) + 1} parts")
+                        msg = decode(rest[0], cls)
+                    except DecodeError as exc:
+                        rejected += 1
+                        notes.append(f"topic echo: rejected a frame from {node}: {exc}")
+                        continue
+                    seq = msg.header.seq
+                    tracker = trackers[node]
+                    before = tracker.restarts
+                    gap = tracker.update(seq)
+                    if gap:
+                        notes.append(f"topic echo: lost {gap} message(s) from {node} before seq {seq} "
+                                     f"(total lost {tracker.lost})")
+                    elif tracker.restarts != before:
+                        notes.append(f"topic echo: {node} restarted its sequence (seq {seq})")
+                    if keep is not None:
+                        try:
+                            if not keep(msg):
+                                continue
+                        except Exception as exc:  # the user's expression: report once, skip
+                            if not filter_failed:
+                                notes.append(f"topic echo: --filter raised {type(exc).__name__}: {exc}")
+                                filter_failed = True
+                            continue
+                    text = printer.format(msg)
+                    if text is None:
+                        continue
+                    chunks.append(text)
+                    printed += 1
+                    if limit is not None and printed >= limit:
+                        break
+                if limit is not None and printed >= limit:
+                    break
+            _write(out, "".join(chunks))
+            if notes:
+                _write(err, "\n".join(notes) + "\n")
+    except KeyboardInterrupt:
+        pass
+    except BrokenPipeError:  # `| head`: the reader went away
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    finally:
+        for s in socks:
+            s.close(linger=0)
+    lost = sum(t.lost for t in trackers.values())
+    if lost or rejected:
+        print(f"topic echo: {printed} printed, {lost} lost, {rejected} rejected", file=err)
+    return 0
+
+
+def add_arguments(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    p = verbs.add_parser(
+        "echo", help="print a topic's messages",
+        description="Print the messages of TOPIC as YAML-ish text (one message per block, "
+                    "separated by '---'), or as CSV. Lost messages (sequence gaps, per publisher) "
+                    "and rejected frames are reported on stderr.",
+    )
+    p.add_argument("topic", help="topic name, e.g. ft/wrench")
+    p.add_argument("--once", action="store_true", help="print one message and exit")
+    p.add_argument("--count", type=int, metavar="N", help="print N messages and exit")
+    p.add_argument("--field", metavar="a.b", help="print only this field, e.g. force or header.stamp_ns")
+    p.add_argument("--csv", action="store_true", help="one CSV line per message (arrays flattened), after a header line")
+    p.add_argument("--no-arr", action="store_true", help="hide array values (show dtype and shape)")
+    p.add_argument("--truncate-length", type=int, default=16, metavar="N",
+                   help="array values shown before '...' (default 16)")
+    p.add_argument("--filter", metavar="EXPR",
+                   help="print only messages for which the Python expression is true, e.g. 'm.node == \"relay\"'")
+    p.add_argument("--timeout", type=float, metavar="S",
+                   help="exit after S seconds without a message (exit code 1 if none came at all)")
+    p.add_argument("--qos-depth", type=int, default=2000, metavar="N",
+                   help="frames queued per publisher before the publisher drops for us (default 2000)")
+    p.set_defaults(func=main_echo)
+    return p

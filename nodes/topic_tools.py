@@ -1,0 +1,180 @@
+"""``slipstack topic``: look at the running graph's topics (ros2cli conventions).
+
+    slipstack topic list [-t] [-c] [-v]
+    slipstack topic info TOPIC [-v]
+    slipstack topic echo TOPIC [--once] [--count N] [--field a.b] [--csv] [--no-arr] ...
+    slipstack topic hz TOPIC [--window N] [--use-stamps]
+    slipstack topic pub TOPIC [TYPE] [VALUES] [--once | --times N] [--rate HZ]
+
+Every verb reads the graph from ``<run_dir>/graph.json`` (``--run-dir``, else
+``$SLIPSTACK_RUN_DIR``, else the newest run; see
+:func:`slipstack.nodes.graph_info.find_run_dir`). This module holds the graph
+view the verbs share, ``list`` and ``info``, and the argument parsers; ``echo``,
+``hz`` and ``pub`` live in :mod:`.topic_echo`, :mod:`.topic_hz`, :mod:`.topic_pub`.
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from slipstack.lib.errors import ConfigError
+from slipstack.messages import Message, registry
+from slipstack.nodes.graph_info import find_run_dir, read_graph
+
+__all__ = ["Endpoint", "TopicInfo", "load_graph", "graph_topics", "resolve_topic", "add_parser"]
+
+
+@dataclass(frozen=True)
+class Endpoint:
+    """One node's end of a topic: its name and a socket address (pub, or inject for a subscriber)."""
+
+    node: str
+    address: str | None
+
+
+@dataclass(frozen=True)
+class TopicInfo:
+    """A topic of the running graph.
+
+    types: the distinct message type names declared by its publishers and subscribers
+        (one, unless the graph is mis-wired).
+    publishers: nodes publishing it, with their XPUB endpoints.
+    subscribers: nodes subscribing to it, with the endpoint their SUB socket binds for
+        injection (``topic pub``), ``None`` if the node has none.
+    """
+
+    name: str
+    types: tuple[str, ...]
+    publishers: tuple[Endpoint, ...]
+    subscribers: tuple[Endpoint, ...]
+
+    @property
+    def type_name(self) -> str:
+        return self.types[0] if len(self.types) == 1 else " | ".join(self.types)
+
+    def message_type(self) -> type[Message]:
+        """The registered message class of this topic.
+
+        Raises:
+            ConfigError: the topic's publishers and subscribers disagree on the type, or
+                the type is not known to this installation.
+        """
+        if len(self.types) != 1:
+            raise ConfigError(f"topic {self.name} is declared with several types: {', '.join(self.types)}")
+        cls = registry.get(self.types[0])
+        if cls is None:
+            raise ConfigError(f"topic {self.name}: message type {self.types[0]!r} is not known here")
+        return cls
+
+
+def load_graph(run_dir: str | None) -> tuple[Path, dict[str, Any]]:
+    """``(run_dir, graph)`` of the graph to attach to; ConfigError if none is running."""
+    path = find_run_dir(run_dir)
+    return path, read_graph(path)
+
+
+def graph_topics(graph: dict[str, Any]) -> dict[str, TopicInfo]:
+    """Every topic of ``graph`` (published or subscribed), by name, sorted."""
+    types: dict[str, set[str]] = {}
+    pubs: dict[str, list[Endpoint]] = {}
+    subs: dict[str, list[Endpoint]] = {}
+    for name, node in graph["nodes"].items():
+        for topic, type_name in node.get("outputs", {}).items():
+            types.setdefault(topic, set()).add(type_name)
+            pubs.setdefault(topic, []).append(Endpoint(name, node.get("pub")))
+        for topic, type_name in node.get("inputs", {}).items():
+            types.setdefault(topic, set()).add(type_name)
+            subs.setdefault(topic, []).append(Endpoint(name, node.get("inject", {}).get(topic)))
+    return {
+        t: TopicInfo(t, tuple(sorted(types[t])), tuple(pubs.get(t, ())), tuple(subs.get(t, ())))
+        for t in sorted(types)
+    }
+
+
+def resolve_topic(graph: dict[str, Any], name: str) -> TopicInfo:
+    """The topic called ``name`` (a leading ``/`` is ignored, as ROS users type it).
+
+    Raises:
+        ConfigError: unknown topic; the message lists the known ones.
+    """
+    topics = graph_topics(graph)
+    info = topics.get(name) or topics.get(name.lstrip("/"))
+    if info is None:
+        raise ConfigError(f"unknown topic {name!r}; topics of this graph: {', '.join(topics) or 'none'}")
+    return info
+
+
+def _plural(n: int, word: str) -> str:
+    return f"{n} {word}{'' if n == 1 else 's'}"
+
+
+def main_list(args: argparse.Namespace) -> int:
+    _, graph = load_graph(args.run_dir)
+    topics = graph_topics(graph)
+    if args.count_topics:
+        print(len(topics))
+        return 0
+    if not args.verbose:
+        for t in topics.values():
+            print(f"{t.name} [{t.type_name}]" if args.show_types else t.name)
+        return 0
+    for title, attr, word in (("Published topics:", "publishers", "publisher"),
+                              ("Subscribed topics:", "subscribers", "subscriber")):
+        print(title)
+        for t in topics.values():
+            ends: tuple[Endpoint, ...] = getattr(t, attr)
+            if ends:
+                print(f" * {t.name} [{t.type_name}] {_plural(len(ends), word)}: "
+                      + ", ".join(f"{e.node} ({e.address or 'no endpoint'})" for e in ends))
+        print()
+    return 0
+
+
+def main_info(args: argparse.Namespace) -> int:
+    _, graph = load_graph(args.run_dir)
+    t = resolve_topic(graph, args.topic)
+    print(f"Type: {t.type_name}")
+    print(f"Publisher count: {len(t.publishers)}")
+    if args.verbose:
+        for e in t.publishers:
+            print(f"  Node name: {e.node}\n  Endpoint: {e.address}\n")
+    print(f"Subscription count: {len(t.subscribers)}")
+    if args.verbose:
+        for e in t.subscribers:
+            print(f"  Node name: {e.node}\n  Injection endpoint: {e.address or 'none'}\n")
+    return 0
+
+
+def _run_dir_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--run-dir", metavar="DIR",
+                   help="run directory of the graph (default: $SLIPSTACK_RUN_DIR, else the newest run)")
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Add ``topic`` and its verbs to the ``slipstack`` command."""
+    from slipstack.nodes import topic_echo, topic_hz, topic_pub
+
+    topic = sub.add_parser("topic", help="inspect and poke the running graph's topics",
+                           description="Inspect and poke the topics of a running graph.")
+    verbs = topic.add_subparsers(dest="verb", required=True, metavar="VERB")
+
+    p = verbs.add_parser("list", help="list the topics", description="List the topics of the running graph.")
+    p.add_argument("-t", "--show-types", action="store_true", help="also show each topic's message type")
+    p.add_argument("-c", "--count-topics", action="store_true", help="only print the number of topics")
+    p.add_argument("-v", "--verbose", action="store_true", help="list publishers and subscribers with endpoints")
+    _run_dir_option(p)
+    p.set_defaults(func=main_list)
+
+    p = verbs.add_parser("info", help="type, publishers and subscribers of a topic",
+                         description="Print a topic's type and its publisher and subscription counts.")
+    p.add_argument("topic", help="topic name, e.g. ft/wrench")
+    p.add_argument("-v", "--verbose", action="store_true", help="list the nodes and their endpoints")
+    _run_dir_option(p)
+    p.set_defaults(func=main_info)
+
+    for module in (topic_echo, topic_hz, topic_pub):
+        p = module.add_arguments(verbs)
+        _run_dir_option(p)

@@ -1,0 +1,175 @@
+"""Benchmark the device codecs and the driver paths (run by hand, not by CI).
+
+1. Decoding cost per frame for each protocol: the deframer fed an in-sync stream in
+   chunks of ``--chunk`` frames (µs per frame), and the CRC alone.
+2. End-to-end paths, emulator in a thread and back-end in the main thread, paced by
+   absolute deadlines for ``--seconds``: ATI RDT over loopback UDP at 7 kHz, and
+   tactile 16×16 frames over a pty at 1 kHz (DSACON32 and M1616). Losses are counted
+   from sequence numbers (RDT) or a frame counter embedded in the counts (tactile).
+
+    .venv/bin/python tests/bench/bench_codecs.py [--seconds 3] [--frames 3000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import select
+import threading
+import time
+
+import numpy as np
+
+from slipstack.lib.protocols import bota, dsacon32, m1616, robotiq
+from slipstack.lib.protocols.ati_rdt import decode_records, encode_record
+from slipstack.lib.protocols.crc import CRC16_DSACON32, CRC16_MODBUS, CRC16_X25
+from slipstack.lib.protocols.framed import FramedCodec, FramedFormat, encode_frame as encode_framed
+from slipstack.lib.protocols.stream import Deframer
+from slipstack.nodes.devices.backends import backend_from_url
+from slipstack.nodes.devices.emulators import Dsacon32Emulator, M1616Emulator, RdtUdpServer
+
+
+def _per_call_us(fn, n: int) -> float:
+    t0 = time.perf_counter()
+    for _ in range(n):
+        fn()
+    return (time.perf_counter() - t0) / n * 1e6
+
+
+def bench_decoding(n_frames: int, chunk: int) -> list[tuple[str, int, float]]:
+    """(name, frame bytes, µs per frame) for each protocol's deframer."""
+    rng = np.random.default_rng(1)
+    tact = rng.integers(0, 4096, (16, 16))
+    dsa_payload = dsacon32.encode_frame_payload(1, tact)
+    u12 = FramedFormat(header=b"\xa5\x5a", rows=16, cols=16, dtype="u12", checksum="crc16")
+    ccitt = FramedFormat(header=b"\xa5\x5a", rows=16, cols=16, dtype="u16", checksum="crc16-ccitt")
+    cases = {
+        "robotiq (16 B, CRC-16/Modbus)": (robotiq.StreamCodec(), robotiq.encode_frame([1, 2, 3], [0.1, 0.2, 0.3])),
+        "bota (37 B, CRC-16/X-25)": (bota.StreamCodec(), bota.encode_frame([1, 2, 3], [0.1, 0.2, 0.3], timestamp_us=1)),
+        "dsacon32 16x16 (527 B, CRC)": (dsacon32.PacketCodec(allow_empty=False), dsacon32.encode_packet(0, dsa_payload)),
+        "m1616 (519 B, no check)": (FramedCodec(m1616.FORMAT), encode_framed(m1616.FORMAT, tact)),
+        "framed u12+crc16 (516 B)": (FramedCodec(u12), encode_framed(u12, tact)),
+        "framed u16+crc16-ccitt (516 B)": (FramedCodec(ccitt), encode_framed(ccitt, tact)),
+    }
+    rows = []
+    for name, (codec, frame) in cases.items():
+        block = frame * chunk
+        d = Deframer(codec)
+        reps = max(1, n_frames // chunk)
+        us = _per_call_us(lambda: d.feed(block), reps) / chunk
+        assert d.counts.frames == reps * chunk and d.counts.crc_errors == 0
+        rows.append((name, len(frame), us))
+    record = encode_record(1, 1, 0, [1, 2, 3, 4, 5, 6])
+    rows.append(("rdt record (36 B, no CRC)", 36, _per_call_us(lambda: decode_records(record), n_frames)))
+    body34 = bytes(range(34))
+    rows.append(("  CRC-16/X-25 over 34 B", 34, _per_call_us(lambda: CRC16_X25(body34), n_frames)))
+    rows.append(("  CRC-16/Modbus over 14 B", 14, _per_call_us(lambda: CRC16_MODBUS(body34[:14]), n_frames)))
+    rows.append(("  CRC DSACON32 over 519 B", 519, _per_call_us(lambda: CRC16_DSACON32(dsa_payload), n_frames // 10)))
+    return rows
+
+
+def _paced(rate_hz: float, seconds: float, send, stop: threading.Event) -> int:
+    """Call send(k) at absolute deadlines k/rate (catching up after a late wake-up)."""
+    period = 1.0 / rate_hz
+    t0 = time.perf_counter()
+    n_total = int(rate_hz * seconds)
+    k = 0
+    while k < n_total and not stop.is_set():
+        due = int((time.perf_counter() - t0) / period) + 1
+        while k < min(due, n_total):
+            send(k)
+            k += 1
+        time.sleep(min(period, 0.0005))
+    return k
+
+
+def run_path(name: str, emulator, url: str, send, rate_hz: float, seconds: float, index_of) -> dict:
+    backend = backend_from_url(url)
+    backend.open(time.monotonic_ns())
+    # wait for the handshake (the emulator reacts to commands inside send)
+    t_end = time.monotonic() + 3.0
+    while backend.poll(time.monotonic_ns()) == [] and time.monotonic() < t_end:
+        send(emulator, -1)
+        fd = backend.fileno()
+        if fd is not None:
+            select.select([fd], [], [], 0.005)
+    stop = threading.Event()
+    result = {}
+
+    def sender():
+        result["sent"] = _paced(rate_hz, seconds, lambda k: send(emulator, k), stop)
+
+    th = threading.Thread(target=sender)
+    base = backend.counters
+    seen: list[int] = []
+    cpu0 = time.process_time()
+    t0 = time.perf_counter()
+    th.start()
+    while th.is_alive() or time.perf_counter() - t0 < seconds + 0.2:
+        fd = backend.fileno()
+        if fd is not None:
+            select.select([fd], [], [], 0.002)
+        for s in backend.poll(time.monotonic_ns()):
+            k = index_of(s)
+            if k >= 0:
+                seen.append(k)
+        if not th.is_alive() and seen and seen[-1] == result.get("sent", 0) - 1:
+            break
+    th.join()
+    cpu = time.process_time() - cpu0
+    c = backend.counters
+    backend.close()
+    emulator.close()
+    ks = np.array(seen)
+    missing = result["sent"] - len(set(seen))
+    return {
+        "path": name, "rate_hz": rate_hz, "sent": result["sent"], "received": len(seen),
+        "missing": missing, "out_of_order": int(np.sum(np.diff(ks) <= 0)) if len(ks) > 1 else 0,
+        "gaps_counter": c["gaps"] - base["gaps"], "crc_errors": c["crc_errors"],
+        "cpu_pct": 100 * cpu / max(seconds, 1e-9),
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--seconds", type=float, default=3.0, help="duration of each path run (s)")
+    ap.add_argument("--frames", type=int, default=3000, help="frames per decoding measurement")
+    ap.add_argument("--chunk", type=int, default=4, help="frames per feed() call")
+    args = ap.parse_args()
+
+    print(f"{'decoder':34s} {'bytes':>6s} {'µs/frame':>9s}")
+    for name, nbytes, us in bench_decoding(args.frames, args.chunk):
+        print(f"{name:34s} {nbytes:6d} {us:9.2f}")
+
+    def tactile_counts(k: int) -> np.ndarray:
+        c = np.full((16, 16), 100, dtype=np.uint16)
+        c[0, 0], c[0, 1] = k & 0xFFF, k >> 12
+        return c
+
+    def tactile_index(s) -> int:
+        return int(s.counts[0, 0]) | int(s.counts[0, 1]) << 12
+
+    runs = []
+    rdt = RdtUdpServer()
+    runs.append(run_path(
+        "rdt udp 7 kHz", rdt, f"{rdt.url}?rate_hz=7000",
+        lambda e, k: e.send_ft([k / 1e6, 0, 0], [0, 0, 0]) if k >= 0 else e.service(),
+        7000.0, args.seconds, lambda s: s.device_seq - 1))
+    dsa = Dsacon32Emulator()
+    runs.append(run_path(
+        "dsacon32 pty 1 kHz", dsa, f"dsacon32://{dsa.path}?fps=1000",
+        lambda e, k: e.send_tactile(tactile_counts(max(k, 0))) if k >= 0 else e.service(),
+        1000.0, args.seconds, tactile_index))
+    m = M1616Emulator()
+    runs.append(run_path(
+        "m1616 pty 1 kHz", m, f"m1616://{m.path}?rate_hz=1000",
+        lambda e, k: e.send_tactile(tactile_counts(k)) if k >= 0 else None,
+        1000.0, args.seconds, tactile_index))
+    print()
+    print(f"{'path':20s} {'rate':>6s} {'sent':>7s} {'recv':>7s} {'missing':>7s} {'ooo':>4s} {'gaps':>5s} {'crc':>4s} {'cpu%':>5s}")
+    for r in runs:
+        print(f"{r['path']:20s} {r['rate_hz']:6.0f} {r['sent']:7d} {r['received']:7d} {r['missing']:7d} "
+              f"{r['out_of_order']:4d} {r['gaps_counter']:5d} {r['crc_errors']:4d} {r['cpu_pct']:5.1f}")
+
+
+if __name__ == "__main__":
+    main()
