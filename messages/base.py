@@ -82,16 +82,20 @@ def _validator(owner: str, f: dataclasses.Field, hint: Any):
     if spec is not None:
         want_dtype = np.dtype(spec.dtype)
 
+        fixed_shape = spec.shape if None not in spec.shape else None
+        check_finite = spec.finite and want_dtype.kind == "f"
+
         def check_array(v: Any) -> Any:
-            if not isinstance(v, np.ndarray):
+            if type(v) is not np.ndarray:
                 raise DecodeError(f"{name}: expected an array, got {type(v).__name__}")
             if v.dtype != want_dtype:
                 raise DecodeError(f"{name}: expected dtype {want_dtype}, got {v.dtype}")
-            if len(v.shape) != len(spec.shape) or any(
+            if v.shape != fixed_shape and (len(v.shape) != len(spec.shape) or any(
                 s is not None and s != n for s, n in zip(spec.shape, v.shape)
-            ):
+            )):
                 raise DecodeError(f"{name}: expected shape {spec.shape}, got {v.shape}")
-            if spec.finite and v.dtype.kind == "f" and not np.isfinite(v).all():
+            # NaN/Inf make the dot product with zeros NaN: one pass, no temporary array
+            if check_finite and v.size and v.reshape(-1).dot(np.zeros(v.size, v.dtype)) != 0:
                 raise DecodeError(f"{name}: contains NaN or Inf")
             return v
 

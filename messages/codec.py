@@ -41,27 +41,45 @@ def pack_array(arr: np.ndarray) -> msgpack.ExtType:
     return msgpack.ExtType(ARRAY_EXT, head + a.tobytes())
 
 
-def unpack_array(data: bytes) -> np.ndarray:
-    """Decode :func:`pack_array` output; raises :class:`DecodeError` on any inconsistency."""
+_HEADER_CACHE: dict[bytes, tuple[np.dtype, tuple[int, ...], int, int]] = {}
+_HEADER_CACHE_MAX = 256
+
+
+def _parse_array_header(data: bytes) -> tuple[int, np.dtype, tuple[int, ...], int, int]:
+    """``(data offset, dtype, shape, count, nbytes)`` of an encoded array; checked once per
+    distinct header and then cached (a stream carries few distinct headers)."""
     try:
         n = data[0]
+        off = 2 + n + 4 * data[1 + n]
+    except IndexError:
+        raise DecodeError("array: truncated header") from None
+    head = data[:off]
+    hit = _HEADER_CACHE.get(head)
+    if hit is not None:
+        return (off, *hit)
+    try:
         code = data[1 : 1 + n].decode("ascii")
         ndim = data[1 + n]
-        off = 2 + n
-        shape = tuple(_U32.unpack_from(data, off + 4 * k)[0] for k in range(ndim))
-        off += 4 * ndim
+        shape = tuple(_U32.unpack_from(data, 2 + n + 4 * k)[0] for k in range(ndim))
     except (IndexError, UnicodeDecodeError, struct.error) as exc:
         raise DecodeError(f"array: truncated or corrupt header ({exc})") from None
     if code not in ALLOWED_DTYPES:
         raise DecodeError(f"array: dtype {code!r} is not allowed")
     dtype = np.dtype(code)
     count = int(np.prod(shape, dtype=np.int64)) if shape else 1
-    if len(data) - off != count * dtype.itemsize:
-        raise DecodeError(
-            f"array: {len(data) - off} data bytes do not match shape {shape} of {code}"
-        )
-    arr = np.frombuffer(data, dtype=dtype, count=count, offset=off).reshape(shape)
-    return arr
+    entry = (dtype, shape, count, count * dtype.itemsize)
+    if len(_HEADER_CACHE) < _HEADER_CACHE_MAX:
+        _HEADER_CACHE[head] = entry
+    return (off, *entry)
+
+
+def unpack_array(data: bytes) -> np.ndarray:
+    """Decode :func:`pack_array` output; raises :class:`DecodeError` on any inconsistency."""
+    off, dtype, shape, count, nbytes = _parse_array_header(data)
+    if len(data) - off != nbytes:
+        raise DecodeError(f"array: {len(data) - off} data bytes do not match shape {shape} of {dtype.str}")
+    arr = np.frombuffer(data, dtype=dtype, count=count, offset=off)
+    return arr if len(shape) == 1 else arr.reshape(shape)
 
 
 def _default(obj: Any) -> Any:
