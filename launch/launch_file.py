@@ -5,6 +5,8 @@ Format::
     [launch]
     description = "what this graph does"
     duration_s = 0            # stop by itself after this long (0: run until Ctrl-C)
+    extends = "stack.toml"    # optional: take the nodes and args of another launch
+                              # file; this file's [args] override, its nodes are added
 
     [args]                    # launch arguments, overridden by `name:=value`
     rate_hz = 1000.0          # built in: $(run_dir), this run's private directory
@@ -20,6 +22,8 @@ Format::
     required = false          # when it exits, the whole launch stops
     transport = "ipc"         # or "tcp" (binds 127.0.0.1 on a free port)
     enabled = true            # may be "$(arg)": leave a node out of this run
+    after = ["rig"]           # start only once these nodes are ready (besides the
+                              # topic order: subscribers before publishers)
 
 A value that is exactly ``"$(name)"`` takes the argument's type; inside a longer
 string it is substituted as text.
@@ -41,7 +45,7 @@ __all__ = ["NodeEntry", "LaunchFile", "load_launch_file", "default_launch_file",
 
 _SUBST = re.compile(r"\$\((\w+)\)")
 _NODE_KEYS = {"name", "type", "params", "remap", "respawn", "respawn_delay_s", "respawn_max_retries",
-              "required", "transport", "enabled"}
+              "required", "transport", "enabled", "after"}
 
 
 @dataclass
@@ -58,6 +62,7 @@ class NodeEntry:
     respawn_max_retries: int = 3
     required: bool = False
     transport: str = "ipc"
+    after: list[str] = field(default_factory=list)
 
     def instance(self) -> Node:
         """Build the node object (validates the parameters)."""
@@ -132,6 +137,26 @@ def resolve_path(value: str, base: Path, folder: str) -> Path:
     raise ConfigError(f"cannot find {value!r} (looked next to {base} and in the shipped {folder}/)")
 
 
+def _read_with_base(p: Path, seen: tuple[Path, ...]) -> dict[str, Any]:
+    """The TOML of ``p`` merged over the file it ``extends`` (recursively)."""
+    if p in seen:
+        raise ConfigError(f"{p.name}: 'extends' loops back to itself")
+    try:
+        data = tomllib.loads(p.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{p}: not valid TOML ({exc})") from None
+    meta = dict(data.get("launch", {}))
+    base_name = meta.pop("extends", None)
+    if base_name is None:
+        return data
+    base = _read_with_base(resolve_path(str(base_name), p.parent, "files"), (*seen, p))
+    return {
+        "launch": {**base.get("launch", {}), **meta},
+        "args": {**base.get("args", {}), **data.get("args", {})},
+        "node": [*base.get("node", []), *data.get("node", [])],
+    }
+
+
 def load_launch_file(
     path: str | Path | None, overrides: dict[str, str] | None = None, *, builtins: dict[str, Any] | None = None
 ) -> LaunchFile:
@@ -144,16 +169,15 @@ def load_launch_file(
         ConfigError: naming the file and key that is wrong.
     """
     p = default_launch_file() if path is None else resolve_path(str(path), Path.cwd(), "files")
-    try:
-        data = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{p}: not valid TOML ({exc})") from None
+    data = _read_with_base(p, seen=())
     args = dict(data.get("args", {}))
     for name, text in (overrides or {}).items():
         if name not in args:
             raise ConfigError(f"{p.name}: no launch argument {name!r}; declared: {', '.join(sorted(args)) or 'none'}")
         args[name] = _typed_override(args[name], text, name)
     args.update(builtins or {})
+    # an argument may refer to others ("rdt://127.0.0.1:$(rdt_port)", "$(run_dir)/ft.tty")
+    args = {k: _substitute(v, args, f"{p.name}: args.{k}") for k, v in args.items()}
     meta = data.get("launch", {})
     entries: list[NodeEntry] = []
     for k, raw in enumerate(data.get("node", [])):
@@ -175,6 +199,7 @@ def load_launch_file(
             respawn_delay_s=float(raw.get("respawn_delay_s", 0.5)),
             respawn_max_retries=int(raw.get("respawn_max_retries", 3)),
             required=bool(raw.get("required", False)), transport=raw.get("transport", "ipc"),
+            after=list(raw.get("after", [])),
         )
         entry.instance()  # fail now, naming the node, if a parameter is wrong
         entries.append(entry)
@@ -182,4 +207,8 @@ def load_launch_file(
     dupes = {n for n in names if names.count(n) > 1}
     if dupes:
         raise ConfigError(f"{p.name}: node names must be unique; repeated: {sorted(dupes)}")
+    for e in entries:
+        missing = [a for a in e.after if a not in names]
+        if missing:
+            raise ConfigError(f"{p.name}: node {e.name} starts after {missing}, which this launch does not run")
     return LaunchFile(p, str(meta.get("description", "")), float(_substitute(meta.get("duration_s", 0), args, "launch.duration_s")), args, entries)

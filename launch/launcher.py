@@ -164,7 +164,17 @@ class Launcher:
         for name in self.children:  # launch-file order breaks ties
             if name not in seen:
                 visit(name)
-        return post  # post-order: every node after all it feeds (cycles cut where entered)
+        # post-order: every node after all it feeds (cycles cut where entered); then
+        # honour explicit `after` constraints, keeping that order otherwise
+        order: list[str] = []
+        pending = post
+        while pending:
+            ready = [n for n in pending if all(a in order for a in self.children[n].entry.after)]
+            if not ready:
+                raise ConfigError(f"'after' constraints form a cycle among {pending}")
+            order.append(ready[0])
+            pending = [n for n in pending if n != ready[0]]
+        return order
 
     # -- processes --------------------------------------------------------------------------
     def _spawn(self, c: _Child) -> None:

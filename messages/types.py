@@ -135,7 +135,9 @@ class RigTruth(Message):
 
     x, y: m; theta: rad; vx, vy: m/s; omega: rad/s; cor: (2,) m (valid if cor_valid).
     gross_slip: the whole contact slides. slip_distance_m / slip_angle_rad: totals.
-    f_n_applied: N, the finger's actual normal force.
+    f_n_applied / f_n_command: N, the finger's actual and commanded normal force.
+    sliding_fraction: share of the friction capacity used by sliding taxels (0..1).
+    load_f_t (2,) N, load_tau N·m: the load the contact transmits to the object, in F.
     """
 
     x: float = 0.0
@@ -150,7 +152,10 @@ class RigTruth(Message):
     slip_distance_m: float = 0.0
     slip_angle_rad: float = 0.0
     f_n_applied: float = 0.0
+    f_n_command: float = 0.0
     sliding_fraction: float = 0.0
+    load_f_t: np.ndarray = array("<f8", (2,), doc="N")
+    load_tau: float = 0.0
 
 
 @message("slipstack/Diagnostics")

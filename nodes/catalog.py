@@ -15,8 +15,14 @@ NODE_TYPES: dict[str, str] = {
     "sink": "slipstack.nodes.demo:Sink",
     "monitor": "slipstack.nodes.monitor:Monitor",
     "grip_controller": "slipstack.nodes.grip_controller:GripController",
+    "rig": "slipstack.nodes.rig:Rig",
+    "fusion": "slipstack.nodes.fusion:Fusion",
+    "cor_estimator": "slipstack.nodes.cor_estimator:CorEstimator",
+    "slip_detector": "slipstack.nodes.slip_detector:SlipDetector",
     "recorder": "slipstack.nodes.recorder:Recorder",
     "player": "slipstack.nodes.player:Player",
+    "ft_driver": "slipstack.nodes.ft_driver:FtDriver",
+    "tactile_driver": "slipstack.nodes.tactile_driver:TactileDriver",
 }
 
 

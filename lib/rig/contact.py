@@ -1,0 +1,154 @@
+"""Pressure models: the normal force on each taxel, ``φ_i ≥ 0`` with ``Σ φ_i = f_n``.
+
+Positions are complex numbers ``x + i·y`` in the pad frame ``F`` (MATH.md §1), metres.
+Each taxel cell is sampled at ``s × s`` sub-taxel points and its weight is the mean
+pressure over them, so a contact smaller than a taxel or an edge crossing a cell is
+not aliased onto a single taxel centre. Models (parameters in
+:class:`~slipstack.lib.rig.scene.ContactSpec`):
+
+- ``flat``: uniform pressure over a footprint (whole pad, disc or rectangle).
+- ``offset``: a footprint with a linear pressure gradient (tilted or off-centre face).
+- ``hertz``: curved fingertip on a flat object; ``p ∝ sqrt(1 − r²/a²)`` with
+  ``a = a_ref·(f_n/f_ref)^{1/3}`` (Hertz: contact radius ∝ ``f_n^{1/3}``; Johnson,
+  *Contact Mechanics*, 1985, §4.2), so the torsional limit ∝ ``f_n^{4/3}`` (MATH.md §4.3).
+- ``edge``: an object edge pressed on the pad; uniform along a strip of length ``L``,
+  Hertzian line-contact profile ``sqrt(1 − d²/b²)`` across it with half-width
+  ``b = b_ref·(f_n/f_ref)^{1/2}`` (Johnson §4.3: ``b ∝ sqrt(load per length)``).
+
+A footprint attached to the object (default for flat, offset, edge) moves with the
+object's pose; a Hertzian fingertip's contact is fixed on the pad.
+"""
+
+from __future__ import annotations
+
+import cmath
+
+import numpy as np
+
+from slipstack.lib.errors import ConfigError
+from slipstack.lib.pad import PadGeometry
+from slipstack.lib.rig.scene import ContactSpec
+
+__all__ = ["PressureModel"]
+
+_SHAPE_FORCE_RTOL = 2e-3
+"""Re-evaluate a force-dependent shape when f_n moved by more than this (relative);
+a Hertzian radius then moves by ≤ 0.07 %."""
+_SHAPE_MOVE_FRACTION = 0.02
+"""Re-evaluate an attached footprint when any pad point moved by 2 % of a pitch."""
+
+
+class PressureModel:
+    """Maps ``(f_n, object pose)`` to ``φ`` per taxel, caching the normalised shape.
+
+    Args:
+        spec: contact parameters of the scene.
+        pad: the taxel grid.
+        initial_pose: ``(x, y, θ)`` of the object at t = 0 (the footprint's reference).
+    """
+
+    def __init__(self, spec: ContactSpec, pad: PadGeometry,
+                 initial_pose: tuple[float, float, float]) -> None:
+        self._spec = spec
+        self._pad = pad
+        s = spec.subsamples
+        offs = ((np.arange(s) + 0.5) / s - 0.5) * pad.pitch_m
+        sub = (offs[None, :] + 1j * offs[:, None]).ravel()
+        centres = pad.positions[:, 0] + 1j * pad.positions[:, 1]
+        self._points = centres[:, None] + sub[None, :]  # (N, s²) complex
+        self._centres = centres
+        self._pose0 = (complex(initial_pose[0], initial_pose[1]), float(initial_pose[2]))
+        # A uniform pressure over the whole pad does not change when the object moves.
+        self._attached = spec.attached_to_object and not (
+            spec.model == "flat" and spec.footprint == "pad")
+        self._force_dependent = spec.model in ("hertz", "edge")
+        reach = float(np.max(np.abs(centres))) + pad.pitch_m
+        self._move_tol = _SHAPE_MOVE_FRACTION * pad.pitch_m
+        self._rot_tol = self._move_tol / reach
+        self._key: tuple[float, complex, float] | None = None
+        self._shape = np.zeros(pad.n_taxels)
+
+    @property
+    def attached(self) -> bool:
+        """True when the footprint moves with the object."""
+        return self._attached
+
+    def shape(self, f_n: float, origin: complex, theta: float) -> np.ndarray:
+        """Normalised pressure shape ``w_i ≥ 0``, ``Σ w_i = 1`` (all zero: no contact).
+
+        Args:
+            f_n: normal force (N); only shapes of hertz and edge depend on it.
+            origin: object centre of mass in ``F`` (complex, m).
+            theta: object angle (rad).
+        """
+        if self._key is None or self._stale(f_n, origin, theta):
+            self._key = (f_n, origin, theta)
+            self._shape = self._evaluate(f_n, origin, theta)
+        return self._shape
+
+    def phi(self, f_n: float, origin: complex, theta: float) -> np.ndarray:
+        """Normal force per taxel ``φ_i = f_n·w_i`` (N), shape ``(R·C,)``, row-major."""
+        return max(f_n, 0.0) * self.shape(f_n, origin, theta)
+
+    def check_touches_pad(self, f_n: float) -> None:
+        """Raise ConfigError if the contact at the initial pose misses the pad."""
+        o0, th0 = self._pose0
+        if not np.any(self._evaluate(max(f_n, 1e-3), o0, th0) > 0):
+            raise ConfigError(
+                f"contact: the {self._spec.model} pressure footprint does not touch the "
+                f"{self._pad.rows}x{self._pad.cols} pad; move contact.centre_m onto it")
+
+    def _stale(self, f_n: float, origin: complex, theta: float) -> bool:
+        f0, o0, th0 = self._key
+        if self._force_dependent and abs(f_n - f0) > _SHAPE_FORCE_RTOL * max(abs(f0), 1e-9):
+            return True
+        return self._attached and (abs(origin - o0) > self._move_tol
+                                   or abs(theta - th0) > self._rot_tol)
+
+    def _evaluate(self, f_n: float, origin: complex, theta: float) -> np.ndarray:
+        points = self._points
+        if self._attached:
+            o0, th0 = self._pose0
+            points = o0 + cmath.exp(1j * (th0 - theta)) * (points - origin)
+        weights = self._pressure(points, f_n).mean(axis=1)
+        total = float(weights.sum())
+        if total > 0.0:
+            return weights / total
+        if self._force_dependent and f_n > 0.0:
+            return self._point_contact()
+        return np.zeros_like(weights)
+
+    def _point_contact(self) -> np.ndarray:
+        """A contact smaller than the sampling: all force on the nearest taxel."""
+        out = np.zeros(self._pad.n_taxels)
+        out[int(np.argmin(np.abs(self._centres - complex(*self._spec.centre_m))))] = 1.0
+        return out
+
+    def _pressure(self, q: np.ndarray, f_n: float) -> np.ndarray:
+        """Unnormalised pressure at points ``q`` (complex, in the footprint's frame)."""
+        spec = self._spec
+        d = q - complex(*spec.centre_m)
+        if spec.model == "hertz":
+            a = spec.a_ref_m * (max(f_n, 0.0) / spec.f_ref_N) ** (1.0 / 3.0)
+            r2 = (d.real**2 + d.imag**2) / (a * a) if a > 0 else np.full(d.shape, np.inf)
+            return np.sqrt(np.clip(1.0 - r2, 0.0, None))
+        if spec.model == "edge":
+            b = spec.b_ref_m * (max(f_n, 0.0) / spec.f_ref_N) ** 0.5
+            local = d * cmath.exp(-1j * spec.angle_rad)
+            across = (local.imag / b) ** 2 if b > 0 else np.full(d.shape, np.inf)
+            along = np.abs(local.real) <= spec.length_m / 2
+            return np.sqrt(np.clip(1.0 - across, 0.0, None)) * along
+        inside = self._footprint(d)
+        if spec.model == "offset":
+            slope = spec.slope_per_m[0] * d.real + spec.slope_per_m[1] * d.imag
+            return inside * np.clip(1.0 + slope, 0.0, None)
+        return inside.astype(float)
+
+    def _footprint(self, d: np.ndarray) -> np.ndarray:
+        spec = self._spec
+        if spec.footprint == "pad":
+            return np.ones(d.shape, dtype=bool)
+        if spec.footprint == "disc":
+            return np.abs(d) <= spec.radius_m
+        hx, hy = spec.half_size_m
+        return (np.abs(d.real) <= hx) & (np.abs(d.imag) <= hy)

@@ -1,0 +1,221 @@
+"""Sensor models of the rig: a 6-axis F/T sensor and a conductive-rubber tactile pad.
+
+Sign convention (an honest plant): the F/T sensor in the finger measures the wrench
+the **object exerts on the finger**, through the contact only (never the disturbance
+directly). Its tangential force and torque about the pad's ``z`` are therefore the
+*load on the object* of MATH.md §1 (in equilibrium they equal the disturbance, and
+friction on the object is their negative); its normal force is ``f_z = −f_n`` (the
+object pushes the pad inwards, along ``−z``). A driver maps a reading to MATH.md's
+quantities with :meth:`FtSensorModel.pad_load`:
+
+    f_F = R_z(yaw)·f_S,  τ_F = R_z(yaw)·τ_S + p_S × f_F,
+    f_t = (f_F,x, f_F,y),  τ = τ_F,z,  f_n = −f_F,z.
+
+Stamps are integer nanoseconds of simulated time.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from slipstack.lib.pad import PadGeometry
+from slipstack.lib.rig.scene import FtSpec, TactileSpec
+
+__all__ = ["FtSample", "TactileSample", "FtSensorModel", "TactileSensorModel"]
+
+
+@dataclass(frozen=True, slots=True)
+class FtSample:
+    """One F/T reading in the sensor frame ``S``.
+
+    Attributes:
+        t_ns: simulated time of the sample (ns).
+        seq: sample counter from 0.
+        force_S: force (N), shape (3,).
+        torque_S: torque about the sensor origin (N·m), shape (3,).
+        saturated: some axis hit its range (the value is clipped).
+    """
+
+    t_ns: int
+    seq: int
+    force_S: np.ndarray
+    torque_S: np.ndarray
+    saturated: bool
+
+
+@dataclass(frozen=True, slots=True)
+class TactileSample:
+    """One tactile frame: raw 12-bit counts, shape ``(R, C)``, dtype uint16, row-major."""
+
+    t_ns: int
+    seq: int
+    counts: np.ndarray
+
+
+class FtSensorModel:
+    """Wrench at the sensor origin with bias, Gaussian noise, quantisation and range.
+
+    Args:
+        spec: sensor parameters (origin ``p_S`` in ``F``, yaw of ``S`` about ``z``).
+        pad: the taxel grid (for the moments of the normal forces).
+        rng: noise generator.
+    """
+
+    def __init__(self, spec: FtSpec, pad: PadGeometry, rng: np.random.Generator) -> None:
+        self.spec = spec
+        self._px = pad.positions[:, 0].copy()
+        self._py = pad.positions[:, 1].copy()
+        self._rng = rng
+        self._noise = [spec.noise_force_N] * 3 + [spec.noise_torque_Nm] * 3
+        self._bias = list(spec.bias_force_N + spec.bias_torque_Nm)
+        self._res = [spec.resolution_force_N] * 3 + [spec.resolution_torque_Nm] * 3
+        self._range = list(spec.range_force_N + spec.range_torque_Nm)
+        self._quantised = min(self._res) > 0.0
+        self._cos, self._sin = math.cos(spec.yaw_rad), math.sin(spec.yaw_rad)
+
+    def ideal_wrench(self, phi: np.ndarray, f_n: float, load_force: complex,
+                     load_torque: float) -> tuple[list[float], list[float]]:
+        """Noise-free wrench in ``S`` from the contact state.
+
+        Args:
+            phi: normal force per taxel (N).
+            f_n: ``Σ φ_i`` (N).
+            load_force: tangential force of the object on the finger, ``−Σ q_i``
+                (complex N, ``F``).
+            load_torque: its torque about the pad's ``z`` axis through the pad origin,
+                ``−Σ p_i × q_i`` (N·m).
+
+        Returns:
+            ``(force_S, torque_S)``, three floats each, N and N·m.
+        """
+        fx, fy, fz = load_force.real, load_force.imag, -f_n
+        # τ_F about the pad origin of the forces at p_i = (x_i, y_i, 0): the tangential
+        # parts give load_torque about z; the normals −φ_i ẑ give (−Σ y φ, Σ x φ, 0).
+        tx, ty, tz = -float(self._py @ phi), float(self._px @ phi), load_torque
+        sx, sy, sz = self.spec.origin_m
+        # τ_S = τ_F − p_S × f
+        tx -= sy * fz - sz * fy
+        ty -= sz * fx - sx * fz
+        tz -= sx * fy - sy * fx
+        c, s = self._cos, self._sin  # rotate F → S: by −yaw about z
+        return ([c * fx + s * fy, -s * fx + c * fy, fz], [c * tx + s * ty, -s * tx + c * ty, tz])
+
+    def measure(self, t_ns: int, seq: int, phi: np.ndarray, f_n: float, load_force: complex,
+                load_torque: float) -> FtSample:
+        """A noisy, biased, quantised, range-limited reading (see :meth:`ideal_wrench`)."""
+        force, torque = self.ideal_wrench(phi, f_n, load_force, load_torque)
+        noise = self._rng.standard_normal(6).tolist()
+        out = []
+        saturated = False
+        for v, b, sd, res, lim, z in zip(force + torque, self._bias, self._noise, self._res,
+                                         self._range, noise):
+            v += b + sd * z
+            if self._quantised:
+                v = round(v / res) * res
+            if abs(v) > lim:
+                saturated = True
+                v = math.copysign(lim, v)
+            out.append(v)
+        return FtSample(t_ns, seq, np.array(out[:3]), np.array(out[3:]), saturated)
+
+    def pad_load(self, force_S: np.ndarray, torque_S: np.ndarray) -> tuple[float, float, float, float]:
+        """Map a reading to MATH.md §1: returns ``(f_x N, f_y N, τ N·m, f_n N)`` in ``F``.
+
+        ``f_t = (f_x, f_y)`` and ``τ`` are the load on the object; ``f_n = −f_z``.
+        """
+        c, s = self._cos, self._sin  # rotate S → F: by +yaw about z
+        fx, fy, fz = (float(v) for v in force_S)
+        tz = float(torque_S[2])  # rotation about z leaves τ_z unchanged
+        fx, fy = c * fx - s * fy, s * fx + c * fy
+        sx, sy, _ = self.spec.origin_m
+        return fx, fy, tz + sx * fy - sy * fx, -fz  # τ_F,z = τ_S,z + (p_S × f)_z
+
+
+class TactileSensorModel:
+    """Conductive-rubber taxels: saturating 12-bit counts of the local pressure.
+
+    ``counts_i = baseline + full·(1 − exp(−g_i p'_i / p0)) + N(0, σ²)``, rounded and
+    clipped to ``[0, full]``; ``p_i = φ_i/h²`` (Pa), ``p'`` with neighbour leakage,
+    ``g_i`` per-taxel gain; dead taxels read 0.
+
+    Args:
+        spec: tactile parameters.
+        pad: the taxel grid.
+        rng_init: draws gains and random dead taxels once.
+        rng_noise: per-frame noise.
+    """
+
+    def __init__(self, spec: TactileSpec, pad: PadGeometry, rng_init: np.random.Generator,
+                 rng_noise: np.random.Generator) -> None:
+        self.spec = spec
+        self.pad = pad
+        n = pad.n_taxels
+        self.gains = np.clip(1.0 + spec.gain_spread * rng_init.standard_normal(n), 0.1, None)
+        dead = rng_init.random(n) < spec.dead_fraction
+        for r, c in spec.dead_taxels:
+            dead[r * pad.cols + c] = True
+        self.dead = dead
+        self._alive = ~dead
+        self._rng = rng_noise
+        self._neg_scale = -self.gains / (spec.p0_Pa * pad.taxel_area_m2)  # φ (N) → exponent
+
+    def measure(self, t_ns: int, seq: int, phi: np.ndarray) -> TactileSample:
+        """A frame of counts for normal forces ``phi`` (N per taxel)."""
+        spec = self.spec
+        if spec.crosstalk > 0.0:
+            phi = self._leak(phi)
+        level = np.exp(self._neg_scale * phi)  # e^{−g p/p0}
+        level *= -spec.full_scale_counts
+        level += spec.baseline_counts + spec.full_scale_counts
+        if spec.noise_counts > 0.0:
+            level += self._rng.normal(0.0, spec.noise_counts, level.shape[0])
+        np.clip(level, 0.0, spec.full_scale_counts, out=level)
+        level *= self._alive
+        counts = np.rint(level).astype(np.uint16)
+        return TactileSample(t_ns, seq, counts.reshape(self.pad.rows, self.pad.cols))
+
+    def _leak(self, phi: np.ndarray) -> np.ndarray:
+        grid = phi.reshape(self.pad.rows, self.pad.cols)
+        out = grid.copy()
+        k = self.spec.crosstalk
+        out[1:, :] += k * grid[:-1, :]
+        out[:-1, :] += k * grid[1:, :]
+        out[:, 1:] += k * grid[:, :-1]
+        out[:, :-1] += k * grid[:, 1:]
+        return out.ravel()
+
+    def nominal_counts(self, pressure_Pa: np.ndarray) -> np.ndarray:
+        """The nominal curve (gain 1, no noise): counts (float) for pressures in Pa."""
+        spec = self.spec
+        p = np.asarray(pressure_Pa, dtype=float)
+        return spec.baseline_counts + spec.full_scale_counts * -np.expm1(-p / spec.p0_Pa)
+
+    def nominal_pressure(self, counts: np.ndarray) -> np.ndarray:
+        """Inverse of the nominal curve: pressure (Pa) for counts, NaN at saturation."""
+        spec = self.spec
+        x = (np.asarray(counts, dtype=float) - spec.baseline_counts) / spec.full_scale_counts
+        x = np.clip(x, 0.0, None)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            p = -spec.p0_Pa * np.log1p(-x)
+        return np.where(x < 1.0, p, np.nan)
+
+    def calibration_table(self, n_points: int = 33,
+                          top_fraction: float = 0.99) -> tuple[np.ndarray, np.ndarray]:
+        """Points of the nominal curve for a tactile driver's calibration table.
+
+        Args:
+            n_points: number of points, evenly spaced in counts.
+            top_fraction: the last point sits at this fraction of full scale (the curve
+                is flat beyond it: saturation).
+
+        Returns:
+            ``(pressure_Pa, counts)``, both shape ``(n_points,)``, increasing, starting
+            at ``(0, baseline)``.
+        """
+        spec = self.spec
+        top = spec.baseline_counts + top_fraction * (spec.full_scale_counts - spec.baseline_counts)
+        counts = np.linspace(spec.baseline_counts, top, n_points)
+        return self.nominal_pressure(counts), counts

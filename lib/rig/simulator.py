@@ -1,0 +1,437 @@
+"""Lock-step simulator of the paper's rig (Melchiorri 2000, §V, Fig. 8).
+
+A fingertip carrying a 6-axis F/T sensor and a tactile pad presses an object; a
+motor disturbs the object. :class:`Simulator` integrates the plant (finger
+actuator, pressure model, per-taxel bristle friction, planar body in its free
+degrees of freedom, disturbance motor) with a fixed internal step and samples the
+sensors and the truth at their own rates. Everything is deterministic given the
+scene seed.
+
+Clocks: the simulator only advances when asked, ``step_until(t_ns)``, in simulated
+integer nanoseconds from 0. Lock-step (tests, benchmarks) calls it as fast as
+possible; real time (the rig node) calls it with the wall-clock time elapsed since
+start, so pacing lives outside ``lib/``.
+
+Energy books: ``Truth.energy_J`` (kinetic + elastic bristle energy) and
+``Truth.work_J`` (work of the motor's active force/torque on the object since t=0).
+Over any interval at constant grip force, ``Δenergy ≤ Δwork``: friction, damping and
+the release of bristle energy at slip onset only dissipate (the step is built so
+that this holds exactly up to round-off; see lib/rig/friction.py and body.py).
+"""
+
+from __future__ import annotations
+
+import cmath
+import math
+from dataclasses import dataclass
+from typing import Iterator, Union
+
+import numpy as np
+import scipy.linalg
+
+from slipstack.lib.errors import ConfigError
+from slipstack.lib.rig.actuator import FingerActuator
+from slipstack.lib.rig.body import PlanarBody
+from slipstack.lib.rig.contact import PressureModel
+from slipstack.lib.rig.disturbance import DisturbanceMotor
+from slipstack.lib.rig.friction import BristleField
+from slipstack.lib.rig.scene import Scene
+from slipstack.lib.rig.sensors import FtSample, FtSensorModel, TactileSample, TactileSensorModel
+
+__all__ = ["Truth", "TaxelState", "Sample", "Simulator", "GROSS_SLIP_FRACTION", "MAX_OMEGA_DT"]
+
+GROSS_SLIP_FRACTION = 0.95
+"""Gross slip ⇔ slipping taxels account for at least this share of the frictional
+dissipation capacity ``Σ φ_i |u_i|`` (``BristleField.slip_share``; for a translation
+simply the share of ``f_n``). Taxels near the centre of rotation stick during a gross
+rotation (they barely move), so the share never reaches exactly 1 there; below the
+threshold the contact is in partial slip (edges slipping, core sticking)."""
+MAX_OMEGA_DT = 1.0
+"""Accuracy guard: the stiffest contact mode ``ω_c`` must satisfy ``ω_c·dt ≤ 1``."""
+_MAX_CAP_PASSES = 4
+"""Solves per step at most: the last one is taken even if a cap is still exceeded."""
+_COR_MIN_OMEGA = 1e-4
+"""Below this rate (rad/s) the motion is reported as a translation: no COR."""
+_COR_MAX_DISTANCE = 1.0
+"""A COR farther than this (m) from the pad origin is reported as None (translation)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Truth:
+    """Ground truth of the object relative to the pad (frame ``F``, SI units).
+
+    Attributes:
+        t_ns: simulated time (ns).
+        x, y, theta: pose of the object's centre of mass (m, m, rad).
+        vx, vy, omega: its velocity (m/s) and angular rate (rad/s).
+        gross_slip: ``slip_fraction ≥ GROSS_SLIP_FRACTION`` (with no contact: the
+            object moves).
+        slip_fraction: share of the friction capacity in use by slipping taxels
+            (``BristleField.slip_share``); 0 < share < 0.95 is partial slip.
+        cor: instantaneous centre of rotation ``(x, y)`` (m), None for a translation
+            or rest (|ω| < 1e-4 rad/s or farther than 1 m).
+        slip_distance_m: path length of the object point over the pad origin,
+            accumulated while in gross slip.
+        slip_angle_rad: object rotation accumulated while in gross slip (signed).
+        slip_direction_rad: direction of the slip velocity at the pad origin while
+            in gross slip, else None.
+        f_n_applied, f_n_command: applied and commanded normal force (N).
+        load_force: tangential load on the object transmitted by the contact
+            ``−Σ q_i`` (N); what an ideal F/T reads as ``f_t``.
+        load_torque: its torque about ``z`` through the pad origin (N·m).
+        disturbance_force, disturbance_torque: the motor's active force (N) at its
+            application point and torque (N·m).
+        motor_displacement: motor encoder ``(dx m, dy m, dθ rad)`` of the object point.
+        energy_J: kinetic plus elastic bristle energy (J).
+        work_J: work of the motor's active load since t = 0 (J).
+    """
+
+    t_ns: int
+    x: float
+    y: float
+    theta: float
+    vx: float
+    vy: float
+    omega: float
+    gross_slip: bool
+    slip_fraction: float
+    cor: tuple[float, float] | None
+    slip_distance_m: float
+    slip_angle_rad: float
+    slip_direction_rad: float | None
+    f_n_applied: float
+    f_n_command: float
+    load_force: tuple[float, float]
+    load_torque: float
+    disturbance_force: tuple[float, float]
+    disturbance_torque: float
+    motor_displacement: tuple[float, float, float]
+    energy_J: float
+    work_J: float
+
+
+Sample = Union[FtSample, TactileSample, Truth]
+
+
+@dataclass(frozen=True)
+class TaxelState:
+    """Per-taxel contact state, row-major, for tests and diagnostics.
+
+    Attributes:
+        phi: normal force per taxel (N), shape (N,).
+        sliding: taxel in the slip state, shape (N,), bool.
+        force: tangential force each patch exerts on the object (N), shape (N, 2).
+    """
+
+    phi: np.ndarray
+    sliding: np.ndarray
+    force: np.ndarray
+
+
+class _Clock:
+    """Sample times ``k·period`` (ns), taken at the first internal step at or after them."""
+
+    __slots__ = ("period_ns", "next_ns", "seq")
+
+    def __init__(self, rate_hz: float) -> None:
+        self.period_ns = max(1, round(1e9 / rate_hz))
+        self.next_ns = 0
+        self.seq = 0
+
+    def due(self, t_ns: int) -> bool:
+        if t_ns < self.next_ns:
+            return False
+        self.seq += 1
+        self.next_ns += self.period_ns * ((t_ns - self.next_ns) // self.period_ns + 1)
+        return True
+
+
+class Simulator:
+    """The rig, stepped in lock-step.
+
+    Args:
+        scene: the experiment (see :mod:`slipstack.lib.rig.scene`).
+
+    Raises:
+        ConfigError: the contact misses the pad, or the internal step is too coarse
+            for the contact stiffness (``ω_c·dt > MAX_OMEGA_DT``).
+    """
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene = scene
+        pad = scene.pad
+        self.pad = pad
+        self.dt_ns = scene.sim.step_us * 1000
+        self._dt = self.dt_ns * 1e-9
+        self._t_ns = 0
+        self._end_ns = round(scene.duration_s * 1e9)
+        seeds = np.random.SeedSequence(scene.seed).spawn(4)
+        rng_friction, rng_ft, rng_tac_init, rng_tac = (np.random.default_rng(s) for s in seeds)
+
+        self._P = pad.positions[:, 0] + 1j * pad.positions[:, 1]
+        self._finger = FingerActuator(scene.finger)
+        self._body = PlanarBody(scene.object, scene.dof)
+        self._pressure = PressureModel(scene.contact, pad, scene.object.pose)
+        self._pressure.check_touches_pad(scene.finger.f_initial_N)
+        self._bristles = BristleField(scene.contact, pad.taxel_area_m2, self._dt, rng_friction,
+                                      pad.n_taxels)
+        self._point0 = complex(*scene.disturbance.point_m)
+        self._motor = DisturbanceMotor(scene.disturbance, self._point0, self._body.theta)
+        self.ft = FtSensorModel(scene.ft, pad, rng_ft)
+        self.tactile = TactileSensorModel(scene.tactile, pad, rng_tac_init, rng_tac)
+        self._clocks = [
+            (kind, _Clock(rate))
+            for kind, rate, on in (("ft", scene.ft.rate_hz, scene.ft.enabled),
+                                   ("tactile", scene.tactile.rate_hz, scene.tactile.enabled),
+                                   ("truth", scene.sim.truth_rate_hz, True))
+            if on
+        ]
+        self._shape = None
+        self._f_phi = math.nan
+        px, py = pad.positions[:, 0], pad.positions[:, 1]
+        self._lever4 = np.column_stack([np.ones_like(px), px, py, px * px + py * py])
+        # rows alternate (f_x, f_y) of taxel i as in complex128.view(float64)
+        self._lever_f = np.zeros((2 * pad.n_taxels, 3))
+        self._lever_f[0::2, 0] = 1.0
+        self._lever_f[1::2, 1] = 1.0
+        self._lever_f[0::2, 2] = -py
+        self._lever_f[1::2, 2] = px
+        self._sums_of: np.ndarray | None = None
+        self._d_sums = (0.0, 0j, 0.0)
+        self._load = self._motor.load(0.0, self._point0, self._body.theta)
+        self._motor_damping = self._motor.damping
+        self._load_cache: tuple[int, complex, float] = (-1, 0j, 0.0)
+        self._has_support = scene.support.force_N > 0.0 or scene.support.torque_Nm > 0.0
+        self._work = 0.0
+        self._slip_distance = 0.0
+        self._slip_angle = 0.0
+        self._gross = False
+        self._slip_fraction = 0.0
+        self._update_pressure(self._finger.force)
+        self.contact_mode_rad_s = self._stiffest_mode()
+        if self.contact_mode_rad_s * self._dt > MAX_OMEGA_DT:
+            limit_us = int(MAX_OMEGA_DT / self.contact_mode_rad_s * 1e6)
+            raise ConfigError(
+                f"sim.step_us: {scene.sim.step_us} us is too coarse for the contact stiffness "
+                f"(stiffest mode {self.contact_mode_rad_s:.0f} rad/s, ω·dt = "
+                f"{self.contact_mode_rad_s * self._dt:.2f} > {MAX_OMEGA_DT}); use step_us <= "
+                f"{limit_us} or a softer contact.stiffness_N_per_m3")
+
+    # ------------------------------------------------------------------ public API
+
+    @property
+    def t_ns(self) -> int:
+        """Current simulated time (ns)."""
+        return self._t_ns
+
+    @property
+    def end_ns(self) -> int:
+        """End of the scene, ``duration_s`` in ns."""
+        return self._end_ns
+
+    @property
+    def done(self) -> bool:
+        """True once the simulated time reached the scene's duration."""
+        return self._t_ns >= self._end_ns
+
+    @property
+    def rejected_commands(self) -> int:
+        """Number of non-finite normal-force commands ignored."""
+        return self._finger.rejected
+
+    def command_normal_force(self, f_n_N: float) -> bool:
+        """Command the finger's normal force (N); clipped to ``[0, f_max]``.
+
+        Returns False (command ignored, counted) for a non-finite value.
+        """
+        return self._finger.command(f_n_N)
+
+    def step_until(self, t_ns: int) -> list[Sample]:
+        """Advance to the last internal step at or before ``t_ns`` (simulated ns).
+
+        Returns:
+            The samples due in the advanced interval, in time order (at one instant:
+            F/T, tactile, truth). Samples at t = 0 come with the first call.
+        """
+        out: list[Sample] = []
+        self._emit(out)
+        while self._t_ns + self.dt_ns <= t_ns:
+            self._step()
+            self._emit(out)
+        return out
+
+    def samples(self, chunk_ns: int = 10_000_000) -> Iterator[Sample]:
+        """Yield every sample of the scene up to ``duration_s``, lock-step."""
+        while not self.done:
+            yield from self.step_until(min(self._t_ns + chunk_ns, self._end_ns))
+
+    __iter__ = samples
+
+    def taxel_state(self) -> TaxelState:
+        """Copies of the per-taxel contact state now (normal force, slip state)."""
+        br = self._bristles
+        return TaxelState(phi=br.phi.copy(), sliding=br.sliding.copy(),
+                          force=np.column_stack([br.q.real, br.q.imag]))
+
+    def truth(self) -> Truth:
+        """The ground truth now."""
+        body, br = self._body, self._bristles
+        ref = body.reference
+        omega = body.omega
+        cor = None
+        if abs(omega) > _COR_MIN_OMEGA:
+            c = ref + 1j * body.v_ref / omega
+            if abs(c) <= _COR_MAX_DISTANCE:
+                cor = (c.real, c.imag)
+        v_origin = body.origin_velocity
+        direction = cmath.phase(v_origin) if self._gross and v_origin != 0 else None
+        point = body.body_point(self._point0)
+        v_com = body.com_velocity
+        force, torque = self._load
+        lf, lt = self._contact_load()
+        return Truth(
+            t_ns=self._t_ns,
+            x=body.origin.real, y=body.origin.imag, theta=body.theta,
+            vx=v_com.real, vy=v_com.imag, omega=omega,
+            gross_slip=self._gross,
+            slip_fraction=self._slip_fraction,
+            cor=cor,
+            slip_distance_m=self._slip_distance,
+            slip_angle_rad=self._slip_angle,
+            slip_direction_rad=direction,
+            f_n_applied=self._finger.force,
+            f_n_command=self._finger.command_N,
+            load_force=(lf.real, lf.imag),
+            load_torque=lt,
+            disturbance_force=(force.real, force.imag),
+            disturbance_torque=torque,
+            motor_displacement=self._motor.encoder(point, body.theta),
+            energy_J=body.kinetic_energy() + br.potential_energy(),
+            work_J=self._work,
+        )
+
+    # ------------------------------------------------------------------ internals
+
+    def _emit(self, out: list[Sample]) -> None:
+        t = self._t_ns
+        for kind, clock in self._clocks:
+            if not clock.due(t):
+                continue
+            seq = clock.seq - 1
+            if kind == "ft":
+                out.append(self.ft.measure(t, seq, self._bristles.phi, self._f_phi,
+                                           *self._contact_load()))
+            elif kind == "tactile":
+                out.append(self.tactile.measure(t, seq, self._bristles.phi))
+            else:
+                out.append(self.truth())
+
+    def _contact_load(self) -> tuple[complex, float]:
+        """Load on the object transmitted by the contact: ``(−Σ q_i, −Σ p_i × q_i)``."""
+        if self._load_cache[0] != self._t_ns:
+            fx, fy, tau = self._force_sums(self._bristles.q)
+            self._load_cache = (self._t_ns, complex(-fx, -fy), -tau)
+        return self._load_cache[1], self._load_cache[2]
+
+    def _damping_sums(self, D: np.ndarray) -> tuple[float, complex, float]:
+        """``(Σ D, Σ D p, Σ D |p|²)`` over the taxels, in one product."""
+        s, sx, sy, spp = (D @ self._lever4).tolist()
+        return s, complex(sx, sy), spp
+
+    def _force_sums(self, f: np.ndarray) -> tuple[float, float, float]:
+        """``(Σ f_x, Σ f_y, Σ p × f)`` of complex per-taxel forces, in one product."""
+        return tuple((f.view(np.float64) @ self._lever_f).tolist())
+
+    def _update_pressure(self, f_n: float) -> None:
+        body = self._body
+        if f_n == self._f_phi and not self._pressure.attached:
+            return
+        shape = self._pressure.shape(f_n, body.origin, body.theta)
+        if shape is self._shape and f_n == self._f_phi:
+            return
+        self._shape = shape
+        self._f_phi = f_n
+        self._bristles.set_normal_forces(max(f_n, 0.0) * shape)
+
+    def _step(self) -> None:
+        dt = self._dt
+        body, br, P = self._body, self._bristles, self._P
+        self._update_pressure(self._finger.step(dt))
+        u_n = body.origin_velocity + (1j * body.omega) * P if br.n_sliding else None
+        D, e = br.begin(u_n)
+        if D is not self._sums_of:  # Σ D terms are reused while the stick set is unchanged
+            self._sums_of = D
+            self._d_sums = self._damping_sums(D)
+        s, sp, spp = self._d_sums
+        s_rot = self._motor_damping[1]
+        point = body.body_point(self._point0)
+        force, torque = self._motor.load(self._t_ns * 1e-9, point, body.theta)
+        self._load = (force, torque)
+        c = self._motor_damping[0]
+        s += c
+        sp += c * point
+        spp += c * (point.real**2 + point.imag**2)
+        ex, ey, et = self._force_sums(e)
+        f_total = complex(ex + force.real, ey + force.imag)
+        tau = et + (point.conjugate() * force).imag + torque
+        if self._has_support:
+            s, sp, spp, s_rot = self._support(s, sp, spp, s_rot)
+        ref = body.reference
+        for _ in range(_MAX_CAP_PASSES):
+            v_mid, w_mid = body.solve(dt, s, sp, spp, s_rot, f_total, tau)
+            v0_mid = v_mid - 1j * w_mid * ref  # mid velocity at the pad origin
+            u_avg = v0_mid + (1j * w_mid) * P
+            fixed = br.limit_slip_damping(D, u_avg)
+            if fixed is None:
+                break
+            ds, dsp, dspp = self._damping_sums(fixed - D)
+            s, sp, spp = s + ds, sp + dsp, spp + dspp
+            D = fixed
+        br.finish(D, e, u_avg, u_n)
+        v_point = v0_mid + 1j * w_mid * point
+        self._work += dt * ((force.conjugate() * v_point).real + torque * w_mid)
+        body.commit(dt, v_mid, w_mid)
+        self._t_ns += self.dt_ns
+        self._track_slip(dt, v0_mid, w_mid)
+
+    def _support(self, s: float, sp: complex, spp: float,
+                 s_rot: float) -> tuple[float, complex, float, float]:
+        """Add Coulomb support friction, linearised like the slipping taxels (dissipative)."""
+        support = self.scene.support
+        body = self._body
+        reg = self.scene.contact.regularisation_speed_m_s
+        if support.force_N > 0.0:
+            c = support.force_N / max(abs(body.com_velocity), reg)
+            o = body.origin
+            s, sp, spp = s + c, sp + c * o, spp + c * (o.real**2 + o.imag**2)
+        if support.torque_Nm > 0.0:
+            s_rot += support.torque_Nm / max(abs(body.omega), reg)
+        return s, sp, spp, s_rot
+
+    def _track_slip(self, dt: float, v0_mid: complex, w_mid: float) -> None:
+        br = self._bristles
+        if self._f_phi > 0.0:
+            self._slip_fraction = br.slip_share
+            self._gross = self._slip_fraction >= GROSS_SLIP_FRACTION
+        else:
+            self._slip_fraction = 0.0
+            self._gross = abs(self._body.v_ref) + abs(self._body.omega) > 0.0
+        if self._gross:
+            self._slip_distance += dt * abs(v0_mid)
+            self._slip_angle += dt * w_mid
+
+    def _stiffest_mode(self) -> float:
+        """Highest natural frequency (rad/s) of the body on a fully stuck, fully
+        pressed pad (an upper bound over contact shapes), free coordinates only."""
+        body = self._body
+        k = self._bristles.k
+        d = self._P - body.reference
+        K = k * np.array([
+            [d.size, 0.0, -d.imag.sum()],
+            [0.0, d.size, d.real.sum()],
+            [-d.imag.sum(), d.real.sum(), float((d * d.conj()).real.sum())],
+        ])
+        M = np.diag([body.mass, body.mass, body.inertia])
+        idx = np.array(body.free)
+        eig = scipy.linalg.eigh(K[np.ix_(idx, idx)], M[np.ix_(idx, idx)], eigvals_only=True)
+        return float(math.sqrt(max(eig.max(), 0.0)))

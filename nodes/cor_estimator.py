@@ -1,0 +1,76 @@
+"""cor_estimator: the centre of rotation of impending slip from each ``contact``.
+
+Solvers (parameter ``solver``): ``exact`` — the load factor γ and the COR of
+impending slip (Dinkelbach over the Fermat–Weber sub-solver, MATH.md §4.2);
+``robust`` — the maximiser of ``s·n − T`` over both senses, the paper's (12) solved
+globally; ``paper`` — the paper's fixed-gain Jacobian iteration (its Fig. 7), kept as
+the faithful baseline. Each frame warm-starts from the previous COR. F/T-only
+contacts give case ``none``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from slipstack.lib.cor import paper_cor, robust_cor
+from slipstack.lib.errors import ConfigError
+from slipstack.lib.limit_set import load_factor
+from slipstack.messages import Contact, Cor
+from slipstack.nodes.contact_view import ContactView
+from slipstack.nodes.node import Context, Input, Node, Output
+
+__all__ = ["CorEstimator", "CorParams", "SOLVERS"]
+
+SOLVERS = ("exact", "robust", "paper")
+
+
+@dataclass(frozen=True)
+class CorParams:
+    solver: str = field(default="exact", metadata={"help": f"one of {SOLVERS}"})
+    mu: float = field(default=0.45, metadata={"help": "static friction coefficient"})
+    paper_gain: float = field(default=0.5, metadata={"help": "gain h of the paper's iteration (solver=paper)"})
+    warm_start: bool = field(default=True, metadata={"help": "start from the previous frame's COR"})
+
+
+class CorEstimator(Node):
+    """Publishes ``cor`` for every tactile contact."""
+
+    name = "cor_estimator"
+    inputs = {"contact": Input("contact", Contact)}
+    outputs = {"cor": Output("cor", Cor)}
+    Params = CorParams
+
+    def __init__(self, params: CorParams | None = None) -> None:
+        super().__init__(params)
+        if self.params.solver not in SOLVERS:
+            raise ConfigError(f"cor_estimator solver must be one of {SOLVERS}, got {self.params.solver!r}")
+        self._last_pc: tuple[float, float] | None = None
+
+    def on_contact(self, msg: Contact, ctx: Context) -> None:
+        stamp = msg.header.stamp_ns
+        if not msg.has_tactile or msg.status != "ok":
+            ctx.publish("cor", Cor(case="none", p_c=np.zeros(2), status=msg.status), stamp_ns=stamp,
+                        sources=msg.header.sources)
+            return
+        view = ContactView(msg)
+        c0 = self._last_pc if self.params.warm_start else None
+        p = self.params
+        if p.solver == "exact":
+            r = load_factor(view.phi, view.positions, view.f_t, view.tau, p.mu, c0=c0)
+            gamma = r.gamma
+        else:
+            solve = robust_cor if p.solver == "robust" else paper_cor
+            extra = {"gain": p.paper_gain} if p.solver == "paper" else {}
+            r = solve(view.phi, view.positions, view.f_t, view.tau, p.mu, c0=c0, **extra)
+            gamma = r.ratio
+        if r.p_c is not None:
+            self._last_pc = r.p_c
+        if not r.status.usable:
+            ctx.count(f"cor.{r.status.value}")
+        ctx.publish("cor", Cor(
+            case=r.case.value, p_c=np.array(r.p_c if r.p_c is not None else (0.0, 0.0)),
+            torque_capacity=r.torque_capacity, load_torque=r.load_torque, gamma=float(gamma),
+            iterations=r.iterations, residual=float(r.residual), converged=r.status.usable, status=r.status.value,
+        ), stamp_ns=stamp, sources=msg.header.sources)

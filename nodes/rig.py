@@ -1,0 +1,139 @@
+"""rig: the simulated laboratory rig behind real device protocols.
+
+Runs a scene (``launch/scenes/*.toml``) in real time: every tick it advances the
+simulator to the wall-clock time elapsed since start, sends each F/T and tactile
+sample as bytes through a device emulator (ATI RDT on loopback UDP, Robotiq or Bota
+on a pseudo-terminal; DSACON32, M1616 or the framed format on a pseudo-terminal), and
+publishes ``rig/truth``. ``grip/command`` sets the finger's normal force. The
+detector only ever sees what the drivers decode from those bytes.
+
+The tactile calibration table of the simulated rubber is written to
+``calibration_out`` at start, for the tactile driver to load.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from slipstack.lib.calibration import Calibration, save_calibration
+from slipstack.lib.errors import ConfigError
+from slipstack.lib.rig.scene import load_scene
+from slipstack.lib.rig.sensors import FtSample, TactileSample
+from slipstack.lib.rig.simulator import Simulator, Truth
+from slipstack.launch.launch_file import resolve_path
+from slipstack.messages import GripCommand, RigTruth
+from slipstack.nodes.devices.emulators import (
+    BotaEmulator, Dsacon32Emulator, M1616Emulator, RdtUdpServer, RobotiqEmulator,
+)
+from slipstack.nodes.node import Context, Input, Node, Output
+
+__all__ = ["Rig", "RigParams", "truth_message"]
+
+FT_PROTOCOLS = ("rdt", "robotiq", "bota")
+TACTILE_PROTOCOLS = ("dsacon32", "m1616")
+
+
+@dataclass(frozen=True)
+class RigParams:
+    scene: str = field(default="default", metadata={"help": "scene file: a path or a shipped name (fig10, ...)"})
+    ft_protocol: str = field(default="rdt", metadata={"help": f"F/T emulator: one of {FT_PROTOCOLS}"})
+    rdt_port: int = field(default=49152, metadata={"help": "UDP port of the RDT emulator on 127.0.0.1"})
+    ft_link: str = field(default="", metadata={"help": "pty symlink path for a serial F/T emulator"})
+    tactile_protocol: str = field(default="dsacon32", metadata={"help": f"tactile emulator: one of {TACTILE_PROTOCOLS}"})
+    tactile_link: str = field(default="", metadata={"help": "pty symlink path for the tactile emulator"})
+    calibration_out: str = field(default="", metadata={"help": "write the tactile calibration TOML here"})
+    tick_ms: float = field(default=1.0, metadata={"help": "real-time step of the rig node (ms)"})
+    exit_at_end: bool = field(default=True, metadata={"help": "stop the node when the scene ends"})
+
+
+class Rig(Node):
+    """The simulated rig: plant, sensors and device emulators."""
+
+    name = "rig"
+    inputs = {"grip": Input("grip/command", GripCommand)}
+    outputs = {"truth": Output("rig/truth", RigTruth)}
+    Params = RigParams
+
+    def __init__(self, params: RigParams | None = None) -> None:
+        super().__init__(params)
+        p = self.params
+        if p.ft_protocol not in FT_PROTOCOLS:
+            raise ConfigError(f"rig ft_protocol must be one of {FT_PROTOCOLS}, got {p.ft_protocol!r}")
+        if p.tactile_protocol not in TACTILE_PROTOCOLS:
+            raise ConfigError(f"rig tactile_protocol must be one of {TACTILE_PROTOCOLS}, got {p.tactile_protocol!r}")
+        self.scene = load_scene(resolve_path(p.scene, Path.cwd(), "scenes"))
+        self.timers = {"tick": p.tick_ms / 1e3}
+        self.sim: Simulator | None = None
+        self.ft_dev = None
+        self.tactile_dev = None
+        self._t0 = 0
+
+    def start(self, ctx: Context) -> None:
+        p, scene = self.params, self.scene
+        self.sim = Simulator(scene)
+        if scene.ft.enabled:
+            self.ft_dev = {
+                "rdt": lambda: RdtUdpServer("127.0.0.1", p.rdt_port),
+                "robotiq": lambda: RobotiqEmulator(self._link(p.ft_link, "ft_link")),
+                "bota": lambda: BotaEmulator(self._link(p.ft_link, "ft_link"), rate_hz=scene.ft.rate_hz),
+            }[p.ft_protocol]()
+        if scene.tactile.enabled:
+            link = self._link(p.tactile_link, "tactile_link")
+            self.tactile_dev = (
+                Dsacon32Emulator(link, rows=scene.pad.rows, cols=scene.pad.cols, texel_size_m=scene.pad.pitch_m)
+                if p.tactile_protocol == "dsacon32" else M1616Emulator(link)
+            )
+            if p.calibration_out:
+                pressure, counts = self.sim.tactile.calibration_table()
+                save_calibration(Calibration(counts=counts, pressure_pa=pressure,
+                                             saturation_counts=scene.tactile.full_scale_counts),
+                                 p.calibration_out)
+        self._t0 = ctx.now_ns()
+        ctx.log(f"scene {scene.name}: {scene.description} ({scene.duration_s:g} s, free dof {list(scene.dof.free)})")
+
+    @staticmethod
+    def _link(path: str, name: str) -> str:
+        if not path:
+            raise ConfigError(f"rig: set {name} (where the emulator's pseudo-terminal link goes)")
+        return path
+
+    def on_grip(self, msg: GripCommand, ctx: Context) -> None:
+        if self.sim is not None and not self.sim.command_normal_force(msg.f_n_desired):
+            ctx.count("rig.rejected_commands")
+
+    def on_timer_tick(self, ctx: Context) -> None:
+        sim = self.sim
+        for dev in (self.ft_dev, self.tactile_dev):
+            if dev is not None:
+                dev.service()
+        for sample in sim.step_until(ctx.now_ns() - self._t0):
+            if isinstance(sample, FtSample):
+                if self.ft_dev is not None and not self.ft_dev.send_ft(sample.force_S, sample.torque_S):
+                    ctx.count("rig.ft_not_sent")
+            elif isinstance(sample, TactileSample):
+                if self.tactile_dev is not None and not self.tactile_dev.send_tactile(sample.counts):
+                    ctx.count("rig.tactile_not_sent")
+            else:
+                ctx.publish("truth", truth_message(sample), stamp_ns=self._t0 + sample.t_ns)
+        if sim.done and self.params.exit_at_end:
+            ctx.log(f"scene {self.scene.name} finished")
+            ctx.shutdown()
+
+    def stop(self, ctx: Context) -> None:
+        for dev in (self.ft_dev, self.tactile_dev):
+            if dev is not None:
+                dev.close()
+
+
+def truth_message(t: Truth) -> RigTruth:
+    """The ``rig/truth`` message of one :class:`Truth` sample."""
+    return RigTruth(
+        x=t.x, y=t.y, theta=t.theta, vx=t.vx, vy=t.vy, omega=t.omega, gross_slip=bool(t.gross_slip),
+        cor=np.array(t.cor if t.cor is not None else (0.0, 0.0), dtype=float), cor_valid=t.cor is not None,
+        slip_distance_m=t.slip_distance_m, slip_angle_rad=t.slip_angle_rad, f_n_applied=t.f_n_applied,
+        f_n_command=t.f_n_command, sliding_fraction=t.slip_fraction,
+        load_f_t=np.array(t.load_force, dtype=float), load_tau=t.load_torque,
+    )

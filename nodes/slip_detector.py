@@ -1,0 +1,82 @@
+"""slip_detector: the slip verdict from each ``contact`` (MATH.md §3).
+
+The chosen ``method`` decides; the cheaper tests in ``also`` are computed alongside
+and published in ``verdicts`` (name → [stick, margin]) so their agreement can be
+watched and recorded. A :class:`~slipstack.lib.detection.SlipLatch` turns the
+method's margin into the latched state (onset band ``delta``, hysteresis
+``gamma_release``, ``release_ms``).
+
+The detector computes its verdict from ``contact`` directly rather than waiting for
+``cor``: one hop less between the sensor sample and the grip command. Its own COR of
+impending slip warm-starts the next frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from slipstack.lib.detection import DetectorConfig, SlipLatch
+from slipstack.lib.slip_tests import SLIP_TESTS, SlipParams, get_slip_test
+from slipstack.messages import Contact, Slip
+from slipstack.nodes.contact_view import ContactView
+from slipstack.nodes.node import Context, Input, Node, Output
+
+__all__ = ["SlipDetector", "SlipDetectorParams"]
+
+_FT_TESTS = ["coulomb", "decoupled", "linear_ls", "elliptic_ls"]
+
+
+@dataclass(frozen=True)
+class SlipDetectorParams:
+    method: str = field(default="exact", metadata={"help": f"deciding test: one of {sorted(SLIP_TESTS)}"})
+    also: list[str] = field(default_factory=lambda: list(_FT_TESTS), metadata={"help": "tests published alongside"})
+    mu: float = field(default=0.45, metadata={"help": "static friction coefficient"})
+    beta_m: float = field(default=0.0, metadata={"help": "torsional coefficient for F/T tests (m); 0: from tactile"})
+    delta: float = field(default=0.03, metadata={"help": "onset band: slip when gamma >= 1 - delta"})
+    gamma_release: float = field(default=0.6, metadata={"help": "slip stays latched while gamma >= this"})
+    release_ms: float = field(default=30.0, metadata={"help": "gamma below release this long -> stick (ms)"})
+
+
+class SlipDetector(Node):
+    """Publishes ``slip`` for every contact."""
+
+    name = "slip_detector"
+    inputs = {"contact": Input("contact", Contact)}
+    outputs = {"slip": Output("slip", Slip)}
+    Params = SlipDetectorParams
+
+    def __init__(self, params: SlipDetectorParams | None = None) -> None:
+        super().__init__(params)
+        p = self.params
+        self.test = get_slip_test(p.method)
+        self.others = [(name, get_slip_test(name)) for name in p.also if name != p.method]
+        self.slip_params = SlipParams(mu=p.mu, beta_m=p.beta_m or None, delta=p.delta)
+        self.latch = SlipLatch(DetectorConfig(p.delta, p.gamma_release, round(p.release_ms * 1e6)))
+        self._warm: tuple[float, float] | None = None
+        self._kind = "translation"  # the latest slip kind, reported while the latch holds
+
+    def on_contact(self, msg: Contact, ctx: Context) -> None:
+        stamp = msg.header.stamp_ns
+        view = ContactView(msg)
+        v = self.test(view, self.slip_params, self._warm)
+        if v.p_c is not None:
+            self._warm = v.p_c
+        in_contact = msg.status == "ok" and v.kind != "no-contact"
+        slipping = self.latch.update(stamp, v.margin if v.status.usable else float("nan"), in_contact=in_contact)
+        verdicts = {v.method: [v.stick, v.margin]}
+        for name, test in self.others:
+            o = test(view, self.slip_params, None)
+            verdicts[name] = [o.stick, o.margin]
+        if not in_contact:
+            state = "no-contact"
+        elif slipping:
+            if v.kind not in ("stick", "no-contact"):
+                self._kind = v.kind
+            state = self._kind
+        else:
+            state = "stick"
+        if not v.status.usable:
+            ctx.count(f"slip.{v.status.value}")
+        ctx.publish("slip", Slip(state=state, margin=v.margin, method=v.method, verdicts=verdicts,
+                                 gamma=v.gamma, status=msg.status if msg.status != "ok" else "ok"),
+                    stamp_ns=stamp, sources=msg.header.sources)
