@@ -25,7 +25,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args, extra = parser.parse_known_args(argv)
+    # `name:=value` may follow options (`run rig --pub X a:=1`): argparse leaves those over
+    assignments = [e for e in extra if ":=" in e and not e.startswith("-")]
+    if len(assignments) != len(extra) or (assignments and not hasattr(args, "assignments")):
+        parser.error(f"unrecognized arguments: {' '.join(e for e in extra if e not in assignments) or ' '.join(extra)}")
+    if assignments:
+        args.assignments.extend(assignments)
     try:
         return int(args.func(args) or 0)
     except SlipstackError as exc:

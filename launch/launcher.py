@@ -333,13 +333,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="Run a graph of nodes from a TOML launch file; name:=value sets launch arguments.",
     )
     p.add_argument("file", nargs="?", help="launch file (path or shipped name); default: the default graph")
-    p.add_argument("args", nargs="*", metavar="name:=value", help="launch argument overrides")
+    p.add_argument("assignments", nargs="*", metavar="name:=value", help="launch argument overrides")
     p.add_argument("--show-args", action="store_true", help="print the launch arguments and exit")
     p.set_defaults(func=main_launch)
 
 
 def main_launch(args: argparse.Namespace) -> int:
-    positional = list(args.args)
+    positional = list(args.assignments)
     file = args.file
     if file is not None and ":=" in file:  # `slipstack launch name:=value` with the default file
         positional.insert(0, file)

@@ -63,7 +63,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("node", help="node type (see the list below)")
-    p.add_argument("params", nargs="*", metavar="name:=value", help="parameter overrides")
+    p.add_argument("assignments", nargs="*", metavar="name:=value", help="parameter overrides")
     p.add_argument("--name", help="instance name (default: the node type)")
     p.add_argument("--spec", help="JSON run spec written by the launcher")
     p.add_argument("--pub", help="endpoint to bind for publishing, e.g. ipc:///tmp/x.pub or tcp://*:5555")
@@ -88,6 +88,6 @@ def main_run(args: argparse.Namespace) -> int:
             subs.setdefault(topic, []).append(ep)
         spec = RunSpec(name=args.name or args.node, pub=args.pub, subs=subs)
         values = {}
-    values.update(parse_assignments(args.params))
+    values.update(parse_assignments(args.assignments))
     node = cls(make_params(cls.Params, values, spec.name))
     return ProcessExecutor(node, spec).run()

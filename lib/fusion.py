@@ -1,0 +1,239 @@
+"""Fusion of a tactile frame and an F/T wrench into local normal forces (MATH.md §2).
+
+The tactile pad gives the *shape* of the pressure, the F/T sensor its *size*::
+
+    φ_i = f_n · w_i / Σ_j w_j        over the taxels in contact (w_i > noise floor).
+
+Sign convention (used by every slip test): the wrench is the one the **object
+exerts on the pad**, expressed in the pad frame F (z = outward normal, towards
+the object). The object pushes the pad along −z, so the normal force is
+``f_n = −F_z`` (positive when pressing); the tangential load is
+``f_t = (F_x, F_y)`` (N) and ``τ = T_z`` (N·m) about z through the pad origin.
+The limit set is centrally symmetric, so flipping the sign of ``(f_t, τ)`` (using
+the wrench on the object instead) changes no verdict, γ, or COR.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from slipstack.lib.errors import ConfigError
+from slipstack.lib.pad import PadGeometry
+from slipstack.lib.status import SolverStatus
+
+__all__ = ["FusionThresholds", "SensorMount", "FusionResult", "wrench_to_pad", "fuse"]
+
+
+def wrench_to_pad(
+    force_S: np.ndarray, torque_S: np.ndarray, R_FS: np.ndarray, p_SF: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Move a wrench from the sensor frame S to the pad frame F.
+
+    ``force_F = R_FS·force_S`` and ``torque_F = R_FS·torque_S + p_SF × force_F``:
+    the torque about F's origin equals the torque about S's origin plus
+    ``(p_S − p_F) × f`` (MATH.md §1).
+
+    Args:
+        force_S: (3,) force in S coordinates, N.
+        torque_S: (3,) torque about S's origin in S coordinates, N·m.
+        R_FS: (3, 3) rotation taking S coordinates to F coordinates (``v_F = R_FS v_S``).
+        p_SF: (3,) position of S's origin minus F's origin, in F coordinates, m.
+
+    Returns:
+        ``(force_F (3,), torque_F (3,))``: the same wrench in F, torque about F's origin.
+    """
+    f = np.asarray(R_FS, dtype=float) @ np.asarray(force_S, dtype=float)
+    t = np.asarray(R_FS, dtype=float) @ np.asarray(torque_S, dtype=float)
+    return f, t + np.cross(np.asarray(p_SF, dtype=float), f)
+
+
+@dataclass(frozen=True)
+class SensorMount:
+    """Where the F/T sensor sits relative to the pad (configuration, validated once).
+
+    Attributes:
+        R_FS: rotation S → F, 3×3 proper orthonormal (tuple of rows).
+        p_SF: S's origin minus F's origin in F coordinates, m.
+    """
+
+    R_FS: tuple[tuple[float, float, float], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    p_SF: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        R = np.asarray(self.R_FS, dtype=float)
+        p = np.asarray(self.p_SF, dtype=float)
+        if R.shape != (3, 3) or not np.isfinite(R).all():
+            raise ConfigError("sensor mount R_FS must be a finite 3x3 rotation matrix")
+        if not np.allclose(R @ R.T, np.eye(3), atol=1e-9) or np.linalg.det(R) < 0:
+            raise ConfigError("sensor mount R_FS must be orthonormal with det +1 (a rotation)")
+        if p.shape != (3,) or not np.isfinite(p).all():
+            raise ConfigError("sensor mount p_SF must be 3 finite numbers in metres")
+
+
+@dataclass(frozen=True)
+class FusionThresholds:
+    """Contact thresholds (all ≥ 0; a value must be *strictly above* its threshold).
+
+    Attributes:
+        noise_floor_pa: a taxel is in contact iff its pressure > this (Pa).
+        min_normal_force_n: contact iff ``f_n`` > this (N).
+        min_pressure_sum_pa: contact iff the summed in-contact pressure > this (Pa).
+    """
+
+    noise_floor_pa: float = 0.0
+    min_normal_force_n: float = 0.0
+    min_pressure_sum_pa: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("noise_floor_pa", "min_normal_force_n", "min_pressure_sum_pa"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ConfigError(f"fusion threshold {name} must be a finite number >= 0, got {v!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class FusionResult:
+    """One fused contact sample (pad frame F, SI units). Satisfies the slip tests' contact protocol.
+
+    Attributes:
+        phi: (N,) local normal force per taxel, N (zeros without contact). Read-only.
+        f_n: normal force pressing the pad, N (0 without contact).
+        f_t: (2,) tangential load, N.
+        tau: torque about z through the pad origin, N·m.
+        cop: (2,) centre of pressure ``Σ φ_i p_i / f_n``, m ((0, 0) without contact).
+        mask: (N,) bool, taxels above the noise floor (after clipping). Read-only.
+        n_contact: number of taxels in the mask.
+        contact_area_m2: ``n_contact · h²``.
+        positions: (N, 2) taxel positions, m (the pad's read-only array).
+        n_nonfinite: taxels that were NaN/Inf and were set to 0.
+        n_negative: taxels that were negative and were set to 0.
+        n_saturated: in-contact taxels flagged saturated by the driver (shape is then unreliable).
+        stamp_offset_ns: wrench stamp − tactile stamp (ns), ``None`` if not given:
+            which samples were paired.
+        status: OK, CLIPPED_INPUT (usable, some taxels clipped), NO_CONTACT, or
+            INVALID_INPUT (bad wrench or pressure shape).
+    """
+
+    phi: np.ndarray
+    f_n: float
+    f_t: np.ndarray
+    tau: float
+    cop: np.ndarray
+    mask: np.ndarray
+    n_contact: int
+    contact_area_m2: float
+    positions: np.ndarray
+    n_nonfinite: int = 0
+    n_negative: int = 0
+    n_saturated: int = 0
+    stamp_offset_ns: int | None = None
+    status: SolverStatus = field(default=SolverStatus.OK)
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
+
+
+def fuse(
+    pressure_pa: np.ndarray,
+    force: np.ndarray,
+    torque: np.ndarray,
+    pad: PadGeometry,
+    thresholds: FusionThresholds = FusionThresholds(),
+    *,
+    mount: SensorMount | None = None,
+    saturated: np.ndarray | None = None,
+    tactile_stamp_ns: int | None = None,
+    wrench_stamp_ns: int | None = None,
+) -> FusionResult:
+    """Fuse calibrated taxel pressures with an F/T wrench (MATH.md §2).
+
+    Args:
+        pressure_pa: (N,) or (R, C) calibrated pressure per taxel, Pa, row-major.
+        force: (3,) force the object exerts on the pad, N, in F (or in S if ``mount``).
+        torque: (3,) torque, N·m, about F's origin in F (or about S's origin in S).
+        pad: the pad geometry.
+        thresholds: contact thresholds.
+        mount: if given, ``force``/``torque`` are in the sensor frame and are moved to F
+            with :func:`wrench_to_pad`.
+        saturated: optional (N,) bool raw-count saturation mask from the driver.
+        tactile_stamp_ns, wrench_stamp_ns: stamps of the paired samples (integer ns).
+
+    Returns:
+        :class:`FusionResult`; never raises. NaN/Inf and negative taxels are set
+        to 0 and counted.
+    """
+    n = pad.n_taxels
+    offset = None
+    if tactile_stamp_ns is not None and wrench_stamp_ns is not None:
+        offset = int(wrench_stamp_ns) - int(tactile_stamp_ns)
+    w = np.array(pressure_pa, dtype=float).reshape(-1)
+    f3 = np.asarray(force, dtype=float).reshape(-1)
+    t3 = np.asarray(torque, dtype=float).reshape(-1)
+    zeros = np.zeros(n)
+    if w.shape != (n,) or f3.shape != (3,) or t3.shape != (3,) or not (
+        np.isfinite(f3).all() and np.isfinite(t3).all()
+    ):
+        return _empty(pad, zeros, np.zeros(n, dtype=bool), 0, 0, 0, offset, SolverStatus.INVALID_INPUT)
+    if mount is not None:
+        f3, t3 = wrench_to_pad(f3, t3, np.asarray(mount.R_FS), np.asarray(mount.p_SF))
+    bad = ~np.isfinite(w)
+    n_nonfinite = int(bad.sum())
+    w[bad] = 0.0
+    neg = w < 0
+    n_negative = int(neg.sum())
+    w[neg] = 0.0
+    mask = w > thresholds.noise_floor_pa
+    n_sat = int(np.count_nonzero(np.asarray(saturated, dtype=bool).reshape(-1) & mask)) if (
+        saturated is not None and np.size(saturated) == n
+    ) else 0
+    w = np.where(mask, w, 0.0)
+    total = float(w.sum())
+    f_n = -float(f3[2])
+    if not (f_n > thresholds.min_normal_force_n and total > thresholds.min_pressure_sum_pa and total > 0):
+        return _empty(pad, zeros, mask, n_nonfinite, n_negative, n_sat, offset, SolverStatus.NO_CONTACT,
+                      f_t=f3[:2], tau=float(t3[2]))
+    phi = w * (f_n / total)
+    cop = phi @ pad.positions / float(phi.sum())
+    n_contact = int(mask.sum())
+    status = SolverStatus.CLIPPED_INPUT if (n_nonfinite or n_negative) else SolverStatus.OK
+    return FusionResult(
+        phi=_frozen(phi),
+        f_n=float(phi.sum()),
+        f_t=_frozen(f3[:2].copy()),
+        tau=float(t3[2]),
+        cop=_frozen(cop),
+        mask=_frozen(mask),
+        n_contact=n_contact,
+        contact_area_m2=n_contact * pad.taxel_area_m2,
+        positions=pad.positions,
+        n_nonfinite=n_nonfinite,
+        n_negative=n_negative,
+        n_saturated=n_sat,
+        stamp_offset_ns=offset,
+        status=status,
+    )
+
+
+def _empty(pad, zeros, mask, n_nonfinite, n_negative, n_sat, offset, status, f_t=None, tau=0.0) -> FusionResult:
+    ft = np.zeros(2) if f_t is None else np.array(f_t, dtype=float)
+    return FusionResult(
+        phi=_frozen(zeros),
+        f_n=0.0,
+        f_t=_frozen(ft),
+        tau=float(tau),
+        cop=_frozen(np.zeros(2)),
+        mask=_frozen(mask.copy()),
+        n_contact=int(mask.sum()),
+        contact_area_m2=int(mask.sum()) * pad.taxel_area_m2,
+        positions=pad.positions,
+        n_nonfinite=n_nonfinite,
+        n_negative=n_negative,
+        n_saturated=n_sat,
+        stamp_offset_ns=offset,
+        status=status,
+    )

@@ -1,0 +1,347 @@
+"""The exact limit set of a tactile contact: load factor γ and the COR of impending slip.
+
+MATH.md §4. Each taxel ``i`` (position ``p_i`` in the pad frame F, m; normal force
+``φ_i`` N) supplies a tangential force ``|q_i| ≤ μ φ_i``. The load
+``w = (f_t, τ)`` (N, N·m about z through the pad origin, in F) sticks iff
+``γ(w) ≤ 1`` with the load factor::
+
+    γ(w) = max( |f_t|/(μ f_n),  sup_c |n(c)| / T(c) ),
+    n(c) = τ + f_t × c,     T(c) = μ Σ φ_i |p_i − c|.
+
+Method (:func:`load_factor`):
+
+1. Normalise: centre on the centre of pressure ``p̄`` and divide lengths by the RMS
+   contact radius ``L``, forces by ``μ f_n``. All tolerances are then relative, so
+   γ is invariant to the force scale and the pad's length scale.
+2. Sense. For ``f_t ≠ 0`` write ``a = |n(p̄)|/|f_t|`` (the lever arm of the load
+   about the centre of pressure). Along the ray ``c = p̄ + t·b̂``,
+   ``b̂ = s·perp(f_t)/|f_t|``, the concave function ``s·n − γ_t·T`` with
+   ``γ_t = |f_t|/(μ f_n)`` increases to its limit ``s·n(p̄)``; hence
+   ``γ > γ_t`` iff ``n(p̄) ≠ 0``, the maximiser is finite, and its sense is
+   ``s = sign n(p̄)``. Only that sense needs solving.
+3. Near translation (``a ≤ 1e-5·σ``, σ the RMS spread of the contact along
+   ``f_t``) the COR lies beyond ``σ²/a ≥ 1e5 σ``; there
+   ``γ = γ_t (1 + a²/(2σ²)) + O(γ_t (a/σ)³)`` (expansion of ``|p_i − c|`` in
+   ``1/t``), whose relative error is below 1e-15. The case is reported as
+   TRANSLATION with no COR — never an overflowing one.
+4. Otherwise Dinkelbach's iteration for the fractional program
+   ``max_c s·n(c)/T(c)``: ``γ_k = s·n(c_k)/T(c_k)``, then a step of the
+   Fermat–Weber sub-solver (:func:`slipstack.lib.weber.weber_step`) on
+   ``max_c s·n(c) − γ_k T(c)``, i.e. weights ``φ_i/f_n`` and linear term
+   ``s·perp(f_t)/(γ_k μ f_n)``. One safeguarded Newton step per update of ``γ``
+   ("inexact Dinkelbach") keeps ``γ_k`` strictly increasing (the step decreases
+   the sub-objective, which was 0 at ``c_k``) and is asymptotically Newton's
+   method on the ratio (at the optimum ``∇²(n/T) = −(γ/T)∇²T``), so convergence
+   is quadratic; on a taxel the sub-solver's Kuhn test certifies the kink.
+5. ``f_t = 0``: the COR is the weighted geometric median, ``γ = |τ|/T_min``.
+
+Special cases (documented choices): all ``φ = 0`` → NO_CONTACT, ``γ = 0``;
+``f_t = 0`` and ``τ = 0`` → NO_LOAD, ``γ = 0`` (margin ``1 − γ = 1``); all force
+on one taxel with a non-zero torque about it → POINT_CONTACT, ``γ = +inf`` (the
+only non-finite output).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from slipstack.lib.status import SlipCase, SolverStatus
+from slipstack.lib.weber import geometric_median, step_converged, weber_step
+
+__all__ = ["LimitSetResult", "load_factor", "torsional_coefficient", "TorsionResult", "contact_subset"]
+
+_NEAR_TRANSLATION = 1e-5
+_MAX_FAR = 1e7
+_MAX_RESIDUAL = 1e-3
+
+
+@dataclass(frozen=True)
+class LimitSetResult:
+    """Load factor and centre of rotation of impending slip (pad frame F, SI).
+
+    Attributes:
+        case: ROTATION, ON_TAXEL (COR on a taxel), TRANSLATION (no finite COR),
+            NONE (no load / no contact / invalid input).
+        gamma: load factor γ (dimensionless); stick iff ``γ ≤ 1``.
+        p_c: centre of rotation of impending slip (m), ``None`` unless case is
+            ROTATION or ON_TAXEL.
+        torque_capacity: ``T(p_c)`` = μ Σ φ_i |p_i − p_c| (N·m); 0 when ``p_c`` is None.
+        load_torque: ``n(p_c) = τ + f_t × p_c`` (N·m, signed); 0 when ``p_c`` is None.
+        sense: +1 counter-clockwise / −1 clockwise rotation of the object, 0 otherwise.
+        iterations: Dinkelbach updates (sub-solver steps).
+        residual: relative stationarity residual ``|s·perp(f_t) − γ∇T| /(μ f_n γ)``,
+            or the Kuhn excess on a taxel (dimensionless).
+        status: see :class:`SolverStatus`.
+        taxel: index of the taxel the COR sits on, −1 otherwise.
+        cop: centre of pressure ``p̄`` (m, F); (0, 0) without contact.
+        contact_radius_m: RMS radius ``L`` of the pressure about ``p̄`` (m).
+
+    ``status`` is CONVERGED only if the last step was below ``xtol·L`` (COR error
+    about ``xtol·L``, γ error second order in it) *and* the relative stationarity
+    residual is ≤ 1e-3 (a loose guard: near a taxel the 1/r curvature makes the
+    gradient residual large for tiny COR errors); otherwise MAX_ITER (γ is then the ratio at the last iterate,
+    a lower bound on the exact γ).
+    """
+
+    case: SlipCase
+    gamma: float
+    p_c: tuple[float, float] | None
+    torque_capacity: float
+    load_torque: float
+    sense: int
+    iterations: int
+    residual: float
+    status: SolverStatus
+    taxel: int = -1
+    cop: tuple[float, float] = (0.0, 0.0)
+    contact_radius_m: float = 0.0
+
+    @property
+    def converged(self) -> bool:
+        """True when the numbers are exact answers (status usable)."""
+        return self.status.usable
+
+    @property
+    def margin(self) -> float:
+        """``1 − γ``: positive when sticking."""
+        return 1.0 - self.gamma
+
+
+def _none(status: SolverStatus, gamma: float = 0.0) -> LimitSetResult:
+    return LimitSetResult(SlipCase.NONE, gamma, None, 0.0, 0.0, 0, 0, 0.0, status)
+
+
+def contact_subset(phi: np.ndarray, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The taxels in contact: ``(indices, φ_sub (m,), positions_sub (m,2))``.
+
+    Returns ``None`` if shapes mismatch or any value is non-finite or φ negative.
+    """
+    phi = np.asarray(phi, dtype=float)
+    positions = np.asarray(positions, dtype=float)
+    if phi.ndim != 1 or positions.shape != (phi.shape[0], 2):
+        return None
+    if not np.isfinite(phi).all() or (phi < 0).any():
+        return None
+    idx = np.flatnonzero(phi)
+    return idx, phi[idx], positions[idx]
+
+
+def load_factor(
+    phi: np.ndarray,
+    positions: np.ndarray,
+    f_t: np.ndarray | tuple[float, float],
+    tau: float,
+    mu: float,
+    *,
+    c0: np.ndarray | tuple[float, float] | None = None,
+    xtol: float = 1e-8,
+    max_iter: int = 100,
+) -> LimitSetResult:
+    """Exact load factor γ and COR of impending slip (see module docstring).
+
+    Args:
+        phi: (N,) normal force per taxel, N, ``φ_i ≥ 0``.
+        positions: (N, 2) taxel positions in F, m.
+        f_t: (2,) tangential load in F, N.
+        tau: torque about z through the pad origin, N·m.
+        mu: static friction coefficient, > 0.
+        c0: warm start, e.g. the previous frame's ``p_c`` (m, F); ignored if unusable.
+        xtol: stop when a step is below ``xtol`` × the RMS contact radius.
+        max_iter: limit on Dinkelbach updates.
+
+    Returns:
+        :class:`LimitSetResult`; never raises.
+    """
+    sub = contact_subset(phi, positions)
+    ft = np.asarray(f_t, dtype=float).reshape(-1)
+    if (
+        sub is None
+        or ft.shape != (2,)
+        or not (math.isfinite(ft[0]) and math.isfinite(ft[1]) and math.isfinite(tau))
+        or not (math.isfinite(mu) and mu > 0)
+    ):
+        return _none(SolverStatus.INVALID_INPUT)
+    idx, ph, P = sub
+    if idx.size == 0:
+        return _none(SolverStatus.NO_CONTACT)
+    f_n = float(ph.sum())
+    fx, fy = float(ft[0]), float(ft[1])
+    tau = float(tau)
+    if fx == 0.0 and fy == 0.0 and tau == 0.0:
+        return _none(SolverStatus.NO_LOAD)
+    cap = mu * f_n
+    gt = math.hypot(fx, fy) / cap
+    a = ph / f_n
+    pbar = a @ P
+    n_bar = tau + fx * pbar[1] - fy * pbar[0]  # torque about the centre of pressure
+    Q = P - pbar
+    L = math.sqrt(float(a @ (Q[:, 0] ** 2 + Q[:, 1] ** 2)))
+    if idx.size == 1 or L == 0.0:
+        return _point_contact(n_bar, tau, fx, fy, pbar, gt, int(idx[0]))
+    tn = n_bar / (cap * L)  # normalised torque about p̄
+    if not (math.isfinite(tn) and math.isfinite(gt)):  # load/capacity beyond float range
+        return _none(SolverStatus.INVALID_INPUT)
+    if gt == 0.0:
+        return _pure_torque(P, ph, a, tn, tau, pbar, L, cap, c0, idx)
+    s = 1 if tn > 0 else -1
+    fhat = (fx / (gt * cap), fy / (gt * cap))
+    lever = abs(tn) / gt
+    sig2 = float(a @ ((Q @ np.array(fhat)) / L) ** 2)
+    if tn == 0.0 or lever <= _NEAR_TRANSLATION * math.sqrt(sig2):
+        gamma = gt * (1.0 + (lever * lever / (2.0 * sig2) if sig2 > 0 else 0.0))
+        return LimitSetResult(SlipCase.TRANSLATION, float(gamma), None, 0.0, 0.0, 0, 0, 0.0,
+                              SolverStatus.TRANSLATION, -1, (float(pbar[0]), float(pbar[1])), L)
+    PT = np.ascontiguousarray((Q / L).T)
+    f = np.array([fx, fy]) / cap  # normalised force f_t/(μ f_n)
+    b = s * np.array([-f[1], f[0]])  # s·perp(f): gradient of s·n in normalised c
+    c = _start(c0, PT, a, pbar, L, s, tn, f, b, lever)
+    return _dinkelbach(PT, a, b, s, tn, f, c, pbar, L, cap, idx, xtol, max_iter)
+
+
+_RAY = np.logspace(-2.0, 7.0, 37)
+
+
+def _start(c0, PT, a, pbar, L, s, tn, f, b, lever) -> np.ndarray:
+    """A start with ratio ``s·n/T > |f_t|/(μ f_n)``, so every sub-problem is bounded.
+
+    The warm start if it qualifies, else the best point on the ray ``p̄ + t·b̂``
+    (t = 1e-2 … 1e7 contact radii): along it ``T̃ − t`` falls to 0 while
+    ``s·ñ/|f̃| − t`` stays at the lever arm ``a > 0``, so some ``t`` qualifies.
+    """
+    gt = math.hypot(f[0], f[1])
+    if c0 is not None:
+        cw = np.asarray(c0, dtype=float).reshape(-1)
+        if cw.shape == (2,) and np.isfinite(cw).all():
+            cn = (cw - pbar) / L
+            if math.hypot(cn[0], cn[1]) < _MAX_FAR:
+                r = np.hypot(*(cn[:, None] - PT))
+                if s * (tn + f[0] * cn[1] - f[1] * cn[0]) > gt * float(a @ r):
+                    return cn
+    bhat = b / math.hypot(b[0], b[1])
+    dx = PT[0][:, None] - bhat[0] * _RAY
+    dy = PT[1][:, None] - bhat[1] * _RAY
+    T = a @ np.hypot(dx, dy)
+    t = _RAY[int(np.argmax((_RAY + lever) / T))]
+    return bhat * t
+
+
+def _dinkelbach(PT, a, b, s, tn, f, c, pbar, L, cap, idx, xtol, max_iter) -> LimitSetResult:
+    D = c[:, None] - PT
+    r = np.hypot(D[0], D[1])
+    T = float(a @ r)
+    status = SolverStatus.MAX_ITER
+    taxel = -1
+    prev = math.inf
+    it = 0
+    for it in range(1, max_iter + 1):
+        gamma = s * (tn + f[0] * c[1] - f[1] * c[0]) / T
+        st = weber_step(PT, a, b / gamma, c, D, r)
+        c, D, r, T = st.c, st.D, st.r, st.dist_sum
+        if st.taxel >= 0:
+            if st.taxel == taxel:
+                status = SolverStatus.ON_TAXEL
+                break
+            taxel = st.taxel
+            continue
+        taxel = -1
+        if st.stalled or step_converged(st.step, prev, c, xtol):
+            status = SolverStatus.CONVERGED
+            break
+        prev = st.step
+    n_s = s * (tn + f[0] * c[1] - f[1] * c[0])
+    gamma = n_s / T
+    if status is SolverStatus.ON_TAXEL:
+        residual = st.kink_residual
+    else:
+        safe = np.where(r > 0, r, np.inf)
+        g = b - gamma * (D @ (a / safe))
+        residual = math.hypot(g[0], g[1]) / gamma
+        if residual > _MAX_RESIDUAL:  # a small step far from stationarity is no convergence
+            status = SolverStatus.MAX_ITER
+    p_c = pbar + L * c
+    case = SlipCase.ON_TAXEL if status is SolverStatus.ON_TAXEL else SlipCase.ROTATION
+    return LimitSetResult(
+        case,
+        float(gamma),
+        (float(p_c[0]), float(p_c[1])),
+        float(cap * L * T),
+        float(s * cap * L * n_s),
+        s,
+        it,
+        float(residual),
+        status,
+        int(idx[taxel]) if taxel >= 0 else -1,
+        (float(pbar[0]), float(pbar[1])),
+        L,
+    )
+
+
+def _point_contact(n_bar, tau, fx, fy, pbar, gt, taxel) -> LimitSetResult:
+    """All force on one taxel: no torsional friction about it (MATH.md §4.4)."""
+    scale = abs(tau) + math.hypot(fx, fy) * math.hypot(pbar[0], pbar[1])
+    if abs(n_bar) <= 1e-12 * scale:
+        return LimitSetResult(SlipCase.TRANSLATION, float(gt), None, 0.0, 0.0, 0, 0, 0.0, SolverStatus.TRANSLATION,
+                              -1, (float(pbar[0]), float(pbar[1])))
+    p_c = (float(pbar[0]), float(pbar[1]))
+    sense = 1 if n_bar > 0 else -1
+    return LimitSetResult(
+        SlipCase.ON_TAXEL, math.inf, p_c, 0.0, float(n_bar), sense, 0, 0.0, SolverStatus.POINT_CONTACT, taxel, p_c
+    )
+
+
+def _pure_torque(P, ph, a, tn, tau, pbar, L, cap, c0, idx) -> LimitSetResult:
+    """``f_t = 0``: the COR is the weighted geometric median, γ = |τ|/T_min."""
+    med = geometric_median(P, ph, c0)
+    if med.c is None:
+        return _none(med.status)
+    T = cap / float(ph.sum()) * med.value
+    sense = 1 if tau > 0 else -1
+    case = SlipCase.ON_TAXEL if med.status is SolverStatus.ON_TAXEL else SlipCase.ROTATION
+    return LimitSetResult(
+        case,
+        abs(tau) / T,
+        med.c,
+        T,
+        tau,
+        sense,
+        med.iterations,
+        med.residual,
+        med.status,
+        int(idx[med.taxel]) if med.taxel >= 0 else -1,
+        (float(pbar[0]), float(pbar[1])),
+        L,
+    )
+
+
+@dataclass(frozen=True)
+class TorsionResult:
+    """Torsional coefficient from tactile data (MATH.md §4.3).
+
+    Attributes:
+        beta_m: ``β_s = μ·min_c Σ φ_i|p_i − c| / f_n`` (m); 0 for a point contact.
+        median: the weighted geometric median (m, F), ``None`` without contact.
+        status: from the geometric-median solve (ON_TAXEL for a point contact).
+    """
+
+    beta_m: float
+    median: tuple[float, float] | None
+    status: SolverStatus
+
+
+def torsional_coefficient(
+    phi: np.ndarray, positions: np.ndarray, mu: float, c0: tuple[float, float] | None = None
+) -> TorsionResult:
+    """``β_s`` from the pressure alone: the pure-torque capacity divided by ``f_n``."""
+    sub = contact_subset(phi, positions)
+    if sub is None or not (math.isfinite(mu) and mu > 0):
+        return TorsionResult(0.0, None, SolverStatus.INVALID_INPUT)
+    _, ph, P = sub
+    if ph.size == 0:
+        return TorsionResult(0.0, None, SolverStatus.NO_CONTACT)
+    med = geometric_median(P, ph, c0)
+    if med.c is None:
+        return TorsionResult(0.0, None, med.status)
+    return TorsionResult(mu * med.value / float(ph.sum()), med.c, med.status)

@@ -1,0 +1,305 @@
+"""Slip tests of the paper (§III–IV, MATH.md §3) behind one interface.
+
+Every test has the signature ``test(contact, params, warm_start=None) -> SlipVerdict``
+and returns a load factor ``γ`` (or its analogue) with ``margin = 1 − γ``:
+
+=================  ==============================================  ==========================
+name               γ (stick iff margin ≥ δ, i.e. γ ≤ 1 − δ)          needs
+=================  ==============================================  ==========================
+``coulomb``        ``|f_t|/(μ f_n)``                          (7)  F/T
+``decoupled``      ``max(|f_t|/(μ f_n), |τ|/(β f_n))``    (Fig. 5d) F/T, β
+``linear_ls``      ``|f_t|/(μ f_n) + |τ|/(β f_n)``            (5)  F/T, β
+``elliptic_ls``    ``√((|f_t|/(μ f_n))² + (τ/(β f_n))²)``      (6)  F/T, β
+``tactile_cor``    ``|n(p_c)|/T(p_c)``, p_c from the paper's  (11) F/T + tactile
+                   fixed-gain iteration for (12)
+``tactile_cor_robust``  the same with the robust solver     (11) F/T + tactile
+``exact``          the load factor of the exact limit set     §4   F/T + tactile
+=================  ==============================================  ==========================
+
+``τ`` in the F/T tests is the torque about the pad origin (what the F/T sensor
+gives). ``β`` is ``params.beta_m`` if set, otherwise ``β_s`` computed from the
+tactile data (MATH.md §4.3) — so the F/T tests become tactile-aware; without
+either, the verdict has status INVALID_INPUT. A tactile point contact has
+``β_s = 0``: any torque then gives ``γ = +inf`` with status POINT_CONTACT.
+
+How ``kind`` is decided (the same thresholds for every test):
+
+* ``'no-contact'`` if ``f_n ≤ 0`` (status NO_CONTACT); ``'stick'`` if stick.
+* Otherwise a *rotation share* ``ρ ∈ [0, 1]`` of the impending motion decides:
+  ``ρ < 1/3`` → ``'translation'``, ``ρ > 2/3`` → ``'rotation'``, else ``'combined'``.
+* F/T tests: ``ρ = a_r/(a_t + a_r)`` with ``a_t = |f_t|/(μ f_n)`` and
+  ``a_r = |τ|/(β f_n)`` (the normalised force and torque); ``coulomb`` sees no
+  torque, so it always says ``'translation'``.
+* Tactile tests: from the twist of impending slip, ``ρ = ℓ/(ℓ + d)`` where ``d`` is
+  the distance from the centre of pressure to the COR and ``ℓ`` the RMS contact
+  radius about the centre of pressure (``ρ = 1`` for a spin about the centre of
+  pressure, ``→ 0`` as the COR recedes; ``ρ = 0`` for a translation).
+
+Special values: no load → ``γ = 0``, margin 1 (stick). A point contact with a
+torque about it → ``γ = +inf``, margin ``−inf`` (slip). No other non-finite output.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable, Protocol
+
+import numpy as np
+
+from slipstack.lib.cor import CorResult, paper_cor, robust_cor
+from slipstack.lib.errors import ConfigError
+from slipstack.lib.limit_set import load_factor, torsional_coefficient
+from slipstack.lib.status import SlipCase, SolverStatus
+
+__all__ = [
+    "ContactLike",
+    "SlipParams",
+    "SlipVerdict",
+    "SlipTest",
+    "SLIP_TESTS",
+    "get_slip_test",
+    "coulomb",
+    "decoupled",
+    "linear_ls",
+    "elliptic_ls",
+    "tactile_cor",
+    "tactile_cor_robust",
+    "exact",
+    "KIND_TRANSLATION_BELOW",
+    "KIND_ROTATION_ABOVE",
+]
+
+KIND_TRANSLATION_BELOW = 1.0 / 3.0
+"""Rotation share below which a slip is called a translation."""
+KIND_ROTATION_ABOVE = 2.0 / 3.0
+"""Rotation share above which a slip is called a rotation."""
+
+
+class ContactLike(Protocol):
+    """What a slip test reads (pad frame F, SI); :class:`~slipstack.lib.fusion.FusionResult` fits."""
+
+    f_n: float  # N, > 0 when in contact
+    f_t: np.ndarray  # (2,) N
+    tau: float  # N·m about the pad origin
+    phi: np.ndarray  # (N,) N per taxel
+    positions: np.ndarray  # (N, 2) m
+
+
+@dataclass(frozen=True)
+class SlipParams:
+    """Parameters shared by the slip tests.
+
+    Attributes:
+        mu: static friction coefficient μ_s (> 0).
+        beta_m: torsional coefficient β (m, > 0) for the F/T tests; ``None`` → β_s from tactile data.
+        delta: detection margin δ (MATH.md §3.1): stick iff ``γ ≤ 1 − δ``; 0 ≤ δ < 1.
+        paper_gain: gain ``h`` of the paper's COR iteration (``tactile_cor``).
+    """
+
+    mu: float = 0.45
+    beta_m: float | None = None
+    delta: float = 0.0
+    paper_gain: float = 0.5
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.mu) and self.mu > 0):
+            raise ConfigError(f"friction coefficient mu must be > 0, got {self.mu}")
+        if self.beta_m is not None and not (math.isfinite(self.beta_m) and self.beta_m > 0):
+            raise ConfigError(f"beta_m must be a length > 0 in metres or None, got {self.beta_m}")
+        if not (0.0 <= self.delta < 1.0):
+            raise ConfigError(f"detection margin delta must be in [0, 1), got {self.delta}")
+        if not (0.0 < self.paper_gain <= 1.0):
+            raise ConfigError(f"paper_gain must be in (0, 1], got {self.paper_gain}")
+
+
+@dataclass(frozen=True)
+class SlipVerdict:
+    """The answer of one slip test.
+
+    Attributes:
+        stick: True iff the test predicts stick: ``margin ≥ δ`` *and* a usable status.
+            A solver that failed (MAX_ITER, SINGULAR, DIVERGED) cannot certify stick;
+            its ``γ`` is still the ratio at its last iterate, a lower bound on the
+            exact γ, so a slip it reports is real.
+        margin: ``1 − γ`` (dimensionless; 1 for no load, ``−inf`` for a torqued point contact).
+        kind: 'stick', 'translation', 'rotation', 'combined' or 'no-contact' (module docstring).
+        status: the status of the computation behind the verdict.
+        gamma: the test's load factor ``γ``.
+        p_c: the COR used (m, F) — the warm start for the next frame — or ``None``.
+        method: the registry name of the test.
+    """
+
+    stick: bool
+    margin: float
+    kind: str
+    status: SolverStatus
+    gamma: float
+    p_c: tuple[float, float] | None
+    method: str
+
+
+SlipTest = Callable[[ContactLike, SlipParams, "tuple[float, float] | None"], SlipVerdict]
+
+
+def _kind_from_share(rho: float) -> str:
+    if rho < KIND_TRANSLATION_BELOW:
+        return "translation"
+    if rho > KIND_ROTATION_ABOVE:
+        return "rotation"
+    return "combined"
+
+
+def _no_contact(method: str, status: SolverStatus = SolverStatus.NO_CONTACT) -> SlipVerdict:
+    return SlipVerdict(False, 0.0, "no-contact", status, 0.0, None, method)
+
+
+def _bad(method: str) -> SlipVerdict:
+    return SlipVerdict(False, 0.0, "no-contact", SolverStatus.INVALID_INPUT, 0.0, None, method)
+
+
+def _load(contact: ContactLike) -> tuple[float, float, float, float] | None:
+    """``(f_n, f_tx, f_ty, τ)`` as floats, or None if any is non-finite."""
+    vals = (float(contact.f_n), float(contact.f_t[0]), float(contact.f_t[1]), float(contact.tau))
+    return vals if all(math.isfinite(v) for v in vals) else None
+
+
+def _verdict(gamma: float, rho: float, params: SlipParams, status, p_c, method) -> SlipVerdict:
+    margin = 1.0 - gamma
+    stick = status.usable and margin >= params.delta
+    kind = "stick" if stick else _kind_from_share(rho)
+    return SlipVerdict(stick, margin, kind, status, gamma, p_c, method)
+
+
+def _beta(contact: ContactLike, params: SlipParams) -> float | None:
+    """``params.beta_m``, else β_s from the tactile data (0 for a point contact), else None."""
+    if params.beta_m is not None:
+        return params.beta_m
+    tor = torsional_coefficient(contact.phi, contact.positions, params.mu)
+    return tor.beta_m if tor.status.usable and tor.median is not None else None
+
+
+def _ft_test(contact, params, combine: Callable[[float, float], float], method: str) -> SlipVerdict:
+    load = _load(contact)
+    if load is None:
+        return _bad(method)
+    f_n, fx, fy, tau = load
+    if not f_n > 0:
+        return _no_contact(method)
+    a_t = math.hypot(fx, fy) / (params.mu * f_n)
+    if a_t == 0.0 and tau == 0.0:
+        return _verdict(0.0, 0.0, params, SolverStatus.NO_LOAD, None, method)
+    beta = _beta(contact, params)
+    if beta is None:
+        return _bad(method)
+    if beta == 0.0:  # tactile point contact: no torsional friction
+        if tau == 0.0:
+            return _verdict(a_t, 0.0, params, SolverStatus.OK, None, method)
+        return _verdict(math.inf, 1.0, params, SolverStatus.POINT_CONTACT, None, method)
+    a_r = abs(tau) / (beta * f_n)
+    return _verdict(combine(a_t, a_r), a_r / (a_t + a_r), params, SolverStatus.OK, None, method)
+
+
+def coulomb(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
+    """Linear Coulomb test (7): stick iff ``|f_t| ≤ μ f_n``; torque ignored."""
+    load = _load(contact)
+    if load is None:
+        return _bad("coulomb")
+    f_n, fx, fy, _ = load
+    if not f_n > 0:
+        return _no_contact("coulomb")
+    gamma = math.hypot(fx, fy) / (params.mu * f_n)
+    status = SolverStatus.NO_LOAD if gamma == 0.0 and load[3] == 0.0 else SolverStatus.OK
+    return _verdict(gamma, 0.0, params, status, None, "coulomb")
+
+
+def decoupled(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
+    """Decoupled test (Fig. 5d): ``|f_t| ≤ μ f_n`` and ``|τ| ≤ β f_n``."""
+    return _ft_test(contact, params, max, "decoupled")
+
+
+def linear_ls(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
+    """Linear limit surface (5): ``|f_t|/μ + |τ|/β ≤ f_n``."""
+    return _ft_test(contact, params, lambda t, r: t + r, "linear_ls")
+
+
+def elliptic_ls(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
+    """Elliptical limit surface (6): ``f_t²/μ² + τ²/β² ≤ f_n²``."""
+    return _ft_test(contact, params, math.hypot, "elliptic_ls")
+
+
+def _rotation_share(contact: ContactLike, p_c: tuple[float, float] | None,
+                    cop: tuple[float, float] | None = None, ell: float | None = None) -> float:
+    """``ℓ/(ℓ + d)``: ℓ the RMS contact radius about the centre of pressure, d its distance to p_c."""
+    if p_c is None:
+        return 0.0
+    if cop is None or ell is None:
+        phi = np.asarray(contact.phi, dtype=float)
+        P = np.asarray(contact.positions, dtype=float)
+        f_n = float(phi.sum())
+        cop = phi @ P / f_n
+        ell = math.sqrt(max(float(phi @ np.sum((P - cop) ** 2, axis=1)) / f_n, 0.0))
+    d = math.hypot(p_c[0] - cop[0], p_c[1] - cop[1])
+    return 1.0 if ell + d == 0.0 else ell / (ell + d)
+
+
+def _cor_verdict(contact, params, res: CorResult, method: str) -> SlipVerdict:
+    if res.status in (SolverStatus.NO_CONTACT, SolverStatus.INVALID_INPUT):
+        return _no_contact(method, res.status)
+    if res.status is SolverStatus.NO_LOAD:
+        return _verdict(0.0, 0.0, params, res.status, None, method)
+    gamma = res.ratio
+    return _verdict(gamma, _rotation_share(contact, res.p_c), params, res.status, res.p_c, method)
+
+
+def tactile_cor(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
+    """Tactile COR test (11) at the COR of (12) from the paper's fixed-gain iteration."""
+    load = _load(contact)
+    if load is None:
+        return _bad("tactile_cor")
+    res = paper_cor(contact.phi, contact.positions, contact.f_t, load[3], params.mu,
+                    gain=params.paper_gain, c0=warm_start)
+    return _cor_verdict(contact, params, res, "tactile_cor")
+
+
+def tactile_cor_robust(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
+    """Tactile COR test (11) at the maximiser of ``s·n − T`` over both senses (robust solver)."""
+    load = _load(contact)
+    if load is None:
+        return _bad("tactile_cor_robust")
+    res = robust_cor(contact.phi, contact.positions, contact.f_t, load[3], params.mu, c0=warm_start)
+    return _cor_verdict(contact, params, res, "tactile_cor_robust")
+
+
+def exact(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
+    """Exact limit-set test (§4): stick iff the load factor ``γ ≤ 1 − δ``."""
+    load = _load(contact)
+    if load is None:
+        return _bad("exact")
+    res = load_factor(contact.phi, contact.positions, contact.f_t, load[3], params.mu, c0=warm_start)
+    if res.status in (SolverStatus.NO_CONTACT, SolverStatus.INVALID_INPUT):
+        return _no_contact("exact", res.status)
+    rho = 0.0
+    if res.case not in (SlipCase.TRANSLATION, SlipCase.NONE):
+        rho = _rotation_share(contact, res.p_c, res.cop, res.contact_radius_m)
+    return _verdict(res.gamma, rho, params, res.status, res.p_c, "exact")
+
+
+SLIP_TESTS: dict[str, SlipTest] = {
+    "coulomb": coulomb,
+    "decoupled": decoupled,
+    "linear_ls": linear_ls,
+    "elliptic_ls": elliptic_ls,
+    "tactile_cor": tactile_cor,
+    "tactile_cor_robust": tactile_cor_robust,
+    "exact": exact,
+}
+"""Method name (a node parameter) → slip test."""
+
+
+def get_slip_test(name: str) -> SlipTest:
+    """The slip test registered under ``name``; ConfigError listing the valid names otherwise."""
+    try:
+        return SLIP_TESTS[name]
+    except KeyError:
+        raise ConfigError(f"unknown slip test {name!r}; choose one of {sorted(SLIP_TESTS)}") from None

@@ -1,0 +1,76 @@
+"""Fusion of tactile pressure and F/T wrench (MATH.md §2) and the sensor-to-pad transform."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from slipstack.lib.errors import ConfigError
+from slipstack.lib.fusion import FusionThresholds, SensorMount, fuse, wrench_to_pad
+from slipstack.lib.pad import PadGeometry
+from slipstack.lib.status import SolverStatus
+
+PAD = PadGeometry(4, 4, 1e-3)
+
+
+def test_wrench_to_pad_by_hand():
+    # sensor 1 cm below the pad, same axes: a 1 N push along x gives −0.01 N·m about y
+    f, t = wrench_to_pad([1.0, 0, 0], [0, 0, 0], np.eye(3), [0, 0, -0.01])
+    assert f == pytest.approx([1, 0, 0]) and t == pytest.approx([0, -0.01, 0])
+    # sensor turned +90° about z and 1 cm along +x of the pad origin
+    R = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])
+    f, t = wrench_to_pad([1.0, 0, -2], [0, 0, 0.2], R, [0.01, 0, 0])
+    assert f == pytest.approx([0, 1, -2])
+    # τ_F = R τ_S + p × f = (0,0,0.2) + (0.01,0,0)×(0,1,−2) = (0, 0.02, 0.21)
+    assert t == pytest.approx([0, 0.02, 0.21])
+
+
+def test_fuse_spreads_the_normal_force_over_the_pressure_shape():
+    p = np.zeros(16)
+    p[[5, 6]] = [100.0, 300.0]  # Pa
+    res = fuse(p, [0.1, -0.2, -2.0], [0, 0, 3e-3], PAD, tactile_stamp_ns=1000, wrench_stamp_ns=1500)
+    assert res.status is SolverStatus.OK
+    assert res.f_n == pytest.approx(2.0) and res.phi[[5, 6]] == pytest.approx([0.5, 1.5])
+    assert res.f_t == pytest.approx([0.1, -0.2]) and res.tau == 3e-3
+    assert res.cop == pytest.approx(0.25 * PAD.positions[5] + 0.75 * PAD.positions[6])
+    assert res.n_contact == 2 and res.contact_area_m2 == pytest.approx(2e-6)
+    assert res.stamp_offset_ns == 500
+    with pytest.raises(ValueError):
+        res.phi[0] = 1.0  # read-only
+
+
+def test_fuse_clips_and_counts_bad_taxels():
+    p = np.full(16, 10.0)
+    p[0], p[1], p[2] = np.nan, np.inf, -5.0
+    res = fuse(p, [0, 0, -1.3], [0, 0, 0], PAD)
+    assert res.status is SolverStatus.CLIPPED_INPUT and res.status.usable
+    assert (res.n_nonfinite, res.n_negative, res.n_contact) == (2, 1, 13)
+    assert np.all(np.isfinite(res.phi)) and res.phi[:3].sum() == 0 and res.f_n == pytest.approx(1.3)
+
+
+def test_fuse_no_contact_and_invalid_input():
+    p = np.full(16, 10.0)
+    assert fuse(p, [0, 0, 0.5], [0, 0, 0], PAD).status is SolverStatus.NO_CONTACT  # pulling
+    assert fuse(np.zeros(16), [0, 0, -1], [0, 0, 0], PAD).status is SolverStatus.NO_CONTACT
+    th = FusionThresholds(noise_floor_pa=20.0)
+    assert fuse(p, [0, 0, -1], [0, 0, 0], PAD, th).status is SolverStatus.NO_CONTACT
+    assert fuse(p, [np.nan, 0, -1], [0, 0, 0], PAD).status is SolverStatus.INVALID_INPUT
+    assert fuse(np.ones(9), [0, 0, -1], [0, 0, 0], PAD).status is SolverStatus.INVALID_INPUT
+    res = fuse(p, [0, 0, 0.5], [0, 0, 0], PAD)
+    assert res.f_n == 0.0 and not res.phi.any()
+
+
+def test_fuse_with_a_sensor_mount_and_saturation():
+    mount = SensorMount(R_FS=((1, 0, 0), (0, -1, 0), (0, 0, -1)), p_SF=(0, 0, -0.02))  # flipped sensor
+    p = np.full(16, 10.0)
+    sat = np.zeros(16, dtype=bool)
+    sat[3] = True
+    res = fuse(p, [0.5, 0, 2.0], [0, 0, 0], PAD, mount=mount, saturated=sat)
+    assert res.f_n == pytest.approx(2.0) and res.f_t == pytest.approx([0.5, 0]) and res.n_saturated == 1
+
+
+def test_configuration_errors_say_what_to_fix():
+    with pytest.raises(ConfigError, match="rotation"):
+        SensorMount(R_FS=((2, 0, 0), (0, 1, 0), (0, 0, 1)))
+    with pytest.raises(ConfigError, match="noise_floor_pa"):
+        FusionThresholds(noise_floor_pa=-1.0)

@@ -1,0 +1,211 @@
+"""Exact limit set: analytic values (MATH.md §4.3), special cases (§4.4), brute-force cross-check."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import minimize
+
+from slipstack.lib.limit_set import load_factor, torsional_coefficient
+from slipstack.lib.pad import PadGeometry
+from slipstack.lib.status import SlipCase, SolverStatus
+
+MU = 0.5
+
+
+def brute_force_gamma(phi, positions, f_t, tau, mu, n_dir=1500):
+    """γ = max_ξ w·ξ/D(ξ) by dense sampling of twist directions + Nelder–Mead refinement.
+
+    Independent of the solver: it never uses the COR parametrisation. ξ = (v_x, v_y, ω·L)
+    with L the pad's RMS taxel radius so that the three components are commensurate.
+    """
+    P = np.asarray(positions, dtype=float)
+    phi = np.asarray(phi, dtype=float)
+    L = math.sqrt(float(np.mean(np.sum(P**2, axis=1))))
+    w = np.array([f_t[0], f_t[1], tau / L])
+    perp = np.stack([-P[:, 1], P[:, 0]], axis=1) / L  # perp(p)/L, (m, 2)
+
+    def ratios(X):
+        U = X[:, None, :2] + X[:, None, 2:3] * perp[None]
+        return (X @ w) / (mu * np.hypot(U[..., 0], U[..., 1]) @ phi)
+
+    k = np.arange(n_dir) + 0.5
+    z = 1 - 2 * k / n_dir
+    th = math.pi * (1 + 5**0.5) * k
+    X = np.stack([np.sqrt(1 - z * z) * np.cos(th), np.sqrt(1 - z * z) * np.sin(th), z], axis=1)
+    vals = ratios(X)
+    best = X[int(np.argmax(vals))]
+    res = minimize(lambda x: -ratios((x / np.linalg.norm(x))[None])[0], best, method="Nelder-Mead",
+                   options={"xatol": 1e-11, "fatol": 1e-15, "maxiter": 5000})
+    return max(-float(res.fun), float(vals.max()))
+
+
+def _disc_pad():
+    pad = PadGeometry(128, 128, 0.1e-3)
+    x, y = pad.positions.T
+    return pad.positions, np.hypot(x, y)
+
+
+@pytest.mark.parametrize(
+    "profile, coefficient",
+    [
+        (lambda r, R: (r < R).astype(float), 2.0 / 3.0),
+        (lambda r, R: np.sqrt(np.clip(1 - r**2 / R**2, 0, None)), 3 * math.pi / 16),
+    ],
+    ids=["uniform", "hertz"],
+)
+def test_pure_torque_capacity_of_a_disc_matches_the_analytic_value(profile, coefficient):
+    P, r = _disc_pad()
+    R, f_n = 5e-3, 3.0
+    phi = profile(r, R)
+    phi *= f_n / phi.sum()
+    expected = coefficient * MU * f_n * R
+    beta = torsional_coefficient(phi, P, MU)
+    assert beta.beta_m * f_n == pytest.approx(expected, rel=0.01)
+    tau = 0.8 * expected
+    res = load_factor(phi, P, (0.0, 0.0), tau, MU)
+    assert res.status is SolverStatus.CONVERGED
+    assert res.gamma == pytest.approx(0.8, rel=0.01)
+    assert np.hypot(*res.p_c) < 1e-9  # symmetric: the median is the centre
+
+
+def test_geometric_median_example_of_math_md():
+    """12×12 contact, pressure ∝ distance from the contact's left edge (x = −7.5 mm)."""
+    pad = PadGeometry()
+    x, y = pad.positions.T
+    inside = (np.abs(x) < 7.5e-3) & (np.abs(y) < 7.5e-3)
+    phi = np.where(inside, x + 7.5e-3, 0.0)
+    assert inside.sum() == 144
+    assert phi @ x / phi.sum() == pytest.approx(2.4826e-3, abs=1e-7)  # 143/72·h
+    tor = torsional_coefficient(phi, pad.positions, MU)
+    assert tor.status is SolverStatus.CONVERGED
+    assert tor.median[0] == pytest.approx(2.8562e-3, abs=1e-7)
+    assert abs(tor.median[1]) < 1e-12
+    res = load_factor(phi, pad.positions, (0.0, 0.0), 1e-3, MU)
+    assert res.p_c == pytest.approx(tor.median, abs=1e-10)
+
+
+def test_point_contact_has_no_torsional_capacity():
+    pad = PadGeometry(8, 8, 1.25e-3)
+    phi = np.zeros(64)
+    phi[27] = 2.0
+    p = pad.positions[27]
+    res = load_factor(phi, pad.positions, (0.0, 0.0), 1e-9, MU)
+    assert res.status is SolverStatus.POINT_CONTACT and res.gamma == math.inf and res.p_c == tuple(p)
+    # a force through the taxel with no torque about it: a translation, γ = |f_t|/(μ f_n)
+    f_t = np.array([0.3, 0.4])
+    tau = -(f_t[0] * p[1] - f_t[1] * p[0])
+    res = load_factor(phi, pad.positions, f_t, tau, MU)
+    assert res.status is SolverStatus.TRANSLATION and res.gamma == pytest.approx(0.5)
+    assert torsional_coefficient(phi, pad.positions, MU).beta_m == 0.0
+
+
+def test_no_load_no_contact_and_invalid_input_are_explicit():
+    pad = PadGeometry(4, 4, 1e-3)
+    phi = np.ones(16)
+    nl = load_factor(phi, pad.positions, (0.0, 0.0), 0.0, MU)
+    assert nl.status is SolverStatus.NO_LOAD and nl.gamma == 0.0 and nl.margin == 1.0
+    nc = load_factor(np.zeros(16), pad.positions, (1.0, 0.0), 0.0, MU)
+    assert nc.status is SolverStatus.NO_CONTACT and nc.case is SlipCase.NONE
+    bad = phi.copy()
+    bad[3] = np.nan
+    assert load_factor(bad, pad.positions, (1.0, 0.0), 0.0, MU).status is SolverStatus.INVALID_INPUT
+    assert load_factor(phi, pad.positions, (np.inf, 0.0), 0.0, MU).status is SolverStatus.INVALID_INPUT
+    assert load_factor(phi, pad.positions, (1.0, 0.0), 0.0, -1.0).status is SolverStatus.INVALID_INPUT
+
+
+def test_force_through_the_centre_of_pressure_is_a_translation():
+    pad = PadGeometry(8, 8, 1.25e-3)
+    rng = np.random.default_rng(3)
+    phi = rng.random(64)
+    cop = phi @ pad.positions / phi.sum()
+    f_t = np.array([0.7, -0.2])
+    tau = -(f_t[0] * cop[1] - f_t[1] * cop[0])  # n(cop) = 0
+    res = load_factor(phi, pad.positions, f_t, tau, MU)
+    assert res.case is SlipCase.TRANSLATION and res.p_c is None
+    assert res.gamma == pytest.approx(np.hypot(*f_t) / (MU * phi.sum()), rel=1e-12)
+
+
+def test_near_translation_is_continuous_across_the_asymptotic_switch():
+    pad = PadGeometry(8, 8, 1.25e-3)
+    rng = np.random.default_rng(4)
+    phi = rng.random(64)
+    cop = phi @ pad.positions / phi.sum()
+    f_t = np.array([0.7, -0.2])
+    tau0 = -(f_t[0] * cop[1] - f_t[1] * cop[0])
+    gammas = []
+    for lever in (1e-9, 3e-8, 1e-7, 1e-6):  # metres of lever arm about the centre of pressure
+        res = load_factor(phi, pad.positions, f_t, tau0 + lever * np.hypot(*f_t), MU)
+        assert math.isfinite(res.gamma) and res.status.usable
+        gammas.append(res.gamma)
+        if res.p_c is not None:
+            assert np.all(np.isfinite(res.p_c))
+    gt = np.hypot(*f_t) / (MU * phi.sum())
+    assert all(g >= gt * (1 - 1e-14) for g in gammas)
+    assert gammas == sorted(gammas)
+    assert gammas[-1] / gt - 1 < 1e-6
+
+
+def test_cor_on_a_taxel_is_certified():
+    pad = PadGeometry(8, 8, 1.25e-3)
+    phi = np.ones(64)
+    phi[18] = 80.0  # geometric median pinned on taxel 18
+    res = load_factor(phi, pad.positions, (0.0, 0.0), 2e-3, MU)
+    assert res.case is SlipCase.ON_TAXEL and res.taxel == 18
+    res = load_factor(phi, pad.positions, (0.05, 0.0), 2e-3, MU)
+    assert res.status is SolverStatus.ON_TAXEL and res.taxel == 18
+    assert res.gamma == pytest.approx(brute_force_gamma(phi, pad.positions, (0.05, 0.0), 2e-3, MU), rel=1e-6)
+
+
+def test_warm_start_gives_the_same_answer_in_fewer_iterations():
+    pad = PadGeometry()
+    x, y = pad.positions.T
+    phi = np.clip(1 - (x**2 + y**2) / 7e-3**2, 0, None)
+    cold = load_factor(phi, pad.positions, (0.2, 0.1), 1e-3, MU)
+    warm = load_factor(phi, pad.positions, (0.2, 0.1), 1e-3, MU, c0=cold.p_c)
+    assert warm.gamma == pytest.approx(cold.gamma, rel=1e-13)
+    assert warm.p_c == pytest.approx(cold.p_c, abs=1e-12)
+    assert warm.iterations < cold.iterations
+    garbage = load_factor(phi, pad.positions, (0.2, 0.1), 1e-3, MU, c0=(np.nan, 1.0))
+    assert garbage.gamma == pytest.approx(cold.gamma, rel=1e-13)
+
+
+def _random_case(rng, pad):
+    kind = rng.integers(4)
+    m = pad.n_taxels
+    if kind == 0:
+        phi = rng.random(m)
+    elif kind == 1:
+        phi = rng.random(m) * (rng.random(m) < 0.3)
+        phi[rng.integers(m)] += 1.0
+    elif kind == 2:
+        phi = np.zeros(m)
+        phi[rng.choice(m, 2, replace=False)] = rng.random(2) + 0.1  # two taxels
+    else:
+        phi = np.exp(3 * rng.normal(size=m))  # very uneven
+    f_t = rng.normal(size=2) * rng.choice([0.0, 1e-3, 1.0], p=[0.1, 0.2, 0.7])
+    tau = rng.normal() * 2e-3 * rng.choice([0.0, 1.0], p=[0.1, 0.9])
+    if f_t[0] == 0 and tau == 0:
+        tau = 1e-3
+    return phi, f_t, tau
+
+
+def test_gamma_matches_brute_force_on_200_random_fields_including_the_boundary():
+    pad = PadGeometry(6, 6, 2.5e-3)
+    rng = np.random.default_rng(2000)
+    worst = 0.0
+    for k in range(200):
+        phi, f_t, tau = _random_case(rng, pad)
+        res = load_factor(phi, pad.positions, f_t, tau, MU)
+        if k % 4 == 1:  # scale the load onto the boundary or just off it
+            s = [1.0, 1 - 1e-3, 1 + 1e-3][k % 3] / res.gamma
+            f_t, tau = f_t * s, tau * s
+            res = load_factor(phi, pad.positions, f_t, tau, MU)
+        ref = brute_force_gamma(phi, pad.positions, f_t, tau, MU)
+        assert res.status.usable, res
+        err = abs(res.gamma - ref) / ref
+        worst = max(worst, err)
+        assert err < 1e-6, (k, res, ref)
+    assert worst < 1e-6
