@@ -1,0 +1,153 @@
+"""What ft_driver and tactile_driver share: a device back-end behind a node.
+
+A :class:`DeviceDriver` owns one back-end chosen by URL
+(:func:`slipstack.nodes.devices.backends.backend_from_url`). It never blocks:
+
+- the back-end's descriptor is watched (:meth:`io_sources`, re-read every loop turn
+  because a reconnect changes it) and every readable event runs one ``poll``;
+- a ``service`` timer polls when the back-end's own deadline has passed (stale
+  limit, reconnect back-off, handshake timeout), so staleness and reconnects
+  happen without input. Its period is a fifth of the back-end's stale limit,
+  clamped to [1 ms, ``stale_status_period_ms``]: with the default stale limit of
+  2.5 sample periods the first status message follows the last sample within 3
+  sample periods (for rates up to 200 Hz; faster devices are bounded by the 1 ms
+  floor, e.g. about 6 periods at 7 kHz);
+- while the back-end is not ``ok`` the driver publishes a *status message* (the
+  subclass's last good values with status ``stale`` / ``disconnected``) at once on
+  the change and then every ``stale_status_period_ms``, so consumers can hold;
+- the back-end's counters are mirrored into ``diagnostics`` as ``device.<name>``
+  (``device.frames``, ``device.crc_errors``, ``device.rejected_bytes``,
+  ``device.reconnects``, …), and the node status is the link status.
+
+Subclasses set ``kind`` ("ft" or "tactile") and implement :meth:`on_sample` and
+:meth:`publish_status`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+from slipstack.lib.errors import ConfigError
+from slipstack.nodes.devices import LinkStatus
+from slipstack.nodes.devices.backends import SCHEMES, Backend, Sample, backend_from_url
+from slipstack.nodes.node import Context, IoSource, Node
+
+__all__ = ["DeviceDriver"]
+
+_COUNTER_SYNC_NS = 50_000_000  # mirror back-end counters at most every 50 ms (and at stop)
+_MIN_SERVICE_S = 1e-3
+
+
+@dataclass(frozen=True)
+class _Fd:
+    """A descriptor as an :class:`IoSource`."""
+
+    fd: int
+
+    def fileno(self) -> int:
+        return self.fd
+
+
+class DeviceDriver(Node):
+    """Base of the driver nodes (module docstring). ``params`` needs ``url`` and
+    ``stale_status_period_ms``."""
+
+    kind: ClassVar[str]
+
+    def __init__(self, params: Any = None) -> None:
+        super().__init__(params)
+        p = self.params
+        if p.stale_status_period_ms <= 0:
+            raise ConfigError(f"{self.name}: stale_status_period_ms must be > 0, got {p.stale_status_period_ms}")
+        self.backend: Backend = backend_from_url(p.url)
+        if self.backend.kind != self.kind:
+            wanted = sorted(s for s, k in SCHEMES.items() if k == self.kind)
+            raise ConfigError(f"{self.name}: {p.url!r} is a {self.backend.kind} device; use one of {wanted}")
+        self.status_period_ns = round(p.stale_status_period_ms * 1e6)
+        service_s = min(max(self.backend.stale_after_s / 5, _MIN_SERVICE_S), p.stale_status_period_ms / 1e3)
+        self.timers = {"service": service_s}
+        self.sample_period_s = 1.0 / self.backend.rate_hz
+        self.status = LinkStatus.DISCONNECTED.value
+        self._last_status_pub_ns: int | None = None
+        self._sources: list[IoSource] = []
+        self._seen: dict[str, int] = {}
+        self._next_sync_ns = 0
+
+    # -- to implement --------------------------------------------------------------------
+    def on_sample(self, sample: Sample, ctx: Context) -> None:
+        """Publish one decoded sample."""
+        raise NotImplementedError
+
+    def publish_status(self, status: str, ctx: Context) -> None:
+        """Publish the last good values with ``status`` (stale / disconnected)."""
+        raise NotImplementedError
+
+    def on_link_lost(self) -> None:
+        """Called when the link leaves ``ok`` (e.g. restart a filter)."""
+
+    # -- node interface --------------------------------------------------------------------
+    def start(self, ctx: Context) -> None:
+        self.backend.open(ctx.now_ns())
+        self._after_poll(ctx)
+
+    def stop(self, ctx: Context) -> None:
+        self.backend.close()
+        self._sync_counters(ctx)
+
+    def io_sources(self) -> list[IoSource]:
+        fd = self.backend.fileno()
+        if fd is None:
+            self._sources = []
+        elif not self._sources or self._sources[0].fileno() != fd:
+            self._sources = [_Fd(fd)]
+        return self._sources
+
+    def on_readable(self, source: IoSource, ctx: Context) -> None:
+        self._poll(ctx)
+
+    def on_timer_service(self, ctx: Context) -> None:
+        now = ctx.now_ns()
+        deadline = self.backend.next_deadline_ns()
+        if deadline is not None and now >= deadline:
+            self._poll(ctx)
+        elif self.status != LinkStatus.OK.value and now - (self._last_status_pub_ns or now) >= self.status_period_ns:
+            self._publish_status(ctx)
+        if now >= self._next_sync_ns:
+            self._sync_counters(ctx)
+            self._next_sync_ns = now + _COUNTER_SYNC_NS
+
+    # -- internals -------------------------------------------------------------------------
+    def _poll(self, ctx: Context) -> None:
+        samples = self.backend.poll(ctx.now_ns())
+        self._after_poll(ctx)  # link status first, so a sample's own status (size mismatch) wins
+        for sample in samples:
+            self.on_sample(sample, ctx)
+
+    def _after_poll(self, ctx: Context) -> None:
+        status = self.backend.status.value
+        changed = status != self.status
+        self.status = status
+        if status == LinkStatus.OK.value:
+            self._last_status_pub_ns = None
+            if changed:
+                ctx.set_status("ok")
+            return
+        if changed:
+            self.on_link_lost()
+            ctx.set_status(status, self.params.url)
+        if changed or self._last_status_pub_ns is None or (
+            ctx.now_ns() - self._last_status_pub_ns >= self.status_period_ns
+        ):
+            self._publish_status(ctx)
+
+    def _publish_status(self, ctx: Context) -> None:
+        self._last_status_pub_ns = ctx.now_ns()
+        self.publish_status(self.status, ctx)
+
+    def _sync_counters(self, ctx: Context) -> None:
+        for key, value in self.backend.counters.items():
+            delta = value - self._seen.get(key, 0)
+            if delta:
+                ctx.count(f"device.{key}", delta)
+                self._seen[key] = value
