@@ -112,17 +112,17 @@ class Launcher:
             child.outputs = {t: nodes[e.name].outputs[n].type.TYPE for n, t in e.output_topics(nodes[e.name]).items()}
             child.outputs[DIAGNOSTICS_TOPIC] = Diagnostics.TYPE  # every node publishes it
             child.inputs = {t: nodes[e.name].inputs[n].type.TYPE for n, t in e.input_topics(nodes[e.name]).items()}
-            child.inject = {t: ipc_endpoint(self.run_dir, f"{e.name}.in{k}") for k, t in enumerate(child.inputs)}
+            child.inject = {t: ipc_endpoint(self.run_dir, f"{e.name}.in") for t in child.inputs}
             self.children[e.name] = child
         publishers: dict[str, list[str]] = {}
         for name, c in self.children.items():
             for topic in c.outputs:
                 publishers.setdefault(topic, []).append(name)
-        taps = [tapped for tapped in (self._tapped_topics(nodes[n]) for n in self.children) if tapped is not None]
+        taps = {n: tapped for n in self.children if (tapped := self._tapped_topics(nodes[n])) is not None}
         for name, c in self.children.items():
             expected = {
                 topic: sum(1 for other in self.children.values() if topic in other.inputs)
-                + sum(1 for tapped in taps if not tapped or topic in tapped)
+                + sum(1 for tap, tapped in taps.items() if tap != name and (not tapped or topic in tapped))
                 for topic in c.outputs
             }
             spec = {

@@ -9,7 +9,9 @@ Definitions:
   the *delay* is the first such verdict's stamp minus the onset (negative: the detector
   warned before gross slip, which incipient-slip detection may do);
 - a *false slip* is a slip verdict on a frame whose nearest truth sample says stick and
-  that lies in no episode's window.
+  that lies in no episode's window. Frames the truth marks *incipient* (partial slip:
+  most of the contact's friction capacity already sliding, not yet gross slip) are
+  neither sticking nor slipping: a verdict there is an early warning, not an error.
 """
 
 from __future__ import annotations
@@ -18,7 +20,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Episode", "DetectionQuality", "find_episodes", "detection_quality"]
+__all__ = ["Episode", "DetectionQuality", "find_episodes", "detection_quality", "INCIPIENT_SHARE"]
+
+INCIPIENT_SHARE = 0.5
+"""Partial slip counts as incipient when sliding taxels carry at least this share of the
+contact's friction capacity (the rig's ``sliding_fraction``)."""
 
 
 @dataclass(frozen=True)
@@ -86,6 +92,7 @@ def detection_quality(
     lead_ns: int = 50_000_000,
     grace_ns: int = 20_000_000,
     min_gap_ns: int = 20_000_000,
+    incipient: np.ndarray | None = None,
 ) -> DetectionQuality:
     """Match slip verdicts to true episodes (see the module docstring).
 
@@ -95,6 +102,8 @@ def detection_quality(
         lead_ns: how early a verdict may come and still count for an episode.
         grace_ns: how long after an episode's end a verdict still counts for it.
         min_gap_ns: episodes closer than this are one episode (stick–slip chatter).
+        incipient: optional flags on the truth stream: partial slip, excluded from the
+            sticking frames.
     """
     episodes = find_episodes(truth_ns, gross_slip, min_gap_ns=min_gap_ns)
     vt = np.asarray(verdict_ns, dtype=np.int64)
@@ -115,6 +124,8 @@ def detection_quality(
         tt = np.asarray(truth_ns, dtype=np.int64)
         idx = np.clip(np.searchsorted(tt, vt), 0, tt.size - 1)
         stick &= ~np.asarray(gross_slip, dtype=bool)[idx]
+        if incipient is not None:
+            stick &= ~np.asarray(incipient, dtype=bool)[idx]
     return DetectionQuality(
         episodes=tuple(episodes), delays_ns=tuple(delays), missed=missed,
         false_slip_frames=int(np.count_nonzero(stick & vs)), stick_frames=int(np.count_nonzero(stick)),

@@ -166,9 +166,10 @@ def tactile14_increment(
     excess = abs(n_c) - t_c
     if not excess > 0.0:
         return 0.0
-    if not sum_dist_m > 0.0:
+    lever = sigma * mu * sum_dist_m  # may underflow to 0 for a subnormal distance sum
+    if not lever > 0.0:
         return math.inf
-    dphi = excess / (sigma * mu * sum_dist_m)
+    dphi = excess / lever
     return dphi * n_contact if increment == "total" else dphi
 
 

@@ -145,10 +145,11 @@ def message(type_name: str, version: int = 1):
     return wrap
 
 
-def encode(msg: Message) -> bytes:
-    """Encode a message (header included) to its MessagePack payload."""
-    h = msg.header
-    body = [getattr(msg, n) for n in msg._body_fields]  # type: ignore[attr-defined]
+def encode(msg: Message, header: Header | None = None) -> bytes:
+    """Encode a message to its MessagePack payload, with ``header`` in place of its own."""
+    h = msg.header if header is None else header
+    fields = msg.__dict__
+    body = [fields[n] for n in msg._body_fields]  # type: ignore[attr-defined]
     return packb([msg.TYPE, msg.VERSION, [h.stamp_ns, h.seq, h.pub_ns, h.sources], body])
 
 
@@ -198,10 +199,12 @@ def decode(payload: bytes, expected: type[M] | None = None) -> M:
     if len(raw_body) < cls._required:  # type: ignore[attr-defined]
         missing = names[len(raw_body)]
         raise DecodeError(f"{type_name}.{missing}: missing")
-    values = {
-        n: check(v) for n, check, v in zip(names, cls._validators, raw_body)  # type: ignore[attr-defined]
-    }
-    return cls(header=header, **values)  # type: ignore[call-arg]
+    msg = object.__new__(cls)  # fields are validated above; skip the frozen __init__'s setattr per field
+    fields = msg.__dict__
+    for n, check, v in zip(names, cls._validators, raw_body):  # type: ignore[attr-defined]
+        fields[n] = check(v)
+    fields["header"] = header
+    return msg
 
 
 def validate(msg: Message) -> Message:

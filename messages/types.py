@@ -110,6 +110,9 @@ class Slip(Message):
     state: ``stick`` | ``translation`` | ``rotation`` | ``combined`` | ``no-contact``.
     margin: 1 − γ or the method's analogue (> 0 sticks).
     verdicts: per method name, ``[stick: bool, margin: float]``.
+    f_n (N), f_t (2,) N, tau (N·m, about z through the pad origin): the load the
+    verdict judged, in ``F`` — so a grip law needs no second subscription.
+    p_c: (2,) m, the COR of impending slip the method found (valid if ``p_c_valid``).
     """
 
     state: str = "no-contact"
@@ -118,6 +121,11 @@ class Slip(Message):
     verdicts: dict = field(default_factory=dict)
     gamma: float = field(default=0.0, metadata={"allow_inf": True})
     status: str = STATUS_OK
+    f_n: float = 0.0
+    f_t: np.ndarray = array("<f8", (2,), doc="N")
+    tau: float = 0.0
+    p_c: np.ndarray = array("<f8", (2,), doc="m")
+    p_c_valid: bool = False
 
 
 @message("slipstack/GripCommand")

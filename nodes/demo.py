@@ -30,6 +30,7 @@ class WrenchSource(Node):
     name = "wrench_source"
     outputs = {"wrench": Output("ft/wrench", Wrench)}
     Params = SourceParams
+    precise_timers = True
 
     def __init__(self, params: SourceParams | None = None) -> None:
         super().__init__(params)

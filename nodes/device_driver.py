@@ -5,13 +5,13 @@ A :class:`DeviceDriver` owns one back-end chosen by URL
 
 - the back-end's descriptor is watched (:meth:`io_sources`, re-read every loop turn
   because a reconnect changes it) and every readable event runs one ``poll``;
-- a ``service`` timer polls when the back-end's own deadline has passed (stale
-  limit, reconnect back-off, handshake timeout), so staleness and reconnects
-  happen without input. Its period is a fifth of the back-end's stale limit,
-  clamped to [1 ms, ``stale_status_period_ms``]: with the default stale limit of
-  2.5 sample periods the first status message follows the last sample within 3
-  sample periods (for rates up to 200 Hz; faster devices are bounded by the 1 ms
-  floor, e.g. about 6 periods at 7 kHz);
+- the node's deadline (:meth:`next_deadline_ns`) is the back-end's own (stale
+  limit, reconnect back-off, handshake timeout), the next status republish and the
+  next counter sync, whichever comes first; the executor wakes the node exactly
+  then, so staleness and reconnects happen without input and without a periodic
+  timer (with the default stale limit of 2.5 sample periods, the first status
+  message follows the last sample within 3 sample periods, up to the executor's
+  wake-up jitter);
 - while the back-end is not ``ok`` the driver publishes a *status message* (the
   subclass's last good values with status ``stale`` / ``disconnected``) at once on
   the change and then every ``stale_status_period_ms``, so consumers can hold;
@@ -36,7 +36,6 @@ from slipstack.nodes.node import Context, IoSource, Node
 __all__ = ["DeviceDriver"]
 
 _COUNTER_SYNC_NS = 50_000_000  # mirror back-end counters at most every 50 ms (and at stop)
-_MIN_SERVICE_S = 1e-3
 
 
 @dataclass(frozen=True)
@@ -65,8 +64,6 @@ class DeviceDriver(Node):
             wanted = sorted(s for s, k in SCHEMES.items() if k == self.kind)
             raise ConfigError(f"{self.name}: {p.url!r} is a {self.backend.kind} device; use one of {wanted}")
         self.status_period_ns = round(p.stale_status_period_ms * 1e6)
-        service_s = min(max(self.backend.stale_after_s / 5, _MIN_SERVICE_S), p.stale_status_period_ms / 1e3)
-        self.timers = {"service": service_s}
         self.sample_period_s = 1.0 / self.backend.rate_hz
         self.status = LinkStatus.DISCONNECTED.value
         self._last_status_pub_ns: int | None = None
@@ -106,7 +103,16 @@ class DeviceDriver(Node):
     def on_readable(self, source: IoSource, ctx: Context) -> None:
         self._poll(ctx)
 
-    def on_timer_service(self, ctx: Context) -> None:
+    def next_deadline_ns(self) -> int | None:
+        due = [self._next_sync_ns]
+        backend_due = self.backend.next_deadline_ns()
+        if backend_due is not None:
+            due.append(backend_due)
+        if self.status != LinkStatus.OK.value and self._last_status_pub_ns is not None:
+            due.append(self._last_status_pub_ns + self.status_period_ns)
+        return min(due)
+
+    def on_deadline(self, ctx: Context) -> None:
         now = ctx.now_ns()
         deadline = self.backend.next_deadline_ns()
         if deadline is not None and now >= deadline:

@@ -1,7 +1,9 @@
 """grip_controller: the grip-force law of MATH.md §5 behind a fail-safe governor.
 
-Inputs: ``slip`` (triggers a step), ``contact`` and ``cor`` (newest values).
-Output: ``grip/command``. A watchdog timer holds the last safe grip, with reason
+Inputs: ``slip`` (triggers a step; it carries the load it judged and γ); law (14)
+also needs the contact mask and the COR, so only then ``contact`` and ``cor``
+(newest values) are subscribed.
+Output: ``grip/command``. A watchdog deadline holds the last safe grip, with reason
 ``fail-safe``, when the inputs go stale or report a bad status — it never releases
 on stale data.
 """
@@ -15,8 +17,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from slipstack.lib.grip_laws import LAWS, GripDecision, GripGovernor, GripInput, GripReason, make_law
-from slipstack.lib.pad import PadGeometry
 from slipstack.messages import Contact, Cor, GripCommand, Slip
+from slipstack.nodes.contact_view import pad_positions
 from slipstack.nodes.node import Context, Input, Node, Output
 
 __all__ = ["GripController", "GripControllerParams"]
@@ -33,9 +35,10 @@ class GripControllerParams:
     k_n: float = field(default=2.0, metadata={"help": "offset k (N) of law (13)"})
     increment: str = field(default="total", metadata={"help": "(14): 'total' N_A*dphi or 'per_taxel' dphi"})
     decay_n_per_s: float = field(default=0.0, metadata={"help": "(14): release rate while (11) holds (N/s)"})
+    delta: float = field(default=0.03, metadata={
+        "help": "(14): onset band of MATH.md 3.1: (11) counts as failing once |n| > (1 - delta) T"})
     max_rate_n_per_s: float = field(default=200.0, metadata={"help": "actuator slew limit (N/s)"})
     timeout_ms: float = field(default=20.0, metadata={"help": "inputs older than this hold the grip (ms)"})
-    watchdog_ms: float = field(default=5.0, metadata={"help": "how often staleness is checked (ms)"})
 
 
 class GripController(Node):
@@ -53,12 +56,13 @@ class GripController(Node):
     def __init__(self, params: GripControllerParams | None = None) -> None:
         super().__init__(params)
         p = self.params
+        if p.law != "tactile14":
+            self.inputs = {"slip": self.inputs["slip"]}
         law_cls = LAWS.get(p.law)
         accepted = {f.name for f in dataclasses.fields(law_cls)} if law_cls else set()
         law_params = {k: v for k, v in dataclasses.asdict(p).items() if k in accepted}
         self.law = make_law(p.law, **law_params)
         self.governor = GripGovernor(self.law, timeout_ns=round(p.timeout_ms * 1e6), max_rate_n_per_s=p.max_rate_n_per_s)
-        self.timers = {"watchdog": p.watchdog_ms / 1e3}
         self.contact: Contact | None = None
         self.cor: Cor | None = None
         self.slip: Slip | None = None
@@ -74,39 +78,45 @@ class GripController(Node):
         self.slip = msg
         self._step(ctx)
 
-    def on_timer_watchdog(self, ctx: Context) -> None:
-        if self.slip is None:
-            return  # nothing commanded yet: the actuator keeps its own initial grip
-        if ctx.now_ns() - self._last_publish_ns > self.governor.timeout_ns:
-            self._step(ctx)  # stale inputs: the governor holds the grip and says so
+    def next_deadline_ns(self) -> int | None:
+        """Watchdog: one timeout after the last command (none before the first slip verdict,
+        so the actuator keeps its own initial grip until the stack has data)."""
+        return None if self.slip is None else self._last_publish_ns + self.governor.timeout_ns
+
+    def on_deadline(self, ctx: Context) -> None:
+        self._step(ctx)  # inputs stale: the governor holds the grip and says so, and re-arms
 
     def _step(self, ctx: Context) -> None:
         now = ctx.now_ns()
         inp, stamps, ok = self._gather()
         decision = self.governor.step(inp, now_ns=now, stamps_ns=stamps, status_ok=ok)
         stamp = max(stamps) if stamps else now
-        sources = {"slip": self.slip.header.stamp_ns} if self.slip else {}
-        if self.contact is not None:
-            sources.update(self.contact.header.sources)
+        sources = {"slip": self.slip.header.stamp_ns, **self.slip.header.sources} if self.slip else {}
         self._publish(decision, stamp, sources, ctx)
 
     def _gather(self) -> tuple[GripInput, list[int], bool]:
-        c, s, r = self.contact, self.slip, self.cor
-        if c is None or s is None:
+        s = self.slip
+        if s is None:
             return GripInput(), [], False
-        stamps = [c.header.stamp_ns, s.header.stamp_ns]
-        ok = c.status == "ok" and s.status == "ok"
+        stamps = [s.header.stamp_ns]
+        ok = s.status == "ok"
         n_c = t_c = sum_dist = math.nan
-        n_contact = int(np.count_nonzero(c.mask)) if c.mask.size else 0
-        if r is not None and self.law.name == "tactile14":
-            stamps.append(r.header.stamp_ns)
+        n_contact = 0
+        if self.law.name == "tactile14":
+            c, r = self.contact, self.cor
+            if c is None or r is None:
+                return GripInput(), [], False
+            stamps += [c.header.stamp_ns, r.header.stamp_ns]
+            ok = ok and c.status == "ok"
+            n_contact = int(np.count_nonzero(c.mask)) if c.mask.size else 0
             if r.case in ("rotation", "on-taxel") and c.phi.size:
-                pad = PadGeometry(c.rows, c.cols, c.pitch_m)
-                dist = np.linalg.norm(pad.positions[c.mask] - r.p_c, axis=1)
-                n_c, t_c, sum_dist = r.load_torque, r.torque_capacity, float(dist.sum())
+                dist = np.linalg.norm(pad_positions(c.rows, c.cols, c.pitch_m)[c.mask] - r.p_c, axis=1)
+                # measured loads never exceed the capacity (MATH.md 3.1): (11) "fails" at the
+                # onset band, so the law sees the capacity less the band
+                n_c, t_c, sum_dist = r.load_torque, (1.0 - self.params.delta) * r.torque_capacity, float(dist.sum())
             else:  # translation or no COR: (11) cannot fail by rotation; hold
                 n_c, t_c, sum_dist = 0.0, 1.0, 1.0
-        inp = GripInput(f_t=(float(c.f_t[0]), float(c.f_t[1])), tau=c.tau, f_n=c.f_n, gamma=s.gamma,
+        inp = GripInput(f_t=(float(s.f_t[0]), float(s.f_t[1])), tau=s.tau, f_n=s.f_n, gamma=s.gamma,
                         n_c=n_c, t_c=t_c, sum_dist_m=sum_dist, n_contact=n_contact)
         return inp, stamps, ok
 

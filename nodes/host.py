@@ -8,7 +8,6 @@ counter that ``diagnostics`` reports.
 
 from __future__ import annotations
 
-import dataclasses
 import sys
 import time
 import traceback
@@ -59,7 +58,14 @@ class NodeHost:
         self.input_topics = {n: remap.get(i.topic, i.topic) for n, i in node.inputs.items()}
         self.output_topics = {n: remap.get(o.topic, o.topic) for n, o in node.outputs.items()}
         self._seq: dict[str, int] = {n: 0 for n in node.outputs}
+        # counter names, built once (the hot path only indexes them)
+        self._published_key = {n: f"out.{t}.published" for n, t in self.output_topics.items()}
+        self._in_keys = {
+            n: (f"in.{t}.received", f"in.{t}.rejected", f"in.{t}.lost", f"in.{t}.dropped")
+            for n, t in self.input_topics.items()
+        }
         self._last_seq: dict[tuple[str, str], int] = {}
+        self._input_types = {n: i.type for n, i in node.inputs.items()}
         self.counters: dict[str, float] = defaultdict(int)
         self.status = "ok"
         self.detail = ""
@@ -79,10 +85,9 @@ class NodeHost:
     def publish(self, output: str, msg: Message, *, stamp_ns: int, sources: dict[str, int] | None = None) -> None:
         seq = self._seq[output]
         self._seq[output] = seq + 1
-        header = Header(int(stamp_ns), seq, self.clock(), sources or {})
         topic = self.output_topics[output]
-        self._send(topic, encode(dataclasses.replace(msg, header=header)))
-        self.counters[f"out.{topic}.published"] += 1
+        self._send(topic, encode(msg, Header(int(stamp_ns), seq, self.clock(), sources or {})))
+        self.counters[self._published_key[output]] += 1
 
     def publish_raw(self, topic: str, payload: bytes) -> None:
         """Put an already-encoded frame on the bus unchanged (recording playback)."""
@@ -109,25 +114,27 @@ class NodeHost:
         ``"inject"`` for frames put in by tools): sequence gaps are tracked per topic and
         origin, and a sequence that goes back (a respawned publisher) is no loss.
         """
-        topic = self.input_topics[input_name]
-        self.counters[f"in.{topic}.received"] += 1
+        received, rejected, lost, _ = self._in_keys[input_name]
+        counters = self.counters
+        counters[received] += 1
         try:
-            msg = decode(payload, self.node.inputs[input_name].type)
+            msg = decode(payload, self._input_types[input_name])
         except DecodeError as exc:
-            self.counters[f"in.{topic}.rejected"] += 1
-            self.last_error = f"{topic}: {exc}"
+            counters[rejected] += 1
+            self.last_error = f"{self.input_topics[input_name]}: {exc}"
             return None
         seq = msg.header.seq
-        last = self._last_seq.get((topic, origin))
+        key = (input_name, origin)
+        last = self._last_seq.get(key)
         if last is not None and seq > last + 1:
-            self.counters[f"in.{topic}.lost"] += seq - last - 1
-        self._last_seq[(topic, origin)] = seq
+            counters[lost] += seq - last - 1
+        self._last_seq[key] = seq
         return msg
 
     def count_dropped(self, input_name: str, n: int) -> None:
         """Count frames skipped on purpose (drain-to-latest, queue overflow)."""
         if n:
-            self.counters[f"in.{self.input_topics[input_name]}.dropped"] += n
+            self.counters[self._in_keys[input_name][3]] += n
 
     def _guarded(self, label: str, fn: Callable[..., None], *args: Any) -> None:
         t0 = time.perf_counter_ns() if self._measure else 0

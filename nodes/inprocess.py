@@ -65,6 +65,7 @@ class InProcessExecutor:
                 p = round(diagnostics_period_s * 1e9)
                 self._schedule(start_ns + p, ("diag", host, p))
         self._started = False
+        self._deadlines: dict[int, int] = {}
 
     def _schedule(self, t_ns: int, item: object) -> None:
         heapq.heappush(self._queue, (t_ns, next(self._order), "", item))
@@ -95,11 +96,13 @@ class InProcessExecutor:
             self._started = True
             for host in self.hosts:
                 host.call("start", host.node.start, host)
+                self._schedule_deadline(host)
         while self._queue and (until_ns is None or self._queue[0][0] <= until_ns):
             t_ns, _, _, item = heapq.heappop(self._queue)
             self.now = max(self.now, t_ns)
             kind = item[0]
-            if item[1].shutdown_requested:
+            host = item[1]
+            if host.shutdown_requested:
                 continue
             if kind == "frame":
                 _, host, input_name, payload = item
@@ -111,13 +114,24 @@ class InProcessExecutor:
                 host.fire_timer(timer)
                 if until_ns is not None or self._has_frames():
                     self._schedule(t_ns + period, item)
+            elif kind == "deadline":
+                _, host, due = item
+                if host.node.next_deadline_ns() == due:  # still wanted
+                    host.call("on_deadline", host.node.on_deadline, host)
             elif kind == "diag":
                 _, host, period = item
                 self._send(DIAGNOSTICS_TOPIC, host.diagnostics())
                 if until_ns is not None or self._has_frames():
                     self._schedule(t_ns + period, item)
+            self._schedule_deadline(host)
         if until_ns is not None:
             self.now = max(self.now, until_ns)
+
+    def _schedule_deadline(self, host: NodeHost) -> None:
+        due = host.node.next_deadline_ns()
+        if due is not None and self._deadlines.get(id(host)) != due:
+            self._deadlines[id(host)] = due
+            self._schedule(max(due, self.now), ("deadline", host, due))
 
     def _has_frames(self) -> bool:
         return any(entry[3][0] == "frame" for entry in self._queue)

@@ -1,7 +1,8 @@
 """The monitor: a live one-line status and, on exit, the run's summary.
 
-Listens to ``slip``, ``contact``, ``cor``, ``grip/command``, ``rig/truth`` and every
-node's ``diagnostics``. Every ``status_period_s`` it logs one ``STATUS`` line (the
+Listens to ``slip`` (which carries the load it judged and its COR), ``grip/command``,
+``rig/truth`` and every node's ``diagnostics`` — not to the 1 kHz ``contact``/``cor``
+streams, to keep its share of the CPU small. Every ``status_period_s`` it logs one ``STATUS`` line (the
 launcher redraws it in place on a terminal). On stop it logs the summary: slip
 episodes detected versus true, detection delay, grip force used, dropped frames,
 and the recording's path; with ``summary_path`` it also writes them as JSON.
@@ -15,13 +16,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from slipstack.lib.episodes import detection_quality
-from slipstack.messages import Contact, Cor, Diagnostics, GripCommand, RigTruth, Slip
+from slipstack.lib.episodes import INCIPIENT_SHARE, detection_quality
+from slipstack.messages import Diagnostics, GripCommand, RigTruth, Slip
 from slipstack.nodes.node import Context, Input, Node
 
 __all__ = ["Monitor", "MonitorParams", "summarise"]
 
-_LOSS_KEYS = (".dropped", ".rejected", ".lost", ".dropped_hwm")
+_LOSS_KEYS = (".rejected", ".lost", ".dropped_hwm")  # ".dropped" is drain-to-latest, on purpose
 
 
 @dataclass(frozen=True)
@@ -37,8 +38,6 @@ class Monitor(Node):
     name = "monitor"
     inputs = {
         "slip": Input("slip", Slip, policy="queue", depth=10000),
-        "contact": Input("contact", Contact),
-        "cor": Input("cor", Cor),
         "grip": Input("grip/command", GripCommand, policy="queue", depth=10000),
         "truth": Input("rig/truth", RigTruth, policy="queue", depth=10000),
         "diagnostics": Input("diagnostics", Diagnostics, policy="queue", depth=1000),
@@ -53,6 +52,7 @@ class Monitor(Node):
         self.truth_t: list[int] = []
         self.truth_slip: list[bool] = []
         self.truth_fn: list[float] = []
+        self.truth_sliding: list[float] = []
         self.grip_fn: list[float] = []
         self.last: dict[str, object] = {}
         self.diagnostics: dict[str, dict] = {}
@@ -64,12 +64,6 @@ class Monitor(Node):
         self.slip_flag.append(msg.state not in ("stick", "no-contact"))
         self.last["slip"] = msg
 
-    def on_contact(self, msg: Contact, ctx: Context) -> None:
-        self.last["contact"] = msg
-
-    def on_cor(self, msg: Cor, ctx: Context) -> None:
-        self.last["cor"] = msg
-
     def on_grip(self, msg: GripCommand, ctx: Context) -> None:
         self.grip_fn.append(msg.f_n_desired)
         self.last["grip"] = msg
@@ -78,6 +72,7 @@ class Monitor(Node):
         self.truth_t.append(msg.header.stamp_ns)
         self.truth_slip.append(msg.gross_slip)
         self.truth_fn.append(msg.f_n_applied)
+        self.truth_sliding.append(msg.sliding_fraction)
         self.last["truth"] = msg
 
     def on_diagnostics(self, msg: Diagnostics, ctx: Context) -> None:
@@ -102,29 +97,29 @@ class Monitor(Node):
 def status_line(last: dict[str, object], rate_hz: float) -> str:
     """One line: state, f_n, margin, COR, detector rate."""
     slip = last.get("slip")
-    contact = last.get("contact")
-    cor = last.get("cor")
     grip = last.get("grip")
     parts = [f"state={slip.state if slip else '-':<11}"]
-    parts.append(f"f_n={contact.f_n:6.2f} N" if contact else "f_n=   -  ")
+    parts.append(f"f_n={slip.f_n:6.2f} N" if slip else "f_n=   -  ")
     parts.append(f"cmd={grip.f_n_desired:6.2f} N" if grip else "cmd=   -  ")
     margin = slip.margin if slip else float("nan")
     parts.append(f"margin={margin:+.3f}" if math.isfinite(margin) else "margin=  -   ")
-    if cor is not None and cor.case in ("rotation", "on-taxel"):
-        parts.append(f"cor=({cor.p_c[0] * 1e3:+.2f},{cor.p_c[1] * 1e3:+.2f}) mm")
+    if slip is not None and slip.p_c_valid:
+        parts.append(f"cor=({slip.p_c[0] * 1e3:+.2f},{slip.p_c[1] * 1e3:+.2f}) mm")
     else:
-        parts.append(f"cor={cor.case if cor else '-'}")
+        parts.append("cor=-")
     parts.append(f"rate={rate_hz:5.0f} Hz")
     return "  ".join(parts)
 
 
 def summarise(m: Monitor) -> dict:
     """The run's numbers as a JSON-able dict."""
-    q = detection_quality(np.array(m.truth_t), np.array(m.truth_slip), np.array(m.slip_t), np.array(m.slip_flag))
+    q = detection_quality(np.array(m.truth_t), np.array(m.truth_slip), np.array(m.slip_t), np.array(m.slip_flag),
+                          incipient=np.array(m.truth_sliding) >= INCIPIENT_SHARE)
     losses = {
         node: {k: v for k, v in counters.items() if k.endswith(_LOSS_KEYS) and v}
         for node, counters in m.diagnostics.items()
     }
+    skipped = sum(v for counters in m.diagnostics.values() for k, v in counters.items() if k.endswith(".dropped"))
     truth = m.last.get("truth")
     return {
         "slip_frames": len(m.slip_t),
@@ -140,6 +135,7 @@ def summarise(m: Monitor) -> dict:
         "slip_distance_mm": truth.slip_distance_m * 1e3 if truth else None,
         "slip_angle_deg": math.degrees(truth.slip_angle_rad) if truth else None,
         "losses": {n: v for n, v in losses.items() if v},
+        "skipped_for_newer": skipped,
         "recording": m.params.recording,
     }
 
@@ -162,7 +158,8 @@ def format_summary(s: dict) -> list[str]:
         for node, counts in sorted(s["losses"].items()):
             lines.append(f"frames lost at {node}: " + ", ".join(f"{k}={v:g}" for k, v in sorted(counts.items())))
     else:
-        lines.append("frames lost: none (no drops, rejects or sequence gaps reported)")
+        lines.append("frames lost: none (no rejected frames, sequence gaps or send-queue drops reported)")
+    lines.append(f"frames skipped for a newer one (latest-value inputs): {s['skipped_for_newer']:g}")
     if s["recording"]:
         lines.append(f"recording: {s['recording']}")
     return lines

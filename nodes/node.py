@@ -103,6 +103,10 @@ class Node:
     inputs: ClassVar[dict[str, Input]] = {}
     outputs: ClassVar[dict[str, Output]] = {}
     timers: ClassVar[dict[str, float]] = {}
+    precise_timers: ClassVar[bool] = False
+    """True for a timer-paced source (the rig): sleep to the exact tick, deaf to input
+    for under a millisecond; otherwise the executor rounds timer wake-ups up to the
+    next millisecond and never stops listening."""
     Params: ClassVar[type] = NoParams
 
     def __init__(self, params: Any = None) -> None:
@@ -124,6 +128,18 @@ class Node:
 
     def on_readable(self, source: IoSource, ctx: Context) -> None:
         """Handle a readable descriptor returned by :meth:`io_sources`."""
+
+    def next_deadline_ns(self) -> int | None:
+        """Executor time (ns) at which :meth:`on_deadline` must run, or ``None``.
+
+        Asked after every callback: a one-shot wake-up (a stale limit, a watchdog,
+        a reconnect back-off) without a periodic timer waking the process for nothing.
+        """
+        return None
+
+    def on_deadline(self, ctx: Context) -> None:
+        """Called once the time from :meth:`next_deadline_ns` has come; must move or
+        clear that deadline (the executor asks again right after)."""
 
 
 def _coerce(value: Any, hint: Any, name: str) -> Any:

@@ -208,7 +208,7 @@ def play(
     endpoint = endpoint or ipc_endpoint(rd, f"player-{os.getpid()}")  # one path per player: ipc binds steal
     zctx = zmq.Context.instance()
     sock = make_pub(zctx, endpoint, sndhwm=100_000)
-    for _, ep in injects:
+    for ep in sorted({ep for _, ep in injects}):  # one endpoint per node, whatever its topics
         sock.connect(ep)
     stopping = False
 

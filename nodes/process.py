@@ -38,8 +38,9 @@ class RunSpec:
 
     pub: endpoint to bind (``ipc://…`` or ``tcp://…``); ``None`` for a pure sink.
     subs: topic → endpoints publishing it.
-    inject: topic → endpoint this node's SUB socket for that topic also *binds*, so a
-        tool (``topic pub``, a fault injector) can connect a PUB to it and reach the node.
+    inject: topic → endpoint that one extra SUB socket of this node *binds* (the same
+        endpoint for all its input topics), so a tool (``topic pub``, ``bag play``, a
+        fault injector) can connect a PUB to it and reach the node.
     expected_subscribers: topic → number of subscriptions to wait for before data flows.
     control: the launcher's PULL endpoint for the ready report, or ``None``.
     """
@@ -68,19 +69,26 @@ class ProcessExecutor:
         self.zctx = zmq.Context.instance()
         self.pub = make_pub(self.zctx, spec.pub) if spec.pub else None
         self.host = NodeHost(node, time.monotonic_ns, self._send, name=spec.name, remap=spec.remap, log=self._log)
-        # One SUB socket per (input, publisher endpoint), plus one bound for injection:
-        # sequence gaps are then tracked per publisher, so several publishers on one
-        # topic (``diagnostics``) or an injecting tool never look like loss.
+        # One SUB socket per (input, publisher endpoint): sequence gaps are then tracked
+        # per publisher, so several publishers on one topic (``diagnostics``) never look
+        # like loss. One more SUB, bound, takes frames injected by tools.
         self._sub_topic: dict[zmq.Socket, tuple[str, bytes, str]] = {}
         for input_name, topic in self.host.input_topics.items():
             hwm = 1000 if node.inputs[input_name].policy == "queue" else 100
             for origin in spec.subs.get(topic, []):
                 sock = make_sub(self.zctx, [origin], topic, rcvhwm=hwm)
                 self._sub_topic[sock] = (input_name, topic.encode(), origin)
-            if topic in spec.inject:
-                sock = make_sub(self.zctx, [], topic, rcvhwm=hwm)
-                sock.bind(spec.inject[topic])
-                self._sub_topic[sock] = (input_name, topic.encode(), "inject")
+        self._inject_routes = {
+            topic.encode(): [n for n, t in self.host.input_topics.items() if t == topic] for topic in spec.inject
+        }
+        self.inject_sock: zmq.Socket | None = None
+        if self._inject_routes:
+            self.inject_sock = make_sub(self.zctx, [], None, rcvhwm=1000)
+            self.inject_sock.setsockopt(zmq.UNSUBSCRIBE, b"")
+            for topic in self._inject_routes:
+                self.inject_sock.setsockopt(zmq.SUBSCRIBE, topic)
+            for endpoint in sorted(set(spec.inject.values())):
+                self.inject_sock.bind(endpoint)
         self._queues = {n: deque(maxlen=i.depth) for n, i in node.inputs.items() if i.policy == "queue"}
         self._subscriptions: dict[bytes, int] = {}
         self._stopping = False
@@ -151,10 +159,9 @@ class ProcessExecutor:
         kept = 0
         queue = self._queues.get(input_name)
         for _ in range(_DRAIN_LIMIT):
-            try:
-                parts = sock.recv_multipart(zmq.NOBLOCK, copy=True)
-            except zmq.Again:
+            if not sock.getsockopt(zmq.EVENTS) & zmq.POLLIN:  # cheaper than a zmq.Again exception
                 break
+            parts = sock.recv_multipart(zmq.NOBLOCK, copy=True)
             if len(parts) != 2 or parts[0] != want:
                 if len(parts) != 2:
                     host.count(f"in.{host.input_topics[input_name]}.rejected")
@@ -178,15 +185,37 @@ class ProcessExecutor:
             while queue:
                 host.dispatch(input_name, queue.popleft())
 
-    def _watch_io(self, poller: zmq.Poller, io: dict[int, object]) -> dict[int, object]:
+    def _watch_io(self, poller: zmq.Poller, io: dict[int, object], handlers: dict) -> dict[int, object]:
         """Keep the poller in step with the node's current descriptors."""
         current = {src.fileno(): src for src in self.node.io_sources()}
         if current.keys() != io.keys():
             for fd in io.keys() - current.keys():
                 poller.unregister(fd)
+                handlers.pop(fd, None)
             for fd in current.keys() - io.keys():
                 poller.register(fd, zmq.POLLIN)
+        for fd, src in current.items():
+            handlers[fd] = ("io", src)
         return current
+
+    def _drain_injected(self) -> None:
+        """Frames put in by tools: every valid one is handled, in order (no draining to latest)."""
+        host = self.host
+        for _ in range(_DRAIN_LIMIT):
+            if not self.inject_sock.getsockopt(zmq.EVENTS) & zmq.POLLIN:
+                break
+            parts = self.inject_sock.recv_multipart(zmq.NOBLOCK)
+            names = self._inject_routes.get(parts[0], []) if len(parts) == 2 else []
+            if not names:
+                host.count("in.injected.rejected")
+                host.last_error = f"injected frame: expected [topic, payload] on an input topic, got {len(parts)} parts"
+            for input_name in names:
+                msg = host.receive(input_name, parts[1], "inject")
+                if msg is not None:
+                    host.dispatch(input_name, msg)
+
+    def _sockets(self) -> list[zmq.Socket]:
+        return [*self._sub_topic, *([self.inject_sock] if self.inject_sock else []), *([self.pub] if self.pub else [])]
 
     def run(self) -> int:
         """Run until SIGINT/SIGTERM; returns the process exit code."""
@@ -197,7 +226,7 @@ class ProcessExecutor:
             self.node.start(host)
         except Exception as exc:  # cannot start: say why, exit non-zero, the launcher names us
             self._log(f"cannot start: {type(exc).__name__}: {exc}")
-            for sock in [*self._sub_topic, *([self.pub] if self.pub else [])]:
+            for sock in self._sockets():
                 sock.close(linger=0)
             return 1
         try:
@@ -211,47 +240,70 @@ class ProcessExecutor:
             host.call("stop", self.node.stop, host)
             if self.pub is not None:
                 self._send(DIAGNOSTICS_TOPIC, host.diagnostics())
-            for sock in [*self._sub_topic, *([self.pub] if self.pub else [])]:
+            for sock in self._sockets():
                 sock.close(linger=0)
         return 0
 
     def _loop(self) -> None:
-        host = self.host
+        host, node = self.host, self.node
         poller = zmq.Poller()
-        for sock in self._sub_topic:
+        handlers: dict[object, tuple[str, object]] = {}
+        for sock, (input_name, _, _) in self._sub_topic.items():
             poller.register(sock, zmq.POLLIN)
-        if self.pub is not None:
-            poller.register(self.pub, zmq.POLLIN)
+            handlers[sock] = ("input", input_name)
+        if self.inject_sock is not None:
+            poller.register(self.inject_sock, zmq.POLLIN)
+            handlers[self.inject_sock] = ("inject", None)
+        watches_io = type(node).io_sources is not Node.io_sources
+        has_deadline = type(node).next_deadline_ns is not Node.next_deadline_ns
+        # A timer-paced node (the rig, a source) may sleep to the exact tick; any other
+        # node waits in poll, rounding its wake-up up to the next millisecond, so it
+        # never sleeps deaf to input.
+        precise = bool(node.timers) and getattr(node, "precise_timers", False)
         io: dict[int, object] = {}
         now = time.monotonic_ns()
-        deadlines = {t: now + round(p * 1e9) for t, p in self.node.timers.items()}
-        periods = {t: round(p * 1e9) for t, p in self.node.timers.items()}
+        deadlines = {t: now + round(p * 1e9) for t, p in node.timers.items()}
+        periods = {t: round(p * 1e9) for t, p in node.timers.items()}
         diag_period = round(self.spec.diagnostics_period_s * 1e9)
         next_diag = now + diag_period
+        counters = host.counters
         while not (self._stopping or host.shutdown_requested):
-            io = self._watch_io(poller, io)
-            now = time.monotonic_ns()
-            next_due = min([next_diag, *deadlines.values()])
-            wait_ns = next_due - now
-            if wait_ns >= 1_000_000:
-                events = dict(poller.poll(min(wait_ns // 1_000_000, 50)))
-            else:
-                events = dict(poller.poll(0))
-                if not events and wait_ns > 0:
+            counters["loop.wakeups"] += 1
+            if watches_io:
+                io = self._watch_io(poller, io, handlers)
+            node_deadline = node.next_deadline_ns() if has_deadline else None
+            next_due = min(next_diag, *deadlines.values()) if deadlines else next_diag
+            if node_deadline is not None and node_deadline < next_due:
+                next_due = node_deadline
+            wait_ns = next_due - time.monotonic_ns()
+            if wait_ns <= 0:
+                events = poller.poll(0)
+            elif precise and wait_ns < 1_000_000:
+                events = poller.poll(0)
+                if not events:
                     time.sleep(wait_ns / 1e9)
-            for sock, (input_name, _, _) in self._sub_topic.items():
-                if sock in events:
-                    self._drain(input_name, sock)
-            if self.pub is not None and self.pub in events:
-                self._read_subscriptions()
-            for fd, src in io.items():
-                if fd in events:
-                    host.call("on_readable", self.node.on_readable, src, host)
+            else:
+                events = poller.poll(min(-(-wait_ns // 1_000_000), 50))
+            for item, _ in events:
+                kind, arg = handlers[item]
+                if kind == "input":
+                    self._drain(arg, item)
+                elif kind == "io":
+                    host.call("on_readable", node.on_readable, arg, host)
+                else:
+                    self._drain_injected()
             now = time.monotonic_ns()
+            if has_deadline:
+                node_deadline = node.next_deadline_ns()
+                if node_deadline is not None and now >= node_deadline:
+                    host.call("on_deadline", node.on_deadline, host)
             for timer, due in deadlines.items():
+                if now < due:
+                    continue
                 period = periods[timer]
                 fired = 0
-                while now >= due and fired < _TIMER_CATCH_UP:  # late ticks are made up, not lost
+                while now >= due and fired < _TIMER_CATCH_UP and not host.shutdown_requested:
+                    # late ticks are made up, not lost
                     host.fire_timer(timer)
                     due += period
                     fired += 1
@@ -260,8 +312,8 @@ class ProcessExecutor:
                     host.count(f"timer.{timer}.skipped", skipped)
                     due += skipped * period
                 deadlines[timer] = due
-            if now >= next_diag and self.pub is not None:
-                self._send(DIAGNOSTICS_TOPIC, host.diagnostics())
-                next_diag += diag_period
-            elif now >= next_diag:
+            if now >= next_diag:
+                if self.pub is not None:
+                    self._read_subscriptions()  # keep the XPUB's subscription queue short
+                    self._send(DIAGNOSTICS_TOPIC, host.diagnostics())
                 next_diag += diag_period

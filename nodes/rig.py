@@ -13,14 +13,14 @@ The tactile calibration table of the simulated rubber is written to
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from slipstack.lib.calibration import Calibration, save_calibration
 from slipstack.lib.errors import ConfigError
-from slipstack.lib.rig.scene import load_scene
+from slipstack.lib.rig.scene import Scene, load_scene
 from slipstack.lib.rig.sensors import FtSample, TactileSample
 from slipstack.lib.rig.simulator import Simulator, Truth
 from slipstack.launch.launch_file import resolve_path
@@ -30,7 +30,7 @@ from slipstack.nodes.devices.emulators import (
 )
 from slipstack.nodes.node import Context, Input, Node, Output
 
-__all__ = ["Rig", "RigParams", "truth_message"]
+__all__ = ["Rig", "RigParams", "truth_message", "with_rates"]
 
 FT_PROTOCOLS = ("rdt", "robotiq", "bota")
 TACTILE_PROTOCOLS = ("dsacon32", "m1616")
@@ -45,7 +45,12 @@ class RigParams:
     tactile_protocol: str = field(default="dsacon32", metadata={"help": f"tactile emulator: one of {TACTILE_PROTOCOLS}"})
     tactile_link: str = field(default="", metadata={"help": "pty symlink path for the tactile emulator"})
     calibration_out: str = field(default="", metadata={"help": "write the tactile calibration TOML here"})
+    ft_rate_hz: float = field(default=0.0, metadata={"help": "F/T sample rate (Hz); 0: the scene's"})
+    tactile_rate_hz: float = field(default=0.0, metadata={"help": "tactile frame rate (Hz); 0: the scene's"})
+    truth_rate_hz: float = field(default=0.0, metadata={"help": "rig/truth rate (Hz); 0: the scene's"})
     tick_ms: float = field(default=1.0, metadata={"help": "real-time step of the rig node (ms)"})
+    wait_for_drivers_s: float = field(default=30.0, metadata={
+        "help": "the scene starts when every emulated sensor is streaming to a driver, or after this long (s)"})
     exit_at_end: bool = field(default=True, metadata={"help": "stop the node when the scene ends"})
 
 
@@ -56,6 +61,7 @@ class Rig(Node):
     inputs = {"grip": Input("grip/command", GripCommand)}
     outputs = {"truth": Output("rig/truth", RigTruth)}
     Params = RigParams
+    precise_timers = True  # sensor samples leave on the simulated tick, not up to 1 ms late
 
     def __init__(self, params: RigParams | None = None) -> None:
         super().__init__(params)
@@ -64,12 +70,14 @@ class Rig(Node):
             raise ConfigError(f"rig ft_protocol must be one of {FT_PROTOCOLS}, got {p.ft_protocol!r}")
         if p.tactile_protocol not in TACTILE_PROTOCOLS:
             raise ConfigError(f"rig tactile_protocol must be one of {TACTILE_PROTOCOLS}, got {p.tactile_protocol!r}")
-        self.scene = load_scene(resolve_path(p.scene, Path.cwd(), "scenes"))
+        self.scene = with_rates(load_scene(resolve_path(p.scene, Path.cwd(), "scenes")),
+                                p.ft_rate_hz, p.tactile_rate_hz, p.truth_rate_hz)
         self.timers = {"tick": p.tick_ms / 1e3}
         self.sim: Simulator | None = None
         self.ft_dev = None
         self.tactile_dev = None
-        self._t0 = 0
+        self._powered_ns = 0
+        self._t0: int | None = None
 
     def start(self, ctx: Context) -> None:
         p, scene = self.params, self.scene
@@ -77,8 +85,9 @@ class Rig(Node):
         if scene.ft.enabled:
             self.ft_dev = {
                 "rdt": lambda: RdtUdpServer("127.0.0.1", p.rdt_port),
-                "robotiq": lambda: RobotiqEmulator(self._link(p.ft_link, "ft_link")),
-                "bota": lambda: BotaEmulator(self._link(p.ft_link, "ft_link"), rate_hz=scene.ft.rate_hz),
+                "robotiq": lambda: RobotiqEmulator(self._link(p.ft_link, "ft_link"), streaming=False),
+                "bota": lambda: BotaEmulator(self._link(p.ft_link, "ft_link"), streaming=False,
+                                             rate_hz=scene.ft.rate_hz),
             }[p.ft_protocol]()
         if scene.tactile.enabled:
             link = self._link(p.tactile_link, "tactile_link")
@@ -91,7 +100,7 @@ class Rig(Node):
                 save_calibration(Calibration(counts=counts, pressure_pa=pressure,
                                              saturation_counts=scene.tactile.full_scale_counts),
                                  p.calibration_out)
-        self._t0 = ctx.now_ns()
+        self._powered_ns = ctx.now_ns()
         ctx.log(f"scene {scene.name}: {scene.description} ({scene.duration_s:g} s, free dof {list(scene.dof.free)})")
 
     @staticmethod
@@ -101,14 +110,27 @@ class Rig(Node):
         return path
 
     def on_grip(self, msg: GripCommand, ctx: Context) -> None:
-        if self.sim is not None and not self.sim.command_normal_force(msg.f_n_desired):
+        if self._t0 is not None and not self.sim.command_normal_force(msg.f_n_desired):
             ctx.count("rig.rejected_commands")
+
+    def _sensors_streaming(self) -> bool:
+        """Every emulated sensor has been started by its driver (M1616 pushes unasked)."""
+        devs = [d for d in (self.ft_dev, self.tactile_dev) if d is not None]
+        return all(getattr(d, "acquiring", getattr(d, "streaming", True)) for d in devs)
 
     def on_timer_tick(self, ctx: Context) -> None:
         sim = self.sim
         for dev in (self.ft_dev, self.tactile_dev):
             if dev is not None:
                 dev.service()
+        if self._t0 is None:  # the experiment starts once the drivers read the sensors
+            waited = (ctx.now_ns() - self._powered_ns) / 1e9
+            if not self._sensors_streaming() and waited < self.params.wait_for_drivers_s:
+                return
+            if waited >= self.params.wait_for_drivers_s:
+                ctx.log(f"warning: sensors not streaming after {waited:.0f} s; starting the scene anyway")
+            self._t0 = ctx.now_ns()
+            ctx.log(f"sensors streaming; scene {self.scene.name} starts")
         for sample in sim.step_until(ctx.now_ns() - self._t0):
             if isinstance(sample, FtSample):
                 if self.ft_dev is not None and not self.ft_dev.send_ft(sample.force_S, sample.torque_S):
@@ -126,6 +148,17 @@ class Rig(Node):
         for dev in (self.ft_dev, self.tactile_dev):
             if dev is not None:
                 dev.close()
+
+
+def with_rates(scene: Scene, ft_hz: float = 0.0, tactile_hz: float = 0.0, truth_hz: float = 0.0) -> Scene:
+    """``scene`` with its sensor and truth rates (Hz) replaced where the value is > 0."""
+    if ft_hz > 0:
+        scene = replace(scene, ft=replace(scene.ft, rate_hz=ft_hz))
+    if tactile_hz > 0:
+        scene = replace(scene, tactile=replace(scene.tactile, rate_hz=tactile_hz))
+    if truth_hz > 0:
+        scene = replace(scene, sim=replace(scene.sim, truth_rate_hz=truth_hz))
+    return scene
 
 
 def truth_message(t: Truth) -> RigTruth:

@@ -9,13 +9,20 @@ method's margin into the latched state (onset band ``delta``, hysteresis
 The detector computes its verdict from ``contact`` directly rather than waiting for
 ``cor``: one hop less between the sensor sample and the grip command. Its own COR of
 impending slip warm-starts the next frame.
+
+The F/T tests need a torsional coefficient β: ``beta_m`` if set, otherwise β_s from
+the tactile data (MATH.md §4.3), computed once per tactile frame (β_s depends only
+on the shape of the pressure, not on its size) and shared by every F/T test.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+
+import numpy as np
 
 from slipstack.lib.detection import DetectorConfig, SlipLatch
+from slipstack.lib.limit_set import torsional_coefficient
 from slipstack.lib.slip_tests import SLIP_TESTS, SlipParams, get_slip_test
 from slipstack.messages import Contact, Slip
 from slipstack.nodes.contact_view import ContactView
@@ -51,21 +58,36 @@ class SlipDetector(Node):
         self.test = get_slip_test(p.method)
         self.others = [(name, get_slip_test(name)) for name in p.also if name != p.method]
         self.slip_params = SlipParams(mu=p.mu, beta_m=p.beta_m or None, delta=p.delta)
+        self._ft_params = self.slip_params  # with β_s of the current tactile frame when beta_m is 0
+        self._beta_frame: int | None = None
         self.latch = SlipLatch(DetectorConfig(p.delta, p.gamma_release, round(p.release_ms * 1e6)))
         self._warm: tuple[float, float] | None = None
         self._kind = "translation"  # the latest slip kind, reported while the latch holds
 
+    def _params_for_ft_tests(self, msg: Contact, view: ContactView) -> SlipParams:
+        """SlipParams with β fixed: the configured one, or β_s of this tactile frame."""
+        if self.slip_params.beta_m is not None or not view.phi.size:
+            return self.slip_params
+        frame = msg.header.sources.get("tactile")
+        if frame != self._beta_frame:
+            tor = torsional_coefficient(view.phi, view.positions, self.slip_params.mu)
+            beta = tor.beta_m if tor.status.usable and tor.median is not None else None
+            self._ft_params = replace(self.slip_params, beta_m=beta) if beta else self.slip_params
+            self._beta_frame = frame
+        return self._ft_params
+
     def on_contact(self, msg: Contact, ctx: Context) -> None:
         stamp = msg.header.stamp_ns
         view = ContactView(msg)
-        v = self.test(view, self.slip_params, self._warm)
+        ft_params = self._params_for_ft_tests(msg, view)
+        v = self.test(view, ft_params if self.params.method in _FT_TESTS else self.slip_params, self._warm)
         if v.p_c is not None:
             self._warm = v.p_c
         in_contact = msg.status == "ok" and v.kind != "no-contact"
         slipping = self.latch.update(stamp, v.margin if v.status.usable else float("nan"), in_contact=in_contact)
         verdicts = {v.method: [v.stick, v.margin]}
         for name, test in self.others:
-            o = test(view, self.slip_params, None)
+            o = test(view, ft_params, None)
             verdicts[name] = [o.stick, o.margin]
         if not in_contact:
             state = "no-contact"
@@ -78,5 +100,7 @@ class SlipDetector(Node):
         if not v.status.usable:
             ctx.count(f"slip.{v.status.value}")
         ctx.publish("slip", Slip(state=state, margin=v.margin, method=v.method, verdicts=verdicts,
-                                 gamma=v.gamma, status=msg.status if msg.status != "ok" else "ok"),
+                                 gamma=v.gamma, status=msg.status, f_n=msg.f_n, f_t=msg.f_t, tau=msg.tau,
+                                 p_c=np.array(v.p_c if v.p_c is not None else (0.0, 0.0)),
+                                 p_c_valid=v.p_c is not None),
                     stamp_ns=stamp, sources=msg.header.sources)

@@ -9,9 +9,10 @@ Without a calibration file the driver uses a linear table,
 ``p = pa_per_count · counts`` (Pa), with the saturation level ``saturation_counts``
 or, if that is 0, the device's full scale (4095 for DSACON32 and 12-bit framed
 streams, 255 for u8, 65535 for u16 — the M1616 module's ADC range is not verified,
-so give it explicitly for a real module). A calibration file that is not valid (a
-NaN or infinite entry, a non-monotone table, per-taxel data of the wrong size) is
-a ConfigError when the node is built.
+so give it explicitly for a real module). The calibration file is read when the node
+starts (in a launch, another node such as the simulated rig may write it first); a
+missing or invalid file (a NaN or infinite entry, a non-monotone table, per-taxel
+data of the wrong size) stops the node at start with a ConfigError naming it.
 
 A frame whose size differs from ``rows`` × ``cols`` is not published: it is counted
 (``tactile.size_mismatch``) and the node status says ``size-mismatch`` with both
@@ -78,11 +79,19 @@ class TactileDriver(DeviceDriver):
         if not (math.isfinite(p.pitch_m) and p.pitch_m > 0):
             raise ConfigError(f"tactile_driver: pitch_m must be > 0 (m), got {p.pitch_m}")
         self.n_taxels = p.rows * p.cols
+        if not p.calibration and not (math.isfinite(p.pa_per_count) and p.pa_per_count > 0):
+            raise ConfigError(f"tactile_driver: pa_per_count must be > 0 (Pa/count), got {p.pa_per_count}")
+        self.calibration: Calibration | None = None
+        self._last: TactileFrame | None = None
+
+    def start(self, ctx: Context) -> None:
+        p = self.params
         self.calibration = self._load_calibration()
-        zeros = np.zeros(self.n_taxels, dtype=bool)
         self._last = TactileFrame(rows=p.rows, cols=p.cols, pitch_m=p.pitch_m,
-                                  pressure_pa=np.zeros(self.n_taxels, dtype=np.float32), saturated=zeros,
+                                  pressure_pa=np.zeros(self.n_taxels, dtype=np.float32),
+                                  saturated=np.zeros(self.n_taxels, dtype=bool),
                                   dead=self.calibration.apply(np.zeros(self.n_taxels)).dead)
+        super().start(ctx)
 
     def _load_calibration(self) -> Calibration:
         p = self.params
@@ -94,8 +103,6 @@ class TactileDriver(DeviceDriver):
             except ConfigError as e:
                 raise ConfigError(f"tactile_driver: {p.calibration}: {e}") from e
         else:
-            if not (math.isfinite(p.pa_per_count) and p.pa_per_count > 0):
-                raise ConfigError(f"tactile_driver: pa_per_count must be > 0 (Pa/count), got {p.pa_per_count}")
             top = 65535.0
             cal = Calibration(counts=np.array([0.0, top]), pressure_pa=np.array([0.0, top * p.pa_per_count]))
         saturation = cal.saturation_counts or p.saturation_counts or self._device_full_scale()

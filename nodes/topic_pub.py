@@ -83,8 +83,8 @@ class Injector:
         self.sock = zmq.Context.instance().socket(zmq.XPUB)
         self.sock.setsockopt(zmq.LINGER, round(linger_s * 1000))
         self.sock.setsockopt(zmq.XPUB_VERBOSE, 1)
-        for e in self.targets:
-            self.sock.connect(e.address)
+        for address in sorted({e.address for e in self.targets}):
+            self.sock.connect(address)
         self._joined = 0
 
     def wait_for_subscribers(self, timeout_s: float) -> int:

@@ -35,8 +35,6 @@ class Harness:
         self.out: list = []
         self.logs: list[str] = []
         self.host = NodeHost(node, lambda: self.now, self._send, measure_handlers=False, log=self.logs.append)
-        self.due = {t: self.now + round(p * 1e9) for t, p in node.timers.items()}
-        self.periods = {t: round(p * 1e9) for t, p in node.timers.items()}
 
     def _send(self, topic: str, payload: bytes) -> None:
         self.out.append(decode(payload))
@@ -52,14 +50,12 @@ class Harness:
                 self.host.call("on_readable", self.node.on_readable, src, self.host)
 
     def advance(self, dt_ns: int) -> None:
-        """Move simulated time on by dt_ns, firing timers at their deadlines."""
+        """Move simulated time on by dt_ns, calling the node at each of its deadlines."""
         end = self.now + dt_ns
-        while min(self.due.values()) <= end:
-            timer = min(self.due, key=self.due.get)
-            self.now = self.due[timer]
+        while (due := self.node.next_deadline_ns()) is not None and due <= end:
+            self.now = max(self.now, due)
             self._drain(0)
-            self.host.fire_timer(timer)
-            self.due[timer] += self.periods[timer]
+            self.host.call("on_deadline", self.node.on_deadline, self.host)
         self.now = end
         self._drain(0)
 
@@ -218,12 +214,13 @@ def test_a_frame_of_the_wrong_size_is_counted_not_published():
 def test_invalid_configuration_is_a_config_error_naming_the_fix(tmp_path):
     bad = tmp_path / "nan.toml"
     bad.write_text("counts = [0, 100]\npressure_pa = [0.0, nan]\n")
+    # the calibration file is read at start (a launch may write it first)
     with pytest.raises(ConfigError, match="nan.toml.*finite"):
-        TactileDriver(TactileDriverParams(url="m1616:///dev/null", calibration=str(bad)))
+        TactileDriver(TactileDriverParams(url="m1616:///dev/null", calibration=str(bad)))._load_calibration()
     gain = tmp_path / "gain.toml"
     gain.write_text("counts = [0, 100]\npressure_pa = [0.0, 1.0]\ngain = [1.0, 1.0]\n")
     with pytest.raises(ConfigError, match="gain has 2 entries.*256"):
-        TactileDriver(TactileDriverParams(url="m1616:///dev/null", calibration=str(gain)))
+        TactileDriver(TactileDriverParams(url="m1616:///dev/null", calibration=str(gain)))._load_calibration()
     with pytest.raises(ConfigError, match="is a ft device"):
         TactileDriver(TactileDriverParams(url="rdt://127.0.0.1"))
     with pytest.raises(ConfigError, match="is a tactile device"):

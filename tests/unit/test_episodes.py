@@ -29,3 +29,14 @@ def test_delay_missed_and_false_slip_by_hand():
     assert q.stick_frames == 160 and q.false_slip_frames == 1
     assert q.false_slip_rate == 1 / 160
     assert q.delay_percentile_ms(50) == 2.0
+
+
+def test_incipient_frames_are_not_counted_as_sticking():
+    t = np.arange(100) * MS
+    s = np.zeros(100, bool)
+    inc = np.zeros(100, bool)
+    inc[10:20] = True  # partial slip, never gross
+    vs = np.zeros(100, bool)
+    vs[15] = True      # an early warning during partial slip
+    q = detection_quality(t, s, t, vs, incipient=inc)
+    assert q.stick_frames == 90 and q.false_slip_frames == 0 and q.episodes == ()

@@ -26,15 +26,18 @@ def minimal() -> dict:
     }
 
 
+FT_ONLY = {"fig10", "fig11", "fig12"}  # the paper's F/T-only experiments simulate no tactile pad
+
+
 @pytest.mark.parametrize("name", PAPER)
-def test_shipped_scene_loads_and_streams_every_sensor(name):
+def test_shipped_scene_loads_and_streams_the_sensors_it_needs(name):
     path = SCENES / f"{name}.toml"
     assert path.read_text().startswith("# "), "scene files start with a comment header"
     scene = load_scene(path)
     assert scene.name == name
     sim = Simulator(dataclasses.replace(scene, duration_s=0.02))
     kinds = {type(s) for s in sim}
-    assert kinds == {FtSample, TactileSample, Truth}
+    assert kinds == ({FtSample, Truth} if name in FT_ONLY else {FtSample, TactileSample, Truth})
 
 
 def test_paper_scene_degrees_of_freedom():
