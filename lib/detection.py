@@ -31,8 +31,8 @@ class DetectorConfig:
     release_ns: how long ``γ < gamma_release`` must hold before stick is declared (ns).
     """
 
-    delta: float = 0.03
-    gamma_release: float = 0.6
+    delta: float = 0.18
+    gamma_release: float = 0.7
     release_ns: int = 30_000_000
 
     def __post_init__(self) -> None:

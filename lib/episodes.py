@@ -22,7 +22,7 @@ import numpy as np
 
 __all__ = ["Episode", "DetectionQuality", "find_episodes", "detection_quality", "INCIPIENT_SHARE"]
 
-INCIPIENT_SHARE = 0.5
+INCIPIENT_SHARE = 0.25
 """Partial slip counts as incipient when sliding taxels carry at least this share of the
 contact's friction capacity (the rig's ``sliding_fraction``)."""
 
@@ -89,8 +89,8 @@ def detection_quality(
     verdict_ns: np.ndarray,
     verdict_slip: np.ndarray,
     *,
-    lead_ns: int = 50_000_000,
-    grace_ns: int = 20_000_000,
+    lead_ns: int = 100_000_000,
+    grace_ns: int = 50_000_000,
     min_gap_ns: int = 20_000_000,
     incipient: np.ndarray | None = None,
 ) -> DetectionQuality:

@@ -35,7 +35,7 @@ class GripControllerParams:
     k_n: float = field(default=2.0, metadata={"help": "offset k (N) of law (13)"})
     increment: str = field(default="total", metadata={"help": "(14): 'total' N_A*dphi or 'per_taxel' dphi"})
     decay_n_per_s: float = field(default=0.0, metadata={"help": "(14): release rate while (11) holds (N/s)"})
-    delta: float = field(default=0.03, metadata={
+    delta: float = field(default=0.18, metadata={
         "help": "(14): onset band of MATH.md 3.1: (11) counts as failing once |n| > (1 - delta) T"})
     max_rate_n_per_s: float = field(default=200.0, metadata={"help": "actuator slew limit (N/s)"})
     timeout_ms: float = field(default=20.0, metadata={"help": "inputs older than this hold the grip (ms)"})

@@ -39,8 +39,9 @@ class SlipDetectorParams:
     also: list[str] = field(default_factory=lambda: list(_FT_TESTS), metadata={"help": "tests published alongside"})
     mu: float = field(default=0.45, metadata={"help": "static friction coefficient"})
     beta_m: float = field(default=0.0, metadata={"help": "torsional coefficient for F/T tests (m); 0: from tactile"})
-    delta: float = field(default=0.03, metadata={"help": "onset band: slip when gamma >= 1 - delta"})
-    gamma_release: float = field(default=0.6, metadata={"help": "slip stays latched while gamma >= this"})
+    delta: float = field(default=DetectorConfig.delta, metadata={"help": "onset band: slip when gamma >= 1 - delta"})
+    gamma_release: float = field(default=DetectorConfig.gamma_release,
+                                 metadata={"help": "slip stays latched while gamma >= this"})
     release_ms: float = field(default=30.0, metadata={"help": "gamma below release this long -> stick (ms)"})
 
 

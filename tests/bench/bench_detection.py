@@ -1,0 +1,124 @@
+"""Detection quality of every slip test over the shipped scenes (issue 6, Must show 2).
+
+Each scene runs once in lock-step (``nodes/lockstep.py``: the real driver, fusion and
+detector nodes on device-codec bytes, controller off, so every slip the scene
+provokes happens) at the stack's default rates (F/T 500 Hz, tactile 250 Hz; truth
+1 kHz). The slip detector publishes every test's margin on every frame; each test's
+margins then go through the same latch (``lib/detection.py``) for each onset band δ,
+and are matched to the rig's true gross-slip episodes (``lib/episodes.py``):
+median and p95 delay from true onset to the first slip verdict (negative: warned
+before gross slip), false-slip rate on truly sticking frames (partial slip with at
+least half the friction capacity sliding counts as incipient, not sticking), and
+missed episodes.
+
+    python tests/bench/bench_detection.py                 # all scenes, δ sweep
+    python tests/bench/bench_detection.py --scenes fig15 --deltas 0.05 0.1
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from slipstack.lib.detection import DetectorConfig, SlipLatch
+from slipstack.lib.episodes import INCIPIENT_SHARE, detection_quality
+from slipstack.launch.launch_file import load_launch_file
+from slipstack.nodes.lockstep import LockstepStack, StackConfig, load_scene_by_name
+from slipstack.nodes.rig import with_rates
+
+SCENES = ["fig4a", "fig4b", "fig10", "fig11", "fig12", "fig13", "fig14", "fig15", "default"]
+FT_TESTS = ["coulomb", "decoupled", "linear_ls", "elliptic_ls"]
+TACTILE_TESTS = ["tactile_cor", "tactile_cor_robust", "exact"]
+
+
+def _scene_args(scene: str) -> dict:
+    """The launch arguments the scene's own launch file sets (beta_m, tactile)."""
+    lf = load_launch_file(scene, builtins={"run_dir": "/tmp"})
+    return lf.args
+
+
+def record_scene(scene: str, cache: Path, ft_hz: float, tactile_hz: float) -> dict[str, np.ndarray]:
+    """Run ``scene`` with the controller off; return (and cache) the margins and truth."""
+    path = cache / f"{scene}-{ft_hz:g}-{tactile_hz:g}.npz"
+    if path.exists():
+        return dict(np.load(path))
+    args = _scene_args(scene)
+    sc = with_rates(load_scene_by_name(args["scene"]), ft_hz, tactile_hz, 1000.0)
+    tests = (FT_TESTS + TACTILE_TESTS) if sc.tactile.enabled and args["tactile"] else FT_TESTS
+    slip = {"method": tests[-1], "also": tests, "beta_m": float(args["beta_m"]), "mu": float(args["mu"])}
+    stack = LockstepStack(sc, StackConfig(controller=False, tactile=bool(args["tactile"]), slip=slip))
+    t0 = time.monotonic()
+    ex = stack.run(progress=lambda f: print(f"\r  {scene}: {100 * f:5.1f}% ", end="", file=sys.stderr, flush=True))
+    print(f"\r  {scene}: done in {time.monotonic() - t0:.0f} s ({sc.duration_s:g} s simulated)", file=sys.stderr)
+    stack.close()
+    slips = ex.published["slip"]
+    truth = ex.published["rig/truth"]
+    data = {
+        "t": np.array([m.header.stamp_ns for m in slips], dtype=np.int64),
+        "contact": np.array([m.state != "no-contact" for m in slips]),
+        "truth_t": np.array([m.header.stamp_ns for m in truth], dtype=np.int64),
+        "gross": np.array([m.gross_slip for m in truth]),
+        "sliding": np.array([m.sliding_fraction for m in truth]),
+        "tests": np.array(tests),
+    }
+    for name in tests:
+        data[f"margin_{name}"] = np.array([m.verdicts.get(name, [False, np.nan])[1] for m in slips], dtype=float)
+    cache.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(path, **data)
+    return data
+
+
+def evaluate(data: dict[str, np.ndarray], test: str, delta: float, period_ms: float):
+    """Latch one test's margins at ``delta``; match them to the true episodes."""
+    latch = SlipLatch(DetectorConfig(delta=delta, gamma_release=min(DetectorConfig.gamma_release, 1 - delta)))
+    margins = data[f"margin_{test}"]
+    flags = np.array([latch.update(int(t), float(m), in_contact=bool(c))
+                      for t, m, c in zip(data["t"], margins, data["contact"])])
+    return detection_quality(data["truth_t"], data["gross"], data["t"], flags,
+                             incipient=data["sliding"] >= INCIPIENT_SHARE)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scenes", nargs="+", default=SCENES, help="scene names (default: all shipped)")
+    ap.add_argument("--deltas", nargs="+", type=float, default=[0.02, 0.05, 0.08, 0.1, 0.15], help="onset bands δ")
+    ap.add_argument("--ft-rate", type=float, default=500.0, help="F/T rate (Hz), default the stack's 500")
+    ap.add_argument("--tactile-rate", type=float, default=250.0, help="tactile rate (Hz), default 250")
+    ap.add_argument("--cache", type=Path, default=Path("/tmp/slipstack-bench-detection"),
+                    help="where the per-scene runs are cached (delete to re-run)")
+    args = ap.parse_args()
+    period_ms = 1000.0 / args.ft_rate
+    runs = {s: record_scene(s, args.cache, args.ft_rate, args.tactile_rate) for s in args.scenes}
+    tests = [t for t in FT_TESTS + TACTILE_TESTS if any(t in r["tests"] for r in runs.values())]
+    print(f"\nDetection quality, controller off, F/T {args.ft_rate:g} Hz (period {period_ms:g} ms), "
+          f"tactile {args.tactile_rate:g} Hz; scenes: {', '.join(args.scenes)}\n")
+    print("| test | δ | episodes | missed | delay p50 ms | delay p95 ms | p95 ≤ 2 periods | false-slip rate |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: | :---: | ---: |")
+    for test in tests:
+        for delta in args.deltas:
+            episodes = missed = false = stick = 0
+            delays: list[int] = []
+            for data in runs.values():
+                if test not in data["tests"]:
+                    continue
+                q = evaluate(data, test, delta, period_ms)
+                episodes += len(q.episodes)
+                missed += q.missed
+                delays += list(q.delays_ns)
+                false += q.false_slip_frames
+                stick += q.stick_frames
+            d = np.array(delays, dtype=float) / 1e6
+            p50 = f"{np.percentile(d, 50):.1f}" if d.size else "-"
+            p95v = float(np.percentile(d, 95)) if d.size else float("nan")
+            ok = "yes" if d.size and p95v <= 2 * period_ms and missed == 0 else "no"
+            rate = false / stick if stick else 0.0
+            print(f"| {test} | {delta:g} | {episodes} | {missed} | {p50} | "
+                  f"{'-' if not d.size else f'{p95v:.1f}'} | {ok} | {100 * rate:.3f}% |")
+
+
+if __name__ == "__main__":
+    main()
