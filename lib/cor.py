@@ -128,6 +128,17 @@ def _special(ph, P, ft, tau, mu) -> CorResult | None:
     return None
 
 
+def _prepare(phi, positions, f_t, tau, mu) -> CorResult | tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The taxels in contact ``(φ, P, f_t)``, or the answer when no iteration is needed
+    (invalid input, no contact, no load, translation, point contact)."""
+    v = _validate(phi, positions, f_t, tau, mu)
+    if v is None:
+        return _invalid(SolverStatus.INVALID_INPUT)
+    _, ph, P, ft = v
+    special = _special(ph, P, ft, tau, mu)
+    return special if special is not None else (ph, P, ft)
+
+
 def paper_cor(
     phi: np.ndarray,
     positions: np.ndarray,
@@ -155,13 +166,10 @@ def paper_cor(
         lands on a taxel that fails the paper's special-case test or J is singular,
         DIVERGED when the iterate becomes non-finite, MAX_ITER otherwise.
     """
-    v = _validate(phi, positions, f_t, tau, mu)
-    if v is None:
-        return _invalid(SolverStatus.INVALID_INPUT)
-    _, ph, P, ft = v
-    special = _special(ph, P, ft, tau, mu)
-    if special is not None:
-        return special
+    prepared = _prepare(phi, positions, f_t, tau, mu)
+    if isinstance(prepared, CorResult):
+        return prepared
+    ph, P, ft = prepared
     cap = mu * float(ph.sum())
     pbar = ph @ P / float(ph.sum())
     L = math.sqrt(float(ph @ np.sum((P - pbar) ** 2, axis=1)) / float(ph.sum()))
@@ -224,13 +232,10 @@ def robust_cor(
         :class:`CorResult` for the sense with the larger ``max g_s`` (the binding
         one); ``ratio = |n(p_c)|/T(p_c)`` there, so stick iff ``ratio ≤ 1``.
     """
-    v = _validate(phi, positions, f_t, tau, mu)
-    if v is None:
-        return _invalid(SolverStatus.INVALID_INPUT)
-    _, ph, P, ft = v
-    special = _special(ph, P, ft, tau, mu)
-    if special is not None:
-        return special
+    prepared = _prepare(phi, positions, f_t, tau, mu)
+    if isinstance(prepared, CorResult):
+        return prepared
+    ph, P, ft = prepared
     best = None
     iterations = 0
     for s in (1, -1):

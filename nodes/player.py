@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import bisect
 import os
-import signal
 import sys
 import time
 from dataclasses import dataclass, field
@@ -33,6 +32,7 @@ import zmq
 from slipstack.lib.errors import ConfigError
 from slipstack.messages import registry
 from slipstack.nodes.bag_io import RecordedFrame, clock_offset_ns, peek_header, read_recording, restamp
+from slipstack.nodes.stop_signal import StopSignal
 from slipstack.nodes.graph_info import find_run_dir, read_graph
 from slipstack.nodes.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.node import Context, Node, Output
@@ -210,19 +210,13 @@ def play(
     sock = make_pub(zctx, endpoint, sndhwm=100_000)
     for ep in sorted({ep for _, ep in injects}):  # one endpoint per node, whatever its topics
         sock.connect(ep)
-    stopping = False
-
-    def on_signal(signum: int, frame: Any) -> None:
-        nonlocal stopping
-        stopping = True
-
-    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    stop = StopSignal().install()
     try:
         _wait_for_subscriptions(sock, injects, wait_s)
         echo(f"playing {path}: {len(frames)} frames on {', '.join(sorted(played))} at {rate:g}x "
              f"from {endpoint}, into {len(injects)} subscriber(s)")
         pb = Playback(frames, rate, loop, clock_offset_ns(path, frames) if restamp_stamps else None)
-        while not stopping and not pb.done:
+        while not stop.requested and not pb.done:
             for topic, payload in pb.due(time.monotonic_ns()):
                 sock.send_multipart((topic.encode(), payload), copy=True)
             nxt = pb.next_due_ns()
@@ -234,8 +228,7 @@ def play(
         return pb.sent
     finally:
         sock.close(linger=1000)
-        for s, h in old.items():
-            signal.signal(s, h)
+        stop.restore()
 
 
 def _wait_for_subscriptions(sock: zmq.Socket, injects: list[tuple[str, str]], wait_s: float) -> None:

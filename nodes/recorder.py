@@ -19,7 +19,6 @@ Frames are written raw (the bus bytes) with log_time = receive time,
 from __future__ import annotations
 
 import os
-import signal
 import sys
 import time
 from dataclasses import dataclass, field
@@ -30,6 +29,7 @@ from typing import Any, Callable
 import zmq
 
 from slipstack.nodes.bag_io import RecordingWriter, peek_header, publisher_key
+from slipstack.nodes.stop_signal import StopSignal
 from slipstack.nodes.graph_info import GRAPH_FILE, RUN_DIR_ENV, find_run_dir, read_graph, topic_endpoints
 from slipstack.nodes.node import Context, Node
 from slipstack.nodes.transport import make_sub, run_root
@@ -213,13 +213,7 @@ def record(
     rd = find_run_dir(run_dir)
     writer = RecordingWriter(out, wall_minus_monotonic_ns=time.time_ns() - time.monotonic_ns())
     bus = BusRecorder(writer, topics, run_dir=rd)
-    stopping = False
-
-    def on_signal(signum: int, frame: Any) -> None:
-        nonlocal stopping
-        stopping = True
-
-    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    stop = StopSignal().install()
     try:
         bus.refresh()
         if not bus.endpoints:
@@ -229,13 +223,12 @@ def record(
         end = None if not duration_s else time.monotonic() + duration_s
         poller = zmq.Poller()
         poller.register(bus.sock, zmq.POLLIN)
-        while not stopping and (end is None or time.monotonic() < end):
+        while not stop.requested and (end is None or time.monotonic() < end):
             poller.poll(100)
             bus.drain()
     finally:
         bus.close()
-        for s, h in old.items():
-            signal.signal(s, h)
+        stop.restore()
     lost = ", ".join(f"{t}: {n}" for t, n in sorted(bus.lost.items())) or "none"
     echo(f"wrote {out}: {bus.received} frames; sequence gaps seen: {lost}")
     return bus.received
