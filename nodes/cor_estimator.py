@@ -33,6 +33,7 @@ class CorParams:
     mu: float = field(default=0.45, metadata={"help": "static friction coefficient"})
     paper_gain: float = field(default=0.5, metadata={"help": "gain h of the paper's iteration (solver=paper)"})
     warm_start: bool = field(default=True, metadata={"help": "start from the previous frame's COR"})
+    pool: int = field(default=1, metadata={"help": "sum taxels in pool x pool blocks before solving (1: off)"})
     per_tactile_frame: bool = field(default=False, metadata={
         "help": "solve once per tactile frame (its rate) instead of once per contact (the F/T rate)"})
 
@@ -64,7 +65,7 @@ class CorEstimator(Node):
                 ctx.count("cor.skipped_same_tactile_frame")
                 return
             self._last_frame = frame
-        view = ContactView(msg)
+        view = ContactView(msg, self.params.pool)
         c0 = self._last_pc if self.params.warm_start else None
         p = self.params
         if p.solver == "exact":

@@ -43,6 +43,7 @@ class SlipDetectorParams:
     gamma_release: float = field(default=DetectorConfig.gamma_release,
                                  metadata={"help": "slip stays latched while gamma >= this"})
     release_ms: float = field(default=30.0, metadata={"help": "gamma below release this long -> stick (ms)"})
+    pool: int = field(default=1, metadata={"help": "sum taxels in pool x pool blocks before testing (1: off)"})
 
 
 class SlipDetector(Node):
@@ -79,7 +80,7 @@ class SlipDetector(Node):
 
     def on_contact(self, msg: Contact, ctx: Context) -> None:
         stamp = msg.header.stamp_ns
-        view = ContactView(msg)
+        view = ContactView(msg, self.params.pool)
         ft_params = self._params_for_ft_tests(msg, view)
         v = self.test(view, ft_params if self.params.method in _FT_TESTS else self.slip_params, self._warm)
         if v.p_c is not None:

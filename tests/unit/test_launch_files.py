@@ -1,0 +1,34 @@
+"""Every shipped launch file loads, and starts only the nodes its scene needs."""
+
+from __future__ import annotations
+
+import pytest
+
+from slipstack.launch.launch_file import launch_files_dir, load_launch_file
+from slipstack.lib.errors import ConfigError
+
+FILES = sorted(p.stem for p in launch_files_dir().glob("*.toml"))
+
+
+@pytest.mark.parametrize("name", FILES)
+def test_shipped_launch_file_loads(name):
+    lf = load_launch_file(name, builtins={"run_dir": "/tmp/slipstack-test"})
+    assert lf.nodes and lf.description
+    assert len({e.name for e in lf.nodes}) == len(lf.nodes)
+
+
+@pytest.mark.parametrize("name", ["fig10", "fig11", "fig12"])
+def test_ft_only_scenes_start_no_tactile_driver_and_no_cor_estimator(name):
+    types = {e.type for e in load_launch_file(name, builtins={"run_dir": "/tmp/x"}).nodes}
+    assert "tactile_driver" not in types and "cor_estimator" not in types
+    assert {"rig", "ft_driver", "fusion", "slip_detector", "grip_controller"} <= types
+
+
+def test_overrides_are_typed_and_unknown_ones_are_named():
+    lf = load_launch_file("fig15", {"controller": "false", "delta": "0.2"}, builtins={"run_dir": "/tmp/x"})
+    assert "grip_controller" not in {e.type for e in lf.nodes}
+    assert next(e for e in lf.nodes if e.type == "slip_detector").params["delta"] == 0.2
+    with pytest.raises(ConfigError, match="no launch argument 'bogus'"):
+        load_launch_file("fig15", {"bogus": "1"}, builtins={"run_dir": "/tmp/x"})
+    with pytest.raises(ConfigError, match="is a bool"):
+        load_launch_file("fig15", {"controller": "maybe"}, builtins={"run_dir": "/tmp/x"})
