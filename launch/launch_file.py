@@ -120,6 +120,9 @@ def _typed_override(default: Any, text: str, name: str) -> Any:
         if text.lower() in ("false", "0", "no", "off"):
             return False
         raise ConfigError(f"launch argument {name} is a bool; got {text!r}")
+    if isinstance(default, list):  # "[a, b]", "a,b" or "" (empty list)
+        items = text.strip().removeprefix("[").removesuffix("]")
+        return [item.strip().strip("'\"") for item in items.split(",") if item.strip()]
     if isinstance(default, (int, float)):
         try:
             return type(default)(text)

@@ -11,8 +11,6 @@ import argparse
 import ctypes
 import json
 import signal
-import sys
-import textwrap
 
 from slipstack.lib.errors import ConfigError
 from slipstack.nodes.catalog import NODE_TYPES, node_class

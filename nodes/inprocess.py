@@ -90,7 +90,8 @@ class InProcessExecutor:
         """Process events in time order up to ``until_ns``.
 
         With ``until_ns=None`` it runs until no fed or published frame is pending
-        (timers stop with the last frame); give ``until_ns`` to run timer-driven nodes.
+        (timers and deadlines stop with the last frame); give ``until_ns`` to run
+        timer-driven nodes.
         """
         if not self._started:
             self._started = True
@@ -116,6 +117,8 @@ class InProcessExecutor:
                     self._schedule(t_ns + period, item)
             elif kind == "deadline":
                 _, host, due = item
+                if until_ns is None and not self._has_frames():
+                    continue  # run-to-completion ends with the last frame, watchdogs too
                 if host.node.next_deadline_ns() == due:  # still wanted
                     host.call("on_deadline", host.node.on_deadline, host)
             elif kind == "diag":

@@ -17,7 +17,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-import numpy as np
 
 from slipstack.lib.calibration import Calibration, save_calibration
 from slipstack.lib.protocols import ati_rdt, dsacon32

@@ -24,7 +24,7 @@ import time
 import numpy as np
 from scipy.optimize import root
 
-from slipstack.lib.cor import cor_equations, paper_cor, robust_cor
+from slipstack.lib.cor import cor_equations, paper_cor
 from slipstack.lib.limit_set import load_factor, torsional_coefficient
 from slipstack.lib.pad import PadGeometry
 from slipstack.lib.slip_tests import SLIP_TESTS, SlipParams

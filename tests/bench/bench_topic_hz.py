@@ -81,7 +81,7 @@ def main() -> None:
         finally:
             launcher.send_signal(signal.SIGINT)
             launcher.wait(15)
-    print(f"| tool | median rate Hz | rate range Hz | CPU (one core) |\n| --- | ---: | ---: | ---: |")
+    print("| tool | median rate Hz | rate range Hz | CPU (one core) |\n| --- | ---: | ---: | ---: |")
     for label, med, rng, cpu in rows:
         print(f"| {label} | {med} | {rng} | {100 * cpu:.1f} % |")
     print(f"\nwindow {args.window}, {args.duration:g} s per tool, CPU over the last {args.duration - args.settle:g} s; "

@@ -311,7 +311,7 @@ def main() -> None:
     if args.profile:
         profile()
         return
-    print(f"| size B | hops | impl | received | p50 µs | p99 µs | p99.9 µs | loss | p50 vs raw |")
+    print("| size B | hops | impl | received | p50 µs | p99 µs | p99.9 µs | loss | p50 vs raw |")
     print("| ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: |")
     for size in args.sizes:
         for hops in args.hops:

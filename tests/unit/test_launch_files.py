@@ -32,3 +32,9 @@ def test_overrides_are_typed_and_unknown_ones_are_named():
         load_launch_file("fig15", {"bogus": "1"}, builtins={"run_dir": "/tmp/x"})
     with pytest.raises(ConfigError, match="is a bool"):
         load_launch_file("fig15", {"controller": "maybe"}, builtins={"run_dir": "/tmp/x"})
+
+
+def test_a_list_argument_is_read_from_the_command_line():
+    for text, want in (("[]", []), ("", []), ("[ft/wrench, slip]", ["ft/wrench", "slip"]), ("slip", ["slip"])):
+        lf = load_launch_file("default", {"record_topics": text}, builtins={"run_dir": "/tmp/x"})
+        assert next(e for e in lf.nodes if e.type == "recorder").params["topics"] == want

@@ -1,0 +1,430 @@
+"""``slipstack report``: a paper-style figure of a recording, or its friction identification.
+
+    slipstack report RECORDING [-o OUT.png] [--title T] [--mu MU]
+    slipstack report RECORDING --identify
+
+The figure (matplotlib, Agg) stacks up to four panels on one time axis, s from the
+first sample stamp of the recording (``header.stamp_ns``, the sensor-sample clock):
+
+1. normal force, N: applied by the finger (``rig/truth``), commanded
+   (``grip/command``, else the rig's own command) and measured by the F/T sensor
+   (``−force[2]`` of ``ft/wrench`` in the pad frame ``F``, MATH.md §1);
+2. tangential load ``|f_t|`` and the friction limit ``μ·f_n`` (N), torque ``τ`` (N·mm);
+3. the verdict of the deciding method, margin ``1 − γ`` (> 0 sticks), with the spans
+   where ``slip.state`` is a slip state and the rig's true gross-slip spans;
+4. object motion from ``rig/truth``: slip distance (mm) and slip angle (deg).
+
+Panels whose topics are missing (no truth on real hardware) are left out.
+
+``--identify`` runs :func:`slipstack.lib.identify.identify_mu` on the F/T data of a
+ramp recording (paper Fig. 4, MATH.md §6; scenes ``fig4a``/``fig4b``), with the
+rig's object displacement as the slip-onset signal when the recording has it, and
+:func:`~slipstack.lib.identify.identify_beta` as well when the torque ramp dominates
+(``max|τ|/L > max|f_t|``, ``L`` = :data:`TORQUE_ARM_M`). It needs no matplotlib.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from slipstack.lib.episodes import find_episodes
+from slipstack.lib.errors import DecodeError
+from slipstack.lib.identify import IdentifyConfig, RampEstimate, identify_beta, identify_mu
+from slipstack.messages import STATUS_OK, Message, decode
+from slipstack.nodes.bag_io import RecordingError, read_recording
+
+__all__ = [
+    "TORQUE_ARM_M", "SLIP_STATES", "RecordingSeries", "load_series", "Identification",
+    "identify_recording", "format_identification", "summarize", "plot_report", "add_parser",
+]
+
+TORQUE_ARM_M = 0.01
+"""Lever arm (m, half the 16 × 1.25 mm pad) comparing a torque ramp with a force ramp."""
+
+SLIP_STATES = frozenset({"translation", "rotation", "combined"})
+"""``slip.state`` values that are a slip verdict."""
+
+MATPLOTLIB_HINT = "matplotlib is not installed: pip install 'slipstack[report]'"
+
+_Column = Callable[[Any], Any]
+_COLUMNS: dict[str, dict[str, _Column]] = {
+    "ft/wrench": {
+        "usable": lambda m: m.status == STATUS_OK and m.frame == "pad",
+        "f_n": lambda m: -m.force[2],
+        "f_t": lambda m: m.force[:2],
+        "tau": lambda m: m.torque[2],
+    },
+    "rig/truth": {
+        "x": lambda m: m.x, "y": lambda m: m.y, "theta": lambda m: m.theta,
+        "slip_distance_m": lambda m: m.slip_distance_m, "slip_angle_rad": lambda m: m.slip_angle_rad,
+        "gross_slip": lambda m: m.gross_slip,
+        "f_n_applied": lambda m: m.f_n_applied, "f_n_command": lambda m: m.f_n_command,
+    },
+    "slip": {
+        "state": lambda m: m.state, "margin": lambda m: m.margin, "gamma": lambda m: m.gamma,
+        "method": lambda m: m.method,
+    },
+    "grip/command": {"f_n_desired": lambda m: m.f_n_desired, "reason": lambda m: m.reason},
+}
+
+
+@dataclass(frozen=True)
+class RecordingSeries:
+    """The report's topics of one recording as columns.
+
+    Attributes:
+        path: the recording.
+        t0_ns: the earliest sample stamp of the loaded topics, ns (time zero).
+        topics: topic → column → array; every topic has ``stamp_ns`` (int64, ns) and
+            ``t_s`` (s from ``t0_ns``), sorted by stamp; columns are those of
+            :data:`_COLUMNS` (``ft/wrench``: ``usable`` is False for a sample not ``ok``
+            or not in the pad frame). Topics without frames are absent.
+        undecodable: frames of these topics that did not decode (skipped).
+    """
+
+    path: Path
+    t0_ns: int
+    topics: dict[str, dict[str, np.ndarray]]
+    undecodable: int = 0
+
+    def has(self, topic: str) -> bool:
+        return topic in self.topics
+
+    def __getitem__(self, topic: str) -> dict[str, np.ndarray]:
+        return self.topics[topic]
+
+    @property
+    def duration_s(self) -> float:
+        return max((float(c["t_s"][-1]) for c in self.topics.values()), default=0.0)
+
+
+def load_series(path: str | Path) -> RecordingSeries:
+    """Read and decode the report's topics of a recording (tactile frames are not read).
+
+    Raises:
+        RecordingError: the file cannot be opened or is not MCAP.
+    """
+    rows: dict[str, list[Message]] = {topic: [] for topic in _COLUMNS}
+    undecodable = 0
+    for frame in read_recording(path, _COLUMNS):
+        try:
+            rows[frame.topic].append(decode(frame.payload))
+        except DecodeError:
+            undecodable += 1
+    topics: dict[str, dict[str, np.ndarray]] = {}
+    for topic, messages in rows.items():
+        if not messages:
+            continue
+        messages.sort(key=lambda m: m.header.stamp_ns)
+        cols = {"stamp_ns": np.array([m.header.stamp_ns for m in messages], dtype=np.int64)}
+        for name, get in _COLUMNS[topic].items():
+            cols[name] = np.array([get(m) for m in messages])
+        topics[topic] = cols
+    t0 = min((int(c["stamp_ns"][0]) for c in topics.values()), default=0)
+    for cols in topics.values():
+        cols["t_s"] = (cols["stamp_ns"] - t0) / 1e9
+    return RecordingSeries(Path(path), t0, topics, undecodable)
+
+
+# -- identification (paper Fig. 4) --------------------------------------------------------
+
+@dataclass(frozen=True)
+class Identification:
+    """Friction identification of one ramp recording.
+
+    mu: the ``|f_t|/f_n`` estimate; beta: the ``|τ|/f_n`` estimate (m), only when the
+    torque ramp dominates; motion_source: ``"rig/truth"`` when the object's true
+    displacement/rotation marked the onset, else ``"none"`` (ratio drop only);
+    samples: usable F/T samples; merged: of those, how many shared a stamp with
+    another and were averaged into it.
+    Times are s from :attr:`RecordingSeries.t0_ns`.
+    """
+
+    mu: RampEstimate
+    beta: RampEstimate | None
+    torque_dominates: bool
+    motion_source: str
+    samples: int
+    merged: int = 0
+
+
+def _interp_truth(series: RecordingSeries, t_s: np.ndarray, column: str) -> np.ndarray:
+    """A truth column at times ``t_s`` (linear; NaN outside the truth's time span)."""
+    truth = series["rig/truth"]
+    return np.interp(t_s, truth["t_s"], truth[column].astype(float), left=np.nan, right=np.nan)
+
+
+def _merge_ties(t_s: np.ndarray, *columns: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Samples sharing a stamp averaged into one (a driver may stamp a burst of device
+    samples with one receive time); returns the unique times and the averaged columns."""
+    t, inverse, counts = np.unique(t_s, return_inverse=True, return_counts=True)
+    if t.size == t_s.size:
+        return (t_s, *(c.astype(float) for c in columns))
+    merged = []
+    for c in columns:
+        sums = np.zeros((t.size, *c.shape[1:]))
+        np.add.at(sums, inverse, c.astype(float))
+        merged.append(sums / counts.reshape(-1, *([1] * (c.ndim - 1))))
+    return (t, *merged)
+
+
+def identify_recording(series: RecordingSeries, config: IdentifyConfig = IdentifyConfig()) -> Identification:
+    """Run the ramp estimators on the usable F/T samples of ``series``.
+
+    Raises:
+        RecordingError: the recording has no usable ``ft/wrench`` samples.
+    """
+    if not series.has("ft/wrench") or not series["ft/wrench"]["usable"].any():
+        raise RecordingError(f"{series.path}: no usable ft/wrench samples (status ok, pad frame) to identify from")
+    w = series["ft/wrench"]
+    keep = w["usable"].astype(bool)
+    t, f_n, f_t, tau = _merge_ties(w["t_s"][keep], w["f_n"][keep], w["f_t"][keep], w["tau"][keep])
+    truth = series.has("rig/truth")
+    displacement = rotation = None
+    if truth:
+        displacement = np.column_stack([_interp_truth(series, t, "x"), _interp_truth(series, t, "y")])
+        rotation = _interp_truth(series, t, "theta")
+    torque_dominates = float(np.max(np.abs(tau))) / TORQUE_ARM_M > float(np.max(np.hypot(f_t[:, 0], f_t[:, 1])))
+    mu = identify_mu(t, f_n, f_t, displacement_m=displacement, config=config)
+    beta = identify_beta(t, f_n, tau, rotation_rad=rotation, config=config) if torque_dominates else None
+    return Identification(mu, beta, torque_dominates, "rig/truth" if truth else "none",
+                          int(keep.sum()), int(keep.sum() - t.size))
+
+
+def _estimate_lines(est: RampEstimate, symbol: str, scale: float, unit: str) -> list[str]:
+    unit_s = f" {unit}" if unit else ""
+    return [
+        f"  {symbol}_s = {est.static * scale:.3f} ± {est.static_se * scale:.3f}{unit_s}   "
+        f"{symbol}_d = {est.dynamic * scale:.3f} ± {est.dynamic_se * scale:.3f}{unit_s}",
+        f"  onset t = {est.onset_t_s:.3f} s (from {est.onset_source}; between "
+        f"{est.onset_interval_s[0]:.3f} and {est.onset_interval_s[1]:.3f} s)",
+        f"  status {est.status.value}: {est.message}" if est.message else f"  status {est.status.value}",
+        f"  {est.n_used} samples used, {est.n_rejected} rejected; ramp noise {est.noise_std * scale:.2g}{unit_s}, "
+        f"peak prominence {est.prominence * scale:.2g}{unit_s}",
+    ]
+
+
+def format_identification(ident: Identification) -> str:
+    """The identification as text: estimates ± standard errors, onset, status."""
+    load = "torque" if ident.torque_dominates else "tangential force"
+    merged = f" ({ident.merged} sharing a stamp averaged)" if ident.merged else ""
+    lines = [f"{ident.samples} F/T samples{merged}; the {load} ramp dominates; slip onset from "
+             + ("the object's true motion (rig/truth)" if ident.motion_source != "none" else "the ratio drop")]
+    lines.append("friction coefficient μ = |f_t|/f_n:")
+    lines += _estimate_lines(ident.mu, "μ", 1.0, "")
+    if ident.beta is not None:
+        lines.append("torsional coefficient β = |τ|/f_n:")
+        lines += _estimate_lines(ident.beta, "β", 1e3, "mm")
+    return "\n".join(lines)
+
+
+# -- summary ------------------------------------------------------------------------------
+
+def _spans(series: RecordingSeries, topic: str, mask: np.ndarray) -> list[tuple[float, float]]:
+    """Runs of ``mask`` over a topic's samples as ``(start, end)``, s from ``t0_ns``;
+    each run extends one sample period past its last sample (a lone sample shows)."""
+    stamps = series[topic]["stamp_ns"]
+    period = int(np.median(np.diff(stamps))) if stamps.size > 1 else 0
+    t0 = series.t0_ns
+    return [((e.start_ns - t0) / 1e9, (e.end_ns + period - t0) / 1e9) for e in find_episodes(stamps, mask)]
+
+
+def summarize(series: RecordingSeries) -> str:
+    """A few lines on what the recording shows (forces, verdicts, true slip)."""
+    lines = [f"{series.path.name}: {series.duration_s:.2f} s"]
+    if series.has("ft/wrench"):
+        w = series["ft/wrench"]
+        ok = w["usable"].astype(bool)
+        if ok.any():
+            f_t = np.hypot(w["f_t"][ok, 0], w["f_t"][ok, 1])
+            lines.append(f"  ft/wrench: {ok.sum()} usable of {ok.size}; f_n {w['f_n'][ok].min():.2f}..{w['f_n'][ok].max():.2f} N, "
+                         f"max |f_t| {f_t.max():.2f} N, max |τ| {np.abs(w['tau'][ok]).max() * 1e3:.2f} N·mm")
+        else:
+            lines.append(f"  ft/wrench: none of {ok.size} samples usable (status ok, pad frame)")
+    if series.has("slip"):
+        s = series["slip"]
+        slipping = np.isin(s["state"], list(SLIP_STATES))
+        spans = _spans(series, "slip", slipping)
+        first = f", first at {spans[0][0]:.2f} s" if spans else ""
+        lines.append(f"  slip ({s['method'][-1]}): slip verdicts on {slipping.mean():.0%} of {slipping.size} frames, "
+                     f"{len(spans)} episodes{first}")
+    if series.has("rig/truth"):
+        r = series["rig/truth"]
+        spans = _spans(series, "rig/truth", r["gross_slip"].astype(bool))
+        first = f", first at {spans[0][0]:.2f} s" if spans else ""
+        lines.append(f"  truth: {len(spans)} gross-slip episodes{first}; slip distance "
+                     f"{r['slip_distance_m'][-1] * 1e3:.2f} mm, angle {math.degrees(r['slip_angle_rad'][-1]):.2f} deg")
+    if series.has("grip/command"):
+        c = series["grip/command"]
+        lines.append(f"  grip/command: f_n desired {c['f_n_desired'].min():.2f}..{c['f_n_desired'].max():.2f} N")
+    if series.undecodable:
+        lines.append(f"  {series.undecodable} frames did not decode (skipped)")
+    return "\n".join(lines)
+
+
+# -- figure -------------------------------------------------------------------------------
+
+_MARGIN_FLOOR = -1.0  # margins below are drawn at this value (γ → ∞ gives −∞)
+
+
+def _panel_normal_force(ax, series: RecordingSeries) -> None:
+    if series.has("rig/truth"):
+        r = series["rig/truth"]
+        ax.plot(r["t_s"], r["f_n_applied"], color="black", lw=1.6, label="applied (truth)")
+    if series.has("grip/command"):
+        c = series["grip/command"]
+        ax.step(c["t_s"], c["f_n_desired"], where="post", color="tab:blue", lw=1.2, label="commanded (grip/command)")
+    elif series.has("rig/truth"):
+        r = series["rig/truth"]
+        ax.plot(r["t_s"], r["f_n_command"], color="tab:blue", lw=1.2, ls="--", label="commanded (rig)")
+    if series.has("ft/wrench"):
+        w = series["ft/wrench"]
+        ax.plot(w["t_s"], np.where(w["usable"], w["f_n"], np.nan), color="tab:orange", lw=0.8, alpha=0.8,
+                label="measured −f_z (F/T)")
+    ax.set_ylabel("normal force\n$f_n$ [N]")
+    ax.set_ylim(bottom=0.0)
+
+
+def _panel_load(ax, series: RecordingSeries, mu: float) -> list:
+    w = series["ft/wrench"]
+    ok = w["usable"].astype(bool)
+    f_t = np.where(ok, np.hypot(w["f_t"][:, 0], w["f_t"][:, 1]), np.nan)
+    ax.plot(w["t_s"], f_t, color="tab:red", lw=1.0, label="$|f_t|$")
+    ax.plot(w["t_s"], np.where(ok, mu * w["f_n"], np.nan), color="black", lw=1.0, ls="--",
+            label=f"$\\mu f_n$ ($\\mu$ = {mu:g})")
+    ax.set_ylabel("tangential\nload [N]")
+    ax.set_ylim(bottom=0.0)
+    twin = ax.twinx()
+    twin.plot(w["t_s"], np.where(ok, w["tau"] * 1e3, np.nan), color="tab:purple", lw=0.8, alpha=0.8,
+              label="torque $\\tau$")
+    twin.set_ylabel("torque $\\tau$ [N·mm]", color="tab:purple")
+    twin.tick_params(axis="y", colors="tab:purple")
+    return [twin]
+
+
+def _panel_verdict(ax, series: RecordingSeries) -> None:
+    from matplotlib.patches import Patch
+
+    handles = []
+    if series.has("slip"):
+        s = series["slip"]
+        margin = np.maximum(s["margin"].astype(float), _MARGIN_FLOOR)
+        handles += ax.plot(s["t_s"], margin, color="tab:green", lw=1.0,
+                           label=f"margin $1-\\gamma$ ({s['method'][-1]})")
+        for a, b in _spans(series, "slip", np.isin(s["state"], list(SLIP_STATES))):
+            ax.axvspan(a, b, ymin=0.5, ymax=1.0, color="tab:orange", alpha=0.35, lw=0)
+        handles.append(Patch(color="tab:orange", alpha=0.35, label="slip verdict (upper band)"))
+    if series.has("rig/truth"):
+        r = series["rig/truth"]
+        for a, b in _spans(series, "rig/truth", r["gross_slip"].astype(bool)):
+            ax.axvspan(a, b, ymin=0.0, ymax=0.5, color="tab:red", alpha=0.3, lw=0)
+        handles.append(Patch(color="tab:red", alpha=0.3, label="true gross slip (lower band)"))
+    ax.axhline(0.0, color="grey", lw=0.8)
+    lowest = float(np.min(margin)) if series.has("slip") else 0.0
+    ax.set_ylim(min(lowest, -0.25) - 0.05, 1.05)
+    ax.set_ylabel("stick margin\n$1-\\gamma$")
+    ax.legend(handles=handles, loc="lower left", fontsize=8, framealpha=0.9)
+
+
+def _panel_motion(ax, series: RecordingSeries) -> list:
+    r = series["rig/truth"]
+    ax.plot(r["t_s"], r["slip_distance_m"] * 1e3, color="tab:brown", lw=1.2, label="slip distance")
+    ax.set_ylabel("slip distance\n[mm]")
+    twin = ax.twinx()
+    twin.plot(r["t_s"], np.degrees(r["slip_angle_rad"].astype(float)), color="tab:cyan", lw=1.2, label="slip angle")
+    twin.set_ylabel("slip angle [deg]", color="tab:cyan")
+    twin.tick_params(axis="y", colors="tab:cyan")
+    return [twin]
+
+
+def _legend(ax, twins: list) -> None:
+    handles, labels = ax.get_legend_handles_labels()
+    for twin in twins:
+        h, lab = twin.get_legend_handles_labels()
+        handles, labels = handles + h, labels + lab
+    ax.legend(handles, labels, loc="upper left", fontsize=8, framealpha=0.9)
+
+
+def plot_report(series: RecordingSeries, out: str | Path, *, title: str | None = None, mu: float = 0.45) -> list[str]:
+    """Draw the figure to ``out`` (PNG); returns the names of the panels drawn.
+
+    Raises:
+        ImportError: matplotlib is missing.
+        RecordingError: none of the report's topics is in the recording.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    panels: list[tuple[str, Callable[[Any], list | None]]] = []
+    if series.has("rig/truth") or series.has("grip/command") or series.has("ft/wrench"):
+        panels.append(("normal force", lambda ax: _panel_normal_force(ax, series)))
+    if series.has("ft/wrench"):
+        panels.append(("tangential load", lambda ax: _panel_load(ax, series, mu)))
+    if series.has("slip") or series.has("rig/truth"):
+        panels.append(("slip verdict", lambda ax: _panel_verdict(ax, series)))
+    if series.has("rig/truth"):
+        panels.append(("object motion", lambda ax: _panel_motion(ax, series)))
+    if not panels:
+        raise RecordingError(f"{series.path}: no ft/wrench, slip, grip/command or rig/truth frames to plot")
+    fig, axes = plt.subplots(len(panels), 1, sharex=True, figsize=(10, 2.3 * len(panels) + 0.8), squeeze=False)
+    for ax, (name, draw) in zip(axes[:, 0], panels):
+        twins = draw(ax)
+        if name != "slip verdict":
+            _legend(ax, twins or [])
+        ax.grid(True, alpha=0.3)
+    axes[-1, 0].set_xlabel("time [s] (from the first sample stamp)")
+    axes[-1, 0].set_xlim(0.0, max(series.duration_s, 1e-3))
+    fig.suptitle(title or f"slipstack report — {series.path.name}")
+    fig.tight_layout()
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return [name for name, _ in panels]
+
+
+# -- command line -------------------------------------------------------------------------
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("report", help="paper-style figure or friction identification of a recording",
+                       description="Plot a recording as a paper-style figure (normal force, tangential load and "
+                                   "torque, slip verdict, object motion), or with --identify estimate μ_s, μ_d "
+                                   "(β_s, β_d) from a friction-ramp recording (slipstack launch fig4a / fig4b).")
+    p.add_argument("recording", metavar="RECORDING", help="an .mcap recording (slipstack launch / bag record)")
+    p.add_argument("-o", "--output", metavar="OUT.png", help="figure file (default: RECORDING with .png)")
+    p.add_argument("--title", help="figure title (default: the recording's name)")
+    p.add_argument("--mu", type=float, default=0.45, help="friction coefficient for the μ·f_n line (default 0.45)")
+    p.add_argument("--identify", action="store_true",
+                   help="friction identification from a ramp recording instead of a figure (no matplotlib needed)")
+    p.set_defaults(func=main_report)
+
+
+def main_report(args: argparse.Namespace) -> int:
+    """Run ``slipstack report``; returns the exit code (2: no matplotlib for a figure)."""
+    path = Path(args.recording)
+    if not path.is_file():
+        raise RecordingError(f"no recording at {path}")
+    if not args.identify:
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            print(f"slipstack report: {MATPLOTLIB_HINT}", file=sys.stderr)
+            return 2
+    series = load_series(path)
+    if args.identify:
+        print(format_identification(identify_recording(series)))
+        return 0
+    out = Path(args.output) if args.output else path.with_suffix(".png")
+    panels = plot_report(series, out, title=args.title, mu=args.mu)
+    print(out)
+    print(summarize(series))
+    print(f"  panels: {', '.join(panels)}")
+    return 0

@@ -1,0 +1,110 @@
+"""Must show 5 on the real stack: a recording made while the stack runs replays into
+a single node in isolation and reproduces that node's recorded outputs exactly.
+
+The fig15 graph (processes, sockets, emulated devices) runs a short fig15 scene to
+its end with the launch file's recorder writing every topic. The slip detector,
+built from the very parameters the launch gave it, is then fed the recorded
+``contact`` frames in the in-process executor (``replay_into``); every recorded
+``slip`` must come out the same.
+
+Which frames: the detector's input drains to the latest contact (``Input`` policy
+``latest``), so under load the live node skips some (counted as
+``in.contact.dropped`` on ``diagnostics``) and its state — the slip latch, the warm
+start of its COR solver — evolves over the contacts it handled. The replay is fed
+exactly those: each ``slip`` names its contact by stamp and sources and copies its
+load (``f_n``, ``f_t``, ``tau``), which identifies it even where two consecutive
+wrenches share a stamp (the F/T driver stamps some that way under load).
+Fed every recorded contact instead, the warm starts differ and γ, p_c differ in
+their last bits.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from slipstack.launch.launch_file import launch_files_dir, load_launch_file
+from slipstack.messages import Contact, Slip, decode
+from slipstack.nodes.bag_io import (RecordedFrame, RecordingWriter, clock_offset_ns, match_outputs, read_recording,
+                                    recording_info, replay_into)
+
+pytestmark = pytest.mark.e2e
+
+# fig15 shortened to 2.5 s: a 0.3 s hold, then a pull that makes it slip within 1 s.
+SEGMENTS = """
+[[disturbance.segments]]
+kind = "hold"
+duration_s = 0.3
+[[disturbance.segments]]
+kind = "ramp"
+duration_s = 0.7
+force_N = [0.0, 1.8]
+[[disturbance.segments]]
+kind = "hold"
+duration_s = 1.5
+"""
+
+
+def short_fig15(folder: Path) -> Path:
+    """A copy of the shipped fig15 scene, 2.5 s long, with an early pull."""
+    text = (launch_files_dir().parent / "scenes" / "fig15.toml").read_text()
+    head = text.split("[[disturbance.segments]]")[0]
+    head, n = re.subn(r"(?m)^duration_s = .*$", "duration_s = 2.5", head, count=1)
+    assert n == 1, "fig15.toml has no top-level duration_s"
+    path = folder / "fig15_short.toml"
+    path.write_text(head + SEGMENTS)
+    return path
+
+
+def _load_key(msg: Contact | Slip) -> tuple:
+    """What a ``slip`` copies from its ``contact``: stamps and the load (f_n, f_t, τ)."""
+    return (msg.header.stamp_ns, tuple(sorted(msg.header.sources.items())), msg.f_n, tuple(msg.f_t.tolist()), msg.tau)
+
+
+def handled_contacts(contacts: list[RecordedFrame], slips: list[Slip]) -> list[RecordedFrame]:
+    """The contact frames the live detector handled: those its ``slip`` outputs, in order, derive from."""
+    keys = iter([_load_key(s) for s in slips])
+    want = next(keys, None)
+    handled = []
+    for f in contacts:
+        if _load_key(decode(f.payload)) == want:
+            handled.append(f)
+            want = next(keys, None)
+    return handled
+
+
+def test_recorded_contact_replays_into_slip_detector_exactly(launch, run_root):
+    scene = short_fig15(run_root)
+    recording = run_root / "stack.mcap"
+    # record_topics:= (empty) records every topic; `record_topics:=[]` would record a topic named "[]".
+    args = [f"scene:={scene}", "record:=true", f"recording:={recording}", "record_topics:=", "monitor:=false"]
+    graph = launch("fig15", *args)
+    assert graph.proc.wait(60) == 0, graph.log()
+
+    info = recording_info(recording)
+    assert info.finished, info
+    assert {"contact", "slip", "cor", "grip/command"} <= set(info.topics), info.topics
+    contacts = info.topics["contact"]
+    assert contacts.seq_gaps == 0 and contacts.first_seq == 0, contacts  # from the first sample on
+
+    # The node the launch ran, with the parameters the launch gave it.
+    launched = load_launch_file("fig15", dict(a.split(":=", 1) for a in args), builtins={"run_dir": "/unused"})
+    (entry,) = [e for e in launched.nodes if e.name == "slip_detector"]
+    detector = entry.instance()
+
+    recorded = [decode(f.payload) for f in read_recording(recording, ["slip"])]
+    handled = handled_contacts(list(read_recording(recording, ["contact"])), recorded)
+    assert len(handled) == len(recorded) >= 0.5 * contacts.count, (len(handled), len(recorded), contacts.count)
+    inputs = run_root / "handled_contacts.mcap"
+    with RecordingWriter(inputs, wall_minus_monotonic_ns=clock_offset_ns(recording)) as writer:
+        for f in handled:
+            writer.write(f.topic, f.payload, f.log_time_ns)
+
+    replayed = replay_into(detector, inputs)["slip"]
+    result = match_outputs(recorded, replayed)
+    assert result.mismatches == [], result.mismatches[:5]
+    assert result.matched == len(recorded) == len(replayed), result
+    states = {m.state for m in recorded}
+    assert "stick" in states and states & {"translation", "rotation", "combined"}, states  # it saw a slip

@@ -1,0 +1,82 @@
+"""Regenerate (or check) the golden recordings of ``tests/isolation/golden/``.
+
+Run from the repository root::
+
+    .venv/bin/python tests/isolation/make_golden.py            # rewrite the golden files
+    .venv/bin/python tests/isolation/make_golden.py --check    # exit 1 if they are stale
+
+Each recording (``golden_config.GOLDENS``) is the whole stack run in lock-step on a
+short simulated scene (``nodes/lockstep.py``), every topic written as it was
+published: log_time = ``header.pub_ns`` (the in-process executor's clock, ns from
+the scene start) and ``wall_minus_monotonic_ns = 0``, so ``replay_into`` feeds each
+frame at the very time, and in the very order, the live node received it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from pathlib import Path
+
+from golden_config import GOLDEN_DIR, GOLDENS, Golden
+
+from slipstack.nodes.bag_io import RecordingWriter, peek_header, read_recording
+from slipstack.nodes.lockstep import LockstepStack
+
+__all__ = ["write_golden", "compare_recordings", "main"]
+
+
+def write_golden(golden: Golden, path: Path) -> dict[str, int]:
+    """Run ``golden``'s scene through the stack and record every topic to ``path``; topic → frames."""
+    stack = LockstepStack(golden.scene(), golden.stack_config())
+    try:
+        ex = stack.run()
+    finally:
+        stack.close()
+    with RecordingWriter(path, wall_minus_monotonic_ns=0) as writer:
+        for now, topic, payload in ex.raw:
+            head = peek_header(payload)
+            writer.write(topic, payload, head.pub_ns if head is not None else now)
+        return dict(writer.counts)
+
+
+def compare_recordings(a: Path, b: Path) -> list[str]:
+    """Differences between two recordings, frame by frame (topic, log time, payload bytes); [] if equal."""
+    fa, fb = list(read_recording(a, tolerant=False)), list(read_recording(b, tolerant=False))
+    diffs = [f"{len(fa)} vs {len(fb)} frames"] if len(fa) != len(fb) else []
+    for k, (x, y) in enumerate(zip(fa, fb)):
+        if (x.topic, x.log_time_ns, x.payload) != (y.topic, y.log_time_ns, y.payload):
+            diffs.append(f"frame {k}: {x.topic}@{x.log_time_ns} vs {y.topic}@{y.log_time_ns}"
+                         + ("" if x.payload == y.payload else " (payload differs)"))
+    return diffs
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter,
+                                epilog="Recordings: " + ", ".join(g.name for g in GOLDENS))
+    p.add_argument("--check", action="store_true",
+                   help="regenerate into a temporary folder and compare with the committed files (exit 1 if stale)")
+    p.add_argument("--out", type=Path, default=GOLDEN_DIR, help=f"output folder (default {GOLDEN_DIR})")
+    p.add_argument("--only", action="append", choices=[g.name for g in GOLDENS], help="only this recording")
+    args = p.parse_args(argv)
+    chosen = [g for g in GOLDENS if not args.only or g.name in args.only]
+    stale = 0
+    with tempfile.TemporaryDirectory(prefix="golden-") as tmp:
+        out = Path(tmp) if args.check else args.out
+        for g in chosen:
+            path = out / f"{g.name}.mcap"
+            counts = write_golden(g, path)
+            if args.check:
+                diffs = compare_recordings(g.path, path) if g.path.exists() else [f"{g.path} missing"]
+                stale += bool(diffs)
+                print(f"{g.path}: {'STALE: ' + '; '.join(diffs[:3]) if diffs else 'fresh'}")
+            else:
+                topics = ", ".join(f"{t} {n}" for t, n in sorted(counts.items()))
+                print(f"wrote {path} ({path.stat().st_size / 1024:.0f} KiB): {topics}")
+    return 1 if stale else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
