@@ -9,7 +9,8 @@ Format::
                               # file; this file's [args] override, its nodes are added
 
     [args]                    # launch arguments, overridden by `name:=value`
-    rate_hz = 1000.0          # built in: $(run_dir), this run's private directory
+    rate_hz = 1000.0          # built in: $(run_dir), this run's private directory, and
+                              # $(free_udp_port), a UDP port free on 127.0.0.1 now
 
     [[node]]
     name = "source"           # instance name (unique); topics/logs use it
@@ -24,6 +25,8 @@ Format::
     enabled = true            # may be "$(arg)": leave a node out of this run
     after = ["rig"]           # start only once these nodes are ready (besides the
                               # topic order: subscribers before publishers)
+    nice = -5                 # scheduling priority (needs the privilege to raise it;
+                              # without it the node runs at normal priority)
 
 A value that is exactly ``"$(name)"`` takes the argument's type; inside a longer
 string it is substituted as text.
@@ -32,6 +35,7 @@ string it is substituted as text.
 from __future__ import annotations
 
 import re
+import socket
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,11 +45,11 @@ from slipstack.lib.errors import ConfigError
 from slipstack.nodes.catalog import node_class
 from slipstack.nodes.node import Node, make_params
 
-__all__ = ["NodeEntry", "LaunchFile", "load_launch_file", "default_launch_file", "launch_files_dir"]
+__all__ = ["NodeEntry", "LaunchFile", "load_launch_file", "default_launch_file", "launch_files_dir", "free_port"]
 
 _SUBST = re.compile(r"\$\((\w+)\)")
 _NODE_KEYS = {"name", "type", "params", "remap", "respawn", "respawn_delay_s", "respawn_max_retries",
-              "required", "transport", "enabled", "after"}
+              "required", "transport", "enabled", "after", "nice"}
 
 
 @dataclass
@@ -63,6 +67,7 @@ class NodeEntry:
     required: bool = False
     transport: str = "ipc"
     after: list[str] = field(default_factory=list)
+    nice: int = 0
 
     def instance(self) -> Node:
         """Build the node object (validates the parameters)."""
@@ -140,6 +145,13 @@ def resolve_path(value: str, base: Path, folder: str) -> Path:
     raise ConfigError(f"cannot find {value!r} (looked next to {base} and in the shipped {folder}/)")
 
 
+def free_port(kind: int = socket.SOCK_STREAM) -> int:
+    """A port free on 127.0.0.1 now (TCP by default, UDP with ``socket.SOCK_DGRAM``)."""
+    with socket.socket(socket.AF_INET, kind) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
 def _read_with_base(p: Path, seen: tuple[Path, ...]) -> dict[str, Any]:
     """The TOML of ``p`` merged over the file it ``extends`` (recursively)."""
     if p in seen:
@@ -167,6 +179,7 @@ def load_launch_file(
 
     ``builtins`` are arguments the launcher provides (``run_dir``: this run's private
     directory, for device links and recordings); a file cannot override them.
+    ``free_udp_port`` (a UDP port free now) is always provided.
 
     Raises:
         ConfigError: naming the file and key that is wrong.
@@ -178,9 +191,14 @@ def load_launch_file(
         if name not in args:
             raise ConfigError(f"{p.name}: no launch argument {name!r}; declared: {', '.join(sorted(args)) or 'none'}")
         args[name] = _typed_override(args[name], text, name)
-    args.update(builtins or {})
-    # an argument may refer to others ("rdt://127.0.0.1:$(rdt_port)", "$(run_dir)/ft.tty")
-    args = {k: _substitute(v, args, f"{p.name}: args.{k}") for k, v in args.items()}
+    args.update({"free_udp_port": free_port(socket.SOCK_DGRAM), **(builtins or {})})
+    # an argument may refer to others ("rdt://127.0.0.1:$(rdt_port)", "$(run_dir)/ft.tty"),
+    # which may refer to others again: resolve until nothing changes
+    for _ in range(len(args)):
+        resolved = {k: _substitute(v, args, f"{p.name}: args.{k}") for k, v in args.items()}
+        if resolved == args:
+            break
+        args = resolved
     meta = data.get("launch", {})
     entries: list[NodeEntry] = []
     for k, raw in enumerate(data.get("node", [])):
@@ -202,7 +220,7 @@ def load_launch_file(
             respawn_delay_s=float(raw.get("respawn_delay_s", 0.5)),
             respawn_max_retries=int(raw.get("respawn_max_retries", 3)),
             required=bool(raw.get("required", False)), transport=raw.get("transport", "ipc"),
-            after=list(raw.get("after", [])),
+            after=list(raw.get("after", [])), nice=int(raw.get("nice", 0)),
         )
         entry.instance()  # fail now, naming the node, if a parameter is wrong
         entries.append(entry)

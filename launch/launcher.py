@@ -16,7 +16,6 @@ import os
 import selectors
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -28,7 +27,7 @@ import msgpack
 import zmq
 
 from slipstack.lib.errors import ConfigError, SlipstackError
-from slipstack.launch.launch_file import LaunchFile, NodeEntry, load_launch_file
+from slipstack.launch.launch_file import LaunchFile, NodeEntry, free_port, load_launch_file
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.messages import Diagnostics
 from slipstack.nodes.graph_info import write_graph
@@ -41,12 +40,6 @@ READY_TIMEOUT_S = 20.0
 STOP_GRACE_S = 0.4       # per node, after SIGINT, before the next node is told to stop
 TERM_AFTER_S = 1.5       # from the start of shutdown: SIGTERM whoever is left
 KILL_AFTER_S = 2.5       # from the start of shutdown: SIGKILL whoever is left
-
-
-def _free_tcp_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @dataclass
@@ -107,7 +100,7 @@ class Launcher:
     def _wire(self) -> None:
         nodes = {e.name: e.instance() for e in self.launch.nodes}
         for e in self.launch.nodes:
-            ep = f"tcp://127.0.0.1:{_free_tcp_port()}" if e.transport == "tcp" else ipc_endpoint(self.run_dir, e.name)
+            ep = f"tcp://127.0.0.1:{free_port()}" if e.transport == "tcp" else ipc_endpoint(self.run_dir, e.name)
             child = _Child(e, ep, self.run_dir / f"{e.name}.spec.json")
             child.outputs = {t: nodes[e.name].outputs[n].type.TYPE for n, t in e.output_topics(nodes[e.name]).items()}
             child.outputs[DIAGNOSTICS_TOPIC] = Diagnostics.TYPE  # every node publishes it
@@ -180,9 +173,19 @@ class Launcher:
     def _spawn(self, c: _Child) -> None:
         cmd = [sys.executable, "-m", "slipstack.launch.cli", "run", c.entry.type, "--spec", str(c.spec_path)]
         env = dict(os.environ, PYTHONUNBUFFERED="1", SLIPSTACK_RUN_DIR=str(self.run_dir))
+        nice = c.entry.nice
+
+        def in_child() -> None:
+            set_parent_death_signal()
+            if nice:
+                try:
+                    os.nice(nice)
+                except OSError:  # raising priority needs the privilege: run at normal priority
+                    pass
+
         c.proc = subprocess.Popen(
             cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-            env=env, preexec_fn=set_parent_death_signal, start_new_session=True,
+            env=env, preexec_fn=in_child, start_new_session=True,
         )
         os.set_blocking(c.proc.stdout.fileno(), False)
         self.selector.register(c.proc.stdout, selectors.EVENT_READ, c)
@@ -346,14 +349,15 @@ def main_launch(args: argparse.Namespace) -> int:
         file = None
     run_dir = make_run_dir()
     try:
-        launch = load_launch_file(file, parse_assignments(positional), builtins={"run_dir": str(run_dir)})
+        builtins = {"run_dir": str(run_dir)}
+        launch = load_launch_file(file, parse_assignments(positional), builtins=builtins)
     except SlipstackError:
         shutil.rmtree(run_dir, ignore_errors=True)
         raise
     if args.show_args:
         shutil.rmtree(run_dir, ignore_errors=True)
         for name, value in launch.args.items():
-            if name != "run_dir":
+            if name not in ("run_dir", "free_udp_port"):
                 print(f"{name} := {value!r}")
         return 0
     return Launcher(launch, run_dir).run()

@@ -47,7 +47,10 @@ def wrench_to_pad(
     """
     f = np.asarray(R_FS, dtype=float) @ np.asarray(force_S, dtype=float)
     t = np.asarray(R_FS, dtype=float) @ np.asarray(torque_S, dtype=float)
-    return f, t + np.cross(np.asarray(p_SF, dtype=float), f)
+    x, y, z = (float(v) for v in p_SF)
+    a, b, c = (float(v) for v in f)
+    # p × f written out: np.cross costs ~5x more on 3-vectors, at every F/T sample
+    return f, t + np.array((y * c - z * b, z * a - x * c, x * b - y * a))
 
 
 @dataclass(frozen=True)
