@@ -15,6 +15,8 @@ A :class:`DeviceDriver` owns one back-end chosen by URL
 - while the back-end is not ``ok`` the driver publishes a *status message* (the
   subclass's last good values with status ``stale`` / ``disconnected``) at once on
   the change and then every ``stale_status_period_ms``, so consumers can hold;
+- samples decoded in one read get stamps stepped back from the read's time by the
+  nominal sample period (strictly increasing), not one shared stamp;
 - the back-end's counters are mirrored into ``diagnostics`` as ``device.<name>``
   (``device.frames``, ``device.crc_errors``, ``device.rejected_bytes``,
   ``device.reconnects``, …), and the node status is the link status.
@@ -25,6 +27,7 @@ Subclasses set ``kind`` ("ft" or "tactile") and implement :meth:`on_sample` and
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -70,6 +73,7 @@ class DeviceDriver(Node):
         self._sources: list[IoSource] = []
         self._seen: dict[str, int] = {}
         self._next_sync_ns = 0
+        self._last_stamp_ns = -1
 
     # -- to implement --------------------------------------------------------------------
     def on_sample(self, sample: Sample, ctx: Context) -> None:
@@ -127,8 +131,23 @@ class DeviceDriver(Node):
     def _poll(self, ctx: Context) -> None:
         samples = self.backend.poll(ctx.now_ns())
         self._after_poll(ctx)  # link status first, so a sample's own status (size mismatch) wins
-        for sample in samples:
+        for sample in self._spread_stamps(samples):
             self.on_sample(sample, ctx)
+
+    def _spread_stamps(self, samples: list[Sample]) -> list[Sample]:
+        """Samples read together all carry the read's time; the earlier ones were sent
+        earlier. Step them back by the nominal period (never before the previous stamp),
+        so stamps strictly increase and say roughly when each sample arrived."""
+        if not samples:
+            return samples
+        period = round(1e9 / self.backend.rate_hz)
+        last = samples[-1].stamp_ns
+        out = []
+        for k, sample in enumerate(samples):
+            stamp = max(last - (len(samples) - 1 - k) * period, self._last_stamp_ns + 1)
+            self._last_stamp_ns = stamp
+            out.append(dataclasses.replace(sample, stamp_ns=stamp) if stamp != sample.stamp_ns else sample)
+        return out
 
     def _after_poll(self, ctx: Context) -> None:
         status = self.backend.status.value

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from slipstack.lib.detection import DetectorConfig
 from slipstack.lib.grip_laws import LAWS, GripDecision, GripGovernor, GripInput, GripReason, make_law
 from slipstack.messages import Contact, Cor, GripCommand, Slip
 from slipstack.nodes.contact_view import pad_positions
@@ -35,8 +36,10 @@ class GripControllerParams:
     k_n: float = field(default=2.0, metadata={"help": "offset k (N) of law (13)"})
     increment: str = field(default="total", metadata={"help": "(14): 'total' N_A*dphi or 'per_taxel' dphi"})
     decay_n_per_s: float = field(default=0.0, metadata={"help": "(14): release rate while (11) holds (N/s)"})
-    delta: float = field(default=0.18, metadata={
+    delta: float = field(default=DetectorConfig.delta, metadata={
         "help": "(14): onset band of MATH.md 3.1: (11) counts as failing once |n| > (1 - delta) T"})
+    gamma_release: float = field(default=DetectorConfig.gamma_release, metadata={
+        "help": "(14): while the detector reports slip, (11) counts as failing once |n| > gamma_release T"})
     max_rate_n_per_s: float = field(default=200.0, metadata={"help": "actuator slew limit (N/s)"})
     timeout_ms: float = field(default=20.0, metadata={"help": "inputs older than this hold the grip (ms)"})
 
@@ -111,9 +114,11 @@ class GripController(Node):
             n_contact = int(np.count_nonzero(c.mask)) if c.mask.size else 0
             if r.case in ("rotation", "on-taxel") and c.phi.size:
                 dist = np.linalg.norm(pad_positions(c.rows, c.cols, c.pitch_m)[c.mask] - r.p_c, axis=1)
-                # measured loads never exceed the capacity (MATH.md 3.1): (11) "fails" at the
-                # onset band, so the law sees the capacity less the band
-                n_c, t_c, sum_dist = r.load_torque, (1.0 - self.params.delta) * r.torque_capacity, float(dist.sum())
+                # Measured loads never exceed the capacity (MATH.md 3.1): (11) "fails" at the
+                # onset band, and, once the detector reports slip, as long as the load stays
+                # above its release level (sliding friction holds γ near μ_d/μ_s < 1 − δ).
+                level = self.params.gamma_release if s.state not in ("stick", "no-contact") else 1.0 - self.params.delta
+                n_c, t_c, sum_dist = r.load_torque, level * r.torque_capacity, float(dist.sum())
             else:  # translation or no COR: (11) cannot fail by rotation; hold
                 n_c, t_c, sum_dist = 0.0, 1.0, 1.0
         inp = GripInput(f_t=(float(s.f_t[0]), float(s.f_t[1])), tau=s.tau, f_n=s.f_n, gamma=s.gamma,

@@ -3,8 +3,9 @@
     slipstack report RECORDING [-o OUT.png] [--title T] [--mu MU]
     slipstack report RECORDING --identify
 
-The figure (matplotlib, Agg) stacks up to four panels on one time axis, s from the
-first sample stamp of the recording (``header.stamp_ns``, the sensor-sample clock):
+The figure (matplotlib, Agg) stacks up to four panels on one time axis: sample
+stamps (``header.stamp_ns``), s from the scene start (the first ``rig/truth`` sample;
+on hardware, the first usable F/T sample):
 
 1. normal force, N: applied by the finger (``rig/truth``), commanded
    (``grip/command``, else the rig's own command) and measured by the F/T sensor
@@ -28,25 +29,39 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
-
 from slipstack.lib.episodes import find_episodes
 from slipstack.lib.errors import DecodeError
-from slipstack.lib.identify import IdentifyConfig, RampEstimate, identify_beta, identify_mu
+from slipstack.lib.identify import (
+    IdentifyConfig,
+    RampEstimate,
+    identify_beta,
+    identify_mu,
+)
 from slipstack.messages import STATUS_OK, Message, decode
 from slipstack.nodes.bag_io import RecordingError, read_recording
 
 __all__ = [
-    "TORQUE_ARM_M", "SLIP_STATES", "RecordingSeries", "load_series", "Identification",
-    "identify_recording", "format_identification", "summarize", "plot_report", "add_parser",
+    "SLIP_STATES",
+    "TORQUE_ARM_M",
+    "Identification",
+    "RecordingSeries",
+    "add_parser",
+    "format_identification",
+    "identify_recording",
+    "load_series",
+    "plot_report",
+    "summarize",
 ]
 
 TORQUE_ARM_M = 0.01
-"""Lever arm (m, half the 16 × 1.25 mm pad) comparing a torque ramp with a force ramp."""
+"""Lever arm (m, half the 16 × 1.25 mm pad) comparing a torque with a force: which ramp
+dominates, and the least torque-axis span (the force axis' span × this) in the figure."""
 
 SLIP_STATES = frozenset({"translation", "rotation", "combined"})
 """``slip.state`` values that are a slip verdict."""
@@ -69,7 +84,7 @@ _COLUMNS: dict[str, dict[str, _Column]] = {
     },
     "slip": {
         "state": lambda m: m.state, "margin": lambda m: m.margin, "gamma": lambda m: m.gamma,
-        "method": lambda m: m.method,
+        "method": lambda m: m.method, "ok": lambda m: m.status == STATUS_OK,
     },
     "grip/command": {"f_n_desired": lambda m: m.f_n_desired, "reason": lambda m: m.reason},
 }
@@ -81,7 +96,9 @@ class RecordingSeries:
 
     Attributes:
         path: the recording.
-        t0_ns: the earliest sample stamp of the loaded topics, ns (time zero).
+        t0_ns: time zero, ns: the first ``rig/truth`` stamp (the scene's start) if the
+            recording has truth, else the first usable F/T stamp, else the earliest
+            stamp. Samples before it get negative times.
         topics: topic → column → array; every topic has ``stamp_ns`` (int64, ns) and
             ``t_s`` (s from ``t0_ns``), sorted by stamp; columns are those of
             :data:`_COLUMNS` (``ft/wrench``: ``usable`` is False for a sample not ``ok``
@@ -102,7 +119,21 @@ class RecordingSeries:
 
     @property
     def duration_s(self) -> float:
+        """s from ``t0_ns`` to the last ``rig/truth`` sample (the scene's end) if the
+        recording has truth, else to its last sample."""
+        if self.has("rig/truth"):
+            return float(self["rig/truth"]["t_s"][-1])
         return max((float(c["t_s"][-1]) for c in self.topics.values()), default=0.0)
+
+    def within_scene(self) -> RecordingSeries:
+        """The samples with ``0 <= t_s <= duration_s`` (drops start-up and shut-down frames)."""
+        end = self.duration_s
+        topics = {}
+        for topic, cols in self.topics.items():
+            keep = (cols["t_s"] >= 0.0) & (cols["t_s"] <= end)
+            if keep.any():
+                topics[topic] = {name: column[keep] for name, column in cols.items()}
+        return RecordingSeries(self.path, self.t0_ns, topics, self.undecodable)
 
 
 def load_series(path: str | Path) -> RecordingSeries:
@@ -127,7 +158,12 @@ def load_series(path: str | Path) -> RecordingSeries:
         for name, get in _COLUMNS[topic].items():
             cols[name] = np.array([get(m) for m in messages])
         topics[topic] = cols
-    t0 = min((int(c["stamp_ns"][0]) for c in topics.values()), default=0)
+    if "rig/truth" in topics:
+        t0 = int(topics["rig/truth"]["stamp_ns"][0])
+    elif "ft/wrench" in topics and topics["ft/wrench"]["usable"].any():
+        t0 = int(topics["ft/wrench"]["stamp_ns"][np.argmax(topics["ft/wrench"]["usable"])])
+    else:
+        t0 = min((int(c["stamp_ns"][0]) for c in topics.values()), default=0)
     for cols in topics.values():
         cols["t_s"] = (cols["stamp_ns"] - t0) / 1e9
     return RecordingSeries(Path(path), t0, topics, undecodable)
@@ -141,7 +177,8 @@ class Identification:
 
     mu: the ``|f_t|/f_n`` estimate; beta: the ``|τ|/f_n`` estimate (m), only when the
     torque ramp dominates; motion_source: ``"rig/truth"`` when the object's true
-    displacement/rotation marked the onset, else ``"none"`` (ratio drop only);
+    displacement/rotation was given to the estimators (``onset_source`` of each
+    estimate says what set the onset), else ``"none"`` (ratio drop only);
     samples: usable F/T samples; merged: of those, how many shared a stamp with
     another and were averaged into it.
     Times are s from :attr:`RecordingSeries.t0_ns`.
@@ -175,8 +212,9 @@ def _merge_ties(t_s: np.ndarray, *columns: np.ndarray) -> tuple[np.ndarray, ...]
     return (t, *merged)
 
 
-def identify_recording(series: RecordingSeries, config: IdentifyConfig = IdentifyConfig()) -> Identification:
-    """Run the ramp estimators on the usable F/T samples of ``series``.
+def identify_recording(series: RecordingSeries, config: IdentifyConfig | None = None) -> Identification:
+    """Run the ramp estimators on the usable F/T samples of ``series`` (``config``:
+    estimator settings, default :class:`IdentifyConfig`).
 
     Raises:
         RecordingError: the recording has no usable ``ft/wrench`` samples.
@@ -192,23 +230,35 @@ def identify_recording(series: RecordingSeries, config: IdentifyConfig = Identif
         displacement = np.column_stack([_interp_truth(series, t, "x"), _interp_truth(series, t, "y")])
         rotation = _interp_truth(series, t, "theta")
     torque_dominates = float(np.max(np.abs(tau))) / TORQUE_ARM_M > float(np.max(np.hypot(f_t[:, 0], f_t[:, 1])))
+    config = config or IdentifyConfig()
     mu = identify_mu(t, f_n, f_t, displacement_m=displacement, config=config)
     beta = identify_beta(t, f_n, tau, rotation_rad=rotation, config=config) if torque_dominates else None
     return Identification(mu, beta, torque_dominates, "rig/truth" if truth else "none",
                           int(keep.sum()), int(keep.sum() - t.size))
 
 
+def _value_se(value: float, se: float) -> str:
+    """``value ± se`` with 3 decimals, or more (up to 6) so that ``se`` shows 2 significant digits."""
+    decimals = 3
+    if math.isfinite(se) and se > 0.0:
+        decimals = min(max(decimals, 1 - math.floor(math.log10(se))), 6)
+    return f"{value:.{decimals}f} ± {se:.{decimals}f}"
+
+
 def _estimate_lines(est: RampEstimate, symbol: str, scale: float, unit: str) -> list[str]:
     unit_s = f" {unit}" if unit else ""
-    return [
-        f"  {symbol}_s = {est.static * scale:.3f} ± {est.static_se * scale:.3f}{unit_s}   "
-        f"{symbol}_d = {est.dynamic * scale:.3f} ± {est.dynamic_se * scale:.3f}{unit_s}",
-        f"  onset t = {est.onset_t_s:.3f} s (from {est.onset_source}; between "
-        f"{est.onset_interval_s[0]:.3f} and {est.onset_interval_s[1]:.3f} s)",
-        f"  status {est.status.value}: {est.message}" if est.message else f"  status {est.status.value}",
-        f"  {est.n_used} samples used, {est.n_rejected} rejected; ramp noise {est.noise_std * scale:.2g}{unit_s}, "
-        f"peak prominence {est.prominence * scale:.2g}{unit_s}",
-    ]
+    static = _value_se(est.static * scale, est.static_se * scale)
+    dynamic = _value_se(est.dynamic * scale, est.dynamic_se * scale)
+    if math.isfinite(est.onset_t_s):
+        low, high = est.onset_interval_s
+        onset = f"  onset t = {est.onset_t_s:.3f} s (from {est.onset_source}; between {low:.3f} and {high:.3f} s)"
+    else:
+        onset = "  onset: none found"
+    status = f"  status {est.status.value}: {est.message}" if est.message else f"  status {est.status.value}"
+    extras = "".join(f"; {label} {value * scale:.2g}{unit_s}" for label, value in
+                     (("ramp noise", est.noise_std), ("peak prominence", est.prominence)) if math.isfinite(value))
+    used = f"  {est.n_used} samples used, {est.n_rejected} rejected{extras}"
+    return [f"  {symbol}_s = {static}{unit_s}   {symbol}_d = {dynamic}{unit_s}", onset, status, used]
 
 
 def format_identification(ident: Identification) -> str:
@@ -216,7 +266,8 @@ def format_identification(ident: Identification) -> str:
     load = "torque" if ident.torque_dominates else "tangential force"
     merged = f" ({ident.merged} sharing a stamp averaged)" if ident.merged else ""
     lines = [f"{ident.samples} F/T samples{merged}; the {load} ramp dominates; slip onset from "
-             + ("the object's true motion (rig/truth)" if ident.motion_source != "none" else "the ratio drop")]
+             + ("the ratio drop or the object's true motion (rig/truth)" if ident.motion_source != "none"
+                else "the ratio drop")]
     lines.append("friction coefficient μ = |f_t|/f_n:")
     lines += _estimate_lines(ident.mu, "μ", 1.0, "")
     if ident.beta is not None:
@@ -237,8 +288,10 @@ def _spans(series: RecordingSeries, topic: str, mask: np.ndarray) -> list[tuple[
 
 
 def summarize(series: RecordingSeries) -> str:
-    """A few lines on what the recording shows (forces, verdicts, true slip)."""
+    """A few lines on what the recording shows over ``[0, duration_s]`` (forces,
+    verdicts, true slip)."""
     lines = [f"{series.path.name}: {series.duration_s:.2f} s"]
+    series = series.within_scene()
     if series.has("ft/wrench"):
         w = series["ft/wrench"]
         ok = w["usable"].astype(bool)
@@ -272,6 +325,7 @@ def summarize(series: RecordingSeries) -> str:
 # -- figure -------------------------------------------------------------------------------
 
 _MARGIN_FLOOR = -1.0  # margins below are drawn at this value (γ → ∞ gives −∞)
+_HEADROOM = 1.25  # axes with a top legend span this × the data's range
 
 
 def _panel_normal_force(ax, series: RecordingSeries) -> None:
@@ -286,8 +340,8 @@ def _panel_normal_force(ax, series: RecordingSeries) -> None:
         ax.plot(r["t_s"], r["f_n_command"], color="tab:blue", lw=1.2, ls="--", label="commanded (rig)")
     if series.has("ft/wrench"):
         w = series["ft/wrench"]
-        ax.plot(w["t_s"], np.where(w["usable"], w["f_n"], np.nan), color="tab:orange", lw=0.8, alpha=0.8,
-                label="measured −f_z (F/T)")
+        ok = w["usable"].astype(bool)
+        ax.plot(w["t_s"][ok], w["f_n"][ok], color="tab:orange", lw=0.8, alpha=0.8, label="measured −f_z (F/T)")
     ax.set_ylabel("normal force\n$f_n$ [N]")
     ax.set_ylim(bottom=0.0)
 
@@ -295,15 +349,18 @@ def _panel_normal_force(ax, series: RecordingSeries) -> None:
 def _panel_load(ax, series: RecordingSeries, mu: float) -> list:
     w = series["ft/wrench"]
     ok = w["usable"].astype(bool)
-    f_t = np.where(ok, np.hypot(w["f_t"][:, 0], w["f_t"][:, 1]), np.nan)
-    ax.plot(w["t_s"], f_t, color="tab:red", lw=1.0, label="$|f_t|$")
-    ax.plot(w["t_s"], np.where(ok, mu * w["f_n"], np.nan), color="black", lw=1.0, ls="--",
-            label=f"$\\mu f_n$ ($\\mu$ = {mu:g})")
+    t = w["t_s"][ok]
+    ax.plot(t, np.hypot(w["f_t"][ok, 0], w["f_t"][ok, 1]), color="tab:red", lw=1.0, label="$|f_t|$")
+    ax.plot(t, mu * w["f_n"][ok], color="black", lw=1.0, ls="--", label=f"$\\mu f_n$ ($\\mu$ = {mu:g})")
     ax.set_ylabel("tangential\nload [N]")
     ax.set_ylim(bottom=0.0)
     twin = ax.twinx()
-    twin.plot(w["t_s"], np.where(ok, w["tau"] * 1e3, np.nan), color="tab:purple", lw=0.8, alpha=0.8,
-              label="torque $\\tau$")
+    tau_nmm = w["tau"][ok] * 1e3
+    twin.plot(t, tau_nmm, color="tab:purple", lw=0.8, alpha=0.8, label="torque $\\tau$")
+    if tau_nmm.size:  # at least the force axis' span times the lever arm: sensor noise stays small
+        span = max(float(np.ptp(tau_nmm)), ax.get_ylim()[1] * TORQUE_ARM_M * 1e3) * 1.05
+        middle = 0.5 * (float(tau_nmm.max()) + float(tau_nmm.min()))
+        twin.set_ylim(middle - span / 2, middle + span / 2)
     twin.set_ylabel("torque $\\tau$ [N·mm]", color="tab:purple")
     twin.tick_params(axis="y", colors="tab:purple")
     return [twin]
@@ -315,8 +372,9 @@ def _panel_verdict(ax, series: RecordingSeries) -> None:
     handles = []
     if series.has("slip"):
         s = series["slip"]
-        margin = np.maximum(s["margin"].astype(float), _MARGIN_FLOOR)
-        handles += ax.plot(s["t_s"], margin, color="tab:green", lw=1.0,
+        ok = s["ok"].astype(bool) & (s["state"] != "no-contact")  # stale or no contact: no margin
+        margin = np.maximum(s["margin"][ok].astype(float), _MARGIN_FLOOR)
+        handles += ax.plot(s["t_s"][ok], margin, color="tab:green", lw=1.0,
                            label=f"margin $1-\\gamma$ ({s['method'][-1]})")
         for a, b in _spans(series, "slip", np.isin(s["state"], list(SLIP_STATES))):
             ax.axvspan(a, b, ymin=0.5, ymax=1.0, color="tab:orange", alpha=0.35, lw=0)
@@ -327,10 +385,10 @@ def _panel_verdict(ax, series: RecordingSeries) -> None:
             ax.axvspan(a, b, ymin=0.0, ymax=0.5, color="tab:red", alpha=0.3, lw=0)
         handles.append(Patch(color="tab:red", alpha=0.3, label="true gross slip (lower band)"))
     ax.axhline(0.0, color="grey", lw=0.8)
-    lowest = float(np.min(margin)) if series.has("slip") else 0.0
+    lowest = float(np.min(margin)) if series.has("slip") and margin.size else 0.0
     ax.set_ylim(min(lowest, -0.25) - 0.05, 1.05)
     ax.set_ylabel("stick margin\n$1-\\gamma$")
-    ax.legend(handles=handles, loc="lower left", fontsize=8, framealpha=0.9)
+    ax.legend(handles=handles, loc="lower left", ncol=len(handles), fontsize=8, framealpha=0.9)
 
 
 def _panel_motion(ax, series: RecordingSeries) -> list:
@@ -345,15 +403,23 @@ def _panel_motion(ax, series: RecordingSeries) -> list:
 
 
 def _legend(ax, twins: list) -> None:
+    """One legend row at the top of the panel, over the headroom left free above the data."""
     handles, labels = ax.get_legend_handles_labels()
-    for twin in twins:
-        h, lab = twin.get_legend_handles_labels()
-        handles, labels = handles + h, labels + lab
-    ax.legend(handles, labels, loc="upper left", fontsize=8, framealpha=0.9)
+    for axis in [ax, *twins]:
+        low, high = axis.get_ylim()
+        axis.set_ylim(low, low + _HEADROOM * (high - low))
+        if axis is not ax:
+            h, lab = axis.get_legend_handles_labels()
+            handles, labels = handles + h, labels + lab
+    legend = ax.legend(handles, labels, loc="upper left", ncol=len(handles), fontsize=8, framealpha=0.9)
+    if twins:  # drawn above the twin's lines
+        legend.remove()
+        twins[-1].add_artist(legend)
 
 
 def plot_report(series: RecordingSeries, out: str | Path, *, title: str | None = None, mu: float = 0.45) -> list[str]:
-    """Draw the figure to ``out`` (PNG); returns the names of the panels drawn.
+    """Draw the figure of the scene's span (:meth:`RecordingSeries.within_scene`) to
+    ``out`` (PNG); returns the names of the panels drawn.
 
     Raises:
         ImportError: matplotlib is missing.
@@ -364,6 +430,7 @@ def plot_report(series: RecordingSeries, out: str | Path, *, title: str | None =
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    series = series.within_scene()
     panels: list[tuple[str, Callable[[Any], list | None]]] = []
     if series.has("rig/truth") or series.has("grip/command") or series.has("ft/wrench"):
         panels.append(("normal force", lambda ax: _panel_normal_force(ax, series)))
@@ -381,7 +448,8 @@ def plot_report(series: RecordingSeries, out: str | Path, *, title: str | None =
         if name != "slip verdict":
             _legend(ax, twins or [])
         ax.grid(True, alpha=0.3)
-    axes[-1, 0].set_xlabel("time [s] (from the first sample stamp)")
+    axes[-1, 0].set_xlabel("time [s] (from the scene start)" if series.has("rig/truth")
+                           else "time [s] (from the first F/T sample)")
     axes[-1, 0].set_xlim(0.0, max(series.duration_s, 1e-3))
     fig.suptitle(title or f"slipstack report — {series.path.name}")
     fig.tight_layout()
