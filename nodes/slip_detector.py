@@ -85,8 +85,12 @@ class SlipDetector(Node):
         v = self.test(view, ft_params if self.params.method in _FT_TESTS else self.slip_params, self._warm)
         if v.p_c is not None:
             self._warm = v.p_c
-        in_contact = msg.status == "ok" and v.kind != "no-contact"
-        slipping = self.latch.update(stamp, v.margin if v.status.usable else float("nan"), in_contact=in_contact)
+        # Stale or invalid input, or a tactile test without a tactile frame, says nothing
+        # new: the latch keeps its state (never "released" by a sensor hiccup); only a
+        # real loss of contact clears it.
+        fresh = msg.status == "ok" and v.status.usable and (msg.has_tactile or self.params.method in _FT_TESTS)
+        in_contact = v.kind != "no-contact" if fresh else msg.status != "no_contact"
+        slipping = self.latch.update(stamp, v.margin if fresh else float("nan"), in_contact=in_contact)
         verdicts = {v.method: [v.stick, v.margin]}
         for name, test in self.others:
             o = test(view, ft_params, None)
