@@ -1,0 +1,312 @@
+#!/usr/bin/env python3
+"""Grip economy: how much normal force each grip law spends to hold a disturbance.
+
+For each scene and grip law the whole stack runs in lock-step with the simulated rig
+(:class:`slipstack.nodes.lockstep.LockstepStack`, controller on, F/T 500 Hz, tactile
+250 Hz, truth 250 Hz). Laws (MATH.md §5, parameters of launch/files/stack.toml:
+μ = 0.45, σ = 0.5, f_nom = 2 N, f_max = the scene's finger limit):
+
+* ``ft13`` — F/T only, paper (13) ``|f_t|/μ + |τ|/β + k`` (k = 2 N), no tactile
+  driver; ``β`` = the contact's true ``β_s`` at the initial grip (what the paper's
+  Fig. 4b identification gives), from the simulator's pressure with
+  :func:`slipstack.lib.limit_set.torsional_coefficient`; slip test ``linear_ls``.
+* ``tactile14`` — both sensors, paper (14), at the grip controller's default onset
+  band ``delta``; slip test ``exact``, exact COR solver.
+* ``tactile14:delta=0.25`` — (14) with the band set above ``1 − μ_d/μ_s = 0.2``:
+  once the contact slides it transmits only ``μ_d/μ_s = 0.8`` of the static
+  capacity, so with a narrower band test (11) stops failing and (14) stops raising
+  while the object keeps sliding.
+* ``exact`` — both sensors, ``γ f_n / σ``; slip test ``exact``.
+  (``linear`` and ``ft13_sigma`` may be named too; they run F/T-only like ``ft13``;
+  ``law:param=value,...`` sets grip_controller parameters.)
+
+Reported per run: time-mean and peak commanded ``f_n``, time-mean applied ``f_n``,
+whether the object held (from the rig's truth: slip distance < 0.5 mm and slip angle
+< 0.5° accumulated in gross slip), and the **oracle**: at each truth sample the least
+normal force that holds the *true* load (``load_f_t``, ``load_tau``) with ``μ = μ_s``
+and the *true* pressure (the simulator's pressure model at the true pose) —
+``f* = γ_true·f_n`` for a shape that scales with the force, the fixed point
+``γ(φ(f*)) = 1`` for a force-dependent (Hertzian) one (:mod:`slipstack.lib.oracle`).
+A law's economy is its mean force over the oracle's mean on the same run.
+
+The oracle is not floored at ``f_nom`` (it is 0 with no load), so even a perfect law
+with ``f_nom = 2 N`` shows a ratio above 1; the ``≥f_nom`` column gives the oracle
+floored at ``f_nom`` for that comparison. A run that slips transmits only the
+friction it gets, so its oracle under-states the load: compare ratios of held runs.
+
+Examples:
+    .venv/bin/python tests/bench/bench_grip_economy.py --png /tmp/grip_economy_fig15.png   # ~7 min
+    .venv/bin/python tests/bench/bench_grip_economy.py --scenes fig15 --laws ft13 tactile14 \\
+        --png /tmp/grip_economy_fig15.png --cache /tmp/grip_economy
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from slipstack.lib.limit_set import torsional_coefficient
+from slipstack.lib.oracle import least_holding_force, oracle_normal_force
+from slipstack.lib.rig.contact import PressureModel
+from slipstack.lib.rig.scene import Scene
+from slipstack.nodes.lockstep import LockstepStack, StackConfig, load_scene_by_name
+from slipstack.nodes.rig import with_rates
+
+DEFAULT_SCENES = ["fig12", "fig14", "fig15", "default"]
+DEFAULT_LAWS = ["ft13", "tactile14", "tactile14:delta=0.25", "exact"]
+FT_ONLY_LAWS = {"linear", "ft13", "ft13_sigma"}
+RATES_HZ = (500.0, 250.0, 250.0)  # F/T, tactile, truth: the default stack's
+HOLD_MM, HOLD_DEG = 0.5, 0.5
+WALL_PER_SIM_S = 1.5  # measured lock-step cost on the 2-core dev machine, plus the oracle
+
+
+@dataclasses.dataclass(frozen=True)
+class Setup:
+    """Fixed law parameters of the comparison (N, dimensionless)."""
+
+    mu: float = 0.45
+    sigma: float = 0.5
+    k_n: float = 2.0
+    f_nom_n: float = 2.0
+
+
+def prepare(name: str) -> tuple[Scene, float]:
+    """The scene at the stack's rates with its tactile sensor on, and its true ``β_s`` (m)."""
+    scene = with_rates(load_scene_by_name(name), *RATES_HZ)
+    scene = dataclasses.replace(scene, tactile=dataclasses.replace(scene.tactile, enabled=True))
+    pm = PressureModel(scene.contact, scene.pad, scene.object.pose)
+    x, y, th = scene.object.pose
+    phi = pm.phi(scene.finger.f_initial_N, complex(x, y), th)
+    beta = torsional_coefficient(phi, scene.pad.positions, scene.contact.mu_s).beta_m
+    return scene, beta
+
+
+def parse_law(spec: str) -> tuple[str, dict[str, float]]:
+    """``"tactile14:delta=0.25,sigma=0.4"`` → ``("tactile14", {"delta": 0.25, "sigma": 0.4})``."""
+    law, _, rest = spec.partition(":")
+    extra = {}
+    for item in filter(None, rest.split(",")):
+        key, _, value = item.partition("=")
+        extra[key.strip()] = float(value)
+    return law, extra
+
+
+def stack_config(spec: str, scene: Scene, beta_m: float, s: Setup) -> StackConfig:
+    law, extra = parse_law(spec)
+    grip = {"law": law, "mu": s.mu, "sigma": s.sigma, "f_nom_n": s.f_nom_n,
+            "f_max_n": scene.finger.f_max_N, **extra}
+    if law in FT_ONLY_LAWS:
+        grip = {"beta_m": beta_m, "k_n": s.k_n, **grip}
+        return StackConfig(controller=True, tactile=False, grip=grip,
+                           slip={"method": "linear_ls", "mu": s.mu, "beta_m": beta_m})
+    return StackConfig(controller=True, tactile=True, grip=grip, slip={"method": "exact", "mu": s.mu},
+                       cor={"solver": "exact", "mu": s.mu, "per_tactile_frame": True})
+
+
+def run_one(scene: Scene, law: str, beta_m: float, s: Setup, label: str) -> dict[str, np.ndarray]:
+    """Run the stack; per-truth-sample series (SI) plus the oracle."""
+    stack = LockstepStack(scene, stack_config(law, scene, beta_m, s))
+    marks = iter(np.arange(0.1, 1.01, 0.1))
+    mark = next(marks)
+    t0 = time.perf_counter()
+
+    def progress(frac: float) -> None:
+        nonlocal mark
+        while mark is not None and frac >= mark - 1e-9:
+            print(f"  {label}: {mark:4.0%} ({time.perf_counter() - t0:5.1f} s)", file=sys.stderr, flush=True)
+            mark = next(marks, None)
+
+    try:
+        ex = stack.run(progress=progress)
+    finally:
+        stack.close()
+    truths = ex.published["rig/truth"]
+    commands = ex.published["grip/command"]
+    P, mu_s = scene.pad.positions, scene.contact.mu_s
+    oracle, frozen = np.empty(len(truths)), np.empty(len(truths))
+    for i, tr in enumerate(truths):
+        origin, theta = complex(tr.x, tr.y), tr.theta
+
+        def phi_of_f(f: float, origin: complex = origin, theta: float = theta) -> np.ndarray:
+            # a fresh model: the simulator's caches the shape within 0.2 % of the force,
+            # which would make φ(f) depend on the evaluation history
+            return PressureModel(scene.contact, scene.pad, scene.object.pose).phi(f, origin, theta)
+
+        first = oracle_normal_force(phi_of_f(tr.f_n_applied), P, tr.load_f_t, tr.load_tau, mu_s)
+        frozen[i] = first.f_n_min if first.usable else math.nan
+        fixed = least_holding_force(phi_of_f, P, tr.load_f_t, tr.load_tau, mu_s, tr.f_n_applied)
+        oracle[i] = fixed.f_n_min if fixed.usable else math.nan
+    print(f"  {label}: done in {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
+    return {
+        "t": np.array([tr.header.stamp_ns for tr in truths]) * 1e-9,
+        "f_cmd": np.array([tr.f_n_command for tr in truths]),
+        "f_app": np.array([tr.f_n_applied for tr in truths]),
+        "slip_mm": np.array([tr.slip_distance_m for tr in truths]) * 1e3,
+        "slip_deg": np.degrees(np.abs([tr.slip_angle_rad for tr in truths])),
+        "f_t": np.array([np.hypot(*tr.load_f_t) for tr in truths]),
+        "tau": np.array([tr.load_tau for tr in truths]),
+        "oracle": oracle,
+        "oracle_frozen": frozen,
+        "peak_cmd": np.array([max((c.f_n_desired for c in commands), default=math.nan)]),
+    }
+
+
+def cached_run(cache: Path | None, scene: Scene, law: str, beta_m: float, s: Setup, label: str) -> dict:
+    if cache is None:
+        return run_one(scene, law, beta_m, s, label)
+    key = json.dumps({"scene": scene.name, "law": law, "beta": beta_m, **dataclasses.asdict(s)}, sort_keys=True)
+    path = cache / f"{scene.name}_{law.replace(':', '_').replace(',', '_').replace('=', '')}.npz"
+    if path.exists():
+        data = dict(np.load(path))
+        if str(data.pop("key")) == key:
+            print(f"  {label}: cached ({path})", file=sys.stderr, flush=True)
+            return data
+    data = run_one(scene, law, beta_m, s, label)
+    cache.mkdir(parents=True, exist_ok=True)
+    np.savez(path, key=key, **data)
+    return data
+
+
+def summarise(r: dict, f_nom: float) -> dict[str, float]:
+    oracle = r["oracle"][np.isfinite(r["oracle"])]
+    slip_mm, slip_deg = float(r["slip_mm"].max()), float(r["slip_deg"].max())
+    return {
+        "mean_cmd": float(r["f_cmd"].mean()), "peak_cmd": float(r["peak_cmd"][0]),
+        "mean_app": float(r["f_app"].mean()), "slip_mm": slip_mm, "slip_deg": slip_deg,
+        "held": slip_mm < HOLD_MM and slip_deg < HOLD_DEG,
+        "o_mean": float(oracle.mean()), "o_peak": float(oracle.max()),
+        "o_floor": float(np.maximum(oracle, f_nom).mean()),
+        "o_frozen": float(np.nanmean(r["oracle_frozen"])),
+        "o_bad": int(r["oracle"].size - oracle.size),
+    }
+
+
+def table(rows: list[tuple[str, float, str, dict]]) -> str:
+    head = ("| scene | β_s mm | law | mean f_n cmd N | peak f_n cmd N | mean f_n applied N | held "
+            "| slip mm / ° | oracle mean N | oracle peak N | oracle ≥f_nom mean N | cmd / oracle | cmd / oracle≥f_nom |")
+    lines = [head, "|" + "---|" * (head.count("|") - 1)]
+    for scene, beta, law, m in rows:
+        lines.append(
+            f"| {scene} | {beta * 1e3:.2f} | {law} | {m['mean_cmd']:.2f} | {m['peak_cmd']:.2f} | {m['mean_app']:.2f} "
+            f"| {'yes' if m['held'] else 'NO'} | {m['slip_mm']:.2f} / {m['slip_deg']:.2f} | {m['o_mean']:.2f} "
+            f"| {m['o_peak']:.2f} | {m['o_floor']:.2f} | {m['mean_cmd'] / m['o_mean']:.2f} "
+            f"| {m['mean_cmd'] / m['o_floor']:.2f} |")
+    return "\n".join(lines)
+
+
+def verdict(rows: list[tuple[str, float, str, dict]]) -> str:
+    """Sentences comparing the laws per scene and the paper's (14) < (13) claim."""
+    by_scene: dict[str, dict[str, dict]] = {}
+    for scene, _, law, m in rows:
+        by_scene.setdefault(scene, {})[law] = m
+    out: list[str] = []
+    claim: dict[str, list[bool]] = {}
+    for scene, laws in by_scene.items():
+        parts = [f"{law} {m['mean_cmd']:.2f} N ({m['mean_cmd'] / m['o_mean']:.2f}× oracle"
+                 f"{'' if m['held'] else ', SLIPPED'})" for law, m in laws.items()]
+        out.append(f"- {scene}: mean commanded f_n: " + "; ".join(parts)
+                   + f"; oracle mean {next(iter(laws.values()))['o_mean']:.2f} N.")
+        for name, b in laws.items():
+            if "ft13" not in laws or parse_law(name)[0] != "tactile14":
+                continue
+            a = laws["ft13"]
+            less = 1.0 - b["mean_cmd"] / a["mean_cmd"]
+            ok = b["mean_cmd"] < a["mean_cmd"] and b["held"]
+            claim.setdefault(name, []).append(ok)
+            out.append(f"  {name} vs ft13: {b['mean_cmd']:.2f} vs {a['mean_cmd']:.2f} N mean "
+                       f"({abs(less):.0%} {'less' if less > 0 else 'more'}), peak {b['peak_cmd']:.2f} vs {a['peak_cmd']:.2f} N; "
+                       f"{name} held: {'yes' if b['held'] else 'NO'}, ft13 held: {'yes' if a['held'] else 'NO'} "
+                       f"-> claim {'holds' if ok else 'does NOT hold'} here.")
+    for name, oks in claim.items():
+        out.append(f"\nPaper's claim 'both sensors (14) need less force than F/T only (13)', (14) = {name}: "
+                   f"holds (holds the object with less mean force) in {sum(oks)}/{len(oks)} scenes.")
+    return "\n".join(out)
+
+
+def plot(path: Path, scene: str, results: dict[str, dict], f_nom: float) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax, axl) = plt.subplots(2, 1, figsize=(12, 7), sharex=True, gridspec_kw={"height_ratios": [3, 1.2]})
+    colours = {"ft13": "tab:red", "tactile14": "tab:blue", "exact": "tab:green",
+               "linear": "tab:purple", "ft13_sigma": "tab:orange"}
+    for k, (law, r) in enumerate(results.items()):
+        ax.plot(r["t"], r["f_cmd"], color=colours.get(law, f"C{k + 5}"), lw=1.6, label=f"{law}: commanded f_n")
+    for k, r in enumerate(results.values()):  # the runs' oracles differ only where a run slips
+        ax.plot(r["t"], r["oracle"], color="k", lw=0.8, ls=":", label="oracle (each run)" if k == 0 else None)
+    ax.axhline(f_nom, color="0.5", lw=0.8, ls="--", label=f"f_nom = {f_nom:g} N")
+    ax.set_ylabel("normal force f_n (N)")
+    ax.set_title(f"Grip economy, scene {scene}: commanded f_n per law vs the oracle\n"
+                 "(oracle: least f_n that holds the true load with the true pressure, μ = μ_s)", fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    r0 = next(iter(results.values()))
+    axl.plot(r0["t"], r0["f_t"], color="k", lw=1.0, label="|f_t| (N)")
+    axl.set_ylabel("|f_t| (N)")
+    axr = axl.twinx()
+    axr.plot(r0["t"], np.asarray(r0["tau"]) * 1e3, color="tab:brown", lw=1.0, label="τ (mN·m)")
+    axr.set_ylabel("τ (mN·m)", color="tab:brown")
+    axl.set_xlabel("time (s)")
+    axl.set_title(f"true load on the {next(iter(results))} run", fontsize=9)
+    axl.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter,
+                                     epilog="\n\n".join(__doc__.split("\n\n")[1:]))
+    parser.add_argument("--scenes", nargs="+", default=DEFAULT_SCENES,
+                        help=f"scene names or .toml paths (default: {' '.join(DEFAULT_SCENES)}; fig11 is torque only)")
+    parser.add_argument("--laws", nargs="+", default=DEFAULT_LAWS,
+                        help=f"grip laws (default: {' '.join(DEFAULT_LAWS)}); 'law:param=value,...' sets "
+                             "grip_controller parameters, e.g. tactile14:delta=0.25")
+    parser.add_argument("--f-nom", type=float, default=Setup.f_nom_n, help="lowest commanded f_n, N (default 2)")
+    parser.add_argument("--png", type=Path, help="write a figure of f_n(t) per law vs the oracle to this path")
+    parser.add_argument("--png-scene", help="scene for --png (default: fig15 if run, else the first)")
+    parser.add_argument("--cache", type=Path, help="directory to cache runs in (re-used when parameters match)")
+    args = parser.parse_args(argv)
+    setup = Setup(f_nom_n=args.f_nom)
+
+    prepared = {name: prepare(name) for name in args.scenes}
+    sim_s = sum(sc.duration_s for sc, _ in prepared.values()) * len(args.laws)
+    print(f"{len(prepared) * len(args.laws)} lock-step runs, {sim_s:.0f} simulated s: expect about "
+          f"{sim_s * WALL_PER_SIM_S / 60:.0f} min (less with --cache hits)", file=sys.stderr, flush=True)
+
+    rows, series = [], {}
+    for name, (scene, beta) in prepared.items():
+        for law in args.laws:
+            r = cached_run(args.cache, scene, law, beta, setup, f"{scene.name}/{law}")
+            series.setdefault(scene.name, {})[law] = r
+            rows.append((scene.name, beta, law, summarise(r, setup.f_nom_n)))
+
+    print(f"## Grip economy (μ = {setup.mu}, σ = {setup.sigma}, k = {setup.k_n} N, f_nom = {setup.f_nom_n} N; "
+          f"F/T {RATES_HZ[0]:g} Hz, tactile {RATES_HZ[1]:g} Hz; held iff slip < {HOLD_MM} mm and < {HOLD_DEG}°)\n")
+    print(table(rows))
+    bad = sum(m["o_bad"] for *_, m in rows)
+    frozen = [f"{sc}/{law} {m['o_frozen']:.2f}" for sc, _, law, m in rows if abs(m["o_frozen"] - m["o_mean"]) > 0.005 * m["o_mean"]]
+    print(f"\noracle samples without a usable answer (no contact / solver): {bad}")
+    if frozen:
+        print("force-dependent pressure: frozen-shape γ·f_applied oracle mean (N), instead of the fixed point: "
+              + ", ".join(frozen))
+    print("\n" + verdict(rows))
+    if args.png:
+        target = args.png_scene or ("fig15" if "fig15" in series else next(iter(series)))
+        plot(args.png, target, series[target], setup.f_nom_n)
+        print(f"\nfigure: {args.png} (scene {target})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
