@@ -16,7 +16,8 @@ with a rising torque ``β(t) = |τ|/f_n`` (m) peaks at ``β_s`` and settles to `
    ``s_r``. The onset (ratio-based) is the sample before the first of two successive
    samples, after the fitted zone, that fall below the line by ``drop_sigma · s_r``.
 4. ``static`` = the line at the onset, with the standard error of that prediction;
-   ``dynamic`` = mean of the raw ratio from ``settle_s`` after the onset to the end,
+   ``dynamic`` = mean of the raw ratio from ``settle_s`` after the onset to the end
+   (with a motion signal: over the samples that are sliding, not stuck),
    with its standard error corrected for lag-1 autocorrelation (AR(1):
    ``s/√n · √((1+ρ)/(1−ρ))``).
 
@@ -77,6 +78,9 @@ class IdentifyConfig:
         slip_threshold_m: displacement that means slip, m (force ramps).
         slip_threshold_rad: rotation that means slip, rad (torque ramps).
         min_normal_force_n: samples with smaller ``f_n`` (N) are rejected.
+        sliding_fraction: with a motion signal, the dynamic level is taken only over the
+            samples where it moves faster than this fraction of its mean rate after
+            the onset (sliding, not the stuck phases of stick–slip); dimensionless.
     """
 
     smooth_window_s: float = 0.02
@@ -88,10 +92,11 @@ class IdentifyConfig:
     slip_threshold_m: float = 1e-4
     slip_threshold_rad: float = 1e-2
     min_normal_force_n: float = 1e-3
+    sliding_fraction: float = 0.5
 
     def __post_init__(self) -> None:
         for name in ("smooth_window_s", "fit_window_s", "drop_sigma", "min_prominence_sigma",
-                     "slip_threshold_m", "slip_threshold_rad", "min_normal_force_n"):
+                     "slip_threshold_m", "slip_threshold_rad", "min_normal_force_n", "sliding_fraction"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ConfigError(f"identify setting {name} must be a finite number > 0, got {value!r}")
@@ -249,6 +254,17 @@ class _RampFit:
     def result(self, status: IdentifyStatus, message: str, **fields: object) -> RampEstimate:
         return RampEstimate(self.quantity, status, message, **fields, **self.common)  # type: ignore[arg-type]
 
+    def _sliding(self, values: np.ndarray, start: int) -> np.ndarray:
+        """``values[start:]``, kept only where the motion signal shows sliding (if there is
+        one and enough such samples): stick–slip's stuck phases would bias the dynamic level."""
+        plateau = values[start:]
+        if self.motion is None or plateau.size < _MIN_PLATEAU_SAMPLES:
+            return plateau
+        rate = np.gradient(self.motion[start:], self.t[start:])
+        mean_rate = float(np.mean(rate))
+        sliding = rate > self.cfg.sliding_fraction * mean_rate if mean_rate > 0 else np.zeros(rate.shape, bool)
+        return plateau[sliding] if np.count_nonzero(sliding) >= _MIN_PLATEAU_SAMPLES else plateau
+
     def run(self) -> RampEstimate:
         n, h = self.r.size, self.w // 2
         smooth = uniform_filter1d(self.r, self.w, mode="nearest")
@@ -277,7 +293,7 @@ class _RampFit:
                               f"{line.slope_t:.2f} < {self.cfg.min_slope_t})")
         onset, lo, source = self._onset(line, fit_end, k_peak, moved)
         static = float(line.at(self.t[onset]))
-        plateau = self.r[min(n, onset + 1 + self.settle):]
+        plateau = self._sliding(self.r, min(n, onset + 1 + self.settle))
         common = dict(static=static, static_se=line.se_at(self.t[onset]), onset_t_s=float(self.t[onset]),
                       onset_index=int(self.index[onset]), onset_source=source, noise_std=line.s_r,
                       onset_interval_s=(float(self.t[lo]), float(self.t[min(onset + 1, n - 1)])))
