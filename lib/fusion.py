@@ -202,13 +202,17 @@ def fuse(
                       f_t=f3[:2], tau=float(t3[2]))
     phi = w * (f_n / total)
     cop = phi @ pad.positions / float(phi.sum())
-    n_contact = int(mask.sum())
     status = SolverStatus.CLIPPED_INPUT if (n_nonfinite or n_negative) else SolverStatus.OK
+    return _result(pad, phi, f3[:2].copy(), float(t3[2]), cop, mask, n_nonfinite, n_negative, n_sat, offset, status)
+
+
+def _result(pad, phi, f_t, tau, cop, mask, n_nonfinite, n_negative, n_sat, offset, status) -> FusionResult:
+    n_contact = int(mask.sum())
     return FusionResult(
         phi=_frozen(phi),
         f_n=float(phi.sum()),
-        f_t=_frozen(f3[:2].copy()),
-        tau=float(t3[2]),
+        f_t=_frozen(np.asarray(f_t, dtype=float)),
+        tau=float(tau),
         cop=_frozen(cop),
         mask=_frozen(mask),
         n_contact=n_contact,
@@ -224,19 +228,4 @@ def fuse(
 
 def _empty(pad, zeros, mask, n_nonfinite, n_negative, n_sat, offset, status, f_t=None, tau=0.0) -> FusionResult:
     ft = np.zeros(2) if f_t is None else np.array(f_t, dtype=float)
-    return FusionResult(
-        phi=_frozen(zeros),
-        f_n=0.0,
-        f_t=_frozen(ft),
-        tau=float(tau),
-        cop=_frozen(np.zeros(2)),
-        mask=_frozen(mask.copy()),
-        n_contact=int(mask.sum()),
-        contact_area_m2=int(mask.sum()) * pad.taxel_area_m2,
-        positions=pad.positions,
-        n_nonfinite=n_nonfinite,
-        n_negative=n_negative,
-        n_saturated=n_sat,
-        stamp_offset_ns=offset,
-        status=status,
-    )
+    return _result(pad, zeros, ft, tau, np.zeros(2), mask.copy(), n_nonfinite, n_negative, n_sat, offset, status)
