@@ -10,7 +10,8 @@ Format::
 
     [args]                    # launch arguments, overridden by `name:=value`
     rate_hz = 1000.0          # built in: $(run_dir), this run's private directory, and
-                              # $(free_udp_port), a UDP port free on 127.0.0.1 now
+                              # $(free_udp_port), a UDP port free on 127.0.0.1 now,
+                              # $(stamp), the date-time the launch started
 
     [[node]]
     name = "source"           # instance name (unique); topics/logs use it
@@ -36,6 +37,7 @@ from __future__ import annotations
 
 import re
 import socket
+import time
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -179,7 +181,8 @@ def load_launch_file(
 
     ``builtins`` are arguments the launcher provides (``run_dir``: this run's private
     directory, for device links and recordings); a file cannot override them.
-    ``free_udp_port`` (a UDP port free now) is always provided.
+    ``free_udp_port`` (a UDP port free now) and ``stamp`` (the local date-time,
+    ``YYYYmmdd-HHMMSS``) are always provided.
 
     Raises:
         ConfigError: naming the file and key that is wrong.
@@ -191,7 +194,8 @@ def load_launch_file(
         if name not in args:
             raise ConfigError(f"{p.name}: no launch argument {name!r}; declared: {', '.join(sorted(args)) or 'none'}")
         args[name] = _typed_override(args[name], text, name)
-    args.update({"free_udp_port": free_port(socket.SOCK_DGRAM), **(builtins or {})})
+    args.update({"free_udp_port": free_port(socket.SOCK_DGRAM), "stamp": time.strftime("%Y%m%d-%H%M%S"),
+                 **(builtins or {})})
     # an argument may refer to others ("rdt://127.0.0.1:$(rdt_port)", "$(run_dir)/ft.tty"),
     # which may refer to others again: resolve until nothing changes
     for _ in range(len(args)):

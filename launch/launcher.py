@@ -357,7 +357,7 @@ def main_launch(args: argparse.Namespace) -> int:
     if args.show_args:
         shutil.rmtree(run_dir, ignore_errors=True)
         for name, value in launch.args.items():
-            if name not in ("run_dir", "free_udp_port"):
+            if name not in ("run_dir", "free_udp_port", "stamp"):
                 print(f"{name} := {value!r}")
         return 0
     return Launcher(launch, run_dir).run()

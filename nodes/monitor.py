@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -28,7 +29,7 @@ _LOSS_KEYS = (".rejected", ".lost", ".dropped_hwm")  # ".dropped" is drain-to-la
 @dataclass(frozen=True)
 class MonitorParams:
     status_period_s: float = field(default=0.5, metadata={"help": "seconds between STATUS lines"})
-    recording: str = field(default="", metadata={"help": "path of the run's recording, shown in the summary"})
+    recording: str = field(default="", metadata={"help": "path of the run's recording, shown in the summary if it was written"})
     summary_path: str = field(default="", metadata={"help": "also write the summary as JSON here"})
 
 
@@ -136,7 +137,7 @@ def summarise(m: Monitor) -> dict:
         "slip_angle_deg": math.degrees(truth.slip_angle_rad) if truth else None,
         "losses": {n: v for n, v in losses.items() if v},
         "skipped_for_newer": skipped,
-        "recording": m.params.recording,
+        "recording": m.params.recording if m.params.recording and os.path.exists(m.params.recording) else "",
     }
 
 
