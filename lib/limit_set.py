@@ -184,7 +184,8 @@ def load_factor(
     tn = n_bar / (cap * L)  # normalised torque about p̄
     if not (math.isfinite(tn) and math.isfinite(gt)):  # load/capacity beyond float range
         return _none(SolverStatus.INVALID_INPUT)
-    if gt == 0.0:
+    if gt == 0.0 or abs(tn) > gt * 1e300:  # the force is nothing beside the torque (and
+        # |tn|/gt would overflow): the pure-torque answer, exact to 1e-300 relative
         return _pure_torque(P, ph, a, tn, tau, pbar, L, cap, c0, idx)
     s = 1 if tn > 0 else -1
     fhat = (fx / (gt * cap), fy / (gt * cap))
