@@ -74,6 +74,7 @@ class DeviceDriver(Node):
         self._seen: dict[str, int] = {}
         self._next_sync_ns = 0
         self._last_stamp_ns = -1
+        self._detached = False
 
     # -- to implement --------------------------------------------------------------------
     def on_sample(self, sample: Sample, ctx: Context) -> None:
@@ -89,11 +90,15 @@ class DeviceDriver(Node):
 
     # -- node interface --------------------------------------------------------------------
     def start(self, ctx: Context) -> None:
+        if self._detached:
+            self.status = LinkStatus.OK.value
+            return
         self.backend.open(ctx.now_ns())
         self._after_poll(ctx)
 
     def stop(self, ctx: Context) -> None:
-        self.backend.close()
+        if not self._detached:
+            self.backend.close()
         self._sync_counters(ctx)
 
     def io_sources(self) -> list[IoSource]:
@@ -107,7 +112,14 @@ class DeviceDriver(Node):
     def on_readable(self, source: IoSource, ctx: Context) -> None:
         self._poll(ctx)
 
+    def detach(self) -> None:
+        """Run without the device: samples arrive only through :meth:`on_sample` (the
+        lock-step stack feeds decoded bytes), so there is nothing to poll or watch."""
+        self._detached = True
+
     def next_deadline_ns(self) -> int | None:
+        if self._detached:
+            return None
         due = [self._next_sync_ns]
         backend_due = self.backend.next_deadline_ns()
         if backend_due is not None:

@@ -133,8 +133,8 @@ class LockstepStack:
         if cfg.controller:
             nodes.append(GripController(GripControllerParams(**cfg.grip)))
         for driver in (self.ft_driver, self.tactile_driver):
-            if driver is not None:  # no device to service: samples arrive through on_sample
-                driver.next_deadline_ns = lambda: None  # type: ignore[method-assign]
+            if driver is not None:
+                driver.detach()
         self.executor = InProcessExecutor(nodes)
         self._hosts = {id(h.node): h for h in self.executor.hosts}
         self._rdt = _RdtWire()
