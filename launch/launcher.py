@@ -129,7 +129,7 @@ class Launcher:
                 "params": c.entry.params,
             }
             c.spec_path.write_text(json.dumps(spec, indent=1))
-        self.order = self._start_order(publishers)
+        self.order = self._start_order()
 
     @staticmethod
     def _tapped_topics(node: object) -> set[str] | None:
@@ -138,7 +138,7 @@ class Launcher:
             return None
         return set(node.params.topics)
 
-    def _start_order(self, publishers: dict[str, list[str]]) -> list[str]:
+    def _start_order(self) -> list[str]:
         """Subscribers before publishers: reverse topological order, back edges ignored."""
         downstream = {
             name: [o for o, oc in self.children.items() if o != name and set(oc.inputs) & set(c.outputs)]
