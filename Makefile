@@ -9,6 +9,7 @@ $(VENV)/.installed: pyproject.toml
 	python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -e '.[test]'
+	$(PY) -c 'from slipstack.lib.limit_set import compile_kernels; compile_kernels()'
 	touch $@
 
 run: $(VENV)/.installed

@@ -26,7 +26,7 @@ Method (:func:`load_factor`):
    TRANSLATION with no COR — never an overflowing one.
 4. Otherwise Dinkelbach's iteration for the fractional program
    ``max_c s·n(c)/T(c)``: ``γ_k = s·n(c_k)/T(c_k)``, then a step of the
-   Fermat–Weber sub-solver (:func:`slipstack.lib.weber.weber_step`) on
+   Fermat–Weber sub-solver (:func:`slipstack.lib.weber.newton_step`) on
    ``max_c s·n(c) − γ_k T(c)``, i.e. weights ``φ_i/f_n`` and linear term
    ``s·perp(f_t)/(γ_k μ f_n)``. One safeguarded Newton step per update of ``γ``
    ("inexact Dinkelbach") keeps ``γ_k`` strictly increasing (the step decreases
@@ -47,11 +47,19 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
+from numba import njit
 from slipstack.lib.status import SlipCase, SolverStatus
-from slipstack.lib.weber import geometric_median, step_converged, weber_step
+from slipstack.lib.weber import (
+    JIT,
+    STEP_ON_TAXEL,
+    fill_distances,
+    geometric_median,
+    newton_step,
+    normalise_contact,
+    step_converged,
+)
 
-__all__ = ["LimitSetResult", "load_factor", "torsional_coefficient", "TorsionResult", "contact_subset"]
+__all__ = ["LimitSetResult", "TorsionResult", "compile_kernels", "contact_subset", "load_factor", "torsional_coefficient"]
 
 _NEAR_TRANSLATION = 1e-5
 _MAX_FAR = 1e7
@@ -155,30 +163,25 @@ def load_factor(
     Returns:
         :class:`LimitSetResult`; never raises.
     """
-    sub = contact_subset(phi, positions)
-    ft = np.asarray(f_t, dtype=float).reshape(-1)
-    if (
-        sub is None
-        or ft.shape != (2,)
-        or not (math.isfinite(ft[0]) and math.isfinite(ft[1]) and math.isfinite(tau))
-        or not (math.isfinite(mu) and mu > 0)
-    ):
+    ph_all = np.asarray(phi, dtype=np.float64)
+    pos = np.asarray(positions, dtype=np.float64)
+    ft = np.asarray(f_t, dtype=np.float64).reshape(-1)
+    if ph_all.ndim != 1 or pos.shape != (ph_all.shape[0], 2) or ft.shape != (2,):
         return _none(SolverStatus.INVALID_INPUT)
-    idx, ph, P = sub
-    if idx.size == 0:
+    fx, fy, tau = float(ft[0]), float(ft[1]), float(tau)
+    if not (math.isfinite(fx) and math.isfinite(fy) and math.isfinite(tau) and math.isfinite(mu) and mu > 0):
+        return _none(SolverStatus.INVALID_INPUT)
+    code, idx, px, py, a, ox, oy, L, f_n = normalise_contact(np.ascontiguousarray(pos), np.ascontiguousarray(ph_all))
+    if code == 1:
+        return _none(SolverStatus.INVALID_INPUT)
+    if code == 2:
         return _none(SolverStatus.NO_CONTACT)
-    f_n = float(ph.sum())
-    fx, fy = float(ft[0]), float(ft[1])
-    tau = float(tau)
     if fx == 0.0 and fy == 0.0 and tau == 0.0:
         return _none(SolverStatus.NO_LOAD)
     cap = mu * f_n
     gt = math.hypot(fx, fy) / cap
-    a = ph / f_n
-    pbar = a @ P
-    n_bar = tau + fx * pbar[1] - fy * pbar[0]  # torque about the centre of pressure
-    Q = P - pbar
-    L = math.sqrt(float(a @ (Q[:, 0] ** 2 + Q[:, 1] ** 2)))
+    pbar = (ox, oy)
+    n_bar = tau + fx * oy - fy * ox  # torque about the centre of pressure
     if idx.size == 1 or L == 0.0:
         return _point_contact(n_bar, tau, fx, fy, pbar, gt, int(idx[0]))
     tn = n_bar / (cap * L)  # normalised torque about p̄
@@ -186,98 +189,145 @@ def load_factor(
         return _none(SolverStatus.INVALID_INPUT)
     if gt == 0.0 or abs(tn) > gt * 1e300:  # the force is nothing beside the torque (and
         # |tn|/gt would overflow): the pure-torque answer, exact to 1e-300 relative
-        return _pure_torque(P, ph, a, tn, tau, pbar, L, cap, c0, idx)
+        return _pure_torque(pos, ph_all, tn, tau, pbar, L, cap, f_n, c0)
     s = 1 if tn > 0 else -1
-    fhat = (fx / (gt * cap), fy / (gt * cap))
+    fx_n, fy_n = fx / cap, fy / cap  # normalised force f_t/(μ f_n)
     lever = abs(tn) / gt
-    sig2 = float(a @ ((Q @ np.array(fhat)) / L) ** 2)
+    sig2 = _spread_along(px, py, a, fx_n / gt, fy_n / gt)
     if tn == 0.0 or lever <= _NEAR_TRANSLATION * math.sqrt(sig2):
         gamma = gt * (1.0 + (lever * lever / (2.0 * sig2) if sig2 > 0 else 0.0))
         return LimitSetResult(SlipCase.TRANSLATION, float(gamma), None, 0.0, 0.0, 0, 0, 0.0,
-                              SolverStatus.TRANSLATION, -1, (float(pbar[0]), float(pbar[1])), L)
-    PT = np.ascontiguousarray((Q / L).T)
-    f = np.array([fx, fy]) / cap  # normalised force f_t/(μ f_n)
-    b = s * np.array([-f[1], f[0]])  # s·perp(f): gradient of s·n in normalised c
-    c = _start(c0, PT, a, pbar, L, s, tn, f, b, lever)
-    return _dinkelbach(PT, a, b, s, tn, f, c, pbar, L, cap, idx, xtol, max_iter)
+                              SolverStatus.TRANSLATION, -1, pbar, L)
+    warm, w0x, w0y = _warm_start(c0, pbar, L)
+    outcome, cx, cy, gamma, T, n_s, it, residual, taxel = _dinkelbach(
+        px, py, a, s, tn, fx_n, fy_n, lever, warm, w0x, w0y, float(xtol), int(max_iter)
+    )
+    status = _STATUS[outcome]
+    case = SlipCase.ON_TAXEL if status is SolverStatus.ON_TAXEL else SlipCase.ROTATION
+    return LimitSetResult(
+        case,
+        float(gamma),
+        (ox + L * cx, oy + L * cy),
+        float(cap * L * T),
+        float(s * cap * L * n_s),
+        s,
+        int(it),
+        float(residual),
+        status,
+        int(idx[taxel]) if taxel >= 0 else -1,
+        pbar,
+        L,
+    )
+
+
+_STATUS = {0: SolverStatus.CONVERGED, 1: SolverStatus.ON_TAXEL, 2: SolverStatus.MAX_ITER}
+
+
+def _warm_start(c0, pbar, L) -> tuple[bool, float, float]:
+    """``c0`` in normalised coordinates, if it is a usable point (finite, within 1e7 L)."""
+    if c0 is None:
+        return False, 0.0, 0.0
+    cw = np.asarray(c0, dtype=np.float64).reshape(-1)
+    if cw.shape != (2,):
+        return False, 0.0, 0.0
+    x, y = (float(cw[0]) - pbar[0]) / L, (float(cw[1]) - pbar[1]) / L
+    return bool(math.isfinite(x) and math.isfinite(y) and math.hypot(x, y) < _MAX_FAR), x, y
+
+
+@njit(**JIT)
+def _spread_along(px, py, a, ux, uy):
+    """``Σ a_i (p_i·u)²``: the contact's (normalised) variance along the unit vector ``u``."""
+    total = 0.0
+    for i in range(px.size):
+        d = px[i] * ux + py[i] * uy
+        total += a[i] * d * d
+    return total
 
 
 _RAY = np.logspace(-2.0, 7.0, 37)
 
 
-def _start(c0, PT, a, pbar, L, s, tn, f, b, lever) -> np.ndarray:
+@njit(**JIT)
+def _start(px, py, a, s, tn, fx, fy, lever, warm, wx, wy, r):
     """A start with ratio ``s·n/T > |f_t|/(μ f_n)``, so every sub-problem is bounded.
 
     The warm start if it qualifies, else the best point on the ray ``p̄ + t·b̂``
     (t = 1e-2 … 1e7 contact radii): along it ``T̃ − t`` falls to 0 while
     ``s·ñ/|f̃| − t`` stays at the lever arm ``a > 0``, so some ``t`` qualifies.
+    Returns the start (normalised); ``r`` holds its distances.
     """
-    gt = math.hypot(f[0], f[1])
-    if c0 is not None:
-        cw = np.asarray(c0, dtype=float).reshape(-1)
-        if cw.shape == (2,) and np.isfinite(cw).all():
-            cn = (cw - pbar) / L
-            if math.hypot(cn[0], cn[1]) < _MAX_FAR:
-                r = np.hypot(*(cn[:, None] - PT))
-                if s * (tn + f[0] * cn[1] - f[1] * cn[0]) > gt * float(a @ r):
-                    return cn
-    bhat = b / math.hypot(b[0], b[1])
-    dx = PT[0][:, None] - bhat[0] * _RAY
-    dy = PT[1][:, None] - bhat[1] * _RAY
-    T = a @ np.hypot(dx, dy)
-    t = _RAY[int(np.argmax((_RAY + lever) / T))]
-    return bhat * t
+    gt = math.hypot(fx, fy)
+    if warm:
+        T = fill_distances(px, py, a, wx, wy, r)
+        if s * (tn + fx * wy - fy * wx) > gt * T:
+            return wx, wy
+    ux = -s * fy / gt
+    uy = s * fx / gt
+    best = -math.inf
+    best_t = _RAY[0]
+    for t in _RAY:
+        T = fill_distances(px, py, a, ux * t, uy * t, r)
+        ratio = (t + lever) / T
+        if ratio > best:
+            best = ratio
+            best_t = t
+    fill_distances(px, py, a, ux * best_t, uy * best_t, r)
+    return ux * best_t, uy * best_t
 
 
-def _dinkelbach(PT, a, b, s, tn, f, c, pbar, L, cap, idx, xtol, max_iter) -> LimitSetResult:
-    D = c[:, None] - PT
-    r = np.hypot(D[0], D[1])
-    T = float(a @ r)
-    status = SolverStatus.MAX_ITER
+@njit(**JIT)
+def _dinkelbach(px, py, a, s, tn, fx, fy, lever, warm, wx, wy, xtol, max_iter):
+    """Inexact Dinkelbach on ``max_c s·ñ(c)/T̃(c)`` (normalised; see module docstring, step 4).
+
+    Returns ``(code, cx, cy, gamma, T, n_s, iterations, residual, taxel)`` with code
+    0 converged, 1 on a taxel, 2 not converged; ``T = Σ a_i|p_i − c|`` and
+    ``n_s = s·ñ(c)`` at the COR; ``taxel`` indexes ``px`` (−1: none).
+    """
+    m = px.size
+    r = np.empty(m)
+    work = np.empty(m)
+    bx = -s * fy
+    by = s * fx
+    cx, cy = _start(px, py, a, s, tn, fx, fy, lever, warm, wx, wy, r)
+    T = 0.0
+    for i in range(m):
+        T += a[i] * r[i]
+    code = 2
     taxel = -1
+    kink_residual = 0.0
     prev = math.inf
     it = 0
-    for it in range(1, max_iter + 1):
-        gamma = s * (tn + f[0] * c[1] - f[1] * c[0]) / T
-        st = weber_step(PT, a, b / gamma, c, D, r)
-        c, D, r, T = st.c, st.D, st.r, st.dist_sum
-        if st.taxel >= 0:
-            if st.taxel == taxel:
-                status = SolverStatus.ON_TAXEL
+    while it < max_iter:
+        it += 1
+        gamma = s * (tn + fx * cy - fy * cx) / T
+        cx, cy, step, outcome, kink_residual, tx, T = newton_step(px, py, a, bx / gamma, by / gamma, cx, cy, r, work)
+        if outcome == STEP_ON_TAXEL:
+            if tx == taxel:
+                code = 1
                 break
-            taxel = st.taxel
+            taxel = tx
             continue
         taxel = -1
-        if st.stalled or step_converged(st.step, prev, c, xtol):
-            status = SolverStatus.CONVERGED
+        if outcome == 2 or step_converged(step, prev, cx, cy, xtol):
+            code = 0
             break
-        prev = st.step
-    n_s = s * (tn + f[0] * c[1] - f[1] * c[0])
+        prev = step
+    n_s = s * (tn + fx * cy - fy * cx)
     gamma = n_s / T
-    if status is SolverStatus.ON_TAXEL:
-        residual = st.kink_residual
+    if code == 1:
+        residual = kink_residual
     else:
-        safe = np.where(r > 0, r, np.inf)
-        g = b - gamma * (D @ (a / safe))
-        residual = math.hypot(g[0], g[1]) / gamma
+        gx = bx
+        gy = by
+        for i in range(m):
+            if r[i] > 0.0:
+                w = gamma * a[i] / r[i]
+                gx -= w * (cx - px[i])
+                gy -= w * (cy - py[i])
+        residual = math.hypot(gx, gy) / gamma
         if residual > _MAX_RESIDUAL:  # a small step far from stationarity is no convergence
-            status = SolverStatus.MAX_ITER
-    p_c = pbar + L * c
-    case = SlipCase.ON_TAXEL if status is SolverStatus.ON_TAXEL else SlipCase.ROTATION
-    return LimitSetResult(
-        case,
-        float(gamma),
-        (float(p_c[0]), float(p_c[1])),
-        float(cap * L * T),
-        float(s * cap * L * n_s),
-        s,
-        it,
-        float(residual),
-        status,
-        int(idx[taxel]) if taxel >= 0 else -1,
-        (float(pbar[0]), float(pbar[1])),
-        L,
-    )
+            code = 2
+    return code, cx, cy, gamma, T, n_s, it, residual, taxel
 
 
 def _point_contact(n_bar, tau, fx, fy, pbar, gt, taxel) -> LimitSetResult:
@@ -293,27 +343,16 @@ def _point_contact(n_bar, tau, fx, fy, pbar, gt, taxel) -> LimitSetResult:
     )
 
 
-def _pure_torque(P, ph, a, tn, tau, pbar, L, cap, c0, idx) -> LimitSetResult:
+def _pure_torque(positions, phi, tn, tau, pbar, L, cap, f_n, c0) -> LimitSetResult:
     """``f_t = 0``: the COR is the weighted geometric median, γ = |τ|/T_min."""
-    med = geometric_median(P, ph, c0)
+    med = geometric_median(positions, phi, c0)
     if med.c is None:
         return _none(med.status)
-    T = cap / float(ph.sum()) * med.value
+    T = cap / f_n * med.value
     sense = 1 if tau > 0 else -1
     case = SlipCase.ON_TAXEL if med.status is SolverStatus.ON_TAXEL else SlipCase.ROTATION
     return LimitSetResult(
-        case,
-        abs(tau) / T,
-        med.c,
-        T,
-        tau,
-        sense,
-        med.iterations,
-        med.residual,
-        med.status,
-        int(idx[med.taxel]) if med.taxel >= 0 else -1,
-        (float(pbar[0]), float(pbar[1])),
-        L,
+        case, abs(tau) / T, med.c, T, tau, sense, med.iterations, med.residual, med.status, med.taxel, pbar, L
     )
 
 
@@ -346,3 +385,16 @@ def torsional_coefficient(
     if med.c is None:
         return TorsionResult(0.0, None, med.status)
     return TorsionResult(mu * med.value / float(ph.sum()), med.c, med.status)
+
+
+def compile_kernels() -> None:
+    """Compile the numba kernels of :func:`load_factor` and the Weber solver, or load
+    them from the cache (about 0.3 s; 5 s the first time after an install).
+
+    Nodes call it before they report ready, so their first frame runs at full speed.
+    """
+    square = np.array([[0.0, 0.0], [1e-3, 0.0], [0.0, 1e-3], [1e-3, 1e-3]])
+    phi = np.array([1.0, 2.0, 3.0, 4.0])
+    load_factor(phi, square, (0.1, 0.2), 1e-4, 0.5, c0=(5e-4, 5e-4))  # Dinkelbach, warm
+    load_factor(phi, square, (0.1, 0.2), 1e-4, 0.5)  # Dinkelbach, ray start
+    torsional_coefficient(phi, square, 0.5)  # the Weber solver

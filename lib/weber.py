@@ -27,6 +27,12 @@ All work is done in normalised coordinates (points centred on their weighted
 centroid and divided by their RMS radius, weights divided by their sum), so the
 tolerances are relative: results are invariant to the units of ``a`` and ``b``
 and to the length scale of ``p``.
+
+The inner loops are compiled with numba (one pass over the taxels per Newton
+step instead of a dozen numpy calls: the step costs about a microsecond at 256
+taxels instead of about 20). The kernels are ordinary Python; ``NUMBA_DISABLE_JIT=1``
+runs them interpreted, for debugging. Compiled code is cached beside this file,
+so only the first process after an install pays the compile (a few seconds).
 """
 
 from __future__ import annotations
@@ -35,15 +41,41 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
+from numba import njit
 from slipstack.lib.status import SolverStatus
 
-__all__ = ["WeberResult", "solve_weber", "geometric_median", "WeberStep", "weber_step", "step_converged"]
+__all__ = [
+    "STEP_ON_TAXEL",
+    "WeberResult",
+    "fill_distances",
+    "geometric_median",
+    "newton_step",
+    "normalise_contact",
+    "solve_weber",
+    "step_converged",
+]
+
+JIT = {"cache": True, "nogil": True, "error_model": "numpy"}
+"""numba options of every slipstack kernel: cached, GIL released, IEEE division (x/0 → inf, no exception)."""
 
 _KINK = 1e-13
 """Normalised distance below which an iterate is taken to sit on a point."""
 _ARMIJO = 1e-4
 _MAX_HALVINGS = 50
+_KUHN_TOL = 1e-14
+
+STEP_ON_TAXEL = 1
+"""``newton_step`` status: ``c`` certified optimal at a point (0: moved, 2: stalled)."""
+_MOVED, _STALLED = 0, 2
+
+# normalise_contact / solver outcome codes
+_OK, _INVALID, _NO_CONTACT = 0, 1, 2
+_CONVERGED, _ON_TAXEL, _MAX_ITER, _TRANSLATION, _SINGLE = 0, 1, 2, 3, 4
+_STATUS = {
+    _CONVERGED: SolverStatus.CONVERGED,
+    _ON_TAXEL: SolverStatus.ON_TAXEL,
+    _MAX_ITER: SolverStatus.MAX_ITER,
+}
 
 
 @dataclass(frozen=True)
@@ -75,76 +107,178 @@ class WeberResult:
         return self.status in (SolverStatus.CONVERGED, SolverStatus.ON_TAXEL, SolverStatus.TRANSLATION)
 
 
-@dataclass(frozen=True)
-class WeberStep:
-    """One step of :func:`weber_step` in normalised coordinates.
-
-    Attributes:
-        c: the new iterate (2,).
-        D: ``c − P`` for every point, shape (2, m), reusable by the next step.
-        r: ``|c − P_i|``, shape (m,).
-        step: length of the move that was made.
-        taxel: index of the point ``c`` was certified optimal at (Kuhn test), or -1.
-        kink_residual: ``max(0, |R_j| − a_j)`` of the last Kuhn test run (0 if none).
-        stalled: the line search could not decrease ``F`` (machine precision reached).
-        dist_sum: ``Σ a_i r_i`` at the new iterate.
-    """
-
-    c: np.ndarray
-    D: np.ndarray
-    r: np.ndarray
-    step: float
-    taxel: int
-    kink_residual: float
-    stalled: bool
-    dist_sum: float
-
-
-def _distances(PT: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    D = c[:, None] - PT
-    return D, np.hypot(D[0], D[1])
-
-
-def _kuhn(PT: np.ndarray, a: np.ndarray, b: np.ndarray, j: int) -> tuple[np.ndarray, np.ndarray]:
-    """``R_j = Σ_{i≠j} a_i (p_j − p_i)/|p_j − p_i| − b`` (2,) and the distances from p_j (r_jj = inf)."""
-    Dj = PT[:, j : j + 1] - PT
-    rj = np.hypot(Dj[0], Dj[1])
-    rj[j] = np.inf
-    return Dj @ (a / rj) - b, rj
-
-
-def _leave_point(PT: np.ndarray, a: np.ndarray, R: np.ndarray, rj: np.ndarray, j: int) -> np.ndarray:
-    """Vardi–Zhang step off point ``j`` along ``−R_j`` (requires ``|R_j| > a_j``)."""
-    norm_r = math.hypot(R[0], R[1])
-    length = (norm_r - a[j]) / float(np.sum(a / rj))
-    return PT[:, j] - R * (length / norm_r)
-
-
-def weber_step(
-    PT: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray, D: np.ndarray, r: np.ndarray
-) -> WeberStep:
-    """One safeguarded Newton step on ``F(c) = Σ a_i|P_i − c| − b·c`` (normalised).
+@njit(**JIT)
+def normalise_contact(points, weights):
+    """The points with positive weight, centred and scaled (compiled).
 
     Args:
-        PT: points, shape (2, m), normalised (centroid 0, RMS radius 1).
-        a: weights (m,), summing to 1.
-        b: linear term (2,), ``|b| < 1`` for a bounded problem.
-        c: current iterate (2,); ``D, r``: its ``c − P`` (2, m) and distances (m,).
+        points: (N, 2) float64, any length unit; weights: (N,) float64, ``≥ 0``.
 
     Returns:
-        A :class:`WeberStep`. ``taxel >= 0`` means ``c`` is certified optimal at
-        that point; ``stalled`` means no decrease is possible in floating point.
+        ``(code, idx, px, py, a, centre_x, centre_y, scale, total)``: code 0 ok,
+        1 invalid (a non-finite value or a negative weight), 2 no positive weight;
+        ``idx`` the kept indices; ``px, py`` the kept points minus the weighted
+        centroid, divided by ``scale`` (their weighted RMS radius, 0 if they all
+        coincide, which leaves them unscaled); ``a`` the kept weights over their
+        ``total``.
     """
-    j = int(r.argmin())
+    n = weights.size
+    m = 0
+    for i in range(n):
+        w = weights[i]
+        if not (math.isfinite(w) and w >= 0.0 and math.isfinite(points[i, 0]) and math.isfinite(points[i, 1])):
+            return _INVALID, np.empty(0, np.int64), np.empty(0), np.empty(0), np.empty(0), 0.0, 0.0, 0.0, 0.0
+        if w > 0.0:
+            m += 1
+    idx = np.empty(m, np.int64)
+    k = 0
+    total = 0.0
+    for i in range(n):
+        if weights[i] > 0.0:
+            idx[k] = i
+            total += weights[i]
+            k += 1
+    if m == 0:
+        return _NO_CONTACT, idx, np.empty(0), np.empty(0), np.empty(0), 0.0, 0.0, 0.0, 0.0
+    a = np.empty(m)
+    cx = 0.0
+    cy = 0.0
+    for k in range(m):
+        a[k] = weights[idx[k]] / total
+        cx += a[k] * points[idx[k], 0]
+        cy += a[k] * points[idx[k], 1]
+    px = np.empty(m)
+    py = np.empty(m)
+    var = 0.0
+    for k in range(m):
+        px[k] = points[idx[k], 0] - cx
+        py[k] = points[idx[k], 1] - cy
+        var += a[k] * (px[k] * px[k] + py[k] * py[k])
+    scale = math.sqrt(var)
+    if scale > 0.0:
+        for k in range(m):
+            px[k] /= scale
+            py[k] /= scale
+    return _OK, idx, px, py, a, cx, cy, scale, total
+
+
+@njit(**JIT)
+def fill_distances(px, py, a, cx, cy, r):
+    """``r_i = |c − p_i|`` written into ``r``; returns ``Σ a_i r_i`` (normalised units)."""
+    total = 0.0
+    for i in range(px.size):
+        dx = cx - px[i]
+        dy = cy - py[i]
+        ri = math.sqrt(dx * dx + dy * dy)  # no overflow: normalised coordinates are O(1)…O(1e7)
+        r[i] = ri
+        total += a[i] * ri
+    return total
+
+
+@njit(**JIT)
+def _kuhn(px, py, a, bx, by, j):
+    """Kuhn's quantities at point ``j``: ``R_j`` (x, y), ``Σ_{i≠j} a_i/|p_j − p_i|`` and
+    the weight sitting at ``p_j`` (``a_j`` plus any point coinciding with it)."""
+    rx = -bx
+    ry = -by
+    inv = 0.0
+    aj = a[j]
+    for i in range(px.size):
+        if i == j:
+            continue
+        dx = px[j] - px[i]
+        dy = py[j] - py[i]
+        d = math.sqrt(dx * dx + dy * dy)
+        if d == 0.0:
+            aj += a[i]
+            continue
+        w = a[i] / d
+        rx += w * dx
+        ry += w * dy
+        inv += w
+    return rx, ry, inv, aj
+
+
+@njit(**JIT)
+def _snap(px, py, a, j, step, excess, r):
+    """Certified at point ``j``: move there (``r`` refilled)."""
+    dist = fill_distances(px, py, a, px[j], py[j], r)
+    return px[j], py[j], step, STEP_ON_TAXEL, max(excess, 0.0), j, dist
+
+
+@njit(**JIT)
+def _leave_point(px, py, rx, ry, inv, aj, j):
+    """Vardi–Zhang step off point ``j`` along ``−R_j`` (requires ``|R_j| > a_j``)."""
+    norm_r = math.hypot(rx, ry)
+    length = (norm_r - aj) / inv
+    return px[j] - rx * (length / norm_r), py[j] - ry * (length / norm_r)
+
+
+@njit(**JIT)
+def _at_point(px, py, a, bx, by, cx, cy, j, r):
+    """The iterate sits on point ``j``: certify it or take the Vardi–Zhang step off it."""
+    rx, ry, inv, aj = _kuhn(px, py, a, bx, by, j)
+    excess = math.hypot(rx, ry) - aj
+    if excess <= _KUHN_TOL or inv == 0.0:
+        return _snap(px, py, a, j, r[j], excess, r)
+    nx, ny = _leave_point(px, py, rx, ry, inv, aj, j)
+    dist = fill_distances(px, py, a, nx, ny, r)
+    return nx, ny, math.hypot(nx - cx, ny - cy), _MOVED, 0.0, -1, dist
+
+
+@njit(**JIT)
+def _stalled(px, py, a, bx, by, cx, cy, r, dist):
+    """No decrease possible in floating point: certify the nearest point or report a stall."""
+    j = np.argmin(r)
+    rx, ry, _, aj = _kuhn(px, py, a, bx, by, j)
+    excess = math.hypot(rx, ry) - aj
+    if excess <= _KUHN_TOL:
+        return _snap(px, py, a, j, 0.0, excess, r)
+    return cx, cy, 0.0, _STALLED, 0.0, -1, dist
+
+
+@njit(**JIT)
+def newton_step(px, py, a, bx, by, cx, cy, r, work):
+    """One safeguarded Newton step on ``F(c) = Σ a_i|p_i − c| − b·c`` (normalised, compiled).
+
+    Args:
+        px, py: (m,) point coordinates, normalised (centroid 0, RMS radius 1).
+        a: (m,) weights summing to 1; ``bx, by``: the linear term, ``|b| < 1``.
+        cx, cy: the current iterate; ``r``: (m,) its distances ``|c − p_i|``,
+            overwritten with the new iterate's; ``work``: (m,) scratch.
+
+    Returns:
+        ``(cx, cy, step, code, kink_residual, taxel, dist_sum)``: the new iterate,
+        the length of the move, code 0 moved / :data:`STEP_ON_TAXEL` (``c`` certified
+        optimal at point ``taxel``, ``kink_residual = max(0, |R_j| − a_j)``) / 2
+        stalled (no decrease possible in floating point), and ``Σ a_i r_i`` there.
+    """
+    j = np.argmin(r)
     if r[j] <= _KINK:
-        return _at_point(PT, a, b, c, j, float(r[j]))
-    bx, by = float(b[0]), float(b[1])
-    w = a / r
-    s = float(w.sum())
-    g = D @ w
-    gx, gy = float(g[0]) - bx, float(g[1]) - by
-    H = (D * (w / (r * r))) @ D.T
-    hxx, hyy, hxy = s - float(H[0, 0]), s - float(H[1, 1]), -float(H[0, 1])
+        return _at_point(px, py, a, bx, by, cx, cy, j, r)
+    s = 0.0
+    gx = -bx
+    gy = -by
+    qxx = 0.0
+    qyy = 0.0
+    qxy = 0.0
+    dist0 = 0.0
+    for i in range(px.size):
+        ri = r[i]
+        w = a[i] / ri
+        dx = cx - px[i]
+        dy = cy - py[i]
+        s += w
+        gx += w * dx
+        gy += w * dy
+        w3 = w / (ri * ri)
+        qxx += w3 * dx * dx
+        qyy += w3 * dy * dy
+        qxy += w3 * dx * dy
+        dist0 += a[i] * ri
+    hxx = s - qxx
+    hyy = s - qyy
+    hxy = -qxy
     det = hxx * hyy - hxy * hxy
     if det <= 1e-14 * (hxx + hyy) ** 2:  # collinear points through c: regularise
         lam = 1e-7 * (hxx + hyy) + 1e-300
@@ -153,80 +287,117 @@ def weber_step(
         det = hxx * hyy - hxy * hxy
     dx = -(hyy * gx - hxy * gy) / det
     dy = -(hxx * gy - hxy * gx) / det
-    cx, cy = float(c[0]), float(c[1])
-    f0 = float(a @ r) - bx * cx - by * cy
+    f0 = dist0 - bx * cx - by * cy
     slope = gx * dx + gy * dy
     t = 1.0
+    nx = cx
+    ny = cy
+    dist = dist0
+    decreased = False
     for _ in range(_MAX_HALVINGS):
-        cn = np.array([cx + t * dx, cy + t * dy])
-        Dn = cn[:, None] - PT
-        rn = np.hypot(Dn[0], Dn[1])
-        dist = float(a @ rn)
-        if dist - bx * cn[0] - by * cn[1] <= f0 + _ARMIJO * t * slope:
+        nx = cx + t * dx
+        ny = cy + t * dy
+        dist = fill_distances(px, py, a, nx, ny, work)
+        if dist - bx * nx - by * ny <= f0 + _ARMIJO * t * slope:
+            decreased = True
             break
         t *= 0.5
-    else:
-        return _stalled(PT, a, b, c, D, r)
+    if not decreased:
+        return _stalled(px, py, a, bx, by, cx, cy, r, dist0)
     step = t * math.hypot(dx, dy)
-    jn = int(rn.argmin())
-    if rn[jn] <= step:
+    jn = np.argmin(work)
+    if work[jn] <= step:
         # Near a kink Newton crawls (the 1/r curvature); certify the point or jump off it.
-        R, rj = _kuhn(PT, a, b, jn)
-        excess = math.hypot(R[0], R[1]) - a[jn]
-        if excess <= 1e-14:
-            return _snap(PT, a, jn, step, excess)
-        cv = _leave_point(PT, a, R, rj, jn)
-        Dv, rv = _distances(PT, cv)
-        dist_v = float(a @ rv)
-        if dist_v - bx * cv[0] - by * cv[1] < dist - bx * cn[0] - by * cn[1]:
-            return WeberStep(cv, Dv, rv, math.hypot(cv[0] - cx, cv[1] - cy), -1, 0.0, False, dist_v)
-    return WeberStep(cn, Dn, rn, step, -1, 0.0, False, dist)
+        rx, ry, inv, aj = _kuhn(px, py, a, bx, by, jn)
+        excess = math.hypot(rx, ry) - aj
+        if excess <= _KUHN_TOL:
+            return _snap(px, py, a, jn, step, excess, r)
+        vx, vy = _leave_point(px, py, rx, ry, inv, aj, jn)
+        dist_v = fill_distances(px, py, a, vx, vy, r)
+        if dist_v - bx * vx - by * vy < dist - bx * nx - by * ny:
+            return vx, vy, math.hypot(vx - cx, vy - cy), _MOVED, 0.0, -1, dist_v
+    r[:] = work
+    return nx, ny, step, _MOVED, 0.0, -1, dist
 
 
-def _snap(PT, a, j, step, excess) -> WeberStep:
-    cj = PT[:, j].copy()
-    Dj, rj = _distances(PT, cj)
-    return WeberStep(cj, Dj, rj, step, j, max(excess, 0.0), False, float(a @ rj))
-
-
-def _at_point(PT, a, b, c, j, rj) -> WeberStep:
-    """The iterate sits on point ``j``: certify it or take the Vardi–Zhang step off it."""
-    R, dist_j = _kuhn(PT, a, b, j)
-    excess = math.hypot(R[0], R[1]) - a[j]
-    if excess <= 1e-14:
-        return _snap(PT, a, j, rj, excess)
-    cn = _leave_point(PT, a, R, dist_j, j)
-    Dn, rn = _distances(PT, cn)
-    return WeberStep(cn, Dn, rn, math.hypot(*(cn - c)), -1, 0.0, False, float(a @ rn))
-
-
-def _stalled(PT, a, b, c, D, r) -> WeberStep:
-    """No decrease possible in floating point: certify the nearest point or report a stall."""
-    j = int(r.argmin())
-    R, _ = _kuhn(PT, a, b, j)
-    excess = math.hypot(R[0], R[1]) - a[j]
-    if excess <= 1e-14:
-        return _snap(PT, a, j, 0.0, excess)
-    return WeberStep(c, D, r, 0.0, -1, 0.0, True, float(a @ r))
-
-
-def step_converged(step: float, prev_step: float, c: np.ndarray, xtol: float) -> bool:
+@njit(**JIT)
+def step_converged(step, prev_step, cx, cy, xtol):
     """Stop test shared by the Newton-type solvers (normalised coordinates).
 
     Converged when the last step is below ``xtol·(1 + |c|)``, or when it is below
     1e-3 and the quadratic-convergence prediction of the next step,
     ``step³/prev_step²``, is (the error left is then about that prediction).
     """
-    bound = xtol * (1.0 + math.hypot(c[0], c[1]))
+    bound = xtol * (1.0 + math.hypot(cx, cy))
     if step <= bound:
         return True
-    return step <= 1e-3 and prev_step > 0 and step**3 <= bound * prev_step**2
+    return step <= 1e-3 and prev_step > 0.0 and step**3 <= bound * prev_step**2
 
 
-def _gradient_norm(D: np.ndarray, r: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
-    safe = np.where(r > _KINK, r, np.inf)
-    g = D @ (a / safe) - b
-    return math.hypot(g[0], g[1])
+@njit(**JIT)
+def _gradient_norm(px, py, a, bx, by, cx, cy, r):
+    """``|∇F(c)|`` in normalised units, points closer than the kink tolerance left out."""
+    gx = -bx
+    gy = -by
+    for i in range(px.size):
+        if r[i] > _KINK:
+            w = a[i] / r[i]
+            gx += w * (cx - px[i])
+            gy += w * (cy - py[i])
+    return math.hypot(gx, gy)
+
+
+@njit(**JIT)
+def _solve_kernel(points, weights, bx, by, c0x, c0y, warm, xtol, max_iter):
+    """:func:`solve_weber` in one compiled call.
+
+    Returns ``(code, cx, cy, value, taxel, iterations, residual)``: code one of
+    ``_CONVERGED, _ON_TAXEL, _MAX_ITER, _TRANSLATION, _SINGLE`` (one point, or
+    coincident points) or, from :func:`normalise_contact`, invalid / no contact
+    (offset by 10); ``taxel`` indexes ``points``.
+    """
+    code, idx, px, py, a, ox, oy, scale, total = normalise_contact(points, weights)
+    if code != _OK:
+        return 10 + code, 0.0, 0.0, 0.0, -1, 0, 0.0
+    bnx = bx / total
+    bny = by / total
+    if math.hypot(bnx, bny) >= 1.0:
+        return _TRANSLATION, 0.0, 0.0, -math.inf, -1, 0, 0.0
+    if scale == 0.0 or idx.size == 1:  # one point (or coincident points): it is optimal
+        return _SINGLE, ox, oy, -(bx * ox + by * oy), idx[0], 0, 0.0
+    cx = 0.0
+    cy = 0.0
+    if warm:
+        cx = (c0x - ox) / scale
+        cy = (c0y - oy) / scale
+    m = px.size
+    r = np.empty(m)
+    work = np.empty(m)
+    dist = fill_distances(px, py, a, cx, cy, r)
+    status = _MAX_ITER
+    taxel = -1
+    residual = math.inf
+    prev = math.inf
+    it = 0
+    while it < max_iter:
+        it += 1
+        cx, cy, step, outcome, kink_residual, tx, dist = newton_step(px, py, a, bnx, bny, cx, cy, r, work)
+        if outcome == STEP_ON_TAXEL:
+            status = _ON_TAXEL
+            taxel = idx[tx]
+            residual = kink_residual
+            break
+        if outcome == _STALLED or step_converged(step, prev, cx, cy, xtol):
+            residual = _gradient_norm(px, py, a, bnx, bny, cx, cy, r)
+            status = _CONVERGED if residual <= 1e-3 else _MAX_ITER
+            break
+        prev = step
+    if status == _MAX_ITER and math.isinf(residual):
+        residual = _gradient_norm(px, py, a, bnx, bny, cx, cy, r)
+    out_x = ox + scale * cx
+    out_y = oy + scale * cy
+    value = total * scale * dist - (bx * out_x + by * out_y)
+    return status, out_x, out_y, value, taxel, it, residual
 
 
 def solve_weber(
@@ -251,64 +422,31 @@ def solve_weber(
     Returns:
         :class:`WeberResult`. Never raises on bad numbers (INVALID_INPUT instead).
     """
-    P = np.asarray(points, dtype=float)
-    a_all = np.asarray(weights, dtype=float)
-    bv = np.asarray(b, dtype=float).reshape(-1)
+    P = np.asarray(points, dtype=np.float64)
+    a_all = np.asarray(weights, dtype=np.float64)
+    bv = np.asarray(b, dtype=np.float64).reshape(-1)
     if P.ndim != 2 or P.shape[1] != 2 or a_all.shape != (P.shape[0],) or bv.shape != (2,):
         return WeberResult(None, math.nan, -1, 0, math.inf, SolverStatus.INVALID_INPUT)
-    if not (np.all(np.isfinite(P)) and np.all(np.isfinite(a_all)) and np.all(np.isfinite(bv))):
+    bx, by = float(bv[0]), float(bv[1])
+    if not (math.isfinite(bx) and math.isfinite(by)):
         return WeberResult(None, math.nan, -1, 0, math.inf, SolverStatus.INVALID_INPUT)
-    if np.any(a_all < 0):
-        return WeberResult(None, math.nan, -1, 0, math.inf, SolverStatus.INVALID_INPUT)
-    idx = np.flatnonzero(a_all > 0)
-    if idx.size == 0:
-        return WeberResult(None, 0.0, -1, 0, 0.0, SolverStatus.NO_CONTACT)
-    total = float(a_all[idx].sum())
-    a = a_all[idx] / total
-    Pc = P[idx]
-    centre = a @ Pc
-    scale = math.sqrt(float(a @ np.sum((Pc - centre) ** 2, axis=1)))
-    bn = bv / total
-    if math.hypot(bn[0], bn[1]) >= 1.0:
-        return WeberResult(None, -math.inf, -1, 0, 0.0, SolverStatus.TRANSLATION)
-    if scale == 0.0 or idx.size == 1:  # one point (or coincident points): it is optimal
-        c = tuple(float(v) for v in Pc[0])
-        value = total * 0.0 - float(bv @ Pc[0])
-        return WeberResult(c, value, int(idx[0]), 0, 0.0, SolverStatus.ON_TAXEL)
-    PT = np.ascontiguousarray(((Pc - centre) / scale).T)
-    if c0 is not None and np.all(np.isfinite(np.asarray(c0, dtype=float))):
-        c = (np.asarray(c0, dtype=float).reshape(2) - centre) / scale
-    else:
-        c = np.zeros(2)
-    D, r = _distances(PT, c)
-    status = SolverStatus.MAX_ITER
-    taxel = -1
-    residual = math.inf
-    it = 0
-    prev = math.inf
-    for it in range(1, max_iter + 1):
-        st = weber_step(PT, a, bn, c, D, r)
-        c, D, r = st.c, st.D, st.r
-        if st.taxel >= 0:
-            status, taxel, residual = SolverStatus.ON_TAXEL, st.taxel, st.kink_residual
-            break
-        if st.stalled or step_converged(st.step, prev, c, xtol):
-            residual = _gradient_norm(D, r, a, bn)
-            status = SolverStatus.CONVERGED if residual <= 1e-3 else SolverStatus.MAX_ITER
-            break
-        prev = st.step
-    else:
-        residual = _gradient_norm(D, r, a, bn)
-    c_out = centre + scale * c
-    value = float(a_all[idx] @ np.hypot(*(Pc - c_out).T)) - float(bv @ c_out)
-    return WeberResult(
-        (float(c_out[0]), float(c_out[1])),
-        value,
-        int(idx[taxel]) if taxel >= 0 else -1,
-        it,
-        float(residual),
-        status,
+    warm = c0 is not None
+    c0x = c0y = 0.0
+    if warm:
+        c0x, c0y = (float(v) for v in np.asarray(c0, dtype=np.float64).reshape(2))
+        warm = math.isfinite(c0x) and math.isfinite(c0y)
+    code, cx, cy, value, taxel, it, residual = _solve_kernel(
+        np.ascontiguousarray(P), np.ascontiguousarray(a_all), bx, by, c0x, c0y, warm, float(xtol), int(max_iter)
     )
+    if code == 10 + _INVALID:
+        return WeberResult(None, math.nan, -1, 0, math.inf, SolverStatus.INVALID_INPUT)
+    if code == 10 + _NO_CONTACT:
+        return WeberResult(None, 0.0, -1, 0, 0.0, SolverStatus.NO_CONTACT)
+    if code == _TRANSLATION:
+        return WeberResult(None, -math.inf, -1, 0, 0.0, SolverStatus.TRANSLATION)
+    if code == _SINGLE:
+        return WeberResult((cx, cy), value, int(taxel), 0, 0.0, SolverStatus.ON_TAXEL)
+    return WeberResult((cx, cy), value, int(taxel), int(it), float(residual), _STATUS[code])
 
 
 def geometric_median(

@@ -17,7 +17,7 @@ import numpy as np
 
 from slipstack.lib.cor import paper_cor, robust_cor
 from slipstack.lib.errors import ConfigError
-from slipstack.lib.limit_set import load_factor
+from slipstack.lib.limit_set import compile_kernels, load_factor
 from slipstack.messages import Contact, Cor
 from slipstack.nodes.contact_view import ContactView
 from slipstack.nodes.node import Context, Input, Node, Output
@@ -52,6 +52,7 @@ class CorEstimator(Node):
             raise ConfigError(f"cor_estimator solver must be one of {SOLVERS}, got {self.params.solver!r}")
         self._last_pc: tuple[float, float] | None = None
         self._last_frame: int | None = None
+        compile_kernels()
 
     def on_contact(self, msg: Contact, ctx: Context) -> None:
         stamp = msg.header.stamp_ns

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from slipstack.lib.detection import DetectorConfig, SlipLatch
-from slipstack.lib.limit_set import torsional_coefficient
+from slipstack.lib.limit_set import compile_kernels, torsional_coefficient
 from slipstack.lib.slip_tests import SLIP_TESTS, SlipParams, get_slip_test
 from slipstack.messages import Contact, Slip
 from slipstack.nodes.contact_view import ContactView
@@ -65,6 +65,7 @@ class SlipDetector(Node):
         self.latch = SlipLatch(DetectorConfig(p.delta, p.gamma_release, round(p.release_ms * 1e6)))
         self._warm: tuple[float, float] | None = None
         self._kind = "translation"  # the latest slip kind, reported while the latch holds
+        compile_kernels()
 
     def _params_for_ft_tests(self, msg: Contact, view: ContactView) -> SlipParams:
         """SlipParams with β fixed: the configured one, or β_s of this tactile frame."""

@@ -87,3 +87,14 @@ def test_weber_solver_basics():
     a = solve_weber(pts, [1.0, 2.0, 3.0], (0.5, 0.2))
     b = solve_weber(pts * 1e-6, [1e3, 2e3, 3e3], (0.5e3, 0.2e3))
     assert np.array(b.c) == pytest.approx(np.array(a.c) * 1e-6, rel=1e-9)
+
+
+def test_coincident_points_pool_their_weight_in_the_kuhn_test():
+    # Two taxels at the origin carry 2 of the 3 units of weight: the pull of the other
+    # two (|(1,0)·0.5 + (0,1)·0.5| ≈ 0.71) cannot move the median off the origin.
+    pts = np.array([[0.0, 0.0], [0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    res = geometric_median(pts, [1.0, 1.0, 0.5, 0.5])
+    assert res.status is SolverStatus.ON_TAXEL
+    assert res.taxel in (0, 1)
+    assert res.c == (0.0, 0.0)
+    assert res.value == pytest.approx(1.0)
