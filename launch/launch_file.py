@@ -51,7 +51,7 @@ __all__ = ["NodeEntry", "LaunchFile", "load_launch_file", "default_launch_file",
 
 _SUBST = re.compile(r"\$\((\w+)\)")
 _NODE_KEYS = {"name", "type", "params", "remap", "respawn", "respawn_delay_s", "respawn_max_retries",
-              "required", "transport", "enabled", "after", "nice"}
+              "required", "transport", "enabled", "after", "nice", "container"}
 
 
 @dataclass
@@ -70,6 +70,12 @@ class NodeEntry:
     transport: str = "ipc"
     after: list[str] = field(default_factory=list)
     nice: int = 0
+    container: str = ""
+    """Nodes naming the same container run in one process ("": a process of its own)."""
+
+    def process_policy(self) -> tuple:
+        """The settings that belong to the process, which a container's members must share."""
+        return (self.respawn, self.respawn_delay_s, self.respawn_max_retries, self.required, self.transport, self.nice)
 
     def instance(self) -> Node:
         """Build the node object (validates the parameters)."""
@@ -174,6 +180,23 @@ def _read_with_base(p: Path, seen: tuple[Path, ...]) -> dict[str, Any]:
     }
 
 
+def _check_containers(file: str, entries: list[NodeEntry]) -> None:
+    """A container's members share one process, so they must agree on its settings."""
+    names = {e.name for e in entries}
+    first: dict[str, NodeEntry] = {}
+    for e in entries:
+        if not e.container:
+            continue
+        if e.container in names:
+            raise ConfigError(f"{file}: container {e.container!r} has the name of a node; name it differently")
+        lead = first.setdefault(e.container, e)
+        if e.process_policy() != lead.process_policy():
+            raise ConfigError(
+                f"{file}: nodes {lead.name} and {e.name} share container {e.container!r} but differ in "
+                "respawn, respawn_delay_s, respawn_max_retries, required, transport or nice; make them equal"
+            )
+
+
 def load_launch_file(
     path: str | Path | None, overrides: dict[str, str] | None = None, *, builtins: dict[str, Any] | None = None
 ) -> LaunchFile:
@@ -224,7 +247,7 @@ def load_launch_file(
             respawn_delay_s=float(raw.get("respawn_delay_s", 0.5)),
             respawn_max_retries=int(raw.get("respawn_max_retries", 3)),
             required=bool(raw.get("required", False)), transport=raw.get("transport", "ipc"),
-            after=list(raw.get("after", [])), nice=int(raw.get("nice", 0)),
+            after=list(raw.get("after", [])), nice=int(raw.get("nice", 0)), container=str(raw.get("container", "")),
         )
         entry.instance()  # fail now, naming the node, if a parameter is wrong
         entries.append(entry)
@@ -236,4 +259,5 @@ def load_launch_file(
         missing = [a for a in e.after if a not in names]
         if missing:
             raise ConfigError(f"{p.name}: node {e.name} starts after {missing}, which this launch does not run")
+    _check_containers(p.name, entries)
     return LaunchFile(p, str(meta.get("description", "")), float(_substitute(meta.get("duration_s", 0), args, "launch.duration_s")), args, entries)

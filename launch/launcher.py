@@ -1,6 +1,8 @@
 """``slipstack launch``: start a graph of node processes and supervise it.
 
-Starts nodes subscribers-first (reverse topological order of the topic graph, so a
+Each node runs in a process of its own, or with the other nodes of its ``container``
+in one process (their messages to each other then skip the bus; see
+``nodes/process.py``). Starts processes subscribers-first (reverse topological order of the topic graph, so a
 publisher's subscribers exist before its data flows), waits for each to report
 ready, forwards every log line prefixed with ``[node]``, respawns crashed nodes per
 their policy, and on SIGINT/SIGTERM stops them in reverse start order with
@@ -44,16 +46,48 @@ KILL_AFTER_S = 2.5       # from the start of shutdown: SIGKILL whoever is left
 
 @dataclass
 class _Child:
+    """One node of the graph: how it is wired."""
+
     entry: NodeEntry
     endpoint: str
+    process: str  # name of the _Process that runs it
+    outputs: dict[str, str] = field(default_factory=dict)
+    inputs: dict[str, str] = field(default_factory=dict)
+    inject: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass
+class _Process:
+    """One OS process: a single node, or a container of nodes sharing one loop."""
+
+    name: str
+    members: list[_Child]
     spec_path: Path
     proc: subprocess.Popen | None = None
     restarts: int = 0
     respawn_at: float | None = None
     buffer: bytes = b""
-    outputs: dict[str, str] = field(default_factory=dict)
-    inputs: dict[str, str] = field(default_factory=dict)
-    inject: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def entry(self) -> NodeEntry:
+        """Process settings (respawn, required, nice): the members share them."""
+        return self.members[0].entry
+
+    @property
+    def is_container(self) -> bool:
+        return bool(self.entry.container)
+
+    @property
+    def node_names(self) -> set[str]:
+        return {c.entry.name for c in self.members}
+
+    @property
+    def inputs(self) -> set[str]:
+        return {t for c in self.members for t in c.inputs}
+
+    @property
+    def outputs(self) -> set[str]:
+        return {t for c in self.members for t in c.outputs}
 
 
 class Console:
@@ -91,7 +125,8 @@ class Launcher:
         self.control.bind(self.control_ep)
         self.selector = selectors.DefaultSelector()
         self.children: dict[str, _Child] = {}
-        self.order: list[str] = []
+        self.processes: dict[str, _Process] = {}
+        self.order: list[str] = []  # process names, in start order
         self._stop_requested = False
         self.exit_code = 0
         self._wire()
@@ -101,34 +136,49 @@ class Launcher:
         nodes = {e.name: e.instance() for e in self.launch.nodes}
         for e in self.launch.nodes:
             ep = f"tcp://127.0.0.1:{free_port()}" if e.transport == "tcp" else ipc_endpoint(self.run_dir, e.name)
-            child = _Child(e, ep, self.run_dir / f"{e.name}.spec.json")
+            child = _Child(e, ep, e.container or e.name)
             child.outputs = {t: nodes[e.name].outputs[n].type.TYPE for n, t in e.output_topics(nodes[e.name]).items()}
             child.outputs[DIAGNOSTICS_TOPIC] = Diagnostics.TYPE  # every node publishes it
             child.inputs = {t: nodes[e.name].inputs[n].type.TYPE for n, t in e.input_topics(nodes[e.name]).items()}
             child.inject = {t: ipc_endpoint(self.run_dir, f"{e.name}.in") for t in child.inputs}
             self.children[e.name] = child
+            proc = self.processes.setdefault(
+                child.process, _Process(child.process, [], self.run_dir / f"{child.process}.spec.json"))
+            proc.members.append(child)
         publishers: dict[str, list[str]] = {}
         for name, c in self.children.items():
             for topic in c.outputs:
                 publishers.setdefault(topic, []).append(name)
         taps = {n: tapped for n in self.children if (tapped := self._tapped_topics(nodes[n])) is not None}
+        specs: dict[str, dict] = {}
         for name, c in self.children.items():
+            # a subscriber in the publisher's own process gets its messages handed over there
             expected = {
-                topic: sum(1 for other in self.children.values() if topic in other.inputs)
+                topic: sum(1 for other in self.children.values() if topic in other.inputs and other.process != c.process)
                 + sum(1 for tap, tapped in taps.items() if tap != name and (not tapped or topic in tapped))
                 for topic in c.outputs
             }
-            spec = {
+            local = {t: [p for p in publishers.get(t, []) if p != name and self.children[p].process == c.process]
+                     for t in c.inputs}
+            specs[name] = {
                 "name": name,
                 "pub": c.endpoint,
-                "subs": {t: [self.children[p].endpoint for p in publishers.get(t, [])] for t in c.inputs},
+                "subs": {t: [self.children[p].endpoint for p in publishers.get(t, [])
+                             if self.children[p].process != c.process] for t in c.inputs},
                 "remap": c.entry.remap,
                 "inject": c.inject,
                 "expected_subscribers": {t: n for t, n in expected.items() if n},
                 "control": self.control_ep,
+                "local": {t: ps for t, ps in local.items() if ps},
                 "params": c.entry.params,
             }
-            c.spec_path.write_text(json.dumps(spec, indent=1))
+        for proc in self.processes.values():
+            if proc.is_container:
+                doc = {"container": proc.name,
+                       "members": [{"type": c.entry.type, **specs[c.entry.name]} for c in proc.members]}
+            else:
+                doc = specs[proc.members[0].entry.name]
+            proc.spec_path.write_text(json.dumps(doc, indent=1))
         self.order = self._start_order()
 
     @staticmethod
@@ -139,10 +189,14 @@ class Launcher:
         return set(node.params.topics)
 
     def _start_order(self) -> list[str]:
-        """Subscribers before publishers: reverse topological order, back edges ignored."""
+        """Processes, subscribers before publishers: reverse topological order, back edges ignored."""
+        procs = self.processes
         downstream = {
-            name: [o for o, oc in self.children.items() if o != name and set(oc.inputs) & set(c.outputs)]
-            for name, c in self.children.items()
+            name: [o for o, op in procs.items() if o != name and op.inputs & p.outputs] for name, p in procs.items()
+        }
+        after = {
+            name: {self.children[a].process for c in p.members for a in c.entry.after} - {name}
+            for name, p in procs.items()
         }
         seen: set[str] = set()
         post: list[str] = []
@@ -154,15 +208,15 @@ class Launcher:
                     visit(m)
             post.append(n)
 
-        for name in self.children:  # launch-file order breaks ties
+        for name in procs:  # launch-file order breaks ties
             if name not in seen:
                 visit(name)
-        # post-order: every node after all it feeds (cycles cut where entered); then
+        # post-order: every process after all it feeds (cycles cut where entered); then
         # honour explicit `after` constraints, keeping that order otherwise
         order: list[str] = []
         pending = post
         while pending:
-            ready = [n for n in pending if all(a in order for a in self.children[n].entry.after)]
+            ready = [n for n in pending if after[n] <= set(order)]
             if not ready:
                 raise ConfigError(f"'after' constraints form a cycle among {pending}")
             order.append(ready[0])
@@ -170,8 +224,9 @@ class Launcher:
         return order
 
     # -- processes --------------------------------------------------------------------------
-    def _spawn(self, c: _Child) -> None:
-        cmd = [sys.executable, "-m", "slipstack.launch.cli", "run", c.entry.type, "--spec", str(c.spec_path)]
+    def _spawn(self, c: _Process) -> None:
+        node_type = "container" if c.is_container else c.entry.type
+        cmd = [sys.executable, "-m", "slipstack.launch.cli", "run", node_type, "--spec", str(c.spec_path)]
         env = dict(os.environ, PYTHONUNBUFFERED="1", SLIPSTACK_RUN_DIR=str(self.run_dir))
         nice = c.entry.nice
 
@@ -193,7 +248,7 @@ class Launcher:
 
     def _forward_logs(self, timeout: float) -> None:
         for key, _ in self.selector.select(timeout):
-            c: _Child = key.data
+            c: _Process = key.data
             try:
                 chunk = key.fileobj.read()
             except (OSError, ValueError):
@@ -201,17 +256,18 @@ class Launcher:
             if not chunk:
                 self.selector.unregister(key.fileobj)
                 if c.buffer:
-                    self.echo(f"[{c.entry.name}] {c.buffer.decode(errors='replace')}")
+                    self.echo(f"[{c.name}] {c.buffer.decode(errors='replace')}")
                     c.buffer = b""
                 continue
             c.buffer += chunk
             *lines, c.buffer = c.buffer.split(b"\n")
             for line in lines:
-                self.echo(f"[{c.entry.name}] {line.decode(errors='replace')}")
+                self.echo(f"[{c.name}] {line.decode(errors='replace')}")
 
-    def _wait_ready(self, names: set[str], timeout: float) -> None:
+    def _wait_ready(self, process: _Process, timeout: float) -> None:
+        """Until every node of ``process`` has reported ready."""
         deadline = time.monotonic() + timeout
-        pending = set(names)
+        pending = process.node_names
         while pending:
             if self._stop_requested:
                 raise SlipstackError("interrupted while starting")
@@ -219,14 +275,11 @@ class Launcher:
                 event = msgpack.unpackb(self.control.recv())
                 if event.get("event") == "ready":
                     pending.discard(event.get("node"))
-            for name in list(pending):
-                proc = self.children[name].proc
-                if proc is not None and proc.poll() is not None:
-                    self._forward_logs(0.05)
-                    raise SlipstackError(
-                        f"node {name} ({self.children[name].entry.type}) exited with code {proc.returncode} "
-                        f"before it was ready; see its log lines above"
-                    )
+            proc = process.proc
+            if proc is not None and proc.poll() is not None:
+                self._forward_logs(0.05)
+                what = f"container {process.name}" if process.is_container else f"node {process.name} ({process.entry.type})"
+                raise SlipstackError(f"{what} exited with code {proc.returncode} before it was ready; see its log lines above")
             if time.monotonic() > deadline:
                 raise SlipstackError(f"node(s) {', '.join(sorted(pending))} not ready after {timeout:.0f} s")
             self._forward_logs(0.01)
@@ -239,9 +292,11 @@ class Launcher:
             "state": state,
             "started_ns": time.time_ns(),
             "nodes": {
-                name: {"type": c.entry.type, "pid": c.proc.pid if c.proc else None, "pub": c.endpoint,
-                       "inputs": c.inputs, "outputs": c.outputs, "inject": c.inject, "restarts": c.restarts}
+                name: {"type": c.entry.type, "pid": proc.proc.pid if proc.proc else None, "pub": c.endpoint,
+                       "inputs": c.inputs, "outputs": c.outputs, "inject": c.inject, "restarts": proc.restarts,
+                       "process": c.process}
                 for name, c in self.children.items()
+                for proc in (self.processes[c.process],)
             },
         })
 
@@ -256,11 +311,14 @@ class Launcher:
         try:
             self._write_graph("starting")  # endpoints are known now; tools may attach early
             for name in self.order:
-                self._spawn(self.children[name])
+                self._spawn(self.processes[name])
                 started.append(name)
-                self._wait_ready({name}, READY_TIMEOUT_S)
+                self._wait_ready(self.processes[name], READY_TIMEOUT_S)
             self._write_graph()
-            self.echo(f"[launch] {len(started)} nodes ready: {', '.join(started)}; run dir {self.run_dir}")
+            ready = [f"{n} ({', '.join(c.entry.name for c in self.processes[n].members)})"
+                     if self.processes[n].is_container else n for n in started]
+            self.echo(f"[launch] {len(self.children)} nodes ready in {len(started)} processes: {', '.join(ready)}; "
+                      f"run dir {self.run_dir}")
             self._supervise()
         except SlipstackError as exc:
             self.echo(f"[launch] error: {exc}")
@@ -282,7 +340,7 @@ class Launcher:
             while self.control.poll(0):
                 self.control.recv()  # ready reports of respawned nodes
             now = time.monotonic()
-            for name, c in self.children.items():
+            for name, c in self.processes.items():
                 if c.respawn_at is not None and now >= c.respawn_at:
                     c.respawn_at = None
                     c.restarts += 1
@@ -294,7 +352,7 @@ class Launcher:
                     continue
                 code = c.proc.returncode
                 self._forward_logs(0.0)
-                self.echo(f"[launch] node {name} exited with code {code}")
+                self.echo(f"[launch] {'container' if c.is_container else 'node'} {name} exited with code {code}")
                 if c.entry.required:
                     self.echo(f"[launch] {name} is required; stopping the launch")
                     if code != 0:
@@ -309,7 +367,7 @@ class Launcher:
 
     def _shutdown(self, started: list[str]) -> None:
         t0 = time.monotonic()
-        live = [self.children[n] for n in reversed(started) if self.children[n].proc is not None]
+        live = [self.processes[n] for n in reversed(started) if self.processes[n].proc is not None]
         for c in live:
             if c.proc.poll() is None:
                 c.proc.send_signal(signal.SIGINT)
@@ -322,7 +380,7 @@ class Launcher:
                 self._forward_logs(0.02)
             for c in live:
                 if c.proc.poll() is None:
-                    self.echo(f"[launch] {c.entry.name} still running; sending {sig.name}")
+                    self.echo(f"[launch] {c.name} still running; sending {sig.name}")
                     c.proc.send_signal(sig)
         for c in live:
             c.proc.wait()

@@ -1,8 +1,9 @@
-"""``slipstack run NODE``: one node as a process.
+"""``slipstack run NODE``: one node as a process (or ``run container``: several).
 
 The launcher calls it with ``--spec FILE`` (a JSON :class:`RunSpec` plus
-parameters); by hand, give endpoints with ``--pub`` and ``--sub TOPIC=ENDPOINT``
-and parameters as ``name:=value``.
+parameters; for a container ``{"container": NAME, "members": [{"type": …, spec…}]}``);
+by hand, give endpoints with ``--pub`` and ``--sub TOPIC=ENDPOINT`` and parameters
+as ``name:=value``.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import signal
 
 from slipstack.lib.errors import ConfigError
 from slipstack.nodes.catalog import NODE_TYPES, node_class
-from slipstack.nodes.node import make_params, param_help
+from slipstack.nodes.node import Node, make_params, param_help
 from slipstack.nodes.process import ProcessExecutor, RunSpec
 
 __all__ = ["add_parser", "main_run", "parse_assignments", "set_parent_death_signal"]
@@ -42,7 +43,8 @@ def parse_assignments(items: list[str]) -> dict[str, str]:
 
 
 def _node_epilog() -> str:
-    lines = ["node types and their parameters:"]
+    lines = ["container: the nodes of a launch-file container in one process (needs --spec from the launcher)",
+             "", "node types and their parameters:"]
     for type_name in sorted(NODE_TYPES):
         cls = node_class(type_name)
         doc = (cls.__doc__ or "").strip().splitlines()[0] if cls.__doc__ else ""
@@ -60,7 +62,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         epilog=_node_epilog(),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("node", help="node type (see the list below)")
+    p.add_argument("node", help="node type (see the list below), or 'container'")
     p.add_argument("assignments", nargs="*", metavar="name:=value", help="parameter overrides")
     p.add_argument("--name", help="instance name (default: the node type)")
     p.add_argument("--spec", help="JSON run spec written by the launcher")
@@ -69,13 +71,27 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=main_run)
 
 
+def _member(raw: dict) -> tuple[Node, RunSpec]:
+    """A node and its spec from one spec document (parameters under "params")."""
+    raw = dict(raw)
+    cls = node_class(raw.pop("type"))
+    values = raw.pop("params", {})
+    spec = RunSpec(**raw)
+    return cls(make_params(cls.Params, values, spec.name)), spec
+
+
 def main_run(args: argparse.Namespace) -> int:
-    cls = node_class(args.node)
+    if args.node == "container":
+        if not args.spec or args.assignments:
+            raise ConfigError("run container needs --spec FILE (written by the launcher) and no name:=value")
+        with open(args.spec) as fh:
+            doc = json.load(fh)
+        set_parent_death_signal()
+        return ProcessExecutor([_member(m) for m in doc["members"]]).run()
+    node_class(args.node)  # an unknown type fails here, with the list of known ones
     if args.spec:
         with open(args.spec) as fh:
             raw = json.load(fh)
-        values = raw.pop("params", {})
-        spec = RunSpec(**raw)
         set_parent_death_signal()
     else:
         subs: dict[str, list[str]] = {}
@@ -84,8 +100,6 @@ def main_run(args: argparse.Namespace) -> int:
             if not sep:
                 raise ConfigError(f"--sub expects TOPIC=ENDPOINT, got {item!r}")
             subs.setdefault(topic, []).append(ep)
-        spec = RunSpec(name=args.name or args.node, pub=args.pub, subs=subs)
-        values = {}
-    values.update(parse_assignments(args.assignments))
-    node = cls(make_params(cls.Params, values, spec.name))
-    return ProcessExecutor(node, spec).run()
+        raw = {"name": args.name or args.node, "pub": args.pub, "subs": subs}
+    raw.setdefault("params", {}).update(parse_assignments(args.assignments))
+    return ProcessExecutor([_member({**raw, "type": args.node})]).run()

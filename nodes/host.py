@@ -76,6 +76,8 @@ class NodeHost:
         self._durations: deque[int] = deque(maxlen=2000)
         self._log = log or (lambda text: print(text, file=sys.stderr, flush=True))
         self._handlers = {n: getattr(node, f"on_{n}") for n in node.inputs}
+        self.on_publish: Callable[[str, Message, Header], None] | None = None
+        """Called with every published message and its header (a container's in-process hand-over)."""
         self._timer_handlers = {n: getattr(node, f"on_timer_{n}") for n in node.timers}
 
     # -- the Context a handler sees -------------------------------------------------
@@ -86,8 +88,11 @@ class NodeHost:
         seq = self._seq[output]
         self._seq[output] = seq + 1
         topic = self.output_topics[output]
-        self._send(topic, encode(msg, Header(int(stamp_ns), seq, self.clock(), sources or {})))
+        header = Header(int(stamp_ns), seq, self.clock(), sources or {})
+        self._send(topic, encode(msg, header))
         self.counters[self._published_key[output]] += 1
+        if self.on_publish is not None:
+            self.on_publish(topic, msg, header)
 
     def publish_raw(self, topic: str, payload: bytes) -> None:
         """Put an already-encoded frame on the bus unchanged (recording playback)."""
@@ -130,6 +135,12 @@ class NodeHost:
             counters[lost] += seq - last - 1
         self._last_seq[key] = seq
         return msg
+
+    def receive_local(self, input_name: str, msg: Message) -> None:
+        """Handle a message handed over in-process by a node of the same container
+        (already validated by its publisher's types; counted as received)."""
+        self.counters[self._in_keys[input_name][0]] += 1
+        self.dispatch(input_name, msg)
 
     def count_dropped(self, input_name: str, n: int) -> None:
         """Count frames skipped on purpose (drain-to-latest, queue overflow)."""

@@ -1,4 +1,5 @@
-"""The process executor: one node in one OS process, ZeroMQ PUB/SUB, monotonic clock.
+"""The process executor: one node — or a container of nodes — in one OS process,
+ZeroMQ PUB/SUB, monotonic clock.
 
 Life cycle: bind the XPUB, connect the SUBs, call ``node.start``, report *ready* to
 the launcher, then hold all data flow (timers, device I/O, handlers) until every
@@ -7,26 +8,36 @@ message — and run the loop until SIGINT/SIGTERM. Timers are paced by absolute
 deadlines; inputs are drained to the newest frame (``latest``) or queued
 (``queue``); every drop and rejected frame is counted and published on
 ``diagnostics``.
+
+A *container* (ROS 2's component container) runs several nodes in one process and
+one loop. Each member keeps its own publish endpoint, so every tool and recorder
+sees the same graph; a message one member publishes to another is also handed over
+in-process — the same object with its header, no encode/decode, no socket hop, no
+wake-up of another process — right after the publishing handler returns (the
+launcher leaves those publishers out of the member's SUB sockets: ``RunSpec.local``).
 """
 
 from __future__ import annotations
 
+import copy
 import os
 import signal
 import sys
 import time
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import msgpack
 import zmq
 
+from slipstack.messages import Header, Message
 from slipstack.nodes.host import DIAGNOSTICS_TOPIC, NodeHost
 from slipstack.nodes.node import Node
 from slipstack.nodes.transport import make_pub, make_sub
 
-__all__ = ["RunSpec", "ProcessExecutor"]
+__all__ = ["ProcessExecutor", "RunSpec"]
 
 _DRAIN_LIMIT = 5000  # frames read from one socket per wake-up before others get a turn
 _TIMER_CATCH_UP = 20  # late ticks of one timer fired per loop turn before ticks are skipped
@@ -43,6 +54,8 @@ class RunSpec:
         fault injector) can connect a PUB to it and reach the node.
     expected_subscribers: topic → number of subscriptions to wait for before data flows.
     control: the launcher's PULL endpoint for the ready report, or ``None``.
+    local: topic → names of members of this node's container that publish it: their
+        messages are handed over in-process (and their endpoints are not in ``subs``).
     """
 
     name: str
@@ -54,49 +67,58 @@ class RunSpec:
     control: str | None = None
     diagnostics_period_s: float = 1.0
     handshake_timeout_s: float = 10.0
+    local: dict[str, list[str]] = field(default_factory=dict)
 
 
 class _Stop(Exception):
     pass
 
 
-class ProcessExecutor:
-    """Run ``node`` as this process's only node, wired by ``spec``."""
+def _log(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
 
-    def __init__(self, node: Node, spec: RunSpec) -> None:
+
+class _Member:
+    """One node of a :class:`ProcessExecutor`: its host, sockets, timers and deadlines."""
+
+    def __init__(self, node: Node, spec: RunSpec, zctx: zmq.Context) -> None:
         self.node = node
         self.spec = spec
-        self.zctx = zmq.Context.instance()
-        self.pub = make_pub(self.zctx, spec.pub) if spec.pub else None
-        self.host = NodeHost(node, time.monotonic_ns, self._send, name=spec.name, remap=spec.remap, log=self._log)
+        self.zctx = zctx
+        self.pub = make_pub(zctx, spec.pub) if spec.pub else None
+        self.host = NodeHost(node, time.monotonic_ns, self._send, name=spec.name, remap=spec.remap, log=_log)
         # One SUB socket per (input, publisher endpoint): sequence gaps are then tracked
         # per publisher, so several publishers on one topic (``diagnostics``) never look
         # like loss. One more SUB, bound, takes frames injected by tools.
-        self._sub_topic: dict[zmq.Socket, tuple[str, bytes, str]] = {}
+        self.sub_topic: dict[zmq.Socket, tuple[str, bytes, str]] = {}
         for input_name, topic in self.host.input_topics.items():
             hwm = 1000 if node.inputs[input_name].policy == "queue" else 100
             for origin in spec.subs.get(topic, []):
-                sock = make_sub(self.zctx, [origin], topic, rcvhwm=hwm)
-                self._sub_topic[sock] = (input_name, topic.encode(), origin)
-        self._inject_routes = {
+                sock = make_sub(zctx, [origin], topic, rcvhwm=hwm)
+                self.sub_topic[sock] = (input_name, topic.encode(), origin)
+        self.inject_routes = {
             topic.encode(): [n for n, t in self.host.input_topics.items() if t == topic] for topic in spec.inject
         }
         self.inject_sock: zmq.Socket | None = None
-        if self._inject_routes:
-            self.inject_sock = make_sub(self.zctx, [], None, rcvhwm=1000)
+        if self.inject_routes:
+            self.inject_sock = make_sub(zctx, [], None, rcvhwm=1000)
             self.inject_sock.setsockopt(zmq.UNSUBSCRIBE, b"")
-            for topic in self._inject_routes:
+            for topic in self.inject_routes:
                 self.inject_sock.setsockopt(zmq.SUBSCRIBE, topic)
             for endpoint in sorted(set(spec.inject.values())):
                 self.inject_sock.bind(endpoint)
-        self._queues = {n: deque(maxlen=i.depth) for n, i in node.inputs.items() if i.policy == "queue"}
-        self._subscriptions: dict[bytes, int] = {}
-        self._stopping = False
+        self.queues = {n: deque(maxlen=i.depth) for n, i in node.inputs.items() if i.policy == "queue"}
+        self.subscriptions: dict[bytes, int] = {}
+        self.watches_io = type(node).io_sources is not Node.io_sources
+        self.has_deadline = type(node).next_deadline_ns is not Node.next_deadline_ns
+        self.precise = bool(node.timers) and getattr(node, "precise_timers", False)
+        self.io: dict[int, object] = {}
+        self.periods = {t: round(p * 1e9) for t, p in node.timers.items()}
+        self.deadlines: dict[str, int] = {}
+        self.diag_period = round(spec.diagnostics_period_s * 1e9)
+        self.next_diag = 0
 
     # -- plumbing -----------------------------------------------------------------------
-    def _log(self, text: str) -> None:
-        print(text, file=sys.stderr, flush=True)
-
     def _send(self, topic: str, payload: bytes) -> None:
         if self.pub is None:
             raise RuntimeError(f"node {self.spec.name} has no publish endpoint")
@@ -105,7 +127,7 @@ class ProcessExecutor:
         except zmq.Again:
             self.host.count(f"out.{topic}.dropped_hwm")
 
-    def _read_subscriptions(self) -> None:
+    def read_subscriptions(self) -> None:
         while True:
             try:
                 frame = self.pub.recv(zmq.NOBLOCK)
@@ -113,18 +135,25 @@ class ProcessExecutor:
                 return
             if frame:
                 delta = 1 if frame[0] == 1 else -1
-                self._subscriptions[frame[1:]] = self._subscriptions.get(frame[1:], 0) + delta
+                self.subscriptions[frame[1:]] = self.subscriptions.get(frame[1:], 0) + delta
 
-    def _subscribers_of(self, topic: str) -> int:
+    def subscribers_of(self, topic: str) -> int:
         """Subscriptions matching ``topic`` (ZeroMQ filters are prefixes; b"" taps all)."""
         t = topic.encode()
-        return sum(n for prefix, n in self._subscriptions.items() if t.startswith(prefix))
+        return sum(n for prefix, n in self.subscriptions.items() if t.startswith(prefix))
 
-    def _subscribers_joined(self) -> bool:
-        self._read_subscriptions()
-        return all(self._subscribers_of(t) >= n for t, n in self.spec.expected_subscribers.items())
+    def missing_subscribers(self) -> dict[str, str]:
+        """Topics still short of the subscribers the graph expects: topic → "have/want"."""
+        if self.pub is None:
+            return {}
+        self.read_subscriptions()
+        return {
+            t: f"{self.subscribers_of(t)}/{n}"
+            for t, n in self.spec.expected_subscribers.items()
+            if self.subscribers_of(t) < n
+        }
 
-    def _report(self, event: str) -> None:
+    def report(self, event: str) -> None:
         if not self.spec.control:
             return
         sock = self.zctx.socket(zmq.PUSH)
@@ -133,31 +162,16 @@ class ProcessExecutor:
         sock.send(msgpack.packb({"node": self.spec.name, "event": event, "pid": os.getpid()}))
         sock.close()
 
-    def _on_signal(self, signum: int, frame: Any) -> None:
-        self._stopping = True
+    def sockets(self) -> list[zmq.Socket]:
+        return [*self.sub_topic, *([self.inject_sock] if self.inject_sock else []), *([self.pub] if self.pub else [])]
 
-    # -- the loop -----------------------------------------------------------------------
-    def _wait_for_subscribers(self) -> None:
-        deadline = time.monotonic() + self.spec.handshake_timeout_s
-        while not self._subscribers_joined():
-            if self._stopping:
-                raise _Stop
-            if time.monotonic() > deadline:
-                missing = {
-                    t: f"{self._subscribers_of(t)}/{n}"
-                    for t, n in self.spec.expected_subscribers.items()
-                    if self._subscribers_of(t) < n
-                }
-                self._log(f"warning: subscribers still missing after {self.spec.handshake_timeout_s} s: {missing}; starting anyway")
-                return
-            time.sleep(0.002)
-
-    def _drain(self, input_name: str, sock: zmq.Socket) -> None:
-        _, want, origin = self._sub_topic[sock]
+    # -- input --------------------------------------------------------------------------
+    def drain(self, input_name: str, sock: zmq.Socket) -> None:
+        _, want, origin = self.sub_topic[sock]
         host = self.host
         latest = None
         kept = 0
-        queue = self._queues.get(input_name)
+        queue = self.queues.get(input_name)
         for _ in range(_DRAIN_LIMIT):
             if not sock.getsockopt(zmq.EVENTS) & zmq.POLLIN:  # cheaper than a zmq.Again exception
                 break
@@ -185,27 +199,14 @@ class ProcessExecutor:
             while queue:
                 host.dispatch(input_name, queue.popleft())
 
-    def _watch_io(self, poller: zmq.Poller, io: dict[int, object], handlers: dict) -> dict[int, object]:
-        """Keep the poller in step with the node's current descriptors."""
-        current = {src.fileno(): src for src in self.node.io_sources()}
-        if current.keys() != io.keys():
-            for fd in io.keys() - current.keys():
-                poller.unregister(fd)
-                handlers.pop(fd, None)
-            for fd in current.keys() - io.keys():
-                poller.register(fd, zmq.POLLIN)
-        for fd, src in current.items():
-            handlers[fd] = ("io", src)
-        return current
-
-    def _drain_injected(self) -> None:
+    def drain_injected(self) -> None:
         """Frames put in by tools: every valid one is handled, in order (no draining to latest)."""
         host = self.host
         for _ in range(_DRAIN_LIMIT):
             if not self.inject_sock.getsockopt(zmq.EVENTS) & zmq.POLLIN:
                 break
             parts = self.inject_sock.recv_multipart(zmq.NOBLOCK)
-            names = self._inject_routes.get(parts[0], []) if len(parts) == 2 else []
+            names = self.inject_routes.get(parts[0], []) if len(parts) == 2 else []
             if not names:
                 host.count("in.injected.rejected")
                 host.last_error = f"injected frame: expected [topic, payload] on an input topic, got {len(parts)} parts"
@@ -214,68 +215,191 @@ class ProcessExecutor:
                 if msg is not None:
                     host.dispatch(input_name, msg)
 
+    def watch_io(self, poller: zmq.Poller, handlers: dict) -> None:
+        """Keep the poller in step with the node's current descriptors."""
+        current = {src.fileno(): src for src in self.node.io_sources()}
+        if current.keys() != self.io.keys():
+            for fd in self.io.keys() - current.keys():
+                poller.unregister(fd)
+                handlers.pop(fd, None)
+            for fd in current.keys() - self.io.keys():
+                poller.register(fd, zmq.POLLIN)
+        for fd, src in current.items():
+            handlers[fd] = ("io", self, src)
+        self.io = current
+
+    # -- time ---------------------------------------------------------------------------
+    def start_clock(self, now: int) -> None:
+        self.deadlines = {t: now + p for t, p in self.periods.items()}
+        self.next_diag = now + self.diag_period
+
+    def next_due(self) -> int:
+        due = min(self.next_diag, *self.deadlines.values()) if self.deadlines else self.next_diag
+        if self.has_deadline:
+            node_deadline = self.node.next_deadline_ns()
+            if node_deadline is not None and node_deadline < due:
+                due = node_deadline
+        return due
+
+    def fire_due(self, now: int) -> None:
+        """The node's deadline, due timer ticks (late ones made up) and diagnostics."""
+        host = self.host
+        if self.has_deadline:
+            node_deadline = self.node.next_deadline_ns()
+            if node_deadline is not None and now >= node_deadline:
+                host.call("on_deadline", self.node.on_deadline, host)
+        for timer, due in self.deadlines.items():
+            if now < due:
+                continue
+            period = self.periods[timer]
+            fired = 0
+            while now >= due and fired < _TIMER_CATCH_UP and not host.shutdown_requested:
+                # late ticks are made up, not lost
+                host.fire_timer(timer)
+                due += period
+                fired += 1
+            if now >= due:  # hopelessly behind: skip ahead and say so
+                skipped = (now - due) // period + 1
+                host.count(f"timer.{timer}.skipped", skipped)
+                due += skipped * period
+            self.deadlines[timer] = due
+        if now >= self.next_diag:
+            if self.pub is not None:
+                self.read_subscriptions()  # keep the XPUB's subscription queue short
+                self._send(DIAGNOSTICS_TOPIC, host.diagnostics())
+            self.next_diag += self.diag_period
+
+
+class ProcessExecutor:
+    """Run the nodes of ``members`` (one, or a container's) in this process, each wired by its spec."""
+
+    def __init__(self, members: Sequence[tuple[Node, RunSpec]]) -> None:
+        if not members:
+            raise ValueError("ProcessExecutor needs at least one node")
+        self.zctx = zmq.Context.instance()
+        self.members = [_Member(node, spec, self.zctx) for node, spec in members]
+        by_name = {m.spec.name: m for m in self.members}
+        # (publisher name, topic) → the members' inputs it feeds in-process
+        self._routes: dict[tuple[str, str], list[tuple[_Member, str]]] = {}
+        for m in self.members:
+            for topic, publishers in m.spec.local.items():
+                for pub in publishers:
+                    if pub not in by_name:
+                        raise ValueError(f"{m.spec.name}: local publisher {pub!r} of {topic!r} is not in this process")
+                    for input_name, t in m.host.input_topics.items():
+                        if t == topic:
+                            self._routes.setdefault((pub, topic), []).append((m, input_name))
+        self._handover: deque[tuple[_Member, str, Message]] = deque()
+        for m in self.members:
+            if any(pub == m.spec.name for pub, _ in self._routes):
+                m.host.on_publish = self._hand_over_from(m.spec.name)
+        self._stopping = False
+
+    @property
+    def node(self) -> Node:
+        """The first (for a single-node process, the only) node."""
+        return self.members[0].node
+
+    def _hand_over_from(self, publisher: str):
+        routes = self._routes
+        handover = self._handover
+
+        def hand_over(topic: str, msg: Message, header: Header) -> None:
+            targets = routes.get((publisher, topic))
+            if targets:
+                delivered = copy.copy(msg)  # the publisher may publish the same object again
+                object.__setattr__(delivered, "header", header)
+                for member, input_name in targets:
+                    handover.append((member, input_name, delivered))
+
+        return hand_over
+
+    def _run_handovers(self) -> None:
+        """Messages published to members of this process, in order (new ones appended while running)."""
+        handover = self._handover
+        while handover:
+            member, input_name, msg = handover.popleft()
+            member.host.receive_local(input_name, msg)
+
+    def _on_signal(self, signum: int, frame: Any) -> None:
+        self._stopping = True
+
     def _sockets(self) -> list[zmq.Socket]:
-        return [*self._sub_topic, *([self.inject_sock] if self.inject_sock else []), *([self.pub] if self.pub else [])]
+        return [s for m in self.members for s in m.sockets()]
+
+    # -- the loop -----------------------------------------------------------------------
+    def _wait_for_subscribers(self) -> None:
+        timeout = max(m.spec.handshake_timeout_s for m in self.members)
+        deadline = time.monotonic() + timeout
+        while True:
+            missing = {m.spec.name: gap for m in self.members if (gap := m.missing_subscribers())}
+            if not missing:
+                return
+            if self._stopping:
+                raise _Stop
+            if time.monotonic() > deadline:
+                _log(f"warning: subscribers still missing after {timeout} s: {missing}; starting anyway")
+                return
+            time.sleep(0.002)
 
     def run(self) -> int:
         """Run until SIGINT/SIGTERM; returns the process exit code."""
         signal.signal(signal.SIGINT, self._on_signal)
         signal.signal(signal.SIGTERM, self._on_signal)
-        host = self.host
+        started: list[_Member] = []
+        for m in self.members:
+            try:
+                m.node.start(m.host)
+            except Exception as exc:  # cannot start: say why, exit non-zero, the launcher names us
+                _log(f"{m.spec.name}: cannot start: {type(exc).__name__}: {exc}")
+                for other in started:
+                    other.host.call("stop", other.node.stop, other.host)
+                for sock in self._sockets():
+                    sock.close(linger=0)
+                return 1
+            started.append(m)
         try:
-            self.node.start(host)
-        except Exception as exc:  # cannot start: say why, exit non-zero, the launcher names us
-            self._log(f"cannot start: {type(exc).__name__}: {exc}")
-            for sock in self._sockets():
-                sock.close(linger=0)
-            return 1
-        try:
-            self._report("ready")
-            if self.pub is not None:
-                self._wait_for_subscribers()
+            for m in self.members:
+                m.report("ready")
+            self._wait_for_subscribers()
             self._loop()
         except _Stop:
             pass
         finally:
-            host.call("stop", self.node.stop, host)
-            if self.pub is not None:
-                self._send(DIAGNOSTICS_TOPIC, host.diagnostics())
+            for m in self.members:
+                m.host.call("stop", m.node.stop, m.host)
+                if m.pub is not None:
+                    m._send(DIAGNOSTICS_TOPIC, m.host.diagnostics())
             for sock in self._sockets():
                 sock.close(linger=0)
         return 0
 
     def _loop(self) -> None:
-        host, node = self.host, self.node
+        members = self.members
         poller = zmq.Poller()
-        handlers: dict[object, tuple[str, object]] = {}
-        for sock, (input_name, _, _) in self._sub_topic.items():
-            poller.register(sock, zmq.POLLIN)
-            handlers[sock] = ("input", input_name)
-        if self.inject_sock is not None:
-            poller.register(self.inject_sock, zmq.POLLIN)
-            handlers[self.inject_sock] = ("inject", None)
-        watches_io = type(node).io_sources is not Node.io_sources
-        has_deadline = type(node).next_deadline_ns is not Node.next_deadline_ns
+        handlers: dict[object, tuple[str, _Member, object]] = {}
+        for m in members:
+            for sock, (input_name, _, _) in m.sub_topic.items():
+                poller.register(sock, zmq.POLLIN)
+                handlers[sock] = ("input", m, input_name)
+            if m.inject_sock is not None:
+                poller.register(m.inject_sock, zmq.POLLIN)
+                handlers[m.inject_sock] = ("inject", m, None)
+        watching = [m for m in members if m.watches_io]
         # A timer-paced node (the rig, a source) may sleep to the exact tick; any other
         # node waits in poll, rounding its wake-up up to the next millisecond, so it
         # never sleeps deaf to input.
-        precise = bool(node.timers) and getattr(node, "precise_timers", False)
-        io: dict[int, object] = {}
+        precise = any(m.precise for m in members)
         now = time.monotonic_ns()
-        deadlines = {t: now + round(p * 1e9) for t, p in node.timers.items()}
-        periods = {t: round(p * 1e9) for t, p in node.timers.items()}
-        diag_period = round(self.spec.diagnostics_period_s * 1e9)
-        next_diag = now + diag_period
-        counters = host.counters
-        while not (self._stopping or host.shutdown_requested):
-            counters["loop.wakeups"] += 1
-            if watches_io:
-                io = self._watch_io(poller, io, handlers)
-            node_deadline = node.next_deadline_ns() if has_deadline else None
-            next_due = min(next_diag, *deadlines.values()) if deadlines else next_diag
-            if node_deadline is not None and node_deadline < next_due:
-                next_due = node_deadline
-            wait_ns = next_due - time.monotonic_ns()
+        for m in members:
+            m.start_clock(now)
+        hosts = [m.host for m in members]
+        while not (self._stopping or any(h.shutdown_requested for h in hosts)):
+            for h in hosts:
+                h.counters["loop.wakeups"] += 1
+            for m in watching:
+                m.watch_io(poller, handlers)
+            wait_ns = min(m.next_due() for m in members) - time.monotonic_ns()
             if wait_ns <= 0:
                 events = poller.poll(0)
             elif precise and wait_ns < 1_000_000:
@@ -285,35 +409,15 @@ class ProcessExecutor:
             else:
                 events = poller.poll(min(-(-wait_ns // 1_000_000), 50))
             for item, _ in events:
-                kind, arg = handlers[item]
+                kind, m, arg = handlers[item]
                 if kind == "input":
-                    self._drain(arg, item)
+                    m.drain(arg, item)
                 elif kind == "io":
-                    host.call("on_readable", node.on_readable, arg, host)
+                    m.host.call("on_readable", m.node.on_readable, arg, m.host)
                 else:
-                    self._drain_injected()
+                    m.drain_injected()
+                self._run_handovers()
             now = time.monotonic_ns()
-            if has_deadline:
-                node_deadline = node.next_deadline_ns()
-                if node_deadline is not None and now >= node_deadline:
-                    host.call("on_deadline", node.on_deadline, host)
-            for timer, due in deadlines.items():
-                if now < due:
-                    continue
-                period = periods[timer]
-                fired = 0
-                while now >= due and fired < _TIMER_CATCH_UP and not host.shutdown_requested:
-                    # late ticks are made up, not lost
-                    host.fire_timer(timer)
-                    due += period
-                    fired += 1
-                if now >= due:  # hopelessly behind: skip ahead and say so
-                    skipped = (now - due) // period + 1
-                    host.count(f"timer.{timer}.skipped", skipped)
-                    due += skipped * period
-                deadlines[timer] = due
-            if now >= next_diag:
-                if self.pub is not None:
-                    self._read_subscriptions()  # keep the XPUB's subscription queue short
-                    self._send(DIAGNOSTICS_TOPIC, host.diagnostics())
-                next_diag += diag_period
+            for m in members:
+                m.fire_due(now)
+                self._run_handovers()

@@ -149,7 +149,15 @@ class StackRun:
             except (FileNotFoundError, json.JSONDecodeError):
                 graph = {}
             if graph.get("state") == "running":
-                self.node_pids = {n: v["pid"] for n, v in graph["nodes"].items() if v.get("pid")}
+                # one entry per process: a container's nodes share a pid
+                members: dict[int, list[str]] = {}
+                for n, v in graph["nodes"].items():
+                    if v.get("pid"):
+                        members.setdefault(v["pid"], []).append(n)
+                self.node_pids = {
+                    (names[0] if len(names) == 1 else f"{graph['nodes'][names[0]]['process']} ({', '.join(names)})"): pid
+                    for pid, names in members.items()
+                }
                 return graph
             time.sleep(0.05)
         raise RuntimeError(f"graph not running after {timeout_s:g} s:\n{self.log()}")

@@ -156,7 +156,7 @@ def _slip_process(node_factory: Any, spec_kwargs: dict, ready: Any) -> None:
     from slipstack.nodes.process import ProcessExecutor, RunSpec
 
     node = node_factory()
-    ex = ProcessExecutor(node, RunSpec(**spec_kwargs))
+    ex = ProcessExecutor([(node, RunSpec(**spec_kwargs))])
     ready.set()
     ex.run()
 

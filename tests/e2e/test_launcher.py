@@ -103,3 +103,40 @@ def test_a_bad_parameter_stops_the_launch_naming_the_node(launch, run_root):
     g = launch(str(bad))
     assert g.proc.wait(30) != 0
     assert "src" in g.log() and "rate_hz" in g.log()
+
+
+def test_a_container_runs_its_nodes_in_one_process_hands_messages_over_and_respawns_whole(launch):
+    g = launch("demo", "container:=pipeline")
+    graph = g.wait_ready()
+    nodes = graph["nodes"]
+    assert nodes["relay"]["pid"] == nodes["sink"]["pid"] != nodes["source"]["pid"]
+    assert nodes["relay"]["process"] == nodes["sink"]["process"] == "pipeline"
+    # the relay still publishes on the bus for everyone else ...
+    assert "seq:" in _echo_once(g, "ft/relayed")
+    # ... and the sink, which has no socket to the relay, gets every message in-process
+    counters = _read_diagnostics(nodes["sink"]["pub"], "sink", "in.ft/relayed.received")
+    assert counters["in.ft/relayed.received"] >= 1
+    assert counters.get("in.ft/relayed.lost", 0) == 0
+
+    os.kill(nodes["sink"]["pid"], signal.SIGKILL)  # the container goes down as one
+    deadline = time.monotonic() + 15
+    while time.monotonic() < deadline:
+        now = g.graph()["nodes"]
+        if now["relay"]["restarts"] == now["sink"]["restarts"] == 1 and pid_alive(now["sink"]["pid"]):
+            break
+        time.sleep(0.05)
+    else:
+        pytest.fail(f"container not respawned:\n{g.log()}")
+    assert now["relay"]["pid"] == now["sink"]["pid"] != nodes["sink"]["pid"]
+    assert "seq:" in _echo_once(g, "ft/relayed")
+    assert "in 2 processes: pipeline (relay, sink), source" in g.log()
+    assert g.stop() == 0
+
+
+def test_container_members_must_share_their_process_settings(launch, run_root):
+    bad = run_root / "bad.toml"
+    bad.write_text('[[node]]\nname = "relay"\ntype = "relay"\ncontainer = "c"\nrespawn = true\n'
+                   '[[node]]\nname = "sink"\ntype = "sink"\ncontainer = "c"\n')
+    g = launch(str(bad))
+    assert g.proc.wait(30) != 0
+    assert "relay and sink share container 'c'" in g.log()

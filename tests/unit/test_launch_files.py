@@ -38,3 +38,29 @@ def test_a_list_argument_is_read_from_the_command_line():
     for text, want in (("[]", []), ("", []), ("[ft/wrench, slip]", ["ft/wrench", "slip"]), ("slip", ["slip"])):
         lf = load_launch_file("default", {"record_topics": text}, builtins={"run_dir": "/tmp/x"})
         assert next(e for e in lf.nodes if e.type == "recorder").params["topics"] == want
+
+
+def test_a_container_hands_over_inside_and_subscribes_only_to_outside_publishers(tmp_path):
+    import json
+
+    from slipstack.launch.launcher import Launcher
+
+    lf = load_launch_file("stack", builtins={"run_dir": str(tmp_path)})
+    launcher = Launcher(lf, tmp_path, echo=lambda line: None)
+    try:
+        doc = json.loads((tmp_path / "control.spec.json").read_text())
+        members = {m["name"]: m for m in doc["members"]}
+        assert set(members) == {"fusion", "cor_estimator", "slip_detector", "grip_controller"}
+        slip, grip, fusion = members["slip_detector"], members["grip_controller"], members["fusion"]
+        assert slip["local"] == {"contact": ["fusion"]} and slip["subs"]["contact"] == []
+        assert grip["local"] == {"slip": ["slip_detector"]}
+        # fusion reads the drivers over the bus, and waits only for subscribers outside its process
+        assert fusion["subs"]["ft/wrench"] == [launcher.children["ft_driver"].endpoint]
+        assert fusion["local"] == {}
+        # every subscriber of `contact` is in its process (the recorder does not record it by default)
+        assert "contact" not in fusion["expected_subscribers"]
+        # the container starts after the processes that subscribe to it, before its drivers
+        order = launcher.order
+        assert order.index("monitor") < order.index("control") < order.index("ft_driver")
+    finally:
+        launcher.control.close(linger=0)
