@@ -295,11 +295,6 @@ class ProcessExecutor:
                 m.host.on_publish = self._hand_over_from(m.spec.name)
         self._stopping = False
 
-    @property
-    def node(self) -> Node:
-        """The first (for a single-node process, the only) node."""
-        return self.members[0].node
-
     def _hand_over_from(self, publisher: str):
         routes = self._routes
         handover = self._handover
