@@ -17,6 +17,7 @@ column); on the F/T-only scenes (fig10–12) they are not applicable.
 
     python tests/bench/bench_detection.py                 # all scenes, δ sweep
     python tests/bench/bench_detection.py --scenes fig15 --deltas 0.05 0.1
+    python tests/bench/bench_detection.py --gamma-release 0.7 --release-ms 30   # other latch
 """
 
 from __future__ import annotations
@@ -76,12 +77,14 @@ def record_scene(scene: str, cache: Path, ft_hz: float, tactile_hz: float) -> di
     return data
 
 
-def evaluate(data: dict[str, np.ndarray], test: str, delta: float) -> tuple[DetectionQuality, int]:
+def evaluate(data: dict[str, np.ndarray], test: str, delta: float,
+             gamma_release: float = DetectorConfig.gamma_release,
+             release_ns: int = DetectorConfig.release_ns) -> tuple[DetectionQuality, int]:
     """Latch one test's margins at ``delta``; match them to the true episodes.
 
     Returns the quality and how many of its false-slip frames are onset-band frames.
     """
-    latch = SlipLatch(DetectorConfig(delta=delta, gamma_release=min(DetectorConfig.gamma_release, 1 - delta)))
+    latch = SlipLatch(DetectorConfig(delta=delta, gamma_release=min(gamma_release, 1 - delta), release_ns=release_ns))
     margins = data[f"margin_{test}"]
     flags = np.array([latch.update(int(t), float(m), in_contact=bool(c))
                       for t, m, c in zip(data["t"], margins, data["contact"])])
@@ -98,6 +101,10 @@ def main() -> None:
     ap.add_argument("--deltas", nargs="+", type=float, default=[0.05, 0.1, 0.15, 0.18, 0.25], help="onset bands δ")
     ap.add_argument("--ft-rate", type=float, default=500.0, help="F/T rate (Hz), default the stack's 500")
     ap.add_argument("--tactile-rate", type=float, default=250.0, help="tactile rate (Hz), default 250")
+    ap.add_argument("--gamma-release", type=float, default=DetectorConfig.gamma_release,
+                    help="latch release level γ_release (default: the detector's, %(default)g)")
+    ap.add_argument("--release-ms", type=float, default=DetectorConfig.release_ns / 1e6,
+                    help="latch release dwell in ms (default: the detector's, %(default)g)")
     ap.add_argument("--cache", type=Path, default=Path("/tmp/slipstack-bench-detection"),
                     help="where the per-scene runs are cached (delete to re-run)")
     args = ap.parse_args()
@@ -105,7 +112,8 @@ def main() -> None:
     runs = {s: record_scene(s, args.cache, args.ft_rate, args.tactile_rate) for s in args.scenes}
     tests = [t for t in FT_TESTS + TACTILE_TESTS if any(t in r["tests"] for r in runs.values())]
     print(f"\nDetection quality, controller off, F/T {args.ft_rate:g} Hz (period {period_ms:g} ms), "
-          f"tactile {args.tactile_rate:g} Hz; scenes: {', '.join(args.scenes)}\n")
+          f"tactile {args.tactile_rate:g} Hz; latch release γ < {args.gamma_release:g} for {args.release_ms:g} ms; "
+          f"scenes: {', '.join(args.scenes)}\n")
     print("| test | δ | scenes | episodes | missed | delay p50 ms | delay p95 ms | p95 ≤ 2 periods "
           "| false-slip rate | onset band | latch hold |")
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | :---: | ---: | ---: | ---: |")
@@ -116,7 +124,7 @@ def main() -> None:
             for data in runs.values():
                 if test not in data["tests"]:
                     continue
-                q, in_band = evaluate(data, test, delta)
+                q, in_band = evaluate(data, test, delta, args.gamma_release, round(args.release_ms * 1e6))
                 scenes += 1
                 episodes += len(q.episodes)
                 missed += q.missed
