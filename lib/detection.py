@@ -19,7 +19,8 @@ and the measured frame-to-frame noise of the exact test's γ while sliding
 (σ_γ ≈ 0.006–0.010 at F/T 500 Hz, tactile 250 Hz; ``tests/bench/bench_detection.py``)
 the default is 0.76: under 0.03 % of the gross-slip frames of the shipped scenes fall
 below it, except in the fast stick–slip jumps of Fig. 4a, which dip below it for under
-20 ms as the object decelerates and re-sticks; the release dwell (20 ms) rides them out. A different material needs ``gamma_release`` set from its own μ_d/μ_s
+20 ms as the object decelerates and re-sticks; the release dwell (20 ms) rides them
+out. A different material needs ``gamma_release`` set from its own μ_d/μ_s
 (``lib/identify.py`` identifies both from a Fig. 4a record).
 
 What force data cannot tell: after the object re-sticks, the load can stay at or above
@@ -44,8 +45,10 @@ class DetectorConfig:
     """Thresholds of :class:`SlipLatch`.
 
     delta: onset band: slip when margin ``1 − γ ≤ delta`` (dimensionless, ≥ 0).
-    gamma_release: slip stays latched while ``γ ≥ gamma_release`` (dimensionless); just
-        below the kinetic-friction floor ``μ_d/μ_s`` (see the module docstring).
+    gamma_release: slip stays latched while ``γ ≥ gamma_release`` (dimensionless, in
+        (0, 1]); just below the kinetic-friction floor ``μ_d/μ_s`` (see the module
+        docstring). Above ``1 − delta`` it acts as ``1 − delta`` (the onset band then
+        holds the flag by itself), so a wide band needs no matching release level.
     release_ns: how long ``γ < gamma_release`` must hold before stick is declared (ns).
     """
 
@@ -56,10 +59,8 @@ class DetectorConfig:
     def __post_init__(self) -> None:
         if not 0.0 <= self.delta < 1.0:
             raise ConfigError(f"detector delta must lie in [0, 1), got {self.delta}")
-        if not 0.0 < self.gamma_release <= 1.0 - self.delta:
-            raise ConfigError(
-                f"detector gamma_release must lie in (0, 1 - delta] = (0, {1 - self.delta:g}], got {self.gamma_release}"
-            )
+        if not 0.0 < self.gamma_release <= 1.0:
+            raise ConfigError(f"detector gamma_release must lie in (0, 1], got {self.gamma_release}")
         if self.release_ns < 0:
             raise ConfigError(f"detector release_ns must be >= 0 ns, got {self.release_ns}")
 

@@ -84,7 +84,7 @@ def evaluate(data: dict[str, np.ndarray], test: str, delta: float,
 
     Returns the quality and how many of its false-slip frames are onset-band frames.
     """
-    latch = SlipLatch(DetectorConfig(delta=delta, gamma_release=min(gamma_release, 1 - delta), release_ns=release_ns))
+    latch = SlipLatch(DetectorConfig(delta=delta, gamma_release=gamma_release, release_ns=release_ns))
     margins = data[f"margin_{test}"]
     flags = np.array([latch.update(int(t), float(m), in_contact=bool(c))
                       for t, m, c in zip(data["t"], margins, data["contact"])])

@@ -29,7 +29,20 @@ def test_nan_keeps_state_and_no_contact_clears():
 
 def test_bad_config_says_what_to_fix():
     with pytest.raises(ConfigError, match="gamma_release"):
-        DetectorConfig(delta=0.1, gamma_release=0.95)
+        DetectorConfig(delta=0.1, gamma_release=1.2)
+    with pytest.raises(ConfigError, match="delta"):
+        DetectorConfig(delta=1.0)
+
+
+def test_release_level_above_the_band_acts_as_the_band_edge():
+    # delta 0.25 (band edge 0.75) with the default release level 0.76: gamma 0.755 is
+    # in the band (flagged), 0.745 is below both and releases after the dwell.
+    latch = SlipLatch(DetectorConfig(delta=0.25))
+    assert latch.update(0, 0.0) is True
+    assert latch.update(10 * MS, 1.0 - 0.755) is True
+    assert latch.update(12 * MS, 1.0 - 0.745) is True    # below from 12 ms
+    assert latch.update(31 * MS, 1.0 - 0.745) is True    # 19 ms
+    assert latch.update(32 * MS, 1.0 - 0.745) is False   # 20 ms: released
 
 
 def test_default_release_sits_just_under_the_kinetic_floor():
