@@ -40,9 +40,10 @@ class SlipDetectorParams:
     mu: float = field(default=0.45, metadata={"help": "static friction coefficient"})
     beta_m: float = field(default=0.0, metadata={"help": "torsional coefficient for F/T tests (m); 0: from tactile"})
     delta: float = field(default=DetectorConfig.delta, metadata={"help": "onset band: slip when gamma >= 1 - delta"})
-    gamma_release: float = field(default=DetectorConfig.gamma_release,
-                                 metadata={"help": "slip stays latched while gamma >= this"})
-    release_ms: float = field(default=30.0, metadata={"help": "gamma below release this long -> stick (ms)"})
+    gamma_release: float = field(default=DetectorConfig.gamma_release, metadata={
+        "help": "slip stays latched while gamma >= this; just below the sliding level mu_d/mu_s"})
+    release_ms: float = field(default=DetectorConfig.release_ns / 1e6,
+                              metadata={"help": "gamma below release this long -> stick (ms)"})
     pool: int = field(default=1, metadata={"help": "sum taxels in pool x pool blocks before testing (1: off)"})
 
 

@@ -29,4 +29,51 @@ def test_nan_keeps_state_and_no_contact_clears():
 
 def test_bad_config_says_what_to_fix():
     with pytest.raises(ConfigError, match="gamma_release"):
-        DetectorConfig(delta=0.1, gamma_release=0.95)
+        DetectorConfig(delta=0.1, gamma_release=1.2)
+    with pytest.raises(ConfigError, match="delta"):
+        DetectorConfig(delta=1.0)
+
+
+def test_release_level_above_the_band_acts_as_the_band_edge():
+    # delta 0.25 (band edge 0.75) with the default release level 0.76: gamma 0.755 is
+    # in the band (flagged), 0.745 is below both and releases after the dwell.
+    latch = SlipLatch(DetectorConfig(delta=0.25))
+    assert latch.update(0, 0.0) is True
+    assert latch.update(10 * MS, 1.0 - 0.755) is True
+    assert latch.update(12 * MS, 1.0 - 0.745) is True    # below from 12 ms
+    assert latch.update(31 * MS, 1.0 - 0.745) is True    # 19 ms
+    assert latch.update(32 * MS, 1.0 - 0.745) is False   # 20 ms: released
+
+
+def test_default_release_sits_just_under_the_kinetic_floor():
+    # Shipped rubber: mu_d/mu_s = 0.36/0.45 = 0.80; sliding keeps gamma at or above it
+    # (noise sigma ~0.01), so the default latch holds there and lets go below 0.76.
+    cfg = DetectorConfig()
+    assert cfg.gamma_release == pytest.approx(0.36 / 0.45 - 0.04)
+    latch = SlipLatch(cfg)
+    assert latch.update(0, 0.17) is True                # gamma 0.83 >= 1 - 0.18: slip
+    for k, gamma in enumerate([0.80, 0.79, 0.81, 0.78, 0.77, 0.80], start=1):
+        assert latch.update(k * MS, 1.0 - gamma) is True  # sliding at the floor: held
+
+
+def test_dip_below_the_floor_shorter_than_the_dwell_keeps_slip():
+    # A fast stick-slip jump decelerates below the floor for < 20 ms while still sliding.
+    latch = SlipLatch(DetectorConfig())
+    latch.update(0, 0.0)                                 # gamma 1.0: slip
+    assert latch.update(2 * MS, 1.0 - 0.70) is True      # below 0.76: timer starts at 2 ms
+    assert latch.update(20 * MS, 1.0 - 0.72) is True     # 18 ms below: still latched
+    assert latch.update(21 * MS, 1.0 - 0.78) is True     # back above: timer reset
+    assert latch.update(40 * MS, 1.0 - 0.75) is True     # below again from 40 ms
+    assert latch.update(59 * MS, 1.0 - 0.75) is True     # 19 ms below
+    assert latch.update(60 * MS, 1.0 - 0.75) is False    # 20 ms below: re-stuck, released
+
+
+def test_restuck_load_just_under_the_floor_releases_after_the_dwell():
+    # After re-sticking the load eases off from the sliding level 0.80 at 0.5 /s
+    # (the default scene's ramp-down): gamma passes 0.76 at 80 ms, release 20 ms later.
+    latch = SlipLatch(DetectorConfig())
+    latch.update(0, 0.0)
+    verdicts = {t: latch.update(t * MS, 1.0 - (0.80 - 0.5 * t / 1000)) for t in range(1, 120, 2)}
+    assert verdicts[79] is True                          # gamma 0.7605: at the floor, held
+    assert verdicts[99] is True                          # below since 81 ms: 18 ms
+    assert verdicts[101] is False                        # 20 ms below: released
