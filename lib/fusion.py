@@ -195,12 +195,15 @@ def fuse(
         saturated is not None and np.size(saturated) == n
     ) else 0
     w = np.where(mask, w, 0.0)
-    total = float(w.sum())
+    with np.errstate(over="ignore"):
+        total = float(w.sum())  # inf for absurd pressures: only compared with the threshold
+    peak = float(w.max())
     f_n = -float(f3[2])
-    if not (f_n > thresholds.min_normal_force_n and total > thresholds.min_pressure_sum_pa and total > 0):
+    if not (f_n > thresholds.min_normal_force_n and total > thresholds.min_pressure_sum_pa and peak > 0):
         return _empty(pad, zeros, mask, n_nonfinite, n_negative, n_sat, offset, SolverStatus.NO_CONTACT,
                       f_t=f3[:2], tau=float(t3[2]))
-    phi = w * (f_n / total)
+    shape = w / peak  # in [0, 1]: Σ shape neither overflows (huge pressures) nor underflows (tiny ones)
+    phi = shape * (f_n / float(shape.sum()))
     cop = phi @ pad.positions / float(phi.sum())
     status = SolverStatus.CLIPPED_INPUT if (n_nonfinite or n_negative) else SolverStatus.OK
     return _result(pad, phi, f3[:2].copy(), float(t3[2]), cop, mask, n_nonfinite, n_negative, n_sat, offset, status)

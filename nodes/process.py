@@ -81,12 +81,13 @@ def _log(text: str) -> None:
 class _Member:
     """One node of a :class:`ProcessExecutor`: its host, sockets, timers and deadlines."""
 
-    def __init__(self, node: Node, spec: RunSpec, zctx: zmq.Context) -> None:
+    def __init__(self, node: Node, spec: RunSpec, zctx: zmq.Context, *, name_logs: bool = False) -> None:
         self.node = node
         self.spec = spec
         self.zctx = zctx
         self.pub = make_pub(zctx, spec.pub) if spec.pub else None
-        self.host = NodeHost(node, time.monotonic_ns, self._send, name=spec.name, remap=spec.remap, log=_log)
+        log = (lambda text: _log(f"{spec.name}: {text}")) if name_logs else _log  # a container's members
+        self.host = NodeHost(node, time.monotonic_ns, self.send, name=spec.name, remap=spec.remap, log=log)
         # One SUB socket per (input, publisher endpoint): sequence gaps are then tracked
         # per publisher, so several publishers on one topic (``diagnostics``) never look
         # like loss. One more SUB, bound, takes frames injected by tools.
@@ -119,7 +120,7 @@ class _Member:
         self.next_diag = 0
 
     # -- plumbing -----------------------------------------------------------------------
-    def _send(self, topic: str, payload: bytes) -> None:
+    def send(self, topic: str, payload: bytes) -> None:
         if self.pub is None:
             raise RuntimeError(f"node {self.spec.name} has no publish endpoint")
         try:
@@ -266,7 +267,7 @@ class _Member:
         if now >= self.next_diag:
             if self.pub is not None:
                 self.read_subscriptions()  # keep the XPUB's subscription queue short
-                self._send(DIAGNOSTICS_TOPIC, host.diagnostics())
+                self.send(DIAGNOSTICS_TOPIC, host.diagnostics())
             self.next_diag += self.diag_period
 
 
@@ -277,7 +278,7 @@ class ProcessExecutor:
         if not members:
             raise ValueError("ProcessExecutor needs at least one node")
         self.zctx = zmq.Context.instance()
-        self.members = [_Member(node, spec, self.zctx) for node, spec in members]
+        self.members = [_Member(node, spec, self.zctx, name_logs=len(members) > 1) for node, spec in members]
         by_name = {m.spec.name: m for m in self.members}
         # (publisher name, topic) → the members' inputs it feeds in-process
         self._routes: dict[tuple[str, str], list[tuple[_Member, str]]] = {}
@@ -364,7 +365,7 @@ class ProcessExecutor:
             for m in self.members:
                 m.host.call("stop", m.node.stop, m.host)
                 if m.pub is not None:
-                    m._send(DIAGNOSTICS_TOPIC, m.host.diagnostics())
+                    m.send(DIAGNOSTICS_TOPIC, m.host.diagnostics())
             for sock in self._sockets():
                 sock.close(linger=0)
         return 0

@@ -74,3 +74,13 @@ def test_configuration_errors_say_what_to_fix():
         SensorMount(R_FS=((2, 0, 0), (0, 1, 0), (0, 0, 1)))
     with pytest.raises(ConfigError, match="noise_floor_pa"):
         FusionThresholds(noise_floor_pa=-1.0)
+
+
+@pytest.mark.parametrize("pressure_pa", [2.2e-313, 5e306])
+def test_pressures_at_the_ends_of_the_float_range_still_share_the_normal_force(pressure_pa):
+    # Found by hypothesis: Σw underflowed (φ = w·f_n/Σw became inf) or overflowed (φ = 0).
+    pad = PadGeometry(6, 6, 1e-3)
+    fr = fuse(np.full(36, pressure_pa), [0.1, 0.0, -1.0], [0.0, 0.0, 1e-4], pad, FusionThresholds(0.0, 0.0, 0.0))
+    assert fr.status is SolverStatus.OK
+    np.testing.assert_allclose(fr.phi, 1.0 / 36, rtol=1e-12)
+    assert fr.f_n == pytest.approx(1.0, rel=1e-12)
