@@ -51,7 +51,7 @@ __all__ = ["NodeEntry", "LaunchFile", "load_launch_file", "default_launch_file",
 
 _SUBST = re.compile(r"\$\((\w+)\)")
 _NODE_KEYS = {"name", "type", "params", "remap", "respawn", "respawn_delay_s", "respawn_max_retries",
-              "required", "transport", "enabled", "after", "nice", "container"}
+              "required", "transport", "enabled", "after", "nice", "container", "stop_first"}
 
 
 @dataclass
@@ -72,10 +72,14 @@ class NodeEntry:
     nice: int = 0
     container: str = ""
     """Nodes naming the same container run in one process ("": a process of its own)."""
+    stop_first: bool = False
+    """Stopped before every other node on Ctrl-C/SIGTERM (the simulated world, which must
+    not run on without the controller)."""
 
     def process_policy(self) -> tuple:
         """The settings that belong to the process, which a container's members must share."""
-        return (self.respawn, self.respawn_delay_s, self.respawn_max_retries, self.required, self.transport, self.nice)
+        return (self.respawn, self.respawn_delay_s, self.respawn_max_retries, self.required, self.transport, self.nice,
+                self.stop_first)
 
     def instance(self) -> Node:
         """Build the node object (validates the parameters)."""
@@ -193,7 +197,8 @@ def _check_containers(file: str, entries: list[NodeEntry]) -> None:
         if e.process_policy() != lead.process_policy():
             raise ConfigError(
                 f"{file}: nodes {lead.name} and {e.name} share container {e.container!r} but differ in "
-                "respawn, respawn_delay_s, respawn_max_retries, required, transport or nice; make them equal"
+                "respawn, respawn_delay_s, respawn_max_retries, required, transport, nice or stop_first; "
+                "make them equal"
             )
 
 
@@ -248,6 +253,7 @@ def load_launch_file(
             respawn_max_retries=int(raw.get("respawn_max_retries", 3)),
             required=bool(raw.get("required", False)), transport=raw.get("transport", "ipc"),
             after=list(raw.get("after", [])), nice=int(raw.get("nice", 0)), container=str(raw.get("container", "")),
+            stop_first=bool(raw.get("stop_first", False)),
         )
         entry.instance()  # fail now, naming the node, if a parameter is wrong
         entries.append(entry)

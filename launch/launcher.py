@@ -2,12 +2,14 @@
 
 Each node runs in a process of its own, or with the other nodes of its ``container``
 in one process (their messages to each other then skip the bus; see
-``nodes/process.py``). Starts processes subscribers-first (reverse topological order of the topic graph, so a
-publisher's subscribers exist before its data flows), waits for each to report
-ready, forwards every log line prefixed with ``[node]``, respawns crashed nodes per
+``nodes/process.py``). Starts processes subscribers-first (reverse topological order
+of the topic graph, so a publisher's subscribers exist before its data flows), waits
+for each to report ready, forwards every log line prefixed with ``[node]``, respawns crashed nodes per
 their policy, and on SIGINT/SIGTERM stops them in reverse start order with
-SIGINT → SIGTERM → SIGKILL escalation. Children get a parent-death signal, so even a
-SIGKILLed launcher leaves no orphans behind.
+SIGINT → SIGTERM → SIGKILL escalation (nodes marked ``stop_first``, the simulated
+rig, go first: the simulated world must not run on without its controller).
+Children get a parent-death signal, so even a SIGKILLed launcher leaves no orphans
+behind.
 """
 
 from __future__ import annotations
@@ -365,9 +367,14 @@ class Launcher:
                     if c.entry.respawn:
                         self.echo(f"[launch] {name} used up its {c.entry.respawn_max_retries} restarts; not respawning")
 
+    def _stop_order(self, started: list[str]) -> list[_Process]:
+        """Processes marked ``stop_first`` (the simulated world), then the rest in reverse start order."""
+        procs = [self.processes[n] for n in reversed(started)]
+        return [p for p in procs if p.entry.stop_first] + [p for p in procs if not p.entry.stop_first]
+
     def _shutdown(self, started: list[str]) -> None:
         t0 = time.monotonic()
-        live = [self.processes[n] for n in reversed(started) if self.processes[n].proc is not None]
+        live = [p for p in self._stop_order(started) if p.proc is not None]
         for c in live:
             if c.proc.poll() is None:
                 c.proc.send_signal(signal.SIGINT)

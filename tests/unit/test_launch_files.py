@@ -64,3 +64,16 @@ def test_a_container_hands_over_inside_and_subscribes_only_to_outside_publishers
         assert order.index("monitor") < order.index("control") < order.index("ft_driver")
     finally:
         launcher.control.close(linger=0)
+
+
+def test_on_shutdown_the_simulated_world_stops_before_its_controller(tmp_path):
+    from slipstack.launch.launcher import Launcher
+
+    lf = load_launch_file("stack", builtins={"run_dir": str(tmp_path)})
+    launcher = Launcher(lf, tmp_path, echo=lambda line: None)
+    try:
+        stop = [p.name for p in launcher._stop_order(launcher.order)]
+        assert stop[0] == "rig"
+        assert stop[1:] == [n for n in reversed(launcher.order) if n != "rig"]
+    finally:
+        launcher.control.close(linger=0)
