@@ -4,8 +4,9 @@ Each node runs in a process of its own, or with the other nodes of its ``contain
 in one process (their messages to each other then skip the bus; see
 ``nodes/process.py``). Starts processes subscribers-first (reverse topological order
 of the topic graph, so a publisher's subscribers exist before its data flows), waits
-for each to report ready, forwards every log line prefixed with ``[node]``, respawns crashed nodes per
-their policy, and on SIGINT/SIGTERM stops them in reverse start order with
+for each to report ready, forwards every log line prefixed with ``[node]``, respawns
+crashed nodes per their policy, and on SIGINT/SIGTERM stops them in reverse start
+order with
 SIGINT → SIGTERM → SIGKILL escalation (nodes marked ``stop_first``, the simulated
 rig, go first: the simulated world must not run on without its controller).
 Children get a parent-death signal, so even a SIGKILLed launcher leaves no orphans
