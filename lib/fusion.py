@@ -24,7 +24,8 @@ from slipstack.lib.errors import ConfigError
 from slipstack.lib.pad import PadGeometry
 from slipstack.lib.status import SolverStatus
 
-__all__ = ["FusionThresholds", "SensorMount", "FusionResult", "wrench_to_pad", "fuse"]
+__all__ = ["FusionResult", "FusionThresholds", "PressureShape", "SensorMount", "fuse", "fuse_shape",
+           "pressure_shape", "wrench_to_pad"]
 
 
 def wrench_to_pad(
@@ -141,49 +142,59 @@ def _frozen(a: np.ndarray) -> np.ndarray:
     return a
 
 
-def fuse(
+@dataclass(frozen=True, eq=False)
+class PressureShape:
+    """The tactile half of fusion: one frame's cleaned pressure shape (pad frame F).
+
+    It depends on the tactile frame alone, so a node computes it once per frame and
+    fuses it with every wrench that frame is paired with (:func:`fuse_shape`).
+
+    Attributes:
+        shape: (N,) pressure over its peak (dimensionless, in [0, 1]; 0 outside the
+            mask), so that its sum neither overflows nor underflows. Read-only.
+        shape_sum: ``Σ shape`` (≥ 1 with contact, 0 without).
+        cop: (2,) centre of pressure ``Σ shape_i p_i / Σ shape``, m ((0, 0) without contact).
+        mask: (N,) bool, taxels above the noise floor (after clipping). Read-only.
+        pressure_sum_pa: summed in-contact pressure, Pa (``inf`` if it overflows).
+        n_nonfinite, n_negative: taxels that were NaN/Inf or negative and were set to 0.
+        n_saturated: in-contact taxels flagged saturated by the driver.
+        valid: False when the frame does not match the pad (wrong number of taxels).
+    """
+
+    shape: np.ndarray
+    shape_sum: float
+    cop: np.ndarray
+    mask: np.ndarray
+    pressure_sum_pa: float
+    n_nonfinite: int = 0
+    n_negative: int = 0
+    n_saturated: int = 0
+    valid: bool = True
+
+
+def pressure_shape(
     pressure_pa: np.ndarray,
-    force: np.ndarray,
-    torque: np.ndarray,
     pad: PadGeometry,
     thresholds: FusionThresholds = FusionThresholds(),
     *,
-    mount: SensorMount | None = None,
     saturated: np.ndarray | None = None,
-    tactile_stamp_ns: int | None = None,
-    wrench_stamp_ns: int | None = None,
-) -> FusionResult:
-    """Fuse calibrated taxel pressures with an F/T wrench (MATH.md §2).
+) -> PressureShape:
+    """Clean one tactile frame and normalise its shape (MATH.md §2); never raises.
 
     Args:
         pressure_pa: (N,) or (R, C) calibrated pressure per taxel, Pa, row-major.
-        force: (3,) force the object exerts on the pad, N, in F (or in S if ``mount``).
-        torque: (3,) torque, N·m, about F's origin in F (or about S's origin in S).
         pad: the pad geometry.
-        thresholds: contact thresholds.
-        mount: if given, ``force``/``torque`` are in the sensor frame and are moved to F
-            with :func:`wrench_to_pad`.
+        thresholds: the noise floor applies here.
         saturated: optional (N,) bool raw-count saturation mask from the driver.
-        tactile_stamp_ns, wrench_stamp_ns: stamps of the paired samples (integer ns).
 
     Returns:
-        :class:`FusionResult`; never raises. NaN/Inf and negative taxels are set
-        to 0 and counted.
+        :class:`PressureShape`. NaN/Inf and negative taxels are set to 0 and counted.
     """
     n = pad.n_taxels
-    offset = None
-    if tactile_stamp_ns is not None and wrench_stamp_ns is not None:
-        offset = int(wrench_stamp_ns) - int(tactile_stamp_ns)
     w = np.array(pressure_pa, dtype=float).reshape(-1)
-    f3 = np.asarray(force, dtype=float).reshape(-1)
-    t3 = np.asarray(torque, dtype=float).reshape(-1)
-    zeros = np.zeros(n)
-    if w.shape != (n,) or f3.shape != (3,) or t3.shape != (3,) or not (
-        np.isfinite(f3).all() and np.isfinite(t3).all()
-    ):
-        return _empty(pad, zeros, np.zeros(n, dtype=bool), 0, 0, 0, offset, SolverStatus.INVALID_INPUT)
-    if mount is not None:
-        f3, t3 = wrench_to_pad(f3, t3, np.asarray(mount.R_FS), np.asarray(mount.p_SF))
+    if w.shape != (n,):
+        empty = np.zeros(n)
+        return PressureShape(_frozen(empty), 0.0, np.zeros(2), _frozen(np.zeros(n, dtype=bool)), 0.0, valid=False)
     bad = ~np.isfinite(w)
     n_nonfinite = int(bad.sum())
     w[bad] = 0.0
@@ -198,15 +209,85 @@ def fuse(
     with np.errstate(over="ignore"):
         total = float(w.sum())  # inf for absurd pressures: only compared with the threshold
     peak = float(w.max())
+    if peak > 0.0:
+        w /= peak  # in [0, 1]: Σ neither overflows (huge pressures) nor underflows (tiny ones)
+        shape_sum = float(w.sum())
+        cop = w @ pad.positions / shape_sum
+    else:
+        shape_sum, cop = 0.0, np.zeros(2)
+    return PressureShape(_frozen(w), shape_sum, _frozen(cop), _frozen(mask), total, n_nonfinite, n_negative, n_sat)
+
+
+def fuse_shape(
+    shape: PressureShape,
+    force: np.ndarray,
+    torque: np.ndarray,
+    pad: PadGeometry,
+    thresholds: FusionThresholds = FusionThresholds(),
+    *,
+    mount: SensorMount | None = None,
+    tactile_stamp_ns: int | None = None,
+    wrench_stamp_ns: int | None = None,
+) -> FusionResult:
+    """Fuse a frame's :class:`PressureShape` with an F/T wrench: ``φ_i = f_n·shape_i/Σ shape``.
+
+    Args:
+        shape: from :func:`pressure_shape` (the same pad).
+        force: (3,) force the object exerts on the pad, N, in F (or in S if ``mount``).
+        torque: (3,) torque, N·m, about F's origin in F (or about S's origin in S).
+        pad: the pad geometry.
+        thresholds: the normal-force and pressure-sum thresholds apply here.
+        mount: if given, ``force``/``torque`` are in the sensor frame and are moved to F
+            with :func:`wrench_to_pad`.
+        tactile_stamp_ns, wrench_stamp_ns: stamps of the paired samples (integer ns).
+
+    Returns:
+        :class:`FusionResult`; never raises.
+    """
+    n = pad.n_taxels
+    offset = None
+    if tactile_stamp_ns is not None and wrench_stamp_ns is not None:
+        offset = int(wrench_stamp_ns) - int(tactile_stamp_ns)
+    f3 = np.asarray(force, dtype=float).reshape(-1)
+    t3 = np.asarray(torque, dtype=float).reshape(-1)
+    zeros = np.zeros(n)
+    if not shape.valid or f3.shape != (3,) or t3.shape != (3,) or not (
+        np.isfinite(f3).all() and np.isfinite(t3).all()
+    ):
+        return _empty(pad, zeros, np.zeros(n, dtype=bool), 0, 0, 0, offset, SolverStatus.INVALID_INPUT)
+    if mount is not None:
+        f3, t3 = wrench_to_pad(f3, t3, np.asarray(mount.R_FS), np.asarray(mount.p_SF))
+    counts = (shape.n_nonfinite, shape.n_negative, shape.n_saturated)
     f_n = -float(f3[2])
-    if not (f_n > thresholds.min_normal_force_n and total > thresholds.min_pressure_sum_pa and peak > 0):
-        return _empty(pad, zeros, mask, n_nonfinite, n_negative, n_sat, offset, SolverStatus.NO_CONTACT,
-                      f_t=f3[:2], tau=float(t3[2]))
-    shape = w / peak  # in [0, 1]: Σ shape neither overflows (huge pressures) nor underflows (tiny ones)
-    phi = shape * (f_n / float(shape.sum()))
-    cop = phi @ pad.positions / float(phi.sum())
-    status = SolverStatus.CLIPPED_INPUT if (n_nonfinite or n_negative) else SolverStatus.OK
-    return _result(pad, phi, f3[:2].copy(), float(t3[2]), cop, mask, n_nonfinite, n_negative, n_sat, offset, status)
+    if not (f_n > thresholds.min_normal_force_n and shape.pressure_sum_pa > thresholds.min_pressure_sum_pa
+            and shape.shape_sum > 0.0):
+        return _empty(pad, zeros, shape.mask, *counts, offset, SolverStatus.NO_CONTACT, f_t=f3[:2], tau=float(t3[2]))
+    phi = shape.shape * (f_n / shape.shape_sum)
+    status = SolverStatus.CLIPPED_INPUT if (shape.n_nonfinite or shape.n_negative) else SolverStatus.OK
+    return _result(pad, phi, f3[:2].copy(), float(t3[2]), shape.cop, shape.mask, *counts, offset, status)
+
+
+def fuse(
+    pressure_pa: np.ndarray,
+    force: np.ndarray,
+    torque: np.ndarray,
+    pad: PadGeometry,
+    thresholds: FusionThresholds = FusionThresholds(),
+    *,
+    mount: SensorMount | None = None,
+    saturated: np.ndarray | None = None,
+    tactile_stamp_ns: int | None = None,
+    wrench_stamp_ns: int | None = None,
+) -> FusionResult:
+    """Fuse calibrated taxel pressures with an F/T wrench (MATH.md §2):
+    :func:`pressure_shape` then :func:`fuse_shape` (see them for the arguments).
+
+    Returns:
+        :class:`FusionResult`; never raises. NaN/Inf and negative taxels are set
+        to 0 and counted.
+    """
+    return fuse_shape(pressure_shape(pressure_pa, pad, thresholds, saturated=saturated), force, torque, pad,
+                      thresholds, mount=mount, tactile_stamp_ns=tactile_stamp_ns, wrench_stamp_ns=wrench_stamp_ns)
 
 
 def _result(pad, phi, f_t, tau, cop, mask, n_nonfinite, n_negative, n_sat, offset, status) -> FusionResult:

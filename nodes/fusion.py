@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from slipstack.lib.fusion import FusionThresholds, fuse
+from slipstack.lib.fusion import FusionThresholds, PressureShape, fuse_shape, pressure_shape
 from slipstack.lib.pad import PadGeometry
 from slipstack.messages import STATUS_OK, Contact, TactileFrame, Wrench
 from slipstack.nodes.node import Context, Input, Node, Output
@@ -46,10 +46,12 @@ class Fusion(Node):
         p = self.params
         self.thresholds = FusionThresholds(noise_floor_pa=p.noise_floor_pa, min_normal_force_n=p.min_normal_force_n)
         self.tactile: TactileFrame | None = None
+        self._shape: PressureShape | None = None  # of self.tactile, computed at its first pairing
         self._pads: dict[tuple[int, int, float], PadGeometry] = {}
 
     def on_tactile(self, msg: TactileFrame, ctx: Context) -> None:
         self.tactile = msg
+        self._shape = None
 
     def on_wrench(self, msg: Wrench, ctx: Context) -> None:
         stamp = msg.header.stamp_ns
@@ -73,11 +75,13 @@ class Fusion(Node):
     def _fused(self, w: Wrench, t: TactileFrame, ctx: Context) -> Contact:
         key = (t.rows, t.cols, t.pitch_m)
         pad = self._pads.get(key) or self._pads.setdefault(key, PadGeometry(*key))
-        r = fuse(t.pressure_pa, w.force, w.torque, pad, self.thresholds, saturated=t.saturated,
-                 tactile_stamp_ns=t.header.stamp_ns, wrench_stamp_ns=w.header.stamp_ns)
-        if r.n_nonfinite or r.n_negative:  # bad taxels were clipped to 0: count why
-            ctx.count("fusion.nonfinite_taxels", r.n_nonfinite)
-            ctx.count("fusion.negative_taxels", r.n_negative)
+        if self._shape is None:  # the tactile half, once per frame
+            self._shape = pressure_shape(t.pressure_pa, pad, self.thresholds, saturated=t.saturated)
+            if self._shape.n_nonfinite or self._shape.n_negative:  # bad taxels were clipped to 0: count why
+                ctx.count("fusion.nonfinite_taxels", self._shape.n_nonfinite)
+                ctx.count("fusion.negative_taxels", self._shape.n_negative)
+        r = fuse_shape(self._shape, w.force, w.torque, pad, self.thresholds,
+                       tactile_stamp_ns=t.header.stamp_ns, wrench_stamp_ns=w.header.stamp_ns)
         status = w.status if w.status != STATUS_OK else r.status.value
         return Contact(
             rows=t.rows, cols=t.cols, pitch_m=t.pitch_m, phi=np.asarray(r.phi, dtype=float), f_n=r.f_n,

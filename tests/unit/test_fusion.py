@@ -84,3 +84,20 @@ def test_pressures_at_the_ends_of_the_float_range_still_share_the_normal_force(p
     assert fr.status is SolverStatus.OK
     np.testing.assert_allclose(fr.phi, 1.0 / 36, rtol=1e-12)
     assert fr.f_n == pytest.approx(1.0, rel=1e-12)
+
+
+def test_one_pressure_shape_serves_every_wrench_paired_with_its_frame():
+    from slipstack.lib.fusion import fuse_shape, pressure_shape
+
+    pad = PadGeometry(4, 4, 1e-3)
+    pressure = np.zeros(16)
+    pressure[[5, 6, 9]] = [1e4, 3e4, -5.0]  # one negative taxel: clipped and counted once
+    shape = pressure_shape(pressure, pad, FusionThresholds(noise_floor_pa=100.0))
+    assert shape.n_negative == 1 and shape.mask.sum() == 2
+    for f_n in (1.0, 4.0):
+        fr = fuse_shape(shape, [0.2, 0.0, -f_n], [0.0, 0.0, 0.0], pad, FusionThresholds(noise_floor_pa=100.0))
+        assert fr.status is SolverStatus.CLIPPED_INPUT and fr.n_negative == 1
+        assert fr.phi[5] == pytest.approx(0.25 * f_n) and fr.phi[6] == pytest.approx(0.75 * f_n)
+        np.testing.assert_allclose(fr.cop, 0.25 * pad.positions[5] + 0.75 * pad.positions[6], rtol=1e-12)
+    whole = fuse(pressure, [0.2, 0.0, -4.0], [0.0, 0.0, 0.0], pad, FusionThresholds(noise_floor_pa=100.0))
+    np.testing.assert_array_equal(whole.phi, fr.phi)
