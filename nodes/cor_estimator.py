@@ -52,7 +52,9 @@ class CorEstimator(Node):
             raise ConfigError(f"cor_estimator solver must be one of {SOLVERS}, got {self.params.solver!r}")
         self._last_pc: tuple[float, float] | None = None
         self._last_frame: int | None = None
-        compile_kernels()
+
+    def start(self, ctx: Context) -> None:
+        compile_kernels()  # before the node reports ready, so its first contact runs at full speed
 
     def on_contact(self, msg: Contact, ctx: Context) -> None:
         stamp = msg.header.stamp_ns

@@ -66,7 +66,6 @@ class SlipDetector(Node):
         self.latch = SlipLatch(DetectorConfig(p.delta, p.gamma_release, round(p.release_ms * 1e6)))
         self._warm: tuple[float, float] | None = None
         self._kind = "translation"  # the latest slip kind, reported while the latch holds
-        compile_kernels()
 
     def _params_for_ft_tests(self, msg: Contact, view: ContactView) -> SlipParams:
         """SlipParams with β fixed: the configured one, or β_s of this tactile frame."""
@@ -79,6 +78,9 @@ class SlipDetector(Node):
             self._ft_params = replace(self.slip_params, beta_m=beta) if beta else self.slip_params
             self._beta_frame = frame
         return self._ft_params
+
+    def start(self, ctx: Context) -> None:
+        compile_kernels()  # before the node reports ready, so its first contact runs at full speed
 
     def on_contact(self, msg: Contact, ctx: Context) -> None:
         stamp = msg.header.stamp_ns
