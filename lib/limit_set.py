@@ -48,10 +48,18 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+
 from slipstack.lib.status import SlipCase, SolverStatus
 from slipstack.lib.weber import (
+    CONTACT_INVALID,
+    CONTACT_NONE,
     JIT,
+    SOLVED_CONVERGED,
+    SOLVED_MAX_ITER,
+    SOLVED_ON_TAXEL,
+    SOLVED_STATUS,
     STEP_ON_TAXEL,
+    STEP_STALLED,
     fill_distances,
     geometric_median,
     newton_step,
@@ -172,9 +180,9 @@ def load_factor(
     if not (math.isfinite(fx) and math.isfinite(fy) and math.isfinite(tau) and math.isfinite(mu) and mu > 0):
         return _none(SolverStatus.INVALID_INPUT)
     code, idx, px, py, a, ox, oy, L, f_n = normalise_contact(np.ascontiguousarray(pos), np.ascontiguousarray(ph_all))
-    if code == 1:
+    if code == CONTACT_INVALID:
         return _none(SolverStatus.INVALID_INPUT)
-    if code == 2:
+    if code == CONTACT_NONE:
         return _none(SolverStatus.NO_CONTACT)
     if fx == 0.0 and fy == 0.0 and tau == 0.0:
         return _none(SolverStatus.NO_LOAD)
@@ -202,7 +210,7 @@ def load_factor(
     outcome, cx, cy, gamma, T, n_s, it, residual, taxel = _dinkelbach(
         px, py, a, s, tn, fx_n, fy_n, lever, warm, w0x, w0y, float(xtol), int(max_iter)
     )
-    status = _STATUS[outcome]
+    status = SOLVED_STATUS[outcome]
     case = SlipCase.ON_TAXEL if status is SolverStatus.ON_TAXEL else SlipCase.ROTATION
     return LimitSetResult(
         case,
@@ -218,9 +226,6 @@ def load_factor(
         pbar,
         L,
     )
-
-
-_STATUS = {0: SolverStatus.CONVERGED, 1: SolverStatus.ON_TAXEL, 2: SolverStatus.MAX_ITER}
 
 
 def _warm_start(c0, pbar, L) -> tuple[bool, float, float]:
@@ -280,7 +285,7 @@ def _dinkelbach(px, py, a, s, tn, fx, fy, lever, warm, wx, wy, xtol, max_iter):
     """Inexact Dinkelbach on ``max_c s·ñ(c)/T̃(c)`` (normalised; see module docstring, step 4).
 
     Returns ``(code, cx, cy, gamma, T, n_s, iterations, residual, taxel)`` with code
-    0 converged, 1 on a taxel, 2 not converged; ``T = Σ a_i|p_i − c|`` and
+    ``SOLVED_CONVERGED``, ``SOLVED_ON_TAXEL`` or ``SOLVED_MAX_ITER`` (not converged); ``T = Σ a_i|p_i − c|`` and
     ``n_s = s·ñ(c)`` at the COR; ``taxel`` indexes ``px`` (−1: none).
     """
     m = px.size
@@ -292,7 +297,7 @@ def _dinkelbach(px, py, a, s, tn, fx, fy, lever, warm, wx, wy, xtol, max_iter):
     T = 0.0
     for i in range(m):
         T += a[i] * r[i]
-    code = 2
+    code = SOLVED_MAX_ITER
     taxel = -1
     kink_residual = 0.0
     prev = math.inf
@@ -303,18 +308,18 @@ def _dinkelbach(px, py, a, s, tn, fx, fy, lever, warm, wx, wy, xtol, max_iter):
         cx, cy, step, outcome, kink_residual, tx, T = newton_step(px, py, a, bx / gamma, by / gamma, cx, cy, r, work)
         if outcome == STEP_ON_TAXEL:
             if tx == taxel:
-                code = 1
+                code = SOLVED_ON_TAXEL
                 break
             taxel = tx
             continue
         taxel = -1
-        if outcome == 2 or step_converged(step, prev, cx, cy, xtol):
-            code = 0
+        if outcome == STEP_STALLED or step_converged(step, prev, cx, cy, xtol):
+            code = SOLVED_CONVERGED
             break
         prev = step
     n_s = s * (tn + fx * cy - fy * cx)
     gamma = n_s / T
-    if code == 1:
+    if code == SOLVED_ON_TAXEL:
         residual = kink_residual
     else:
         gx = bx
@@ -326,7 +331,7 @@ def _dinkelbach(px, py, a, s, tn, fx, fy, lever, warm, wx, wy, xtol, max_iter):
                 gy -= w * (cy - py[i])
         residual = math.hypot(gx, gy) / gamma
         if residual > _MAX_RESIDUAL:  # a small step far from stationarity is no convergence
-            code = 2
+            code = SOLVED_MAX_ITER
     return code, cx, cy, gamma, T, n_s, it, residual, taxel
 
 
@@ -374,24 +379,26 @@ class TorsionResult:
 def torsional_coefficient(
     phi: np.ndarray, positions: np.ndarray, mu: float, c0: tuple[float, float] | None = None
 ) -> TorsionResult:
-    """``β_s`` from the pressure alone: the pure-torque capacity divided by ``f_n``."""
-    sub = contact_subset(phi, positions)
-    if sub is None or not (math.isfinite(mu) and mu > 0):
+    """``β_s`` from the pressure alone: the pure-torque capacity divided by ``f_n``.
+
+    The Weber solver validates the input and keeps the taxels in contact itself
+    (INVALID_INPUT, NO_CONTACT as its status).
+    """
+    if not (math.isfinite(mu) and mu > 0):
         return TorsionResult(0.0, None, SolverStatus.INVALID_INPUT)
-    _, ph, P = sub
-    if ph.size == 0:
-        return TorsionResult(0.0, None, SolverStatus.NO_CONTACT)
-    med = geometric_median(P, ph, c0)
+    med = geometric_median(positions, phi, c0)
     if med.c is None:
         return TorsionResult(0.0, None, med.status)
-    return TorsionResult(mu * med.value / float(ph.sum()), med.c, med.status)
+    ph = np.asarray(phi, dtype=float)
+    return TorsionResult(mu * med.value / float(ph[ph > 0].sum()), med.c, med.status)
 
 
 def compile_kernels() -> None:
     """Compile the numba kernels of :func:`load_factor` and the Weber solver, or load
     them from the cache (about 0.3 s; 5 s the first time after an install).
 
-    Nodes call it before they report ready, so their first frame runs at full speed.
+    Nodes call it in ``start`` (before they report ready), so their first frame runs at full
+    speed; building a node object (the launcher does, to check parameters) does not.
     """
     square = np.array([[0.0, 0.0], [1e-3, 0.0], [0.0, 1e-3], [1e-3, 1e-3]])
     phi = np.array([1.0, 2.0, 3.0, 4.0])

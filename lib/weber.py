@@ -42,10 +42,20 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+
 from slipstack.lib.status import SolverStatus
 
 __all__ = [
+    "CONTACT_INVALID",
+    "CONTACT_NONE",
+    "CONTACT_OK",
+    "SOLVED_CONVERGED",
+    "SOLVED_MAX_ITER",
+    "SOLVED_ON_TAXEL",
+    "SOLVED_STATUS",
+    "STEP_MOVED",
     "STEP_ON_TAXEL",
+    "STEP_STALLED",
     "WeberResult",
     "fill_distances",
     "geometric_median",
@@ -64,18 +74,18 @@ _ARMIJO = 1e-4
 _MAX_HALVINGS = 50
 _KUHN_TOL = 1e-14
 
-STEP_ON_TAXEL = 1
-"""``newton_step`` status: ``c`` certified optimal at a point (0: moved, 2: stalled)."""
-_MOVED, _STALLED = 0, 2
-
-# normalise_contact / solver outcome codes
-_OK, _INVALID, _NO_CONTACT = 0, 1, 2
-_CONVERGED, _ON_TAXEL, _MAX_ITER, _TRANSLATION, _SINGLE = 0, 1, 2, 3, 4
-_STATUS = {
-    _CONVERGED: SolverStatus.CONVERGED,
-    _ON_TAXEL: SolverStatus.ON_TAXEL,
-    _MAX_ITER: SolverStatus.MAX_ITER,
+STEP_MOVED, STEP_ON_TAXEL, STEP_STALLED = 0, 1, 2
+"""``newton_step`` outcomes: moved; ``c`` certified optimal at a point; no decrease possible."""
+CONTACT_OK, CONTACT_INVALID, CONTACT_NONE = 0, 1, 2
+"""``normalise_contact`` codes: usable; a non-finite value or negative weight; no positive weight."""
+SOLVED_CONVERGED, SOLVED_ON_TAXEL, SOLVED_MAX_ITER = 0, 1, 2
+"""Outcome codes of the compiled solvers (here and in :mod:`slipstack.lib.limit_set`)."""
+SOLVED_STATUS = {
+    SOLVED_CONVERGED: SolverStatus.CONVERGED,
+    SOLVED_ON_TAXEL: SolverStatus.ON_TAXEL,
+    SOLVED_MAX_ITER: SolverStatus.MAX_ITER,
 }
+_TRANSLATION, _SINGLE = 3, 4  # further outcomes of _solve_kernel
 
 
 @dataclass(frozen=True)
@@ -115,8 +125,9 @@ def normalise_contact(points, weights):
         points: (N, 2) float64, any length unit; weights: (N,) float64, ``≥ 0``.
 
     Returns:
-        ``(code, idx, px, py, a, centre_x, centre_y, scale, total)``: code 0 ok,
-        1 invalid (a non-finite value or a negative weight), 2 no positive weight;
+        ``(code, idx, px, py, a, centre_x, centre_y, scale, total)``: code
+        :data:`CONTACT_OK`, :data:`CONTACT_INVALID` (a non-finite value or a negative
+        weight) or :data:`CONTACT_NONE` (no positive weight);
         ``idx`` the kept indices; ``px, py`` the kept points minus the weighted
         centroid, divided by ``scale`` (their weighted RMS radius, 0 if they all
         coincide, which leaves them unscaled); ``a`` the kept weights over their
@@ -127,7 +138,7 @@ def normalise_contact(points, weights):
     for i in range(n):
         w = weights[i]
         if not (math.isfinite(w) and w >= 0.0 and math.isfinite(points[i, 0]) and math.isfinite(points[i, 1])):
-            return _INVALID, np.empty(0, np.int64), np.empty(0), np.empty(0), np.empty(0), 0.0, 0.0, 0.0, 0.0
+            return CONTACT_INVALID, np.empty(0, np.int64), np.empty(0), np.empty(0), np.empty(0), 0.0, 0.0, 0.0, 0.0
         if w > 0.0:
             m += 1
     idx = np.empty(m, np.int64)
@@ -139,7 +150,7 @@ def normalise_contact(points, weights):
             total += weights[i]
             k += 1
     if m == 0:
-        return _NO_CONTACT, idx, np.empty(0), np.empty(0), np.empty(0), 0.0, 0.0, 0.0, 0.0
+        return CONTACT_NONE, idx, np.empty(0), np.empty(0), np.empty(0), 0.0, 0.0, 0.0, 0.0
     a = np.empty(m)
     cx = 0.0
     cy = 0.0
@@ -159,7 +170,7 @@ def normalise_contact(points, weights):
         for k in range(m):
             px[k] /= scale
             py[k] /= scale
-    return _OK, idx, px, py, a, cx, cy, scale, total
+    return CONTACT_OK, idx, px, py, a, cx, cy, scale, total
 
 
 @njit(**JIT)
@@ -223,7 +234,7 @@ def _at_point(px, py, a, bx, by, cx, cy, j, r):
         return _snap(px, py, a, j, r[j], excess, r)
     nx, ny = _leave_point(px, py, rx, ry, inv, aj, j)
     dist = fill_distances(px, py, a, nx, ny, r)
-    return nx, ny, math.hypot(nx - cx, ny - cy), _MOVED, 0.0, -1, dist
+    return nx, ny, math.hypot(nx - cx, ny - cy), STEP_MOVED, 0.0, -1, dist
 
 
 @njit(**JIT)
@@ -234,7 +245,7 @@ def _stalled(px, py, a, bx, by, cx, cy, r, dist):
     excess = math.hypot(rx, ry) - aj
     if excess <= _KUHN_TOL:
         return _snap(px, py, a, j, 0.0, excess, r)
-    return cx, cy, 0.0, _STALLED, 0.0, -1, dist
+    return cx, cy, 0.0, STEP_STALLED, 0.0, -1, dist
 
 
 @njit(**JIT)
@@ -249,9 +260,9 @@ def newton_step(px, py, a, bx, by, cx, cy, r, work):
 
     Returns:
         ``(cx, cy, step, code, kink_residual, taxel, dist_sum)``: the new iterate,
-        the length of the move, code 0 moved / :data:`STEP_ON_TAXEL` (``c`` certified
-        optimal at point ``taxel``, ``kink_residual = max(0, |R_j| − a_j)``) / 2
-        stalled (no decrease possible in floating point), and ``Σ a_i r_i`` there.
+        the length of the move, the outcome :data:`STEP_MOVED` / :data:`STEP_ON_TAXEL`
+        (``c`` certified optimal at point ``taxel``, ``kink_residual = max(0, |R_j| − a_j)``)
+        / :data:`STEP_STALLED` (no decrease possible in floating point), and ``Σ a_i r_i`` there.
     """
     j = np.argmin(r)
     if r[j] <= _KINK:
@@ -315,9 +326,9 @@ def newton_step(px, py, a, bx, by, cx, cy, r, work):
         vx, vy = _leave_point(px, py, rx, ry, inv, aj, jn)
         dist_v = fill_distances(px, py, a, vx, vy, r)
         if dist_v - bx * vx - by * vy < dist - bx * nx - by * ny:
-            return vx, vy, math.hypot(vx - cx, vy - cy), _MOVED, 0.0, -1, dist_v
+            return vx, vy, math.hypot(vx - cx, vy - cy), STEP_MOVED, 0.0, -1, dist_v
     r[:] = work
-    return nx, ny, step, _MOVED, 0.0, -1, dist
+    return nx, ny, step, STEP_MOVED, 0.0, -1, dist
 
 
 @njit(**JIT)
@@ -352,12 +363,12 @@ def _solve_kernel(points, weights, bx, by, c0x, c0y, warm, xtol, max_iter):
     """:func:`solve_weber` in one compiled call.
 
     Returns ``(code, cx, cy, value, taxel, iterations, residual)``: code one of
-    ``_CONVERGED, _ON_TAXEL, _MAX_ITER, _TRANSLATION, _SINGLE`` (one point, or
+    ``SOLVED_CONVERGED, SOLVED_ON_TAXEL, SOLVED_MAX_ITER, _TRANSLATION, _SINGLE`` (one point, or
     coincident points) or, from :func:`normalise_contact`, invalid / no contact
     (offset by 10); ``taxel`` indexes ``points``.
     """
     code, idx, px, py, a, ox, oy, scale, total = normalise_contact(points, weights)
-    if code != _OK:
+    if code != CONTACT_OK:
         return 10 + code, 0.0, 0.0, 0.0, -1, 0, 0.0
     bnx = bx / total
     bny = by / total
@@ -374,7 +385,7 @@ def _solve_kernel(points, weights, bx, by, c0x, c0y, warm, xtol, max_iter):
     r = np.empty(m)
     work = np.empty(m)
     dist = fill_distances(px, py, a, cx, cy, r)
-    status = _MAX_ITER
+    status = SOLVED_MAX_ITER
     taxel = -1
     residual = math.inf
     prev = math.inf
@@ -383,16 +394,16 @@ def _solve_kernel(points, weights, bx, by, c0x, c0y, warm, xtol, max_iter):
         it += 1
         cx, cy, step, outcome, kink_residual, tx, dist = newton_step(px, py, a, bnx, bny, cx, cy, r, work)
         if outcome == STEP_ON_TAXEL:
-            status = _ON_TAXEL
+            status = SOLVED_ON_TAXEL
             taxel = idx[tx]
             residual = kink_residual
             break
-        if outcome == _STALLED or step_converged(step, prev, cx, cy, xtol):
+        if outcome == STEP_STALLED or step_converged(step, prev, cx, cy, xtol):
             residual = _gradient_norm(px, py, a, bnx, bny, cx, cy, r)
-            status = _CONVERGED if residual <= 1e-3 else _MAX_ITER
+            status = SOLVED_CONVERGED if residual <= 1e-3 else SOLVED_MAX_ITER
             break
         prev = step
-    if status == _MAX_ITER and math.isinf(residual):
+    if status == SOLVED_MAX_ITER and math.isinf(residual):
         residual = _gradient_norm(px, py, a, bnx, bny, cx, cy, r)
     out_x = ox + scale * cx
     out_y = oy + scale * cy
@@ -438,15 +449,15 @@ def solve_weber(
     code, cx, cy, value, taxel, it, residual = _solve_kernel(
         np.ascontiguousarray(P), np.ascontiguousarray(a_all), bx, by, c0x, c0y, warm, float(xtol), int(max_iter)
     )
-    if code == 10 + _INVALID:
+    if code == 10 + CONTACT_INVALID:
         return WeberResult(None, math.nan, -1, 0, math.inf, SolverStatus.INVALID_INPUT)
-    if code == 10 + _NO_CONTACT:
+    if code == 10 + CONTACT_NONE:
         return WeberResult(None, 0.0, -1, 0, 0.0, SolverStatus.NO_CONTACT)
     if code == _TRANSLATION:
         return WeberResult(None, -math.inf, -1, 0, 0.0, SolverStatus.TRANSLATION)
     if code == _SINGLE:
         return WeberResult((cx, cy), value, int(taxel), 0, 0.0, SolverStatus.ON_TAXEL)
-    return WeberResult((cx, cy), value, int(taxel), int(it), float(residual), _STATUS[code])
+    return WeberResult((cx, cy), value, int(taxel), int(it), float(residual), SOLVED_STATUS[code])
 
 
 def geometric_median(
