@@ -33,7 +33,8 @@ Method (:func:`load_factor`):
    the sub-objective, which was 0 at ``c_k``) and is asymptotically Newton's
    method on the ratio (at the optimum ``∇²(n/T) = −(γ/T)∇²T``), so convergence
    is quadratic; on a taxel the sub-solver's Kuhn test certifies the kink.
-5. ``f_t = 0``: the COR is the weighted geometric median, ``γ = |τ|/T_min``.
+5. ``f_t = 0`` (or below rounding beside the torque, ``|f̃| ≤ 1e-16 |ñ(p̄)|``): the COR is
+   the weighted geometric median, ``γ = |τ|/T_min``.
 
 Special cases (documented choices): all ``φ = 0`` → NO_CONTACT, ``γ = 0``;
 ``f_t = 0`` and ``τ = 0`` → NO_LOAD, ``γ = 0`` (margin ``1 − γ = 1``); all force
@@ -70,6 +71,11 @@ from slipstack.lib.weber import (
 __all__ = ["LimitSetResult", "TorsionResult", "compile_kernels", "contact_subset", "load_factor", "torsional_coefficient"]
 
 _NEAR_TRANSLATION = 1e-5
+_FORCE_BELOW_ROUNDING = 1e-16
+"""``|f_t|/(μ f_n)`` below this times the normalised torque about ``p̄``: the force changes
+``n(c)`` by less than rounding within a contact radius, γ is ``|τ|/T_min`` to machine
+precision, and only the pure-torque answer gives a unique COR (``s·n/T`` would be flat
+to rounding wherever ``T`` is, e.g. along the segment between two equal taxels)."""
 _MAX_FAR = 1e7
 _MAX_RESIDUAL = 1e-3
 
@@ -195,8 +201,7 @@ def load_factor(
     tn = n_bar / (cap * L)  # normalised torque about p̄
     if not (math.isfinite(tn) and math.isfinite(gt)):  # load/capacity beyond float range
         return _none(SolverStatus.INVALID_INPUT)
-    if gt == 0.0 or abs(tn) > gt * 1e300:  # the force is nothing beside the torque (and
-        # |tn|/gt would overflow): the pure-torque answer, exact to 1e-300 relative
+    if gt <= abs(tn) * _FORCE_BELOW_ROUNDING:  # the force cannot change n(c) in double precision
         return _pure_torque(pos, ph_all, tn, tau, pbar, L, cap, f_n, c0)
     s = 1 if tn > 0 else -1
     fx_n, fy_n = fx / cap, fy / cap  # normalised force f_t/(μ f_n)

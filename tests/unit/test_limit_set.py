@@ -209,3 +209,15 @@ def test_gamma_matches_brute_force_on_200_random_fields_including_the_boundary()
         worst = max(worst, err)
         assert err < 1e-6, (k, res, ref)
     assert worst < 1e-6
+
+
+def test_a_force_below_rounding_beside_the_torque_gets_the_unique_pure_torque_cor():
+    # Found by hypothesis: two equal taxels under a torque and f_t = 1e-70 N. s·n/T is
+    # flat along the segment between them, so the COR was wherever the iteration
+    # stopped, and moved when the field was translated by one taxel.
+    pts = np.array([[0.0, 0.0], [2.5e-3, 1.25e-3]])
+    for f_y in (0.0, 1.28e-70):
+        r = load_factor(np.ones(2), pts, (0.0, f_y), 3.9e-3, 0.5)
+        assert r.status is SolverStatus.CONVERGED
+        assert r.p_c == pytest.approx((1.25e-3, 0.625e-3), abs=1e-15)  # the midpoint
+        assert r.gamma == pytest.approx(3.9e-3 / (0.5 * np.hypot(2.5e-3, 1.25e-3)), rel=1e-12)
