@@ -6,9 +6,8 @@ in one process (their messages to each other then skip the bus; see
 of the topic graph, so a publisher's subscribers exist before its data flows), waits
 for each to report ready, forwards every log line prefixed with ``[node]``, respawns
 crashed nodes per their policy, and on SIGINT/SIGTERM stops them in reverse start
-order with
-SIGINT → SIGTERM → SIGKILL escalation (nodes marked ``stop_first``, the simulated
-rig, go first: the simulated world must not run on without its controller).
+order with SIGINT → SIGTERM → SIGKILL escalation (nodes marked ``stop_first``, the
+simulated rig, go first: the simulated world must not run on without its controller).
 Children get a parent-death signal, so even a SIGKILLed launcher leaves no orphans
 behind.
 """
@@ -79,6 +78,11 @@ class _Process:
     @property
     def is_container(self) -> bool:
         return bool(self.entry.container)
+
+    @property
+    def label(self) -> str:
+        """How log lines name it: ``container NAME`` or ``node NAME (TYPE)``."""
+        return f"container {self.name}" if self.is_container else f"node {self.name} ({self.entry.type})"
 
     @property
     def node_names(self) -> set[str]:
@@ -281,8 +285,8 @@ class Launcher:
             proc = process.proc
             if proc is not None and proc.poll() is not None:
                 self._forward_logs(0.05)
-                what = f"container {process.name}" if process.is_container else f"node {process.name} ({process.entry.type})"
-                raise SlipstackError(f"{what} exited with code {proc.returncode} before it was ready; see its log lines above")
+                raise SlipstackError(f"{process.label} exited with code {proc.returncode} before it was ready; "
+                                     "see its log lines above")
             if time.monotonic() > deadline:
                 raise SlipstackError(f"node(s) {', '.join(sorted(pending))} not ready after {timeout:.0f} s")
             self._forward_logs(0.01)
@@ -355,7 +359,7 @@ class Launcher:
                     continue
                 code = c.proc.returncode
                 self._forward_logs(0.0)
-                self.echo(f"[launch] {'container' if c.is_container else 'node'} {name} exited with code {code}")
+                self.echo(f"[launch] {c.label} exited with code {code}")
                 if c.entry.required:
                     self.echo(f"[launch] {name} is required; stopping the launch")
                     if code != 0:
