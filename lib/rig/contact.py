@@ -90,6 +90,15 @@ class PressureModel:
         """Normal force per taxel ``φ_i = f_n·w_i`` (N), shape ``(R·C,)``, row-major."""
         return max(f_n, 0.0) * self.shape(f_n, origin, theta)
 
+    def phi_uncached(self, f_n: float, origin: complex, theta: float) -> np.ndarray:
+        """:meth:`phi` evaluated afresh, ignoring the shape cache (N per taxel).
+
+        :meth:`shape` reuses its shape while the force stays within 0.2 % (and the pose
+        is unchanged), so ``phi(f)`` depends on the evaluation history; comparisons with
+        the truth (the benchmarks' oracle and true load factor) want it not to.
+        """
+        return max(f_n, 0.0) * self._evaluate(f_n, origin, theta)
+
     def check_touches_pad(self, f_n: float) -> None:
         """Raise ConfigError if the contact at the initial pose misses the pad."""
         o0, th0 = self._pose0

@@ -89,15 +89,15 @@ def record_scene(scene: str, cache: Path, ft_hz: float, tactile_hz: float) -> di
 def true_load_factors(scene: Scene, truth: list) -> np.ndarray:
     """γ of the *true* load on the *true* pressure at each truth sample (μ_s, no sensor).
 
-    The pressure is the scene's model at the applied normal force and the object's pose,
-    built afresh for each sample (the simulator's own model caches the shape within
-    0.2 % of the force); the load is the disturbance's, at the pad. NaN where no γ.
+    The pressure is the scene's model at the applied normal force and the object's pose
+    (without the simulator's shape cache); the load is the disturbance's, at the pad.
+    NaN where no γ.
     """
     P, mu_s = scene.pad.positions, scene.contact.mu_s
+    pressure = PressureModel(scene.contact, scene.pad, scene.object.pose)
     out = np.full(len(truth), np.nan)
     for i, tr in enumerate(truth):
-        phi = PressureModel(scene.contact, scene.pad, scene.object.pose).phi(tr.f_n_applied, complex(tr.x, tr.y),
-                                                                             tr.theta)
+        phi = pressure.phi_uncached(tr.f_n_applied, complex(tr.x, tr.y), tr.theta)
         r = load_factor(phi, P, tr.load_f_t, tr.load_tau, mu_s)
         if r.status.usable:
             out[i] = r.gamma

@@ -131,13 +131,12 @@ def run_one(scene: Scene, law: str, beta_m: float, s: Setup, label: str) -> dict
     commands = ex.published["grip/command"]
     P, mu_s = scene.pad.positions, scene.contact.mu_s
     oracle, frozen = np.empty(len(truths)), np.empty(len(truths))
+    pressure = PressureModel(scene.contact, scene.pad, scene.object.pose)
     for i, tr in enumerate(truths):
         origin, theta = complex(tr.x, tr.y), tr.theta
 
         def phi_of_f(f: float, origin: complex = origin, theta: float = theta) -> np.ndarray:
-            # a fresh model: the simulator's caches the shape within 0.2 % of the force,
-            # which would make φ(f) depend on the evaluation history
-            return PressureModel(scene.contact, scene.pad, scene.object.pose).phi(f, origin, theta)
+            return pressure.phi_uncached(f, origin, theta)
 
         first = oracle_normal_force(phi_of_f(tr.f_n_applied), P, tr.load_f_t, tr.load_tau, mu_s)
         frozen[i] = first.f_n_min if first.usable else math.nan
