@@ -25,7 +25,7 @@ from slipstack.lib.pad import PadGeometry
 from slipstack.lib.status import SolverStatus
 
 __all__ = ["FusionResult", "FusionThresholds", "PressureShape", "SensorMount", "fuse", "fuse_shape",
-           "pressure_shape", "wrench_to_pad"]
+           "ft_understates_pad", "pressure_shape", "wrench_to_pad"]
 
 
 def wrench_to_pad(
@@ -265,6 +265,25 @@ def fuse_shape(
     phi = shape.shape * (f_n / shape.shape_sum)
     status = SolverStatus.CLIPPED_INPUT if (shape.n_nonfinite or shape.n_negative) else SolverStatus.OK
     return _result(pad, phi, f3[:2].copy(), float(t3[2]), shape.cop, shape.mask, *counts, offset, status)
+
+
+def ft_understates_pad(shape: PressureShape, pad: PadGeometry, f_n: float, *, ratio: float,
+                       min_pad_force_n: float) -> bool:
+    """Whether the F/T normal force ``f_n`` (N) is implausibly small for the pressed pad.
+
+    The pad's own estimate of the normal force is ``Σ p_i h²`` over the taxels in
+    contact (N; ``h`` the pitch). A biased or spoofed F/T sensor that reads (near) zero
+    while the pad is pressed would make every consumer conclude "no load" and release
+    the grip; this flags it: true when the pad's force exceeds ``min_pad_force_n`` and
+    ``f_n < pad force / ratio``. Only that direction is checked: an F/T reading
+    *larger* than the pad's only makes the grip firmer. ``ratio`` > 1 allows for the
+    tactile calibration's error (the simulated rig agrees within 4 %; real tactile
+    arrays are often off by tens of percent); ``ratio <= 0`` disables the check.
+    """
+    if ratio <= 0.0 or not shape.valid:
+        return False
+    pad_force_n = shape.pressure_sum_pa * pad.taxel_area_m2
+    return pad_force_n > min_pad_force_n and f_n * ratio < pad_force_n
 
 
 def fuse(

@@ -423,23 +423,36 @@ class RateLimiter:
 
 @dataclass
 class GripGovernor:
-    """The controller state around a law: staleness, status, hold, rate limit.
+    """The controller state around a law: staleness, status, hold, escalation, rate limit.
 
-    Each :meth:`step` gets the time now and the stamps of the inputs it used
-    (integer ns, one clock). The step is *fail-safe* when any input is older than
-    ``timeout_ns`` (or no stamp is given), when ``status_ok`` is false, or when the
-    law reports non-finite input; the command then stays at the last commanded force
-    (never lower, never released, reason ``"fail-safe"``). Otherwise the law's bounded
-    demand passes through the rate limiter (time between steps from ``now_ns``; the
-    first step has ``dt = 0``, so it commands ``initial_n``, default ``f_nom``).
-    Recovery needs no latch: the next valid step resumes, rate-limited.
+    Each :meth:`step` gets the time now, the stamps of the inputs it used (integer ns,
+    one clock) and whether the contact is loaded. The step is *fail-safe* when any
+    input is older than ``timeout_ns``, stamped more than ``timeout_ns`` in the future
+    (a clock that jumped), when no stamp is given, when ``status_ok`` is false, or when
+    the law reports non-finite input. The contract (docs/safety.md):
+
+    - **Start from the actuator.** The first step starts from ``initial_n`` if given,
+      otherwise from the normal force the pad measures now (``inp.f_n``, within
+      ``[f_nom, f_max]``; ``f_max`` when unknown): a (re)started controller never steps
+      the grip down to ``f_nom``.
+    - **Hold.** In fail-safe the command stays at the last commanded force (never
+      lower, never released, reason ``"fail-safe"``).
+    - **Escalate while blind and loaded.** Once fail-safe has lasted ``blind_grace_ns``
+      and the last valid step saw a loaded contact, the command rises at
+      ``blind_rise_n_per_s`` towards ``blind_limit_n`` (default ``f_max``): the load
+      may be growing where the controller cannot see it.
+    - **Recover rate-limited.** The next valid step resumes the law through the rate
+      limiter, from wherever the hold or escalation left the command.
 
     Attributes:
         law: the grip law.
         timeout_ns: largest accepted input age, ns.
         max_rate_n_per_s: actuator force slew limit when raising, N/s.
         max_fall_rate_n_per_s: slew limit when lowering, N/s (default: the same).
-        initial_n: command before the first valid step, N (default ``f_nom``).
+        initial_n: first command, N (default: the measured force, see above).
+        blind_grace_ns: fail-safe time before escalation starts, ns (< 0: never escalate).
+        blind_rise_n_per_s: escalation rate, N/s.
+        blind_limit_n: escalation ceiling, N (default ``f_max``).
     """
 
     law: GripLaw
@@ -447,52 +460,84 @@ class GripGovernor:
     max_rate_n_per_s: float
     max_fall_rate_n_per_s: float | None = None
     initial_n: float | None = None
+    blind_grace_ns: int = 50_000_000
+    blind_rise_n_per_s: float = 10.0
+    blind_limit_n: float | None = None
     _limiter: RateLimiter = field(init=False, repr=False)
+    _escalation: RateLimiter = field(init=False, repr=False)
     _last_now_ns: int | None = field(init=False, default=None, repr=False)
-    _in_fail_safe: bool = field(init=False, default=False, repr=False)
+    _blind_since_ns: int | None = field(init=False, default=None, repr=False)
+    _loaded: bool = field(init=False, default=True, repr=False)
 
     def __post_init__(self) -> None:
+        law = self.law
         if not self.timeout_ns > 0:
             raise ConfigError(f"grip governor timeout_ns must be > 0 ns, got {self.timeout_ns!r}")
-        start = self.law.f_nom_n if self.initial_n is None else self.initial_n
-        if not (math.isfinite(start) and self.law.f_nom_n <= start <= self.law.f_max_n):
-            raise ConfigError(f"grip governor initial_n must lie in [f_nom_n, f_max_n], got {start!r}")
+        if self.initial_n is not None and not (
+                math.isfinite(self.initial_n) and law.f_nom_n <= self.initial_n <= law.f_max_n):
+            raise ConfigError(f"grip governor initial_n must lie in [f_nom_n, f_max_n], got {self.initial_n!r}")
+        ceiling = law.f_max_n if self.blind_limit_n is None else self.blind_limit_n
+        if not (math.isfinite(ceiling) and law.f_nom_n <= ceiling <= law.f_max_n):
+            raise ConfigError(f"grip governor blind_limit_n must lie in [f_nom_n, f_max_n], got {ceiling!r}")
+        self.blind_limit_n = ceiling
         self._limiter = RateLimiter(self.max_rate_n_per_s, max_fall_rate_n_per_s=self.max_fall_rate_n_per_s,
-                                    initial_n=start)
+                                    initial_n=self.initial_n)
+        self._escalation = RateLimiter(min(self.blind_rise_n_per_s, self.max_rate_n_per_s))
 
     @property
-    def last_n(self) -> float:
-        """Last commanded normal force, N."""
-        return float(self._limiter.value)  # type: ignore[arg-type]  # set in __post_init__
+    def last_n(self) -> float | None:
+        """Last commanded normal force, N (``None`` before the first step)."""
+        return self._limiter.value
 
     @property
     def in_fail_safe(self) -> bool:
-        """Whether the last step held the grip."""
-        return self._in_fail_safe
+        """Whether the last step held (or escalated) the grip."""
+        return self._blind_since_ns is not None
 
     def step(self, inp: GripInput, *, now_ns: int, stamps_ns: Sequence[int],
-             status_ok: bool = True) -> GripDecision:
-        """One control step; returns the command (never NaN, never raises)."""
+             status_ok: bool = True, loaded: bool = True) -> GripDecision:
+        """One control step; returns the command (never NaN, never raises).
+
+        ``loaded``: the contact carries a load (the verdict saw contact); only a valid
+        step updates what the governor believes about it.
+        """
         last = self._last_now_ns
         dt_s = 0.0 if last is None or now_ns <= last else (now_ns - last) * 1e-9
         self._last_now_ns = now_ns if last is None else max(now_ns, last)
+        if self._limiter.value is None:  # first step: start from the actuator, never from f_nom
+            measured = inp.f_n if math.isfinite(inp.f_n) else self.law.f_max_n
+            self._limiter.reset(min(max(measured, self.law.f_nom_n), self.law.f_max_n))
         cause = self._stale_cause(now_ns, stamps_ns) or ("" if status_ok else "input status not ok")
         if not cause:
             decision = self.law.decide(inp, dt_s)
             if decision.reason is not GripReason.FAIL_SAFE:
-                self._in_fail_safe = False
+                self._blind_since_ns, self._loaded = None, loaded
                 commanded = self._limiter.step(decision.f_n_desired, dt_s)
                 return GripDecision(commanded, decision.law, decision.reason, decision.raw)
             cause = decision.detail
-        self._in_fail_safe = True
+        return self._fail_safe(cause, now_ns, dt_s)
+
+    def _fail_safe(self, cause: str, now_ns: int, dt_s: float) -> GripDecision:
+        """Hold the last command; escalate once blind for ``blind_grace_ns`` with a load."""
+        if self._blind_since_ns is None:
+            self._blind_since_ns = now_ns
+            self._escalation.reset(self.last_n)
+        blind_ns = now_ns - self._blind_since_ns
         held = self.last_n
+        if self._loaded and 0 <= self.blind_grace_ns <= blind_ns and held < self.blind_limit_n:
+            held = max(held, self._escalation.step(self.blind_limit_n, dt_s))
+            self._limiter.reset(held)
+            cause = f"{cause}; blind {blind_ns * 1e-6:.0f} ms with a load: raising the grip"
         return GripDecision(held, self.law.name, GripReason.FAIL_SAFE, held, cause)
 
     def _stale_cause(self, now_ns: int, stamps_ns: Sequence[int]) -> str:
-        """Why the inputs are stale ('' if fresh); stamps in the future count as fresh."""
+        """Why the inputs are stale or untrustworthy ('' if fresh)."""
         if len(stamps_ns) == 0:
             return "no input stamps"
         age_ns = now_ns - min(stamps_ns)
         if age_ns > self.timeout_ns:
             return f"input age {age_ns * 1e-6:.3f} ms > timeout {self.timeout_ns * 1e-6:.3f} ms"
+        ahead_ns = max(stamps_ns) - now_ns
+        if ahead_ns > self.timeout_ns:
+            return f"input stamped {ahead_ns * 1e-6:.3f} ms in the future (a sensor clock jumped)"
         return ""

@@ -56,7 +56,7 @@ class TactileFrame(Message):
     status: str = STATUS_OK
 
 
-@message("slipstack/Contact")
+@message("slipstack/Contact", version=2)  # 2: tactile_status
 class Contact(Message):
     """``contact``: fused contact state in the pad frame ``F`` (MATH.md §2).
 
@@ -64,6 +64,13 @@ class Contact(Message):
     f_n: N; f_t: (2,) N; tau: N·m about z through the pad origin.
     cop: (2,) m, centre of pressure. area_m2: contact area. mask: (N,) bool.
     pair_offset_ns: tactile stamp minus F/T stamp of the paired samples.
+    has_tactile: a tactile frame was paired (``phi``, ``mask`` and ``cop`` come from it).
+    tactile_status: why not, when not: ``ok`` (paired), ``off`` (the stack runs without
+    tactile), ``none`` (no frame yet), ``unpaired`` (the newest frame is older or newer
+    than the pairing window), or the frame's own status (``stale``, ``disconnected`` …).
+    status: the F/T sample's status, or fusion's (``ok``, ``no_contact``,
+    ``invalid_input``, ``implausible``: the pad is pressed far harder than the F/T
+    sensor reports, as a biased or spoofed F/T sensor would).
     header.sources holds both stamps (``ft``, ``tactile``).
     """
 
@@ -80,6 +87,7 @@ class Contact(Message):
     pair_offset_ns: int = 0
     has_tactile: bool = True
     status: str = STATUS_OK
+    tactile_status: str = STATUS_OK
 
 
 @message("slipstack/Cor")

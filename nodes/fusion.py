@@ -1,20 +1,26 @@
-"""fusion: pairs ``ft/wrench`` with the newest ``tactile/frame`` into ``contact`` (MATH.md §2).
+"""fusion: pairs ``ft/wrench`` with the newest ``tactile/frame`` into ``contact`` (docs/safety.md).
 
 Every wrench (the faster stream) produces one ``contact``: with the newest tactile
-frame if it is younger than ``max_pair_age_ms``, otherwise an F/T-only contact
-(``has_tactile`` false). ``header.sources`` carries both stamps and
-``pair_offset_ns`` the tactile minus F/T stamp, so every consumer knows which
-samples were paired and how old they were. A stale or disconnected sensor passes its
-status on, so the grip controller can hold.
+frame if its stamp lies within ``max_pair_age_ms`` of the wrench's and its status is
+``ok``, otherwise an F/T-only contact (``has_tactile`` false) whose ``tactile_status``
+says why (``none``, ``unpaired``, or the frame's own status such as ``stale``).
+``header.sources`` carries both stamps and ``pair_offset_ns`` the tactile minus F/T
+stamp, so every consumer knows which samples were paired and how old they were.
+
+Plausibility: when the pad is pressed far harder than the F/T sensor says (the pad's
+force over ``ft_plausibility_ratio`` times the F/T normal force, as a biased or spoofed
+F/T sensor would read), the contact's status is ``implausible`` and the grip
+controller holds. A stale, disconnected or implausible sensor passes its status on.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
-from slipstack.lib.fusion import FusionThresholds, PressureShape, fuse_shape, pressure_shape
+from slipstack.lib.fusion import FusionThresholds, PressureShape, ft_understates_pad, fuse_shape, pressure_shape
 from slipstack.lib.pad import PadGeometry
 from slipstack.messages import STATUS_OK, Contact, TactileFrame, Wrench
 from slipstack.nodes.node import Context, Input, Node, Output
@@ -28,6 +34,10 @@ class FusionParams:
     min_normal_force_n: float = field(default=0.05, metadata={"help": "contact needs f_n above this (N)"})
     max_pair_age_ms: float = field(default=10.0, metadata={"help": "oldest tactile frame paired with a wrench (ms)"})
     use_tactile: bool = field(default=True, metadata={"help": "false: F/T-only contacts (scenes without tactile)"})
+    ft_plausibility_ratio: float = field(default=3.0, metadata={
+        "help": "contact is 'implausible' when the pad's force exceeds this times the F/T normal force; 0: off"})
+    ft_plausibility_min_n: float = field(default=0.5, metadata={
+        "help": "the plausibility check applies once the pad's own force exceeds this (N)"})
 
 
 class Fusion(Node):
@@ -47,7 +57,6 @@ class Fusion(Node):
         self.thresholds = FusionThresholds(noise_floor_pa=p.noise_floor_pa, min_normal_force_n=p.min_normal_force_n)
         self.tactile: TactileFrame | None = None
         self._shape: PressureShape | None = None  # of self.tactile, computed at its first pairing
-        self._pads: dict[tuple[int, int, float], PadGeometry] = {}
 
     def on_tactile(self, msg: TactileFrame, ctx: Context) -> None:
         self.tactile = msg
@@ -57,24 +66,33 @@ class Fusion(Node):
         stamp = msg.header.stamp_ns
         if msg.frame != "pad":
             ctx.count("fusion.sensor_frame_wrenches")  # the driver should apply the mount transform
-        t = self.tactile
-        fresh = (
-            self.params.use_tactile and t is not None and t.status == STATUS_OK
-            and abs(stamp - t.header.stamp_ns) <= self.params.max_pair_age_ms * 1e6
-        )
-        if fresh:
+        tactile_status = self._tactile_status(stamp)
+        if tactile_status == STATUS_OK:
+            t = self.tactile
             contact = self._fused(msg, t, ctx)
             sources = {"ft": stamp, "tactile": t.header.stamp_ns}
         else:
             if self.params.use_tactile:
-                ctx.count("fusion.unpaired_wrenches")
-            contact = self._ft_only(msg)
+                ctx.count(f"fusion.unpaired_wrenches.{tactile_status}")
+            contact = self._ft_only(msg, tactile_status)
             sources = {"ft": stamp}
         ctx.publish("contact", contact, stamp_ns=stamp, sources=sources)
 
+    def _tactile_status(self, wrench_stamp_ns: int) -> str:
+        """``ok`` when the newest tactile frame can be paired with this wrench, else why not."""
+        t = self.tactile
+        if not self.params.use_tactile:
+            return "off"
+        if t is None:
+            return "none"
+        if t.status != STATUS_OK:
+            return t.status
+        if abs(wrench_stamp_ns - t.header.stamp_ns) > self.params.max_pair_age_ms * 1e6:
+            return "unpaired"
+        return STATUS_OK
+
     def _fused(self, w: Wrench, t: TactileFrame, ctx: Context) -> Contact:
-        key = (t.rows, t.cols, t.pitch_m)
-        pad = self._pads.get(key) or self._pads.setdefault(key, PadGeometry(*key))
+        pad = _pad(t.rows, t.cols, t.pitch_m)
         if self._shape is None:  # the tactile half, once per frame
             self._shape = pressure_shape(t.pressure_pa, pad, self.thresholds, saturated=t.saturated)
             if self._shape.n_nonfinite or self._shape.n_negative:  # bad taxels were clipped to 0: count why
@@ -83,6 +101,11 @@ class Fusion(Node):
         r = fuse_shape(self._shape, w.force, w.torque, pad, self.thresholds,
                        tactile_stamp_ns=t.header.stamp_ns, wrench_stamp_ns=w.header.stamp_ns)
         status = w.status if w.status != STATUS_OK else r.status.value
+        p = self.params
+        if status in (STATUS_OK, "clipped_input", "no_contact") and ft_understates_pad(
+                self._shape, pad, -float(w.force[2]), ratio=p.ft_plausibility_ratio, min_pad_force_n=p.ft_plausibility_min_n):
+            ctx.count("fusion.implausible_ft")
+            status = "implausible"
         return Contact(
             rows=t.rows, cols=t.cols, pitch_m=t.pitch_m, phi=np.asarray(r.phi, dtype=float), f_n=r.f_n,
             f_t=np.asarray(r.f_t, dtype=float), tau=r.tau, cop=np.asarray(r.cop, dtype=float),
@@ -91,11 +114,17 @@ class Fusion(Node):
             status="ok" if status in ("ok", "clipped_input") else status,
         )
 
-    def _ft_only(self, w: Wrench) -> Contact:
+    def _ft_only(self, w: Wrench, tactile_status: str) -> Contact:
         f_n = -float(w.force[2])
         status = w.status if w.status != STATUS_OK else ("ok" if f_n > self.params.min_normal_force_n else "no_contact")
         return Contact(
             rows=0, cols=0, pitch_m=0.0, phi=np.zeros(0), f_n=max(f_n, 0.0), f_t=np.asarray(w.force[:2], dtype=float),
             tau=float(w.torque[2]), cop=np.zeros(2), area_m2=0.0, mask=np.zeros(0, dtype=bool),
-            has_tactile=False, status=status,
+            has_tactile=False, tactile_status=tactile_status, status=status,
         )
+
+
+@lru_cache(maxsize=8)
+def _pad(rows: int, cols: int, pitch_m: float) -> PadGeometry:
+    """The pad geometry of a tactile frame's shape; a few geometries cached (bounded)."""
+    return PadGeometry(rows, cols, pitch_m)

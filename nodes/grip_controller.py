@@ -3,9 +3,12 @@
 Inputs: ``slip`` (triggers a step; it carries the load it judged and γ); law (14)
 also needs the contact mask and the COR, so only then ``contact`` and ``cor``
 (newest values) are subscribed.
-Output: ``grip/command``. A watchdog deadline holds the last safe grip, with reason
-``fail-safe``, when the inputs go stale or report a bad status — it never releases
-on stale data.
+Output: ``grip/command``. The safety contract is docs/safety.md: a verdict that is
+not valid (its ``status`` is not ``ok``: a sensor stale, missing, unpaired or
+implausible), stale or future-stamped inputs, and a watchdog deadline without a new
+verdict all hold the last grip with reason ``fail-safe``; held for longer than
+``blind_grace_ms`` with a loaded contact, the grip rises at ``blind_rise_n_per_s``. A
+(re)started controller starts from the force the pad measures, never from ``f_nom``.
 """
 
 from __future__ import annotations
@@ -42,6 +45,9 @@ class GripControllerParams:
         "help": "(14): while the detector reports slip, (11) counts as failing once |n| > gamma_release T"})
     max_rate_n_per_s: float = field(default=200.0, metadata={"help": "actuator slew limit (N/s)"})
     timeout_ms: float = field(default=20.0, metadata={"help": "inputs older than this hold the grip (ms)"})
+    blind_grace_ms: float = field(default=50.0, metadata={
+        "help": "fail-safe this long with a loaded contact starts raising the grip (ms); < 0: never"})
+    blind_rise_n_per_s: float = field(default=10.0, metadata={"help": "rate of that raise (N/s)"})
 
 
 class GripController(Node):
@@ -65,7 +71,9 @@ class GripController(Node):
         accepted = {f.name for f in dataclasses.fields(law_cls)} if law_cls else set()
         law_params = {k: v for k, v in dataclasses.asdict(p).items() if k in accepted}
         self.law = make_law(p.law, **law_params)
-        self.governor = GripGovernor(self.law, timeout_ns=round(p.timeout_ms * 1e6), max_rate_n_per_s=p.max_rate_n_per_s)
+        self.governor = GripGovernor(self.law, timeout_ns=round(p.timeout_ms * 1e6), max_rate_n_per_s=p.max_rate_n_per_s,
+                                     blind_grace_ns=round(p.blind_grace_ms * 1e6),
+                                     blind_rise_n_per_s=p.blind_rise_n_per_s)
         self.contact: Contact | None = None
         self.cor: Cor | None = None
         self.slip: Slip | None = None
@@ -92,7 +100,8 @@ class GripController(Node):
     def _step(self, ctx: Context) -> None:
         now = ctx.now_ns()
         inp, stamps, ok = self._gather()
-        decision = self.governor.step(inp, now_ns=now, stamps_ns=stamps, status_ok=ok)
+        loaded = self.slip is not None and self.slip.state != "no-contact"
+        decision = self.governor.step(inp, now_ns=now, stamps_ns=stamps, status_ok=ok, loaded=loaded)
         stamp = max(stamps) if stamps else now
         sources = {"slip": self.slip.header.stamp_ns, **self.slip.header.sources} if self.slip else {}
         self._publish(decision, stamp, sources, ctx)
@@ -108,7 +117,7 @@ class GripController(Node):
         if self.law.name == "tactile14":
             c, r = self.contact, self.cor
             if c is None or r is None:
-                return GripInput(), [], False
+                return GripInput(f_n=s.f_n), stamps, False
             stamps += [c.header.stamp_ns, r.header.stamp_ns]
             ok = ok and c.status == "ok"
             n_contact = int(np.count_nonzero(c.mask)) if c.mask.size else 0

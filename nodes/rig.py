@@ -4,8 +4,10 @@ Runs a scene (``launch/scenes/*.toml``) in real time: every tick it advances the
 simulator to the wall-clock time elapsed since start, sends each F/T and tactile
 sample as bytes through a device emulator (ATI RDT on loopback UDP, Robotiq or Bota
 on a pseudo-terminal; DSACON32, M1616 or the framed format on a pseudo-terminal), and
-publishes ``rig/truth``. ``grip/command`` sets the finger's normal force. The
-detector only ever sees what the drivers decode from those bytes.
+publishes ``rig/truth``. ``grip/command`` sets the finger's normal force; the finger's
+command watchdog (``command_timeout_ms``) holds the grip, and raises it towards
+``watchdog_grip_n``, when commands stop (docs/safety.md). The detector only ever sees
+what the drivers decode from those bytes.
 
 The tactile calibration table of the simulated rubber is written to
 ``calibration_out`` at start, for the tactile driver to load.
@@ -20,6 +22,7 @@ import numpy as np
 
 from slipstack.lib.calibration import Calibration, save_calibration
 from slipstack.lib.errors import ConfigError
+from slipstack.lib.rig.actuator import CommandWatchdog
 from slipstack.lib.rig.scene import Scene, load_scene
 from slipstack.lib.rig.sensors import FtSample, TactileSample
 from slipstack.lib.rig.simulator import Simulator, Truth
@@ -52,6 +55,11 @@ class RigParams:
     wait_for_drivers_s: float = field(default=30.0, metadata={
         "help": "the scene starts when every emulated sensor is streaming to a driver, or after this long (s)"})
     exit_at_end: bool = field(default=True, metadata={"help": "stop the node when the scene ends"})
+    command_timeout_ms: float = field(default=100.0, metadata={
+        "help": "finger watchdog: no grip/command for this long after the first one -> hold and raise (ms); 0: off"})
+    watchdog_grip_n: float = field(default=0.0, metadata={
+        "help": "the watchdog raises the command towards this safe grip (N); 0: it only holds"})
+    watchdog_rise_n_per_s: float = field(default=10.0, metadata={"help": "the watchdog's raise rate (N/s)"})
 
 
 class Rig(Node):
@@ -78,6 +86,11 @@ class Rig(Node):
         self.tactile_dev = None
         self._powered_ns = 0
         self._t0: int | None = None
+        try:
+            self.watchdog = CommandWatchdog(round(p.command_timeout_ms * 1e6), p.watchdog_grip_n,
+                                            p.watchdog_rise_n_per_s)
+        except ValueError as exc:
+            raise ConfigError(f"rig: {exc}") from None
 
     def start(self, ctx: Context) -> None:
         p, scene = self.params, self.scene
@@ -110,8 +123,27 @@ class Rig(Node):
         return path
 
     def on_grip(self, msg: GripCommand, ctx: Context) -> None:
-        if self._t0 is not None and not self.sim.command_normal_force(msg.f_n_desired):
+        if self._t0 is None:
+            return
+        if self.sim.command_normal_force(msg.f_n_desired):
+            self.watchdog.commanded(ctx.now_ns())
+        else:
             ctx.count("rig.rejected_commands")
+
+    def _guard_finger(self, ctx: Context) -> None:
+        """The finger's command watchdog: hold, or raise towards the safe grip, without commands."""
+        was_expired = self.watchdog.expired
+        command = self.watchdog.step(ctx.now_ns(), self.sim.normal_force_command)
+        if command is not None:
+            self.sim.command_normal_force(command)
+            ctx.count("rig.watchdog_ticks")
+            if not was_expired:
+                ctx.log(f"finger watchdog: no grip/command for {self.params.command_timeout_ms:g} ms; "
+                        f"holding {command:.2f} N" + (f", raising towards {self.watchdog.safe_grip_n:g} N"
+                                                      if self.watchdog.safe_grip_n > command else ""))
+                ctx.set_status("watchdog", "no grip/command: the finger holds its grip")
+        elif was_expired:
+            ctx.set_status("ok")
 
     def _sensors_streaming(self) -> bool:
         """Every emulated sensor has been started by its driver (M1616 pushes unasked)."""
@@ -131,6 +163,7 @@ class Rig(Node):
                 ctx.log(f"warning: sensors not streaming after {waited:.0f} s; starting the scene anyway")
             self._t0 = ctx.now_ns()
             ctx.log(f"sensors streaming; scene {self.scene.name} starts")
+        self._guard_finger(ctx)
         for sample in sim.step_until(ctx.now_ns() - self._t0):
             if isinstance(sample, FtSample):
                 if self.ft_dev is not None and not self.ft_dev.send_ft(sample.force_S, sample.torque_S):

@@ -24,7 +24,8 @@ import numpy as np
 from slipstack.lib.detection import DetectorConfig, SlipLatch
 from slipstack.lib.limit_set import compile_kernels, torsional_coefficient
 from slipstack.lib.slip_tests import SLIP_TESTS, SlipParams, get_slip_test
-from slipstack.messages import Contact, Slip
+from slipstack.lib.status import SolverStatus
+from slipstack.messages import STATUS_OK, Contact, Slip
 from slipstack.nodes.contact_view import ContactView
 from slipstack.nodes.node import Context, Input, Node, Output
 
@@ -79,6 +80,16 @@ class SlipDetector(Node):
             self._beta_frame = frame
         return self._ft_params
 
+    def _verdict_status(self, msg: Contact, solver: SolverStatus) -> str:
+        """``ok`` when the verdict judged valid data; otherwise why not: the contact's
+        status, ``tactile_<why>`` for a tactile test without a paired frame, or the
+        solver's status."""
+        if msg.status != STATUS_OK:
+            return msg.status
+        if not msg.has_tactile and self.params.method not in _FT_TESTS:
+            return f"tactile_{msg.tactile_status}"
+        return STATUS_OK if solver.usable else solver.value
+
     def start(self, ctx: Context) -> None:
         compile_kernels()  # before the node reports ready, so its first contact runs at full speed
 
@@ -91,8 +102,10 @@ class SlipDetector(Node):
             self._warm = v.p_c
         # Stale or invalid input, or a tactile test without a tactile frame, says nothing
         # new: the latch keeps its state (never "released" by a sensor hiccup); only a
-        # real loss of contact clears it.
-        fresh = msg.status == "ok" and v.status.usable and (msg.has_tactile or self.params.method in _FT_TESTS)
+        # real loss of contact clears it. The verdict's status says why it is not valid,
+        # so the grip controller holds instead of reading the load as zero.
+        status = self._verdict_status(msg, v.status)
+        fresh = status == STATUS_OK
         in_contact = v.kind != "no-contact" if fresh else msg.status != "no_contact"
         slipping = self.latch.update(stamp, v.margin if fresh else float("nan"), in_contact=in_contact)
         verdicts = {v.method: [v.stick, v.margin]}
@@ -110,7 +123,7 @@ class SlipDetector(Node):
         if not v.status.usable:
             ctx.count(f"slip.{v.status.value}")
         ctx.publish("slip", Slip(state=state, margin=v.margin, method=v.method, verdicts=verdicts,
-                                 gamma=v.gamma, status=msg.status, f_n=msg.f_n, f_t=msg.f_t, tau=msg.tau,
+                                 gamma=v.gamma, status=status, f_n=msg.f_n, f_t=msg.f_t, tau=msg.tau,
                                  p_c=np.array(v.p_c if v.p_c is not None else (0.0, 0.0)),
                                  p_c_valid=v.p_c is not None),
                     stamp_ns=stamp, sources=msg.header.sources)

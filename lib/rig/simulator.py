@@ -239,6 +239,11 @@ class Simulator:
         """Number of non-finite normal-force commands ignored."""
         return self._finger.rejected
 
+    @property
+    def normal_force_command(self) -> float:
+        """The finger's present normal-force command, N."""
+        return self._finger.command_N
+
     def command_normal_force(self, f_n_N: float) -> bool:
         """Command the finger's normal force (N); clipped to ``[0, f_max]``.
 

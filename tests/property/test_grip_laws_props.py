@@ -107,7 +107,7 @@ def test_governor_finite_bounded_rate_limited_and_holds(
     law: GripLaw, seq: list[tuple[GripInput, int, int, bool]]
 ) -> None:
     rate = 300.0
-    gov = GripGovernor(law, timeout_ns=50_000_000, max_rate_n_per_s=rate)
+    gov = GripGovernor(law, timeout_ns=50_000_000, max_rate_n_per_s=rate, initial_n=F_NOM, blind_grace_ns=-1)
     now, last = 0, gov.last_n
     for inp, advance, age, ok in seq:
         now += advance

@@ -181,10 +181,10 @@ def test_rate_limiter_rejects_bad_rate() -> None:
 # ---------------------------------------------------------------- governor: fail-safe
 
 
-def _governor() -> GripGovernor:
-    # Linear law μ = σ = 0.5, bounds [2, 30] N, 200 N/s actuator, 50 ms timeout.
+def _governor(**kw: object) -> GripGovernor:
+    # Linear law μ = σ = 0.5, bounds [2, 30] N, 200 N/s actuator, 50 ms timeout, starting at 2 N.
     law = LinearLaw(mu=0.5, sigma=0.5, f_nom_n=2.0, f_max_n=30.0)
-    return GripGovernor(law, timeout_ns=50 * MS, max_rate_n_per_s=200.0)
+    return GripGovernor(law, timeout_ns=50 * MS, max_rate_n_per_s=200.0, **{"initial_n": 2.0, **kw})
 
 
 LOAD = GripInput(f_t=(3.0, 4.0))  # law demand 20 N
@@ -242,6 +242,52 @@ def test_governor_fail_safe_before_any_input_holds_initial() -> None:
     gov = _governor()
     d = gov.step(LOAD, now_ns=0, stamps_ns=[-(100 * MS)])
     assert (d.f_n_desired, d.reason) == (2.0, GripReason.FAIL_SAFE)
+
+
+def test_a_started_governor_begins_from_the_measured_force_not_f_nom() -> None:
+    # A respawned controller while the finger squeezes 12.9 N: its first command is 12.9 N,
+    # valid data or not, and the law then moves it at the slew limit (200 N/s: 2 N per 10 ms).
+    measured = GripInput(f_t=(0.3, 0.4), f_n=12.9)  # law demand 2 N (f_nom)
+    fresh = _governor(initial_n=None)
+    first = fresh.step(measured, now_ns=0, stamps_ns=[0])
+    assert first.f_n_desired == pytest.approx(12.9)
+    assert fresh.step(measured, now_ns=10 * MS, stamps_ns=[10 * MS]).f_n_desired == pytest.approx(10.9)
+    blind = _governor(initial_n=None)
+    held = blind.step(measured, now_ns=0, stamps_ns=[-(100 * MS)])
+    assert (held.f_n_desired, held.reason) == (pytest.approx(12.9), GripReason.FAIL_SAFE)
+    unknown = _governor(initial_n=None).step(GripInput(f_t=(0.3, 0.4)), now_ns=0, stamps_ns=[-(100 * MS)])
+    assert unknown.f_n_desired == 30.0  # nothing measured: the never-release answer, f_max
+
+
+def test_governor_escalates_while_blind_and_loaded_then_recovers_rate_limited() -> None:
+    gov = _governor(blind_grace_ns=50 * MS, blind_rise_n_per_s=10.0)
+    for k in range(11):  # raise to 20 N on valid data
+        gov.step(LOAD, now_ns=k * 10 * MS, stamps_ns=[k * 10 * MS])
+    t0 = 100 * MS
+    blind = [gov.step(LOAD, now_ns=t0 + k * 10 * MS, stamps_ns=[t0]) for k in range(6, 31)]  # stale from 160 ms
+    assert all(d.reason is GripReason.FAIL_SAFE for d in blind)
+    # stale once the age passes 50 ms (t = 160 ms); held through the 50 ms grace; at 210 ms the
+    # first raise covers its step (200 -> 210 ms), so by 400 ms: 0.2 s at 10 N/s
+    assert [d.f_n_desired for d in blind[:5]] == pytest.approx([20.0] * 5)
+    assert blind[5].f_n_desired == pytest.approx(20.1)
+    assert blind[-1].f_n_desired == pytest.approx(22.0)
+    assert "raising the grip" in blind[-1].detail
+    back = gov.step(LOAD, now_ns=410 * MS, stamps_ns=[410 * MS])  # demand 20 N: down at 200 N/s
+    assert back.reason is GripReason.SLIP and back.f_n_desired == pytest.approx(20.0)
+
+
+def test_governor_does_not_escalate_without_a_load() -> None:
+    gov = _governor(blind_grace_ns=0)
+    gov.step(GripInput(f_t=(0.0, 0.0)), now_ns=0, stamps_ns=[0], loaded=False)
+    out = [gov.step(LOAD, now_ns=k * 10 * MS, stamps_ns=[0], status_ok=False).f_n_desired for k in range(1, 20)]
+    assert out == pytest.approx([2.0] * 19)
+
+
+def test_governor_treats_a_future_stamp_as_untrustworthy() -> None:
+    gov = _governor()
+    d = gov.step(LOAD, now_ns=0, stamps_ns=[51 * MS])
+    assert d.reason is GripReason.FAIL_SAFE and "future" in d.detail
+    assert gov.step(LOAD, now_ns=MS, stamps_ns=[2 * MS]).reason is GripReason.SLIP  # within the timeout: fine
 
 
 def test_governor_config_errors() -> None:
