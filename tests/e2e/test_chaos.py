@@ -1,0 +1,83 @@
+"""Chaos on a paper scene: processes of the launched stack die or freeze mid-disturbance.
+
+fig15 runs in real time with every process real. While its disturbance pulls on the
+object, the test SIGKILLs the tactile driver, freezes the F/T driver (SIGSTOP, then
+SIGCONT), SIGKILLs the whole control container, freezes the monitor and SIGKILLs the
+recorder. The launcher respawns what died; the controller holds and escalates while
+blind, a respawned controller starts from the applied force, and the finger's
+watchdog holds while no command comes (docs/safety.md). The object may slip a little
+while the stack is blind, but the slip stays bounded and the stack comes back.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import time
+
+import pytest
+
+from .conftest import pid_alive
+
+pytestmark = pytest.mark.e2e
+
+SLIP_BOUND_MM = 2.0  # undisturbed fig15 slides < 0.5 mm; a stack that released the grip: 10-135 mm
+TURN_BOUND_DEG = 2.0
+
+
+def _pid(g, node: str, timeout: float = 30.0) -> int:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        pid = g.graph()["nodes"][node].get("pid")
+        if pid and pid_alive(pid):
+            return pid
+        time.sleep(0.05)
+    raise AssertionError(f"{node} has no live process after {timeout} s:\n{g.log()}")
+
+
+def _respawned(g, node: str, old_pid: int, timeout: float = 30.0) -> float:
+    """Seconds until ``node`` runs in a new live process (generous: the machine may be busy)."""
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        pid = g.graph()["nodes"][node].get("pid")
+        if pid and pid != old_pid and pid_alive(pid):
+            return time.monotonic() - t0
+        time.sleep(0.02)
+    raise AssertionError(f"{node} was not respawned within {timeout} s:\n{g.log()}")
+
+
+def test_the_stack_survives_kills_and_freezes_mid_disturbance(launch, run_root):
+    summary = run_root / "chaos.json"
+    g = launch("fig15", f"recording:={run_root / 'chaos.mcap'}", f"summary:={summary}")
+    g.wait_ready(timeout=120)
+    _pid(g, "rig")
+    time.sleep(2.0)  # into the disturbance's ramp
+
+    tactile = _pid(g, "tactile_driver")
+    os.kill(tactile, signal.SIGKILL)
+    _respawned(g, "tactile_driver", tactile)
+
+    ft = _pid(g, "ft_driver")
+    os.kill(ft, signal.SIGSTOP)
+    time.sleep(0.3)
+    os.kill(ft, signal.SIGCONT)
+
+    control = _pid(g, "grip_controller")
+    os.kill(control, signal.SIGKILL)
+    _respawned(g, "grip_controller", control)
+
+    monitor = _pid(g, "monitor")
+    os.kill(monitor, signal.SIGSTOP)
+    time.sleep(0.3)
+    os.kill(monitor, signal.SIGCONT)
+
+    recorder = _pid(g, "recorder")
+    os.kill(recorder, signal.SIGKILL)
+
+    assert g.proc.wait(180) == 0, g.log()
+    s = json.loads(summary.read_text())
+    assert s["slip_distance_mm"] < SLIP_BOUND_MM, (s, g.log()[-3000:])
+    assert abs(s["slip_angle_deg"]) < TURN_BOUND_DEG, (s, g.log()[-3000:])
+    log = g.log()
+    assert "respawning tactile_driver" in log and "respawning control" in log, log[-3000:]
