@@ -76,12 +76,15 @@ class SlipLatch:
     def update(self, t_ns: int, margin: float, *, in_contact: bool = True) -> bool:
         """Feed one frame's margin (``1 − γ``); returns whether slip is flagged.
 
-        A non-finite margin (no verdict) keeps the current flag; no contact clears it.
+        A non-finite margin (no verdict) keeps the current flag and restarts the release
+        dwell: release needs ``release_ns`` of *valid* frames below the level, so a stretch
+        without information never counts towards it. No contact clears the flag.
         """
         if not in_contact:
             self.slipping, self._below_since = False, None
             return False
-        if margin != margin:  # NaN: no information, keep the state
+        if margin != margin:  # NaN: no information, keep the flag, start the dwell again
+            self._below_since = None
             return self.slipping
         gamma = 1.0 - margin
         cfg = self.config

@@ -187,3 +187,27 @@ def test_blind_and_loaded_the_controller_raises_the_grip_by_its_policy():
     # blind from ~80 ms (the first deadline past the 20 ms timeout), grace to ~130 ms, then
     # 10 N/s to 1040 ms
     assert late[-1].f_n_desired == pytest.approx(raised + 9.2, abs=0.3)
+
+
+def test_the_slip_latch_holds_through_sensor_hiccups_and_releases_only_on_valid_data():
+    ex, _ = chain()
+    f_n = 4.0
+    events = loaded_phase(20, f_n, 0.99 * MU * f_n)  # gamma 0.99: slip flagged
+    # 60 ms of hiccups: tactile frames gone, F/T says the load vanished. No valid verdict.
+    events += [wrench(20 + k + 0.1, f_n, 0.0, seq=20 + k) for k in range(60)]
+    # then valid data with a light load (gamma 0.3): the latch may release after 20 ms
+    events += loaded_phase(60, f_n, 0.3 * MU * f_n, t0_ms=80)
+    ex.feed(events)
+    ex.run(until_ns=150 * MS)
+    slips = ex.published["slip"]
+    onset = [s for s in slips if s.header.stamp_ns < 20 * MS]
+    hiccup = [s for s in slips if 20 * MS <= s.header.stamp_ns < 80 * MS]
+    blind = [s for s in hiccup if s.header.stamp_ns >= 30 * MS]  # the last frame (18 ms) no longer pairs
+    valid = [s for s in slips if s.header.stamp_ns >= 80 * MS]
+    assert onset[-1].state != "stick" and onset[-1].status == "ok"
+    assert hiccup and all(s.state != "stick" for s in hiccup)  # never "released" by missing data
+    assert blind and all(s.status == "tactile_unpaired" for s in blind)
+    released = [s.header.stamp_ns for s in valid if s.state == "stick"]
+    assert released, "valid light load must release the latch"
+    # the dwell counts valid frames only: 20 ms from 80 ms, not from the light load at 20 ms
+    assert 100 * MS <= released[0] <= 105 * MS

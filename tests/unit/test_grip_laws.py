@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import math
 
 import numpy as np
@@ -100,6 +102,17 @@ def test_tactile14_law_raises_by_total_or_per_taxel() -> None:
     assert total.decide(FAILING).f_n_desired == pytest.approx(15.0)  # 5 + 10
     assert per.decide(FAILING).f_n_desired == pytest.approx(6.0)  # 5 + 1
     assert total.decide(FAILING).reason is GripReason.SLIP
+
+
+def test_tactile14_raises_for_clockwise_and_counter_clockwise_slip_alike() -> None:
+    # The limit set is centrally symmetric: a load torque of -n about the COR fails test (11)
+    # exactly as +n does, and asks for the same increment.
+    law = Tactile14Law(mu=0.5, sigma=0.5, f_nom_n=1.0, f_max_n=30.0)
+    clockwise = dataclasses.replace(FAILING, n_c=-FAILING.n_c)
+    assert law.decide(clockwise).f_n_desired == pytest.approx(law.decide(FAILING).f_n_desired)
+    assert law.decide(clockwise).reason is GripReason.SLIP
+    holding = dataclasses.replace(FAILING, n_c=-0.5 * FAILING.t_c)  # |n| < T: (11) holds
+    assert law.decide(holding).f_n_desired == pytest.approx(FAILING.f_n)
 
 
 def test_tactile14_holds_or_decays_when_test_passes() -> None:
