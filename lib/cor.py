@@ -109,16 +109,25 @@ def _validate(phi, positions, f_t, tau, mu):
     return sub[0], sub[1], sub[2], ft
 
 
+def _translation_ratio(ph, ft, mu) -> float:
+    """``|f_t| / (μ Σφ)``: the load over the contact's translational capacity."""
+    return math.hypot(ft[0], ft[1]) / (mu * float(ph.sum()))
+
+
+def _translation(ratio_t: float) -> CorResult:
+    """Pure translation (the COR at infinity) with the translational load ratio."""
+    return CorResult(SlipCase.TRANSLATION, None, 0.0, 0.0, ratio_t, 0, 0, 0.0, SolverStatus.TRANSLATION)
+
+
 def _special(ph, P, ft, tau, mu) -> CorResult | None:
     """No contact, no load, translation and point contact: answered without iterating."""
     if ph.size == 0:
         return _invalid(SolverStatus.NO_CONTACT)
     if ft[0] == 0.0 and ft[1] == 0.0 and tau == 0.0:
         return _invalid(SolverStatus.NO_LOAD)
-    cap = mu * float(ph.sum())
-    ratio_t = math.hypot(ft[0], ft[1]) / cap
+    ratio_t = _translation_ratio(ph, ft, mu)
     if ratio_t >= 1.0:
-        return CorResult(SlipCase.TRANSLATION, None, 0.0, 0.0, ratio_t, 0, 0, 0.0, SolverStatus.TRANSLATION)
+        return _translation(ratio_t)
     if ph.size == 1:
         n, _ = _load_terms(P, ph, ft, tau, mu, P[0])
         ratio = math.inf if n != 0.0 else ratio_t
@@ -241,6 +250,11 @@ def robust_cor(
     for s in (1, -1):
         res = solve_weber(P, mu * ph, (-s * ft[1], s * ft[0]), c0, xtol=xtol, max_iter=max_iter)
         iterations += res.iterations
+        if res.status is SolverStatus.TRANSLATION:
+            # |f_t| reaches μΣφ to rounding: the Weber minimum runs off to infinity although
+            # the ratio computed above came out a rounding step below 1. Translation, at
+            # that ratio (not 0, which would read as "no load": stick with margin 1).
+            return _translation(_translation_ratio(ph, ft, mu))
         if res.c is None:
             return _invalid(res.status)
         g = s * tau - res.value  # max_c g_s = s·τ − min_c (T − s·perp(f_t)·c)
