@@ -15,7 +15,7 @@ import numpy as np
 
 from slipstack.lib.errors import ConfigError
 
-__all__ = ["PadGeometry", "DEFAULT_PAD"]
+__all__ = ["PadGeometry", "PadMount", "DEFAULT_PAD"]
 
 
 @dataclass(frozen=True)
@@ -89,3 +89,40 @@ class PadGeometry:
 
 
 DEFAULT_PAD = PadGeometry()
+
+
+@dataclass(frozen=True)
+class PadMount:
+    """How the tactile array is mounted on the pad: its image in the pad frame ``F``.
+
+    The device sends its image in its own rows and columns. ``flip_rows`` mirrors it
+    along ``y`` (row ``r`` → ``R−1−r``), ``flip_cols`` along ``x``; then
+    ``quarter_turns`` (0–3) turns it counter-clockwise about ``z`` by 90° each, as seen
+    with ``x`` right and ``y`` up: a taxel at ``(x, y)`` moves to ``(−y, x)``. An odd
+    number of turns swaps rows and columns.
+    """
+
+    flip_rows: bool = False
+    flip_cols: bool = False
+    quarter_turns: int = 0
+
+    def __post_init__(self) -> None:
+        if self.quarter_turns not in (0, 1, 2, 3):
+            raise ConfigError(f"pad mount quarter_turns must be 0, 1, 2 or 3, got {self.quarter_turns!r}")
+
+    @property
+    def identity(self) -> bool:
+        """True when the image needs no change."""
+        return not (self.flip_rows or self.flip_cols or self.quarter_turns)
+
+    def shape(self, rows: int, cols: int) -> tuple[int, int]:
+        """(rows, cols) of the image in ``F`` for a device image of ``rows × cols``."""
+        return (cols, rows) if self.quarter_turns % 2 else (rows, cols)
+
+    def apply(self, image: np.ndarray) -> np.ndarray:
+        """The device image (rows × cols, any dtype) as seen in the pad frame (a view or copy)."""
+        out = image[::-1, :] if self.flip_rows else image
+        out = out[:, ::-1] if self.flip_cols else out
+        # (r, c) -> (c, R-1-r) per turn is numpy's clockwise rot90 in index terms, which is
+        # counter-clockwise in F (rows grow along +y)
+        return np.rot90(out, -self.quarter_turns) if self.quarter_turns else out

@@ -14,6 +14,12 @@ starts (in a launch, another node such as the simulated rig may write it first);
 missing or invalid file (a NaN or infinite entry, a non-monotone table, per-taxel
 data of the wrong size) stops the node at start with a ConfigError naming it.
 
+``rows`` × ``cols`` is the image as the device sends it. The array's mounting on the
+pad (``flip_rows``, ``flip_cols``, ``quarter_turns``: :class:`slipstack.lib.pad.PadMount`)
+turns it into the pad frame before it is published, so a pad mounted the other way
+round needs no code; the published ``rows``/``cols`` are swapped by an odd number of
+quarter turns. Calibration and ``dead_taxels`` use the device's own indices.
+
 A frame whose size differs from ``rows`` × ``cols`` is not published: it is counted
 (``tactile.size_mismatch``) and the node status says ``size-mismatch`` with both
 sizes. The stamp is the receive time (executor clock, ns); ``device_stamp`` is the
@@ -32,6 +38,7 @@ import numpy as np
 
 from slipstack.lib.calibration import Calibration, load_calibration
 from slipstack.lib.errors import ConfigError
+from slipstack.lib.pad import PadMount
 from slipstack.messages import TactileFrame
 from slipstack.nodes.device_driver import DeviceDriver
 from slipstack.nodes.devices.backends import Dsacon32Backend, FramedBackend, TactileSample
@@ -61,6 +68,10 @@ class TactileDriverParams:
         "help": "extra dead taxels, row-major indices i = row*cols + col, e.g. 17,200"})
     stale_status_period_ms: float = field(default=10.0, metadata={
         "help": "while the device is stale/disconnected, republish the last frame with that status this often (ms)"})
+    flip_rows: bool = field(default=False, metadata={"help": "mount: mirror the device image along y (rows)"})
+    flip_cols: bool = field(default=False, metadata={"help": "mount: mirror the device image along x (columns)"})
+    quarter_turns: int = field(default=0, metadata={
+        "help": "mount: then turn it counter-clockwise about the pad normal by this many 90-degree steps (0-3)"})
 
 
 class TactileDriver(DeviceDriver):
@@ -79,6 +90,8 @@ class TactileDriver(DeviceDriver):
         if not (math.isfinite(p.pitch_m) and p.pitch_m > 0):
             raise ConfigError(f"tactile_driver: pitch_m must be > 0 (m), got {p.pitch_m}")
         self.n_taxels = p.rows * p.cols
+        self.mount = PadMount(p.flip_rows, p.flip_cols, p.quarter_turns)
+        self.pad_shape = self.mount.shape(p.rows, p.cols)
         if not p.calibration and not (math.isfinite(p.pa_per_count) and p.pa_per_count > 0):
             raise ConfigError(f"tactile_driver: pa_per_count must be > 0 (Pa/count), got {p.pa_per_count}")
         self.calibration: Calibration | None = None
@@ -87,10 +100,11 @@ class TactileDriver(DeviceDriver):
     def start(self, ctx: Context) -> None:
         p = self.params
         self.calibration = self._load_calibration()
-        self._last = TactileFrame(rows=p.rows, cols=p.cols, pitch_m=p.pitch_m,
+        rows, cols = self.pad_shape
+        self._last = TactileFrame(rows=rows, cols=cols, pitch_m=p.pitch_m,
                                   pressure_pa=np.zeros(self.n_taxels, dtype=np.float32),
                                   saturated=np.zeros(self.n_taxels, dtype=bool),
-                                  dead=self.calibration.apply(np.zeros(self.n_taxels)).dead)
+                                  dead=self._to_pad(self.calibration.apply(np.zeros(self.n_taxels)).dead))
         super().start(ctx)
 
     def _load_calibration(self) -> Calibration:
@@ -127,9 +141,17 @@ class TactileDriver(DeviceDriver):
             return
         cal = self.calibration.apply(sample.counts.ravel())
         device_stamp = -1 if sample.device_time_s is None else round(sample.device_time_s * 1e9)
-        self._last = dataclasses.replace(self._last, pressure_pa=cal.pressure_pa.astype(np.float32),
-                                         saturated=cal.saturated, dead=cal.dead, device_stamp=device_stamp)
+        self._last = dataclasses.replace(self._last, pressure_pa=self._to_pad(cal.pressure_pa.astype(np.float32)),
+                                         saturated=self._to_pad(cal.saturated), dead=self._to_pad(cal.dead),
+                                         device_stamp=device_stamp)
         ctx.publish("frame", self._last, stamp_ns=sample.stamp_ns)
+
+    def _to_pad(self, taxels: np.ndarray) -> np.ndarray:
+        """Device-ordered taxel values (rows × cols, row-major) in the pad's row-major order."""
+        if self.mount.identity:
+            return taxels
+        image = self.mount.apply(taxels.reshape(self.params.rows, self.params.cols))
+        return np.ascontiguousarray(image).reshape(-1)
 
     def publish_status(self, status: str, ctx: Context) -> None:
         ctx.publish("frame", dataclasses.replace(self._last, status=status), stamp_ns=ctx.now_ns())
