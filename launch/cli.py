@@ -11,6 +11,7 @@ __all__ = ["main", "build_parser"]
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from slipstack.analysis import reproduce
     from slipstack.launch import launcher, run_node
     from slipstack.nodes import bag_tools, report, topic_tools
 
@@ -19,7 +20,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Slip detection and control as a ZeroMQ node graph (after Melchiorri 2000).",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for module in (launcher, run_node, topic_tools, bag_tools, report):
+    for module in (launcher, run_node, topic_tools, bag_tools, report, reproduce):
         module.add_parser(sub)
     return parser
 

@@ -1,0 +1,117 @@
+"""The paper's §V experiments as lock-step runs, and their topics as arrays.
+
+Each :class:`Experiment` names a shipped scene and the stack the paper used on it —
+detection-only experiments (Figs. 4, 13, 14) run with the controller off, at the
+scene's constant normal force; control experiments (Figs. 10–12, 15) with the paper's
+law. :func:`run_experiment` runs it through :class:`~slipstack.nodes.lockstep.LockstepStack`
+(the same nodes and device codecs the launched stack runs, deterministic) and returns
+a :class:`Run`: each topic as numpy arrays, time in seconds from the scene start.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from slipstack.lib.rig.scene import Scene
+from slipstack.nodes.lockstep import LockstepStack, StackConfig, load_scene_by_name
+
+__all__ = ["Experiment", "EXPERIMENTS", "Run", "run_experiment"]
+
+BETA_FIG11_M = 0.00344  # β_s of the full-pad flat contact of fig11/fig12 (launch files fig11, fig12)
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """One paper experiment: a scene and the stack the paper ran on it.
+
+    key: the figure id (``fig4a`` …); scene: a shipped scene name; protocol: one line
+    for the report; config: the stack (:class:`StackConfig` keyword arguments).
+    """
+
+    key: str
+    scene: str
+    protocol: str
+    config: dict[str, Any] = field(default_factory=dict)
+
+
+EXPERIMENTS: dict[str, Experiment] = {e.key: e for e in (
+    Experiment("fig4a", "fig4a", "constant f_n = 5 N, tangential load rising through a spring; no controller",
+               {"controller": False}),
+    Experiment("fig4b", "fig4b", "constant f_n = 5 N, torque rising through a torsional spring; no controller",
+               {"controller": False}),
+    Experiment("fig10", "fig10", "F/T only: Coulomb test (7), linear law f_n = |f_t|/(σμ), σ = 0.5, μ = 0.45",
+               {"controller": True, "slip": {"method": "coulomb"}, "grip": {"law": "linear", "f_max_n": 20.0}}),
+    Experiment("fig11", "fig11", "F/T only: pure torque, law (13) with k = 2 N and β = 3.44 mm",
+               {"controller": True, "slip": {"method": "linear_ls", "beta_m": BETA_FIG11_M},
+                "grip": {"law": "ft13", "beta_m": BETA_FIG11_M, "f_max_n": 20.0}}),
+    Experiment("fig12", "fig12", "F/T only: force and torque, the σ-variant of law (13)",
+               {"controller": True, "slip": {"method": "linear_ls", "beta_m": BETA_FIG11_M},
+                "grip": {"law": "ft13_sigma", "beta_m": BETA_FIG11_M, "f_max_n": 20.0}}),
+    Experiment("fig13", "fig13", "rotation about a known COR (the motor shaft) at constant f_n = 2 N; "
+               "no controller: detection only", {"controller": False, "slip": {"method": "tactile_cor_robust"}}),
+    Experiment("fig14", "fig14", "free object, unknown COR, at constant f_n = 3 N; no controller: detection only",
+               {"controller": False, "slip": {"method": "exact"}}),
+    Experiment("fig15", "fig15", "both sensors: exact test, law (14) with the total increment N_A·δφ",
+               {"controller": True, "slip": {"method": "exact"}, "grip": {"law": "tactile14", "f_max_n": 20.0}}),
+)}
+
+
+@dataclass
+class Run:
+    """One experiment's output: ``topics[name][field]`` arrays, ``t`` in s from the start,
+    and one tactile contact's ``φ`` from mid-run (``None`` without a tactile pad)."""
+
+    experiment: Experiment
+    scene: Scene
+    topics: dict[str, dict[str, np.ndarray]]
+    phi_sample: np.ndarray | None = None  # one tactile contact's φ (N,), N, for β_s of the contact
+
+    def __getitem__(self, topic: str) -> dict[str, np.ndarray]:
+        return self.topics.get(topic, {})
+
+
+_FIELDS = {
+    "ft/wrench": lambda m: {"force": m.force, "torque": m.torque},
+    "contact": lambda m: {"f_n": m.f_n, "f_t": m.f_t, "tau": m.tau, "cop": m.cop, "has_tactile": m.has_tactile,
+                          "phi": m.phi if m.has_tactile else None},
+    "cor": lambda m: {"case": m.case, "p_c": m.p_c, "capacity": m.torque_capacity, "load": m.load_torque,
+                      "gamma": m.gamma},
+    "slip": lambda m: {"state": m.state, "gamma": m.gamma, "margin": m.margin, "f_n": m.f_n, "f_t": m.f_t,
+                       "tau": m.tau, "p_c": m.p_c, "p_c_valid": m.p_c_valid, "status": m.status},
+    "grip/command": lambda m: {"f_n": m.f_n_desired, "reason": m.reason},
+    "rig/truth": lambda m: {"x": m.x, "y": m.y, "theta": m.theta, "gross_slip": m.gross_slip, "cor": m.cor,
+                            "cor_valid": m.cor_valid, "slip_distance_m": m.slip_distance_m,
+                            "slip_angle_rad": m.slip_angle_rad, "f_n_applied": m.f_n_applied,
+                            "f_n_command": m.f_n_command, "load_f_t": m.load_f_t, "load_tau": m.load_tau,
+                            "sliding_fraction": m.sliding_fraction},
+}
+
+
+def _arrays(messages: list, extract: Callable[[Any], dict[str, Any]]) -> dict[str, np.ndarray]:
+    if not messages:
+        return {}
+    rows = [extract(m) for m in messages]
+    out = {k: np.array([r[k] for r in rows], dtype=object if any(r[k] is None for r in rows) else None)
+           for k in rows[0]}
+    out["t"] = np.array([m.header.stamp_ns for m in messages]) * 1e-9
+    return out
+
+
+def run_experiment(exp: Experiment, *, duration_s: float | None = None,
+                   progress: Callable[[float], None] | None = None) -> Run:
+    """Run ``exp`` in lock-step (``duration_s`` shortens the scene; None: the scene's own)."""
+    scene = load_scene_by_name(exp.scene)
+    if duration_s is not None:
+        scene = dataclasses.replace(scene, duration_s=min(duration_s, scene.duration_s))
+    stack = LockstepStack(scene, StackConfig(**exp.config))
+    try:
+        ex = stack.run(progress)
+    finally:
+        stack.close()
+    topics = {topic: _arrays(ex.published.get(topic, []), extract) for topic, extract in _FIELDS.items()}
+    tactile = [c for c in ex.published.get("contact", []) if c.has_tactile and c.phi.size]
+    return Run(exp, scene, topics, tactile[len(tactile) // 2].phi if tactile else None)
