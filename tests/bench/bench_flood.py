@@ -16,8 +16,9 @@ monitor), taps ``grip/command`` and ``diagnostics`` and runs these phases of
 
 For each phase: commands derived from a new F/T sample (watchdog repeats left out),
 their rate, the latency ``pub_ns − sources['ft']`` p50 / p99 (ms), the p99 over the
-baseline's (ratio), the fail-safe share, and the injection counters of the
-``ft/wrench`` subscribers (``inject.dropped_rate``, ``in.ft/wrench.rejected``). The
+baseline's (ratio), the fail-safe share, the injection counters of the
+``ft/wrench`` subscribers (``inject.dropped_rate``, ``in.ft/wrench.rejected``), and
+the CPU of the control container, of the flooding process and of the machine. The
 machine's load average before and after is printed (read the ratio against it).
 
     python tests/bench/bench_flood.py                 # 4 phases of 10 s
@@ -37,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from _stack import StackRun, free_udp_port, long_scene
+from _stack import ProcSampler, StackRun, free_udp_port, long_scene
 from bench_stack_latency import LIGHT_TOPICS, Dist, Tap, _counter_window, _ms, _table, split_watchdog_repeats
 
 PHASES = ("baseline", "rate flood", "recovery", "big-frame flood")
@@ -92,7 +93,14 @@ def _load() -> str:
     return " ".join(Path("/proc/loadavg").read_text().split()[:3])
 
 
-def _phase_row(name: str, tap: Tap, w0: int, w1: int, baseline_p99: float | None) -> tuple[list, Dist]:
+def _cpu(sampler: ProcSampler, part: str) -> str:
+    """CPU (% of one core) of the sampled processes whose name contains ``part``."""
+    shares = [s.cpu for s in sampler.shares if part in s.name]
+    return f"{100 * sum(shares):.0f}" if shares else "–"
+
+
+def _phase_row(name: str, tap: Tap, w0: int, w1: int, baseline_p99: float | None,
+               sampler: ProcSampler) -> tuple[list, Dist]:
     cmd = sorted((r for r in tap.rows["grip/command"] if w0 <= r[3] <= w1), key=lambda r: r[0])
     fresh, repeats = split_watchdog_repeats(cmd)
     dist = Dist.of([r[2] - r[4] for r in fresh])
@@ -103,7 +111,8 @@ def _phase_row(name: str, tap: Tap, w0: int, w1: int, baseline_p99: float | None
     ratio = dist.p99 / baseline_p99 if baseline_p99 else 1.0
     row = [name, dist.n, f"{dist.n / ((w1 - w0) / 1e9):.0f}", _ms(dist.p50), _ms(dist.p99), f"{ratio:.2f}",
            f"{100 * fail_safe:.1f} %", repeats, f"{injected['inject.dropped_rate']:.0f}",
-           f"{injected[f'in.{FLOOD_TOPIC}.rejected']:.0f}"]
+           f"{injected[f'in.{FLOOD_TOPIC}.rejected']:.0f}", _cpu(sampler, "control"), _cpu(sampler, "flooder"),
+           f"{sampler.machine_busy:.2f}"]
     return row, dist
 
 
@@ -138,6 +147,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     load_before = _load()
     windows: dict[str, tuple[int, int]] = {}
+    samplers: dict[str, ProcSampler] = {}
     floods: dict[str, str] = {}
     with tempfile.TemporaryDirectory(prefix="ssb-flood-", dir="/tmp") as tmp:
         total = args.warmup + 4 * args.phase + 30.0
@@ -158,9 +168,13 @@ def main(argv: list[str] | None = None) -> int:
                     worker = None
                     if phase.endswith("flood"):
                         worker = _start_flood(args, graph_path, "rate" if phase == "rate flood" else "big")
+                    sampler = ProcSampler({**run.node_pids, **({"flooder": worker.pid} if worker else {})})
+                    sampler.start()
                     w0 = time.monotonic_ns()
                     tap.run_until(w0 / 1e9 + args.phase, stop_when=lambda: not run.running())
                     windows[phase] = (w0, time.monotonic_ns())
+                    sampler.stop()
+                    samplers[phase] = sampler
                     if worker is not None:
                         out, _ = worker.communicate(timeout=60)
                         floods[phase] = out.strip()
@@ -172,13 +186,14 @@ def main(argv: list[str] | None = None) -> int:
 
     rows, baseline_p99 = [], None
     for phase in PHASES:
-        row, dist = _phase_row(phase, tap, *windows[phase], baseline_p99)
+        row, dist = _phase_row(phase, tap, *windows[phase], baseline_p99, samplers[phase])
         baseline_p99 = baseline_p99 or dist.p99
         rows.append(row)
     print(f"## control path under injection floods: F/T {args.ft_rate:g} Hz, tactile {args.tactile_rate:g} Hz, "
           f"{args.phase:g} s per phase\n")
     print(_table(["phase", "commands", "Hz", "p50 ms", "p99 ms", "p99 / baseline", "fail-safe", "watchdog repeats",
-                  "inject.dropped_rate", f"in.{FLOOD_TOPIC}.rejected"], rows))
+                  "inject.dropped_rate", f"in.{FLOOD_TOPIC}.rejected", "control CPU %", "flooder CPU %",
+                  "machine busy (cores)"], rows))
     for phase, line in floods.items():
         sent = json.loads(line)
         print(f"\n{phase}: {sent['sent']} frames sent in {sent['seconds']:.1f} s "
