@@ -16,7 +16,9 @@ from __future__ import annotations
 import gc
 import time
 import tracemalloc
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import pytest
@@ -75,7 +77,7 @@ def _nominal_frames() -> dict[type[Message], Message]:
 @dataclass
 class _Case:
     type_name: str
-    params: dict = field(default_factory=dict)
+    params: Callable[[Path], dict] = lambda tmp: {}
 
 
 CASES = {
@@ -83,19 +85,20 @@ CASES = {
     "cor_estimator": _Case("cor_estimator"),
     "slip_detector": _Case("slip_detector"),
     "grip_controller": _Case("grip_controller"),
-    "grip_controller-tactile14": _Case("grip_controller", {"law": "tactile14"}),
+    "grip_controller-tactile14": _Case("grip_controller", lambda tmp: {"law": "tactile14"}),
     "monitor": _Case("monitor"),
     "relay": _Case("relay"),
     "sink": _Case("sink"),
+    "rig": _Case("rig", lambda tmp: {"rdt_port": 0, "tactile_link": str(tmp / "tactile.tty")}),
 }
 
 
 class _Harness:
     """One node on an in-process executor; frames fed one at a time, each measured."""
 
-    def __init__(self, case: _Case) -> None:
+    def __init__(self, case: _Case, tmp: Path) -> None:
         cls = node_class(case.type_name)
-        self.node = cls(make_params(cls.Params, case.params, case.type_name))
+        self.node = cls(make_params(cls.Params, case.params(tmp), case.type_name))
         self.ex = InProcessExecutor([self.node])
         self.host = self.ex.hosts[0]
         self.t = 10 * MS
@@ -190,8 +193,8 @@ def nominal():
 
 
 @pytest.mark.parametrize("name", sorted(CASES))
-def test_every_frame_is_handled_or_rejected_within_its_budget(name, nominal):
-    harness = _Harness(CASES[name])
+def test_every_frame_is_handled_or_rejected_within_its_budget(name, nominal, tmp_path):
+    harness = _Harness(CASES[name], tmp_path)
     input_types = {n: i.type for n, i in harness.node.inputs.items()}
     cpu_budget, mem_budget = _budget(name, harness, nominal)
     worst = {"cpu": 0.0, "mem": 0}
@@ -217,4 +220,7 @@ def test_every_frame_is_handled_or_rejected_within_its_budget(name, nominal):
         assert cpu <= cpu_budget, f"{cpu * 1e3:.2f} ms CPU for a {len(payload)}-byte frame, budget {cpu_budget * 1e3:.2f} ms"
         assert mem <= mem_budget, f"{mem} bytes allocated for a {len(payload)}-byte frame, budget {mem_budget}"
 
-    check()
+    try:
+        check()
+    finally:
+        harness.ex.stop()
