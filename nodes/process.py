@@ -68,7 +68,7 @@ class RunSpec:
     local: topic → names of members of this node's container that publish it: their
         messages are handed over in-process (and their endpoints are not in ``subs``).
     inject_rate_hz, inject_burst: the token bucket all frames injected into this
-        node share (frames/s, frames back to back); the excess is dropped unread
+        node share (frames/s, frames back to back); the excess is dropped undecoded
         and counted as ``inject.dropped_rate``.
     """
 
