@@ -12,9 +12,13 @@ deadlines; inputs are drained to the newest frame (``latest``) or queued
 Work per wake-up is bounded. A ``latest`` input reads what is waiting (at most
 :data:`_DRAIN_LIMIT` frames) and decodes only from the newest back to the first
 valid frame, so a backlog costs a read per frame, not a decode and a handler call.
-Frames injected by tools pass a token bucket per node (``RunSpec.inject_rate_hz``,
-the excess counted as ``inject.dropped_rate``) and go to ``latest`` inputs newest
-only too; one wake-up reads at most :data:`_INJECT_READ_LIMIT` of them.
+Frames injected by tools pass a token bucket per node (``RunSpec.inject_rate_hz``)
+and go to ``latest`` inputs newest only too; one wake-up reads at most
+:data:`_INJECT_READ_LIMIT` of them. A flood costs the node a bounded share of its
+time whatever its rate: once :data:`_OVER_RATE_READS` frames of one wake-up found
+the bucket empty (counted as ``inject.dropped_rate``), the node stops reading
+injected frames for :data:`_INJECT_PAUSE_NS` (``inject.pauses``); meanwhile the
+socket's high-water mark makes ZeroMQ drop the excess, uncounted, at the sender.
 
 A *container* (ROS 2's component container) runs several nodes in one process and
 one loop. Each member keeps its own publish endpoint, so every tool and recorder
@@ -50,7 +54,9 @@ __all__ = ["ProcessExecutor", "RunSpec"]
 _DRAIN_LIMIT = 2000  # frames read from one bus socket per wake-up before others get a turn
 _DECODE_TRIES = 16  # newest frames of a ``latest`` backlog decoded in search of a valid one
 _INJECT_READ_LIMIT = 512  # injected frames read per wake-up (the rest wait in the socket, bounded by its HWM)
-_INJECT_HWM = 1000  # injected frames queued in the node's injection socket
+_INJECT_HWM = 200  # injected frames queued in the node's injection socket: the backlog a flood leaves
+_OVER_RATE_READS = 64  # frames over the injection rate read (and dropped) per wake-up before a pause
+_INJECT_PAUSE_NS = 10_000_000  # how long a node over its injection rate leaves the injection socket unread
 _TIMER_CATCH_UP = 20  # late ticks of one timer fired per loop turn before ticks are skipped
 
 
@@ -118,6 +124,7 @@ class _Member:
         }
         self.inject_sock: zmq.Socket | None = None
         self.inject_bucket = TokenBucket(spec.inject_rate_hz, spec.inject_burst)
+        self.inject_resume_ns: int | None = None  # set while injected frames are left unread (over the rate)
         if self.inject_routes:
             self.inject_sock = make_sub(zctx, [], None, rcvhwm=_INJECT_HWM)
             self.inject_sock.setsockopt(zmq.UNSUBSCRIBE, b"")
@@ -225,7 +232,8 @@ class _Member:
 
     def drain_injected(self, now_ns: int) -> None:
         """Frames put in by tools, within the node's injection rate: a ``queue`` input
-        handles each valid one in order, a ``latest`` input the newest valid one."""
+        handles each valid one in order, a ``latest`` input the newest valid one. Sets
+        :attr:`inject_resume_ns` when a flood calls for a pause (module docstring)."""
         host = self.host
         bucket = self.inject_bucket
         bucket.refill(now_ns)
@@ -237,6 +245,10 @@ class _Member:
             parts = self.inject_sock.recv_multipart(zmq.NOBLOCK)
             if not bucket.take():
                 over_rate += 1
+                if over_rate >= _OVER_RATE_READS:
+                    self.inject_resume_ns = now_ns + _INJECT_PAUSE_NS
+                    host.count("inject.pauses")
+                    break
                 continue
             names = self.inject_routes.get(parts[0], []) if len(parts) == 2 else []
             if not names:
@@ -277,6 +289,8 @@ class _Member:
 
     def next_due(self) -> int:
         due = min(self.next_diag, *self.deadlines.values()) if self.deadlines else self.next_diag
+        if self.inject_resume_ns is not None and self.inject_resume_ns < due:
+            due = self.inject_resume_ns
         if self.has_deadline:
             node_deadline = self.node.next_deadline_ns()
             if node_deadline is not None and node_deadline < due:
@@ -453,8 +467,14 @@ class ProcessExecutor:
                     m.host.call("on_readable", m.node.on_readable, arg, m.host)
                 else:
                     m.drain_injected(time.monotonic_ns())
+                    if m.inject_resume_ns is not None:
+                        poller.unregister(item)  # over the rate: unread until the pause ends
                 self._run_handovers()
             now = time.monotonic_ns()
+            for m in members:
+                if m.inject_resume_ns is not None and now >= m.inject_resume_ns:
+                    m.inject_resume_ns = None
+                    poller.register(m.inject_sock, zmq.POLLIN)
             for m in members:
                 m.fire_due(now)
                 self._run_handovers()

@@ -146,3 +146,35 @@ def test_one_wake_up_reads_a_bounded_number_of_injected_frames(ctx, tmp_path, mo
         tool.close(linger=0)
         for s in member.sockets():
             s.close(linger=0)
+
+
+def test_a_flood_over_the_rate_pauses_reading_after_a_bounded_number_of_frames(ctx, tmp_path):
+    endpoint = f"ipc://{tmp_path}/r.inject"
+    node = _Recorder()
+    member = _Member(node, RunSpec(name="r", inject={"ft/wrench": endpoint}, inject_burst=10), ctx)
+    tool = ctx.socket(zmq.XPUB)
+    tool.setsockopt(zmq.LINGER, 0)
+    tool.connect(endpoint)
+    try:
+        deadline = time.monotonic() + 10
+        while not tool.poll(10):
+            member.inject_sock.getsockopt(zmq.EVENTS)
+            assert time.monotonic() < deadline
+        tool.recv()
+        for k in range(500):
+            tool.send_multipart([b"ft/wrench", _wrench(k)])
+        _settle()
+        t0 = 10**12
+        member.drain_injected(t0)
+        c = member.host.counters
+        assert c["in.ft/wrench.received"] == 10  # the burst
+        assert c["inject.dropped_rate"] == process._OVER_RATE_READS  # then a bounded number read and dropped
+        assert c["inject.pauses"] == 1
+        assert member.inject_resume_ns == t0 + process._INJECT_PAUSE_NS
+        member.start_clock(t0)  # next diagnostics in 1 s
+        assert member.next_due() == member.inject_resume_ns  # the loop wakes to resume reading
+        assert member.inject_sock.getsockopt(zmq.EVENTS) & zmq.POLLIN  # the rest is left unread
+    finally:
+        tool.close(linger=0)
+        for s in member.sockets():
+            s.close(linger=0)
