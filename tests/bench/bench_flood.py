@@ -14,8 +14,10 @@ monitor), taps ``grip/command`` and ``diagnostics`` and runs these phases of
 4. ``big-frame flood``: the same process sends ``--big-mb`` MB frames (default 10) as
    fast as ZeroMQ takes them.
 
-For each phase: commands derived from a new F/T sample (watchdog repeats left out),
-their rate, the latency ``pub_ns − sources['ft']`` p50 / p99 (ms), the p99 over the
+For each phase: commands derived from a new F/T sample (watchdog repeats and
+commands derived from injected samples left out; the latter counted, with the
+time of the last one), their rate, the latency ``pub_ns − sources['ft']`` p50 /
+p99 (ms), the p99 over the
 baseline's (ratio), the fail-safe share, the injection counters of the
 ``ft/wrench`` subscribers (``inject.dropped_rate``, ``in.ft/wrench.rejected``), and
 the CPU of the control container, of the flooding process and of the machine. The
@@ -43,6 +45,7 @@ from bench_stack_latency import LIGHT_TOPICS, Dist, Tap, _counter_window, _ms, _
 
 PHASES = ("baseline", "rate flood", "recovery", "big-frame flood")
 FLOOD_TOPIC = "ft/wrench"
+INJECTED_STAMP = 1  # ns: the sample stamp of every injected stale wrench (so its commands can be told apart)
 
 
 # -- the flooding process --------------------------------------------------------------------
@@ -57,7 +60,8 @@ def flood(graph_path: Path, kind: str, rate_hz: float, big_mb: float, payload: s
     injector = Injector(resolve_topic(json.loads(graph_path.read_text()), FLOOD_TOPIC), linger_s=0.0)
     injector.wait_for_subscribers(5.0)
     rng = np.random.default_rng(1)
-    stale = [encode(Wrench(force=np.array([0.0, 0.0, -1.0]), frame="pad"), Header(1, k, 1, {})) for k in range(1000)]
+    stale = [encode(Wrench(force=np.array([0.0, 0.0, -1.0]), frame="pad"), Header(INJECTED_STAMP, k, INJECTED_STAMP, {}))
+             for k in range(1000)]
     garbage = [rng.bytes(120) for _ in range(1000)]
     frames = stale if payload == "stale" else garbage
     big = b"\x00" * round(big_mb * 1e6)
@@ -103,6 +107,8 @@ def _phase_row(name: str, tap: Tap, w0: int, w1: int, baseline_p99: float | None
                sampler: ProcSampler) -> tuple[list, Dist]:
     cmd = sorted((r for r in tap.rows["grip/command"] if w0 <= r[3] <= w1), key=lambda r: r[0])
     fresh, repeats = split_watchdog_repeats(cmd)
+    injected_cmds = [r for r in fresh if r[4] == INJECTED_STAMP]
+    fresh = [r for r in fresh if r[4] != INJECTED_STAMP]
     dist = Dist.of([r[2] - r[4] for r in fresh])
     fail_safe = sum(r[7] == "fail-safe" for r in cmd) / max(len(cmd), 1)
     counters = _counter_window(tap.rows["diagnostics"], w0, w1)
@@ -110,7 +116,9 @@ def _phase_row(name: str, tap: Tap, w0: int, w1: int, baseline_p99: float | None
                 for k in ("inject.dropped_rate", f"in.{FLOOD_TOPIC}.rejected")}
     ratio = dist.p99 / baseline_p99 if baseline_p99 else 1.0
     row = [name, dist.n, f"{dist.n / ((w1 - w0) / 1e9):.0f}", _ms(dist.p50), _ms(dist.p99), f"{ratio:.2f}",
-           f"{100 * fail_safe:.1f} %", repeats, f"{injected['inject.dropped_rate']:.0f}",
+           f"{100 * fail_safe:.1f} %", repeats, len(injected_cmds),
+           f"{(max(r[3] for r in injected_cmds) - w0) / 1e6:.0f}" if injected_cmds else "–",
+           f"{injected['inject.dropped_rate']:.0f}",
            f"{injected[f'in.{FLOOD_TOPIC}.rejected']:.0f}", _cpu(sampler, "control"), _cpu(sampler, "flooder"),
            f"{sampler.machine_busy:.2f}"]
     return row, dist
@@ -192,6 +200,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"## control path under injection floods: F/T {args.ft_rate:g} Hz, tactile {args.tactile_rate:g} Hz, "
           f"{args.phase:g} s per phase\n")
     print(_table(["phase", "commands", "Hz", "p50 ms", "p99 ms", "p99 / baseline", "fail-safe", "watchdog repeats",
+                  "from injected samples", "last of them, ms into the phase",
                   "inject.dropped_rate", f"in.{FLOOD_TOPIC}.rejected", "control CPU %", "flooder CPU %",
                   "machine busy (cores)"], rows))
     for phase, line in floods.items():
