@@ -5,6 +5,7 @@ token bucket and go to ``latest`` inputs newest only."""
 from __future__ import annotations
 
 import time
+from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -36,6 +37,31 @@ class _Recorder(Node):
 
 def _wrench(k: int, stamp_ns: int = 1) -> bytes:
     return encode(Wrench(force=np.zeros(3), torque=np.zeros(3), device_seq=k), Header(stamp_ns, k, stamp_ns, {}))
+
+
+@contextmanager
+def _injected(ctx: zmq.Context, tmp_path, **spec):
+    """(node, member, tool): a _Recorder member whose injection endpoint takes every
+    input topic, and a tool XPUB connected to it that every topic has joined."""
+    endpoint = f"ipc://{tmp_path}/r.inject"
+    node = _Recorder()
+    member = _Member(node, RunSpec(name="r", inject={t: endpoint for t in spec.pop("topics")}, **spec), ctx)
+    tool = ctx.socket(zmq.XPUB)
+    tool.setsockopt(zmq.LINGER, 0)
+    tool.connect(endpoint)
+    try:
+        joined: set[bytes] = set()
+        deadline = time.monotonic() + 10
+        while len(joined) < len(member.inject_routes):
+            member.inject_sock.getsockopt(zmq.EVENTS)  # a socket attaches its peers when used
+            if tool.poll(10):
+                joined.add(tool.recv())
+            assert time.monotonic() < deadline, "the member never subscribed"
+        yield node, member, tool
+    finally:
+        tool.close(linger=0)
+        for sock in member.sockets():
+            sock.close(linger=0)
 
 
 @pytest.fixture
@@ -78,22 +104,8 @@ def test_a_latest_backlog_is_decoded_newest_first_and_handled_once(ctx, tmp_path
 
 
 def test_injected_frames_pass_a_token_bucket_and_latest_inputs_get_the_newest(ctx, tmp_path):
-    endpoint = f"ipc://{tmp_path}/r.inject"
-    node = _Recorder()
-    spec = RunSpec(name="r", inject={"ft/wrench": endpoint, "grip/wrench": endpoint}, inject_rate_hz=1000.0,
-                   inject_burst=50)
-    member = _Member(node, spec, ctx)
-    tool = ctx.socket(zmq.XPUB)
-    tool.setsockopt(zmq.LINGER, 0)
-    tool.connect(endpoint)
-    try:
-        joined = set()
-        deadline = time.monotonic() + 10
-        while len(joined) < 2:
-            member.inject_sock.getsockopt(zmq.EVENTS)  # a socket attaches its peers when used
-            if tool.poll(10):
-                joined.add(tool.recv())
-            assert time.monotonic() < deadline
+    with _injected(ctx, tmp_path, topics=["ft/wrench", "grip/wrench"], inject_rate_hz=1000.0,
+                   inject_burst=50) as (node, member, tool):
         for k in range(40):
             tool.send_multipart([b"ft/wrench", _wrench(k)])
             tool.send_multipart([b"grip/wrench", _wrench(1000 + k)])
@@ -112,26 +124,11 @@ def test_injected_frames_pass_a_token_bucket_and_latest_inputs_get_the_newest(ct
         member.drain_injected(t0 + 10_000_000)  # 10 ms later: 10 tokens earned
         assert c["inject.dropped_rate"] == 40
         assert node.handled["latest"] == [24, 49]
-    finally:
-        tool.close(linger=0)
-        for s in member.sockets():
-            s.close(linger=0)
 
 
 def test_one_wake_up_reads_a_bounded_number_of_injected_frames(ctx, tmp_path, monkeypatch):
     monkeypatch.setattr(process, "_INJECT_READ_LIMIT", 100)
-    endpoint = f"ipc://{tmp_path}/r.inject"
-    node = _Recorder()
-    member = _Member(node, RunSpec(name="r", inject={"ft/wrench": endpoint}, inject_burst=1000), ctx)
-    tool = ctx.socket(zmq.XPUB)
-    tool.setsockopt(zmq.LINGER, 0)
-    tool.connect(endpoint)
-    try:
-        deadline = time.monotonic() + 10
-        while not tool.poll(10):
-            member.inject_sock.getsockopt(zmq.EVENTS)
-            assert time.monotonic() < deadline
-        tool.recv()
+    with _injected(ctx, tmp_path, topics=["ft/wrench"], inject_burst=1000) as (node, member, tool):
         for k in range(300):
             tool.send_multipart([b"ft/wrench", _wrench(k, stamp_ns=5)])  # stale-stamped flood
         _settle()
@@ -142,25 +139,10 @@ def test_one_wake_up_reads_a_bounded_number_of_injected_frames(ctx, tmp_path, mo
         member.drain_injected(10**12)
         assert c["in.ft/wrench.received"] + c["inject.dropped_rate"] == 300
         assert len(node.handled["latest"]) == 3  # one handler call per wake-up, whatever the backlog
-    finally:
-        tool.close(linger=0)
-        for s in member.sockets():
-            s.close(linger=0)
 
 
 def test_a_flood_over_the_rate_pauses_reading_after_a_bounded_number_of_frames(ctx, tmp_path):
-    endpoint = f"ipc://{tmp_path}/r.inject"
-    node = _Recorder()
-    member = _Member(node, RunSpec(name="r", inject={"ft/wrench": endpoint}, inject_burst=10), ctx)
-    tool = ctx.socket(zmq.XPUB)
-    tool.setsockopt(zmq.LINGER, 0)
-    tool.connect(endpoint)
-    try:
-        deadline = time.monotonic() + 10
-        while not tool.poll(10):
-            member.inject_sock.getsockopt(zmq.EVENTS)
-            assert time.monotonic() < deadline
-        tool.recv()
+    with _injected(ctx, tmp_path, topics=["ft/wrench"], inject_burst=10) as (node, member, tool):
         for k in range(500):
             tool.send_multipart([b"ft/wrench", _wrench(k)])
         _settle()
@@ -174,7 +156,3 @@ def test_a_flood_over_the_rate_pauses_reading_after_a_bounded_number_of_frames(c
         member.start_clock(t0)  # next diagnostics in 1 s
         assert member.next_due() == member.inject_resume_ns  # the loop wakes to resume reading
         assert member.inject_sock.getsockopt(zmq.EVENTS) & zmq.POLLIN  # the rest is left unread
-    finally:
-        tool.close(linger=0)
-        for s in member.sockets():
-            s.close(linger=0)
