@@ -5,15 +5,22 @@ are annotated ``float``, ``int``, ``bool``, ``str`` or ``dict``; array fields us
 :func:`array` to declare dtype, shape and finiteness. Every message carries a
 :class:`Header` filled in by the executor when it is published.
 
-Decoding validates types, shapes and finiteness and raises
+Scalar fields may declare :class:`Bounds` with :func:`bounded` (numeric range,
+an enumeration or pattern of strings, a length or entry limit); every ``str`` and
+``dict`` field has a length limit even without one (:data:`MAX_STR_LEN`,
+:data:`MAX_DICT_ITEMS`). An array's free dimension may be tied to other fields
+(``array("<f4", ("rows*cols",))``: its length must equal the product).
+
+Decoding validates types, shapes, finiteness and the declared bounds and raises
 :class:`~slipstack.lib.errors.DecodeError` naming the field
-(``ft/wrench.force: expected shape (3,), got (2,)``).
+(``slipstack/Wrench.force: expected shape (3,), got (2,)``).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, TypeVar, get_type_hints
 
@@ -22,7 +29,22 @@ import numpy as np
 from slipstack.lib.errors import DecodeError
 from slipstack.messages.codec import packb, unpackb
 
-__all__ = ["Header", "Message", "ArraySpec", "array", "message", "encode", "decode", "validate", "registry"]
+__all__ = [
+    "Header", "Message", "ArraySpec", "Bounds", "array", "bounded", "declared_bounds", "message", "encode", "decode", "validate",
+    "registry", "MAX_STR_LEN", "MAX_DICT_ITEMS", "MAX_KEY_LEN", "MAX_HEADER_SOURCES", "INT64_MAX",
+]
+
+MAX_STR_LEN = 256
+"""Characters a ``str`` field may hold unless it declares its own ``max_len``."""
+MAX_DICT_ITEMS = 256
+"""Entries a ``dict`` field may hold unless it declares its own ``max_len``."""
+MAX_KEY_LEN = 128
+"""Characters of one key of a ``dict`` field or of ``header.sources``."""
+MAX_HEADER_SOURCES = 32
+"""Entries of ``header.sources`` (one stamp per input a message derives from)."""
+INT64_MAX = 2**63 - 1
+"""Header stamps and sequence numbers are non-negative int64 (ns, counts)."""
+_SHOWN_CHARS = 40  # a rejected string is quoted up to this many characters in the error
 
 
 @dataclass(frozen=True, slots=True)
@@ -45,17 +67,75 @@ class Header:
 
 @dataclass(frozen=True)
 class ArraySpec:
-    """Declared dtype and shape of an array field; ``None`` in the shape is free."""
+    """Declared dtype and shape of an array field.
+
+    A shape entry is a fixed length, ``None`` (free), or a product of integer fields
+    declared before the array, e.g. ``"rows*cols"`` (checked against their values).
+    """
 
     dtype: str
-    shape: tuple[int | None, ...]
+    shape: tuple[int | str | None, ...]
     finite: bool = True
 
 
-def array(dtype: str, shape: tuple[int | None, ...], *, finite: bool = True, doc: str = "") -> Any:
+@dataclass(frozen=True)
+class Bounds:
+    """Declared limits of a scalar field, checked on decode and written into the schemas.
+
+    ge / gt / le: inclusive lower, exclusive lower, inclusive upper bound of a number
+        (in the field's unit). allow_inf: a float may be ±inf (still within ge/le).
+    choices: the strings allowed; pattern: a regular expression a string outside
+        ``choices`` must match in full (e.g. a device status code).
+    max_len: characters of a ``str``, entries of a ``dict``.
+    """
+
+    ge: float | None = None
+    gt: float | None = None
+    le: float | None = None
+    allow_inf: bool = False
+    choices: tuple[str, ...] | None = None
+    pattern: str | None = None
+    max_len: int | None = None
+
+    def json_schema(self) -> dict[str, Any]:
+        """The JSON Schema keywords of these bounds (``minimum``, ``enum``, ``maxLength`` …)."""
+        out: dict[str, Any] = {}
+        if self.ge is not None:
+            out["minimum"] = self.ge
+        if self.gt is not None:
+            out["exclusiveMinimum"] = self.gt
+        if self.le is not None:
+            out["maximum"] = self.le
+        if self.choices is not None and self.pattern is None:
+            out["enum"] = list(self.choices)
+        elif self.pattern is not None:
+            alternatives = [re.escape(c) for c in self.choices or ()] + [self.pattern]
+            out["pattern"] = "^(?:" + "|".join(alternatives) + ")$"
+        return out
+
+
+def declared_bounds(f: dataclasses.Field, hint: Any) -> dict[str, Any]:
+    """The limits decoding enforces on scalar field ``f`` (of type ``hint``), as JSON
+    Schema keywords: its :class:`Bounds` plus the default length limits."""
+    b: Bounds = f.metadata.get("bounds") or Bounds()
+    out = b.json_schema()
+    origin = getattr(hint, "__origin__", hint)
+    if origin is str and "enum" not in out:
+        out["maxLength"] = b.max_len if b.max_len is not None else MAX_STR_LEN
+    elif origin is dict:
+        out["maxProperties"] = b.max_len if b.max_len is not None else MAX_DICT_ITEMS
+    return out
+
+
+def bounded(default: Any, *, doc: str = "", **limits: Any) -> Any:
+    """Declare a scalar field with :class:`Bounds` (keywords as its attributes)."""
+    return field(default=default, metadata={"bounds": Bounds(**limits), "doc": doc})
+
+
+def array(dtype: str, shape: tuple[int | str | None, ...], *, finite: bool = True, doc: str = "") -> Any:
     """Declare an array field (a dataclass ``field`` carrying an :class:`ArraySpec`)."""
     spec = ArraySpec(np.dtype(dtype).str, shape, finite)
-    empty_shape = tuple(0 if n is None else n for n in shape)
+    empty_shape = tuple(n if isinstance(n, int) else 0 for n in shape)
     return field(
         default_factory=lambda: np.zeros(empty_shape, dtype=spec.dtype),
         metadata={"array": spec, "doc": doc},
@@ -76,35 +156,108 @@ registry: dict[str, type[Message]] = {}
 _SCALARS = {float: (int, float), int: (int,), bool: (bool,), str: (str,), dict: (dict,)}
 
 
+def _shown(v: str) -> str:
+    """A rejected string as an error quotes it: at most :data:`_SHOWN_CHARS` characters."""
+    return repr(v) if len(v) <= _SHOWN_CHARS else f"{v[:_SHOWN_CHARS]!r}… ({len(v)} characters)"
+
+
+def _size_factors(owner: str, spec: ArraySpec, ints: list[str]) -> tuple[str, ...] | None:
+    """The integer fields whose product is the array's length (``"rows*cols"``), if any."""
+    tied = [n for n in spec.shape if isinstance(n, str)]
+    if not tied:
+        return None
+    if len(spec.shape) != 1 or len(tied) != 1:
+        raise TypeError(f"{owner}: a tied dimension must be the only one of a 1-D array, got {spec.shape}")
+    names = tuple(tied[0].split("*"))
+    if not all(n in ints for n in names):
+        raise TypeError(f"{owner}: {tied[0]!r} must name int fields declared before the array")
+    return names
+
+
+def _array_validator(name: str, spec: ArraySpec):
+    want_dtype = np.dtype(spec.dtype)
+    shape = tuple(None if isinstance(n, str) else n for n in spec.shape)  # a tied length is checked later
+    fixed_shape = shape if None not in shape else None
+    check_finite = spec.finite and want_dtype.kind == "f"
+
+    def check_array(v: Any) -> Any:
+        if type(v) is not np.ndarray:
+            raise DecodeError(f"{name}: expected an array, got {type(v).__name__}")
+        if v.dtype != want_dtype:
+            raise DecodeError(f"{name}: expected dtype {want_dtype}, got {v.dtype}")
+        if v.shape != fixed_shape and (len(v.shape) != len(shape) or any(
+            s is not None and s != n for s, n in zip(shape, v.shape)
+        )):
+            raise DecodeError(f"{name}: expected shape {spec.shape}, got {v.shape}")
+        # NaN/Inf make the dot product with zeros NaN: one pass, no temporary array
+        if check_finite and v.size and v.reshape(-1).dot(np.zeros(v.size, v.dtype)) != 0:
+            raise DecodeError(f"{name}: contains NaN or Inf")
+        return v
+
+    return check_array
+
+
+def _number_check(name: str, b: Bounds):
+    ge, gt, le = b.ge, b.gt, b.le
+    if ge is None and gt is None and le is None:
+        return None
+
+    def check(v: float) -> None:
+        if (ge is not None and v < ge) or (gt is not None and v <= gt) or (le is not None and v > le):
+            limits = [f">= {ge:g}" if ge is not None else "", f"> {gt:g}" if gt is not None else "",
+                      f"<= {le:g}" if le is not None else ""]
+            raise DecodeError(f"{name}: must be {' and '.join(x for x in limits if x)}, got {v:g}")
+
+    return check
+
+
+def _str_check(name: str, b: Bounds):
+    max_len = b.max_len if b.max_len is not None else MAX_STR_LEN
+    choices = frozenset(b.choices) if b.choices is not None else None
+    pattern = re.compile(b.pattern) if b.pattern is not None else None
+
+    def check(v: str) -> None:
+        if len(v) > max_len:
+            raise DecodeError(f"{name}: at most {max_len} characters, got {len(v)}")
+        if choices is not None and v in choices:
+            return
+        if pattern is not None and pattern.fullmatch(v):
+            return
+        if choices is not None or pattern is not None:
+            allowed = ", ".join(sorted(choices or ())) + (f" or {b.pattern}" if pattern is not None else "")
+            raise DecodeError(f"{name}: must be one of {allowed.lstrip(', ')}; got {_shown(v)}")
+
+    return check
+
+
+def _dict_check(name: str, b: Bounds):
+    max_items = b.max_len if b.max_len is not None else MAX_DICT_ITEMS
+
+    def check(v: dict) -> None:
+        if len(v) > max_items:
+            raise DecodeError(f"{name}: at most {max_items} entries, got {len(v)}")
+        for k in v:
+            if not isinstance(k, str) or len(k) > MAX_KEY_LEN:
+                shown = _shown(k) if isinstance(k, str) else type(k).__name__
+                raise DecodeError(f"{name}: keys are strings of at most {MAX_KEY_LEN} characters, got {shown}")
+
+    return check
+
+
 def _validator(owner: str, f: dataclasses.Field, hint: Any):
     name = f"{owner}.{f.name}"
     spec: ArraySpec | None = f.metadata.get("array")
     if spec is not None:
-        want_dtype = np.dtype(spec.dtype)
-
-        fixed_shape = spec.shape if None not in spec.shape else None
-        check_finite = spec.finite and want_dtype.kind == "f"
-
-        def check_array(v: Any) -> Any:
-            if type(v) is not np.ndarray:
-                raise DecodeError(f"{name}: expected an array, got {type(v).__name__}")
-            if v.dtype != want_dtype:
-                raise DecodeError(f"{name}: expected dtype {want_dtype}, got {v.dtype}")
-            if v.shape != fixed_shape and (len(v.shape) != len(spec.shape) or any(
-                s is not None and s != n for s, n in zip(spec.shape, v.shape)
-            )):
-                raise DecodeError(f"{name}: expected shape {spec.shape}, got {v.shape}")
-            # NaN/Inf make the dot product with zeros NaN: one pass, no temporary array
-            if check_finite and v.size and v.reshape(-1).dot(np.zeros(v.size, v.dtype)) != 0:
-                raise DecodeError(f"{name}: contains NaN or Inf")
-            return v
-
-        return check_array
+        return _array_validator(name, spec)
     origin = getattr(hint, "__origin__", hint)
     allowed = _SCALARS.get(origin)
     if allowed is None:
         raise TypeError(f"{name}: unsupported field type {hint!r}")
-    allow_inf = bool(f.metadata.get("allow_inf", False))
+    b: Bounds = f.metadata.get("bounds") or Bounds()
+    allow_inf = b.allow_inf
+    extra = {float: _number_check, int: _number_check, str: _str_check, dict: _dict_check}.get(origin, lambda *_: None)(
+        name, b
+    )
 
     def check_scalar(v: Any) -> Any:
         if isinstance(v, bool) and origin is not bool:
@@ -115,6 +268,8 @@ def _validator(owner: str, f: dataclasses.Field, hint: Any):
             v = float(v)
             if math.isnan(v) or (math.isinf(v) and not allow_inf):
                 raise DecodeError(f"{name}: must be finite, got {v}")
+        if extra is not None:
+            extra(v)
         return v
 
     return check_scalar
@@ -134,6 +289,16 @@ def message(type_name: str, version: int = 1):
         dc.VERSION = version
         dc._body_fields = tuple(f.name for f in body)  # type: ignore[attr-defined]
         dc._validators = tuple(_validator(type_name, f, hints[f.name]) for f in body)  # type: ignore[attr-defined]
+        ints: list[str] = []
+        tied = []
+        for f in body:
+            spec = f.metadata.get("array")
+            factors = _size_factors(f"{type_name}.{f.name}", spec, ints) if spec is not None else None
+            if factors is not None:
+                tied.append((f.name, factors))
+            elif hints[f.name] is int:
+                ints.append(f.name)
+        dc._tied_lengths = tuple(tied)  # type: ignore[attr-defined]
         # Every declared field must be on the wire; trailing extra fields (appended by
         # a newer writer of the same version) are ignored.
         dc._required = len(body)  # type: ignore[attr-defined]
@@ -143,6 +308,15 @@ def message(type_name: str, version: int = 1):
         return dc
 
     return wrap
+
+
+def _check_tied_lengths(msg: Message, fields: dict[str, Any]) -> None:
+    """Arrays whose length is a product of integer fields (``rows*cols``) must match it."""
+    for name, factors in msg._tied_lengths:  # type: ignore[attr-defined]
+        want = math.prod(fields[n] for n in factors)
+        got = len(fields[name])
+        if got != want:
+            raise DecodeError(f"{msg.TYPE}.{name}: expected {'*'.join(factors)} = {want} values, got {got}")
 
 
 def encode(msg: Message, header: Header | None = None) -> bytes:
@@ -160,10 +334,18 @@ def _decode_header(raw: Any, type_name: str) -> Header:
     for label, v in (("stamp_ns", stamp), ("seq", seq), ("pub_ns", pub)):
         if not isinstance(v, int) or isinstance(v, bool):
             raise DecodeError(f"{type_name}.header.{label}: expected int, got {type(v).__name__}")
+        if not 0 <= v <= INT64_MAX:
+            raise DecodeError(f"{type_name}.header.{label}: must be within 0..2**63-1, got {v}")
     if not isinstance(sources, dict) or not all(
-        isinstance(k, str) and isinstance(v, int) and not isinstance(v, bool) for k, v in sources.items()
+        isinstance(k, str) and len(k) <= MAX_KEY_LEN and isinstance(v, int) and not isinstance(v, bool)
+        and 0 <= v <= INT64_MAX
+        for k, v in sources.items()
     ):
-        raise DecodeError(f"{type_name}.header.sources: expected a map of str to int")
+        raise DecodeError(
+            f"{type_name}.header.sources: expected a map of names (<= {MAX_KEY_LEN} characters) to stamps in 0..2**63-1"
+        )
+    if len(sources) > MAX_HEADER_SOURCES:
+        raise DecodeError(f"{type_name}.header.sources: at most {MAX_HEADER_SOURCES} entries, got {len(sources)}")
     return Header(stamp, seq, pub, sources)
 
 
@@ -203,6 +385,8 @@ def decode(payload: bytes, expected: type[M] | None = None) -> M:
     fields = msg.__dict__
     for n, check, v in zip(names, cls._validators, raw_body):  # type: ignore[attr-defined]
         fields[n] = check(v)
+    if cls._tied_lengths:  # type: ignore[attr-defined]
+        _check_tied_lengths(msg, fields)
     fields["header"] = header
     return msg
 
@@ -211,4 +395,5 @@ def validate(msg: Message) -> Message:
     """Run the decoder's checks on a message built in memory; returns it unchanged."""
     for n, check in zip(msg._body_fields, msg._validators):  # type: ignore[attr-defined]
         check(getattr(msg, n))
+    _check_tied_lengths(msg, msg.__dict__)
     return msg

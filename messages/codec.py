@@ -10,6 +10,11 @@ array-like structs; new fields may only be appended, with defaults)::
 numpy arrays travel as msgpack extension type 1 (see :func:`pack_array`):
 ``u8 len(dtype) | dtype str (ascii, e.g. "<f8") | u8 ndim | u32 LE × ndim shape | raw bytes``
 — compact and exact, never lists of floats.
+
+Bounds: a frame payload is at most :data:`MAX_PAYLOAD_BYTES` (the transport refuses
+longer ones: ZeroMQ's maximum message size), and :func:`unpackb` refuses strings,
+lists, maps and arrays longer than any declared message field can be
+(:data:`UNPACK_LIMITS`) before building them.
 """
 
 from __future__ import annotations
@@ -22,9 +27,24 @@ import numpy as np
 
 from slipstack.lib.errors import DecodeError
 
-__all__ = ["ARRAY_EXT", "ALLOWED_DTYPES", "pack_array", "unpack_array", "packb", "unpackb"]
+__all__ = [
+    "ARRAY_EXT", "ALLOWED_DTYPES", "MAX_PAYLOAD_BYTES", "UNPACK_LIMITS", "pack_array", "unpack_array", "packb",
+    "unpackb",
+]
 
 ARRAY_EXT = 1
+MAX_PAYLOAD_BYTES = 2 << 20
+"""Largest frame payload, bytes: the largest legal message (a 256×256 ``contact``,
+~0.6 MB, or a full diagnostics counter map) with headroom."""
+UNPACK_LIMITS = {
+    # twice what any declared field allows, so the field's own check names it first
+    "max_str_len": 2 * 4 * 4096,  # bytes: the longest text field is 4096 characters of UTF-8
+    "max_bin_len": 0,  # messages carry no raw bytes
+    "max_array_len": 1024,  # msgpack lists: the body, a header, a verdict
+    "max_map_len": 2 * 4096,  # diagnostics counters
+    "max_ext_len": 1 << 20,  # an encoded array: 256×256 float64 plus its header
+}
+"""Limits :func:`unpackb` passes to msgpack: a longer item is an error, not an allocation."""
 ALLOWED_DTYPES = frozenset({"<f8", "<f4", "<i8", "<i4", "<u2", "|u1", "|b1"})
 _U32 = struct.Struct("<I")
 
@@ -108,7 +128,7 @@ def unpackb(payload: bytes) -> Any:
     """Decode MessagePack bytes; any failure becomes :class:`DecodeError`."""
     try:
         return msgpack.unpackb(
-            payload, ext_hook=_ext_hook, raw=False, strict_map_key=True, use_list=True
+            payload, ext_hook=_ext_hook, raw=False, strict_map_key=True, use_list=True, **UNPACK_LIMITS
         )
     except DecodeError:
         raise

@@ -2,6 +2,12 @@
 
 SI units throughout; ``F`` is the pad frame of MATH.md §1. Array fields give their
 dtype and shape; ``N`` is the number of taxels (rows × cols, row-major).
+
+Declared bounds (checked on decode, by ``topic pub``, written into the exported
+schemas): pads of at most :data:`MAX_PAD_SIDE` × :data:`MAX_PAD_SIDE` taxels whose
+arrays hold exactly rows × cols values, a taxel pitch in (0, :data:`MAX_PITCH_M`],
+a commanded grip in [0, :data:`MAX_GRIP_FORCE_N`] N, enumerated frames, slip states
+and COR cases, and data statuses from :data:`STATUSES` (or a device status code).
 """
 
 from __future__ import annotations
@@ -10,14 +16,48 @@ from dataclasses import field
 
 import numpy as np
 
-from slipstack.messages.base import Message, array, message
+from slipstack.lib.status import SlipCase, SolverStatus
+from slipstack.messages.base import Bounds, Message, array, bounded, message
 
 __all__ = [
     "Wrench", "TactileFrame", "Contact", "Cor", "Slip", "GripCommand", "RigTruth",
-    "Diagnostics", "STATUS_OK",
+    "Diagnostics", "STATUS_OK", "STATUSES", "TACTILE_PAIRING", "DEVICE_STATUS_PATTERN", "NAME_PATTERN", "MAX_PAD_SIDE",
+    "MAX_PITCH_M", "MAX_GRIP_FORCE_N", "MAX_TEXT_LEN", "MAX_COUNTERS", "MAX_VERDICTS",
 ]
 
 STATUS_OK = "ok"
+TACTILE_PAIRING = (STATUS_OK, "off", "none", "unpaired", "stale", "disconnected", "taring", "fault")
+"""Why a contact has no tactile frame (``Contact.tactile_status``): ``ok`` it has one;
+``off`` the stack runs without tactile; ``none`` no frame yet; ``unpaired`` the newest
+frame is outside the pairing window; the frame's own link status; ``fault`` any other
+status the frame carried."""
+STATUSES = tuple(dict.fromkeys([
+    STATUS_OK, "stale", "disconnected", "taring",  # device links and drivers (nodes/devices)
+    *(s.value for s in SolverStatus),  # fusion and the solvers (lib/status.py), passed on downstream
+    "implausible",  # fusion: the pad is pressed far harder than the F/T sensor reports
+    *(f"tactile_{p}" for p in TACTILE_PAIRING[1:]),  # slip: a tactile test without a paired frame
+]))
+"""Status of a data message (``ok``: usable): what the drivers, fusion and the solvers produce."""
+DEVICE_STATUS_PATTERN = r"device-status 0x[0-9a-f]{4,8}"
+"""A device's own nonzero status word, as the F/T driver reports it (e.g. ``device-status 0x0002``)."""
+NAME_PATTERN = r"[A-Za-z0-9_.+-]*"
+"""Identifiers: grip law, reason, slip-test method names."""
+MAX_PAD_SIDE = 256
+"""Rows and columns of a tactile pad, each at most (a 256×256 pad: 65 536 taxels)."""
+MAX_PITCH_M = 0.1
+"""Largest taxel pitch, m."""
+MAX_GRIP_FORCE_N = 1000.0
+"""Largest normal force a grip command may ask for, N."""
+MAX_TEXT_LEN = 4096
+"""Characters of free text (a diagnostics status detail or error)."""
+MAX_COUNTERS = 4096
+"""Entries of a diagnostics counter map."""
+MAX_VERDICTS = 32
+"""Entries of a slip verdict map (one per slip test)."""
+
+_SIDE = {"ge": 1, "le": MAX_PAD_SIDE}
+_STATUS = {"choices": STATUSES, "pattern": DEVICE_STATUS_PATTERN, "max_len": 64}
+_NAME = {"pattern": NAME_PATTERN, "max_len": 64}
 
 
 @message("slipstack/Wrench")
@@ -27,33 +67,35 @@ class Wrench(Message):
     force: (3,) N and torque: (3,) N·m, in ``frame`` (``"sensor"`` as the device
     reports it, or ``"pad"`` when the driver applied the sensor-to-pad transform).
     device_seq: the device's own sample counter (−1 if it has none).
-    status: ``ok`` | ``stale`` | ``disconnected`` | ``overrange`` | free text.
+    status: one of :data:`STATUSES` (``ok``, ``stale``, ``disconnected``, ``taring`` …)
+    or ``device-status 0xNNNN`` (the device flagged the sample).
     """
 
     force: np.ndarray = array("<f8", (3,), doc="N")
     torque: np.ndarray = array("<f8", (3,), doc="N·m")
-    frame: str = "sensor"
-    device_seq: int = -1
-    status: str = STATUS_OK
+    frame: str = bounded("sensor", choices=("sensor", "pad"))
+    device_seq: int = bounded(-1, ge=-1)
+    status: str = bounded(STATUS_OK, **_STATUS)
 
 
 @message("slipstack/TactileFrame")
 class TactileFrame(Message):
     """``tactile/frame``: one calibrated tactile image.
 
+    rows, cols: 1 … :data:`MAX_PAD_SIDE` each; pitch_m: m, in (0, :data:`MAX_PITCH_M`].
     pressure_pa: (N,) float32 Pa, row-major (row 0 first); dead taxels carry 0.
     saturated: (N,) bool, raw counts at or above the saturation level.
     dead: (N,) bool, taxels masked out by calibration.
     """
 
-    rows: int = 16
-    cols: int = 16
-    pitch_m: float = 1.25e-3
-    pressure_pa: np.ndarray = array("<f4", (None,), doc="Pa")
-    saturated: np.ndarray = array("|b1", (None,))
-    dead: np.ndarray = array("|b1", (None,))
+    rows: int = bounded(16, **_SIDE)
+    cols: int = bounded(16, **_SIDE)
+    pitch_m: float = bounded(1.25e-3, gt=0.0, le=MAX_PITCH_M, doc="m")
+    pressure_pa: np.ndarray = array("<f4", ("rows*cols",), doc="Pa")
+    saturated: np.ndarray = array("|b1", ("rows*cols",))
+    dead: np.ndarray = array("|b1", ("rows*cols",))
     device_stamp: int = -1
-    status: str = STATUS_OK
+    status: str = bounded(STATUS_OK, **_STATUS)
 
 
 @message("slipstack/Contact", version=2)  # 2: tactile_status
@@ -72,22 +114,23 @@ class Contact(Message):
     ``invalid_input``, ``implausible``: the pad is pressed far harder than the F/T
     sensor reports, as a biased or spoofed F/T sensor would).
     header.sources holds both stamps (``ft``, ``tactile``).
+    rows, cols, pitch_m: the pad's, or 0 for an F/T-only contact (then N = 0).
     """
 
-    rows: int = 16
-    cols: int = 16
-    pitch_m: float = 1.25e-3
-    phi: np.ndarray = array("<f8", (None,), doc="N")
-    f_n: float = 0.0
+    rows: int = bounded(16, ge=0, le=MAX_PAD_SIDE)
+    cols: int = bounded(16, ge=0, le=MAX_PAD_SIDE)
+    pitch_m: float = bounded(1.25e-3, ge=0.0, le=MAX_PITCH_M, doc="m")
+    phi: np.ndarray = array("<f8", ("rows*cols",), doc="N")
+    f_n: float = bounded(0.0, doc="N")
     f_t: np.ndarray = array("<f8", (2,), doc="N")
-    tau: float = 0.0
+    tau: float = bounded(0.0, doc="N·m")
     cop: np.ndarray = array("<f8", (2,), doc="m")
-    area_m2: float = 0.0
-    mask: np.ndarray = array("|b1", (None,))
-    pair_offset_ns: int = 0
+    area_m2: float = bounded(0.0, ge=0.0, doc="m²")
+    mask: np.ndarray = array("|b1", ("rows*cols",))
+    pair_offset_ns: int = bounded(0, doc="ns")
     has_tactile: bool = True
-    status: str = STATUS_OK
-    tactile_status: str = STATUS_OK
+    status: str = bounded(STATUS_OK, **_STATUS)
+    tactile_status: str = bounded(STATUS_OK, choices=TACTILE_PAIRING)
 
 
 @message("slipstack/Cor")
@@ -100,15 +143,15 @@ class Cor(Message):
     gamma: load factor (≤ 1 sticks); +inf for a load no friction can hold.
     """
 
-    case: str = "none"
+    case: str = bounded("none", choices=tuple(c.value for c in SlipCase))
     p_c: np.ndarray = array("<f8", (2,), doc="m")
-    torque_capacity: float = 0.0
-    load_torque: float = 0.0
-    gamma: float = field(default=0.0, metadata={"allow_inf": True})
+    torque_capacity: float = bounded(0.0, doc="N·m")
+    load_torque: float = bounded(0.0, doc="N·m")
+    gamma: float = bounded(0.0, allow_inf=True)
     iterations: int = 0
-    residual: float = field(default=0.0, metadata={"allow_inf": True})
+    residual: float = bounded(0.0, allow_inf=True)
     converged: bool = False
-    status: str = STATUS_OK
+    status: str = bounded(STATUS_OK, **_STATUS)
 
 
 @message("slipstack/Slip")
@@ -123,26 +166,26 @@ class Slip(Message):
     p_c: (2,) m, the COR of impending slip the method found (valid if ``p_c_valid``).
     """
 
-    state: str = "no-contact"
-    margin: float = field(default=0.0, metadata={"allow_inf": True})
-    method: str = ""
-    verdicts: dict = field(default_factory=dict)
-    gamma: float = field(default=0.0, metadata={"allow_inf": True})
-    status: str = STATUS_OK
-    f_n: float = 0.0
+    state: str = bounded("no-contact", choices=("stick", "translation", "rotation", "combined", "no-contact"))
+    margin: float = bounded(0.0, allow_inf=True)
+    method: str = bounded("", **_NAME)
+    verdicts: dict = field(default_factory=dict, metadata={"bounds": Bounds(max_len=MAX_VERDICTS)})
+    gamma: float = bounded(0.0, allow_inf=True)
+    status: str = bounded(STATUS_OK, **_STATUS)
+    f_n: float = bounded(0.0, doc="N")
     f_t: np.ndarray = array("<f8", (2,), doc="N")
-    tau: float = 0.0
+    tau: float = bounded(0.0, doc="N·m")
     p_c: np.ndarray = array("<f8", (2,), doc="m")
     p_c_valid: bool = False
 
 
 @message("slipstack/GripCommand")
 class GripCommand(Message):
-    """``grip/command``: desired normal force f_n (N) and why."""
+    """``grip/command``: desired normal force f_n (N, 0 … :data:`MAX_GRIP_FORCE_N`) and why."""
 
-    f_n_desired: float = 0.0
-    law: str = ""
-    reason: str = "nominal"
+    f_n_desired: float = bounded(0.0, ge=0.0, le=MAX_GRIP_FORCE_N, doc="N")
+    law: str = bounded("", **_NAME)
+    reason: str = bounded("nominal", **_NAME)
 
 
 @message("slipstack/RigTruth")
@@ -182,9 +225,10 @@ class Diagnostics(Message):
     ``in.<topic>.dropped``, ``in.<topic>.rejected``, ``in.<topic>.lost`` (sequence
     gaps), ``out.<topic>.published``, ``handler.p50_us``…, plus node-specific ones.
     last_error: the newest rejected frame's reason, '' if none.
+    status and last_error are free text of at most :data:`MAX_TEXT_LEN` characters.
     """
 
-    node: str = ""
-    status: str = STATUS_OK
-    counters: dict = field(default_factory=dict)
-    last_error: str = ""
+    node: str = bounded("", max_len=128)
+    status: str = bounded(STATUS_OK, max_len=MAX_TEXT_LEN)
+    counters: dict = field(default_factory=dict, metadata={"bounds": Bounds(max_len=MAX_COUNTERS)})
+    last_error: str = bounded("", max_len=MAX_TEXT_LEN)

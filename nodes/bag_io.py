@@ -42,6 +42,7 @@ from mcap.writer import CompressionType, Writer
 
 from slipstack.lib.errors import DecodeError, SlipstackError
 from slipstack.messages import Message, decode, registry
+from slipstack.messages.base import declared_bounds
 from slipstack.messages.codec import packb, unpackb
 from slipstack.nodes.inprocess import InProcessExecutor
 from slipstack.nodes.node import Node
@@ -92,6 +93,9 @@ def _field_rows(cls: type[Message]) -> list[dict[str, Any]]:
         else:
             hint = hints[f.name]
             row = {"name": f.name, "type": getattr(typing.get_origin(hint) or hint, "__name__", str(hint))}
+            bounds = declared_bounds(f, hint)
+            if bounds:
+                row["bounds"] = bounds
         row["units"] = f.metadata.get("doc", "")
         rows.append(row)
     return rows
@@ -101,7 +105,9 @@ def message_schema(cls: type[Message]) -> dict[str, Any]:
     """The :data:`SCHEMA_ENCODING` document of a message type (JSON-serialisable).
 
     ``{"type", "version", "wire", "header": [...], "fields": [{"name", "type",
-    "dtype"?, "shape"?, "units"}]}``; ``shape`` entries ``null`` are free; ``units``
+    "dtype"?, "shape"?, "bounds"?, "units"}]}``; ``shape`` entries ``null`` are free,
+    ``"rows*cols"`` the product of those fields; ``bounds`` are the field's declared
+    limits as JSON Schema keywords (``minimum``, ``enum``, ``maxLength`` …); ``units``
     is the field's declared unit (``""`` if none).
     """
     return {
@@ -135,6 +141,7 @@ def json_schema(cls: type[Message]) -> dict[str, Any]:
             entry: dict[str, Any] = {"type": "array", "items": item}
         else:
             entry = dict(_JSON_TYPES[row["type"]])
+            entry.update(row.get("bounds", {}))
         if row["units"]:
             entry["description"] = row["units"]
         props[row["name"]] = entry

@@ -22,7 +22,7 @@ import numpy as np
 
 from slipstack.lib.fusion import FusionThresholds, PressureShape, ft_understates_pad, fuse_shape, pressure_shape
 from slipstack.lib.pad import PadGeometry
-from slipstack.messages import STATUS_OK, Contact, TactileFrame, Wrench
+from slipstack.messages import STATUS_OK, TACTILE_PAIRING, Contact, TactileFrame, Wrench
 from slipstack.nodes.node import Context, Input, Node, Output
 
 __all__ = ["Fusion", "FusionParams"]
@@ -86,7 +86,7 @@ class Fusion(Node):
         if t is None:
             return "none"
         if t.status != STATUS_OK:
-            return t.status
+            return t.status if t.status in TACTILE_PAIRING else "fault"
         if abs(wrench_stamp_ns - t.header.stamp_ns) > self.params.max_pair_age_ms * 1e6:
             return "unpaired"
         return STATUS_OK

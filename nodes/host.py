@@ -18,11 +18,18 @@ import numpy as np
 
 from slipstack.lib.errors import DecodeError
 from slipstack.messages import Diagnostics, Header, Message, decode, encode
+from slipstack.messages.codec import MAX_PAYLOAD_BYTES
+from slipstack.messages.types import MAX_COUNTERS, MAX_TEXT_LEN
 from slipstack.nodes.node import Node
 
 __all__ = ["NodeHost", "DIAGNOSTICS_TOPIC"]
 
 DIAGNOSTICS_TOPIC = "diagnostics"
+
+
+def _clip(text: str) -> str:
+    """Free text cut to what a Diagnostics frame may carry (:data:`MAX_TEXT_LEN` characters)."""
+    return text if len(text) <= MAX_TEXT_LEN else text[: MAX_TEXT_LEN - 1] + "…"
 
 
 class NodeHost:
@@ -89,7 +96,12 @@ class NodeHost:
         self._seq[output] = seq + 1
         topic = self.output_topics[output]
         header = Header(int(stamp_ns), seq, self.clock(), sources or {})
-        self._send(topic, encode(msg, header))
+        payload = encode(msg, header)
+        if len(payload) > MAX_PAYLOAD_BYTES:  # every receiver would cut the link: never send it
+            self.counters[f"out.{topic}.oversized"] += 1
+            self.last_error = f"{topic}: a frame of {len(payload)} bytes exceeds {MAX_PAYLOAD_BYTES}; not sent"
+            return
+        self._send(topic, payload)
         self.counters[self._published_key[output]] += 1
         if self.on_publish is not None:
             self.on_publish(topic, msg, header)
@@ -100,7 +112,10 @@ class NodeHost:
         self.counters[f"out.{topic}.published"] += 1
 
     def count(self, name: str, increment: int = 1) -> None:
-        self.counters[name] += increment
+        counters = self.counters
+        if name not in counters and len(counters) >= MAX_COUNTERS - 3:  # the map (+ handler.p50/p99) stays within Diagnostics' bound
+            name = "counters.overflow"
+        counters[name] += increment
 
     def set_status(self, status: str, detail: str = "") -> None:
         self.status, self.detail = status, detail
@@ -112,12 +127,14 @@ class NodeHost:
         self.shutdown_requested = True
 
     # -- receiving ---------------------------------------------------------------------
-    def receive(self, input_name: str, payload: bytes, origin: str = "") -> Message | None:
+    def receive(self, input_name: str, payload: bytes, origin: str = "", *, skipped: int = 0) -> Message | None:
         """Decode and validate one frame; count it; ``None`` if rejected.
 
         ``origin`` names the stream the frame came from (the publisher's endpoint, or
         ``"inject"`` for frames put in by tools): sequence gaps are tracked per topic and
         origin, and a sequence that goes back (a respawned publisher) is no loss.
+        ``skipped``: frames of the same origin received before this one but not decoded
+        (:meth:`skip`); they fill as much of a sequence gap.
         """
         received, rejected, lost, _ = self._in_keys[input_name]
         counters = self.counters
@@ -131,8 +148,8 @@ class NodeHost:
         seq = msg.header.seq
         key = (input_name, origin)
         last = self._last_seq.get(key)
-        if last is not None and seq > last + 1:
-            counters[lost] += seq - last - 1
+        if last is not None and seq > last + 1 + skipped:
+            counters[lost] += seq - last - 1 - skipped
         self._last_seq[key] = seq
         return msg
 
@@ -141,6 +158,13 @@ class NodeHost:
         (already validated by its publisher's types; counted as received)."""
         self.counters[self._in_keys[input_name][0]] += 1
         self.dispatch(input_name, msg)
+
+    def skip(self, input_name: str, n: int) -> None:
+        """Count ``n`` frames received but skipped undecoded for a newer one (drain-to-latest)."""
+        if n:
+            received, _, _, dropped = self._in_keys[input_name]
+            self.counters[received] += n
+            self.counters[dropped] += n
 
     def count_dropped(self, input_name: str, n: int) -> None:
         """Count frames skipped on purpose (drain-to-latest, queue overflow)."""
@@ -179,11 +203,12 @@ class NodeHost:
             counters["handler.p50_us"] = float(np.percentile(d, 50)) / 1e3
             counters["handler.p99_us"] = float(np.percentile(d, 99)) / 1e3
         now = self.clock()
+        status = self.status if not self.detail else f"{self.status}: {self.detail}"
         msg = Diagnostics(
             node=self.name,
-            status=self.status if not self.detail else f"{self.status}: {self.detail}",
+            status=_clip(status),
             counters=counters,
-            last_error=self.last_error,
+            last_error=_clip(self.last_error),
             header=Header(now, self._diag_seq, now, {}),
         )
         self._diag_seq += 1

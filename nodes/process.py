@@ -9,6 +9,17 @@ deadlines; inputs are drained to the newest frame (``latest``) or queued
 (``queue``); every drop and rejected frame is counted and published on
 ``diagnostics``.
 
+Work per wake-up is bounded. A ``latest`` input reads what is waiting (at most
+:data:`_DRAIN_LIMIT` frames) and decodes only from the newest back to the first
+valid frame, so a backlog costs a read per frame, not a decode and a handler call.
+Frames injected by tools pass a token bucket per node (``RunSpec.inject_rate_hz``)
+and go to ``latest`` inputs newest only too; one wake-up reads at most
+:data:`_INJECT_READ_LIMIT` of them. A flood costs the node a bounded share of its
+time whatever its rate: once :data:`_OVER_RATE_READS` frames of one wake-up found
+the bucket empty (counted as ``inject.dropped_rate``), the node stops reading
+injected frames for :data:`_INJECT_PAUSE_NS` (``inject.pauses``); meanwhile the
+socket's high-water mark makes ZeroMQ drop the excess, uncounted, at the sender.
+
 A *container* (ROS 2's component container) runs several nodes in one process and
 one loop. Each member keeps its own publish endpoint, so every tool and recorder
 sees the same graph; a message one member publishes to another is also handed over
@@ -35,11 +46,17 @@ import zmq
 from slipstack.messages import Header, Message
 from slipstack.nodes.host import DIAGNOSTICS_TOPIC, NodeHost
 from slipstack.nodes.node import Node
-from slipstack.nodes.transport import make_pub, make_sub
+from slipstack.nodes.rate_limit import TokenBucket
+from slipstack.nodes.transport import bound_socket, make_pub, make_sub
 
 __all__ = ["ProcessExecutor", "RunSpec"]
 
-_DRAIN_LIMIT = 5000  # frames read from one socket per wake-up before others get a turn
+_DRAIN_LIMIT = 2000  # frames read from one bus socket per wake-up before others get a turn
+_DECODE_TRIES = 16  # newest frames of a ``latest`` backlog decoded in search of a valid one
+_INJECT_READ_LIMIT = 512  # injected frames read per wake-up (the rest wait in the socket, bounded by its HWM)
+_INJECT_HWM = 200  # injected frames queued in the node's injection socket: the backlog a flood leaves
+_OVER_RATE_READS = 64  # frames over the injection rate read (and dropped) per wake-up before a pause
+_INJECT_PAUSE_NS = 10_000_000  # how long a node over its injection rate leaves the injection socket unread
 _TIMER_CATCH_UP = 20  # late ticks of one timer fired per loop turn before ticks are skipped
 
 
@@ -56,6 +73,9 @@ class RunSpec:
     control: the launcher's PULL endpoint for the ready report, or ``None``.
     local: topic → names of members of this node's container that publish it: their
         messages are handed over in-process (and their endpoints are not in ``subs``).
+    inject_rate_hz, inject_burst: the token bucket all frames injected into this
+        node share (frames/s, frames back to back); the excess is dropped undecoded
+        and counted as ``inject.dropped_rate``.
     """
 
     name: str
@@ -68,6 +88,8 @@ class RunSpec:
     diagnostics_period_s: float = 1.0
     handshake_timeout_s: float = 10.0
     local: dict[str, list[str]] = field(default_factory=dict)
+    inject_rate_hz: float = 2000.0
+    inject_burst: int = 200
 
 
 class _Stop(Exception):
@@ -101,8 +123,10 @@ class _Member:
             topic.encode(): [n for n, t in self.host.input_topics.items() if t == topic] for topic in spec.inject
         }
         self.inject_sock: zmq.Socket | None = None
+        self.inject_bucket = TokenBucket(spec.inject_rate_hz, spec.inject_burst)
+        self.inject_resume_ns: int | None = None  # set while injected frames are left unread (over the rate)
         if self.inject_routes:
-            self.inject_sock = make_sub(zctx, [], None, rcvhwm=1000)
+            self.inject_sock = make_sub(zctx, [], None, rcvhwm=_INJECT_HWM)
             self.inject_sock.setsockopt(zmq.UNSUBSCRIBE, b"")
             for topic in self.inject_routes:
                 self.inject_sock.setsockopt(zmq.SUBSCRIBE, topic)
@@ -157,7 +181,7 @@ class _Member:
     def report(self, event: str) -> None:
         if not self.spec.control:
             return
-        sock = self.zctx.socket(zmq.PUSH)
+        sock = bound_socket(self.zctx, zmq.PUSH, sndhwm=10, rcvhwm=10, max_msg_bytes=1024)
         sock.setsockopt(zmq.LINGER, 1000)
         sock.connect(self.spec.control)
         sock.send(msgpack.packb({"node": self.spec.name, "event": event, "pid": os.getpid()}))
@@ -170,51 +194,80 @@ class _Member:
     def drain(self, input_name: str, sock: zmq.Socket) -> None:
         _, want, origin = self.sub_topic[sock]
         host = self.host
-        latest = None
-        kept = 0
-        queue = self.queues.get(input_name)
+        topic = host.input_topics[input_name]
+        payloads: list[bytes] = []
         for _ in range(_DRAIN_LIMIT):
             if not sock.getsockopt(zmq.EVENTS) & zmq.POLLIN:  # cheaper than a zmq.Again exception
                 break
             parts = sock.recv_multipart(zmq.NOBLOCK, copy=True)
-            if len(parts) != 2 or parts[0] != want:
-                if len(parts) != 2:
-                    host.count(f"in.{host.input_topics[input_name]}.rejected")
-                    host.last_error = f"{host.input_topics[input_name]}: expected [topic, payload], got {len(parts)} parts"
-                continue
-            msg = host.receive(input_name, parts[1], origin)
-            if msg is None:
-                continue
-            if queue is None:
-                latest = msg
-                kept += 1
-            else:
+            if len(parts) == 2 and parts[0] == want:
+                payloads.append(parts[1])
+            elif len(parts) != 2:
+                host.count(f"in.{topic}.rejected")
+                host.last_error = f"{topic}: expected [topic, payload], got {len(parts)} parts"
+        queue = self.queues.get(input_name)
+        if queue is None:
+            self._dispatch_newest(input_name, payloads, origin)
+            return
+        for payload in payloads:
+            msg = host.receive(input_name, payload, origin)
+            if msg is not None:
                 if len(queue) == queue.maxlen:
                     host.count_dropped(input_name, 1)
                 queue.append(msg)
-        if queue is None:
-            if latest is not None:
-                host.count_dropped(input_name, kept - 1)
-                host.dispatch(input_name, latest)
-        else:
-            while queue:
-                host.dispatch(input_name, queue.popleft())
+        while queue:
+            host.dispatch(input_name, queue.popleft())
 
-    def drain_injected(self) -> None:
-        """Frames put in by tools: every valid one is handled, in order (no draining to latest)."""
+    def _dispatch_newest(self, input_name: str, payloads: list[bytes], origin: str) -> None:
+        """Handle the newest valid frame of a ``latest`` input's backlog; the older ones are
+        skipped undecoded (counted as received and dropped, not as lost)."""
         host = self.host
-        for _ in range(_DRAIN_LIMIT):
+        for k in range(len(payloads) - 1, max(len(payloads) - 1 - _DECODE_TRIES, -1), -1):
+            msg = host.receive(input_name, payloads[k], origin, skipped=k)
+            if msg is not None:
+                host.skip(input_name, k)
+                host.dispatch(input_name, msg)
+                return
+        host.skip(input_name, max(len(payloads) - _DECODE_TRIES, 0))
+
+    def drain_injected(self, now_ns: int) -> None:
+        """Frames put in by tools, within the node's injection rate: a ``queue`` input
+        handles each valid one in order, a ``latest`` input the newest valid one. Sets
+        :attr:`inject_resume_ns` when a flood calls for a pause (module docstring)."""
+        host = self.host
+        bucket = self.inject_bucket
+        bucket.refill(now_ns)
+        newest: dict[str, Message] = {}
+        over_rate = 0
+        for _ in range(_INJECT_READ_LIMIT):
             if not self.inject_sock.getsockopt(zmq.EVENTS) & zmq.POLLIN:
                 break
             parts = self.inject_sock.recv_multipart(zmq.NOBLOCK)
+            if not bucket.take():
+                over_rate += 1
+                if over_rate >= _OVER_RATE_READS:
+                    self.inject_resume_ns = now_ns + _INJECT_PAUSE_NS
+                    host.count("inject.pauses")
+                    break
+                continue
             names = self.inject_routes.get(parts[0], []) if len(parts) == 2 else []
             if not names:
                 host.count("in.injected.rejected")
                 host.last_error = f"injected frame: expected [topic, payload] on an input topic, got {len(parts)} parts"
             for input_name in names:
                 msg = host.receive(input_name, parts[1], "inject")
-                if msg is not None:
+                if msg is None:
+                    continue
+                if input_name in self.queues:
                     host.dispatch(input_name, msg)
+                else:
+                    if input_name in newest:
+                        host.count_dropped(input_name, 1)
+                    newest[input_name] = msg
+        if over_rate:
+            host.count("inject.dropped_rate", over_rate)
+        for input_name, msg in newest.items():
+            host.dispatch(input_name, msg)
 
     def watch_io(self, poller: zmq.Poller, handlers: dict) -> None:
         """Keep the poller in step with the node's current descriptors."""
@@ -236,6 +289,8 @@ class _Member:
 
     def next_due(self) -> int:
         due = min(self.next_diag, *self.deadlines.values()) if self.deadlines else self.next_diag
+        if self.inject_resume_ns is not None and self.inject_resume_ns < due:
+            due = self.inject_resume_ns
         if self.has_deadline:
             node_deadline = self.node.next_deadline_ns()
             if node_deadline is not None and node_deadline < due:
@@ -411,9 +466,15 @@ class ProcessExecutor:
                 elif kind == "io":
                     m.host.call("on_readable", m.node.on_readable, arg, m.host)
                 else:
-                    m.drain_injected()
+                    m.drain_injected(time.monotonic_ns())
+                    if m.inject_resume_ns is not None:
+                        poller.unregister(item)  # over the rate: unread until the pause ends
                 self._run_handovers()
             now = time.monotonic_ns()
+            for m in members:
+                if m.inject_resume_ns is not None and now >= m.inject_resume_ns:
+                    m.inject_resume_ns = None
+                    poller.register(m.inject_sock, zmq.POLLIN)
             for m in members:
                 m.fire_due(now)
                 self._run_handovers()

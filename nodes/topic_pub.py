@@ -28,6 +28,7 @@ import zmq
 from slipstack.lib.errors import ConfigError, DecodeError
 from slipstack.messages import Header, Message, encode, registry, validate
 from slipstack.nodes.topic_tools import TopicInfo, load_graph, resolve_topic
+from slipstack.nodes.transport import MAX_SUBSCRIPTION_BYTES, SUBSCRIPTION_HWM, bound_socket
 from slipstack.nodes.topic_yaml import parse_flow
 
 __all__ = ["build_message", "Injector", "add_arguments", "main_pub"]
@@ -80,7 +81,8 @@ class Injector:
                 f"no node subscribes to {info.name} with an injection endpoint; "
                 f"subscribers: {', '.join(e.node for e in info.subscribers) or 'none'}"
             )
-        self.sock = zmq.Context.instance().socket(zmq.XPUB)
+        self.sock = bound_socket(zmq.Context.instance(), zmq.XPUB, sndhwm=1000, rcvhwm=SUBSCRIPTION_HWM,
+                                 max_msg_bytes=MAX_SUBSCRIPTION_BYTES)
         self.sock.setsockopt(zmq.LINGER, round(linger_s * 1000))
         self.sock.setsockopt(zmq.XPUB_VERBOSE, 1)
         for address in sorted({e.address for e in self.targets}):

@@ -4,6 +4,11 @@ Frames are multipart ``[topic, msgpack payload]``. Each publishing node binds on
 XPUB socket (verbose, so it sees every subscription and can wait for its
 subscribers: the readiness handshake against slow joiners); each input connects
 one SUB socket to every endpoint that publishes its topic.
+
+Every socket is bounded: both high-water marks are set explicitly, and a peer that
+sends a frame longer than the socket's maximum message size is disconnected by
+ZeroMQ before the frame is buffered (data: :data:`~slipstack.messages.codec.MAX_PAYLOAD_BYTES`;
+the subscriptions an XPUB receives: :data:`MAX_SUBSCRIPTION_BYTES`).
 """
 
 from __future__ import annotations
@@ -15,8 +20,12 @@ from pathlib import Path
 import zmq
 
 from slipstack.lib.errors import ConfigError
+from slipstack.messages.codec import MAX_PAYLOAD_BYTES
 
-__all__ = ["make_run_dir", "ipc_endpoint", "make_pub", "make_sub", "RUN_ROOT_ENV", "run_root"]
+__all__ = [
+    "make_run_dir", "ipc_endpoint", "make_pub", "make_sub", "bound_socket", "RUN_ROOT_ENV", "run_root",
+    "MAX_SUBSCRIPTION_BYTES", "SUBSCRIPTION_HWM",
+]
 
 RUN_ROOT_ENV = "SLIPSTACK_RUN_ROOT"
 IPC_PATH_MAX = 107  # Linux sun_path limit (libzmq zmq_ipc)
@@ -50,11 +59,26 @@ def ipc_endpoint(run_dir: Path, name: str) -> str:
     return f"ipc://{path}"
 
 
-def make_pub(ctx: zmq.Context, endpoint: str, *, sndhwm: int = 1000) -> zmq.Socket:
-    """Bind a verbose XPUB socket (subscriptions are visible for the handshake)."""
-    sock = ctx.socket(zmq.XPUB)
+MAX_SUBSCRIPTION_BYTES = 1024
+"""Longest frame an XPUB accepts from a peer: a subscription (one byte and a topic prefix)."""
+SUBSCRIPTION_HWM = 1000
+"""Queued (un)subscriptions, each direction."""
+
+
+def bound_socket(ctx: zmq.Context, kind: int, *, sndhwm: int, rcvhwm: int, max_msg_bytes: int) -> zmq.Socket:
+    """A new socket with both high-water marks (frames), a maximum inbound frame size
+    (bytes; a peer sending more is disconnected) and no linger."""
+    sock = ctx.socket(kind)
     sock.setsockopt(zmq.LINGER, 0)
     sock.setsockopt(zmq.SNDHWM, sndhwm)
+    sock.setsockopt(zmq.RCVHWM, rcvhwm)
+    sock.setsockopt(zmq.MAXMSGSIZE, max_msg_bytes)
+    return sock
+
+
+def make_pub(ctx: zmq.Context, endpoint: str, *, sndhwm: int = 1000) -> zmq.Socket:
+    """Bind a verbose XPUB socket (subscriptions are visible for the handshake)."""
+    sock = bound_socket(ctx, zmq.XPUB, sndhwm=sndhwm, rcvhwm=SUBSCRIPTION_HWM, max_msg_bytes=MAX_SUBSCRIPTION_BYTES)
     sock.setsockopt(zmq.XPUB_VERBOSE, 1)
     sock.bind(endpoint)
     return sock
@@ -62,9 +86,7 @@ def make_pub(ctx: zmq.Context, endpoint: str, *, sndhwm: int = 1000) -> zmq.Sock
 
 def make_sub(ctx: zmq.Context, endpoints: list[str], topic: str | None, *, rcvhwm: int = 1000) -> zmq.Socket:
     """Connect a SUB socket to ``endpoints``, subscribed to ``topic`` (all if ``None``)."""
-    sock = ctx.socket(zmq.SUB)
-    sock.setsockopt(zmq.LINGER, 0)
-    sock.setsockopt(zmq.RCVHWM, rcvhwm)
+    sock = bound_socket(ctx, zmq.SUB, sndhwm=SUBSCRIPTION_HWM, rcvhwm=rcvhwm, max_msg_bytes=MAX_PAYLOAD_BYTES)
     sock.setsockopt(zmq.RECONNECT_IVL, 20)
     sock.setsockopt(zmq.RECONNECT_IVL_MAX, 200)
     sock.setsockopt(zmq.SUBSCRIBE, b"" if topic is None else topic.encode())

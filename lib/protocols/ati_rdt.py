@@ -14,6 +14,13 @@ Record (36 bytes; buffered mode packs several in one datagram)::
 
 Force N = counts / counts-per-force, torque N·m = counts / counts-per-torque; both
 scales are read from the sensor (1,000,000 is typical, not fixed).
+
+A record carries no checksum and its status word may take any value, so a record
+cannot be validated on its own. Its two counters can be, against the stream it
+belongs to (:func:`follows`): rdt_sequence restarts at 1 with every start request
+and then counts the records sent, ft_sequence counts the sensor's internal samples
+and only moves forward. A datagram that is not part of the stream (stray, stale or
+forged with random content) passes this check with a probability of about 2**-26.
 """
 
 from __future__ import annotations
@@ -27,13 +34,21 @@ import numpy as np
 
 __all__ = [
     "PORT", "RECORD_LENGTH", "RATE_HZ", "Command", "RdtRecord", "encode_request", "decode_request",
-    "encode_record", "decode_records", "to_wrench",
+    "encode_record", "decode_records", "to_wrench", "follows", "SEQUENCE_WINDOW", "FIRST_RECORDS", "FT_WINDOW",
 ]
 
 PORT = 49152
 HEADER = 0x1234
 RECORD_LENGTH = 36
 RATE_HZ = 7000.0
+
+SEQUENCE_WINDOW = 1 << 14
+"""Largest rdt_sequence step accepted (records lost in between): 2.3 s at 7 kHz."""
+FIRST_RECORDS = 64
+"""A stream (re)started by a start request: its first record numbers at most this."""
+FT_WINDOW = 1 << 24
+"""Largest ft_sequence step accepted between two records: 40 min at 7 kHz."""
+_WRAP = 1 << 32
 
 _REQUEST = struct.Struct(">HHI")
 _RECORD = struct.Struct(">III6i")
@@ -88,6 +103,23 @@ def decode_records(datagram: bytes) -> list[RdtRecord] | None:
         RdtRecord(r[0], r[1], r[2], np.array(r[3:], dtype=np.int64))
         for r in _RECORD.iter_unpack(datagram)
     ]
+
+
+def follows(previous: RdtRecord | None, record: RdtRecord) -> bool:
+    """Whether ``record`` can be the next record of the stream whose last accepted record
+    was ``previous`` (``None``: none since our start request).
+
+    Accepted: the first records of a (re)started stream (rdt_sequence in
+    1 … :data:`FIRST_RECORDS`), or rdt_sequence ahead by 1 … :data:`SEQUENCE_WINDOW`
+    (counters wrap at 2**32); and after a previous record, ft_sequence ahead by
+    1 … :data:`FT_WINDOW`.
+    """
+    seq = record.rdt_sequence
+    if previous is None:
+        return 1 <= seq <= FIRST_RECORDS
+    if not 0 < (record.ft_sequence - previous.ft_sequence) % _WRAP <= FT_WINDOW:
+        return False
+    return 1 <= seq <= FIRST_RECORDS or 0 < (seq - previous.rdt_sequence) % _WRAP <= SEQUENCE_WINDOW
 
 
 def to_wrench(record: RdtRecord, counts_per_force: float, counts_per_torque: float) -> tuple[np.ndarray, np.ndarray]:

@@ -33,7 +33,9 @@ check, ``rejected_bytes`` bytes/datagrams bytes in no frame, ``gaps`` samples mi
 by device sequence (RDT only; other devices carry no sequence), ``reconnects``
 successful reopens; plus ``flushed_bytes`` (discarded on purpose during a
 handshake), ``handshake_failures``, ``ignored_packets`` (valid packets of no use),
-``bad_frames`` (valid CRC, inconsistent content), ``requests`` (RDT start requests).
+``bad_frames`` (valid CRC, inconsistent content), ``requests`` (RDT start requests),
+``implausible_records`` (RDT records whose counters do not continue the requested
+stream: stray, stale or forged datagrams; :func:`~slipstack.lib.protocols.ati_rdt.follows`).
 
 Sensor values are in the sensor's frame; no frame transform is applied.
 """
@@ -435,7 +437,13 @@ class Dsacon32Backend(_SerialBackend):
 
 class RdtBackend(Backend):
     """ATI RDT over UDP: start request on open, re-request after backoff_ms of silence
-    (an ICMP refusal then marks it disconnected), count rdt_sequence gaps."""
+    (an ICMP refusal then marks it disconnected), count rdt_sequence gaps.
+
+    Only the sensor's datagrams arrive (the socket is connected to the url's
+    host:port, so the kernel drops every other source), and a record whose counters
+    do not continue the requested stream is dropped and counted
+    (``implausible_records``); with no plausible record for backoff_ms the stream is
+    requested again and restarts."""
 
     kind = "ft"
     default_rate_hz = ati_rdt.RATE_HZ
@@ -449,11 +457,12 @@ class RdtBackend(Backend):
         self._link = UdpLink(host, port, stale_after_s=self.stale_after_s, backoff_min_s=self.backoff_min_s,
                              backoff_max_s=self.backoff_max_s, on_open=self._request)
         self._own["requests"] = 0
-        self._last_seq: int | None = None
+        self._own["implausible_records"] = 0
+        self._last: ati_rdt.RdtRecord | None = None
         self._last_request_ns = 0
 
     def _request(self, now_ns: int) -> None:
-        self._last_seq = None
+        self._last = None
         self._last_request_ns = now_ns
         self._own["requests"] += 1
         self._link.send(ati_rdt.encode_request(ati_rdt.Command.REALTIME, 0), now_ns)
@@ -473,10 +482,13 @@ class RdtBackend(Backend):
                 self._own["rejected_bytes"] += len(datagram)
                 continue
             for r in records:
+                if not ati_rdt.follows(self._last, r):
+                    self._own["implausible_records"] += 1
+                    continue
                 seq = r.rdt_sequence
-                if self._last_seq is not None and seq > self._last_seq + 1:
-                    self._own["gaps"] += seq - self._last_seq - 1
-                self._last_seq = seq
+                if self._last is not None and seq > self._last.rdt_sequence + 1:
+                    self._own["gaps"] += seq - self._last.rdt_sequence - 1
+                self._last = r
                 out.append(FtSample(now_ns, r.counts[:3] / cpf, r.counts[3:] / cpt, seq, None, r.status))
         self._own["frames"] += len(out)
         if not out and self._link.is_open and now_ns >= self._rerequest_at():

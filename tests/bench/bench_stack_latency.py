@@ -211,6 +211,20 @@ class Report:
         return "\n".join(self.sections)
 
 
+def split_watchdog_repeats(cmd: list[tuple]) -> tuple[list[tuple], int]:
+    """(commands derived from a new F/T sample, count of watchdog repeats) of the tap's
+    ``grip/command`` rows in seq order: a repeat carries the previous command's slip stamp."""
+    fresh, repeats = [], 0
+    prev_slip = None
+    for r in cmd:
+        if r[6] is not None and r[6] == prev_slip:
+            repeats += 1
+        elif r[4] is not None:
+            fresh.append(r)
+        prev_slip = r[6]
+    return fresh, repeats
+
+
 def analyse(tap: Tap, w0: int, w1: int, args: argparse.Namespace, report: Report) -> None:
     """Fill ``report`` from the tap's rows in the window [w0, w1] (CLOCK_MONOTONIC ns)."""
     rows = tap.rows
@@ -221,14 +235,7 @@ def analyse(tap: Tap, w0: int, w1: int, args: argparse.Namespace, report: Report
 
     wrench, contact, slip, cmd = (in_window(t) for t in ("ft/wrench", "contact", "slip", "grip/command"))
     cmd.sort(key=lambda r: r[0])
-    fresh, repeats = [], 0
-    prev_slip = None
-    for r in cmd:
-        if r[6] is not None and r[6] == prev_slip:
-            repeats += 1
-        elif r[4] is not None:
-            fresh.append(r)
-        prev_slip = r[6]
+    fresh, repeats = split_watchdog_repeats(cmd)
     reasons = Counter(r[7] for r in cmd)
 
     # rig t0 from rig/truth: stamp = t0 + simulated time, seq counts truth samples from t = 0

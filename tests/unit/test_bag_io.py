@@ -66,7 +66,7 @@ def test_round_trip_keeps_bytes_times_and_sequence(tmp_path):
     doc = json.loads(schema.data)
     assert doc == message_schema(Wrench)
     assert doc["fields"][0] == {"name": "force", "type": "array", "dtype": "<f8", "shape": [3], "units": "N"}
-    assert doc["fields"][2] == {"name": "frame", "type": "str", "units": ""}
+    assert doc["fields"][2] == {"name": "frame", "type": "str", "bounds": {"enum": ["sensor", "pad"]}, "units": ""}
 
 
 def test_chunks_close_by_age(tmp_path):

@@ -1,0 +1,217 @@
+"""Declared bounds on message fields: checked on decode, by ``topic pub``, in the
+exported schemas; the frame size and socket limits of the transport."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+import zmq
+
+from slipstack.lib.errors import ConfigError, DecodeError
+from slipstack.lib.status import SolverStatus
+from slipstack.messages import Contact, Cor, Diagnostics, GripCommand, Slip, TactileFrame, Wrench, decode, encode
+from slipstack.messages.codec import MAX_PAYLOAD_BYTES, packb
+from slipstack.messages.types import MAX_COUNTERS, MAX_TEXT_LEN
+from slipstack.nodes.bag_io import json_schema, message_schema
+from slipstack.nodes.devices import LinkStatus
+from slipstack.nodes.host import NodeHost
+from slipstack.nodes.node import Node, Output
+from slipstack.nodes.topic_pub import build_message
+from slipstack.nodes.transport import make_sub
+
+_HEADER = [10, 0, 11, {}]
+
+
+def _frame(rows: int, cols: int, n: int, **over) -> bytes:
+    """A TactileFrame payload declaring rows × cols with n values per array."""
+    body = {"rows": rows, "cols": cols, "pitch_m": 1.25e-3, "pressure_pa": np.zeros(n, np.float32),
+            "saturated": np.zeros(n, bool), "dead": np.zeros(n, bool), "device_stamp": -1, "status": "ok"}
+    body.update(over)
+    return packb(["slipstack/TactileFrame", 1, _HEADER, list(body.values())])
+
+
+def _payload(cls, **over) -> bytes:
+    """``cls``'s default message with fields replaced on the wire (bypassing the constructor)."""
+    msg = cls()
+    body = [over.get(n, getattr(msg, n)) for n in cls._body_fields]
+    return packb([cls.TYPE, cls.VERSION, _HEADER, body])
+
+
+def test_a_frame_whose_arrays_disagree_with_rows_times_cols_is_rejected_naming_the_field():
+    with pytest.raises(DecodeError, match=r"TactileFrame\.pressure_pa: expected rows\*cols = 256 values, got 0"):
+        decode(_frame(16, 16, 0))
+    with pytest.raises(DecodeError, match=r"TactileFrame\.saturated: expected rows\*cols = 6 values, got 5"):
+        decode(_frame(2, 3, 6, saturated=np.zeros(5, bool)))
+    assert decode(_frame(2, 3, 6)).pressure_pa.shape == (6,)
+
+
+def test_the_issue_s_resource_bomb_is_rejected_by_its_declared_size():
+    """102 bytes declaring 5000 × 5000 taxels with empty arrays (issue 10, item 6)."""
+    with pytest.raises(DecodeError, match=r"TactileFrame\.rows: must be >= 1 and <= 256, got 5000"):
+        decode(_frame(5000, 5000, 0))
+    with pytest.raises(DecodeError, match=r"TactileFrame\.rows: must be >= 1"):
+        decode(_frame(0, 16, 0))
+
+
+def test_a_contact_s_per_taxel_arrays_match_its_pad_and_an_ft_only_contact_has_none():
+    with pytest.raises(DecodeError, match=r"Contact\.phi: expected rows\*cols = 4 values, got 3"):
+        decode(_payload(Contact, rows=2, cols=2, phi=np.zeros(3), mask=np.zeros(4, bool)))
+    ft_only = decode(_payload(Contact, rows=0, cols=0, pitch_m=0.0, phi=np.zeros(0), mask=np.zeros(0, bool)))
+    assert ft_only.phi.size == 0
+
+
+@pytest.mark.parametrize(("cls", "field", "value", "why"), [
+    (Wrench, "status", "x" * 10_000, "at most 64 characters, got 10000"),
+    (Wrench, "status", "bogus", "must be one of"),
+    (Wrench, "frame", "moon", "must be one of pad, sensor; got 'moon'"),
+    (Slip, "state", "sliding", "must be one of"),
+    (Slip, "method", "exact; rm -rf", "must be one of"),
+    (Cor, "case", "spin", "must be one of"),
+    (GripCommand, "f_n_desired", 1e300, "must be >= 0 and <= 1000, got 1e+300"),
+    (GripCommand, "f_n_desired", -5.0, "must be >= 0"),
+    (GripCommand, "reason", "r" * 65, "at most 64 characters"),
+    (TactileFrame, "pitch_m", -1.0, "must be > 0"),
+    (Diagnostics, "last_error", "e" * (MAX_TEXT_LEN + 1), f"at most {MAX_TEXT_LEN} characters"),
+    (Diagnostics, "counters", {f"c{i}": i for i in range(MAX_COUNTERS + 1)}, f"at most {MAX_COUNTERS} entries"),
+    (Slip, "verdicts", {f"m{i}": [True, 1.0] for i in range(33)}, "at most 32 entries"),
+    (Slip, "verdicts", {"k" * 129: [True, 1.0]}, "keys are strings of at most 128 characters"),
+])
+def test_values_outside_the_declared_bounds_are_rejected_naming_the_field(cls, field, value, why):
+    over = {field: value}
+    if cls is TactileFrame:
+        over |= {"pressure_pa": np.zeros(256, np.float32), "saturated": np.zeros(256, bool), "dead": np.zeros(256, bool)}
+    with pytest.raises(DecodeError) as err:
+        decode(_payload(cls, **over))
+    assert f"{cls.TYPE}.{field}:" in str(err.value) and why in str(err.value)
+    assert len(str(err.value)) < 300  # a huge value is never echoed back
+
+
+def test_a_10_mb_string_is_refused_by_the_decoder_without_echoing_it():
+    with pytest.raises(DecodeError) as err:
+        decode(_payload(Wrench, status="x" * 10_000_000))
+    assert len(str(err.value)) < 300
+
+
+def test_every_status_the_code_produces_is_accepted():
+    produced = ["ok", "taring", "device-status 0x0002", "device-status 0x8000ffff",
+                *(s.value for s in LinkStatus), *(s.value for s in SolverStatus)]
+    for status in produced:
+        assert decode(_payload(Wrench, status=status)).status == status
+        assert decode(_payload(Slip, status=status)).status == status
+
+
+def test_header_stamps_and_sources_are_bounded():
+    for header, why in [([-1, 0, 0, {}], "stamp_ns: must be within"), ([0, 2**63, 0, {}], "seq: must be within"),
+                        ([0, 0, 0, {f"s{i}": 1 for i in range(33)}], "sources: at most 32 entries"),
+                        ([0, 0, 0, {"s": -5}], "sources: expected a map")]:
+        with pytest.raises(DecodeError, match=why):
+            decode(packb(["slipstack/GripCommand", 1, header, [1.0, "", "nominal"]]))
+
+
+def test_oversized_msgpack_items_are_refused_before_they_are_built():
+    with pytest.raises(DecodeError, match="not a valid MessagePack frame"):
+        decode(packb(["slipstack/GripCommand", 1, _HEADER, [1.0, "", "nominal", [None] * 100_000]]))
+
+
+def test_topic_pub_refuses_values_outside_the_bounds_naming_the_field():
+    for values, why in [({"f_n_desired": 1e300}, "f_n_desired: must be"), ({"f_n_desired": -5}, "f_n_desired"),
+                        ({"status": "bogus"}, "Wrench.status"), ({"frame": "moon"}, "Wrench.frame"),
+                        ({"pressure_pa": [1, 2, 3]}, "TactileFrame.pressure_pa: expected rows*cols = 256 values, got 3"),
+                        ({"pitch_m": -1, "pressure_pa": [0] * 256, "saturated": [0] * 256, "dead": [0] * 256},
+                         "TactileFrame.pitch_m")]:
+        cls = GripCommand if "f_n_desired" in values else TactileFrame if "pressure_pa" in values else Wrench
+        with pytest.raises(ConfigError, match=why.replace("*", r"\*")):
+            build_message(cls, values)
+    assert build_message(GripCommand, {"f_n_desired": 12.0, "law": "manual"}).f_n_desired == 12.0
+
+
+def test_exported_schemas_carry_the_bounds():
+    grip = json_schema(GripCommand)["properties"]["f_n_desired"]
+    assert grip["minimum"] == 0.0 and grip["maximum"] == 1000.0
+    assert json_schema(Wrench)["properties"]["frame"]["enum"] == ["sensor", "pad"]
+    assert json_schema(Wrench)["properties"]["status"]["maxLength"] == 64
+    assert json_schema(Diagnostics)["properties"]["counters"]["maxProperties"] == MAX_COUNTERS
+    rows = {r["name"]: r for r in message_schema(TactileFrame)["fields"]}
+    assert rows["rows"]["bounds"] == {"minimum": 1, "maximum": 256}
+    assert rows["pressure_pa"]["shape"] == ["rows*cols"]
+
+
+def test_the_largest_legal_frames_fit_the_transport_limit_with_headroom():
+    n = 256 * 256
+    biggest = [
+        Contact(rows=256, cols=256, phi=np.ones(n), mask=np.ones(n, bool)),
+        TactileFrame(rows=256, cols=256, pressure_pa=np.ones(n, np.float32), saturated=np.ones(n, bool),
+                     dead=np.ones(n, bool), status="device-status 0x8000ffff"),
+        Diagnostics(node="n" * 128, status="s" * MAX_TEXT_LEN, last_error="é" * MAX_TEXT_LEN,
+                    counters={f"{'k' * 120}{i:05d}": 1.5 for i in range(MAX_COUNTERS)}),
+    ]
+    for msg in biggest:
+        payload = encode(msg)
+        assert len(payload) < 0.5 * MAX_PAYLOAD_BYTES, type(msg).__name__
+        decode(payload)
+
+
+class _Counting(Node):
+    name = "counting"
+
+
+class _Publishing(Node):
+    name = "publishing"
+    outputs = {"out": Output("diagnostics", Diagnostics)}
+
+
+def test_diagnostics_stay_within_their_bounds_whatever_a_node_counts_or_says():
+    host = NodeHost(_Counting(), lambda: 1, lambda topic, payload: None)
+    for i in range(MAX_COUNTERS + 500):
+        host.count(f"device.thing{i}")
+    host.set_status("error", "d" * 100_000)
+    host.last_error = "e" * 100_000
+    diag = decode(host.diagnostics(), Diagnostics)
+    assert len(diag.counters) <= MAX_COUNTERS and diag.counters["counters.overflow"] >= 500
+    assert len(diag.status) <= MAX_TEXT_LEN and len(diag.last_error) <= MAX_TEXT_LEN
+
+
+def test_a_bound_subscriber_drops_a_peer_that_sends_an_oversized_frame_and_keeps_the_others():
+    """ZeroMQ's maximum message size on an injection-style socket (bound SUB): a
+    3 MB frame never reaches the node, the sender is cut off, other peers go on."""
+    ctx = zmq.Context.instance()
+    sub = make_sub(ctx, [], "t")
+    port = sub.bind_to_random_port("tcp://127.0.0.1")
+    peers = []
+    try:
+        for _ in range(2):
+            peer = ctx.socket(zmq.XPUB)
+            peer.setsockopt(zmq.LINGER, 0)
+            peer.connect(f"tcp://127.0.0.1:{port}")
+            deadline = time.monotonic() + 10
+            while not peer.poll(10) and time.monotonic() < deadline:
+                sub.poll(0)  # a socket attaches its new peers (and sends them its subscriptions) when used
+            assert peer.recv() == b"\x01t"
+            peers.append(peer)
+        bad, good = peers
+        bad.send_multipart([b"t", b"x" * (3 << 20)])
+        got: list[bytes] = []
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and b"good" not in got:
+            bad.send_multipart([b"t", b"bad"])
+            good.send_multipart([b"t", b"good"])
+            if sub.poll(50):
+                got.append(sub.recv_multipart()[1])
+        assert b"good" in got
+        assert all(len(p) <= MAX_PAYLOAD_BYTES for p in got)
+    finally:
+        for sock in (sub, *peers):
+            sock.close()
+
+
+def test_a_node_never_publishes_a_frame_over_the_transport_limit():
+    sent = []
+    host = NodeHost(_Publishing(), lambda: 1, lambda topic, payload: sent.append(payload))
+    n = 256 * 256
+    host.publish("out", Diagnostics(counters={}, last_error="x"), stamp_ns=1)
+    host.publish("out", Diagnostics(counters={f"{'k' * 120}{i:05d}": 1.5 for i in range(3 * n)}), stamp_ns=2)
+    assert len(sent) == 1
+    assert host.counters["out.diagnostics.oversized"] == 1
+    assert "diagnostics: a frame of" in host.last_error and "not sent" in host.last_error
