@@ -87,7 +87,8 @@ class SlipDetector(Node):
         if msg.status != STATUS_OK:
             return msg.status
         if not msg.has_tactile and self.params.method not in _FT_TESTS:
-            return f"tactile_{msg.tactile_status}"
+            # a contact without a frame that claims its pairing was fine contradicts itself
+            return f"tactile_{msg.tactile_status if msg.tactile_status != STATUS_OK else 'fault'}"
         return STATUS_OK if solver.usable else solver.value
 
     def start(self, ctx: Context) -> None:

@@ -39,7 +39,7 @@ def _mounted(xy: tuple[float, float], flip_rows=False, flip_cols=False, quarter_
 def test_pressed_and_dead_taxels_land_where_the_mount_puts_them(mount):
     emu = Dsacon32Emulator(rows=ROWS, cols=COLS)
     try:
-        params = TactileDriverParams(url=f"dsacon32://{emu.path}?fps=100", rows=ROWS, cols=COLS, pitch_m=1.0,
+        params = TactileDriverParams(url=f"dsacon32://{emu.path}?fps=100", rows=ROWS, cols=COLS, pitch_m=1e-3,
                                      dead_taxels=(0,), **mount)
         h = Harness(TactileDriver(params), emu)
         h.start()
@@ -49,7 +49,7 @@ def test_pressed_and_dead_taxels_land_where_the_mount_puts_them(mount):
         msg = h.send(emu.send_tactile, counts, dt_ns=10 * MS)
         rows, cols = (COLS, ROWS) if mount.get("quarter_turns", 0) % 2 else (ROWS, COLS)
         assert (msg.rows, msg.cols) == (rows, cols)
-        positions = PadGeometry(rows, cols, 1.0).positions
+        positions = PadGeometry(rows, cols, 1e-3).positions * 1e3  # in pitches
         assert tuple(positions[int(np.argmax(msg.pressure_pa))]) == pytest.approx(_mounted(_device_xy(1, 12), **mount))
         assert msg.dead.sum() == 1
         assert tuple(positions[int(np.argmax(msg.dead))]) == pytest.approx(_mounted(_device_xy(0, 0), **mount))

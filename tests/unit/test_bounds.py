@@ -85,7 +85,7 @@ def test_values_outside_the_declared_bounds_are_rejected_naming_the_field(cls, f
     with pytest.raises(DecodeError) as err:
         decode(_payload(cls, **over))
     assert f"{cls.TYPE}.{field}:" in str(err.value) and why in str(err.value)
-    assert len(str(err.value)) < 300  # a huge value is never echoed back
+    assert len(str(err.value)) < 600  # a huge value is never echoed back (the list of choices may be long)
 
 
 def test_a_10_mb_string_is_refused_by_the_decoder_without_echoing_it():
