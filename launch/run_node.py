@@ -13,7 +13,9 @@ import ctypes
 import json
 import signal
 
-from slipstack.lib.errors import ConfigError
+import zmq
+
+from slipstack.lib.errors import ConfigError, SlipstackError
 from slipstack.nodes.catalog import NODE_TYPES, node_class
 from slipstack.nodes.node import Node, make_params, param_help
 from slipstack.nodes.process import ProcessExecutor, RunSpec
@@ -80,6 +82,20 @@ def _member(raw: dict) -> tuple[Node, RunSpec]:
     return cls(make_params(cls.Params, values, spec.name)), spec
 
 
+def _executor(members: list[tuple[Node, RunSpec]]) -> ProcessExecutor:
+    """The executor of ``members`` (binds their sockets); SlipstackError, one line, if an address is taken."""
+    try:
+        return ProcessExecutor(members)
+    except zmq.ZMQError as exc:
+        if exc.errno != zmq.EADDRINUSE:
+            raise
+        names = ", ".join(spec.name for _, spec in members)
+        raise SlipstackError(
+            f"{names}: cannot bind its socket: {exc}. Another process holds that address: stop it (`ss -ltnp` "
+            "shows who), or restart the launch, which picks a free port"
+        ) from None
+
+
 def main_run(args: argparse.Namespace) -> int:
     if args.node == "container":
         if not args.spec or args.assignments:
@@ -87,7 +103,7 @@ def main_run(args: argparse.Namespace) -> int:
         with open(args.spec) as fh:
             doc = json.load(fh)
         set_parent_death_signal()
-        return ProcessExecutor([_member(m) for m in doc["members"]]).run()
+        return _executor([_member(m) for m in doc["members"]]).run()
     node_class(args.node)  # an unknown type fails here, with the list of known ones
     if args.spec:
         with open(args.spec) as fh:
@@ -102,4 +118,4 @@ def main_run(args: argparse.Namespace) -> int:
             subs.setdefault(topic, []).append(ep)
         raw = {"name": args.name or args.node, "pub": args.pub, "subs": subs}
     raw.setdefault("params", {}).update(parse_assignments(args.assignments))
-    return ProcessExecutor([_member({**raw, "type": args.node})]).run()
+    return _executor([_member({**raw, "type": args.node})]).run()
