@@ -258,7 +258,7 @@ class Launcher:
     # -- processes --------------------------------------------------------------------------
     def _spawn(self, c: _Process) -> None:
         node_type = "container" if c.is_container else c.entry.type
-        cmd = [sys.executable, "-m", "slipstack.launch.cli", "run", node_type, "--spec", str(c.spec_path)]
+        cmd = [sys.executable, "-m", "slipstack.launch.run_node", node_type, "--spec", str(c.spec_path)]
         env = dict(os.environ, PYTHONUNBUFFERED="1", SLIPSTACK_RUN_DIR=str(self.run_dir))
         nice = c.entry.nice
 

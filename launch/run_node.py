@@ -1,9 +1,11 @@
 """``slipstack run NODE``: one node as a process (or ``run container``: several).
 
-The launcher calls it with ``--spec FILE`` (a JSON :class:`RunSpec` plus
-parameters; for a container ``{"container": NAME, "members": [{"type": …, spec…}]}``);
-by hand, give endpoints with ``--pub`` and ``--sub TOPIC=ENDPOINT`` and parameters
-as ``name:=value``.
+The launcher starts ``python -m slipstack.launch.run_node NODE --spec FILE`` (a JSON
+:class:`RunSpec` plus parameters; for a container ``{"container": NAME, "members":
+[{"type": …, spec…}]}``): that entry imports only what the node needs, not every
+command and node type as ``slipstack`` does, so a respawned node is back sooner. By
+hand, ``slipstack run NODE`` with endpoints as ``--pub`` and ``--sub TOPIC=ENDPOINT``
+and parameters as ``name:=value``.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ import argparse
 import ctypes
 import json
 import signal
+import sys
 
 import zmq
 
@@ -20,7 +23,7 @@ from slipstack.nodes.catalog import NODE_TYPES, node_class
 from slipstack.nodes.node import Node, make_params, param_help
 from slipstack.nodes.process import ProcessExecutor, RunSpec
 
-__all__ = ["add_parser", "main_run", "parse_assignments", "set_parent_death_signal"]
+__all__ = ["add_parser", "main_run", "main_spawned", "parse_assignments", "set_parent_death_signal"]
 
 _PR_SET_PDEATHSIG = 1
 
@@ -119,3 +122,22 @@ def main_run(args: argparse.Namespace) -> int:
         raw = {"name": args.name or args.node, "pub": args.pub, "subs": subs}
     raw.setdefault("params", {}).update(parse_assignments(args.assignments))
     return _executor([_member({**raw, "type": args.node})]).run()
+
+
+def main_spawned(argv: list[str] | None = None) -> int:
+    """``python -m slipstack.launch.run_node NODE --spec FILE``: the launcher's lean way to start a process."""
+    from slipstack.launch.cli import run_guarded
+
+    parser = argparse.ArgumentParser(
+        prog="python -m slipstack.launch.run_node",
+        description="Run a node (or 'container') from a run spec written by `slipstack launch`.",
+    )
+    parser.add_argument("node", help="node type, or 'container'")
+    parser.add_argument("--spec", required=True, help="JSON run spec written by the launcher")
+    args = parser.parse_args(argv)
+    args.assignments, args.name, args.pub, args.sub = [], None, None, []
+    return run_guarded("run", lambda: main_run(args))
+
+
+if __name__ == "__main__":
+    sys.exit(main_spawned())
