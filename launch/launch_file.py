@@ -6,7 +6,7 @@ Format::
     description = "what this graph does"
     duration_s = 0            # stop by itself after this long (0: run until Ctrl-C)
     check = false             # true: exit 1 unless the run passed (<run_dir>/check.json,
-                              # written by the monitor, and no node abandoned); `check:=true`
+                              # written by the monitor, and no node died and stayed down); `check:=true`
                               # sets it from the command line unless the file declares an
                               # argument named check
     extends = "stack.toml"    # optional: take the nodes and args of another launch
@@ -126,7 +126,7 @@ class LaunchFile:
     args: dict[str, Any]
     nodes: list[NodeEntry]
     check: bool = False
-    """Exit 1 at the end unless the run passed (``<run_dir>/check.json`` and no node abandoned)."""
+    """Exit 1 at the end unless the run passed (``<run_dir>/check.json``, no node died and stayed down)."""
 
 
 def launch_files_dir() -> Path:

@@ -20,7 +20,7 @@ printed in the closing lines and written to ``<run_dir>/launch_events.json`` (th
 directory keeps that file and ``check.json`` after the launch; the newest
 ``KEEP_FINISHED_RUNS`` finished ones are kept). With ``check = true`` the launch ends
 with ``[launch] check passed`` or ``[launch] CHECK FAILED: ...`` (exit 1) from the
-monitor's ``check.json`` and the abandonments.
+monitor's ``check.json`` and the processes that died and stayed down.
 """
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ class _Process:
     restarts: int = 0
     """Restarts over the whole launch."""
     deaths: int = 0
-    """Exits while the launch was running (not on shutdown)."""
+    """Exits with a nonzero code or by a signal while the launch was running (not on shutdown)."""
     budget_used: int = 0
     """Restarts since the process last stayed up ``respawn_reset_s``."""
     abandoned: bool = False
@@ -377,7 +377,7 @@ class Launcher:
             self._forward_logs(0.05)
             self._note_ready_reports()
             now = time.monotonic()
-            for name, c in self.processes.items():
+            for c in self.processes.values():
                 if c.respawn_at is not None and now >= c.respawn_at:
                     self._respawn(c)
                     continue
@@ -412,7 +412,8 @@ class Launcher:
     def _on_exit(self, c: _Process, now: float) -> bool:
         """Handle the exit of ``c`` (respawn it, abandon it); False if the launch must end."""
         code = c.proc.returncode
-        c.deaths += 1
+        if code != 0:
+            c.deaths += 1
         self._forward_logs(0.0)
         self.echo(f"[launch] {c.label} exited with code {code}")
         if now - c.spawned_at >= c.entry.respawn_reset_s:
@@ -446,13 +447,13 @@ class Launcher:
         for name, e in events.items():
             if e["abandoned"]:
                 self.echo(f"[launch] {name}: died {e['died']}x, abandoned after {e['respawned']} restarts")
-            elif e["died"]:
+            elif e["died"] or e["respawned"]:
                 self.echo(f"[launch] {name}: died {e['died']}x, respawned {e['respawned']}x")
         write_private_file(self.run_dir, EVENTS_FILE, json.dumps({"exit_code": self.exit_code, "processes": events},
                                                                   indent=1))
 
     def _check_problems(self) -> list[str]:
-        """What failed the run: the monitor's ``check.json`` problems, abandoned processes."""
+        """What failed the run: the monitor's ``check.json`` problems, processes that died and stayed down."""
         try:
             fd = os.open(self.run_dir / CHECK_FILE, os.O_RDONLY | os.O_NOFOLLOW)
             with os.fdopen(fd, "rb") as fh:
@@ -462,7 +463,11 @@ class Launcher:
             problems = [f"no {CHECK_FILE} from the monitor (is it disabled, or did it not stop cleanly?)"]
         except (OSError, ValueError, TypeError, KeyError) as exc:
             problems = [f"{CHECK_FILE} is unreadable ({exc})"]
-        problems += [f"{c.name} abandoned after {c.restarts} restarts" for c in self.processes.values() if c.abandoned]
+        for c in self.processes.values():
+            if c.abandoned:
+                problems.append(f"{c.name} abandoned after {c.restarts} restarts")
+            elif c.deaths and c.proc is None:
+                problems.append(f"{c.name} died and was not restarted (respawn = false)")
         return problems
 
     def _report_check(self) -> None:
