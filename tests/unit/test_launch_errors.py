@@ -71,18 +71,19 @@ def test_extends_loops_are_named(tmp_path):
 
 
 def test_unknown_argument_and_bad_argument_types_are_refused():
-    with pytest.raises(ConfigError, match=r"fig15.toml: no launch argument 'bogus'; declared: "):
-        load_launch_file("fig15", {"bogus": "1"}, builtins=BUILTINS)
-    with pytest.raises(ConfigError, match=r"launch argument mu is a float; got 'high'"):
-        load_launch_file("fig15", {"mu": "high"}, builtins=BUILTINS)
-    with pytest.raises(ConfigError, match=r"launch argument controller is a bool; got 'maybe'"):
-        load_launch_file("fig15", {"controller": "maybe"}, builtins=BUILTINS)
+    with pytest.raises(ConfigError, match=r"demo.toml: no launch argument 'bogus'; declared: container, "):
+        load_launch_file("demo", {"bogus": "1"}, builtins=BUILTINS)
+    with pytest.raises(ConfigError, match=r"launch argument rate_hz is a float; got 'fast'"):
+        load_launch_file("demo", {"rate_hz": "fast"}, builtins=BUILTINS)
+    with pytest.raises(ConfigError, match=r"launch argument respawn is a bool; got 'maybe'"):
+        load_launch_file("demo", {"respawn": "maybe"}, builtins=BUILTINS)
 
 
 @pytest.mark.parametrize("text", ["nan", "inf", "-inf", "NaN"])
 def test_a_non_finite_number_argument_is_refused(text):
-    with pytest.raises(ConfigError, match=rf"launch argument ft_rate_hz must be a finite number; got '{text}'"):
-        load_launch_file("fig15", {"ft_rate_hz": text}, builtins=BUILTINS)
+    """Like ``ft_rate_hz:=nan`` on a paper scene."""
+    with pytest.raises(ConfigError, match=rf"launch argument rate_hz must be a finite number; got '{text}'"):
+        load_launch_file("demo", {"rate_hz": text}, builtins=BUILTINS)
 
 
 @pytest.mark.parametrize("args, message", [
