@@ -117,3 +117,21 @@ def test_a_reused_launcher_pid_is_not_taken_for_the_launcher(root):
     write_graph(run, {"launcher_pid": os.getpid(), "launcher_start_ticks": process_start_ticks(os.getpid()),
                       "nodes": {}})
     assert find_run_dir() == run.resolve()
+
+
+def test_finished_run_directories_keep_their_reports_and_only_the_newest_are_kept(root):
+    from slipstack.nodes.run_dir import KEEP_FINISHED_RUNS, finish_run_dir
+
+    runs = []
+    for k in range(KEEP_FINISHED_RUNS + 3):
+        run = make_run_dir()
+        (run / "graph.json").write_text("{}")
+        (run / "node.pub").write_text("")
+        (run / "launch_events.json").write_text("{}")
+        finish_run_dir(run, keep=("launch_events.json",))
+        os.utime(run / ".finished", (k, k))  # oldest first
+        runs.append(run)
+    assert sorted(p.name for p in runs[-1].iterdir()) == [".finished", "launch_events.json"]
+    live = make_run_dir()
+    assert live.is_dir()
+    assert [r for r in runs if r.exists()] == runs[-KEEP_FINISHED_RUNS:]
