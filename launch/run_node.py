@@ -134,9 +134,28 @@ def main_spawned(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("node", help="node type, or 'container'")
     parser.add_argument("--spec", required=True, help="JSON run spec written by the launcher")
+    parser.add_argument("--standby", action="store_true",
+                        help="import the node's modules, then wait for a line on stdin before starting "
+                             "(end of stdin: exit without starting)")
     args = parser.parse_args(argv)
     args.assignments, args.name, args.pub, args.sub = [], None, None, []
+    if args.standby and not _wait_for_go(args.node, args.spec):
+        return 0
     return run_guarded("run", lambda: main_run(args))
+
+
+def _wait_for_go(node_type: str, spec_path: str) -> bool:
+    """Import the modules of the node(s) to run, then block until stdin says go (True) or ends (False)."""
+    set_parent_death_signal()
+    with open(spec_path) as fh:
+        doc = json.load(fh)
+    for name in [m["type"] for m in doc["members"]] if node_type == "container" else [node_type]:
+        node_class(name)
+    # loading the numba kernels is the slow part of the start of the nodes that use them
+    kernels = sys.modules.get("slipstack.lib.limit_set")
+    if kernels is not None:
+        kernels.compile_kernels()
+    return bool(sys.stdin.readline())
 
 
 if __name__ == "__main__":

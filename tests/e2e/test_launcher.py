@@ -35,6 +35,19 @@ def _wait_until(condition, what: str, g, timeout: float = 30.0) -> None:
         time.sleep(0.05)
 
 
+def _processes_of(run_root: Path) -> list[int]:
+    """Pids of live processes whose command line names ``run_root`` (nodes and their warm standbys)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        try:
+            cmdline = (entry / "cmdline").read_bytes()
+        except OSError:
+            continue
+        if entry.name.isdigit() and str(run_root).encode() in cmdline and pid_alive(int(entry.name)):
+            found.append(int(entry.name))
+    return found
+
+
 def _events(g) -> dict:
     """``launch_events.json`` of the graph's (finished) run directory."""
     return json.loads((g.run_root / "current" / "launch_events.json").read_text())
@@ -89,7 +102,9 @@ def test_demo_graph_respawns_a_killed_node_and_stops_cleanly_on_each_signal(laun
         g.proc.send_signal(sig)
         g.proc.wait(30)
         _wait_until(lambda: not any(pid_alive(p) for p in all_pids), f"processes left after {sig.name}", g)
+        _wait_until(lambda: not _processes_of(g.run_root), f"standby processes left after {sig.name}", g)
         assert g.proc.returncode == 0, g.log()
+        assert "[launch] respawning relay (restart 1/3) from its warm standby" in g.log()
         assert "[launch] relay: died 1x, respawned 1x" in g.log()
         events = _events(g)
         assert events["processes"]["relay"] == {"nodes": ["relay"], "died": 1, "respawned": 1, "abandoned": False}
@@ -259,6 +274,7 @@ def test_tools_refuse_a_run_directory_whose_launcher_was_killed(launch):
     g.proc.kill()
     g.proc.wait(10)
     _wait_until(lambda: not any(pid_alive(p) for p in pids.values()), "nodes outlived their launcher", g)
+    _wait_until(lambda: not _processes_of(g.run_root), "standby processes outlived their launcher", g)
     for verb in (["hz", "ft/wrench"], ["echo", "ft/wrench"], ["list"]):
         out = g.cli("topic", *verb, timeout=30)
         assert out.returncode == 2, (verb, out.stdout, out.stderr)
