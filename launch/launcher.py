@@ -11,19 +11,20 @@ simulated rig, go first: the simulated world must not run on without its control
 Children get a parent-death signal, so even a SIGKILLed launcher leaves no orphans
 behind.
 
-Respawn: a process that may be respawned has a warm standby, a second process that
-has imported its modules and waits on stdin (it binds nothing); a restart wakes it, so
-the node is back without paying the interpreter start and the imports again, and a
-new standby is prepared once it is ready. The first restart follows ``respawn_delay_s``
-after the exit, each further one waits twice as long; ``respawn_max_retries`` restarts in a row use up the budget, which
-a process that stays up ``respawn_reset_s`` gets back. A process whose budget is used
-up is *abandoned*: said loudly, and the launch ends with exit 1 if the node is
-``required`` or the launch has ``check = true``. Deaths, restarts and abandonments are
-printed in the closing lines and written to ``<run_dir>/launch_events.json`` (the run
-directory keeps that file and ``check.json`` after the launch; the newest
-``KEEP_FINISHED_RUNS`` finished ones are kept). With ``check = true`` the launch ends
-with ``[launch] check passed`` or ``[launch] CHECK FAILED: ...`` (exit 1) from the
-monitor's ``check.json`` and the processes that died and stayed down.
+Respawn: a process that may be respawned has a warm standby (unless ``respawn_standby
+= false``), a second process that has imported its modules and waits on stdin (it
+binds nothing); a restart wakes it, so the node is back without paying the interpreter
+start and the imports again, and a new standby is prepared once it is ready. The first
+restart follows ``respawn_delay_s`` after the exit, each further one waits twice as
+long; ``respawn_max_retries`` restarts in a row use up the budget, which a process
+that stays up ``respawn_reset_s`` gets back. A process whose budget is used up is
+*abandoned*: said loudly, and the launch ends with exit 1 if the node is ``required``
+or the launch has ``check = true``. Deaths, restarts and abandonments are printed in
+the closing lines and written to ``<run_dir>/launch_events.json`` (the run directory
+keeps that file and ``check.json`` after the launch; the newest ``KEEP_FINISHED_RUNS``
+finished ones are kept). With ``check = true`` the launch ends with ``[launch] check
+passed`` or ``[launch] CHECK FAILED: ...`` (exit 1) from the monitor's ``check.json``
+and the processes that died and stayed down.
 """
 
 from __future__ import annotations
@@ -279,7 +280,7 @@ class Launcher:
 
     def _prepare_standby(self, c: _Process) -> None:
         """Give a respawning process a warm standby: a process with its modules imported, waiting to start."""
-        if c.entry.respawn and c.standby is None and not self._stop_requested:
+        if c.entry.respawn and c.entry.respawn_standby and c.standby is None and not self._stop_requested:
             c.standby = self._popen(c, standby=True)
 
     def _dismiss_standby(self, c: _Process) -> None:

@@ -224,7 +224,7 @@ def test_the_respawn_budget_comes_back_after_a_healthy_period(launch, run_root):
     assert _events(g)["processes"]["relay"] == {"nodes": ["relay"], "died": 2, "respawned": 2, "abandoned": False}
 
 
-@pytest.mark.parametrize("relay_policy, args", [("required = true", []), ("", ["check:=true"])])
+@pytest.mark.parametrize("relay_policy, args", [("required = true\nrespawn_standby = false", []), ("", ["check:=true"])])
 def test_a_node_out_of_restarts_is_abandoned_loudly_and_ends_a_required_or_checked_launch(
         launch, run_root, relay_policy, args):
     relay = f"respawn = true\nrespawn_max_retries = 1\nrespawn_reset_s = 600\n{relay_policy}"
@@ -235,6 +235,8 @@ def test_a_node_out_of_restarts_is_abandoned_loudly_and_ends_a_required_or_check
     log = g.log()
     assert "[launch] ABANDONED relay: it exited 2 times in a row (restarted 1x, respawn_max_retries = 1)" in log
     assert "[launch] relay: died 2x, abandoned after 1 restarts" in log
+    how = "a new process" if "respawn_standby = false" in relay_policy else "its warm standby"
+    assert f"[launch] respawning relay (restart 1/1) from {how}" in log
     if args:
         assert "[launch] CHECK FAILED: no check.json from the monitor" in log
         assert "relay abandoned after 1 restarts" in log.split("CHECK FAILED")[1]

@@ -116,7 +116,7 @@ def test_enabled_as_a_string_means_what_it_says(tmp_path, value, enabled):
     assert bool(lf.nodes) is enabled
 
 
-@pytest.mark.parametrize("key", ["enabled", "respawn", "required", "stop_first"])
+@pytest.mark.parametrize("key", ["enabled", "respawn", "required", "stop_first", "respawn_standby"])
 def test_a_flag_that_is_neither_true_nor_false_is_refused(tmp_path, key):
     with pytest.raises(ConfigError, match=rf"{key} must be true or false; got 'no'"):
         _load(tmp_path, SOURCE + f'{key} = "no"\n')
