@@ -360,17 +360,17 @@ def _node_entry(raw: dict[str, Any], where: str) -> NodeEntry | None:
     remap = _table(raw.get("remap", {}), f"{where}.remap")
     if not all(isinstance(v, str) for v in remap.values()):
         raise ConfigError(f"{where}.remap maps topic names to topic names; got {remap!r}")
+    params = _table(raw.get("params", {}), f"{where}.params")
     return NodeEntry(
-        name=name, type=raw["type"], cls=node_class(raw["type"]), params=dict(_table(raw.get("params", {}),
-                                                                                     f"{where}.params")),
-        remap=dict(remap), respawn=_flag(raw.get("respawn", False), f"{where}.respawn"),
+        name=name, type=raw["type"], cls=node_class(raw["type"]), params=dict(params), remap=dict(remap), respawn=_flag(raw.get("respawn", False), f"{where}.respawn"),
         respawn_delay_s=_number(raw.get("respawn_delay_s", NodeEntry.respawn_delay_s), f"{where}.respawn_delay_s"),
         respawn_max_retries=_number(raw.get("respawn_max_retries", NodeEntry.respawn_max_retries),
                                     f"{where}.respawn_max_retries", int),
         respawn_reset_s=_number(raw.get("respawn_reset_s", NodeEntry.respawn_reset_s), f"{where}.respawn_reset_s"),
         respawn_standby=_flag(raw.get("respawn_standby", True), f"{where}.respawn_standby"),
         required=_flag(raw.get("required", False), f"{where}.required"), transport=transport,
-        after=list(_names(raw.get("after", []), f"{where}.after")), nice=_number(raw.get("nice", 0), f"{where}.nice", int, -20),
+        after=list(_names(raw.get("after", []), f"{where}.after")),
+        nice=_number(raw.get("nice", 0), f"{where}.nice", int, -20),
         container=_identifier(container, f"{where}.container") if container else "",
         stop_first=_flag(raw.get("stop_first", False), f"{where}.stop_first"),
     )
