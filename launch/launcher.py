@@ -284,16 +284,13 @@ class Launcher:
             c.standby = self._popen(c, standby=True)
 
     def _dismiss_standby(self, c: _Process) -> None:
-        """End ``c``'s standby (it exits when its stdin closes; SIGKILL if it does not soon)."""
+        """End ``c``'s standby: SIGKILL is clean for it, as it has opened and bound nothing yet."""
         standby, c.standby = c.standby, None
         if standby is None:
             return
+        standby.kill()
         standby.stdin.close()
-        try:
-            standby.wait(STOP_GRACE_S)
-        except subprocess.TimeoutExpired:
-            standby.kill()
-            standby.wait()
+        standby.wait()
 
     def _popen(self, c: _Process, *, standby: bool) -> subprocess.Popen:
         node_type = "container" if c.is_container else c.entry.type
