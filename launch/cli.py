@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import Callable
 
 from slipstack.lib.errors import SlipstackError
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "run_guarded"]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -34,10 +35,15 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"unrecognized arguments: {' '.join(e for e in extra if e not in assignments) or ' '.join(extra)}")
     if assignments:
         args.assignments.extend(assignments)
+    return run_guarded(args.command, lambda: args.func(args))
+
+
+def run_guarded(command: str, func: Callable[[], int | None]) -> int:
+    """The exit code of ``func()``; a SlipstackError becomes one line on stderr and exit 2."""
     try:
-        return int(args.func(args) or 0)
+        return int(func() or 0)
     except SlipstackError as exc:
-        print(f"slipstack {args.command}: {exc}", file=sys.stderr)
+        print(f"slipstack {command}: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130

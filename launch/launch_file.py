@@ -5,6 +5,10 @@ Format::
     [launch]
     description = "what this graph does"
     duration_s = 0            # stop by itself after this long (0: run until Ctrl-C)
+    check = false             # true: exit 1 unless the run passed (<run_dir>/check.json,
+                              # written by the monitor, and no node died and stayed down); `check:=true`
+                              # sets it from the command line unless the file declares an
+                              # argument named check
     extends = "stack.toml"    # optional: take the nodes and args of another launch
                               # file; this file's [args] override, its nodes are added
 
@@ -14,13 +18,16 @@ Format::
                               # $(stamp), the date-time the launch started
 
     [[node]]
-    name = "source"           # instance name (unique); topics/logs use it
+    name = "source"           # instance name (unique; letters, digits, _ and -)
     type = "wrench_source"    # a node type from `slipstack run --help`
     params = { rate_hz = "$(rate_hz)" }   # "$(arg)" is replaced by a launch argument
     remap = { "ft/wrench" = "ft/raw" }    # default topic -> topic in this graph
     respawn = false           # restart it when it dies
-    respawn_delay_s = 0.5
+    respawn_delay_s = 0.05    # before the first restart; doubles with each further one
     respawn_max_retries = 3
+    respawn_reset_s = 10.0    # a process that stayed up this long gets its full budget back
+    respawn_standby = true    # keep a warm standby process (modules loaded) for a ~0.1 s
+                              # restart; false saves its memory (30-200 MB)
     required = false          # when it exits, the whole launch stops
     transport = "ipc"         # or "tcp" (binds 127.0.0.1 on a free port)
     enabled = true            # may be "$(arg)": leave a node out of this run
@@ -30,28 +37,46 @@ Format::
                               # without it the node runs at normal priority)
 
 A value that is exactly ``"$(name)"`` takes the argument's type; inside a longer
-string it is substituted as text.
+string it is substituted as text. Flags (``enabled``, ``respawn``, ``required``,
+``stop_first``) take a boolean or the strings "true"/"false".
+
+A name is looked up in the shipped folder first (``fig15``, ``stack.toml``); a file
+of your own is named as a path (``./my.toml``, ``configs/my.toml``), relative to the
+current directory on the command line and to the including file for ``extends``.
 """
+
+
 
 from __future__ import annotations
 
+import math
 import re
 import socket
 import time
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from slipstack.lib.errors import ConfigError
 from slipstack.nodes.catalog import node_class
 from slipstack.nodes.node import Node, make_params
 
-__all__ = ["NodeEntry", "LaunchFile", "load_launch_file", "default_launch_file", "launch_files_dir", "free_port"]
+__all__ = ["NodeEntry", "LaunchFile", "load_launch_file", "default_launch_file", "launch_files_dir", "free_port",
+           "resolve_path", "CHECK_ARG"]
 
 _SUBST = re.compile(r"\$\((\w+)\)")
+_IDENTIFIER = re.compile(r"[A-Za-z0-9_-]+")
+_TOP_KEYS = {"launch", "args", "node"}
+_LAUNCH_KEYS = {"description", "duration_s", "extends", "check"}
 _NODE_KEYS = {"name", "type", "params", "remap", "respawn", "respawn_delay_s", "respawn_max_retries",
-              "required", "transport", "enabled", "after", "nice", "container", "stop_first"}
+              "respawn_reset_s", "respawn_standby", "required", "transport", "enabled", "after", "nice", "container", "stop_first"}
+SUBST_MAX_CHARS = 65536
+"""Longest value an argument substitution may produce (a guard against self-doubling arguments)."""
+SUBST_MAX_DEPTH = 32
+"""Longest chain of arguments referring to arguments."""
+CHECK_ARG = "check"
+"""``check:=true`` on the command line sets ``[launch] check`` when the file declares no such argument."""
 
 
 @dataclass
@@ -64,8 +89,13 @@ class NodeEntry:
     params: dict[str, Any] = field(default_factory=dict)
     remap: dict[str, str] = field(default_factory=dict)
     respawn: bool = False
-    respawn_delay_s: float = 0.5
+    respawn_delay_s: float = 0.05
+    """Wait (s) before the first restart; each further restart waits twice as long as the one before."""
     respawn_max_retries: int = 3
+    respawn_reset_s: float = 10.0
+    """A process that stayed up this long (s) gets its full restart budget back."""
+    respawn_standby: bool = True
+    """Keep a warm standby process for this one (a restart then takes about 0.1 s instead of 1-4 s)."""
     required: bool = False
     transport: str = "ipc"
     after: list[str] = field(default_factory=list)
@@ -78,8 +108,8 @@ class NodeEntry:
 
     def process_policy(self) -> tuple:
         """The settings that belong to the process, which a container's members must share."""
-        return (self.respawn, self.respawn_delay_s, self.respawn_max_retries, self.required, self.transport, self.nice,
-                self.stop_first)
+        return (self.respawn, self.respawn_delay_s, self.respawn_max_retries, self.respawn_reset_s,
+                self.respawn_standby, self.required, self.transport, self.nice, self.stop_first)
 
     def instance(self) -> Node:
         """Build the node object (validates the parameters)."""
@@ -99,6 +129,8 @@ class LaunchFile:
     duration_s: float
     args: dict[str, Any]
     nodes: list[NodeEntry]
+    check: bool = False
+    """Exit 1 at the end unless the run passed (``<run_dir>/check.json``, no node died and stayed down)."""
 
 
 def launch_files_dir() -> Path:
@@ -111,23 +143,49 @@ def default_launch_file() -> Path:
     return launch_files_dir() / "default.toml"
 
 
-def _substitute(value: Any, args: dict[str, Any], where: str) -> Any:
+def _substitute(value: Any, lookup: Callable[[str], Any], where: str) -> Any:
+    """``value`` with every ``$(name)`` replaced by ``lookup(name)`` (in tables and lists too)."""
     if isinstance(value, dict):
-        return {k: _substitute(v, args, f"{where}.{k}") for k, v in value.items()}
+        return {k: _substitute(v, lookup, f"{where}.{k}") for k, v in value.items()}
     if isinstance(value, list):
-        return [_substitute(v, args, where) for v in value]
+        return [_substitute(v, lookup, where) for v in value]
     if not isinstance(value, str):
         return value
-
-    def lookup(name: str) -> Any:
-        if name not in args:
-            raise ConfigError(f"{where}: unknown launch argument $({name}); declared: {', '.join(sorted(args)) or 'none'}")
-        return args[name]
-
     whole = _SUBST.fullmatch(value)
     if whole:
         return lookup(whole.group(1))
-    return _SUBST.sub(lambda m: str(lookup(m.group(1))), value)
+    text = _SUBST.sub(lambda m: str(lookup(m.group(1))), value)
+    if len(text) > SUBST_MAX_CHARS:
+        raise ConfigError(f"{where}: substituting the launch arguments gives {len(text)} characters "
+                          f"(more than {SUBST_MAX_CHARS}); does an argument repeat itself?")
+    return text
+
+
+def _resolve_args(args: dict[str, Any], file: str) -> dict[str, Any]:
+    """Every argument with the ``$(other)`` references in it replaced (each resolved once).
+
+    Raises:
+        ConfigError: an argument refers to itself (directly or through others), names an
+            undeclared argument, nests deeper than ``SUBST_MAX_DEPTH`` or grows past
+            ``SUBST_MAX_CHARS``.
+    """
+    done: dict[str, Any] = {}
+
+    def resolve(name: str, chain: tuple[str, ...]) -> Any:
+        if name in done:
+            return done[name]
+        if name not in args:
+            raise ConfigError(f"{file}: args.{chain[-1]}: unknown launch argument $({name}); "
+                              f"declared: {', '.join(sorted(args))}")
+        if name in chain:
+            raise ConfigError(f"{file}: launch argument {name} refers to itself: "
+                              f"{' -> '.join((*chain[chain.index(name):], name))}")
+        if len(chain) >= SUBST_MAX_DEPTH:
+            raise ConfigError(f"{file}: launch arguments nest deeper than {SUBST_MAX_DEPTH}: {' -> '.join(chain)}")
+        done[name] = _substitute(args[name], lambda other: resolve(other, (*chain, name)), f"{file}: args.{name}")
+        return done[name]
+
+    return {name: resolve(name, ()) for name in args}
 
 
 def _typed_override(default: Any, text: str, name: str) -> Any:
@@ -136,25 +194,84 @@ def _typed_override(default: Any, text: str, name: str) -> Any:
             return True
         if text.lower() in ("false", "0", "no", "off"):
             return False
-        raise ConfigError(f"launch argument {name} is a bool; got {text!r}")
+        raise ConfigError(f"launch argument {name} is a bool; got {text!r} (use true or false)")
     if isinstance(default, list):  # "[a, b]", "a,b" or "" (empty list)
         items = text.strip().removeprefix("[").removesuffix("]")
         return [item.strip().strip("'\"") for item in items.split(",") if item.strip()]
     if isinstance(default, (int, float)):
         try:
-            return type(default)(text)
+            value = type(default)(text)
         except ValueError:
             raise ConfigError(f"launch argument {name} is a {type(default).__name__}; got {text!r}") from None
+        if not math.isfinite(value):
+            raise ConfigError(f"launch argument {name} must be a finite number; got {text!r}")
+        return value
     return text
 
 
+def _flag(value: Any, where: str) -> bool:
+    """A boolean launch-file setting: ``true``/``false`` or the strings "true"/"false"."""
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, str) and value.strip().lower() in ("true", "false"):
+        return value.strip().lower() == "true"
+    raise ConfigError(f"{where} must be true or false; got {value!r}")
+
+
+def _number(value: Any, where: str, kind: type = float, minimum: float = 0.0) -> float | int:
+    """A finite number >= ``minimum`` of a launch-file setting (``kind`` int or float; numeric strings too)."""
+    try:
+        if isinstance(value, bool) or (kind is int and isinstance(value, float)):
+            raise ValueError
+        number = kind(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{where} must be a{'n integer' if kind is int else ' number'}; got {value!r}") from None
+    if not math.isfinite(number) or number < minimum:
+        raise ConfigError(f"{where} must be a finite number >= {minimum:g}; got {value!r}")
+    return number
+
+
+def _identifier(value: Any, where: str) -> str:
+    """A node or container name: letters, digits, ``_`` and ``-`` (it names files in the run directory)."""
+    if not isinstance(value, str) or not _IDENTIFIER.fullmatch(value):
+        raise ConfigError(f"{where} must be letters, digits, _ and - only (it names files in the run directory); "
+                          f"got {value!r}")
+    return value
+
+
+def _table(value: Any, where: str) -> dict:
+    if not isinstance(value, dict):
+        raise ConfigError(f"{where} must be a table ({{ key = value, ... }}); got {value!r}")
+    return value
+
+
+def _names(value: Any, where: str) -> list[str]:
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise ConfigError(f"{where} must be a list of node names; got {value!r}")
+    return value
+
+
 def resolve_path(value: str, base: Path, folder: str) -> Path:
-    """Resolve a file named in a launch file: as given, next to it, or a shipped name."""
-    for cand in (Path(value), base / value, Path(__file__).parent / folder / value,
-                 Path(__file__).parent / folder / f"{value}.toml"):
+    """The file a launch or scene file names: shipped first, a file of your own only as a path.
+
+    A bare name (``fig15``, ``stack.toml``) is the shipped file in ``launch/<folder>/``;
+    if none is shipped, a name ending in ``.toml`` is looked for in ``base``. A name with
+    a ``/`` is a path, relative to ``base``. So a stray file in the current directory
+    never shadows a shipped one.
+
+    Raises:
+        ConfigError: no such file (says where it looked).
+    """
+    shipped = Path(__file__).parent / folder
+    if "/" in value:
+        cands = [base / value]
+    else:
+        cands = [shipped / value, shipped / f"{value}.toml"] + ([base / value] if value.endswith(".toml") else [])
+    for cand in cands:
         if cand.is_file():
             return cand.resolve()
-    raise ConfigError(f"cannot find {value!r} (looked next to {base} and in the shipped {folder}/)")
+    hint = "" if "/" in value else f"; for a file of your own give a path, e.g. ./{value}"
+    raise ConfigError(f"cannot find {value!r} (looked in {', '.join(str(c) for c in cands)}){hint}")
 
 
 def free_port(kind: int = socket.SOCK_STREAM) -> int:
@@ -164,23 +281,47 @@ def free_port(kind: int = socket.SOCK_STREAM) -> int:
         return s.getsockname()[1]
 
 
+def _parse_toml(p: Path) -> dict[str, Any]:
+    """The TOML of ``p``; ConfigError ``FILE:LINE: what is wrong`` if it is not valid TOML."""
+    try:
+        text = p.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{p}: cannot read it ({exc})") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        message = str(exc)
+        at = re.search(r" \(at line (\d+), column (\d+)\)$", message)
+        place = f"{p}:{at.group(1)}:{at.group(2)}" if at else str(p)
+        raise ConfigError(f"{place}: not valid TOML: {message[:at.start()] if at else message}") from None
+
+
 def _read_with_base(p: Path, seen: tuple[Path, ...]) -> dict[str, Any]:
     """The TOML of ``p`` merged over the file it ``extends`` (recursively)."""
     if p in seen:
-        raise ConfigError(f"{p.name}: 'extends' loops back to itself")
-    try:
-        data = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{p}: not valid TOML ({exc})") from None
-    meta = dict(data.get("launch", {}))
+        raise ConfigError(f"{p.name}: 'extends' loops back to itself: {' -> '.join(s.name for s in (*seen, p))}")
+    data = _parse_toml(p)
+    unknown = set(data) - _TOP_KEYS
+    if unknown:
+        raise ConfigError(f"{p}: unknown section(s) {sorted(unknown)}; allowed: [launch], [args], [[node]]")
+    meta = dict(_table(data.get("launch", {}), f"{p}: [launch]"))
+    unknown = set(meta) - _LAUNCH_KEYS
+    if unknown:
+        raise ConfigError(f"{p}: [launch]: unknown key(s) {sorted(unknown)}; allowed: {sorted(_LAUNCH_KEYS)}")
+    _table(data.get("args", {}), f"{p}: [args]")
+    nodes = data.get("node", [])
+    if not isinstance(nodes, list) or not all(isinstance(n, dict) for n in nodes):
+        raise ConfigError(f"{p}: 'node' must be an array of tables ([[node]] sections)")
     base_name = meta.pop("extends", None)
     if base_name is None:
         return data
-    base = _read_with_base(resolve_path(str(base_name), p.parent, "files"), (*seen, p))
+    if not isinstance(base_name, str):
+        raise ConfigError(f"{p}: [launch] extends must be a file name; got {base_name!r}")
+    base = _read_with_base(resolve_path(base_name, p.parent, "files"), (*seen, p))
     return {
         "launch": {**base.get("launch", {}), **meta},
         "args": {**base.get("args", {}), **data.get("args", {})},
-        "node": [*base.get("node", []), *data.get("node", [])],
+        "node": [*base.get("node", []), *nodes],
     }
 
 
@@ -197,9 +338,42 @@ def _check_containers(file: str, entries: list[NodeEntry]) -> None:
         if e.process_policy() != lead.process_policy():
             raise ConfigError(
                 f"{file}: nodes {lead.name} and {e.name} share container {e.container!r} but differ in "
-                "respawn, respawn_delay_s, respawn_max_retries, required, transport, nice or stop_first; "
-                "make them equal"
+                "respawn, respawn_delay_s, respawn_max_retries, respawn_reset_s, respawn_standby, required, "
+                "transport, nice or stop_first; make them equal"
             )
+
+
+def _node_entry(raw: dict[str, Any], where: str) -> NodeEntry | None:
+    """The entry of one substituted ``[[node]]`` table; None if it is not enabled."""
+    if not _flag(raw.get("enabled", True), f"{where}.enabled"):
+        return None
+    if "type" not in raw:
+        raise ConfigError(f"{where}: missing 'type' (a node type from `slipstack run --help`)")
+    if not isinstance(raw["type"], str):
+        raise ConfigError(f"{where}.type must be a node type name; got {raw['type']!r}")
+    name = _identifier(raw.get("name", raw["type"]), f"{where}.name")
+    where = f"{where} ({name})"
+    transport = raw.get("transport", "ipc")
+    if transport not in ("ipc", "tcp"):
+        raise ConfigError(f"{where}.transport must be 'ipc' or 'tcp'; got {transport!r}")
+    container = raw.get("container", "")
+    remap = _table(raw.get("remap", {}), f"{where}.remap")
+    if not all(isinstance(v, str) for v in remap.values()):
+        raise ConfigError(f"{where}.remap maps topic names to topic names; got {remap!r}")
+    params = _table(raw.get("params", {}), f"{where}.params")
+    return NodeEntry(
+        name=name, type=raw["type"], cls=node_class(raw["type"]), params=dict(params), remap=dict(remap), respawn=_flag(raw.get("respawn", False), f"{where}.respawn"),
+        respawn_delay_s=_number(raw.get("respawn_delay_s", NodeEntry.respawn_delay_s), f"{where}.respawn_delay_s"),
+        respawn_max_retries=_number(raw.get("respawn_max_retries", NodeEntry.respawn_max_retries),
+                                    f"{where}.respawn_max_retries", int),
+        respawn_reset_s=_number(raw.get("respawn_reset_s", NodeEntry.respawn_reset_s), f"{where}.respawn_reset_s"),
+        respawn_standby=_flag(raw.get("respawn_standby", True), f"{where}.respawn_standby"),
+        required=_flag(raw.get("required", False), f"{where}.required"), transport=transport,
+        after=list(_names(raw.get("after", []), f"{where}.after")),
+        nice=_number(raw.get("nice", 0), f"{where}.nice", int, -20),
+        container=_identifier(container, f"{where}.container") if container else "",
+        stop_first=_flag(raw.get("stop_first", False), f"{where}.stop_first"),
+    )
 
 
 def load_launch_file(
@@ -218,45 +392,34 @@ def load_launch_file(
     p = default_launch_file() if path is None else resolve_path(str(path), Path.cwd(), "files")
     data = _read_with_base(p, seen=())
     args = dict(data.get("args", {}))
-    for name, text in (overrides or {}).items():
+    overrides = dict(overrides or {})
+    check_override = overrides.pop(CHECK_ARG) if CHECK_ARG in overrides and CHECK_ARG not in args else None
+    for name, text in overrides.items():
         if name not in args:
             raise ConfigError(f"{p.name}: no launch argument {name!r}; declared: {', '.join(sorted(args)) or 'none'}")
         args[name] = _typed_override(args[name], text, name)
     args.update({"free_udp_port": free_port(socket.SOCK_DGRAM), "stamp": time.strftime("%Y%m%d-%H%M%S"),
                  **(builtins or {})})
     # an argument may refer to others ("rdt://127.0.0.1:$(rdt_port)", "$(run_dir)/ft.tty"),
-    # which may refer to others again: resolve until nothing changes
-    for _ in range(len(args)):
-        resolved = {k: _substitute(v, args, f"{p.name}: args.{k}") for k, v in args.items()}
-        if resolved == args:
-            break
-        args = resolved
-    meta = data.get("launch", {})
+    # which may refer to others again
+    args = _resolve_args(args, p.name)
+
+    def lookup(name: str) -> Any:
+        if name not in args:
+            raise ConfigError(f"{p.name}: unknown launch argument $({name}); declared: {', '.join(sorted(args))}")
+        return args[name]
+
+    meta = _substitute(data.get("launch", {}), lookup, f"{p.name}: [launch]")
     entries: list[NodeEntry] = []
     for k, raw in enumerate(data.get("node", [])):
         where = f"{p.name}: node[{k}]"
         unknown = set(raw) - _NODE_KEYS
         if unknown:
             raise ConfigError(f"{where}: unknown key(s) {sorted(unknown)}; allowed: {sorted(_NODE_KEYS)}")
-        raw = _substitute(raw, args, where)
-        if not raw.get("enabled", True):
-            continue
-        if "type" not in raw:
-            raise ConfigError(f"{where}: missing 'type'")
-        name = raw.get("name", raw["type"])
-        if raw.get("transport", "ipc") not in ("ipc", "tcp"):
-            raise ConfigError(f"{where}: transport must be 'ipc' or 'tcp'")
-        entry = NodeEntry(
-            name=name, type=raw["type"], cls=node_class(raw["type"]), params=dict(raw.get("params", {})),
-            remap=dict(raw.get("remap", {})), respawn=bool(raw.get("respawn", False)),
-            respawn_delay_s=float(raw.get("respawn_delay_s", 0.5)),
-            respawn_max_retries=int(raw.get("respawn_max_retries", 3)),
-            required=bool(raw.get("required", False)), transport=raw.get("transport", "ipc"),
-            after=list(raw.get("after", [])), nice=int(raw.get("nice", 0)), container=str(raw.get("container", "")),
-            stop_first=bool(raw.get("stop_first", False)),
-        )
-        entry.instance()  # fail now, naming the node, if a parameter is wrong
-        entries.append(entry)
+        entry = _node_entry(_substitute(raw, lookup, where), where)
+        if entry is not None:
+            entry.instance()  # fail now, naming the node, if a parameter is wrong
+            entries.append(entry)
     names = [e.name for e in entries]
     dupes = {n for n in names if names.count(n) > 1}
     if dupes:
@@ -266,4 +429,6 @@ def load_launch_file(
         if missing:
             raise ConfigError(f"{p.name}: node {e.name} starts after {missing}, which this launch does not run")
     _check_containers(p.name, entries)
-    return LaunchFile(p, str(meta.get("description", "")), float(_substitute(meta.get("duration_s", 0), args, "launch.duration_s")), args, entries)
+    check = meta.get("check", False) if check_override is None else _typed_override(False, check_override, CHECK_ARG)
+    return LaunchFile(p, str(meta.get("description", "")), _number(meta.get("duration_s", 0), f"{p.name}: duration_s"),
+                      args, entries, _flag(check, f"{p.name}: [launch] check"))

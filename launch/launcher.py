@@ -10,6 +10,21 @@ order with SIGINT → SIGTERM → SIGKILL escalation (nodes marked ``stop_first`
 simulated rig, go first: the simulated world must not run on without its controller).
 Children get a parent-death signal, so even a SIGKILLed launcher leaves no orphans
 behind.
+
+Respawn: a process that may be respawned has a warm standby (unless ``respawn_standby
+= false``), a second process that has imported its modules and waits on stdin (it
+binds nothing); a restart wakes it, so the node is back without paying the interpreter
+start and the imports again, and a new standby is prepared once it is ready. The first
+restart follows ``respawn_delay_s`` after the exit, each further one waits twice as
+long; ``respawn_max_retries`` restarts in a row use up the budget, which a process
+that stays up ``respawn_reset_s`` gets back. A process whose budget is used up is
+*abandoned*: said loudly, and the launch ends with exit 1 if the node is ``required``
+or the launch has ``check = true``. Deaths, restarts and abandonments are printed in
+the closing lines and written to ``<run_dir>/launch_events.json`` (the run directory
+keeps that file and ``check.json`` after the launch; the newest ``KEEP_FINISHED_RUNS``
+finished ones are kept). With ``check = true`` the launch ends with ``[launch] check
+passed`` or ``[launch] CHECK FAILED: ...`` (exit 1) from the monitor's ``check.json``
+and the processes that died and stayed down.
 """
 
 from __future__ import annotations
@@ -18,7 +33,6 @@ import argparse
 import json
 import os
 import selectors
-import shutil
 import signal
 import subprocess
 import sys
@@ -34,9 +48,10 @@ from slipstack.lib.errors import ConfigError, SlipstackError
 from slipstack.launch.launch_file import LaunchFile, NodeEntry, free_port, load_launch_file
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.messages import Diagnostics
-from slipstack.nodes.graph_info import write_graph
+from slipstack.nodes.graph_info import process_start_ticks, write_graph
 from slipstack.nodes.host import DIAGNOSTICS_TOPIC
-from slipstack.nodes.transport import ipc_endpoint, make_run_dir
+from slipstack.nodes.run_dir import finish_run_dir, make_run_dir, remove_run_dir, write_private_file
+from slipstack.nodes.transport import ipc_endpoint
 
 __all__ = ["Launcher", "add_parser", "main_launch"]
 
@@ -44,6 +59,9 @@ READY_TIMEOUT_S = 20.0
 STOP_GRACE_S = 0.4       # per node, after SIGINT, before the next node is told to stop
 TERM_AFTER_S = 1.5       # from the start of shutdown: SIGTERM whoever is left
 KILL_AFTER_S = 2.5       # from the start of shutdown: SIGKILL whoever is left
+EVENTS_FILE = "launch_events.json"
+CHECK_FILE = "check.json"  # written by the monitor (its ``check_path``) when it stops
+CHECK_FILE_MAX_BYTES = 1 << 20
 
 
 @dataclass
@@ -67,7 +85,19 @@ class _Process:
     spec_path: Path
     proc: subprocess.Popen | None = None
     restarts: int = 0
+    """Restarts over the whole launch."""
+    deaths: int = 0
+    """Exits with a nonzero code or by a signal while the launch was running (not on shutdown)."""
+    budget_used: int = 0
+    """Restarts since the process last stayed up ``respawn_reset_s``."""
+    abandoned: bool = False
+    spawned_at: float = 0.0
+    died_at: float | None = None
+    """When a respawned process's predecessor exited (monotonic s), until all its nodes are ready again."""
+    not_ready: set[str] = field(default_factory=set)
     respawn_at: float | None = None
+    standby: subprocess.Popen | None = None
+    """A process with the node's modules imported, waiting on stdin to start (respawn in a fraction of the time)."""
     buffer: bytes = b""
 
     @property
@@ -136,6 +166,7 @@ class Launcher:
         self.order: list[str] = []  # process names, in start order
         self._stop_requested = False
         self.exit_code = 0
+        self.start_ticks = process_start_ticks(os.getpid())
         self._wire()
 
     # -- wiring ---------------------------------------------------------------------------
@@ -185,7 +216,7 @@ class Launcher:
                        "members": [{"type": c.entry.type, **specs[c.entry.name]} for c in proc.members]}
             else:
                 doc = specs[proc.members[0].entry.name]
-            proc.spec_path.write_text(json.dumps(doc, indent=1))
+            write_private_file(self.run_dir, proc.spec_path.name, json.dumps(doc, indent=1))
         self.order = self._start_order()
 
     @staticmethod
@@ -232,8 +263,39 @@ class Launcher:
 
     # -- processes --------------------------------------------------------------------------
     def _spawn(self, c: _Process) -> None:
+        """Start ``c``: wake its warm standby if it has one, else a new process."""
+        standby, c.standby = c.standby, None
+        c.proc = None
+        if standby is not None and standby.poll() is None:
+            try:
+                standby.stdin.write(b"go\n")
+                standby.stdin.close()
+                c.proc = standby
+            except OSError:  # it died just now
+                standby.kill()
+        if c.proc is None:
+            c.proc = self._popen(c, standby=False)
+        c.buffer = b""
+        c.spawned_at = time.monotonic()
+
+    def _prepare_standby(self, c: _Process) -> None:
+        """Give a respawning process a warm standby: a process with its modules imported, waiting to start."""
+        if c.entry.respawn and c.entry.respawn_standby and c.standby is None and not self._stop_requested:
+            c.standby = self._popen(c, standby=True)
+
+    def _dismiss_standby(self, c: _Process) -> None:
+        """End ``c``'s standby: SIGKILL is clean for it, as it has opened and bound nothing yet."""
+        standby, c.standby = c.standby, None
+        if standby is None:
+            return
+        standby.kill()
+        standby.stdin.close()
+        standby.wait()
+
+    def _popen(self, c: _Process, *, standby: bool) -> subprocess.Popen:
         node_type = "container" if c.is_container else c.entry.type
-        cmd = [sys.executable, "-m", "slipstack.launch.cli", "run", node_type, "--spec", str(c.spec_path)]
+        cmd = [sys.executable, "-m", "slipstack.launch.run_node", node_type, "--spec", str(c.spec_path),
+               *(["--standby"] if standby else [])]
         env = dict(os.environ, PYTHONUNBUFFERED="1", SLIPSTACK_RUN_DIR=str(self.run_dir))
         nice = c.entry.nice
 
@@ -245,13 +307,14 @@ class Launcher:
                 except OSError:  # raising priority needs the privilege: run at normal priority
                     pass
 
-        c.proc = subprocess.Popen(
-            cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+        proc = subprocess.Popen(
+            cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+            stdin=subprocess.PIPE if standby else subprocess.DEVNULL,
             env=env, preexec_fn=in_child, start_new_session=True,
         )
-        os.set_blocking(c.proc.stdout.fileno(), False)
-        self.selector.register(c.proc.stdout, selectors.EVENT_READ, c)
-        c.buffer = b""
+        os.set_blocking(proc.stdout.fileno(), False)
+        self.selector.register(proc.stdout, selectors.EVENT_READ, c)
+        return proc
 
     def _forward_logs(self, timeout: float) -> None:
         for key, _ in self.selector.select(timeout):
@@ -295,6 +358,7 @@ class Launcher:
         write_graph(self.run_dir, {
             "run_dir": str(self.run_dir),
             "launcher_pid": os.getpid(),
+            "launcher_start_ticks": self.start_ticks,
             "launch_file": str(self.launch.path),
             "state": state,
             "started_ns": time.time_ns(),
@@ -312,7 +376,7 @@ class Launcher:
 
     # -- the run ------------------------------------------------------------------------------
     def run(self) -> int:
-        """Start, supervise until a signal, the duration or a required node ends; stop."""
+        """Start, supervise until a signal, the duration or a required node ends; stop; report."""
         old = {s: signal.signal(s, self._on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
         started: list[str] = []
         try:
@@ -321,6 +385,7 @@ class Launcher:
                 self._spawn(self.processes[name])
                 started.append(name)
                 self._wait_ready(self.processes[name], READY_TIMEOUT_S)
+                self._prepare_standby(self.processes[name])
             self._write_graph()
             ready = [f"{n} ({', '.join(c.entry.name for c in self.processes[n].members)})"
                      if self.processes[n].is_container else n for n in started]
@@ -335,6 +400,10 @@ class Launcher:
             for s, h in old.items():
                 signal.signal(s, h)
             self.control.close(linger=0)
+        self._report_events()
+        if self.launch.check:
+            self._report_check()
+        finish_run_dir(self.run_dir, keep=(EVENTS_FILE, CHECK_FILE))
         return self.exit_code
 
     def _supervise(self) -> None:
@@ -344,33 +413,112 @@ class Launcher:
                 self.echo(f"[launch] duration {self.launch.duration_s:g} s reached")
                 return
             self._forward_logs(0.05)
-            while self.control.poll(0):
-                self.control.recv()  # ready reports of respawned nodes
+            self._note_ready_reports()
             now = time.monotonic()
-            for name, c in self.processes.items():
+            for c in self.processes.values():
                 if c.respawn_at is not None and now >= c.respawn_at:
-                    c.respawn_at = None
-                    c.restarts += 1
-                    self.echo(f"[launch] respawning {name} (restart {c.restarts}/{c.entry.respawn_max_retries})")
-                    self._spawn(c)
-                    self._write_graph()
+                    self._respawn(c)
                     continue
                 if c.proc is None or c.respawn_at is not None or c.proc.poll() is None:
                     continue
-                code = c.proc.returncode
-                self._forward_logs(0.0)
-                self.echo(f"[launch] {c.label} exited with code {code}")
-                if c.entry.required:
-                    self.echo(f"[launch] {name} is required; stopping the launch")
-                    if code != 0:
-                        self.exit_code = 1
+                if not self._on_exit(c, now):
                     return
-                if c.entry.respawn and c.restarts < c.entry.respawn_max_retries:
-                    c.respawn_at = now + c.entry.respawn_delay_s
-                else:
-                    c.proc = None
-                    if c.entry.respawn:
-                        self.echo(f"[launch] {name} used up its {c.entry.respawn_max_retries} restarts; not respawning")
+
+    def _note_ready_reports(self) -> None:
+        """Read the ready reports of respawned nodes; say how long each process was gone."""
+        while self.control.poll(0):
+            event = msgpack.unpackb(self.control.recv())
+            if event.get("event") != "ready":
+                continue
+            for c in self.processes.values():
+                if event.get("node") in c.not_ready:
+                    c.not_ready.discard(event.get("node"))
+                    if not c.not_ready and c.died_at is not None:
+                        self.echo(f"[launch] {c.name} ready again {1e3 * (time.monotonic() - c.died_at):.0f} ms "
+                                  "after it exited")
+                        c.died_at = None
+                        self._prepare_standby(c)
+
+    def _respawn(self, c: _Process) -> None:
+        c.respawn_at = None
+        c.restarts += 1
+        c.budget_used += 1
+        c.not_ready = set(c.node_names)
+        how = "its warm standby" if c.standby is not None and c.standby.poll() is None else "a new process"
+        self.echo(f"[launch] respawning {c.name} (restart {c.budget_used}/{c.entry.respawn_max_retries}) "
+                  f"from {how}")
+        self._spawn(c)
+        self._write_graph()
+
+    def _on_exit(self, c: _Process, now: float) -> bool:
+        """Handle the exit of ``c`` (respawn it, abandon it); False if the launch must end."""
+        code = c.proc.returncode
+        if code != 0:
+            c.deaths += 1
+        self._forward_logs(0.0)
+        self.echo(f"[launch] {c.label} exited with code {code}")
+        if now - c.spawned_at >= c.entry.respawn_reset_s:
+            c.budget_used = 0  # it was healthy for a while: a fresh budget
+        if c.entry.respawn and c.budget_used < c.entry.respawn_max_retries:
+            c.respawn_at = now + c.entry.respawn_delay_s * 2 ** c.budget_used
+            c.died_at = now
+            return True
+        c.proc = None
+        self._dismiss_standby(c)
+        if c.entry.respawn:
+            c.abandoned = True
+            self.echo(f"[launch] ABANDONED {c.name}: it exited {c.budget_used + 1} times in a row (restarted "
+                      f"{c.budget_used}x, respawn_max_retries = {c.entry.respawn_max_retries}); it stays down")
+        if c.entry.required:
+            self.echo(f"[launch] {c.name} is required; stopping the launch (it exited with code {code})")
+            if code != 0 or c.abandoned:
+                self.exit_code = 1
+            return False
+        if c.abandoned and self.launch.check:
+            self.echo("[launch] check = true: a node was abandoned; stopping the launch")
+            self.exit_code = 1
+            return False
+        return True
+
+    def _report_events(self) -> None:
+        """Print each process's deaths and restarts; write them to ``launch_events.json``."""
+        events = {
+            name: {"nodes": sorted(c.node_names), "died": c.deaths, "respawned": c.restarts, "abandoned": c.abandoned}
+            for name, c in self.processes.items()
+        }
+        for name, e in events.items():
+            if e["abandoned"]:
+                self.echo(f"[launch] {name}: died {e['died']}x, abandoned after {e['respawned']} restarts")
+            elif e["died"] or e["respawned"]:
+                self.echo(f"[launch] {name}: died {e['died']}x, respawned {e['respawned']}x")
+        write_private_file(self.run_dir, EVENTS_FILE, json.dumps({"exit_code": self.exit_code, "processes": events},
+                                                                  indent=1))
+
+    def _check_problems(self) -> list[str]:
+        """What failed the run: the monitor's ``check.json`` problems, processes that died and stayed down."""
+        try:
+            fd = os.open(self.run_dir / CHECK_FILE, os.O_RDONLY | os.O_NOFOLLOW)
+            with os.fdopen(fd, "rb") as fh:
+                doc = json.loads(fh.read(CHECK_FILE_MAX_BYTES))
+            problems = [] if doc["passed"] is True else [str(p) for p in doc.get("problems") or ["not passed"]]
+        except FileNotFoundError:
+            problems = [f"no {CHECK_FILE} from the monitor (is it disabled, or did it not stop cleanly?)"]
+        except (OSError, ValueError, TypeError, KeyError) as exc:
+            problems = [f"{CHECK_FILE} is unreadable ({exc})"]
+        for c in self.processes.values():
+            if c.abandoned:
+                problems.append(f"{c.name} abandoned after {c.restarts} restarts")
+            elif c.deaths and c.proc is None:
+                problems.append(f"{c.name} died and was not restarted (respawn = false)")
+        return problems
+
+    def _report_check(self) -> None:
+        problems = self._check_problems()
+        if problems:
+            self.echo(f"[launch] CHECK FAILED: {'; '.join(problems)}")
+            self.exit_code = 1
+        else:
+            self.echo("[launch] check passed")
 
     def _stop_order(self, started: list[str]) -> list[_Process]:
         """Processes marked ``stop_first`` (the simulated world), then the rest in reverse start order."""
@@ -378,6 +526,8 @@ class Launcher:
         return [p for p in procs if p.entry.stop_first] + [p for p in procs if not p.entry.stop_first]
 
     def _shutdown(self, started: list[str]) -> None:
+        for c in self.processes.values():
+            self._dismiss_standby(c)
         t0 = time.monotonic()
         live = [p for p in self._stop_order(started) if p.proc is not None]
         for c in live:
@@ -397,7 +547,6 @@ class Launcher:
         for c in live:
             c.proc.wait()
         self._forward_logs(0.0)
-        shutil.rmtree(self.run_dir, ignore_errors=True)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -421,13 +570,14 @@ def main_launch(args: argparse.Namespace) -> int:
     try:
         builtins = {"run_dir": str(run_dir)}
         launch = load_launch_file(file, parse_assignments(positional), builtins=builtins)
-    except SlipstackError:
-        shutil.rmtree(run_dir, ignore_errors=True)
+        if args.show_args:
+            for name, value in launch.args.items():
+                if name not in ("run_dir", "free_udp_port", "stamp"):
+                    print(f"{name} := {value!r}")
+            remove_run_dir(run_dir)
+            return 0
+        launcher = Launcher(launch, run_dir)
+    except BaseException:  # a bad launch file leaves no run directory behind
+        remove_run_dir(run_dir)
         raise
-    if args.show_args:
-        shutil.rmtree(run_dir, ignore_errors=True)
-        for name, value in launch.args.items():
-            if name not in ("run_dir", "free_udp_port", "stamp"):
-                print(f"{name} := {value!r}")
-        return 0
-    return Launcher(launch, run_dir).run()
+    return launcher.run()

@@ -1,9 +1,11 @@
 """``slipstack run NODE``: one node as a process (or ``run container``: several).
 
-The launcher calls it with ``--spec FILE`` (a JSON :class:`RunSpec` plus
-parameters; for a container ``{"container": NAME, "members": [{"type": …, spec…}]}``);
-by hand, give endpoints with ``--pub`` and ``--sub TOPIC=ENDPOINT`` and parameters
-as ``name:=value``.
+The launcher starts ``python -m slipstack.launch.run_node NODE --spec FILE`` (a JSON
+:class:`RunSpec` plus parameters; for a container ``{"container": NAME, "members":
+[{"type": …, spec…}]}``): that entry imports only what the node needs, not every
+command and node type as ``slipstack`` does, so a respawned node is back sooner. By
+hand, ``slipstack run NODE`` with endpoints as ``--pub`` and ``--sub TOPIC=ENDPOINT``
+and parameters as ``name:=value``.
 """
 
 from __future__ import annotations
@@ -12,13 +14,16 @@ import argparse
 import ctypes
 import json
 import signal
+import sys
 
-from slipstack.lib.errors import ConfigError
+import zmq
+
+from slipstack.lib.errors import ConfigError, SlipstackError
 from slipstack.nodes.catalog import NODE_TYPES, node_class
 from slipstack.nodes.node import Node, make_params, param_help
 from slipstack.nodes.process import ProcessExecutor, RunSpec
 
-__all__ = ["add_parser", "main_run", "parse_assignments", "set_parent_death_signal"]
+__all__ = ["add_parser", "main_run", "main_spawned", "parse_assignments", "set_parent_death_signal"]
 
 _PR_SET_PDEATHSIG = 1
 
@@ -80,6 +85,20 @@ def _member(raw: dict) -> tuple[Node, RunSpec]:
     return cls(make_params(cls.Params, values, spec.name)), spec
 
 
+def _executor(members: list[tuple[Node, RunSpec]]) -> ProcessExecutor:
+    """The executor of ``members`` (binds their sockets); SlipstackError, one line, if an address is taken."""
+    try:
+        return ProcessExecutor(members)
+    except zmq.ZMQError as exc:
+        if exc.errno != zmq.EADDRINUSE:
+            raise
+        names = ", ".join(spec.name for _, spec in members)
+        raise SlipstackError(
+            f"{names}: cannot bind its socket: {exc}. Another process holds that address: stop it (`ss -ltnp` "
+            "shows who), or restart the launch, which picks a free port"
+        ) from None
+
+
 def main_run(args: argparse.Namespace) -> int:
     if args.node == "container":
         if not args.spec or args.assignments:
@@ -87,7 +106,7 @@ def main_run(args: argparse.Namespace) -> int:
         with open(args.spec) as fh:
             doc = json.load(fh)
         set_parent_death_signal()
-        return ProcessExecutor([_member(m) for m in doc["members"]]).run()
+        return _executor([_member(m) for m in doc["members"]]).run()
     node_class(args.node)  # an unknown type fails here, with the list of known ones
     if args.spec:
         with open(args.spec) as fh:
@@ -102,4 +121,42 @@ def main_run(args: argparse.Namespace) -> int:
             subs.setdefault(topic, []).append(ep)
         raw = {"name": args.name or args.node, "pub": args.pub, "subs": subs}
     raw.setdefault("params", {}).update(parse_assignments(args.assignments))
-    return ProcessExecutor([_member({**raw, "type": args.node})]).run()
+    return _executor([_member({**raw, "type": args.node})]).run()
+
+
+def main_spawned(argv: list[str] | None = None) -> int:
+    """``python -m slipstack.launch.run_node NODE --spec FILE``: the launcher's lean way to start a process."""
+    from slipstack.launch.cli import run_guarded
+
+    parser = argparse.ArgumentParser(
+        prog="python -m slipstack.launch.run_node",
+        description="Run a node (or 'container') from a run spec written by `slipstack launch`.",
+    )
+    parser.add_argument("node", help="node type, or 'container'")
+    parser.add_argument("--spec", required=True, help="JSON run spec written by the launcher")
+    parser.add_argument("--standby", action="store_true",
+                        help="import the node's modules, then wait for a line on stdin before starting "
+                             "(end of stdin: exit without starting)")
+    args = parser.parse_args(argv)
+    args.assignments, args.name, args.pub, args.sub = [], None, None, []
+    if args.standby and not _wait_for_go(args.node, args.spec):
+        return 0
+    return run_guarded("run", lambda: main_run(args))
+
+
+def _wait_for_go(node_type: str, spec_path: str) -> bool:
+    """Import the modules of the node(s) to run, then block until stdin says go (True) or ends (False)."""
+    set_parent_death_signal()
+    with open(spec_path) as fh:
+        doc = json.load(fh)
+    for name in [m["type"] for m in doc["members"]] if node_type == "container" else [node_type]:
+        node_class(name)
+    # loading the numba kernels is the slow part of the start of the nodes that use them
+    kernels = sys.modules.get("slipstack.lib.limit_set")
+    if kernels is not None:
+        kernels.compile_kernels()
+    return bool(sys.stdin.readline())
+
+
+if __name__ == "__main__":
+    sys.exit(main_spawned())

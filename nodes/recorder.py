@@ -28,6 +28,7 @@ from typing import Any, Callable
 
 import zmq
 
+from slipstack.lib.errors import ConfigError
 from slipstack.nodes.bag_io import RecordingWriter, peek_header, publisher_key
 from slipstack.nodes.stop_signal import StopSignal
 from slipstack.nodes.graph_info import GRAPH_FILE, RUN_DIR_ENV, find_run_dir, read_graph, topic_endpoints
@@ -168,6 +169,8 @@ class Recorder(Node):
 
     def start(self, ctx: Context) -> None:
         path = Path(self.params.path) if self.params.path else default_output_path()
+        if os.path.lexists(path):  # never overwrite a recording (or write through a link)
+            raise ConfigError(f"recording {path} exists; pass recording:=NEW.mcap (or path:=NEW.mcap) or delete it")
         writer = RecordingWriter(path, wall_minus_monotonic_ns=time.time_ns() - time.monotonic_ns())
         # Launched: the launcher names our graph in $SLIPSTACK_RUN_DIR and counts us in
         # every publisher's readiness handshake (``taps_bus``), so no first sample is missed.

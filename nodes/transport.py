@@ -1,4 +1,4 @@
-"""ZeroMQ transport details: endpoints, socket options, the run directory.
+"""ZeroMQ transport details: endpoints and socket options (run directories: ``nodes/run_dir``).
 
 Frames are multipart ``[topic, msgpack payload]``. Each publishing node binds one
 XPUB socket (verbose, so it sees every subscription and can wait for its
@@ -13,35 +13,20 @@ the subscriptions an XPUB receives: :data:`MAX_SUBSCRIPTION_BYTES`).
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import zmq
 
 from slipstack.lib.errors import ConfigError
 from slipstack.messages.codec import MAX_PAYLOAD_BYTES
+from slipstack.nodes.run_dir import RUN_ROOT_ENV, make_run_dir, run_root
 
 __all__ = [
     "make_run_dir", "ipc_endpoint", "make_pub", "make_sub", "bound_socket", "RUN_ROOT_ENV", "run_root",
     "MAX_SUBSCRIPTION_BYTES", "SUBSCRIPTION_HWM",
 ]
 
-RUN_ROOT_ENV = "SLIPSTACK_RUN_ROOT"
 IPC_PATH_MAX = 107  # Linux sun_path limit (libzmq zmq_ipc)
-
-
-def run_root() -> Path:
-    """Where run directories live: ``$SLIPSTACK_RUN_ROOT`` or ``/tmp/slipstack-<uid>``."""
-    root = os.environ.get(RUN_ROOT_ENV) or os.path.join(tempfile.gettempdir(), f"slipstack-{os.getuid()}")
-    path = Path(root)
-    path.mkdir(mode=0o700, parents=True, exist_ok=True)
-    return path
-
-
-def make_run_dir(prefix: str = "run") -> Path:
-    """A new private (mode 0700) run directory for one launched graph."""
-    return Path(tempfile.mkdtemp(prefix=f"{prefix}-", dir=run_root()))
 
 
 def ipc_endpoint(run_dir: Path, name: str) -> str:

@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
+import socket
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import msgpack
 import pytest
@@ -19,6 +24,53 @@ pytestmark = pytest.mark.e2e
 
 def _pids(graph: dict) -> dict[str, int]:
     return {name: n["pid"] for name, n in graph["nodes"].items()}
+
+
+def _wait_until(condition, what: str, g, timeout: float = 30.0) -> None:
+    """Poll ``condition`` until it holds; fail naming ``what`` with the launch log (a generous deadline)."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            pytest.fail(f"{what}:\n{g.log()}")
+        time.sleep(0.05)
+
+
+def _processes_of(run_root: Path) -> list[int]:
+    """Pids of live processes whose command line names ``run_root`` (nodes and their warm standbys)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        try:
+            cmdline = (entry / "cmdline").read_bytes()
+        except OSError:
+            continue
+        if entry.name.isdigit() and str(run_root).encode() in cmdline and pid_alive(int(entry.name)):
+            found.append(int(entry.name))
+    return found
+
+
+def _events(g) -> dict:
+    """``launch_events.json`` of the graph's (finished) run directory."""
+    return json.loads((g.run_root / "current" / "launch_events.json").read_text())
+
+
+def _write_launch(run_root: Path, text: str) -> str:
+    path = run_root / "graph.toml"
+    path.write_text(text)
+    return str(path)
+
+
+def _kill_and_wait_respawn(g, node: str, restarts: int) -> int:
+    """SIGKILL ``node``; wait until the launcher has restarted it ``restarts`` times and it is ready; its new pid."""
+    old = g.graph()["nodes"][node]["pid"]
+    os.kill(old, signal.SIGKILL)
+
+    def back() -> bool:
+        now = g.graph()["nodes"][node]
+        return now["restarts"] == restarts and now["pid"] != old and pid_alive(now["pid"])
+
+    _wait_until(back, f"{node} not respawned", g)
+    _wait_until(lambda: g.log().count(f"[launch] {node} ready again") == restarts, f"{node} not ready again", g)
+    return g.graph()["nodes"][node]["pid"]
 
 
 def _echo_once(g, topic: str) -> str:
@@ -47,15 +99,16 @@ def test_demo_graph_respawns_a_killed_node_and_stops_cleanly_on_each_signal(laun
         assert "seq:" in _echo_once(g, "ft/relayed")  # data flows again through the new relay
 
         all_pids = [*_pids(g.graph()).values(), g.proc.pid]
-        t0 = time.monotonic()
         g.proc.send_signal(sig)
-        g.proc.wait(10)
-        while any(pid_alive(p) for p in all_pids) and time.monotonic() - t0 < 3.0:
-            time.sleep(0.02)
-        gone_after = time.monotonic() - t0
-        assert not any(pid_alive(p) for p in all_pids), f"processes left after {sig.name}"
-        assert gone_after < 3.0
+        g.proc.wait(30)
+        _wait_until(lambda: not any(pid_alive(p) for p in all_pids), f"processes left after {sig.name}", g)
+        _wait_until(lambda: not _processes_of(g.run_root), f"standby processes left after {sig.name}", g)
         assert g.proc.returncode == 0, g.log()
+        assert "[launch] respawning relay (restart 1/3) from its warm standby" in g.log()
+        assert "[launch] relay: died 1x, respawned 1x" in g.log()
+        events = _events(g)
+        assert events["processes"]["relay"] == {"nodes": ["relay"], "died": 1, "respawned": 1, "abandoned": False}
+        assert events["processes"]["source"]["died"] == 0 and events["exit_code"] == 0
 
 
 def _read_diagnostics(endpoint: str, node: str, want: str, timeout: float = 10.0) -> dict:
@@ -140,3 +193,111 @@ def test_container_members_must_share_their_process_settings(launch, run_root):
     g = launch(str(bad))
     assert g.proc.wait(30) != 0
     assert "relay and sink share container 'c'" in g.log()
+
+
+PIPELINE = """
+[[node]]
+name = "source"
+type = "wrench_source"
+{source}
+[[node]]
+name = "relay"
+type = "relay"
+{relay}
+[[node]]
+name = "sink"
+type = "sink"
+"""
+
+
+def test_the_respawn_budget_comes_back_after_a_healthy_period(launch, run_root):
+    """One restart allowed, but the relay stays up longer than respawn_reset_s between deaths."""
+    relay = "respawn = true\nrespawn_max_retries = 1\nrespawn_reset_s = 0.5"
+    g = launch(_write_launch(run_root, PIPELINE.format(source="", relay=relay)))
+    g.wait_ready()
+    _kill_and_wait_respawn(g, "relay", restarts=1)
+    time.sleep(1.0)  # longer than respawn_reset_s: the budget is back (a busy machine only makes it longer)
+    _kill_and_wait_respawn(g, "relay", restarts=2)
+    assert "seq:" in _echo_once(g, "ft/relayed")
+    assert g.stop() == 0, g.log_path.read_text()
+    assert "ABANDONED" not in g.log_path.read_text()
+    assert _events(g)["processes"]["relay"] == {"nodes": ["relay"], "died": 2, "respawned": 2, "abandoned": False}
+
+
+@pytest.mark.parametrize("relay_policy, args", [("required = true\nrespawn_standby = false", []), ("", ["check:=true"])])
+def test_a_node_out_of_restarts_is_abandoned_loudly_and_ends_a_required_or_checked_launch(
+        launch, run_root, relay_policy, args):
+    relay = f"respawn = true\nrespawn_max_retries = 1\nrespawn_reset_s = 600\n{relay_policy}"
+    g = launch(_write_launch(run_root, PIPELINE.format(source="", relay=relay)), *args)
+    pids = _pids(g.wait_ready())
+    os.kill(_kill_and_wait_respawn(g, "relay", restarts=1), signal.SIGKILL)
+    assert g.proc.wait(30) == 1, g.log()
+    log = g.log()
+    assert "[launch] ABANDONED relay: it exited 2 times in a row (restarted 1x, respawn_max_retries = 1)" in log
+    assert "[launch] relay: died 2x, abandoned after 1 restarts" in log
+    how = "a new process" if "respawn_standby = false" in relay_policy else "its warm standby"
+    assert f"[launch] respawning relay (restart 1/1) from {how}" in log
+    if args:
+        assert "[launch] CHECK FAILED: no check.json from the monitor" in log
+        assert "relay abandoned after 1 restarts" in log.split("CHECK FAILED")[1]
+    assert _events(g)["processes"]["relay"] == {"nodes": ["relay"], "died": 2, "respawned": 1, "abandoned": True}
+    _wait_until(lambda: not any(pid_alive(p) for p in pids.values()), "nodes left running", g)
+
+
+@pytest.mark.parametrize("sig, code, launch_code", [(signal.SIGTERM, 0, 0), (signal.SIGKILL, -9, 1)])
+def test_a_required_node_that_exits_ends_the_launch_with_its_code(launch, run_root, sig, code, launch_code):
+    g = launch(_write_launch(run_root, PIPELINE.format(source="required = true", relay="")))
+    pids = _pids(g.wait_ready())
+    os.kill(pids["source"], sig)
+    assert g.proc.wait(30) == launch_code, g.log()
+    assert f"[launch] node source (wrench_source) exited with code {code}" in g.log()
+    assert f"[launch] source is required; stopping the launch (it exited with code {code})" in g.log()
+    _wait_until(lambda: not any(pid_alive(p) for p in pids.values()), "nodes left running", g)
+
+
+@pytest.mark.parametrize("check, code, line", [
+    ({"passed": False, "problems": ["object slid 3.2 mm", "fail-safe 12 % of commands"]}, 1,
+     "[launch] CHECK FAILED: object slid 3.2 mm; fail-safe 12 % of commands"),
+    ({"passed": True, "problems": []}, 0, "[launch] check passed"),
+])
+def test_check_true_turns_the_monitors_verdict_into_the_exit_code(launch, check, code, line):
+    g = launch("demo", "check:=true")
+    run_dir = Path(g.wait_ready()["run_dir"])
+    (run_dir / "check.json").write_text(json.dumps(check))  # what the monitor writes when it stops
+    assert g.stop() == code, g.log_path.read_text()
+    log = g.log_path.read_text()
+    assert log.rstrip().endswith(line), log
+    assert json.loads((run_dir / "check.json").read_text()) == check  # kept for a look afterwards
+
+
+def test_tools_refuse_a_run_directory_whose_launcher_was_killed(launch):
+    g = launch("demo")
+    pids = _pids(g.wait_ready())
+    g.proc.kill()
+    g.proc.wait(10)
+    _wait_until(lambda: not any(pid_alive(p) for p in pids.values()), "nodes outlived their launcher", g)
+    _wait_until(lambda: not _processes_of(g.run_root), "standby processes outlived their launcher", g)
+    for verb in (["hz", "ft/wrench"], ["echo", "ft/wrench"], ["list"]):
+        out = g.cli("topic", *verb, timeout=30)
+        assert out.returncode == 2, (verb, out.stdout, out.stderr)
+        assert f"no running graph (launcher pid {g.proc.pid} is gone; run directory " in out.stderr
+        assert "is stale" in out.stderr
+
+
+def test_a_node_whose_address_is_taken_says_so_in_one_line():
+    holder = socket.socket()
+    holder.bind(("127.0.0.1", 0))
+    holder.listen()
+    port = holder.getsockname()[1]
+    try:
+        out = subprocess.run(
+            [sys.executable, "-m", "slipstack.launch.cli", "run", "wrench_source", "--pub", f"tcp://127.0.0.1:{port}"],
+            capture_output=True, text=True, timeout=60,
+        )
+    finally:
+        holder.close()
+    assert out.returncode == 2
+    assert "Traceback" not in out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and "wrench_source: cannot bind its socket" in lines[0], out.stderr
+    assert "Address already in use" in lines[0] and "stop it" in lines[0]
