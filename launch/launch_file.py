@@ -59,6 +59,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from slipstack.lib.errors import ConfigError
+from slipstack.nodes.curve import GraphKeys
 from slipstack.nodes.catalog import node_class
 from slipstack.nodes.node import Node, make_params
 
@@ -68,7 +69,7 @@ __all__ = ["NodeEntry", "LaunchFile", "load_launch_file", "default_launch_file",
 _SUBST = re.compile(r"\$\((\w+)\)")
 _IDENTIFIER = re.compile(r"[A-Za-z0-9_-]+")
 _TOP_KEYS = {"launch", "args", "node"}
-_LAUNCH_KEYS = {"description", "duration_s", "extends", "check"}
+_LAUNCH_KEYS = {"description", "duration_s", "extends", "check", "keys", "insecure"}
 _NODE_KEYS = {"name", "type", "params", "remap", "respawn", "respawn_delay_s", "respawn_max_retries",
               "respawn_reset_s", "respawn_standby", "required", "transport", "enabled", "after", "nice", "container", "stop_first"}
 SUBST_MAX_CHARS = 65536
@@ -131,6 +132,10 @@ class LaunchFile:
     nodes: list[NodeEntry]
     check: bool = False
     """Exit 1 at the end unless the run passed (``<run_dir>/check.json``, no node died and stayed down)."""
+    keys: Path | None = None
+    """Key directory of the graph's tcp links (``slipstack keys DIR``; nodes/curve.py)."""
+    insecure: bool = False
+    """tcp links without CURVE, explicitly allowed."""
 
 
 def launch_files_dir() -> Path:
@@ -430,5 +435,23 @@ def load_launch_file(
             raise ConfigError(f"{p.name}: node {e.name} starts after {missing}, which this launch does not run")
     _check_containers(p.name, entries)
     check = meta.get("check", False) if check_override is None else _typed_override(False, check_override, CHECK_ARG)
+    keys, insecure = _tcp_security(p, meta, entries)
     return LaunchFile(p, str(meta.get("description", "")), _number(meta.get("duration_s", 0), f"{p.name}: duration_s"),
-                      args, entries, _flag(check, f"{p.name}: [launch] check"))
+                      args, entries, _flag(check, f"{p.name}: [launch] check"), keys, insecure)
+
+
+def _tcp_security(p: Path, meta: dict[str, Any], entries: list[NodeEntry]) -> tuple[Path | None, bool]:
+    """``[launch] keys`` (a key directory, relative to the launch file) and ``insecure``;
+    a graph with tcp links needs one of them (nodes/curve.py)."""
+    insecure = _flag(meta.get("insecure", False), f"{p.name}: [launch] insecure")
+    raw = meta.get("keys", "")
+    if not isinstance(raw, str):
+        raise ConfigError(f"{p.name}: [launch] keys must be a directory path; got {raw!r}")
+    keys = (p.parent / Path(raw).expanduser()).resolve() if raw else None
+    if keys is not None:
+        GraphKeys.load(keys)  # fail now with how to make them
+    tcp = [e.name for e in entries if e.transport == "tcp"]
+    if tcp and keys is None and not insecure:
+        raise ConfigError(f"{p.name}: nodes {tcp} use transport tcp, which needs keys: run `slipstack keys DIR` and "
+                          "set [launch] keys = \"DIR\" (or insecure = true to let anyone on the network connect)")
+    return keys, insecure

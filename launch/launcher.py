@@ -48,6 +48,7 @@ from slipstack.lib.errors import ConfigError, SlipstackError
 from slipstack.launch.launch_file import LaunchFile, NodeEntry, free_port, load_launch_file
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.messages import Diagnostics
+from slipstack.nodes.curve import INSECURE_ENV, KEYS_ENV
 from slipstack.nodes.graph_info import process_start_ticks, write_graph
 from slipstack.nodes.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.run_dir import finish_run_dir, make_run_dir, remove_run_dir, write_private_file
@@ -297,6 +298,10 @@ class Launcher:
         cmd = [sys.executable, "-m", "slipstack.launch.run_node", node_type, "--spec", str(c.spec_path),
                *(["--standby"] if standby else [])]
         env = dict(os.environ, PYTHONUNBUFFERED="1", SLIPSTACK_RUN_DIR=str(self.run_dir))
+        if self.launch.keys is not None:
+            env[KEYS_ENV] = str(self.launch.keys)
+        if self.launch.insecure:
+            env[INSECURE_ENV] = "1"
         nice = c.entry.nice
 
         def in_child() -> None:
@@ -360,6 +365,7 @@ class Launcher:
             "launcher_pid": os.getpid(),
             "launcher_start_ticks": self.start_ticks,
             "launch_file": str(self.launch.path),
+            "keys": str(self.launch.keys) if self.launch.keys else "",
             "state": state,
             "started_ns": time.time_ns(),
             "nodes": {

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from slipstack.lib.errors import ConfigError
+from slipstack.nodes.curve import use_keys
 from slipstack.nodes.run_dir import CURRENT_LINK, point_current, run_root, write_private_file
 
 __all__ = ["GRAPH_FILE", "write_graph", "read_graph", "find_run_dir", "topic_endpoints", "process_start_ticks"]
@@ -83,8 +84,12 @@ def find_run_dir(explicit: str | None = None) -> Path:
 
 
 def read_graph(run_dir: Path) -> dict[str, Any]:
-    """Load ``graph.json`` from ``run_dir``."""
-    return json.loads((run_dir / GRAPH_FILE).read_text())
+    """Load ``graph.json`` from ``run_dir``; a graph with tcp keys makes this process use them
+    (a tool attaching from outside the launch)."""
+    graph = json.loads((run_dir / GRAPH_FILE).read_text())
+    if graph.get("keys"):
+        use_keys(graph["keys"])
+    return graph
 
 
 def topic_endpoints(graph: dict[str, Any]) -> dict[str, list[str]]:

@@ -47,6 +47,7 @@ from slipstack.messages import Header, Message
 from slipstack.nodes.host import DIAGNOSTICS_TOPIC, NodeHost
 from slipstack.nodes.node import Node
 from slipstack.nodes.rate_limit import TokenBucket
+from slipstack.nodes.curve import secure_bind
 from slipstack.nodes.transport import bound_socket, make_pub, make_sub
 
 __all__ = ["ProcessExecutor", "RunSpec"]
@@ -131,6 +132,7 @@ class _Member:
             for topic in self.inject_routes:
                 self.inject_sock.setsockopt(zmq.SUBSCRIBE, topic)
             for endpoint in sorted(set(spec.inject.values())):
+                secure_bind(self.inject_sock, endpoint)
                 self.inject_sock.bind(endpoint)
         self.queues = {n: deque(maxlen=i.depth) for n, i in node.inputs.items() if i.policy == "queue"}
         self.subscriptions: dict[bytes, int] = {}

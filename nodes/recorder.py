@@ -30,6 +30,7 @@ import zmq
 
 from slipstack.lib.errors import ConfigError
 from slipstack.nodes.bag_io import RecordingWriter, peek_header, publisher_key
+from slipstack.nodes.curve import secure_connect
 from slipstack.nodes.stop_signal import StopSignal
 from slipstack.nodes.graph_info import GRAPH_FILE, RUN_DIR_ENV, find_run_dir, read_graph, topic_endpoints
 from slipstack.nodes.node import Context, Node
@@ -104,6 +105,7 @@ class BusRecorder:
                 continue
             for ep in eps:
                 if ep not in self.endpoints:
+                    secure_connect(self.sock, ep)
                     self.sock.connect(ep)
                     self.endpoints.add(ep)
 

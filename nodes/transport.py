@@ -19,6 +19,7 @@ import zmq
 
 from slipstack.lib.errors import ConfigError
 from slipstack.messages.codec import MAX_PAYLOAD_BYTES
+from slipstack.nodes.curve import secure_bind, secure_connect
 from slipstack.nodes.run_dir import RUN_ROOT_ENV, make_run_dir, run_root
 
 __all__ = [
@@ -62,19 +63,21 @@ def bound_socket(ctx: zmq.Context, kind: int, *, sndhwm: int, rcvhwm: int, max_m
 
 
 def make_pub(ctx: zmq.Context, endpoint: str, *, sndhwm: int = 1000) -> zmq.Socket:
-    """Bind a verbose XPUB socket (subscriptions are visible for the handshake)."""
+    """Bind a verbose XPUB socket (subscriptions are visible for the handshake); CURVE on tcp."""
     sock = bound_socket(ctx, zmq.XPUB, sndhwm=sndhwm, rcvhwm=SUBSCRIPTION_HWM, max_msg_bytes=MAX_SUBSCRIPTION_BYTES)
     sock.setsockopt(zmq.XPUB_VERBOSE, 1)
+    secure_bind(sock, endpoint)
     sock.bind(endpoint)
     return sock
 
 
 def make_sub(ctx: zmq.Context, endpoints: list[str], topic: str | None, *, rcvhwm: int = 1000) -> zmq.Socket:
-    """Connect a SUB socket to ``endpoints``, subscribed to ``topic`` (all if ``None``)."""
+    """Connect a SUB socket to ``endpoints``, subscribed to ``topic`` (all if ``None``); CURVE on tcp."""
     sock = bound_socket(ctx, zmq.SUB, sndhwm=SUBSCRIPTION_HWM, rcvhwm=rcvhwm, max_msg_bytes=MAX_PAYLOAD_BYTES)
     sock.setsockopt(zmq.RECONNECT_IVL, 20)
     sock.setsockopt(zmq.RECONNECT_IVL_MAX, 200)
     sock.setsockopt(zmq.SUBSCRIBE, b"" if topic is None else topic.encode())
     for ep in endpoints:
+        secure_connect(sock, ep)
         sock.connect(ep)
     return sock
