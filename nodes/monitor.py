@@ -18,7 +18,8 @@ Health (the ``HEALTH:`` line, also on the live line):
   ``command_deadline_ms``;
 - *samples skipped for newer ones*: ``in.<topic>.dropped`` over ``in.<topic>.received``
   of each node's latest-value inputs (fusion acting on the newest F/T sample when its
-  process waited for a core);
+  process waited for a core), on the HEALTH line for sensor topics above
+  :data:`SKIP_WARN_SHARE`;
 - *behind real time*: ``timer.<name>.skipped`` ticks of a timer-paced node (the rig
   skips simulator ticks it could not make up);
 - *silent nodes*: a node whose ``diagnostics`` (every 1 s) stopped for longer than
@@ -46,9 +47,12 @@ __all__ = ["Monitor", "MonitorParams", "summarise", "check_problems", "format_su
 _LOSS_KEYS = (".rejected", ".lost", ".dropped_hwm")  # ".dropped" is drain-to-latest, on purpose
 FAIL_SAFE = "fail-safe"
 SKIP_WARN_SHARE = 0.25
-"""A latest-value input that skipped more than this share of its samples is reported on
-the HEALTH line (at the paper rates fusion skips 5–8 % of F/T samples on a shared 2-core
-machine: normal; a quarter means the control path is falling behind)."""
+"""A node that skipped more than this share of the sensor samples (:data:`SENSOR_TOPICS`)
+of a latest-value input is reported on the HEALTH line (at the paper rates fusion skips
+5–8 % of F/T samples on a shared 2-core machine: normal; a quarter means the control
+path is falling behind). Other skips (the rig acting on the newest grip command) are
+only listed."""
+SENSOR_TOPICS = ("ft/wrench", "tactile/frame")
 
 
 @dataclass(frozen=True)
@@ -302,7 +306,7 @@ def check_problems(s: dict, p: MonitorParams) -> list[str]:
 
 def behind_problems(s: dict) -> list[str]:
     """Signs that the control path fell behind: late commands, timer ticks skipped, more
-    than :data:`SKIP_WARN_SHARE` of a latest-value input skipped for newer samples."""
+    than :data:`SKIP_WARN_SHARE` of a sensor topic's samples skipped for newer ones."""
     problems = []
     if s["late_commands"]:
         problems.append(f"{s['late_share'] * 100:.1f}% of the grip commands left later than "
@@ -312,7 +316,7 @@ def behind_problems(s: dict) -> list[str]:
         problems.append(f"{node} fell behind real time (timer ticks skipped: {ticks})")
     for node, inputs in sorted(s["skipped_for_newer"].items()):
         for topic, n in sorted(inputs.items()):
-            if n["received"] and n["skipped"] / n["received"] > SKIP_WARN_SHARE:
+            if topic in SENSOR_TOPICS and n["received"] and n["skipped"] / n["received"] > SKIP_WARN_SHARE:
                 problems.append(f"{node} skipped {n['skipped'] / n['received'] * 100:.0f}% of {topic} for newer samples")
     return problems
 

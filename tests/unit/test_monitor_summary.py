@@ -194,15 +194,20 @@ def test_check_names_every_problem(tmp_path):
 
 def test_behind_real_time_and_skipped_samples_reach_the_health_line(tmp_path):
     events = [(t * MS, "rig/truth", _truth(t * MS)) for t in range(100)]
-    events.append((50 * MS, "diagnostics", _diag("rig", 50 * MS, **{"timer.tick.skipped": 35})))
     events.append((60 * MS, "diagnostics", _diag("fusion", 60 * MS, **{"in.ft/wrench.received": 1000,
                                                                        "in.ft/wrench.dropped": 400})))
+    events.append((70 * MS, "diagnostics", _diag("rig", 70 * MS, **{"in.grip/command.received": 1000,
+                                                                    "in.grip/command.dropped": 400,
+                                                                    "timer.tick.skipped": 35})))
     s, logs, _ = monitor_over(events, tmp_path)
     assert s["behind_real_time"] == {"rig": {"timer.tick.skipped": 35}}
-    assert s["skipped_for_newer"] == {"fusion": {"ft/wrench": {"skipped": 400, "received": 1000}}}
+    assert s["skipped_for_newer"] == {"fusion": {"ft/wrench": {"skipped": 400, "received": 1000}},
+                                      "rig": {"grip/command": {"skipped": 400, "received": 1000}}}
     health = next(line for line in logs if "HEALTH:" in line)
     assert "rig fell behind real time (timer ticks skipped: tick 35)" in health
     assert "fusion skipped 40% of ft/wrench for newer samples" in health
+    assert "grip/command" not in health  # the plant acting on the newest command: listed, not a problem
+    assert any("rig grip/command 400 of 1000" in line for line in logs)
 
 
 def test_the_check_file_is_replaced_whole(tmp_path):
