@@ -34,6 +34,11 @@ def _run(launch, run_root, scene: str, controller: bool) -> dict:
     return json.loads(summary.read_text())
 
 
+def _why(s: dict) -> str:
+    """The summary in full, so that a failure shows the run's health too."""
+    return json.dumps(s, indent=1)
+
+
 def least_holding_force_n(scene_name: str) -> float:
     """A lower bound on the normal force (N) that holds the scene's peak disturbance.
 
@@ -69,17 +74,17 @@ def test_least_holding_force_by_hand():
 @pytest.mark.parametrize("scene", SCENES)
 def test_controller_holds_the_object(launch, run_root, scene):
     s = _run(launch, run_root, scene, controller=True)
-    assert s["slip_distance_mm"] < 0.5, s
-    assert abs(s["slip_angle_deg"]) < 0.5, s
+    assert s["slip_distance_mm"] < 0.5, _why(s)
+    assert abs(s["slip_angle_deg"]) < 0.5, _why(s)
     # it squeezed at least as hard as holding the peak load needs (the initial 2 N does not)
-    assert s["grip_command_peak_n"] >= least_holding_force_n(scene), s
+    assert s["grip_command_peak_n"] >= least_holding_force_n(scene), _why(s)
 
 
 @pytest.mark.parametrize("scene", SCENES)
 def test_without_controller_every_gross_slip_episode_is_flagged(launch, run_root, scene):
     s = _run(launch, run_root, scene, controller=False)
-    assert s["true_episodes"] >= 1, s  # the scene does make the object slip
-    assert s["missed_episodes"] == 0 and s["detected_episodes"] == s["true_episodes"], s
+    assert s["true_episodes"] >= 1, _why(s)  # the scene does make the object slip
+    assert s["missed_episodes"] == 0 and s["detected_episodes"] == s["true_episodes"], _why(s)
     # ... and not by calling slip everywhere: few truly sticking frames flagged
-    assert s["stick_frames"] >= 100, s
-    assert s["false_slip_rate"] <= FALSE_SLIP_BOUND, s
+    assert s["stick_frames"] >= 100, _why(s)
+    assert s["false_slip_rate"] <= FALSE_SLIP_BOUND, _why(s)
