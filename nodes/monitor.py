@@ -9,7 +9,8 @@ control path's health, dropped frames and the recording's path; with ``summary_p
 it also writes them as JSON, and with ``check_path`` a pass/fail verdict (see
 :func:`check_problems`).
 
-Health (the ``HEALTH:`` line, also on the live line):
+Health (one ``HEALTH:`` line per problem, or ``HEALTH: ok``; the fail-safe share and
+silent nodes also on the live line):
 
 - *fail-safe share*: grip commands whose reason is ``fail-safe`` (the controller held
   the grip because its inputs were missing, stale or invalid);
@@ -322,7 +323,7 @@ def behind_problems(s: dict) -> list[str]:
 
 
 def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
-    """The summary as readable lines, the HEALTH line naming whatever went wrong."""
+    """The summary as readable lines, a HEALTH line for whatever went wrong."""
     def num(v: object, fmt: str) -> str:
         return "-" if v is None else format(v, fmt)
 
@@ -341,7 +342,7 @@ def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
         f" {pct(s['late_share'])} later than {s['command_deadline_ms']:g} ms after their sample",
     ]
     problems = check_problems(s, p or MonitorParams()) + behind_problems(s)
-    lines.append("HEALTH: " + ("; ".join(problems) if problems else "ok"))
+    lines.extend(f"HEALTH: {problem}" for problem in problems or ["ok"])
     if s["losses"]:
         for node, counts in sorted(s["losses"].items()):
             lines.append(f"frames lost at {node}: " + ", ".join(f"{k}={v:g}" for k, v in sorted(counts.items())))

@@ -51,6 +51,11 @@ def monitor_over(events, tmp_path, **params) -> tuple[dict, list[str], Monitor]:
     return json.loads(summary_path.read_text()), ex.logs, monitor
 
 
+def health(logs: list[str]) -> str:
+    """The summary's HEALTH lines, one per problem."""
+    return "\n".join(line for line in logs if "HEALTH:" in line)
+
+
 def by_topic(events, topic):
     return [decode(payload) for _, t, payload in events if t == topic]
 
@@ -88,8 +93,8 @@ def test_summary_of_a_run_without_controller_matches_the_recorded_truth(fig10_ru
     assert s["slip_distance_mm"] == pytest.approx(truth[-1].slip_distance_m * 1e3) and s["slip_distance_mm"] > 1.0
     assert s["applied_f_n_mean_n"] == pytest.approx(np.mean([m.f_n_applied for m in truth]))
     assert s["grip_commands"] == 0 and s["grip_command_peak_n"] is None and s["fail_safe_share"] is None
-    health = next(line for line in logs if "HEALTH:" in line)
-    assert "the object slid" in health
+    health_lines = health(logs)
+    assert "the object slid" in health_lines
     assert not any("frames lost: none" in line for line in logs)
 
 
@@ -119,8 +124,8 @@ def test_summary_of_a_controlled_run_counts_force_fail_safe_and_late_commands(fi
     assert s["late_commands"] == late and s["command_age_ms_max"] == pytest.approx(30.0)
     assert s["applied_f_n_mean_n"] == pytest.approx(np.mean([m.f_n_applied for m in truth]))
     assert s["slip_distance_mm"] < 0.5 and s["true_episodes"] == 0
-    health = next(line for line in logs if "HEALTH:" in line)
-    assert "fail-safe" in health and "later than 20 ms" in health
+    health_lines = health(logs)
+    assert "fail-safe" in health_lines and "later than 20 ms" in health_lines
     assert not any("frames lost: none" in line for line in logs)
 
 
@@ -188,8 +193,8 @@ def test_check_names_every_problem(tmp_path):
     assert "control" not in problems
     assert len(verdict["problems"]) == 6
     assert s["silent_nodes"] == {"ft_driver": pytest.approx(9.0, abs=1e-6)}
-    health = next(line for line in logs if "HEALTH:" in line)
-    assert all(p in health for p in verdict["problems"])
+    health_lines = health(logs)
+    assert health_lines.splitlines() == [f"[monitor] HEALTH: {p}" for p in verdict["problems"]]
 
 
 def test_behind_real_time_and_skipped_samples_reach_the_health_line(tmp_path):
@@ -203,10 +208,10 @@ def test_behind_real_time_and_skipped_samples_reach_the_health_line(tmp_path):
     assert s["behind_real_time"] == {"rig": {"timer.tick.skipped": 35}}
     assert s["skipped_for_newer"] == {"fusion": {"ft/wrench": {"skipped": 400, "received": 1000}},
                                       "rig": {"grip/command": {"skipped": 400, "received": 1000}}}
-    health = next(line for line in logs if "HEALTH:" in line)
-    assert "rig fell behind real time (timer ticks skipped: tick 35)" in health
-    assert "fusion skipped 40% of ft/wrench for newer samples" in health
-    assert "grip/command" not in health  # the plant acting on the newest command: listed, not a problem
+    health_lines = health(logs)
+    assert "rig fell behind real time (timer ticks skipped: tick 35)" in health_lines
+    assert "fusion skipped 40% of ft/wrench for newer samples" in health_lines
+    assert "grip/command" not in health_lines  # the plant acting on the newest command: listed, not a problem
     assert any("rig grip/command 400 of 1000" in line for line in logs)
 
 
