@@ -81,7 +81,7 @@ def test_recorded_contact_replays_into_slip_detector_exactly(launch, run_root):
     # record_topics:= (empty) records every topic; `record_topics:=[]` would record a topic named "[]".
     args = [f"scene:={scene}", "record:=true", f"recording:={recording}", "record_topics:=", "monitor:=false"]
     graph = launch("fig15", *args)
-    assert graph.proc.wait(300) == 0, graph.log()
+    assert graph.proc.wait(100) == 0, graph.log()  # well within the 120 s test timeout, with the log
 
     info = recording_info(recording)
     assert info.finished, info
