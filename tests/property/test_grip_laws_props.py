@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
@@ -46,7 +46,6 @@ def inputs(draw: st.DrawFn, value: st.SearchStrategy[float] = anything) -> GripI
                      sum_dist_m=draw(value), n_contact=draw(st.integers(0, 256)))
 
 
-@settings(max_examples=150, deadline=None)
 @given(law=st.sampled_from(LAWS), inp=inputs(), dt=anything)
 def test_output_always_finite_and_bounded(law: GripLaw, inp: GripInput, dt: float) -> None:
     d = law.decide(inp, dt)
@@ -58,7 +57,6 @@ def test_output_always_finite_and_bounded(law: GripLaw, inp: GripInput, dt: floa
 STATIC = [law for law in LAWS if isinstance(law, (LinearLaw, Ft13Law, Ft13SigmaLaw))]
 
 
-@settings(max_examples=100, deadline=None)
 @given(law=st.sampled_from(STATIC), fx=sane, fy=sane, tau=sane, scale=st.floats(1.0, 10.0))
 def test_static_laws_monotone_in_load(law: GripLaw, fx: float, fy: float, tau: float, scale: float) -> None:
     small = law.decide(GripInput(f_t=(fx, fy), tau=tau))
@@ -67,7 +65,6 @@ def test_static_laws_monotone_in_load(law: GripLaw, fx: float, fy: float, tau: f
     assert large.f_n_desired >= small.f_n_desired
 
 
-@settings(max_examples=100, deadline=None)
 @given(fx=sane, fy=sane, tau=sane, scale=st.floats(0.01, 100.0))
 def test_scaling_of_load(fx: float, fy: float, tau: float, scale: float) -> None:
     """linear and ft13_sigma are homogeneous of degree 1 in (f_t, τ); ft13 is, once its
@@ -81,7 +78,6 @@ def test_scaling_of_load(fx: float, fy: float, tau: float, scale: float) -> None
     assert ft13.decide(scaled).raw - offset == pytest.approx(scale * (ft13.decide(base).raw - offset), rel=1e-9, abs=1e-9)
 
 
-@settings(max_examples=100, deadline=None)
 @given(law=st.sampled_from(STATIC), fx=sane, fy=sane, tau=sane)
 def test_static_laws_ignore_the_sense_of_the_load(law: GripLaw, fx: float, fy: float, tau: float) -> None:
     """Reversing the tangential force or the torque (either sense of slip) needs the same grip."""
@@ -100,7 +96,6 @@ def test_static_laws_hand_checked_values() -> None:
     assert ft13.decide(GripInput(f_t=(0.0, 0.0), tau=0.0)).raw == pytest.approx(2.0)  # the paper's 2 N offset
 
 
-@settings(max_examples=100, deadline=None)
 @given(n_c=sane, t_c=magnitude, dist=st.floats(1e-4, 1.0), n_a=st.integers(1, 256),
        scale=st.floats(0.01, 100.0))
 def test_tactile14_increment_scales_with_torque_and_counts_taxels(
@@ -118,7 +113,6 @@ def test_tactile14_increment_scales_with_torque_and_counts_taxels(
 PAD4 = PadGeometry(4, 4, 1.25e-3)
 
 
-@settings(max_examples=100, deadline=None)
 @given(phi=arrays(float, 16, elements=st.one_of(st.just(0.0), st.floats(0.01, 2.0))).filter(lambda a: a.any()),
        c=st.tuples(st.floats(-3e-3, 3e-3), st.floats(-3e-3, 3e-3)), excess=st.floats(1e-6, 1e-2),
        sense=st.sampled_from([-1.0, 1.0]), sigma=st.floats(0.1, 1.0))
@@ -145,7 +139,6 @@ steps = st.lists(
 )
 
 
-@settings(max_examples=100, deadline=None)
 @given(law=st.sampled_from(LAWS), seq=steps)
 def test_governor_finite_bounded_rate_limited_and_holds(
     law: GripLaw, seq: list[tuple[GripInput, int, int, bool]]

@@ -1,11 +1,12 @@
-"""Property tests for every row of MATH.md §4.4 (numerics at the extremes)."""
+"""Property tests for every row of MATH.md §4.4 (numerics at the extremes); example counts
+follow the hypothesis profile (tests/conftest.py)."""
 
 from __future__ import annotations
 
 import math
 
 import numpy as np
-from hypothesis import example, given, settings
+from hypothesis import example, given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
@@ -49,7 +50,6 @@ def _finite_or_documented(v):
     return math.isfinite(v.margin) and math.isfinite(v.gamma)
 
 
-@settings(max_examples=120, deadline=None)
 @given(fields, loads)
 def test_every_test_returns_a_status_and_no_nan(phi, load):
     c = _Contact(phi, load[:2], load[2], PAD.positions)
@@ -61,7 +61,6 @@ def test_every_test_returns_a_status_and_no_nan(phi, load):
             assert all(math.isfinite(x) for x in v.p_c)
 
 
-@settings(max_examples=60, deadline=None)
 @given(fields, loads, st.integers(1, 3))
 def test_gamma_is_invariant_under_rotating_the_field_by_90_degrees(phi, load, k):
     f_t, tau = np.array(load[:2]), load[2]
@@ -77,7 +76,6 @@ def test_gamma_is_invariant_under_rotating_the_field_by_90_degrees(phi, load, k)
         assert res.gamma == ref.gamma
 
 
-@settings(max_examples=60, deadline=None)
 @given(fields, loads, st.integers(0, 2), st.integers(0, 2))
 def test_gamma_is_invariant_under_translating_the_field_by_whole_taxels(phi, load, dr, dk):
     f_t, tau = np.array(load[:2]), load[2]
@@ -103,7 +101,6 @@ _TWO_EQUAL_TAXELS = np.zeros(36)
 _TWO_EQUAL_TAXELS[[0, 12]] = 1.0
 
 
-@settings(max_examples=80, deadline=None)
 @given(fields, loads, st.floats(-6, 4))
 @example(_TWO_EQUAL_TAXELS, (0.0, 0.5, 0.0), 2.0)  # the paper's iteration: CONVERGED vs SINGULAR
 def test_gamma_and_verdicts_are_invariant_under_force_scaling(phi, load, log_k):
@@ -127,7 +124,6 @@ def test_gamma_and_verdicts_are_invariant_under_force_scaling(phi, load, log_k):
             assert vb.gamma == va.gamma
 
 
-@settings(max_examples=50, deadline=None)
 @given(fields)
 def test_no_load_sticks_with_margin_one(phi):
     c = _Contact(phi, (0.0, 0.0), 0.0, PAD.positions)
@@ -139,7 +135,6 @@ def test_no_load_sticks_with_margin_one(phi):
             assert v.kind == "no-contact" and not v.stick, name
 
 
-@settings(max_examples=50, deadline=None)
 @given(arrays(float, 36, elements=st.floats(0, 1e3)), loads, st.floats(-1e-3, 0.0))
 def test_a_pulling_or_zero_normal_force_is_an_explicit_no_contact(pressure, load, f_n):
     """f_n ≤ 0 (the object pulls, or rests without pressing): NO_CONTACT for every test."""
@@ -150,7 +145,6 @@ def test_a_pulling_or_zero_normal_force_is_an_explicit_no_contact(pressure, load
         assert v.kind == "no-contact" and not v.stick and not math.isnan(v.margin), name
 
 
-@settings(max_examples=80, deadline=None)
 @given(arrays(float, 36, elements=st.one_of(st.just(0.0), st.floats(1e-6, 1e3))).filter(lambda p: p.any()), loads,
        st.floats(1e-12, 1e-3), st.sampled_from([0.0, 1e-6, 1e-4]))
 def test_a_barely_touching_contact_is_judged_without_division_by_zero(pressure, load, f_n, min_f_n):
@@ -173,7 +167,6 @@ def test_a_barely_touching_contact_is_judged_without_division_by_zero(pressure, 
             assert not v.stick, (name, v)
 
 
-@settings(max_examples=80, deadline=None)
 @given(arrays(float, 36, elements=st.one_of(st.floats(allow_nan=True, allow_infinity=True), taxel)))
 def test_bad_taxels_are_clipped_and_counted(pressure):
     fr = fuse(pressure, [0.1, 0.0, -1.0], [0, 0, 1e-4], PAD)
@@ -186,7 +179,6 @@ def test_bad_taxels_are_clipped_and_counted(pressure):
         assert math.isclose(fr.f_n, 1.0, rel_tol=1e-12)
 
 
-@settings(max_examples=60, deadline=None)
 @given(st.integers(0, 35), st.floats(1e-9, 1e4), loads)
 def test_point_contact_has_zero_torsional_capacity(j, f_n, load):
     phi = np.zeros(36)
