@@ -194,10 +194,14 @@ class Monitor(Node):
 
 def write_json_atomically(path: str, content: dict) -> None:
     """Write ``content`` as JSON to a temporary file beside ``path``, then rename it over
-    ``path``: a reader sees the old file or the whole new one, never a part."""
+    ``path``: a reader sees the old file or the whole new one, never a part. The file
+    gets the usual permissions (0666 less the umask), not the temporary file's 0600."""
     folder = os.path.dirname(os.path.abspath(path))
     fd, tmp = tempfile.mkstemp(prefix=".monitor-", suffix=".json", dir=folder)
     try:
+        umask = os.umask(0)
+        os.umask(umask)
+        os.fchmod(fd, 0o666 & ~umask)
         with os.fdopen(fd, "w") as fh:
             json.dump(content, fh, indent=1)
         os.replace(tmp, path)

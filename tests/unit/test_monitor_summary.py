@@ -7,6 +7,8 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
+import stat
 import tracemalloc
 
 import numpy as np
@@ -220,7 +222,10 @@ def test_the_check_file_is_replaced_whole(tmp_path):
     check.write_text("stale content from an earlier run")
     monitor_over([(0, "rig/truth", _truth(0))], tmp_path, check_path=str(check))
     assert json.loads(check.read_text())["passed"] is True
-    assert [p.name for p in tmp_path.iterdir()] and not [p for p in tmp_path.iterdir() if p.name.startswith(".monitor-")]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["check.json", "summary.json"]  # no temporary file left
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(check.stat().st_mode) == 0o666 & ~umask
 
 
 def test_bad_parameters_are_refused():
