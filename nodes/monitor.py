@@ -68,7 +68,8 @@ class MonitorParams:
     check_path: str = field(default="", metadata={
         "help": 'on stop, write {"passed": bool, "problems": [...]} as JSON here (the launcher\'s check = true)'})
     check_slip_mm: float = field(default=0.5, metadata={"help": "check fails if the object slid more (mm; rig only)"})
-    check_turn_deg: float = field(default=0.5, metadata={"help": "check fails if the object turned more (deg; rig only)"})
+    check_turn_deg: float = field(default=0.5, metadata={
+        "help": "check fails if the object turned more (deg; rig only)"})
     check_fail_safe_share: float = field(default=0.01, metadata={
         "help": "check fails if a larger share (0..1) of the grip commands was fail-safe"})
 
@@ -178,7 +179,8 @@ class Monitor(Node):
         rate = (self.slip_frames - slips0) / dt if dt > 0 else 0.0
         cmds, fail_safe = self.commands.count - cmds0, self.commands.fail_safe - fs0
         self._at_status = (now, self.slip_frames, self.commands.count, self.commands.fail_safe)
-        ctx.log("STATUS " + status_line(self.last, rate, fail_safe / cmds if cmds else None, sorted(self.silent_nodes(now))))
+        share = fail_safe / cmds if cmds else None
+        ctx.log("STATUS " + status_line(self.last, rate, share, sorted(self.silent_nodes(now))))
 
     def stop(self, ctx: Context) -> None:
         self.episodes.finish()
@@ -297,8 +299,9 @@ def check_problems(s: dict, p: MonitorParams) -> list[str]:
     if s["slip_angle_deg"] is not None and abs(s["slip_angle_deg"]) > p.check_turn_deg:
         problems.append(f"the object turned {abs(s['slip_angle_deg']):.2f} deg (allowed {p.check_turn_deg:g} deg)")
     if s["fail_safe_share"] is not None and s["fail_safe_share"] > p.check_fail_safe_share:
-        problems.append(f"{s['fail_safe_share'] * 100:.1f}% of the grip commands were fail-safe "
-                        f"({s['fail_safe_commands']} of {s['grip_commands']}; allowed {p.check_fail_safe_share * 100:g}%)")
+        problems.append(f"{s['fail_safe_share'] * 100:.1f}% of the grip commands were fail-safe"
+                        f" ({s['fail_safe_commands']} of {s['grip_commands']};"
+                        f" allowed {p.check_fail_safe_share * 100:g}%)")
     if s["missed_episodes"]:
         problems.append(f"the detector missed {s['missed_episodes']} of {s['true_episodes']} true slip episodes")
     for node, seconds in sorted(s["silent_nodes"].items()):
@@ -321,8 +324,9 @@ def behind_problems(s: dict) -> list[str]:
         problems.append(f"{node} fell behind real time (timer ticks skipped: {ticks})")
     for node, inputs in sorted(s["skipped_for_newer"].items()):
         for topic, n in sorted(inputs.items()):
-            if topic in SENSOR_TOPICS and n["received"] and n["skipped"] / n["received"] > SKIP_WARN_SHARE:
-                problems.append(f"{node} skipped {n['skipped'] / n['received'] * 100:.0f}% of {topic} for newer samples")
+            share = n["skipped"] / n["received"] if n["received"] else 0.0
+            if topic in SENSOR_TOPICS and share > SKIP_WARN_SHARE:
+                problems.append(f"{node} skipped {share * 100:.0f}% of {topic} for newer samples")
     return problems
 
 

@@ -101,7 +101,8 @@ def test_recorded_contact_replays_into_slip_detector_exactly(launch, run_root):
     (last_report,) = [m for m in map(decode, (f.payload for f in read_recording(recording, ["diagnostics"])))
                       if m.node == "slip_detector"][-1:]
     counted = last_report.counters
-    reported = counted["in.contact.received"] - counted.get("in.contact.dropped", 0) - counted.get("in.contact.rejected", 0)
+    reported = (counted["in.contact.received"] - counted.get("in.contact.dropped", 0)
+                - counted.get("in.contact.rejected", 0))
     assert len(handled) == len(recorded) >= max(1, reported), (len(handled), len(recorded), reported, contacts.count)
     inputs = run_root / "handled_contacts.mcap"
     with RecordingWriter(inputs, wall_minus_monotonic_ns=clock_offset_ns(recording)) as writer:

@@ -75,7 +75,8 @@ def test_scaling_of_load(fx: float, fy: float, tau: float, scale: float) -> None
     assert lin.decide(scaled).raw == pytest.approx(scale * lin.decide(base).raw, rel=1e-9, abs=1e-9)
     assert ft13s.decide(scaled).raw == pytest.approx(scale * ft13s.decide(base).raw, rel=1e-9, abs=1e-9)
     offset = ft13.decide(GripInput(f_t=(0.0, 0.0), tau=0.0)).raw
-    assert ft13.decide(scaled).raw - offset == pytest.approx(scale * (ft13.decide(base).raw - offset), rel=1e-9, abs=1e-9)
+    expected = scale * (ft13.decide(base).raw - offset)
+    assert ft13.decide(scaled).raw - offset == pytest.approx(expected, rel=1e-9, abs=1e-9)
 
 
 @given(law=st.sampled_from(STATIC), fx=sane, fy=sane, tau=sane)

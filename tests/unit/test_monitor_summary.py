@@ -242,7 +242,8 @@ def _long_stream(n_ticks: int):
         t = k * MS
         phase = k % 1000
         yield t, "rig/truth", encode(_truth(t, gross=500 <= phase < 520))
-        yield t, "slip", encode(Slip(state="translation" if 495 <= phase < 525 else "stick", header=Header(t, k, t, {})))
+        state = "translation" if 495 <= phase < 525 else "stick"
+        yield t, "slip", encode(Slip(state=state, header=Header(t, k, t, {})))
         yield t, "grip/command", encode(GripCommand(f_n_desired=2.0 + phase / 1000, reason="fail-safe" if k % 100 == 0
                                                     else "nominal", header=Header(t, k, t + MS, {})))
         if phase == 999:
