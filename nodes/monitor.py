@@ -106,21 +106,26 @@ class CommandStats:
 
 @dataclass
 class NodeWatch:
-    """One node's diagnostics: its latest counters and when its reports came (executor
-    time, ns): the longest silence between two reports and how many exceeded the limit."""
+    """One node's diagnostics: its latest counters, when the last report arrived
+    (executor time, ns) and the silences between its reports, by the reports' own stamps
+    (the sender's clock: a monitor that waited for a core sees no silence), the longest
+    and how many exceeded the limit."""
 
     counters: dict = field(default_factory=dict)
     last_seen_ns: int = 0
+    last_stamp_ns: int | None = None
     silences: int = 0
     longest_silence_ns: int = 0
 
-    def report(self, counters: dict, now_ns: int, silent_after_ns: int) -> None:
-        if self.last_seen_ns:
-            gap = now_ns - self.last_seen_ns
+    def report(self, msg: Diagnostics, now_ns: int, silent_after_ns: int) -> None:
+        stamp = msg.header.stamp_ns
+        if self.last_stamp_ns is not None:
+            gap = stamp - self.last_stamp_ns
             self.longest_silence_ns = max(self.longest_silence_ns, gap)
             self.silences += gap > silent_after_ns
-        self.counters = counters
+        self.counters = msg.counters
         self.last_seen_ns = now_ns
+        self.last_stamp_ns = stamp
 
 
 class Monitor(Node):
@@ -165,7 +170,7 @@ class Monitor(Node):
         self.last["truth"] = msg
 
     def on_diagnostics(self, msg: Diagnostics, ctx: Context) -> None:
-        self.nodes.setdefault(msg.node, NodeWatch()).report(msg.counters, ctx.now_ns(), self._silent_after_ns)
+        self.nodes.setdefault(msg.node, NodeWatch()).report(msg, ctx.now_ns(), self._silent_after_ns)
 
     def silent_nodes(self, now_ns: int) -> dict[str, float]:
         """Nodes silent now (longer than ``silent_after_s``): name → seconds since their last report."""

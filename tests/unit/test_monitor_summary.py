@@ -199,6 +199,17 @@ def test_check_names_every_problem(tmp_path):
     assert health_lines.splitlines() == [f"[monitor] HEALTH: {p}" for p in verdict["problems"]]
 
 
+def test_a_monitor_that_waited_for_a_core_sees_no_silence(tmp_path):
+    """Reports stamped every second by their node but handled by the monitor in one burst
+    after a 5 s stall: the nodes were not silent, the monitor was late."""
+    events = [(t * MS, "rig/truth", _truth(t * MS)) for t in range(0, 8000, 10)]
+    events += [(6_000 * MS, "diagnostics", _diag("control", s * 1_000_000_000)) for s in range(1, 7)]
+    events += [(7_000 * MS, "diagnostics", _diag("control", 7_000 * MS))]
+    s, logs, _ = monitor_over(events, tmp_path)
+    assert s["silent_nodes"] == {} and s["nodes_that_went_silent"] == {}
+    assert health(logs) == "[monitor] HEALTH: ok"
+
+
 def test_behind_real_time_and_skipped_samples_reach_the_health_line(tmp_path):
     events = [(t * MS, "rig/truth", _truth(t * MS)) for t in range(100)]
     events.append((60 * MS, "diagnostics", _diag("fusion", 60 * MS, **{"in.ft/wrench.received": 1000,
