@@ -1,7 +1,8 @@
 """Slip episodes and detection quality: true slip (from the rig's truth) versus verdicts.
 
-Used by the default run's summary and by the detection-quality benchmark. Times are
-integer nanoseconds on one clock (the sensor sample stamps).
+Used by the monitor's summary (streamed: :class:`EpisodeTracker`, bounded memory) and
+by the detection-quality benchmark (whole recordings: :func:`detection_quality`). Times
+are integer nanoseconds on one clock (the sensor sample stamps).
 
 Definitions:
 - an *episode* is a maximal run of samples with ``gross_slip`` true; onset = its first stamp;
@@ -16,11 +17,19 @@ Definitions:
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Episode", "DetectionQuality", "find_episodes", "detection_quality", "INCIPIENT_SHARE"]
+__all__ = ["Episode", "DetectionQuality", "EpisodeTracker", "find_episodes", "detection_quality", "INCIPIENT_SHARE"]
+
+LEAD_NS = 100_000_000
+"""How early a verdict may come and still count for an episode (ns)."""
+GRACE_NS = 50_000_000
+"""How long after an episode's end a verdict still counts for it (ns)."""
+MIN_GAP_NS = 20_000_000
+"""Episodes closer than this are one episode (stick–slip chatter), ns."""
 
 INCIPIENT_SHARE = 0.25
 """Partial slip counts as incipient when sliding taxels carry at least this share of the
@@ -89,9 +98,9 @@ def detection_quality(
     verdict_ns: np.ndarray,
     verdict_slip: np.ndarray,
     *,
-    lead_ns: int = 100_000_000,
-    grace_ns: int = 50_000_000,
-    min_gap_ns: int = 20_000_000,
+    lead_ns: int = LEAD_NS,
+    grace_ns: int = GRACE_NS,
+    min_gap_ns: int = MIN_GAP_NS,
     incipient: np.ndarray | None = None,
 ) -> DetectionQuality:
     """Match slip verdicts to true episodes (see the module docstring).
@@ -130,3 +139,136 @@ def detection_quality(
         episodes=tuple(episodes), delays_ns=tuple(delays), missed=missed,
         false_slip_frames=int(np.count_nonzero(stick & vs)), stick_frames=int(np.count_nonzero(stick)),
     )
+
+
+_MAX_OPEN = 1000
+"""Open episodes kept at most; beyond, the oldest is closed with the verdicts it has
+(only when the detector's stream stalls for that many episodes)."""
+
+
+class _OpenEpisode:
+    """An episode whose window may still gain a verdict or whose end may still move."""
+
+    __slots__ = ("start_ns", "end_ns", "ongoing", "delay_ns")
+
+    def __init__(self, start_ns: int) -> None:
+        self.start_ns = start_ns
+        self.end_ns = start_ns
+        self.ongoing = True
+        self.delay_ns: int | None = None
+
+
+class EpisodeTracker:
+    """:func:`detection_quality` computed on the fly, in bounded memory.
+
+    Feed the truth stream with :meth:`add_truth` and the verdicts with
+    :meth:`add_verdict`, interleaved as they arrive (each stream in stamp order); call
+    :meth:`finish` at the end, then :meth:`quality`. The result equals
+    :func:`detection_quality` over the same streams (same definitions, same defaults)
+    as long as no verdict lags the truth by more than ``horizon_ns``.
+
+    What is kept: verdicts not yet judged (they wait until the truth has reached
+    their stamp + ``lead_ns``; at most ``max_pending``, beyond which the oldest is
+    judged on the truth seen so far), truth samples from the oldest pending verdict on
+    (at most ``horizon_ns`` of them), the episodes whose window is still open (at most
+    1000), and the latest ``max_kept`` finished episodes and delays (the counts
+    ``episode_count``, ``detected``, ``missed`` cover all of them).
+    """
+
+    def __init__(self, *, lead_ns: int = LEAD_NS, grace_ns: int = GRACE_NS, min_gap_ns: int = MIN_GAP_NS,
+                 horizon_ns: int = 10_000_000_000, max_pending: int = 100_000, max_kept: int = 10_000) -> None:
+        self.lead_ns, self.grace_ns, self.min_gap_ns, self.horizon_ns = lead_ns, grace_ns, min_gap_ns, horizon_ns
+        self.max_pending = max_pending
+        self._truth: deque[tuple[int, bool, bool]] = deque()  # (stamp, gross slip, incipient)
+        self._truth_end: int | None = None
+        self._in_slip = False
+        self._open: deque[_OpenEpisode] = deque()
+        self._pending: deque[tuple[int, bool]] = deque()
+        self._last_judged_ns: int | None = None
+        self.finished: deque[Episode] = deque(maxlen=max_kept)
+        self.delays_ns: deque[int] = deque(maxlen=max_kept)
+        self.episode_count = 0
+        self.detected = 0
+        self.missed = 0
+        self.stick_frames = 0
+        self.false_slip_frames = 0
+
+    def add_truth(self, stamp_ns: int, gross_slip: bool, incipient: bool = False) -> None:
+        """One truth sample (stamps increasing)."""
+        if gross_slip:
+            last = self._open[-1] if self._open else None
+            if not self._in_slip:
+                if last is not None and stamp_ns - last.end_ns < self.min_gap_ns:
+                    last.ongoing = True  # chatter: the same episode goes on
+                else:
+                    self._open.append(_OpenEpisode(stamp_ns))
+            self._open[-1].end_ns = stamp_ns
+        elif self._in_slip:
+            self._open[-1].ongoing = False
+        self._in_slip = gross_slip
+        self._truth.append((stamp_ns, gross_slip, incipient))
+        self._truth_end = stamp_ns
+        while self._truth[0][0] < stamp_ns - self.horizon_ns:
+            self._truth.popleft()
+        self._judge_ready()
+
+    def add_verdict(self, stamp_ns: int, slip: bool) -> None:
+        """One verdict of the detector (stamps increasing)."""
+        self._pending.append((stamp_ns, slip))
+        while len(self._pending) > self.max_pending:
+            self._judge(*self._pending.popleft())
+        self._judge_ready()
+
+    def finish(self) -> None:
+        """The streams ended: judge every pending verdict and close every episode."""
+        for ep in self._open:
+            ep.ongoing = False  # the truth is complete: a run still going ends at its last sample
+        self._in_slip = False
+        while self._pending:
+            self._judge(*self._pending.popleft())
+        self._close_episodes(final=True)
+
+    def quality(self) -> DetectionQuality:
+        """The numbers so far (the kept episodes and delays: the latest ``max_kept``)."""
+        return DetectionQuality(episodes=tuple(self.finished), delays_ns=tuple(self.delays_ns), missed=self.missed,
+                                false_slip_frames=self.false_slip_frames, stick_frames=self.stick_frames)
+
+    def _judge_ready(self) -> None:
+        pending = self._pending
+        while pending and self._truth_end is not None and self._truth_end >= pending[0][0] + self.lead_ns:
+            self._judge(*pending.popleft())
+        self._close_episodes(final=False)
+
+    def _judge(self, t: int, slip: bool) -> None:
+        in_window = False
+        for ep in self._open:
+            if ep.start_ns - self.lead_ns <= t and (ep.ongoing or t <= ep.end_ns + self.grace_ns):
+                in_window = True
+                if slip and ep.delay_ns is None:
+                    ep.delay_ns = t - ep.start_ns
+        truth = self._truth
+        while len(truth) > 1 and truth[0][0] < t:
+            truth.popleft()  # the first sample at or after t is the one that judges it
+        if not in_window:
+            sticking = not truth or not (truth[0][1] or truth[0][2])
+            if sticking:
+                self.stick_frames += 1
+                self.false_slip_frames += slip
+        self._last_judged_ns = t if self._last_judged_ns is None else max(self._last_judged_ns, t)
+
+    def _close_episodes(self, *, final: bool) -> None:
+        while self._open:
+            ep = self._open[0]
+            if not final and len(self._open) <= _MAX_OPEN:
+                if ep.ongoing or self._truth_end is None or self._truth_end < ep.end_ns + self.min_gap_ns:
+                    return  # it may still go on or merge with the next run
+                if self._last_judged_ns is None or self._last_judged_ns <= ep.end_ns + self.grace_ns:
+                    return  # a verdict in its window may still come
+            self._open.popleft()
+            self.episode_count += 1
+            self.finished.append(Episode(ep.start_ns, ep.end_ns))
+            if ep.delay_ns is None:
+                self.missed += 1
+            else:
+                self.detected += 1
+                self.delays_ns.append(ep.delay_ns)

@@ -1,11 +1,33 @@
-"""The monitor: a live one-line status and, on exit, the run's summary.
+"""The monitor: a live one-line status and, on exit, the run's summary and its health.
 
 Listens to ``slip`` (which carries the load it judged and its COR), ``grip/command``,
 ``rig/truth`` and every node's ``diagnostics`` — not to the 1 kHz ``contact``/``cor``
-streams, to keep its share of the CPU small. Every ``status_period_s`` it logs one ``STATUS`` line (the
-launcher redraws it in place on a terminal). On stop it logs the summary: slip
-episodes detected versus true, detection delay, grip force used, dropped frames,
-and the recording's path; with ``summary_path`` it also writes them as JSON.
+streams, to keep its share of the CPU small. Every ``status_period_s`` it logs one
+``STATUS`` line (the launcher redraws it in place on a terminal). On stop it logs the
+summary: slip episodes detected versus true, detection delay, grip force used, the
+control path's health, dropped frames and the recording's path; with ``summary_path``
+it also writes them as JSON, and with ``check_path`` a pass/fail verdict (see
+:func:`check_problems`).
+
+Health (one ``HEALTH:`` line per problem, or ``HEALTH: ok``; the fail-safe share and
+silent nodes also on the live line):
+
+- *fail-safe share*: grip commands whose reason is ``fail-safe`` (the controller held
+  the grip because its inputs were missing, stale or invalid);
+- *late commands*: commands whose age at publish, ``pub_ns − stamp_ns`` of their header
+  (the sensor sample they derive from to the moment they left), exceeded
+  ``command_deadline_ms``;
+- *samples skipped for newer ones*: ``in.<topic>.dropped`` over ``in.<topic>.received``
+  of each node's latest-value inputs (fusion acting on the newest F/T sample when its
+  process waited for a core), on the HEALTH line for sensor topics above
+  :data:`SKIP_WARN_SHARE`;
+- *behind real time*: ``timer.<name>.skipped`` ticks of a timer-paced node (the rig
+  skips simulator ticks it could not make up);
+- *silent nodes*: a node whose ``diagnostics`` (every 1 s) stopped for longer than
+  ``silent_after_s`` — dead, stopped or starved — whether it came back or not.
+
+Memory is bounded: running sums and counts per message, the detection quality streamed
+by :class:`~slipstack.lib.episodes.EpisodeTracker`, one counter map per node.
 """
 
 from __future__ import annotations
@@ -13,17 +35,25 @@ from __future__ import annotations
 import json
 import math
 import os
+import tempfile
 from dataclasses import dataclass, field
 
-import numpy as np
-
-from slipstack.lib.episodes import INCIPIENT_SHARE, detection_quality
+from slipstack.lib.episodes import INCIPIENT_SHARE, EpisodeTracker
+from slipstack.lib.errors import ConfigError
 from slipstack.messages import Diagnostics, GripCommand, RigTruth, Slip
 from slipstack.nodes.node import Context, Input, Node
 
-__all__ = ["Monitor", "MonitorParams", "summarise"]
+__all__ = ["Monitor", "MonitorParams", "summarise", "check_problems", "format_summary", "status_line"]
 
 _LOSS_KEYS = (".rejected", ".lost", ".dropped_hwm")  # ".dropped" is drain-to-latest, on purpose
+FAIL_SAFE = "fail-safe"
+SKIP_WARN_SHARE = 0.25
+"""A node that skipped more than this share of the sensor samples (:data:`SENSOR_TOPICS`)
+of a latest-value input is reported on the HEALTH line (at the paper rates fusion skips
+5–8 % of F/T samples on a shared 2-core machine: normal; a quarter means the control
+path is falling behind). Other skips (the rig acting on the newest grip command) are
+only listed."""
+SENSOR_TOPICS = ("ft/wrench", "tactile/frame")
 
 
 @dataclass(frozen=True)
@@ -31,6 +61,71 @@ class MonitorParams:
     status_period_s: float = field(default=0.5, metadata={"help": "seconds between STATUS lines"})
     recording: str = field(default="", metadata={"help": "path of the run's recording, shown in the summary if it was written"})
     summary_path: str = field(default="", metadata={"help": "also write the summary as JSON here"})
+    command_deadline_ms: float = field(default=20.0, metadata={
+        "help": "a grip command older than this at publish (ms from its sensor sample) counts as late"})
+    silent_after_s: float = field(default=2.5, metadata={
+        "help": "a node whose diagnostics (sent every 1 s) stop for longer than this (s) is reported silent"})
+    check_path: str = field(default="", metadata={
+        "help": 'on stop, write {"passed": bool, "problems": [...]} as JSON here (the launcher\'s check = true)'})
+    check_slip_mm: float = field(default=0.5, metadata={"help": "check fails if the object slid more (mm; rig only)"})
+    check_turn_deg: float = field(default=0.5, metadata={
+        "help": "check fails if the object turned more (deg; rig only)"})
+    check_fail_safe_share: float = field(default=0.01, metadata={
+        "help": "check fails if a larger share (0..1) of the grip commands was fail-safe"})
+
+    def __post_init__(self) -> None:
+        for name in ("status_period_s", "command_deadline_ms", "silent_after_s", "check_slip_mm", "check_turn_deg"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ConfigError(f"monitor: {name} must be a finite number > 0, got {value!r}")
+        if not (0.0 <= self.check_fail_safe_share <= 1.0):
+            raise ConfigError(f"monitor: check_fail_safe_share must be in [0, 1], got {self.check_fail_safe_share!r}")
+
+
+@dataclass
+class CommandStats:
+    """Running numbers of ``grip/command``: count, sum and peak of f_n (N), fail-safe and
+    late counts, and the largest age at publish (ns)."""
+
+    count: int = 0
+    f_n_sum: float = 0.0
+    f_n_peak: float = -math.inf
+    fail_safe: int = 0
+    late: int = 0
+    age_max_ns: int = 0
+
+    def add(self, msg: GripCommand, deadline_ns: int) -> None:
+        self.count += 1
+        self.f_n_sum += msg.f_n_desired
+        self.f_n_peak = max(self.f_n_peak, msg.f_n_desired)
+        self.fail_safe += msg.reason == FAIL_SAFE
+        age = msg.header.pub_ns - msg.header.stamp_ns
+        self.late += age > deadline_ns
+        self.age_max_ns = max(self.age_max_ns, age)
+
+
+@dataclass
+class NodeWatch:
+    """One node's diagnostics: its latest counters, when the last report arrived
+    (executor time, ns) and the silences between its reports, by the reports' own stamps
+    (the sender's clock: a monitor that waited for a core sees no silence), the longest
+    and how many exceeded the limit."""
+
+    counters: dict = field(default_factory=dict)
+    last_seen_ns: int = 0
+    last_stamp_ns: int | None = None
+    silences: int = 0
+    longest_silence_ns: int = 0
+
+    def report(self, msg: Diagnostics, now_ns: int, silent_after_ns: int) -> None:
+        stamp = msg.header.stamp_ns
+        if self.last_stamp_ns is not None:
+            gap = stamp - self.last_stamp_ns
+            self.longest_silence_ns = max(self.longest_silence_ns, gap)
+            self.silences += gap > silent_after_ns
+        self.counters = msg.counters
+        self.last_seen_ns = now_ns
+        self.last_stamp_ns = stamp
 
 
 class Monitor(Node):
@@ -48,55 +143,84 @@ class Monitor(Node):
     def __init__(self, params: MonitorParams | None = None) -> None:
         super().__init__(params)
         self.timers = {"status": self.params.status_period_s}
-        self.slip_t: list[int] = []
-        self.slip_flag: list[bool] = []
-        self.truth_t: list[int] = []
-        self.truth_slip: list[bool] = []
-        self.truth_fn: list[float] = []
-        self.truth_sliding: list[float] = []
-        self.grip_fn: list[float] = []
+        self.episodes = EpisodeTracker()
+        self.commands = CommandStats()
+        self.slip_frames = 0
+        self.truth_frames = 0
+        self.applied_f_n_sum = 0.0
         self.last: dict[str, object] = {}
-        self.diagnostics: dict[str, dict] = {}
-        self._slip_count_at_status = 0
-        self._status_t = 0
+        self.nodes: dict[str, NodeWatch] = {}
+        self._deadline_ns = round(self.params.command_deadline_ms * 1e6)
+        self._silent_after_ns = round(self.params.silent_after_s * 1e9)
+        self._at_status = (0, 0, 0, 0)  # time, slip frames, commands, fail-safe commands at the last STATUS
 
     def on_slip(self, msg: Slip, ctx: Context) -> None:
-        self.slip_t.append(msg.header.stamp_ns)
-        self.slip_flag.append(msg.state not in ("stick", "no-contact"))
+        self.slip_frames += 1
+        self.episodes.add_verdict(msg.header.stamp_ns, msg.state not in ("stick", "no-contact"))
         self.last["slip"] = msg
 
     def on_grip(self, msg: GripCommand, ctx: Context) -> None:
-        self.grip_fn.append(msg.f_n_desired)
+        self.commands.add(msg, self._deadline_ns)
         self.last["grip"] = msg
 
     def on_truth(self, msg: RigTruth, ctx: Context) -> None:
-        self.truth_t.append(msg.header.stamp_ns)
-        self.truth_slip.append(msg.gross_slip)
-        self.truth_fn.append(msg.f_n_applied)
-        self.truth_sliding.append(msg.sliding_fraction)
+        self.truth_frames += 1
+        self.applied_f_n_sum += msg.f_n_applied
+        self.episodes.add_truth(msg.header.stamp_ns, msg.gross_slip, msg.sliding_fraction >= INCIPIENT_SHARE)
         self.last["truth"] = msg
 
     def on_diagnostics(self, msg: Diagnostics, ctx: Context) -> None:
-        self.diagnostics[msg.node] = msg.counters
+        self.nodes.setdefault(msg.node, NodeWatch()).report(msg, ctx.now_ns(), self._silent_after_ns)
+
+    def silent_nodes(self, now_ns: int) -> dict[str, float]:
+        """Nodes silent now (longer than ``silent_after_s``): name → seconds since their last report."""
+        return {name: (now_ns - w.last_seen_ns) / 1e9 for name, w in self.nodes.items()
+                if now_ns - w.last_seen_ns > self._silent_after_ns}
 
     def on_timer_status(self, ctx: Context) -> None:
         now = ctx.now_ns()
-        dt = (now - self._status_t) / 1e9 if self._status_t else 0.0
-        rate = (len(self.slip_t) - self._slip_count_at_status) / dt if dt > 0 else 0.0
-        self._status_t, self._slip_count_at_status = now, len(self.slip_t)
-        ctx.log("STATUS " + status_line(self.last, rate))
+        t0, slips0, cmds0, fs0 = self._at_status
+        dt = (now - t0) / 1e9 if t0 else 0.0
+        rate = (self.slip_frames - slips0) / dt if dt > 0 else 0.0
+        cmds, fail_safe = self.commands.count - cmds0, self.commands.fail_safe - fs0
+        self._at_status = (now, self.slip_frames, self.commands.count, self.commands.fail_safe)
+        share = fail_safe / cmds if cmds else None
+        ctx.log("STATUS " + status_line(self.last, rate, share, sorted(self.silent_nodes(now))))
 
     def stop(self, ctx: Context) -> None:
-        summary = summarise(self)
-        for line in format_summary(summary):
+        self.episodes.finish()
+        summary = summarise(self, ctx.now_ns())
+        for line in format_summary(summary, self.params):
             ctx.log(line)
         if self.params.summary_path:
-            with open(self.params.summary_path, "w") as fh:
-                json.dump(summary, fh, indent=1)
+            write_json_atomically(self.params.summary_path, summary)
+        if self.params.check_path:
+            problems = check_problems(summary, self.params)
+            write_json_atomically(self.params.check_path, {"passed": not problems, "problems": problems})
 
 
-def status_line(last: dict[str, object], rate_hz: float) -> str:
-    """One line: state, f_n, margin, COR, detector rate."""
+def write_json_atomically(path: str, content: dict) -> None:
+    """Write ``content`` as JSON to a temporary file beside ``path``, then rename it over
+    ``path``: a reader sees the old file or the whole new one, never a part. The file
+    gets the usual permissions (0666 less the umask), not the temporary file's 0600."""
+    folder = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=".monitor-", suffix=".json", dir=folder)
+    try:
+        umask = os.umask(0)
+        os.umask(umask)
+        os.fchmod(fd, 0o666 & ~umask)
+        with os.fdopen(fd, "w") as fh:
+            json.dump(content, fh, indent=1)
+        os.replace(tmp, path)
+    except BaseException:
+        os.unlink(tmp)
+        raise
+
+
+def status_line(last: dict[str, object], rate_hz: float, fail_safe_share: float | None = None,
+                silent: list[str] | None = None) -> str:
+    """One line: state, f_n, command, margin, COR, detector rate; then the fail-safe share
+    of the commands since the last line and the silent nodes, when there are any."""
     slip = last.get("slip")
     grip = last.get("grip")
     parts = [f"state={slip.state if slip else '-':<11}"]
@@ -109,42 +233,115 @@ def status_line(last: dict[str, object], rate_hz: float) -> str:
     else:
         parts.append("cor=-")
     parts.append(f"rate={rate_hz:5.0f} Hz")
+    if fail_safe_share:
+        parts.append(f"FAIL-SAFE {fail_safe_share * 100:.0f}%")
+    if silent:
+        parts.append("SILENT " + ",".join(silent))
     return "  ".join(parts)
 
 
-def summarise(m: Monitor) -> dict:
-    """The run's numbers as a JSON-able dict."""
-    q = detection_quality(np.array(m.truth_t), np.array(m.truth_slip), np.array(m.slip_t), np.array(m.slip_flag),
-                          incipient=np.array(m.truth_sliding) >= INCIPIENT_SHARE)
+def _share(part: int, whole: int) -> float | None:
+    return part / whole if whole else None
+
+
+def summarise(m: Monitor, now_ns: int) -> dict:
+    """The run's numbers as a JSON-able dict (``now_ns``: executor time of the end)."""
+    q = m.episodes.quality()
+    cmd = m.commands
     losses = {
-        node: {k: v for k, v in counters.items() if k.endswith(_LOSS_KEYS) and v}
-        for node, counters in m.diagnostics.items()
+        node: {k: v for k, v in w.counters.items() if k.endswith(_LOSS_KEYS) and v}
+        for node, w in m.nodes.items()
     }
-    skipped = sum(v for counters in m.diagnostics.values() for k, v in counters.items() if k.endswith(".dropped"))
+    skipped = {
+        node: {k[3:-8]: {"skipped": v, "received": w.counters.get(k[:-8] + ".received", 0)}
+               for k, v in w.counters.items() if k.startswith("in.") and k.endswith(".dropped") and v}
+        for node, w in m.nodes.items()
+    }
+    behind = {
+        node: {k: v for k, v in w.counters.items() if k.startswith("timer.") and k.endswith(".skipped") and v}
+        for node, w in m.nodes.items()
+    }
+    silent_now = m.silent_nodes(now_ns)
+    went_silent = {name: w.longest_silence_ns / 1e9 for name, w in m.nodes.items() if w.silences}
     truth = m.last.get("truth")
     return {
-        "slip_frames": len(m.slip_t),
-        "true_episodes": len(q.episodes),
-        "detected_episodes": q.detected,
-        "missed_episodes": q.missed,
+        "slip_frames": m.slip_frames,
+        "true_episodes": m.episodes.episode_count,
+        "detected_episodes": m.episodes.detected,
+        "missed_episodes": m.episodes.missed,
         "detection_delay_ms_p50": q.delay_percentile_ms(50) if q.detected else None,
         "detection_delay_ms_p95": q.delay_percentile_ms(95) if q.detected else None,
+        "stick_frames": q.stick_frames,
         "false_slip_rate": q.false_slip_rate,
-        "grip_command_mean_n": float(np.mean(m.grip_fn)) if m.grip_fn else None,
-        "grip_command_peak_n": float(np.max(m.grip_fn)) if m.grip_fn else None,
-        "applied_f_n_mean_n": float(np.mean(m.truth_fn)) if m.truth_fn else None,
+        "grip_commands": cmd.count,
+        "grip_command_mean_n": cmd.f_n_sum / cmd.count if cmd.count else None,
+        "grip_command_peak_n": cmd.f_n_peak if cmd.count else None,
+        "fail_safe_commands": cmd.fail_safe,
+        "fail_safe_share": _share(cmd.fail_safe, cmd.count),
+        "command_deadline_ms": m.params.command_deadline_ms,
+        "late_commands": cmd.late,
+        "late_share": _share(cmd.late, cmd.count),
+        "command_age_ms_max": cmd.age_max_ns / 1e6 if cmd.count else None,
+        "applied_f_n_mean_n": m.applied_f_n_sum / m.truth_frames if m.truth_frames else None,
         "slip_distance_mm": truth.slip_distance_m * 1e3 if truth else None,
         "slip_angle_deg": math.degrees(truth.slip_angle_rad) if truth else None,
         "losses": {n: v for n, v in losses.items() if v},
-        "skipped_for_newer": skipped,
+        "skipped_for_newer": {n: v for n, v in skipped.items() if v},
+        "behind_real_time": {n: v for n, v in behind.items() if v},
+        "silent_nodes": silent_now,
+        "nodes_that_went_silent": went_silent,
         "recording": m.params.recording if m.params.recording and os.path.exists(m.params.recording) else "",
     }
 
 
-def format_summary(s: dict) -> list[str]:
-    """The summary as readable lines."""
+def check_problems(s: dict, p: MonitorParams) -> list[str]:
+    """What fails the run's check (``check = true`` in a launch file): the object slid or
+    turned more than allowed (only with a rig's truth), too many fail-safe commands, true
+    slip episodes the detector missed, nodes that went silent. Empty: passed."""
+    problems = []
+    if s["slip_distance_mm"] is not None and s["slip_distance_mm"] > p.check_slip_mm:
+        problems.append(f"the object slid {s['slip_distance_mm']:.2f} mm (allowed {p.check_slip_mm:g} mm)")
+    if s["slip_angle_deg"] is not None and abs(s["slip_angle_deg"]) > p.check_turn_deg:
+        problems.append(f"the object turned {abs(s['slip_angle_deg']):.2f} deg (allowed {p.check_turn_deg:g} deg)")
+    if s["fail_safe_share"] is not None and s["fail_safe_share"] > p.check_fail_safe_share:
+        problems.append(f"{s['fail_safe_share'] * 100:.1f}% of the grip commands were fail-safe"
+                        f" ({s['fail_safe_commands']} of {s['grip_commands']};"
+                        f" allowed {p.check_fail_safe_share * 100:g}%)")
+    if s["missed_episodes"]:
+        problems.append(f"the detector missed {s['missed_episodes']} of {s['true_episodes']} true slip episodes")
+    for node, seconds in sorted(s["silent_nodes"].items()):
+        problems.append(f"node {node} went silent: no diagnostics for the last {seconds:.1f} s (dead or stopped?)")
+    for node, seconds in sorted(s["nodes_that_went_silent"].items()):
+        if node not in s["silent_nodes"]:
+            problems.append(f"node {node} went silent for {seconds:.1f} s and came back (restarted?)")
+    return problems
+
+
+def behind_problems(s: dict) -> list[str]:
+    """Signs that the control path fell behind: late commands, timer ticks skipped, more
+    than :data:`SKIP_WARN_SHARE` of a sensor topic's samples skipped for newer ones."""
+    problems = []
+    if s["late_commands"]:
+        problems.append(f"{s['late_share'] * 100:.1f}% of the grip commands left later than "
+                        f"{s['command_deadline_ms']:g} ms after their sample (worst {s['command_age_ms_max']:.1f} ms)")
+    for node, timers in sorted(s["behind_real_time"].items()):
+        ticks = ", ".join(f"{k.split('.')[1]} {v:g}" for k, v in sorted(timers.items()))
+        problems.append(f"{node} fell behind real time (timer ticks skipped: {ticks})")
+    for node, inputs in sorted(s["skipped_for_newer"].items()):
+        for topic, n in sorted(inputs.items()):
+            share = n["skipped"] / n["received"] if n["received"] else 0.0
+            if topic in SENSOR_TOPICS and share > SKIP_WARN_SHARE:
+                problems.append(f"{node} skipped {share * 100:.0f}% of {topic} for newer samples")
+    return problems
+
+
+def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
+    """The summary as readable lines, a HEALTH line for whatever went wrong."""
     def num(v: object, fmt: str) -> str:
         return "-" if v is None else format(v, fmt)
+
+    def pct(v: float | None) -> str:
+        return "-" if v is None else f"{v * 100:.1f}%"
 
     lines = [
         "==== slipstack run summary ====",
@@ -154,13 +351,22 @@ def format_summary(s: dict) -> list[str]:
         f"grip force commanded: mean {num(s['grip_command_mean_n'], '.2f')} N, peak {num(s['grip_command_peak_n'], '.2f')} N;"
         f" applied mean {num(s['applied_f_n_mean_n'], '.2f')} N",
         f"object slid {num(s['slip_distance_mm'], '.2f')} mm and turned {num(s['slip_angle_deg'], '.2f')} deg in all",
+        f"control path: {s['grip_commands']} grip commands, {pct(s['fail_safe_share'])} fail-safe,"
+        f" {pct(s['late_share'])} later than {s['command_deadline_ms']:g} ms after their sample",
     ]
+    problems = check_problems(s, p or MonitorParams()) + behind_problems(s)
+    lines.extend(f"HEALTH: {problem}" for problem in problems or ["ok"])
     if s["losses"]:
         for node, counts in sorted(s["losses"].items()):
             lines.append(f"frames lost at {node}: " + ", ".join(f"{k}={v:g}" for k, v in sorted(counts.items())))
+    elif problems:
+        lines.append("frames lost on the bus: none reported (no rejected frames, sequence gaps or send-queue drops);"
+                     " see HEALTH for what did go wrong")
     else:
         lines.append("frames lost: none (no rejected frames, sequence gaps or send-queue drops reported)")
-    lines.append(f"frames skipped for a newer one (latest-value inputs): {s['skipped_for_newer']:g}")
+    skips = [f"{node} {topic} {n['skipped']:g} of {n['received']:g}"
+             for node, inputs in sorted(s["skipped_for_newer"].items()) for topic, n in sorted(inputs.items())]
+    lines.append("frames skipped for a newer one (latest-value inputs): " + ("; ".join(skips) if skips else "none"))
     if s["recording"]:
         lines.append(f"recording: {s['recording']}")
     return lines

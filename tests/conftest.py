@@ -1,11 +1,31 @@
-"""Shared test settings: hypothesis profiles sized for a 2-core CI machine; the numba
-kernels compiled (or loaded from their cache) once before any test, so no timed test
-and no launched node pays the compile."""
+"""Shared test settings: hypothesis profiles, and the numba kernels compiled (or loaded
+from their cache) once before any test, so no timed test and no launched node pays the
+compile.
+
+Hypothesis profiles (``HYPOTHESIS_PROFILE=name`` picks one; otherwise ``ci`` when the
+``CI`` environment variable is set, as on the CI machine, and ``dev`` elsewhere):
+
+- ``ci``: derandomized (the same examples on every run, so a red CI run is a real
+  regression, reproducible locally with ``HYPOTHESIS_PROFILE=ci``), no deadline (the
+  machine is shared and busy), no example database, 100 examples unless a test says less;
+- ``dev``: random examples, failures remembered in the local ``.hypothesis`` database
+  and replayed first, no deadline;
+- ``thorough``: ``dev`` with 1000 examples per test that does not set its own count,
+  for a long local hunt.
+
+Known counterexamples that matter are pinned in the tests with ``@example``, so they
+run under every profile.
+"""
+
+import os
 
 from hypothesis import HealthCheck, settings
 
 from slipstack.lib.limit_set import compile_kernels
 
-settings.register_profile("ci", deadline=None, suppress_health_check=[HealthCheck.too_slow])
-settings.load_profile("ci")
+_COMMON = {"deadline": None, "suppress_health_check": [HealthCheck.too_slow]}
+settings.register_profile("ci", derandomize=True, database=None, max_examples=100, **_COMMON)
+settings.register_profile("dev", max_examples=100, **_COMMON)
+settings.register_profile("thorough", max_examples=1000, **_COMMON)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE") or ("ci" if os.environ.get("CI") else "dev"))
 compile_kernels()

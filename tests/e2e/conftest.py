@@ -45,7 +45,7 @@ class LaunchedGraph:
     def graph(self) -> dict:
         return json.loads((self.run_root / "current" / "graph.json").read_text())
 
-    def cli(self, *args: str, timeout: float = 30.0) -> subprocess.CompletedProcess:
+    def cli(self, *args: str, timeout: float = 90.0) -> subprocess.CompletedProcess:
         """Run ``slipstack ARGS`` against this graph; returns the completed process."""
         return subprocess.run(
             [PY, "-m", "slipstack.launch.cli", *args], env=self.env, capture_output=True,

@@ -1,15 +1,16 @@
-"""Property tests for every row of MATH.md §4.4 (numerics at the extremes)."""
+"""Property tests for every row of MATH.md §4.4 (numerics at the extremes); example counts
+follow the hypothesis profile (tests/conftest.py)."""
 
 from __future__ import annotations
 
 import math
 
 import numpy as np
-from hypothesis import given, settings
+from hypothesis import example, given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from slipstack.lib.fusion import fuse
+from slipstack.lib.fusion import FusionThresholds, fuse
 from slipstack.lib.limit_set import load_factor
 from slipstack.lib.pad import PadGeometry
 from slipstack.lib.slip_tests import SLIP_TESTS, SlipParams
@@ -49,7 +50,6 @@ def _finite_or_documented(v):
     return math.isfinite(v.margin) and math.isfinite(v.gamma)
 
 
-@settings(max_examples=120, deadline=None)
 @given(fields, loads)
 def test_every_test_returns_a_status_and_no_nan(phi, load):
     c = _Contact(phi, load[:2], load[2], PAD.positions)
@@ -61,7 +61,6 @@ def test_every_test_returns_a_status_and_no_nan(phi, load):
             assert all(math.isfinite(x) for x in v.p_c)
 
 
-@settings(max_examples=60, deadline=None)
 @given(fields, loads, st.integers(1, 3))
 def test_gamma_is_invariant_under_rotating_the_field_by_90_degrees(phi, load, k):
     f_t, tau = np.array(load[:2]), load[2]
@@ -77,7 +76,6 @@ def test_gamma_is_invariant_under_rotating_the_field_by_90_degrees(phi, load, k)
         assert res.gamma == ref.gamma
 
 
-@settings(max_examples=60, deadline=None)
 @given(fields, loads, st.integers(0, 2), st.integers(0, 2))
 def test_gamma_is_invariant_under_translating_the_field_by_whole_taxels(phi, load, dr, dk):
     f_t, tau = np.array(load[:2]), load[2]
@@ -94,21 +92,30 @@ def test_gamma_is_invariant_under_translating_the_field_by_whole_taxels(phi, loa
         assert np.allclose(np.array(res.p_c) - d, ref.p_c, atol=1e-9 * max(1.0, np.hypot(*ref.p_c)))
 
 
-@settings(max_examples=80, deadline=None)
+SCALE_INVARIANT_TESTS = {n: t for n, t in SLIP_TESTS.items() if n != "tactile_cor"}
+"""Every slip test but the paper's fixed-gain COR iteration: its step is the residual of
+(12) times a fixed gain, so scaling the forces scales the step and the iteration may
+converge at one scale and go singular at another (status, not a wrong answer)."""
+
+_TWO_EQUAL_TAXELS = np.zeros(36)
+_TWO_EQUAL_TAXELS[[0, 12]] = 1.0
+
+
 @given(fields, loads, st.floats(-6, 4))
+@example(_TWO_EQUAL_TAXELS, (0.0, 0.5, 0.0), 2.0)  # the paper's iteration: CONVERGED vs SINGULAR
 def test_gamma_and_verdicts_are_invariant_under_force_scaling(phi, load, log_k):
     k = 10.0**log_k
     f_t, tau = np.array(load[:2]), load[2]
     a = _Contact(phi, f_t, tau, PAD.positions)
     b = _Contact(phi * k, f_t * k, tau * k, PAD.positions)
-    for name, test in SLIP_TESTS.items():
+    for name, test in SCALE_INVARIANT_TESTS.items():
         va, vb = test(a, PARAMS), test(b, PARAMS)
         assert va.status.usable == vb.status.usable, name
         if not va.status.usable:
             continue  # e.g. the paper's iteration diverging: reported, not compared
-        # the COR tests' ratio is taken at the COR of (12), not at a stationary point of
+        # the COR test's ratio is taken at the COR of (12), not at a stationary point of
         # the ratio, so it moves to first order with the solver's COR tolerance
-        rel = 1e-5 if name.startswith("tactile_cor") else 1e-8
+        rel = 1e-5 if name == "tactile_cor_robust" else 1e-8
         if math.isfinite(va.gamma):
             assert math.isclose(va.gamma, vb.gamma, rel_tol=rel, abs_tol=1e-12), name
             if abs(va.margin) > 1e-6:
@@ -117,7 +124,6 @@ def test_gamma_and_verdicts_are_invariant_under_force_scaling(phi, load, log_k):
             assert vb.gamma == va.gamma
 
 
-@settings(max_examples=50, deadline=None)
 @given(fields)
 def test_no_load_sticks_with_margin_one(phi):
     c = _Contact(phi, (0.0, 0.0), 0.0, PAD.positions)
@@ -129,21 +135,38 @@ def test_no_load_sticks_with_margin_one(phi):
             assert v.kind == "no-contact" and not v.stick, name
 
 
-@settings(max_examples=50, deadline=None)
 @given(arrays(float, 36, elements=st.floats(0, 1e3)), loads, st.floats(-1e-3, 0.0))
-def test_vanishing_normal_force_is_an_explicit_no_contact(pressure, load, f_z):
-    """f_n → 0 (the object pulls or barely touches): NO_CONTACT, no division by zero."""
-    fr = fuse(pressure, [load[0], load[1], -f_z if f_z < 0 else 0.0], [0, 0, load[2]], PAD)
+def test_a_pulling_or_zero_normal_force_is_an_explicit_no_contact(pressure, load, f_n):
+    """f_n ≤ 0 (the object pulls, or rests without pressing): NO_CONTACT for every test."""
+    fr = fuse(pressure, [load[0], load[1], -f_n], [0, 0, load[2]], PAD)
+    assert fr.status is SolverStatus.NO_CONTACT
     for name, test in SLIP_TESTS.items():
         v = test(fr, PARAMS)
-        if fr.status is SolverStatus.NO_CONTACT:
-            assert v.kind == "no-contact" and not v.stick, name
-        assert not math.isnan(v.margin)
-    if -f_z <= 0 or not pressure.any():
+        assert v.kind == "no-contact" and not v.stick and not math.isnan(v.margin), name
+
+
+@given(arrays(float, 36, elements=st.one_of(st.just(0.0), st.floats(1e-6, 1e3))).filter(lambda p: p.any()), loads,
+       st.floats(1e-12, 1e-3), st.sampled_from([0.0, 1e-6, 1e-4]))
+def test_a_barely_touching_contact_is_judged_without_division_by_zero(pressure, load, f_n, min_f_n):
+    """0 < f_n ≪ 1 N (the object barely touches): below the contact threshold it is
+    NO_CONTACT; above it every test gives a verdict, never NaN, and a tangential load
+    beyond μ·f_n (the translational capacity of any pressure field) never sticks.
+    Taxel pressures are 0 or at least 1 µPa (an open defect: with pressures 1 and
+    1e-100 Pa on two taxels the exact test returns γ = 0 for any tangential load)."""
+    thresholds = FusionThresholds(min_normal_force_n=min_f_n)
+    fr = fuse(pressure, [load[0], load[1], -f_n], [0, 0, load[2]], PAD, thresholds)
+    if f_n <= min_f_n:
         assert fr.status is SolverStatus.NO_CONTACT
+        return
+    assert fr.status is SolverStatus.OK and math.isclose(fr.f_n, f_n, rel_tol=1e-12)
+    overloaded = math.hypot(load[0], load[1]) > 1.01 * PARAMS.mu * f_n
+    for name, test in SLIP_TESTS.items():
+        v = test(fr, PARAMS)
+        assert v.kind in KINDS - {"no-contact"} and not math.isnan(v.margin), (name, v)
+        if overloaded:
+            assert not v.stick, (name, v)
 
 
-@settings(max_examples=80, deadline=None)
 @given(arrays(float, 36, elements=st.one_of(st.floats(allow_nan=True, allow_infinity=True), taxel)))
 def test_bad_taxels_are_clipped_and_counted(pressure):
     fr = fuse(pressure, [0.1, 0.0, -1.0], [0, 0, 1e-4], PAD)
@@ -156,7 +179,6 @@ def test_bad_taxels_are_clipped_and_counted(pressure):
         assert math.isclose(fr.f_n, 1.0, rel_tol=1e-12)
 
 
-@settings(max_examples=60, deadline=None)
 @given(st.integers(0, 35), st.floats(1e-9, 1e4), loads)
 def test_point_contact_has_zero_torsional_capacity(j, f_n, load):
     phi = np.zeros(36)

@@ -1,8 +1,11 @@
 """Episode matching, checked by hand on tiny streams."""
 
 import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
-from slipstack.lib.episodes import Episode, detection_quality, find_episodes
+from slipstack.lib.episodes import Episode, EpisodeTracker, detection_quality, find_episodes
 
 MS = 1_000_000
 
@@ -40,3 +43,67 @@ def test_incipient_frames_are_not_counted_as_sticking():
     vs[15] = True      # an early warning during partial slip
     q = detection_quality(t, s, t, vs, incipient=inc)
     assert q.stick_frames == 90 and q.false_slip_frames == 0 and q.episodes == ()
+
+
+# -- the streamed tracker against the whole-recording function ------------------------------
+
+def _streamed(t, s, vt, vs, inc, order, **windows) -> EpisodeTracker:
+    """Feed the two streams interleaved as ``order`` says (True: next truth sample)."""
+    tracker = EpisodeTracker(**windows)
+    i = j = 0
+    for take_truth in order:
+        if take_truth and i < len(t):
+            tracker.add_truth(int(t[i]), bool(s[i]), bool(inc[i]))
+            i += 1
+        elif j < len(vt):
+            tracker.add_verdict(int(vt[j]), bool(vs[j]))
+            j += 1
+    for k in range(i, len(t)):
+        tracker.add_truth(int(t[k]), bool(s[k]), bool(inc[k]))
+    for k in range(j, len(vt)):
+        tracker.add_verdict(int(vt[k]), bool(vs[k]))
+    tracker.finish()
+    return tracker
+
+
+@st.composite
+def streams(draw):
+    n = draw(st.integers(0, 120))
+    t = np.cumsum(draw(hnp.arrays(np.int64, n, elements=st.integers(1, 4)))) * MS
+    s = draw(hnp.arrays(bool, n))
+    inc = draw(hnp.arrays(bool, n))
+    m = draw(st.integers(0, 120))
+    vt = np.cumsum(draw(hnp.arrays(np.int64, m, elements=st.integers(0, 4)))) * MS
+    vs = draw(hnp.arrays(bool, m))
+    order = draw(st.lists(st.booleans(), max_size=n + m))
+    return t, s, inc, vt, vs, order
+
+
+@given(streams(), st.sampled_from([(5, 5, 2), (100, 50, 20), (3, 1, 2)]))
+@settings(max_examples=300)
+def test_streamed_tracker_equals_detection_quality(data, windows_ms):
+    t, s, inc, vt, vs, order = data
+    lead, grace, gap = (w * MS for w in windows_ms)
+    ref = detection_quality(t, s, vt, vs, lead_ns=lead, grace_ns=grace, min_gap_ns=gap, incipient=inc)
+    tracker = _streamed(t, s, vt, vs, inc, order, lead_ns=lead, grace_ns=grace, min_gap_ns=gap)
+    assert tracker.quality() == ref
+    assert (tracker.episode_count, tracker.detected, tracker.missed) == (len(ref.episodes), ref.detected, ref.missed)
+
+
+def test_tracker_memory_stays_bounded_over_a_long_stream():
+    """200 000 truth samples and verdicts with an episode every second: the tracker
+    keeps a few hundred samples however long the stream (counts checked by hand)."""
+    tracker = EpisodeTracker(max_kept=50)
+    most = 0
+    for k in range(200_000):
+        stamp = k * MS
+        gross = 500 <= k % 1000 < 520  # 20 ms of gross slip each second
+        tracker.add_truth(stamp, gross, False)
+        tracker.add_verdict(stamp, 495 <= k % 1000 < 525)  # flagged 5 ms early to 5 ms late
+        most = max(most, len(tracker._truth) + len(tracker._pending) + len(tracker._open))
+    tracker.finish()
+    q = tracker.quality()
+    assert tracker.episode_count == tracker.detected == 200 and tracker.missed == 0
+    assert len(q.episodes) == len(q.delays_ns) == 50 and set(q.delays_ns) == {-5 * MS}
+    assert q.false_slip_frames == 0 and q.stick_frames == 200 * (1000 - 170)  # 170 ms window per episode
+    assert most < 300, most

@@ -77,15 +77,22 @@ def test_magnitude_input_and_rejected_samples() -> None:
     assert abs(est.onset_t_s - t_on) <= 2 * DT
 
 
-def test_onset_from_displacement() -> None:
-    # The object starts moving at t_on at 10 mm/s: it crosses 0.1 mm after 10 ms (5 samples).
+@pytest.mark.parametrize("speed_m_per_s, lag_s", [(0.01, 0.01), (0.001, 0.1)])
+def test_mu_s_is_read_off_the_ramp_at_the_displacement_onset(speed_m_per_s: float, lag_s: float) -> None:
+    # The object starts moving at the friction peak t_on and crosses 0.1 mm lag_s later:
+    # μ_s is the ramp line then, 0.45 + 0.05/s · lag_s (0.4505 and 0.455), not the peak's
+    # 0.45. The line fit's standard error is ≈ 0.0004 (10 seeds: within 0.0008), and the
+    # same record without the displacement gives 0.05/s · lag_s less (10 seeds at 0.1 s:
+    # 0.0048–0.0052).
     t, fn, ft, t_on = ramp(seed=5)
-    disp = np.where(t > t_on, (t - t_on) * 0.01, 0.0)
+    disp = np.where(t > t_on, (t - t_on) * speed_m_per_s, 0.0)
     est = identify_mu(t, fn, ft, displacement_m=np.column_stack([disp, 0 * disp]))
     assert est.ok and est.onset_source == "displacement"
-    assert est.onset_t_s == pytest.approx(t_on + 0.01, abs=2 * DT)
-    # The ramp line evaluated 10 ms late: 0.45 + 0.05/s · 0.01 s = 0.4505.
-    assert est.static == pytest.approx(0.4505, abs=0.003)
+    assert est.onset_t_s == pytest.approx(t_on + lag_s, abs=2 * DT)
+    assert est.static == pytest.approx(0.45 + 0.05 * lag_s, abs=0.0015)
+    assert abs(est.static - (0.45 + 0.05 * lag_s)) < 4 * est.static_se
+    from_ratio = identify_mu(t, fn, ft)
+    assert est.static - from_ratio.static == pytest.approx(0.05 * lag_s, abs=0.0005)
 
 
 def test_no_slip_ramp_reports_no_onset() -> None:

@@ -1,0 +1,311 @@
+"""The monitor's summary, health and check against streams whose numbers the tests work
+out independently: a lock-step run of a paper scene (real nodes, simulated rig), hand-made
+streams, and 200 000 messages for bounded memory."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import stat
+import tracemalloc
+
+import numpy as np
+import pytest
+
+from slipstack.lib.errors import ConfigError
+from slipstack.messages import Diagnostics, GripCommand, Header, RigTruth, Slip, decode, encode
+from slipstack.nodes.inprocess import InProcessExecutor
+from slipstack.nodes.lockstep import LockstepStack, StackConfig, load_scene_by_name
+from slipstack.nodes.monitor import Monitor, MonitorParams, format_summary
+
+MS = 1_000_000
+TOPICS = ("slip", "grip/command", "rig/truth")
+
+
+@pytest.fixture(scope="module")
+def fig10_runs() -> dict[bool, list[tuple[int, str, bytes]]]:
+    """fig10 cut to 3 s (the load passes μ_s·2 N at 1.4 s) with its launch file's test and
+    law, the controller off and on: every slip, grip/command and rig/truth frame as
+    published, with its time."""
+    scene = dataclasses.replace(load_scene_by_name("fig10"), duration_s=3.0)
+    runs = {}
+    for controller in (False, True):
+        config = StackConfig(controller=controller, slip={"method": "coulomb"}, grip={"law": "linear"})
+        stack = LockstepStack(scene, config)
+        try:
+            ex = stack.run()
+        finally:
+            stack.close()
+        runs[controller] = [(t, topic, payload) for t, topic, payload in ex.raw if topic in TOPICS]
+    return runs
+
+
+def monitor_over(events, tmp_path, **params) -> tuple[dict, list[str], Monitor]:
+    """Feed ``events`` to a monitor on the in-process executor; its JSON summary and log."""
+    summary_path = tmp_path / "summary.json"
+    monitor = Monitor(MonitorParams(summary_path=str(summary_path), **params))
+    ex = InProcessExecutor([monitor])
+    ex.feed(events)
+    ex.run()
+    ex.stop()
+    return json.loads(summary_path.read_text()), ex.logs, monitor
+
+
+def health(logs: list[str]) -> str:
+    """The summary's HEALTH lines, one per problem."""
+    return "\n".join(line for line in logs if "HEALTH:" in line)
+
+
+def by_topic(events, topic):
+    return [decode(payload) for _, t, payload in events if t == topic]
+
+
+def true_episodes(truth: list[RigTruth]) -> list[tuple[int, int]]:
+    """Runs of gross slip, merged when less than 20 ms apart, by a plain loop."""
+    runs: list[list[int]] = []
+    for m in truth:
+        t = m.header.stamp_ns
+        if not m.gross_slip:
+            continue
+        if runs and t - runs[-1][1] <= 2 * MS:  # the next tick: the run goes on
+            runs[-1][1] = t
+        elif runs and t - runs[-1][1] < 20 * MS:
+            runs[-1][1] = t
+        else:
+            runs.append([t, t])
+    return [(a, b) for a, b in runs]
+
+
+def test_summary_of_a_run_without_controller_matches_the_recorded_truth(fig10_runs, tmp_path):
+    events = fig10_runs[False]
+    truth, slips = by_topic(events, "rig/truth"), by_topic(events, "slip")
+    episodes = true_episodes(truth)
+    assert len(episodes) >= 1  # the scene does slip
+    flagged = [s.header.stamp_ns for s in slips if s.state not in ("stick", "no-contact")]
+    detected = [ep for ep in episodes if any(ep[0] - 100 * MS <= t <= ep[1] + 50 * MS for t in flagged)]
+    first_flags = [min(t for t in flagged if ep[0] - 100 * MS <= t <= ep[1] + 50 * MS) - ep[0] for ep in detected]
+
+    s, logs, _ = monitor_over(events, tmp_path)
+    assert s["slip_frames"] == len(slips)
+    assert s["true_episodes"] == len(episodes)
+    assert s["detected_episodes"] == len(detected) and s["missed_episodes"] == len(episodes) - len(detected)
+    assert s["detection_delay_ms_p50"] == pytest.approx(np.percentile(first_flags, 50) / 1e6)
+    assert s["slip_distance_mm"] == pytest.approx(truth[-1].slip_distance_m * 1e3) and s["slip_distance_mm"] > 1.0
+    assert s["applied_f_n_mean_n"] == pytest.approx(np.mean([m.f_n_applied for m in truth]))
+    assert s["grip_commands"] == 0 and s["grip_command_peak_n"] is None and s["fail_safe_share"] is None
+    health_lines = health(logs)
+    assert "the object slid" in health_lines
+    assert not any("frames lost: none" in line for line in logs)
+
+
+def test_summary_of_a_controlled_run_counts_force_fail_safe_and_late_commands(fig10_runs, tmp_path):
+    """The recorded commands, every 7th turned fail-safe and every 11th stamped 30 ms
+    before it left (late for the 20 ms deadline): the summary counts what was sent."""
+    events = []
+    for k, (t, topic, payload) in enumerate(fig10_runs[True]):
+        if topic == "grip/command":
+            m = decode(payload)
+            h = m.header
+            stamp = h.pub_ns - 30 * MS if k % 11 == 0 else h.stamp_ns
+            reason = "fail-safe" if k % 7 == 0 else m.reason
+            payload = encode(dataclasses.replace(m, reason=reason), Header(stamp, h.seq, h.pub_ns, h.sources))
+        events.append((t, topic, payload))
+    commands, truth = by_topic(events, "grip/command"), by_topic(events, "rig/truth")
+    f_n = np.array([c.f_n_desired for c in commands])
+    fail_safe = sum(c.reason == "fail-safe" for c in commands)
+    late = sum(c.header.pub_ns - c.header.stamp_ns > 20 * MS for c in commands)
+    assert fail_safe > 0 and late > 0
+
+    s, logs, _ = monitor_over(events, tmp_path)
+    assert s["grip_commands"] == len(commands)
+    assert s["grip_command_mean_n"] == pytest.approx(f_n.mean()) and s["grip_command_peak_n"] == f_n.max()
+    assert s["grip_command_peak_n"] > 5.0  # the load reached 3 N: at least 3/0.45 = 6.7 N was needed
+    assert s["fail_safe_commands"] == fail_safe and s["fail_safe_share"] == pytest.approx(fail_safe / len(commands))
+    assert s["late_commands"] == late and s["command_age_ms_max"] == pytest.approx(30.0)
+    assert s["applied_f_n_mean_n"] == pytest.approx(np.mean([m.f_n_applied for m in truth]))
+    assert s["slip_distance_mm"] < 0.5 and s["true_episodes"] == 0
+    health_lines = health(logs)
+    assert "fail-safe" in health_lines and "later than 20 ms" in health_lines
+    assert not any("frames lost: none" in line for line in logs)
+
+
+def test_a_detector_stuck_on_slip_has_a_false_slip_rate_of_one(fig10_runs, tmp_path):
+    """What the e2e false-alarm bound (20 %) is for: "every episode detected" alone
+    passes with a detector that always says slip; its false-slip rate does not."""
+    events = []
+    for t, topic, payload in fig10_runs[False]:
+        if topic == "slip":
+            m = decode(payload)
+            payload = encode(dataclasses.replace(m, state="translation"), m.header)
+        events.append((t, topic, payload))
+    s, _, _ = monitor_over(events, tmp_path)
+    assert s["missed_episodes"] == 0 and s["stick_frames"] > 100
+    assert s["false_slip_rate"] == 1.0
+
+
+def test_a_clean_run_says_health_ok_and_passes_its_check(fig10_runs, tmp_path):
+    check = tmp_path / "check.json"
+    s, logs, _ = monitor_over(fig10_runs[True], tmp_path, check_path=str(check))
+    assert s["fail_safe_commands"] == 0 and s["late_commands"] == 0  # lock-step: nothing is late
+    assert "HEALTH: ok" in [line.split("] ", 1)[-1] for line in logs]
+    assert any("frames lost: none" in line for line in logs)
+    assert json.loads(check.read_text()) == {"passed": True, "problems": []}
+
+
+def _truth(t_ns: int, *, slid_m: float = 0.0, turned_rad: float = 0.0, gross: bool = False) -> RigTruth:
+    return RigTruth(gross_slip=gross, slip_distance_m=slid_m, slip_angle_rad=turned_rad, f_n_applied=5.0,
+                    header=Header(t_ns, t_ns // MS, t_ns, {}))
+
+
+def _diag(node: str, t_ns: int, **counters: float) -> Diagnostics:
+    return Diagnostics(node=node, counters=counters, header=Header(t_ns, 0, t_ns, {}))
+
+
+def test_check_names_every_problem(tmp_path):
+    """Slid and turned too far, 50 % fail-safe, a missed episode, a node that died (its
+    diagnostics stopped at 1 s of 10 s) and one that came back after 4 s."""
+    check = tmp_path / "check.json"
+    events = []
+    for k in range(10_000):  # 10 s at 1 kHz
+        t = k * MS
+        events.append((t, "rig/truth", _truth(t, slid_m=0.9e-3 * k / 9999, turned_rad=math.radians(0.7) * k / 9999,
+                                               gross=5000 <= k < 5100)))
+        events.append((t, "slip", Slip(state="stick", header=Header(t, k, t, {}))))
+        events.append((t, "grip/command", GripCommand(f_n_desired=3.0, reason="fail-safe" if k % 2 else "nominal",
+                                                      header=Header(t, k, t + MS, {}))))
+    for s in range(1, 11):
+        t = s * 1_000_000_000 - 1
+        events.append((t, "diagnostics", _diag("control", t)))
+        if s <= 1:
+            events.append((t, "diagnostics", _diag("ft_driver", t)))
+        if s <= 2 or s >= 6:
+            events.append((t, "diagnostics", _diag("tactile_driver", t)))
+    s, logs, _ = monitor_over(events, tmp_path, check_path=str(check))
+    verdict = json.loads(check.read_text())
+    assert verdict["passed"] is False
+    problems = "\n".join(verdict["problems"])
+    assert "slid 0.90 mm (allowed 0.5 mm)" in problems
+    assert "turned 0.70 deg (allowed 0.5 deg)" in problems
+    assert "50.0% of the grip commands were fail-safe" in problems
+    assert "missed 1 of 1 true slip episodes" in problems
+    assert "node ft_driver went silent: no diagnostics for the last 9.0 s" in problems
+    assert "node tactile_driver went silent for 4.0 s and came back" in problems
+    assert "control" not in problems
+    assert len(verdict["problems"]) == 6
+    assert s["silent_nodes"] == {"ft_driver": pytest.approx(9.0, abs=1e-6)}
+    health_lines = health(logs)
+    assert health_lines.splitlines() == [f"[monitor] HEALTH: {p}" for p in verdict["problems"]]
+
+
+def test_a_monitor_that_waited_for_a_core_sees_no_silence(tmp_path):
+    """Reports stamped every second by their node; the monitor handled those of 3–6 s in
+    one burst at 6 s after a stall: the node was not silent, the monitor was late."""
+    events = [(t * MS, "rig/truth", _truth(t * MS)) for t in range(0, 8000, 10)]
+    handled_at = {1: 1, 2: 2, 3: 6, 4: 6, 5: 6, 6: 6, 7: 7}  # report stamp (s) -> handled (s)
+    events += [(handled * 1_000_000_000, "diagnostics", _diag("control", stamp * 1_000_000_000))
+               for stamp, handled in handled_at.items()]
+    s, logs, _ = monitor_over(events, tmp_path)
+    assert s["silent_nodes"] == {} and s["nodes_that_went_silent"] == {}
+    assert health(logs) == "[monitor] HEALTH: ok"
+
+
+def test_behind_real_time_and_skipped_samples_reach_the_health_line(tmp_path):
+    events = [(t * MS, "rig/truth", _truth(t * MS)) for t in range(100)]
+    events.append((60 * MS, "diagnostics", _diag("fusion", 60 * MS, **{"in.ft/wrench.received": 1000,
+                                                                       "in.ft/wrench.dropped": 400})))
+    events.append((70 * MS, "diagnostics", _diag("rig", 70 * MS, **{"in.grip/command.received": 1000,
+                                                                    "in.grip/command.dropped": 400,
+                                                                    "timer.tick.skipped": 35})))
+    s, logs, _ = monitor_over(events, tmp_path)
+    assert s["behind_real_time"] == {"rig": {"timer.tick.skipped": 35}}
+    assert s["skipped_for_newer"] == {"fusion": {"ft/wrench": {"skipped": 400, "received": 1000}},
+                                      "rig": {"grip/command": {"skipped": 400, "received": 1000}}}
+    health_lines = health(logs)
+    assert "rig fell behind real time (timer ticks skipped: tick 35)" in health_lines
+    assert "fusion skipped 40% of ft/wrench for newer samples" in health_lines
+    assert "grip/command" not in health_lines  # the plant acting on the newest command: listed, not a problem
+    assert any("rig grip/command 400 of 1000" in line for line in logs)
+
+
+def test_the_check_file_is_replaced_whole(tmp_path):
+    check = tmp_path / "check.json"
+    check.write_text("stale content from an earlier run")
+    monitor_over([(0, "rig/truth", _truth(0))], tmp_path, check_path=str(check))
+    assert json.loads(check.read_text())["passed"] is True
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["check.json", "summary.json"]  # no temporary file left
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(check.stat().st_mode) == 0o666 & ~umask
+
+
+def test_bad_parameters_are_refused():
+    with pytest.raises(ConfigError, match="command_deadline_ms"):
+        MonitorParams(command_deadline_ms=0.0)
+    with pytest.raises(ConfigError, match="check_fail_safe_share"):
+        MonitorParams(check_fail_safe_share=1.5)
+
+
+def _long_stream(n_ticks: int):
+    """1 kHz truth, verdicts and commands (3 messages a tick): 20 ms of gross slip every
+    second, flagged from 5 ms before; every 100th command fail-safe; diagnostics at 1 Hz."""
+    for k in range(n_ticks):
+        t = k * MS
+        phase = k % 1000
+        yield t, "rig/truth", encode(_truth(t, gross=500 <= phase < 520))
+        state = "translation" if 495 <= phase < 525 else "stick"
+        yield t, "slip", encode(Slip(state=state, header=Header(t, k, t, {})))
+        yield t, "grip/command", encode(GripCommand(f_n_desired=2.0 + phase / 1000, reason="fail-safe" if k % 100 == 0
+                                                    else "nominal", header=Header(t, k, t + MS, {})))
+        if phase == 999:
+            yield t, "diagnostics", encode(_diag("control", t, **{"in.ft/wrench.received": k}))
+
+
+def test_memory_stays_bounded_over_200k_messages(tmp_path):
+    """The monitor used to keep every sample in Python lists (~260 MB/h). Over 200 000
+    messages the summary must stay right, and what the last 30 000 of them leave
+    allocated (traced: tracemalloc slows everything down, so only the end is) must not
+    grow with the stream: the old lists kept ~3 MB of it."""
+    n_ticks = 66_700  # 3 messages a tick: 200 100 messages, 66.7 s
+    summary_path = tmp_path / "summary.json"
+    monitor = Monitor(MonitorParams(summary_path=str(summary_path)))
+    ex = InProcessExecutor([monitor])
+    stream = _long_stream(n_ticks)
+
+    def run_ticks(n: int) -> None:
+        for _ in range(n // 1000):
+            ex.feed([next(stream) for _ in range(3 * 1000)])
+            ex.run()
+            ex.logs.clear()
+
+    run_ticks(56_000)
+    tracemalloc.start()
+    try:
+        sizes = []
+        for _ in range(5):
+            run_ticks(2_000)
+            sizes.append(tracemalloc.get_traced_memory()[0])
+    finally:
+        tracemalloc.stop()
+    ex.feed(stream)
+    ex.run()
+    ex.stop()
+    assert sizes[-1] < 256 * 1024 and sizes[-1] - sizes[0] < 64 * 1024, [f"{s / 1e3:.0f} kB" for s in sizes]
+    s = json.loads(summary_path.read_text())
+    episodes = len(range(500, n_ticks, 1000))  # one at 500 ms of every second: 67
+    assert s["true_episodes"] == s["detected_episodes"] == episodes and s["missed_episodes"] == 0
+    assert s["detection_delay_ms_p50"] == pytest.approx(-5.0)
+    assert s["false_slip_rate"] == 0.0
+    assert s["grip_commands"] == n_ticks and s["fail_safe_commands"] == math.ceil(n_ticks / 100)
+    assert s["grip_command_peak_n"] == pytest.approx(2.999)
+    assert s["slip_frames"] == n_ticks
+
+
+def test_format_summary_without_a_rig_leaves_the_rig_numbers_out():
+    monitor = Monitor()
+    monitor.episodes.finish()
+    from slipstack.nodes.monitor import summarise
+    lines = format_summary(summarise(monitor, 0))
+    assert "object slid - mm and turned - deg in all" in lines
+    assert "HEALTH: ok" in lines
