@@ -98,3 +98,111 @@ def test_coincident_points_pool_their_weight_in_the_kuhn_test():
     assert res.taxel in (0, 1)
     assert res.c == (0.0, 0.0)
     assert res.value == pytest.approx(1.0)
+
+
+def test_coincident_points_pool_weights_that_only_together_hold_the_median():
+    # 0.6 + 0.6 at the origin against a pull of |(0.5, 0.5)| = 0.71: together (1.2) they
+    # hold the median there, either alone (0.6) would not. Without pooling the solver
+    # would leave the origin towards the other two points.
+    pts = np.array([[0.0, 0.0], [0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    res = geometric_median(pts, [0.6, 0.6, 0.5, 0.5])
+    assert res.status is SolverStatus.ON_TAXEL and res.taxel in (0, 1)
+    assert res.c == (0.0, 0.0)
+    assert res.value == pytest.approx(1.0)
+    ref = _reference_minimiser(pts, np.array([0.6, 0.6, 0.5, 0.5]), np.zeros(2))
+    assert np.hypot(*ref) < 1e-6
+
+
+def _objective(pts, a, b):
+    return lambda c: float(a @ np.hypot(*(pts - c).T) - b @ c)
+
+
+def _reference_minimiser(pts, a, b):
+    """argmin Σ a_i|p_i − c| − b·c by Nelder–Mead from the best point and the centroid
+    (independent of the Newton/Kuhn solver; exact enough to 1e-7 of the spread)."""
+    from scipy.optimize import minimize
+
+    F = _objective(pts, a, b)
+    starts = [min(pts, key=F), a @ pts / a.sum()]  # the best point and the centroid
+    best = min((minimize(F, s, method="Nelder-Mead", options={"xatol": 1e-12, "fatol": 1e-15, "maxiter": 20000})
+                for s in starts), key=lambda r: r.fun)
+    return best.x
+
+
+def _weber_cases():
+    rng = np.random.default_rng(17)
+    for k in range(24):
+        m = int(rng.integers(3, 12))
+        pts = rng.normal(size=(m, 2)) * 10.0 ** rng.integers(-3, 1)
+        a = rng.random(m) + 0.05
+        if k % 3 == 0:
+            a[rng.integers(m)] += a.sum()  # a dominant weight: the minimiser on a point
+        b = rng.normal(size=2)
+        b *= rng.random() * 0.9 * a.sum() / np.hypot(*b)  # |b| < Σa: bounded
+        if k % 4 == 1:
+            b[:] = 0.0  # the plain geometric median
+        yield pts, a, b
+
+
+@pytest.mark.parametrize("warm", [False, True])
+def test_weber_solver_matches_an_independent_minimisation(warm):
+    for pts, a, b in _weber_cases():
+        ref = _reference_minimiser(pts, a, b)
+        F = _objective(pts, a, b)
+        spread = np.sqrt(a @ np.sum((pts - a @ pts / a.sum()) ** 2, axis=1) / a.sum())
+        c0 = ref + spread * np.array([0.3, -0.2]) if warm else None
+        res = solve_weber(pts, a, b, c0)
+        assert res.converged and res.status in (SolverStatus.CONVERGED, SolverStatus.ON_TAXEL), res
+        assert np.hypot(*(np.array(res.c) - ref)) < 1e-6 * spread, (res, ref)
+        assert res.value == pytest.approx(F(np.array(res.c)), rel=1e-12, abs=1e-12 * spread * a.sum())
+        assert res.value <= F(ref) + 1e-12 * spread * a.sum()  # at least as low as the reference
+        assert 0.0 <= res.residual <= 1e-3
+        if res.status is SolverStatus.ON_TAXEL:
+            assert res.c == tuple(pts[res.taxel])
+            # Kuhn: the pull of the others and b is no stronger than the weight on the point
+            d = pts[res.taxel] - np.delete(pts, res.taxel, axis=0)
+            pull = (np.delete(a, res.taxel)[:, None] * d / np.hypot(*d.T)[:, None]).sum(axis=0) - b
+            assert np.hypot(*pull) <= a[res.taxel] * (1 + 1e-12)
+        else:
+            assert res.taxel == -1 and res.iterations >= 1
+            assert np.hypot(*(np.array(res.c)[None] - pts).T).min() > 1e-9 * spread
+
+
+def test_weber_solver_bounds_and_degenerate_inputs():
+    pts = np.array([[0.0, 0.0], [2.0, 0.0], [0.0, 2.0]])
+    a = np.array([1.0, 2.0, 1.0])
+    # |b| >= Σa: unbounded along b
+    for b in ((4.0, 0.0), (0.0, -4.0), (3.0, 3.0)):
+        res = solve_weber(pts, a, b)
+        assert res.status is SolverStatus.TRANSLATION and res.c is None and res.value == -np.inf
+        assert res.converged  # an unbounded problem is a certified answer too
+    near = solve_weber(pts, a, (3.99, 0.0))
+    assert near.status.usable and near.c is not None and np.isfinite(near.value)
+    # one point, or all points coincident: that point, F = −b·p
+    one = solve_weber(pts[1:2], [3.0], (1.0, 0.5))
+    assert one.status is SolverStatus.ON_TAXEL and one.c == (2.0, 0.0) and one.taxel == 0
+    assert one.value == pytest.approx(-2.0)
+    same = solve_weber(np.array([[1.0, 1.0], [1.0, 1.0]]), [1.0, 1.0], (0.5, 0.0))
+    assert same.status is SolverStatus.ON_TAXEL and same.c == (1.0, 1.0) and same.value == pytest.approx(-0.5)
+    # zero-weight points do not count, and the taxel index refers to the given points
+    zero = solve_weber(np.vstack([pts, [[50.0, 50.0]]]), [1.0, 10.0, 1.0, 0.0])
+    assert zero.status is SolverStatus.ON_TAXEL and zero.taxel == 1 and zero.c == (2.0, 0.0)
+    # bad input: explicit status, never an exception
+    bad = [
+        solve_weber(pts, [1.0, -1.0, 1.0]),
+        solve_weber(pts, [1.0, np.inf, 1.0]),
+        solve_weber(np.array([[0.0, 0.0], [np.nan, 0.0], [1.0, 1.0]]), a),
+        solve_weber(pts, a, (np.nan, 0.0)),
+        solve_weber(pts, a, (0.0, np.inf)),
+        solve_weber(pts, a[:2]),
+        solve_weber(pts[:, :1], a),
+        solve_weber(pts, a, (1.0, 2.0, 3.0)),
+    ]
+    for res in bad:
+        assert res.status is SolverStatus.INVALID_INPUT and res.c is None and not res.converged
+    none = solve_weber(pts, np.zeros(3))
+    assert none.status is SolverStatus.NO_CONTACT and none.c is None and none.value == 0.0
+    # an unusable warm start is ignored
+    cold = solve_weber(pts, a, (0.5, 0.2))
+    for c0 in ((np.nan, 0.0), (0.0, np.inf)):
+        assert solve_weber(pts, a, (0.5, 0.2), c0).c == pytest.approx(cold.c, abs=1e-12)

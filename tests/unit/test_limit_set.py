@@ -221,3 +221,59 @@ def test_a_force_below_rounding_beside_the_torque_gets_the_unique_pure_torque_co
         assert r.status is SolverStatus.CONVERGED
         assert r.p_c == pytest.approx((1.25e-3, 0.625e-3), abs=1e-15)  # the midpoint
         assert r.gamma == pytest.approx(3.9e-3 / (0.5 * np.hypot(2.5e-3, 1.25e-3)), rel=1e-12)
+
+
+def test_every_reported_field_agrees_with_sums_computed_at_the_reported_cor():
+    # Beside γ (brute force above): the COR, capacity, load torque, sense, centre of
+    # pressure and contact radius recomputed here with numpy from their definitions.
+    pad = PadGeometry(6, 6, 2.5e-3)
+    P = pad.positions
+    rng = np.random.default_rng(77)
+    seen = set()
+    for k in range(60):
+        phi, f_t, tau = _random_case(rng, pad)
+        warm = None if k % 2 else P[int(np.argmax(phi))] + 1e-4
+        res = load_factor(phi, P, f_t, tau, MU, c0=warm)
+        f_n = phi.sum()
+        cop = phi @ P / f_n
+        assert res.cop == pytest.approx(tuple(cop), abs=1e-15)
+        radius = math.sqrt(phi @ np.sum((P - cop) ** 2, axis=1) / f_n)
+        assert res.contact_radius_m == pytest.approx(radius, rel=1e-12) or np.count_nonzero(phi) == 1
+        assert res.margin == 1.0 - res.gamma
+        seen.add(res.status)
+        if res.p_c is None:
+            assert res.status in (SolverStatus.TRANSLATION, SolverStatus.NO_LOAD)
+            assert res.gamma == pytest.approx(np.hypot(*f_t) / (MU * f_n), rel=1e-9)
+            assert res.sense == 0 and res.taxel == -1
+            continue
+        assert res.converged and res.status.usable, res
+        c = np.array(res.p_c)
+        T = MU * phi @ np.hypot(*(P - c).T)
+        n = tau + f_t[0] * c[1] - f_t[1] * c[0]
+        assert res.torque_capacity == pytest.approx(T, rel=1e-12)
+        assert res.load_torque == pytest.approx(n, rel=1e-9, abs=1e-12 * abs(tau) + 1e-18)
+        assert res.sense == (1 if n > 0 else -1)
+        if res.status is SolverStatus.POINT_CONTACT:
+            assert res.gamma == math.inf
+            continue
+        assert res.gamma == pytest.approx(max(abs(n) / T, np.hypot(*f_t) / (MU * f_n)), rel=1e-12)
+        if res.case is SlipCase.ON_TAXEL:
+            assert res.p_c == pytest.approx(tuple(P[res.taxel]), abs=1e-15) and phi[res.taxel] > 0
+        else:
+            assert res.taxel == -1 and res.case is SlipCase.ROTATION and res.iterations >= 1
+        assert 0.0 <= res.residual <= 1e-3
+    assert {SolverStatus.CONVERGED, SolverStatus.ON_TAXEL} <= seen
+
+
+def test_gamma_is_the_same_for_a_load_and_its_opposite_and_grows_linearly_with_it():
+    # The limit set is centrally symmetric (the friction cone is): −w has the same γ and
+    # the opposite sense; γ is homogeneous of degree 1 in the load, 0 in the pressure scale.
+    pad = PadGeometry(6, 6, 2.5e-3)
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        phi, f_t, tau = _random_case(rng, pad)
+        a = load_factor(phi, pad.positions, f_t, tau, MU)
+        b = load_factor(phi, pad.positions, -f_t, -tau, MU)
+        c = load_factor(3.0 * phi, pad.positions, 2.0 * f_t, 2.0 * tau, MU)
+        assert b.gamma == pytest.approx(a.gamma, rel=1e-9) and b.sense == -a.sense
+        assert c.gamma == pytest.approx(2.0 / 3.0 * a.gamma, rel=1e-9)
