@@ -166,6 +166,8 @@ def test_a_frame_of_the_wrong_size_counts_no_taxel_as_clipped():
     res = fuse(np.full(9, np.nan), [0, 0, -1], [0, 0, 0], PAD)
     assert res.status is SolverStatus.INVALID_INPUT
     assert (res.n_nonfinite, res.n_negative, res.n_saturated, res.n_contact) == (0, 0, 0, 0)
+    assert res.f_t.tolist() == [0.0, 0.0] and res.tau == 0.0 and res.f_n == 0.0  # no load from a bad frame
+    assert res.cop.tolist() == [0.0, 0.0] and res.phi.tolist() == [0.0] * 16
 
 
 def test_an_empty_frame_has_a_zero_shape_not_nan():
@@ -183,3 +185,19 @@ def test_a_saturation_mask_of_the_wrong_size_is_ignored():
     assert fuse(p, [0, 0, -1], [0, 0, 0], PAD).n_saturated == 0
     assert fuse(p, [0, 0, -1], [0, 0, 0], PAD, saturated=np.ones(9, dtype=bool)).n_saturated == 0
     assert fuse(p, [0, 0, -1], [0, 0, 0], PAD, saturated=np.ones(16, dtype=bool)).n_saturated == 16
+
+
+def test_thresholds_are_strict_and_one_stamp_gives_no_offset():
+    p = np.full(16, 10.0)  # Pa; sum 160 Pa
+    th = FusionThresholds(min_normal_force_n=1.0)
+    below = fuse(p, [0.1, -0.2, -1.0], [0, 0, 3e-3], PAD, th)
+    assert below.status is SolverStatus.NO_CONTACT  # not above
+    assert below.f_t.tolist() == [0.1, -0.2] and below.tau == 3e-3  # the load is still reported
+    assert fuse(p, [0, 0, -1.000001], [0, 0, 0], PAD, th).status is SolverStatus.OK
+    th = FusionThresholds(min_pressure_sum_pa=160.0)
+    assert fuse(p, [0, 0, -1.0], [0, 0, 0], PAD, th).status is SolverStatus.NO_CONTACT
+    assert fuse(p, [0, 0, -1.0], [0, 0, 0], PAD, FusionThresholds(min_pressure_sum_pa=159.9)).status is SolverStatus.OK
+    assert fuse(p, [0, 0, -1.0], [0, 0, 0], PAD, FusionThresholds(noise_floor_pa=10.0)).n_contact == 0
+    assert fuse(p, [0, 0, -1], [0, 0, 0], PAD, tactile_stamp_ns=1000).stamp_offset_ns is None
+    assert fuse(p, [0, 0, -1], [0, 0, 0], PAD, wrench_stamp_ns=1000).stamp_offset_ns is None
+    assert fuse(p, [0, 0, -1], [0, 0, 0], PAD, tactile_stamp_ns=1500, wrench_stamp_ns=1000).stamp_offset_ns == -500
