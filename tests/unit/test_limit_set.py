@@ -277,3 +277,38 @@ def test_gamma_is_the_same_for_a_load_and_its_opposite_and_grows_linearly_with_i
         c = load_factor(3.0 * phi, pad.positions, 2.0 * f_t, 2.0 * tau, MU)
         assert b.gamma == pytest.approx(a.gamma, rel=1e-9) and b.sense == -a.sense
         assert c.gamma == pytest.approx(2.0 / 3.0 * a.gamma, rel=1e-9)
+
+
+def test_bad_shapes_and_friction_are_invalid_input_not_exceptions():
+    pad = PadGeometry(4, 4, 1e-3)
+    phi = np.ones(16)
+    bad = [
+        load_factor(phi.reshape(4, 4), pad.positions, (1.0, 0.0), 0.0, MU),      # phi not 1-D
+        load_factor(phi[:15], pad.positions, (1.0, 0.0), 0.0, MU),               # one taxel short
+        load_factor(phi, pad.positions[:, :1], (1.0, 0.0), 0.0, MU),             # positions not (N, 2)
+        load_factor(phi, pad.positions, (1.0, 0.0, 0.0), 0.0, MU),               # f_t not (2,)
+        load_factor(phi, pad.positions, (1.0, 0.0), np.nan, MU),
+        load_factor(phi, pad.positions, (1.0, 0.0), 0.0, 0.0),                  # mu must be > 0
+        load_factor(phi, pad.positions, (1.0, 0.0), 0.0, np.inf),
+    ]
+    for res in bad:
+        assert res.status is SolverStatus.INVALID_INPUT and res.case is SlipCase.NONE
+        # the "nothing to say" result: every field at its neutral value
+        assert (res.gamma, res.p_c, res.torque_capacity, res.load_torque, res.sense) == (0.0, None, 0.0, 0.0, 0)
+        assert (res.iterations, res.residual, res.taxel, res.cop, res.contact_radius_m) == (0, 0.0, -1, (0.0, 0.0), 0.0)
+        assert not res.converged and res.margin == 1.0
+    assert load_factor(phi, pad.positions, (1.0, 0.0), 0.0, MU).converged
+
+
+def test_contact_subset_keeps_the_positive_taxels_and_rejects_bad_input():
+    from slipstack.lib.limit_set import contact_subset
+
+    pad = PadGeometry(2, 2, 1e-3)
+    idx, phi, pos = contact_subset(np.array([0.0, 2.0, 0.0, 1.0]), pad.positions)
+    assert idx.tolist() == [1, 3] and phi.tolist() == [2.0, 1.0]
+    assert np.array_equal(pos, pad.positions[[1, 3]])
+    assert contact_subset(np.ones((2, 2)), pad.positions) is None                  # not 1-D
+    assert contact_subset(np.ones(4), pad.positions[:3]) is None                   # count mismatch
+    assert contact_subset(np.ones(4), pad.positions[:, :1]) is None
+    assert contact_subset(np.array([1.0, np.nan, 1.0, 1.0]), pad.positions) is None
+    assert contact_subset(np.array([1.0, -1e-9, 1.0, 1.0]), pad.positions) is None
