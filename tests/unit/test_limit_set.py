@@ -312,3 +312,17 @@ def test_contact_subset_keeps_the_positive_taxels_and_rejects_bad_input():
     assert contact_subset(np.ones(4), pad.positions[:, :1]) is None
     assert contact_subset(np.array([1.0, np.nan, 1.0, 1.0]), pad.positions) is None
     assert contact_subset(np.array([1.0, -1e-9, 1.0, 1.0]), pad.positions) is None
+
+
+def test_coincident_taxels_are_a_point_contact_and_loads_beyond_float_range_invalid():
+    # Two taxels at one place (e.g. after pooling): no torsional capacity about that place.
+    pts = np.array([[1e-3, 2e-3], [1e-3, 2e-3]])
+    res = load_factor(np.array([1.0, 2.0]), pts, (0.0, 0.0), 1e-4, MU)
+    assert res.status is SolverStatus.POINT_CONTACT and res.gamma == math.inf and res.sense == 1
+    assert res.p_c == (1e-3, 2e-3)
+    res = load_factor(np.array([1.0, 2.0]), pts, (0.3, 0.0), -0.3 * 2e-3, MU)  # line of action through it
+    assert res.status is SolverStatus.TRANSLATION and res.gamma == pytest.approx(0.3 / (MU * 3.0))
+    # |f_t|/(μ f_n) beyond the float range: said, not computed as inf or NaN
+    pad = PadGeometry(4, 4, 1e-3)
+    huge = load_factor(np.full(16, 1e-300), pad.positions, (1e300, 1e300), 1e-3, MU)
+    assert huge.status is SolverStatus.INVALID_INPUT
