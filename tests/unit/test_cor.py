@@ -206,3 +206,35 @@ def test_weber_solver_bounds_and_degenerate_inputs():
     cold = solve_weber(pts, a, (0.5, 0.2))
     for c0 in ((np.nan, 0.0), (0.0, np.inf)):
         assert solve_weber(pts, a, (0.5, 0.2), c0).c == pytest.approx(cold.c, abs=1e-12)
+
+
+def test_collinear_points_need_the_regularised_newton_step():
+    # On the line through collinear points the Hessian is singular along it.
+    pts = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [4.0, 0.0]])
+    a = np.ones(4)
+    for b in ((0.0, 0.0), (0.0, 1.0), (0.5, 0.0), (0.3, 2.0), (-0.2, -1.5)):
+        b = np.array(b)
+        res = solve_weber(pts, a, b)
+        F = _objective(pts, a, b)
+        ref = _reference_minimiser(pts, a, b)
+        assert res.converged and res.status.usable, res
+        assert res.value == pytest.approx(F(ref), rel=1e-9, abs=1e-12)
+        if b[1] != 0.0:  # pulled off the line: a unique smooth minimiser
+            assert np.array(res.c) == pytest.approx(ref, abs=1e-6)
+    # b = 0: any point between the middle two is a median; the solver returns one of them
+    c = solve_weber(pts, a, (0.0, 0.0)).c
+    assert 1.0 <= c[0] <= 2.0 and c[1] == 0.0
+
+
+@pytest.mark.parametrize("centre", [(0.0, 0.0), (2e-3, -1e-3)])
+def test_newton_converges_in_a_few_steps_on_smooth_contacts(centre):
+    # The solvers are Newton methods (quadratic convergence): a handful of steps from a
+    # cold start on a smooth pressure. A slower (e.g. linearly convergent) variant would
+    # still find the answer, but not at sensor rate.
+    x, y = PAD.positions.T
+    phi = np.sqrt(np.clip(1 - ((x - centre[0]) ** 2 + (y - centre[1]) ** 2) / 5e-3**2, 0, None))
+    med = geometric_median(PAD.positions, phi)
+    assert med.status is SolverStatus.CONVERGED and med.iterations <= 4 and med.residual < 1e-8
+    for f_t, tau in (((0.2, 0.1), 1e-3), ((0.0, 0.3), -2e-3), ((0.5, 0.0), 1e-4), ((0.05, 0.02), 3e-3)):
+        res = load_factor(phi, PAD.positions, f_t, tau, MU)
+        assert res.status is SolverStatus.CONVERGED and res.iterations <= 6 and res.residual < 1e-8, res
