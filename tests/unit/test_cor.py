@@ -238,3 +238,14 @@ def test_newton_converges_in_a_few_steps_on_smooth_contacts(centre):
     for f_t, tau in (((0.2, 0.1), 1e-3), ((0.0, 0.3), -2e-3), ((0.5, 0.0), 1e-4), ((0.05, 0.02), 3e-3)):
         res = load_factor(phi, PAD.positions, f_t, tau, MU)
         assert res.status is SolverStatus.CONVERGED and res.iterations <= 6 and res.residual < 1e-8, res
+
+
+def test_weber_solver_out_of_steps_says_so():
+    # A smooth minimiser far from the start: one Newton step cannot reach it.
+    x, y = PAD.positions.T
+    phi = _hertz()
+    full = solve_weber(PAD.positions, phi, (0.2 * phi.sum(), 0.1 * phi.sum()))
+    assert full.status is SolverStatus.CONVERGED
+    short = solve_weber(PAD.positions, phi, (0.2 * phi.sum(), 0.1 * phi.sum()), c0=(-9e-3, 9e-3), max_iter=1)
+    assert short.status is SolverStatus.MAX_ITER and not short.converged
+    assert short.c is not None and short.iterations == 1 and short.residual > 1e-3
