@@ -350,6 +350,22 @@ def test_near_translation_switch_sits_at_1e_5_of_the_spread_along_the_force():
         assert res.gamma / gamma_t - 1.0 == pytest.approx((lever / sigma) ** 2 / 2, rel=1e-4, abs=1e-15), k
         if k < 1:
             assert res.case is SlipCase.TRANSLATION and res.p_c is None, k
+            assert (res.torque_capacity, res.load_torque, res.sense, res.iterations, res.residual) == (0, 0, 0, 0, 0)
+            assert res.cop == pytest.approx(tuple(cop), abs=1e-15) and res.taxel == -1
         else:
             assert res.case is SlipCase.ROTATION and res.status is SolverStatus.CONVERGED, k
             assert np.hypot(*(np.array(res.p_c) - cop)) == pytest.approx(sigma**2 / lever, rel=1e-3)
+
+
+def test_cor_on_the_first_taxel_in_contact_reports_index_0_and_odd_warm_starts_are_ignored():
+    pad = PadGeometry(8, 8, 1.25e-3)
+    phi = np.ones(64)
+    phi[0] = 80.0  # the corner taxel pins the COR (Kuhn: the others pull with at most 63)
+    for f_t in ((0.05, 0.0), (0.0, 0.0)):  # Dinkelbach, and the pure-torque median
+        res = load_factor(phi, pad.positions, f_t, 2e-3, MU)
+        assert res.case is SlipCase.ON_TAXEL and res.taxel == 0, res
+        assert res.p_c == pytest.approx(tuple(pad.positions[0]), abs=1e-15)
+    cold = load_factor(phi, pad.positions, (0.05, 0.02), 2e-3, MU)
+    for c0 in ((1e-3, 2e-3, 3e-3), (np.nan, 0.0), (1e9, 0.0), ()):
+        res = load_factor(phi, pad.positions, (0.05, 0.02), 2e-3, MU, c0=c0)
+        assert res.gamma == pytest.approx(cold.gamma, rel=1e-12) and res.taxel == cold.taxel
