@@ -369,3 +369,21 @@ def test_cor_on_the_first_taxel_in_contact_reports_index_0_and_odd_warm_starts_a
     for c0 in ((1e-3, 2e-3, 3e-3), (np.nan, 0.0), (1e9, 0.0), ()):
         res = load_factor(phi, pad.positions, (0.05, 0.02), 2e-3, MU, c0=c0)
         assert res.gamma == pytest.approx(cold.gamma, rel=1e-12) and res.taxel == cold.taxel
+
+
+def test_warm_start_at_the_answer_off_centre_takes_one_update_and_bad_ones_change_nothing():
+    # An off-centre contact (the warm start is moved into the centred frame and back).
+    pad = PadGeometry()
+    x, y = pad.positions.T
+    phi = np.sqrt(np.clip(1 - ((x - 2e-3) ** 2 + (y + 3e-3) ** 2) / 5e-3**2, 0, None))
+    cold = load_factor(phi, pad.positions, (0.2, 0.1), 1e-3, MU)
+    warm = load_factor(phi, pad.positions, (0.2, 0.1), 1e-3, MU, c0=cold.p_c)
+    assert warm.iterations == 1 < cold.iterations
+    assert warm.p_c == pytest.approx(cold.p_c, abs=1e-12)
+    cop, p_c = np.array(cold.cop), np.array(cold.p_c)
+    # the mirror image of the COR, the centre of pressure, far along and far against it:
+    # starts whose ratio does not qualify, or barely, still end at the same γ
+    for c0 in (2 * cop - p_c, cop, cop + 1e3 * (p_c - cop), cop - 1e3 * (p_c - cop)):
+        res = load_factor(phi, pad.positions, (0.2, 0.1), 1e-3, MU, c0=c0)
+        assert res.gamma == pytest.approx(cold.gamma, rel=1e-12)
+        assert res.p_c == pytest.approx(cold.p_c, abs=1e-9)
