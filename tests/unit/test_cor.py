@@ -182,8 +182,8 @@ def test_weber_solver_bounds_and_degenerate_inputs():
     one = solve_weber(pts[1:2], [3.0], (1.0, 0.5))
     assert one.status is SolverStatus.ON_TAXEL and one.c == (2.0, 0.0) and one.taxel == 0
     assert one.value == pytest.approx(-2.0)
-    same = solve_weber(np.array([[1.0, 1.0], [1.0, 1.0]]), [1.0, 1.0], (0.5, 0.0))
-    assert same.status is SolverStatus.ON_TAXEL and same.c == (1.0, 1.0) and same.value == pytest.approx(-0.5)
+    same = solve_weber(np.array([[1.0, 3.0], [1.0, 3.0]]), [1.0, 1.0], (0.5, -0.25))
+    assert same.status is SolverStatus.ON_TAXEL and same.c == (1.0, 3.0) and same.value == pytest.approx(0.25)
     # zero-weight points do not count, and the taxel index refers to the given points
     zero = solve_weber(np.vstack([pts, [[50.0, 50.0]]]), [1.0, 10.0, 1.0, 0.0])
     assert zero.status is SolverStatus.ON_TAXEL and zero.taxel == 1 and zero.c == (2.0, 0.0)

@@ -387,3 +387,25 @@ def test_warm_start_at_the_answer_off_centre_takes_one_update_and_bad_ones_chang
         res = load_factor(phi, pad.positions, (0.2, 0.1), 1e-3, MU, c0=c0)
         assert res.gamma == pytest.approx(cold.gamma, rel=1e-12)
         assert res.p_c == pytest.approx(cold.p_c, abs=1e-9)
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_point_contact_in_both_senses_and_a_force_through_it(sign):
+    pad = PadGeometry(8, 8, 1.25e-3)
+    for taxel in (9, 27, 54):
+        phi = np.zeros(64)
+        phi[taxel] = 2.0
+        p = pad.positions[taxel]
+        f_t = sign * np.array([0.3, -0.7])
+        through = -(f_t[0] * p[1] - f_t[1] * p[0])  # τ of a force whose line passes through p
+        res = load_factor(phi, pad.positions, f_t, through, MU)
+        assert res.status is SolverStatus.TRANSLATION and res.p_c is None, (taxel, res)
+        assert res.gamma == pytest.approx(np.hypot(*f_t) / (MU * 2.0))
+        assert (res.torque_capacity, res.load_torque, res.sense, res.iterations) == (0.0, 0.0, 0, 0)
+        twisted = load_factor(phi, pad.positions, f_t, through + sign * 1e-4, MU)
+        assert twisted.status is SolverStatus.POINT_CONTACT and twisted.gamma == math.inf
+        assert twisted.sense == (1 if sign > 0 else -1) and twisted.load_torque == pytest.approx(sign * 1e-4)
+        assert twisted.taxel == taxel and twisted.torque_capacity == 0.0
+    # a single taxel at the pad origin under a pure force: a translation, not a point contact
+    res = load_factor(np.array([1.0, 0.0]), np.array([[0.0, 0.0], [1e-3, 0.0]]), (0.2, 0.1), 0.0, MU)
+    assert res.status is SolverStatus.TRANSLATION and res.gamma == pytest.approx(np.hypot(0.2, 0.1) / MU)
