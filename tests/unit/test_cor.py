@@ -200,8 +200,13 @@ def test_weber_solver_bounds_and_degenerate_inputs():
     ]
     for res in bad:
         assert res.status is SolverStatus.INVALID_INPUT and res.c is None and not res.converged
+        assert np.isnan(res.value) and (res.taxel, res.iterations, res.residual) == (-1, 0, np.inf)
     none = solve_weber(pts, np.zeros(3))
     assert none.status is SolverStatus.NO_CONTACT and none.c is None and none.value == 0.0
+    assert (none.taxel, none.iterations, none.residual) == (-1, 0, 0.0)
+    unbounded = solve_weber(pts, a, (4.0, 0.0))
+    assert (unbounded.taxel, unbounded.iterations, unbounded.residual) == (-1, 0, 0.0)
+    assert (one.iterations, one.residual) == (0, 0.0)
     # an unusable warm start is ignored
     cold = solve_weber(pts, a, (0.5, 0.2))
     for c0 in ((np.nan, 0.0), (0.0, np.inf)):
@@ -249,3 +254,14 @@ def test_weber_solver_out_of_steps_says_so():
     short = solve_weber(PAD.positions, phi, (0.2 * phi.sum(), 0.1 * phi.sum()), c0=(-9e-3, 9e-3), max_iter=1)
     assert short.status is SolverStatus.MAX_ITER and not short.converged
     assert short.c is not None and short.iterations == 1 and short.residual > 1e-3
+
+
+def test_weber_warm_start_at_the_answer_off_centre_takes_one_step():
+    x, y = PAD.positions.T
+    phi = np.sqrt(np.clip(1 - ((x - 2e-3) ** 2 + (y + 3e-3) ** 2) / 5e-3**2, 0, None))
+    b = (0.2 * phi.sum(), 0.1 * phi.sum())
+    cold = solve_weber(PAD.positions, phi, b)
+    warm = solve_weber(PAD.positions, phi, b, c0=cold.c)
+    assert cold.status is warm.status is SolverStatus.CONVERGED
+    assert warm.iterations == 1 < cold.iterations
+    assert warm.c == pytest.approx(cold.c, abs=1e-12)
