@@ -405,7 +405,21 @@ def test_point_contact_in_both_senses_and_a_force_through_it(sign):
         twisted = load_factor(phi, pad.positions, f_t, through + sign * 1e-4, MU)
         assert twisted.status is SolverStatus.POINT_CONTACT and twisted.gamma == math.inf
         assert twisted.sense == (1 if sign > 0 else -1) and twisted.load_torque == pytest.approx(sign * 1e-4)
-        assert twisted.taxel == taxel and twisted.torque_capacity == 0.0
+        assert twisted.taxel == taxel and twisted.torque_capacity == 0.0 and twisted.iterations == 0
     # a single taxel at the pad origin under a pure force: a translation, not a point contact
     res = load_factor(np.array([1.0, 0.0]), np.array([[0.0, 0.0], [1e-3, 0.0]]), (0.2, 0.1), 0.0, MU)
     assert res.status is SolverStatus.TRANSLATION and res.gamma == pytest.approx(np.hypot(0.2, 0.1) / MU)
+
+
+def test_pure_torque_sense_and_torsional_coefficient_edge_cases():
+    pad = PadGeometry(8, 8, 1.25e-3)
+    phi = np.ones(64)
+    for tau in (2e-3, -2e-3):
+        res = load_factor(phi, pad.positions, (0.0, 0.0), tau, MU)
+        assert res.sense == (1 if tau > 0 else -1) and res.load_torque == tau
+        assert res.gamma == pytest.approx(abs(tau) / res.torque_capacity)
+    for mu in (0.0, -0.5, np.nan, np.inf):
+        bad = torsional_coefficient(phi, pad.positions, mu)
+        assert bad.status is SolverStatus.INVALID_INPUT and bad.beta_m == 0.0 and bad.median is None
+    empty = torsional_coefficient(np.zeros(64), pad.positions, MU)
+    assert empty.status is SolverStatus.NO_CONTACT and empty.beta_m == 0.0 and empty.median is None
