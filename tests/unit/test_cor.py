@@ -265,3 +265,24 @@ def test_weber_warm_start_at_the_answer_off_centre_takes_one_step():
     assert cold.status is warm.status is SolverStatus.CONVERGED
     assert warm.iterations == 1 < cold.iterations
     assert warm.c == pytest.approx(cold.c, abs=1e-12)
+
+
+def test_stop_rule_by_hand():
+    # Converged when the step is below xtol·(1 + |c|), or below 1e-3 with the predicted
+    # next step (quadratic convergence) step³/prev² below that bound.
+    from slipstack.lib.weber import step_converged
+
+    assert step_converged(5e-8, 1e-30, 3.0, 4.0, 1e-8)          # 5e-8 <= 1e-8·(1 + 5)
+    assert not step_converged(7e-8, 1e-30, 3.0, 4.0, 1e-8)      # above it, no usable prediction
+    assert step_converged(1e-4, 0.5, 0.0, 0.0, 1e-8)            # predicted 4e-12
+    assert step_converged(4.6e-5, 0.01, 0.0, 0.0, 1e-8)         # predicted 9.7e-10 (prev² not prev³)
+    assert not step_converged(1e-4, 1e-4, 0.0, 0.0, 1e-8)       # predicted 1e-4: not yet
+    assert not step_converged(2e-3, 1.0, 0.0, 0.0, 1e-8)        # predicted 8e-9, but the step is > 1e-3
+    assert not step_converged(1e-4, 0.0, 0.0, 0.0, 1e-8)        # no previous step
+    assert step_converged(1e-3, 1e3, 0.0, 0.0, 1e-8)            # exactly 1e-3 counts
+
+
+def test_solve_weber_without_b_is_the_geometric_median():
+    pts = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    assert solve_weber(pts, np.ones(3)).c == pytest.approx(geometric_median(pts, np.ones(3)).c, abs=1e-12)
+    assert solve_weber(pts, np.ones(3)).c[0] == pytest.approx(0.2113248654, abs=1e-9)  # Fermat point: (3 − √3)/6
