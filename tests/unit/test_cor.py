@@ -215,17 +215,20 @@ def test_weber_solver_bounds_and_degenerate_inputs():
 
 def test_collinear_points_need_the_regularised_newton_step():
     # On the line through collinear points the Hessian is singular along it.
-    pts = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [4.0, 0.0]])
+    line = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [4.0, 0.0]])
+    pts = line
     a = np.ones(4)
-    for b in ((0.0, 0.0), (0.0, 1.0), (0.5, 0.0), (0.3, 2.0), (-0.2, -1.5)):
-        b = np.array(b)
-        res = solve_weber(pts, a, b)
-        F = _objective(pts, a, b)
-        ref = _reference_minimiser(pts, a, b)
-        assert res.converged and res.status.usable, res
-        assert res.value == pytest.approx(F(ref), rel=1e-9, abs=1e-12)
-        if b[1] != 0.0:  # pulled off the line: a unique smooth minimiser
-            assert np.array(res.c) == pytest.approx(ref, abs=1e-6)
+    for flip in (False, True):  # along x, then the same points along y (b's components swapped)
+        P = line[:, ::-1] if flip else line
+        for b in ((0.0, 0.0), (0.0, 1.0), (0.5, 0.0), (0.3, 2.0), (-0.2, -1.5)):
+            b = np.array(b[::-1] if flip else b)
+            res = solve_weber(P, a, b)
+            F = _objective(P, a, b)
+            ref = _reference_minimiser(P, a, b)
+            assert res.converged and res.status.usable, res
+            assert res.value == pytest.approx(F(ref), rel=1e-9, abs=1e-12)
+            if b[0 if flip else 1] != 0.0:  # pulled off the line: a unique smooth minimiser
+                assert np.array(res.c) == pytest.approx(ref, abs=1e-6)
     # b = 0: any point between the middle two is a median; the solver returns one of them
     c = solve_weber(pts, a, (0.0, 0.0)).c
     assert 1.0 <= c[0] <= 2.0 and c[1] == 0.0
