@@ -3,7 +3,7 @@
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: run test bench
+.PHONY: run test bench mutation
 
 $(VENV)/.installed: pyproject.toml
 	python3 -m venv $(VENV)
@@ -21,3 +21,8 @@ test: $(VENV)/.installed
 bench: $(VENV)/.installed
 	$(PY) -m pip install -q -e '.[test,bench]'
 	@echo "benchmarks are scripts: ls tests/bench/; run e.g. $(PY) tests/bench/bench_math.py --help"
+
+# Mutation testing of the numerical core (long: not in CI). MUTATE_ARGS narrows it, e.g.
+# MUTATE_ARGS="lib/weber.py --line 203"; see tests/mutation/mutate.py --help.
+mutation: $(VENV)/.installed
+	$(PY) tests/mutation/mutate.py --interpreted $(MUTATE_ARGS)

@@ -98,3 +98,194 @@ def test_coincident_points_pool_their_weight_in_the_kuhn_test():
     assert res.taxel in (0, 1)
     assert res.c == (0.0, 0.0)
     assert res.value == pytest.approx(1.0)
+
+
+def test_coincident_points_pool_weights_that_only_together_hold_the_median():
+    # 0.6 + 0.6 at the origin against a pull of |(0.5, 0.5)| = 0.71: together (1.2) they
+    # hold the median there, either alone (0.6) would not. Without pooling the solver
+    # would leave the origin towards the other two points.
+    pts = np.array([[0.0, 0.0], [0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    res = geometric_median(pts, [0.6, 0.6, 0.5, 0.5])
+    assert res.status is SolverStatus.ON_TAXEL and res.taxel in (0, 1)
+    assert res.c == (0.0, 0.0)
+    assert res.value == pytest.approx(1.0)
+    ref = _reference_minimiser(pts, np.array([0.6, 0.6, 0.5, 0.5]), np.zeros(2))
+    assert np.hypot(*ref) < 1e-6
+
+
+def _objective(pts, a, b):
+    return lambda c: float(a @ np.hypot(*(pts - c).T) - b @ c)
+
+
+def _reference_minimiser(pts, a, b):
+    """argmin Σ a_i|p_i − c| − b·c by Nelder–Mead from the best point and the centroid
+    (independent of the Newton/Kuhn solver; exact enough to 1e-7 of the spread)."""
+    from scipy.optimize import minimize
+
+    F = _objective(pts, a, b)
+    starts = [min(pts, key=F), a @ pts / a.sum()]  # the best point and the centroid
+    best = min((minimize(F, s, method="Nelder-Mead", options={"xatol": 1e-12, "fatol": 1e-15, "maxiter": 20000})
+                for s in starts), key=lambda r: r.fun)
+    return best.x
+
+
+def _weber_cases():
+    rng = np.random.default_rng(17)
+    for k in range(24):
+        m = int(rng.integers(3, 12))
+        pts = rng.normal(size=(m, 2)) * 10.0 ** rng.integers(-3, 1)
+        a = rng.random(m) + 0.05
+        if k % 3 == 0:
+            a[rng.integers(m)] += a.sum()  # a dominant weight: the minimiser on a point
+        b = rng.normal(size=2)
+        b *= rng.random() * 0.9 * a.sum() / np.hypot(*b)  # |b| < Σa: bounded
+        if k % 4 == 1:
+            b[:] = 0.0  # the plain geometric median
+        yield pts, a, b
+
+
+@pytest.mark.parametrize("warm", [False, True])
+def test_weber_solver_matches_an_independent_minimisation(warm):
+    for pts, a, b in _weber_cases():
+        ref = _reference_minimiser(pts, a, b)
+        F = _objective(pts, a, b)
+        spread = np.sqrt(a @ np.sum((pts - a @ pts / a.sum()) ** 2, axis=1) / a.sum())
+        c0 = ref + spread * np.array([0.3, -0.2]) if warm else None
+        res = solve_weber(pts, a, b, c0)
+        assert res.converged and res.status in (SolverStatus.CONVERGED, SolverStatus.ON_TAXEL), res
+        assert np.hypot(*(np.array(res.c) - ref)) < 1e-6 * spread, (res, ref)
+        assert res.value == pytest.approx(F(np.array(res.c)), rel=1e-12, abs=1e-12 * spread * a.sum())
+        assert res.value <= F(ref) + 1e-12 * spread * a.sum()  # at least as low as the reference
+        assert 0.0 <= res.residual <= 1e-3
+        if res.status is SolverStatus.ON_TAXEL:
+            assert res.c == tuple(pts[res.taxel])
+            # Kuhn: the pull of the others and b is no stronger than the weight on the point
+            d = pts[res.taxel] - np.delete(pts, res.taxel, axis=0)
+            pull = (np.delete(a, res.taxel)[:, None] * d / np.hypot(*d.T)[:, None]).sum(axis=0) - b
+            assert np.hypot(*pull) <= a[res.taxel] * (1 + 1e-12)
+        else:
+            assert res.taxel == -1 and res.iterations >= 1
+            assert np.hypot(*(np.array(res.c)[None] - pts).T).min() > 1e-9 * spread
+
+
+def test_weber_solver_bounds_and_degenerate_inputs():
+    pts = np.array([[0.0, 0.0], [2.0, 0.0], [0.0, 2.0]])
+    a = np.array([1.0, 2.0, 1.0])
+    # |b| >= Σa: unbounded along b
+    for b in ((4.0, 0.0), (0.0, -4.0), (3.0, 3.0)):
+        res = solve_weber(pts, a, b)
+        assert res.status is SolverStatus.TRANSLATION and res.c is None and res.value == -np.inf
+        assert res.converged  # an unbounded problem is a certified answer too
+    near = solve_weber(pts, a, (3.99, 0.0))
+    assert near.status.usable and near.c is not None and np.isfinite(near.value)
+    # one point, or all points coincident: that point, F = −b·p
+    one = solve_weber(pts[1:2], [3.0], (1.0, 0.5))
+    assert one.status is SolverStatus.ON_TAXEL and one.c == (2.0, 0.0) and one.taxel == 0
+    assert one.value == pytest.approx(-2.0)
+    same = solve_weber(np.array([[1.0, 3.0], [1.0, 3.0]]), [1.0, 1.0], (0.5, -0.25))
+    assert same.status is SolverStatus.ON_TAXEL and same.c == (1.0, 3.0) and same.value == pytest.approx(0.25)
+    # zero-weight points do not count, and the taxel index refers to the given points
+    zero = solve_weber(np.vstack([pts, [[50.0, 50.0]]]), [1.0, 10.0, 1.0, 0.0])
+    assert zero.status is SolverStatus.ON_TAXEL and zero.taxel == 1 and zero.c == (2.0, 0.0)
+    # bad input: explicit status, never an exception
+    bad = [
+        solve_weber(pts, [1.0, -1.0, 1.0]),
+        solve_weber(pts, [1.0, np.inf, 1.0]),
+        solve_weber(np.array([[0.0, 0.0], [np.nan, 0.0], [1.0, 1.0]]), a),
+        solve_weber(pts, a, (np.nan, 0.0)),
+        solve_weber(pts, a, (0.0, np.inf)),
+        solve_weber(pts, a[:2]),
+        solve_weber(pts[:, :1], a),
+        solve_weber(pts, a, (1.0, 2.0, 3.0)),
+    ]
+    for res in bad:
+        assert res.status is SolverStatus.INVALID_INPUT and res.c is None and not res.converged
+        assert np.isnan(res.value) and (res.taxel, res.iterations, res.residual) == (-1, 0, np.inf)
+    none = solve_weber(pts, np.zeros(3))
+    assert none.status is SolverStatus.NO_CONTACT and none.c is None and none.value == 0.0
+    assert (none.taxel, none.iterations, none.residual) == (-1, 0, 0.0)
+    unbounded = solve_weber(pts, a, (4.0, 0.0))
+    assert (unbounded.taxel, unbounded.iterations, unbounded.residual) == (-1, 0, 0.0)
+    assert (one.iterations, one.residual) == (0, 0.0)
+    # an unusable warm start is ignored
+    cold = solve_weber(pts, a, (0.5, 0.2))
+    for c0 in ((np.nan, 0.0), (0.0, np.inf)):
+        assert solve_weber(pts, a, (0.5, 0.2), c0).c == pytest.approx(cold.c, abs=1e-12)
+
+
+def test_collinear_points_need_the_regularised_newton_step():
+    # On the line through collinear points the Hessian is singular along it.
+    line = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [4.0, 0.0]])
+    pts = line
+    a = np.ones(4)
+    for flip in (False, True):  # along x, then the same points along y (b's components swapped)
+        P = line[:, ::-1] if flip else line
+        for b in ((0.0, 0.0), (0.0, 1.0), (0.5, 0.0), (0.3, 2.0), (-0.2, -1.5)):
+            b = np.array(b[::-1] if flip else b)
+            res = solve_weber(P, a, b)
+            F = _objective(P, a, b)
+            ref = _reference_minimiser(P, a, b)
+            assert res.converged and res.status.usable, res
+            assert res.value == pytest.approx(F(ref), rel=1e-9, abs=1e-12)
+            if b[0 if flip else 1] != 0.0:  # pulled off the line: a unique smooth minimiser
+                assert np.array(res.c) == pytest.approx(ref, abs=1e-6)
+    # b = 0: any point between the middle two is a median; the solver returns one of them
+    c = solve_weber(pts, a, (0.0, 0.0)).c
+    assert 1.0 <= c[0] <= 2.0 and c[1] == 0.0
+
+
+@pytest.mark.parametrize("centre", [(0.0, 0.0), (2e-3, -1e-3)])
+def test_newton_converges_in_a_few_steps_on_smooth_contacts(centre):
+    # The solvers are Newton methods (quadratic convergence): a handful of steps from a
+    # cold start on a smooth pressure. A slower (e.g. linearly convergent) variant would
+    # still find the answer, but not at sensor rate.
+    x, y = PAD.positions.T
+    phi = np.sqrt(np.clip(1 - ((x - centre[0]) ** 2 + (y - centre[1]) ** 2) / 5e-3**2, 0, None))
+    med = geometric_median(PAD.positions, phi)
+    assert med.status is SolverStatus.CONVERGED and med.iterations <= 4 and med.residual < 1e-8
+    for f_t, tau in (((0.2, 0.1), 1e-3), ((0.0, 0.3), -2e-3), ((0.5, 0.0), 1e-4), ((0.05, 0.02), 3e-3)):
+        res = load_factor(phi, PAD.positions, f_t, tau, MU)
+        assert res.status is SolverStatus.CONVERGED and res.iterations <= 6 and res.residual < 1e-8, res
+
+
+def test_weber_solver_out_of_steps_says_so():
+    # A smooth minimiser far from the start: one Newton step cannot reach it.
+    x, y = PAD.positions.T
+    phi = _hertz()
+    full = solve_weber(PAD.positions, phi, (0.2 * phi.sum(), 0.1 * phi.sum()))
+    assert full.status is SolverStatus.CONVERGED
+    short = solve_weber(PAD.positions, phi, (0.2 * phi.sum(), 0.1 * phi.sum()), c0=(-9e-3, 9e-3), max_iter=1)
+    assert short.status is SolverStatus.MAX_ITER and not short.converged
+    assert short.c is not None and short.iterations == 1 and short.residual > 1e-3
+
+
+def test_weber_warm_start_at_the_answer_off_centre_takes_one_step():
+    x, y = PAD.positions.T
+    phi = np.sqrt(np.clip(1 - ((x - 2e-3) ** 2 + (y + 3e-3) ** 2) / 5e-3**2, 0, None))
+    b = (0.2 * phi.sum(), 0.1 * phi.sum())
+    cold = solve_weber(PAD.positions, phi, b)
+    warm = solve_weber(PAD.positions, phi, b, c0=cold.c)
+    assert cold.status is warm.status is SolverStatus.CONVERGED
+    assert warm.iterations == 1 < cold.iterations
+    assert warm.c == pytest.approx(cold.c, abs=1e-12)
+
+
+def test_stop_rule_by_hand():
+    # Converged when the step is below xtol·(1 + |c|), or below 1e-3 with the predicted
+    # next step (quadratic convergence) step³/prev² below that bound.
+    from slipstack.lib.weber import step_converged
+
+    assert step_converged(5e-8, 1e-30, 3.0, 4.0, 1e-8)          # 5e-8 <= 1e-8·(1 + 5)
+    assert not step_converged(7e-8, 1e-30, 3.0, 4.0, 1e-8)      # above it, no usable prediction
+    assert step_converged(1e-4, 0.5, 0.0, 0.0, 1e-8)            # predicted 4e-12
+    assert step_converged(4.6e-5, 0.01, 0.0, 0.0, 1e-8)         # predicted 9.7e-10 (prev² not prev³)
+    assert not step_converged(1e-4, 1e-4, 0.0, 0.0, 1e-8)       # predicted 1e-4: not yet
+    assert not step_converged(2e-3, 1.0, 0.0, 0.0, 1e-8)        # predicted 8e-9, but the step is > 1e-3
+    assert not step_converged(1e-4, 0.0, 0.0, 0.0, 1e-8)        # no previous step
+    assert step_converged(1e-3, 1e3, 0.0, 0.0, 1e-8)            # exactly 1e-3 counts
+
+
+def test_solve_weber_without_b_is_the_geometric_median():
+    pts = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    assert solve_weber(pts, np.ones(3)).c == pytest.approx(geometric_median(pts, np.ones(3)).c, abs=1e-12)
+    assert solve_weber(pts, np.ones(3)).c[0] == pytest.approx(0.2113248654, abs=1e-9)  # Fermat point: (3 − √3)/6

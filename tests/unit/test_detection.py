@@ -77,3 +77,55 @@ def test_restuck_load_just_under_the_floor_releases_after_the_dwell():
     assert verdicts[79] is True                          # gamma 0.7605: at the floor, held
     assert verdicts[99] is True                          # below since 81 ms: 18 ms
     assert verdicts[101] is False                        # 20 ms below: released
+
+
+def test_config_boundaries_are_accepted_and_just_outside_rejected():
+    # The documented ranges: delta in [0, 1), gamma_release in (0, 1], release_ns >= 0.
+    assert DetectorConfig(delta=0.0).delta == 0.0
+    assert DetectorConfig(gamma_release=1.0).gamma_release == 1.0
+    assert DetectorConfig(release_ns=0).release_ns == 0
+    with pytest.raises(ConfigError, match="gamma_release"):
+        DetectorConfig(gamma_release=0.0)
+    with pytest.raises(ConfigError, match="release_ns"):
+        DetectorConfig(release_ns=-1)
+    with pytest.raises(ConfigError, match="delta"):
+        DetectorConfig(delta=-1e-9)
+
+
+def test_margin_exactly_at_the_band_edge_is_slip():
+    # margin 1 - gamma <= delta flags slip; 0.25 is exact in binary, so this is the edge itself.
+    latch = SlipLatch(DetectorConfig(delta=0.25, gamma_release=0.5))
+    assert latch.update(0, 0.25) is True
+    assert SlipLatch(DetectorConfig(delta=0.25, gamma_release=0.5)).update(0, 0.25 + 1e-12) is False
+
+
+def test_gamma_exactly_at_the_release_level_holds_the_latch():
+    # gamma >= gamma_release holds: 1 - 0.25 = 0.75 exactly, held far beyond the dwell.
+    latch = SlipLatch(DetectorConfig(delta=0.125, gamma_release=0.75, release_ns=10 * MS))
+    assert latch.update(0, 0.0) is True
+    assert all(latch.update(t * MS, 0.25) for t in range(1, 100, 5))
+    assert latch.update(101 * MS, 0.25 + 1e-12) is True    # just below: the dwell starts here
+    assert latch.update(111 * MS, 0.25 + 1e-12) is False   # 10 ms below: released
+
+
+def test_nan_margins_for_longer_than_the_dwell_keep_a_latched_slip():
+    # No verdict (NaN) is no information: however long it lasts it neither starts nor
+    # runs the release timer, so the grip law keeps seeing slip.
+    latch = SlipLatch(DetectorConfig(release_ns=20 * MS))
+    assert latch.update(0, 0.0) is True
+    assert all(latch.update(t * MS, math.nan) is True for t in range(1, 60, 3))
+    assert latch.update(60 * MS, 0.5) is True               # a real stick frame starts the dwell
+    assert latch.update(75 * MS, math.nan) is True
+    assert latch.update(80 * MS, 0.5) is False              # 20 ms of real stick frames: released
+    # and a NaN keeps "stick" too
+    stick = SlipLatch()
+    assert stick.update(0, 0.5) is False
+    assert stick.update(1 * MS, math.nan) is False
+
+
+def test_losing_contact_clears_the_latch_for_the_next_contact():
+    latch = SlipLatch(DetectorConfig(release_ns=20 * MS))
+    assert latch.update(0, 0.0) is True
+    assert latch.update(1 * MS, 0.0, in_contact=False) is False
+    assert latch.slipping is False
+    assert latch.update(2 * MS, 0.5) is False               # a new contact that sticks: no old latch

@@ -101,3 +101,103 @@ def test_one_pressure_shape_serves_every_wrench_paired_with_its_frame():
         np.testing.assert_allclose(fr.cop, 0.25 * pad.positions[5] + 0.75 * pad.positions[6], rtol=1e-12)
     whole = fuse(pressure, [0.2, 0.0, -4.0], [0.0, 0.0, 0.0], pad, FusionThresholds(noise_floor_pa=100.0))
     np.testing.assert_array_equal(whole.phi, fr.phi)
+
+
+def _rotation(axis, angle_rad: float) -> np.ndarray:
+    """Rodrigues' formula, written out here (not the code under test)."""
+    k = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(angle_rad) * K + (1 - np.cos(angle_rad)) * K @ K
+
+
+def test_wrench_to_pad_in_general_position_matches_the_textbook_transform():
+    # Every component non-zero: torque about F's origin = R τ_S + p_SF × (R f_S) (np.cross).
+    R = _rotation([0.3, -0.5, 0.8], 0.7)
+    f_S, t_S, p = np.array([1.5, -2.0, 0.7]), np.array([0.03, 0.01, -0.02]), np.array([0.004, -0.006, 0.011])
+    f, t = wrench_to_pad(f_S, t_S, R, p)
+    np.testing.assert_allclose(f, R @ f_S, rtol=1e-12)
+    np.testing.assert_allclose(t, R @ t_S + np.cross(p, R @ f_S), rtol=1e-12)
+
+
+def test_default_mount_and_thresholds_change_nothing():
+    # Defaults: the sensor frame is the pad frame, and any positive pressure and force is contact.
+    mount = SensorMount()
+    assert np.array_equal(mount.R_FS, np.eye(3)) and mount.p_SF == (0.0, 0.0, 0.0)
+    assert FusionThresholds() == FusionThresholds(0.0, 0.0, 0.0)
+    p = np.zeros(16)
+    p[7] = 0.5  # Pa: above the default noise floor 0 and pressure sum 0
+    plain = fuse(p, [0.1, 0.2, -0.5], [0.01, 0.02, 0.03], PAD)
+    mounted = fuse(p, [0.1, 0.2, -0.5], [0.01, 0.02, 0.03], PAD, mount=mount)
+    assert plain.status is SolverStatus.OK and plain.n_contact == 1 and plain.f_n == 0.5
+    for a, b in ((plain.f_t, mounted.f_t), (plain.phi, mounted.phi), (plain.cop, mounted.cop)):
+        np.testing.assert_array_equal(a, b)
+    assert plain.tau == mounted.tau == 0.03
+
+
+def test_a_rotation_within_the_documented_tolerance_is_accepted():
+    # Orthonormal to 1e-9 (a rotation read from a calibration file with ~11 digits):
+    # its determinant is 1 - 9e-11, below 1 yet a proper rotation.
+    R = _rotation([0.0, 0.0, 1.0], 0.3) * (1.0 - 3e-11)
+    assert np.linalg.det(R) < 1.0
+    mount = SensorMount(R_FS=tuple(map(tuple, R)))
+    assert mount.R_FS[0][0] == R[0, 0]
+
+
+@pytest.mark.parametrize("R_FS, p_SF", [
+    (((1.001, 0, 0), (0, 1.001, 0), (0, 0, 1.001)), (0, 0, 0)),    # a scaled rotation
+    (((1, 0), (0, 1)), (0, 0, 0)),                                # not 3x3
+    (((1, 0, 0), (0, 1, 0), (0, 0, float("nan"))), (0, 0, 0)),    # not finite
+    (((1, 0, 0), (0, 1, 0), (0, 0, -1)), (0, 0, 0)),              # a reflection (det -1)
+    (((1, 0, 0), (0, 1, 0), (0, 0, 1)), (0, 0)),                  # offset not 3 numbers
+    (((1, 0, 0), (0, 1, 0), (0, 0, 1)), (0, 0, float("inf"))),    # offset not finite
+])
+def test_every_bad_mount_is_a_config_error(R_FS, p_SF):
+    with pytest.raises(ConfigError, match="sensor mount"):
+        SensorMount(R_FS=R_FS, p_SF=p_SF)
+
+
+def test_a_frame_of_the_wrong_size_counts_no_taxel_as_clipped():
+    from slipstack.lib.fusion import pressure_shape
+
+    shape = pressure_shape(np.full(9, np.nan), PAD)
+    assert not shape.valid and shape.shape_sum == 0.0 and shape.pressure_sum_pa == 0.0 and not shape.mask.any()
+    assert np.array_equal(shape.cop, [0.0, 0.0]) and np.array_equal(shape.shape, np.zeros(16))
+    assert (shape.n_nonfinite, shape.n_negative, shape.n_saturated) == (0, 0, 0)
+    res = fuse(np.full(9, np.nan), [0, 0, -1], [0, 0, 0], PAD)
+    assert res.status is SolverStatus.INVALID_INPUT
+    assert (res.n_nonfinite, res.n_negative, res.n_saturated, res.n_contact) == (0, 0, 0, 0)
+    assert res.f_t.tolist() == [0.0, 0.0] and res.tau == 0.0 and res.f_n == 0.0  # no load from a bad frame
+    assert res.cop.tolist() == [0.0, 0.0] and res.phi.tolist() == [0.0] * 16
+
+
+def test_an_empty_frame_has_a_zero_shape_not_nan():
+    from slipstack.lib.fusion import pressure_shape
+
+    for frame in (np.zeros(16), np.full(16, -3.0)):
+        shape = pressure_shape(frame, PAD)
+        assert shape.valid and shape.shape_sum == 0.0 and shape.pressure_sum_pa == 0.0
+        assert np.array_equal(shape.shape, np.zeros(16)) and np.array_equal(shape.cop, [0.0, 0.0])
+        assert fuse(frame, [0, 0, -1], [0, 0, 0], PAD).status is SolverStatus.NO_CONTACT
+
+
+def test_a_saturation_mask_of_the_wrong_size_is_ignored():
+    p = np.full(16, 10.0)
+    assert fuse(p, [0, 0, -1], [0, 0, 0], PAD).n_saturated == 0
+    assert fuse(p, [0, 0, -1], [0, 0, 0], PAD, saturated=np.ones(9, dtype=bool)).n_saturated == 0
+    assert fuse(p, [0, 0, -1], [0, 0, 0], PAD, saturated=np.ones(16, dtype=bool)).n_saturated == 16
+
+
+def test_thresholds_are_strict_and_one_stamp_gives_no_offset():
+    p = np.full(16, 10.0)  # Pa; sum 160 Pa
+    th = FusionThresholds(min_normal_force_n=1.0)
+    below = fuse(p, [0.1, -0.2, -1.0], [0, 0, 3e-3], PAD, th)
+    assert below.status is SolverStatus.NO_CONTACT  # not above
+    assert below.f_t.tolist() == [0.1, -0.2] and below.tau == 3e-3  # the load is still reported
+    assert fuse(p, [0, 0, -1.000001], [0, 0, 0], PAD, th).status is SolverStatus.OK
+    th = FusionThresholds(min_pressure_sum_pa=160.0)
+    assert fuse(p, [0, 0, -1.0], [0, 0, 0], PAD, th).status is SolverStatus.NO_CONTACT
+    assert fuse(p, [0, 0, -1.0], [0, 0, 0], PAD, FusionThresholds(min_pressure_sum_pa=159.9)).status is SolverStatus.OK
+    assert fuse(p, [0, 0, -1.0], [0, 0, 0], PAD, FusionThresholds(noise_floor_pa=10.0)).n_contact == 0
+    assert fuse(p, [0, 0, -1], [0, 0, 0], PAD, tactile_stamp_ns=1000).stamp_offset_ns is None
+    assert fuse(p, [0, 0, -1], [0, 0, 0], PAD, wrench_stamp_ns=1000).stamp_offset_ns is None
+    assert fuse(p, [0, 0, -1], [0, 0, 0], PAD, tactile_stamp_ns=1500, wrench_stamp_ns=1000).stamp_offset_ns == -500

@@ -221,3 +221,220 @@ def test_a_force_below_rounding_beside_the_torque_gets_the_unique_pure_torque_co
         assert r.status is SolverStatus.CONVERGED
         assert r.p_c == pytest.approx((1.25e-3, 0.625e-3), abs=1e-15)  # the midpoint
         assert r.gamma == pytest.approx(3.9e-3 / (0.5 * np.hypot(2.5e-3, 1.25e-3)), rel=1e-12)
+
+
+def test_every_reported_field_agrees_with_sums_computed_at_the_reported_cor():
+    # Beside γ (brute force above): the COR, capacity, load torque, sense, centre of
+    # pressure and contact radius recomputed here with numpy from their definitions.
+    pad = PadGeometry(6, 6, 2.5e-3)
+    P = pad.positions
+    rng = np.random.default_rng(77)
+    seen = set()
+    for k in range(60):
+        phi, f_t, tau = _random_case(rng, pad)
+        warm = None if k % 2 else P[int(np.argmax(phi))] + 1e-4
+        res = load_factor(phi, P, f_t, tau, MU, c0=warm)
+        f_n = phi.sum()
+        cop = phi @ P / f_n
+        assert res.cop == pytest.approx(tuple(cop), abs=1e-15)
+        radius = math.sqrt(phi @ np.sum((P - cop) ** 2, axis=1) / f_n)
+        assert res.contact_radius_m == pytest.approx(radius, rel=1e-12) or np.count_nonzero(phi) == 1
+        assert res.margin == 1.0 - res.gamma
+        seen.add(res.status)
+        if res.p_c is None:
+            assert res.status in (SolverStatus.TRANSLATION, SolverStatus.NO_LOAD)
+            assert res.gamma == pytest.approx(np.hypot(*f_t) / (MU * f_n), rel=1e-9)
+            assert res.sense == 0 and res.taxel == -1
+            continue
+        assert res.converged and res.status.usable, res
+        c = np.array(res.p_c)
+        T = MU * phi @ np.hypot(*(P - c).T)
+        n = tau + f_t[0] * c[1] - f_t[1] * c[0]
+        assert res.torque_capacity == pytest.approx(T, rel=1e-12)
+        assert res.load_torque == pytest.approx(n, rel=1e-9, abs=1e-12 * abs(tau) + 1e-18)
+        assert res.sense == (1 if n > 0 else -1)
+        if res.status is SolverStatus.POINT_CONTACT:
+            assert res.gamma == math.inf
+            continue
+        assert res.gamma == pytest.approx(max(abs(n) / T, np.hypot(*f_t) / (MU * f_n)), rel=1e-12)
+        if res.case is SlipCase.ON_TAXEL:
+            assert res.p_c == pytest.approx(tuple(P[res.taxel]), abs=1e-15) and phi[res.taxel] > 0
+        else:
+            assert res.taxel == -1 and res.case is SlipCase.ROTATION and res.iterations >= 1
+        assert 0.0 <= res.residual <= 1e-3
+    assert {SolverStatus.CONVERGED, SolverStatus.ON_TAXEL} <= seen
+
+
+def test_gamma_is_the_same_for_a_load_and_its_opposite_and_grows_linearly_with_it():
+    # The limit set is centrally symmetric (the friction cone is): −w has the same γ and
+    # the opposite sense; γ is homogeneous of degree 1 in the load, 0 in the pressure scale.
+    pad = PadGeometry(6, 6, 2.5e-3)
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        phi, f_t, tau = _random_case(rng, pad)
+        a = load_factor(phi, pad.positions, f_t, tau, MU)
+        b = load_factor(phi, pad.positions, -f_t, -tau, MU)
+        c = load_factor(3.0 * phi, pad.positions, 2.0 * f_t, 2.0 * tau, MU)
+        assert b.gamma == pytest.approx(a.gamma, rel=1e-9) and b.sense == -a.sense
+        assert c.gamma == pytest.approx(2.0 / 3.0 * a.gamma, rel=1e-9)
+
+
+def test_bad_shapes_and_friction_are_invalid_input_not_exceptions():
+    pad = PadGeometry(4, 4, 1e-3)
+    phi = np.ones(16)
+    bad = [
+        load_factor(phi.reshape(4, 4), pad.positions, (1.0, 0.0), 0.0, MU),      # phi not 1-D
+        load_factor(phi[:15], pad.positions, (1.0, 0.0), 0.0, MU),               # one taxel short
+        load_factor(phi, pad.positions[:, :1], (1.0, 0.0), 0.0, MU),             # positions not (N, 2)
+        load_factor(phi, pad.positions, (1.0, 0.0, 0.0), 0.0, MU),               # f_t not (2,)
+        load_factor(phi, pad.positions, (1.0, 0.0), np.nan, MU),
+        load_factor(phi, pad.positions, (1.0, 0.0), 0.0, 0.0),                  # mu must be > 0
+        load_factor(phi, pad.positions, (1.0, 0.0), 0.0, np.inf),
+    ]
+    for res in bad:
+        assert res.status is SolverStatus.INVALID_INPUT and res.case is SlipCase.NONE
+        # the "nothing to say" result: every field at its neutral value
+        assert (res.gamma, res.p_c, res.torque_capacity, res.load_torque, res.sense) == (0.0, None, 0.0, 0.0, 0)
+        assert (res.iterations, res.residual, res.taxel, res.cop, res.contact_radius_m) == (0, 0.0, -1, (0.0, 0.0), 0.0)
+        assert not res.converged and res.margin == 1.0
+    assert load_factor(phi, pad.positions, (1.0, 0.0), 0.0, MU).converged
+
+
+def test_contact_subset_keeps_the_positive_taxels_and_rejects_bad_input():
+    from slipstack.lib.limit_set import contact_subset
+
+    pad = PadGeometry(2, 2, 1e-3)
+    idx, phi, pos = contact_subset(np.array([0.0, 2.0, 0.0, 1.0]), pad.positions)
+    assert idx.tolist() == [1, 3] and phi.tolist() == [2.0, 1.0]
+    assert np.array_equal(pos, pad.positions[[1, 3]])
+    assert contact_subset(np.ones((2, 2)), pad.positions) is None                  # not 1-D
+    assert contact_subset(np.ones(4), pad.positions[:3]) is None                   # count mismatch
+    assert contact_subset(np.ones(4), pad.positions[:, :1]) is None
+    assert contact_subset(np.array([1.0, np.nan, 1.0, 1.0]), pad.positions) is None
+    assert contact_subset(np.array([1.0, -1e-9, 1.0, 1.0]), pad.positions) is None
+
+
+def test_coincident_taxels_are_a_point_contact_and_loads_beyond_float_range_invalid():
+    # Two taxels at one place (e.g. after pooling): no torsional capacity about that place.
+    pts = np.array([[1e-3, 2e-3], [1e-3, 2e-3]])
+    res = load_factor(np.array([1.0, 2.0]), pts, (0.0, 0.0), 1e-4, MU)
+    assert res.status is SolverStatus.POINT_CONTACT and res.gamma == math.inf and res.sense == 1
+    assert res.p_c == (1e-3, 2e-3)
+    res = load_factor(np.array([1.0, 2.0]), pts, (0.3, 0.0), -0.3 * 2e-3, MU)  # line of action through it
+    assert res.status is SolverStatus.TRANSLATION and res.gamma == pytest.approx(0.3 / (MU * 3.0))
+    # |f_t|/(μ f_n) beyond the float range: said, not computed as inf or NaN
+    pad = PadGeometry(4, 4, 1e-3)
+    huge = load_factor(np.full(16, 1e-300), pad.positions, (1e300, 1e300), 1e-3, MU)
+    assert huge.status is SolverStatus.INVALID_INPUT
+
+
+def test_near_translation_switch_sits_at_1e_5_of_the_spread_along_the_force():
+    # A contact elongated along x, pushed along y with the line of action a lever arm
+    # a = k·1e-5·σ off the centre of pressure (σ: RMS spread along f_t, computed here).
+    # Below the switch (k < 1): TRANSLATION by the expansion γ = γ_t (1 + a²/(2σ²));
+    # above: the Dinkelbach iteration, whose COR lies about σ²/a away. Both sides must
+    # agree with the expansion to rounding, so the switch is continuous.
+    pad = PadGeometry(8, 8, 1.25e-3)
+    P = pad.positions
+    x, y = P.T
+    phi = np.where(np.abs(y) < 2e-3, 1.0 + 0.3 * (x > 0), 0.0)
+    f_n = phi.sum()
+    cop = phi @ P / f_n
+    f_t = np.array([0.0, 0.02])
+    sigma = math.sqrt(phi @ ((P - cop) @ np.array([0.0, 1.0])) ** 2 / f_n)
+    gamma_t = 0.02 / (MU * f_n)
+    tau_through_cop = -(f_t[0] * cop[1] - f_t[1] * cop[0])
+    for k in (0.5, 0.999, 1.001, 2.0):
+        lever = k * 1e-5 * sigma
+        res = load_factor(phi, P, f_t, tau_through_cop + lever * 0.02, MU)
+        assert res.gamma / gamma_t - 1.0 == pytest.approx((lever / sigma) ** 2 / 2, rel=1e-4, abs=1e-15), k
+        if k < 1:
+            assert res.case is SlipCase.TRANSLATION and res.p_c is None, k
+            assert (res.torque_capacity, res.load_torque, res.sense, res.iterations, res.residual) == (0, 0, 0, 0, 0)
+            assert res.cop == pytest.approx(tuple(cop), abs=1e-15) and res.taxel == -1
+        else:
+            assert res.case is SlipCase.ROTATION and res.status is SolverStatus.CONVERGED, k
+            assert res.iterations <= 8, res  # a start on the ray towards the far COR, then Newton
+            assert np.hypot(*(np.array(res.p_c) - cop)) == pytest.approx(sigma**2 / lever, rel=1e-3)
+
+
+def test_cor_on_the_first_taxel_in_contact_reports_index_0_and_odd_warm_starts_are_ignored():
+    pad = PadGeometry(8, 8, 1.25e-3)
+    phi = np.ones(64)
+    phi[0] = 80.0  # the corner taxel pins the COR (Kuhn: the others pull with at most 63)
+    for f_t in ((0.05, 0.0), (0.0, 0.0)):  # Dinkelbach, and the pure-torque median
+        res = load_factor(phi, pad.positions, f_t, 2e-3, MU)
+        assert res.case is SlipCase.ON_TAXEL and res.taxel == 0, res
+        assert res.p_c == pytest.approx(tuple(pad.positions[0]), abs=1e-15)
+    cold = load_factor(phi, pad.positions, (0.05, 0.02), 2e-3, MU)
+    for c0 in ((1e-3, 2e-3, 3e-3), (np.nan, 0.0), (1e9, 0.0), ()):
+        res = load_factor(phi, pad.positions, (0.05, 0.02), 2e-3, MU, c0=c0)
+        assert res.gamma == pytest.approx(cold.gamma, rel=1e-12) and res.taxel == cold.taxel
+
+
+def test_warm_start_at_the_answer_off_centre_takes_one_update_and_bad_ones_change_nothing():
+    # An off-centre contact (the warm start is moved into the centred frame and back).
+    pad = PadGeometry()
+    x, y = pad.positions.T
+    phi = np.sqrt(np.clip(1 - ((x - 2e-3) ** 2 + (y + 3e-3) ** 2) / 5e-3**2, 0, None))
+    cold = load_factor(phi, pad.positions, (0.2, 0.1), 1e-3, MU)
+    warm = load_factor(phi, pad.positions, (0.2, 0.1), 1e-3, MU, c0=cold.p_c)
+    assert warm.iterations == 1 < cold.iterations
+    assert warm.p_c == pytest.approx(cold.p_c, abs=1e-12)
+    cop, p_c = np.array(cold.cop), np.array(cold.p_c)
+    # the mirror image of the COR, the centre of pressure, far along and far against it:
+    # starts whose ratio does not qualify, or barely, still end at the same γ
+    for c0 in (2 * cop - p_c, cop, cop + 1e3 * (p_c - cop), cop - 1e3 * (p_c - cop)):
+        res = load_factor(phi, pad.positions, (0.2, 0.1), 1e-3, MU, c0=c0)
+        assert res.gamma == pytest.approx(cold.gamma, rel=1e-12)
+        assert res.p_c == pytest.approx(cold.p_c, abs=1e-9)
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_point_contact_in_both_senses_and_a_force_through_it(sign):
+    pad = PadGeometry(8, 8, 1.25e-3)
+    for taxel in (9, 27, 54):
+        phi = np.zeros(64)
+        phi[taxel] = 2.0
+        p = pad.positions[taxel]
+        f_t = sign * np.array([0.3, -0.7])
+        through = -(f_t[0] * p[1] - f_t[1] * p[0])  # τ of a force whose line passes through p
+        res = load_factor(phi, pad.positions, f_t, through, MU)
+        assert res.status is SolverStatus.TRANSLATION and res.p_c is None, (taxel, res)
+        assert res.gamma == pytest.approx(np.hypot(*f_t) / (MU * 2.0))
+        assert (res.torque_capacity, res.load_torque, res.sense, res.iterations, res.residual) == (0, 0, 0, 0, 0)
+        twisted = load_factor(phi, pad.positions, f_t, through + sign * 1e-4, MU)
+        assert twisted.status is SolverStatus.POINT_CONTACT and twisted.gamma == math.inf
+        assert twisted.sense == (1 if sign > 0 else -1) and twisted.load_torque == pytest.approx(sign * 1e-4)
+        assert twisted.taxel == taxel and twisted.torque_capacity == 0.0 and twisted.iterations == 0
+    # a single taxel at the pad origin under a pure force: a translation, not a point contact
+    res = load_factor(np.array([1.0, 0.0]), np.array([[0.0, 0.0], [1e-3, 0.0]]), (0.2, 0.1), 0.0, MU)
+    assert res.status is SolverStatus.TRANSLATION and res.gamma == pytest.approx(np.hypot(0.2, 0.1) / MU)
+
+
+def test_pure_torque_sense_and_torsional_coefficient_edge_cases():
+    pad = PadGeometry(8, 8, 1.25e-3)
+    phi = np.ones(64)
+    for tau in (2e-3, -2e-3):
+        res = load_factor(phi, pad.positions, (0.0, 0.0), tau, MU)
+        assert res.sense == (1 if tau > 0 else -1) and res.load_torque == tau
+        assert res.gamma == pytest.approx(abs(tau) / res.torque_capacity)
+    for mu in (0.0, -0.5, np.nan, np.inf):
+        bad = torsional_coefficient(phi, pad.positions, mu)
+        assert bad.status is SolverStatus.INVALID_INPUT and bad.beta_m == 0.0 and bad.median is None
+    empty = torsional_coefficient(np.zeros(64), pad.positions, MU)
+    assert empty.status is SolverStatus.NO_CONTACT and empty.beta_m == 0.0 and empty.median is None
+
+
+def test_a_force_through_a_point_contact_perpendicular_to_its_position_is_a_translation():
+    # f ⟂ p with f × p > 0: τ = −(f × p) = −|f||p| exactly cancels the lever term, so the
+    # tolerance for "through the taxel" must use |τ|; n(p̄) is then rounding only.
+    pad = PadGeometry(8, 8, 1.25e-3)
+    for taxel in range(64):
+        phi = np.zeros(64)
+        phi[taxel] = 1.5
+        px, py = pad.positions[taxel]
+        for k in (0.3, 1.1, 2.3):
+            f_t = (k * py, -k * px)
+            res = load_factor(phi, pad.positions, f_t, -(f_t[0] * py - f_t[1] * px), MU)
+            assert res.status is SolverStatus.TRANSLATION, (taxel, k, res)

@@ -1,0 +1,570 @@
+"""Mutation testing of slipstack's numerical core: plant one small bug at a time, run
+the tests that should notice, report the bugs nobody noticed (the *survivors*).
+
+Usage (from the worktree root; ``make mutation`` runs every configured module)::
+
+    .venv/bin/python tests/mutation/mutate.py                       # all modules of config.toml
+    .venv/bin/python tests/mutation/mutate.py lib/detection.py      # one module
+    .venv/bin/python tests/mutation/mutate.py lib/weber.py --line 203   # mutants on one line
+    .venv/bin/python tests/mutation/mutate.py lib/weber.py --list   # print the mutants, run nothing
+
+Why a runner of its own and not mutmut or cosmic-ray: mutmut 3 copies the sources into
+``mutants/`` and imports them by their folder names, but this project maps folders to
+``slipstack.*`` packages (``package-dir`` in pyproject.toml), so the copy is not what
+the tests import; and neither tool knows that a numba kernel must be recompiled
+without its on-disk cache (see below). This runner is a few hundred lines with no
+dependency beyond the standard library.
+
+How: the module's source is parsed (``ast``) and one operator is changed at a time
+(see :data:`OPERATORS`); the mutated text replaces exactly the changed expression,
+so every other line, comment and line number stays as it was. The runner copies the
+worktree into a temporary folder once (see :class:`_Sandbox`: the tests import
+``slipstack`` from the copy), writes each mutant over the copy's file, runs the
+module's test selection (``config.toml``) in a fresh ``pytest -x`` process and puts the
+original text back. The worktree is never modified.
+
+Outcomes: *killed* (a test failed), *timeout* (the tests ran longer than
+``max(60 s, 5 × the clean run)``: an endless loop, counted as killed), *survived*
+(every selected test passed), *equivalent* (survived and listed in
+``equivalent.txt`` with a reason: no test can tell it from the original).
+
+The numba kernels (:mod:`slipstack.lib.weber`, :mod:`slipstack.lib.limit_set`): the
+mutants run compiled, as in production (``NUMBA_DISABLE_JIT=1`` would turn a division
+by zero, which the kernels define as IEEE ``inf``, into an exception and kill mutants
+that the compiled code lets through). numba's cache beside the source is never used:
+``NUMBA_CACHE_DIR`` points into a temporary folder. A mutant inside a kernel, or at
+module level (a constant is frozen into every kernel that reads it), gets a fresh,
+empty cache folder: a kernel of another file that calls the mutated one (``limit_set``
+calls ``weber.newton_step``) would otherwise be loaded from a cache compiled against
+the original callee. A mutant inside a plain Python function shares one cache folder
+per run (the kernels are unchanged). Python's bytecode cache is not written
+(``PYTHONDONTWRITEBYTECODE``; the copy starts without one): it keys on the file's
+mtime in whole seconds and its size, which two mutants can share.
+
+Equivalent mutants: ``equivalent.txt`` lists them one per line as
+``path:line:col operator  # reason``. After the source changes, the runner names
+the entries that match no mutant any more (re-check them).
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import importlib
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import tomllib
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent.parent
+CONFIG = HERE / "config.toml"
+EQUIVALENT = HERE / "equivalent.txt"
+_SKIP = shutil.ignore_patterns(".venv", ".git", "__pycache__", "runs", "*.egg-info", "mutants")
+"""Not copied into the mutation sandbox."""
+
+_CMP_FLIP = {
+    ast.Lt: ast.LtE, ast.LtE: ast.Lt, ast.Gt: ast.GtE, ast.GtE: ast.Gt,
+    ast.Eq: ast.NotEq, ast.NotEq: ast.Eq, ast.Is: ast.IsNot, ast.IsNot: ast.Is,
+    ast.In: ast.NotIn, ast.NotIn: ast.In,
+}
+_BIN_SWAP = {
+    ast.Add: ast.Sub, ast.Sub: ast.Add, ast.Mult: ast.Div, ast.Div: ast.Mult,
+    ast.Pow: ast.Mult, ast.FloorDiv: ast.Div, ast.BitAnd: ast.BitOr, ast.BitOr: ast.BitAnd,
+}
+_SYMBOL = {
+    ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==", ast.NotEq: "!=",
+    ast.Is: "is", ast.IsNot: "is not", ast.In: "in", ast.NotIn: "not in", ast.Add: "+",
+    ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**", ast.FloorDiv: "//",
+    ast.BitAnd: "&", ast.BitOr: "|", ast.And: "and", ast.Or: "or",
+}
+OPERATORS = {
+    "cmp": "comparison boundary or sense flipped (< <=, > >=, == !=, is / is not, in / not in)",
+    "binop": "arithmetic swapped (+ -, * /, ** *, // /, & |), also in augmented assignments",
+    "bool": "and / or swapped",
+    "not": "`not` removed",
+    "neg": "unary minus removed from a non-constant",
+    "const": "number n -> n + 1; True / False swapped",
+    "abs": "abs(x) -> x",
+    "minmax": "min / max swapped",
+    "return": "a returned value replaced by None (plain Python functions only)",
+    "guard": "a guard removed: the condition of an `if` whose body ends in return, continue or break -> False",
+}
+
+
+@dataclass(frozen=True)
+class Mutant:
+    """One planted bug: where (1-based line, 0-based column of the changed text), which
+    operator, the original and mutated text of the changed expression or statement."""
+
+    path: str
+    line: int
+    col: int
+    operator: str
+    original: str
+    mutated: str
+    end_line: int
+    end_col: int
+    in_kernel: bool
+    at_module_level: bool
+
+    @property
+    def key(self) -> str:
+        """Stable name used in ``equivalent.txt``: ``path:line:col operator``."""
+        return f"{self.path}:{self.line}:{self.col} {self.operator}"
+
+    def describe(self) -> str:
+        return f"{self.key}: `{self.original}` -> `{self.mutated}`"
+
+
+def _is_docstring(node: ast.AST, parent: ast.AST | None) -> bool:
+    return (
+        isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant) and isinstance(node.value.value, str)
+    )
+
+
+def _is_njit(decorator: ast.expr) -> bool:
+    target = decorator.func if isinstance(decorator, ast.Call) else decorator
+    return isinstance(target, ast.Name) and target.id in ("njit", "jit")
+
+
+class _Collector(ast.NodeVisitor):
+    """Walks a module and records every mutation site (see :data:`OPERATORS`)."""
+
+    def __init__(self, path: str, source: str) -> None:
+        self.path = path
+        self.source = source
+        self.mutants: list[Mutant] = []
+        self._func_stack: list[bool] = []  # per enclosing function: is it a numba kernel?
+
+    # --- where not to mutate ------------------------------------------------------------
+    def visit_FunctionDef(self, node: ast.FunctionDef) -> None:
+        self._func_stack.append(any(_is_njit(d) for d in node.decorator_list))
+        for default in node.args.defaults + [d for d in node.args.kw_defaults if d is not None]:
+            self.visit(default)
+        for stmt in node.body:
+            if not _is_docstring(stmt, node):
+                self.visit(stmt)
+        self._func_stack.pop()
+
+    visit_AsyncFunctionDef = visit_FunctionDef  # type: ignore[assignment]
+
+    def visit_ClassDef(self, node: ast.ClassDef) -> None:
+        for stmt in node.body:
+            if not _is_docstring(stmt, node):
+                self.visit(stmt)
+
+    def visit_Module(self, node: ast.Module) -> None:
+        for stmt in node.body:
+            if _is_docstring(stmt, node) or isinstance(stmt, (ast.Import, ast.ImportFrom)):
+                continue
+            if isinstance(stmt, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "__all__" for t in stmt.targets):
+                continue
+            if isinstance(stmt, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "JIT" for t in stmt.targets):
+                continue  # numba options, not behaviour
+            self.visit(stmt)
+
+    def visit_AnnAssign(self, node: ast.AnnAssign) -> None:
+        if node.value is not None:
+            self.visit(node.value)
+
+    def visit_Raise(self, node: ast.Raise) -> None:
+        return  # error messages: their wording is tested where it matters, not mutated
+
+    def visit_JoinedStr(self, node: ast.JoinedStr) -> None:
+        return
+
+    # --- mutation sites -------------------------------------------------------------------
+    def _add(self, node: ast.AST, operator: str, replacement: ast.AST, *, statement: bool = False) -> None:
+        original = ast.get_source_segment(self.source, node)
+        if original is None:
+            return
+        text = ast.unparse(replacement)
+        mutated = text if statement else f"({text})"
+        in_kernel = bool(self._func_stack) and self._func_stack[-1]
+        self.mutants.append(Mutant(self.path, node.lineno, node.col_offset, operator, original, mutated,
+                                   node.end_lineno, node.end_col_offset, in_kernel, not self._func_stack))
+
+    def visit_Compare(self, node: ast.Compare) -> None:
+        for k, op in enumerate(node.ops):
+            flip = _CMP_FLIP.get(type(op))
+            if flip is not None:
+                ops = list(node.ops)
+                ops[k] = flip()
+                self._add(node, "cmp", ast.Compare(node.left, ops, node.comparators))
+        self.generic_visit(node)
+
+    def visit_BinOp(self, node: ast.BinOp) -> None:
+        swap = _BIN_SWAP.get(type(node.op))
+        if swap is not None:
+            self._add(node, "binop", ast.BinOp(node.left, swap(), node.right))
+        self.generic_visit(node)
+
+    def visit_AugAssign(self, node: ast.AugAssign) -> None:
+        swap = _BIN_SWAP.get(type(node.op))
+        if swap is not None:
+            self._add(node, "binop", ast.AugAssign(node.target, swap(), node.value), statement=True)
+        self.generic_visit(node)
+
+    def visit_BoolOp(self, node: ast.BoolOp) -> None:
+        other = ast.Or() if isinstance(node.op, ast.And) else ast.And()
+        self._add(node, "bool", ast.BoolOp(other, node.values))
+        self.generic_visit(node)
+
+    def visit_UnaryOp(self, node: ast.UnaryOp) -> None:
+        if isinstance(node.op, ast.Not):
+            self._add(node, "not", node.operand)
+        elif isinstance(node.op, ast.USub):
+            if isinstance(node.operand, ast.Constant):
+                value = node.operand.value
+                if isinstance(value, (int, float)) and not isinstance(value, bool):
+                    self._add(node, "const", ast.Constant(-value + 1))
+                return
+            self._add(node, "neg", node.operand)
+        self.generic_visit(node)
+
+    def visit_Constant(self, node: ast.Constant) -> None:
+        value = node.value
+        if isinstance(value, bool):
+            self._add(node, "const", ast.Constant(not value))
+        elif isinstance(value, (int, float)):
+            self._add(node, "const", ast.Constant(value + 1))
+
+    def visit_Call(self, node: ast.Call) -> None:
+        name = node.func.id if isinstance(node.func, ast.Name) else None
+        if name == "abs" and len(node.args) == 1 and not node.keywords:
+            self._add(node, "abs", node.args[0])
+        if name in ("min", "max"):
+            other = "max" if name == "min" else "min"
+            self._add(node, "minmax", ast.Call(ast.Name(other, ast.Load()), node.args, node.keywords))
+        self.generic_visit(node)
+
+    def visit_If(self, node: ast.If) -> None:
+        if isinstance(node.body[-1], (ast.Return, ast.Continue, ast.Break)):
+            self._add(node.test, "guard", ast.Constant(False))
+        self.generic_visit(node)
+
+    def visit_Return(self, node: ast.Return) -> None:
+        in_kernel = bool(self._func_stack) and self._func_stack[-1]
+        if node.value is not None and not in_kernel and not (
+            isinstance(node.value, ast.Constant) and node.value.value is None
+        ):
+            self._add(node, "return", ast.Return(ast.Constant(None)), statement=True)
+        self.generic_visit(node)
+
+
+def collect_mutants(path: str, source: str) -> list[Mutant]:
+    """Every mutant of one module's source, in source order."""
+    collector = _Collector(path, source)
+    collector.visit(ast.parse(source))
+    return sorted(collector.mutants, key=lambda m: (m.line, m.col, m.operator, m.mutated))
+
+
+def apply(source: str, mutant: Mutant) -> str:
+    """The source with the mutant's text in place of the original segment."""
+    lines = source.splitlines(keepends=True)
+    offsets = [0]
+    for line in lines:
+        offsets.append(offsets[-1] + len(line.encode()))
+    raw = source.encode()
+    start = offsets[mutant.line - 1] + mutant.col
+    end = offsets[mutant.end_line - 1] + mutant.end_col
+    return (raw[:start] + mutant.mutated.encode() + raw[end:]).decode()
+
+
+# --- running ----------------------------------------------------------------------------
+
+
+@dataclass
+class Outcome:
+    mutant: Mutant
+    status: str  # killed, timeout, survived, equivalent, error
+    seconds: float
+    detail: str = ""
+
+
+def load_equivalent(path: Path = EQUIVALENT) -> dict[str, str]:
+    """``equivalent.txt`` as ``{key: reason}``; every entry must carry a reason."""
+    entries: dict[str, str] = {}
+    if not path.exists():
+        return entries
+    for number, raw in enumerate(path.read_text().splitlines(), start=1):
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            continue
+        key, sep, reason = line.partition("#")
+        if not sep or not reason.strip():
+            raise SystemExit(f"{path}:{number}: an equivalent mutant needs '# reason' after its key")
+        entries[" ".join(key.split())] = reason.strip()
+    return entries
+
+
+class _Sandbox:
+    """A private copy of the worktree that the tests import as ``slipstack``.
+
+    The source folders are copied to ``<dir>/tree`` and ``<dir>/pkgroot/slipstack/<pkg>``
+    links to them; ``pkgroot`` goes first on PYTHONPATH, so the import system finds the
+    copy before the editable install's finder (which maps to the worktree). The worktree
+    itself is never written: one can keep editing and testing while a run goes on.
+    """
+
+    PACKAGES = ("lib", "messages", "nodes", "launch")
+
+    def __init__(self, workdir: Path) -> None:
+        self.tree = workdir / "tree"
+        shutil.copytree(ROOT, self.tree, ignore=_SKIP, symlinks=True)
+        self.pkgroot = workdir / "pkgroot"
+        (self.pkgroot / "slipstack").mkdir(parents=True)
+        for name in self.PACKAGES:
+            (self.pkgroot / "slipstack" / name).symlink_to(self.tree / name)
+
+    def check_imports(self, env: dict[str, str], module: str) -> None:
+        """Fails loudly unless ``module`` is imported from the copy (not from the worktree)."""
+        name = "slipstack." + module.removesuffix(".py").replace("/", ".")
+        out = subprocess.run([sys.executable, "-c", f"import {name} as m; print(m.__file__)"], cwd=self.tree,
+                             env=env, capture_output=True, text=True, check=True).stdout.strip()
+        if not out.startswith(str(self.pkgroot)):
+            raise SystemExit(f"{name} was imported from {out}, not from the mutation copy {self.pkgroot}")
+
+
+_PRELOADED = ("numpy", "scipy.optimize", "numba", "pytest", "hypothesis", "msgpack")
+"""Imported once by the runner; every forked test process starts with them."""
+
+
+def _preload() -> None:
+    """Import the heavy third-party modules once, here, so that each forked test process
+    starts with them (about 2 s of CPU per mutant). slipstack itself is never imported
+    by the runner: each child imports it, mutant included, from the copy."""
+    for name in _PRELOADED:
+        importlib.import_module(name)
+
+
+def _child(tests: list[str], env: dict[str, str], cwd: Path, out_path: Path) -> None:
+    """Runs in the forked process: the mutant's environment, then ``pytest -x`` on ``tests``."""
+    code = 4
+    try:
+        os.setsid()
+        fd = os.open(out_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+        os.dup2(fd, 1)
+        os.dup2(fd, 2)
+        os.chdir(cwd)
+        os.environ.clear()
+        os.environ.update(env)
+        sys.dont_write_bytecode = True
+        sys.path[:0] = [p for p in env["PYTHONPATH"].split(os.pathsep) if p]
+        importlib.invalidate_caches()
+        from numba.core import config as numba_config
+
+        numba_config.reload_config()  # NUMBA_CACHE_DIR, NUMBA_DISABLE_JIT of this mutant
+        import pytest
+
+        code = int(pytest.main(["-x", "-q", "-p", "no:cacheprovider", "--no-header", *tests]))
+    except BaseException as exc:  # noqa: BLE001 - report anything, never return into the runner
+        print(f"mutation child failed: {exc!r}", flush=True)
+    finally:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+
+
+def _pytest(tests: list[str], env: dict[str, str], timeout_s: float, cwd: Path) -> tuple[str, float, str]:
+    """Runs ``tests`` in a forked process; ``(status, seconds, detail)``."""
+    out_path = cwd.parent / "pytest-output.txt"
+    sys.stdout.flush()
+    sys.stderr.flush()
+    started = time.monotonic()
+    pid = os.fork()
+    if pid == 0:
+        _child(tests, env, cwd, out_path)
+    while True:
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            break
+        if time.monotonic() - started > timeout_s:
+            os.killpg(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+            return "timeout", time.monotonic() - started, ""
+        time.sleep(0.02)
+    elapsed = time.monotonic() - started
+    code = os.waitstatus_to_exitcode(status)
+    out = out_path.read_text(errors="replace") if out_path.exists() else ""
+    if code == 0:
+        return "survived", elapsed, ""
+    if code < 0:
+        return "killed", elapsed, f"the test process died by signal {-code}"
+    if code in (1, 2, 3, 4):  # tests failed, interrupted (collection error), internal error, conftest crashed
+        failed = [ln for ln in out.splitlines() if ln.startswith(("FAILED", "ERROR"))]
+        errors = [ln for ln in out.splitlines() if ln.startswith("E ") and "Error" in ln]
+        head = failed[0] if failed else out.strip().splitlines()[-1] if out.strip() else ""
+        return "killed", elapsed, head + (f" ({errors[0][1:].strip()})" if errors else "")
+    return "error", elapsed, f"pytest exit code {code}: {out[-500:]}"
+
+
+def _env(sandbox: _Sandbox, cache_dir: Path, *, interpreted: bool = False) -> dict[str, str]:
+    env = dict(os.environ)
+    path = os.pathsep.join(p for p in (str(sandbox.pkgroot), env.get("PYTHONPATH", "")) if p)
+    env.update(NUMBA_CACHE_DIR=str(cache_dir), PYTHONDONTWRITEBYTECODE="1", PYTHONPATH=path)
+    env.pop("NUMBA_DISABLE_JIT", None)
+    if interpreted:
+        env["NUMBA_DISABLE_JIT"] = "1"
+    return env
+
+
+_PYTHON_ONLY_ERRORS = ("ZeroDivisionError", "math domain error", "OverflowError")
+"""Exceptions interpreted kernels raise where compiled ones return inf or NaN (IEEE)."""
+
+
+def _run_mutant(sandbox: _Sandbox, mutant: Mutant, tests: list[str], shared_cache: Path, timeout_s: float,
+                interpreted: bool) -> tuple[str, float, str]:
+    """One mutant's test run (the mutant is in place in the copy). Compiled, kernel and
+    module-level mutants get an empty numba cache; with ``interpreted`` every mutant runs
+    under NUMBA_DISABLE_JIT, and a kill by an exception only interpreted code raises is
+    confirmed compiled."""
+    if interpreted:
+        status, seconds, detail = _pytest(tests, _env(sandbox, shared_cache, interpreted=True), timeout_s,
+                                          sandbox.tree)
+        if not (status == "killed" and any(e in detail for e in _PYTHON_ONLY_ERRORS)):
+            return status, seconds, detail
+    elif not (mutant.in_kernel or mutant.at_module_level):
+        return _pytest(tests, _env(sandbox, shared_cache), timeout_s, sandbox.tree)
+    cache = Path(tempfile.mkdtemp(prefix="numba-", dir=sandbox.tree.parent))
+    try:
+        return _pytest(tests, _env(sandbox, cache), timeout_s, sandbox.tree)
+    finally:
+        shutil.rmtree(cache, ignore_errors=True)
+
+
+def run_module(sandbox: _Sandbox, path: str, tests: list[str], mutants: list[Mutant], equivalent: dict[str, str],
+               log, *, interpreted: bool = False) -> tuple[list[Outcome], float]:
+    """Runs every mutant of one module in the copy; returns the outcomes and the clean run's time (s)."""
+    shared_cache = sandbox.tree.parent / "numba-shared"
+    shared_cache.mkdir(exist_ok=True)
+    sandbox.check_imports(_env(sandbox, shared_cache), path)
+    status, clean_s, detail = _pytest(tests, _env(sandbox, shared_cache), 600.0, sandbox.tree)
+    if status != "survived":
+        raise SystemExit(f"{path}: its tests fail without any mutant ({status}: {detail}); fix them first")
+    log(f"{path}: clean run {clean_s:.1f} s, {len(mutants)} mutants, tests: {' '.join(tests)}")
+    timeout_s = max(60.0, 5.0 * clean_s)
+    target = sandbox.tree / path
+    original = target.read_text()
+    outcomes: list[Outcome] = []
+    try:
+        for k, mutant in enumerate(mutants, start=1):
+            target.write_text(apply(original, mutant))
+            try:
+                status, seconds, detail = _run_mutant(sandbox, mutant, tests, shared_cache, timeout_s, interpreted)
+            finally:
+                target.write_text(original)
+            if status == "survived" and mutant.key in equivalent:
+                status, detail = "equivalent", equivalent[mutant.key]
+            outcomes.append(Outcome(mutant, status, seconds, detail))
+            log(f"  [{k}/{len(mutants)}] {status:10s} {seconds:5.1f} s  {mutant.describe()}")
+    finally:
+        target.write_text(original)
+    return outcomes, clean_s
+
+
+def summarise(outcomes: list[Outcome]) -> dict[str, int | float]:
+    """Counts per status and the share of non-equivalent mutants killed (timeouts count as killed)."""
+    counts = {s: sum(o.status == s for o in outcomes) for s in ("killed", "timeout", "survived", "equivalent", "error")}
+    relevant = len(outcomes) - counts["equivalent"]
+    dead = counts["killed"] + counts["timeout"]
+    return {"mutants": len(outcomes), **counts, "killed_pct": round(100.0 * dead / relevant, 1) if relevant else 100.0}
+
+
+def report(results: dict[str, list[Outcome]], wall_s: float, stale: list[str]) -> str:
+    """A Markdown report: the table per module, then every survivor as file:line."""
+    rows = ["| module | mutants | killed | timeout | survived | equivalent | error | % killed |",
+            "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+    for path, outcomes in results.items():
+        s = summarise(outcomes)
+        rows.append(f"| {path} | {s['mutants']} | {s['killed']} | {s['timeout']} | {s['survived']} | "
+                    f"{s['equivalent']} | {s['error']} | {s['killed_pct']} |")
+    lines = ["# Mutation report", "", *rows, "", f"wall time {wall_s / 60:.1f} min", ""]
+    survivors = [o for outcomes in results.values() for o in outcomes if o.status in ("survived", "error")]
+    lines.append(f"## Survivors ({len(survivors)})")
+    lines += [f"- {o.mutant.describe()} [{o.status}] {o.detail}".rstrip() for o in survivors] or ["none"]
+    if stale:
+        lines += ["", "## Entries of equivalent.txt that match no mutant (re-check them)"] + [f"- {k}" for k in stale]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    config = tomllib.loads(CONFIG.read_text())["module"]
+    parser = argparse.ArgumentParser(
+        description="Mutation testing: plants one bug at a time in a module and runs its tests "
+                    f"(modules and test selections: {CONFIG.relative_to(ROOT)}). Takes long: not for CI.",
+        epilog="operators: " + "; ".join(f"{k}: {v}" for k, v in OPERATORS.items()))
+    parser.add_argument("modules", nargs="*", help=f"module paths (default: all of {', '.join(config)})")
+    parser.add_argument("--line", type=int, action="append", help="only the mutants on this line (repeatable)")
+    parser.add_argument("--operator", choices=sorted(OPERATORS), action="append", help="only these operators")
+    parser.add_argument("--list", action="store_true", help="print the mutants and run nothing")
+    parser.add_argument("--interpreted", action="store_true",
+                        help="run the mutants under NUMBA_DISABLE_JIT=1 (a mutated file's kernels would "
+                             "otherwise be recompiled for every mutant: 1.5-3 s instead of 10-30 s per mutant "
+                             "on 2 busy cores); a kill by ZeroDivisionError or a math domain error, which "
+                             "compiled kernels do not raise, is re-checked compiled")
+    parser.add_argument("--sample", type=int, default=1, metavar="K",
+                        help="only every K-th mutant of each module (in source order, starting with the first): "
+                             "a fixed, repeatable subset for a machine too busy for the whole run")
+    parser.add_argument("--rerun", type=Path, metavar="RESULTS_JSON",
+                        help="only the mutants that survived (or erred) in an earlier results.json")
+    parser.add_argument("--report", type=Path, default=Path(tempfile.gettempdir()) / f"slipstack-mutation-{os.getuid()}",
+                        help="folder for report.md and results.json (default: %(default)s)")
+    args = parser.parse_args(argv)
+    modules = args.modules or list(config)
+    unknown = [m for m in modules if m not in config]
+    if unknown:
+        parser.error(f"not configured: {', '.join(unknown)}; add a [module.\"PATH\"] table with its tests to {CONFIG}")
+    equivalent = load_equivalent()
+    selected: dict[str, list[Mutant]] = {}
+    all_keys: set[str] = set()
+    for path in modules:
+        mutants = collect_mutants(path, (ROOT / path).read_text())
+        all_keys |= {m.key for m in mutants}
+        mutants = mutants[::args.sample]
+        if args.line:
+            mutants = [m for m in mutants if m.line in args.line]
+        if args.operator:
+            mutants = [m for m in mutants if m.operator in args.operator]
+        selected[path] = mutants
+    if args.rerun:
+        earlier = json.loads(args.rerun.read_text())
+        again = {f"{o['path']}:{o['line']}:{o['col']} {o['operator']}" for outs in earlier.values() for o in outs
+                 if o["status"] in ("survived", "error", "equivalent")}
+        selected = {p: [m for m in ms if m.key in again] for p, ms in selected.items()}
+    if args.list:
+        for path, mutants in selected.items():
+            for m in mutants:
+                print(m.describe() + ("  [kernel]" if m.in_kernel else ""))
+        print(f"{sum(map(len, selected.values()))} mutants")
+        return 0
+    stale = sorted(k for k in equivalent if k.split(":")[0] in modules and k not in all_keys)
+    args.report.mkdir(parents=True, exist_ok=True)
+    started = time.monotonic()
+    results: dict[str, list[Outcome]] = {}
+    _preload()
+    with tempfile.TemporaryDirectory(prefix="slipstack-mutation-") as tmp:
+        sandbox = _Sandbox(Path(tmp))
+        for path in modules:
+            results[path], _ = run_module(sandbox, path, config[path]["tests"], selected[path], equivalent,
+                                          lambda msg: print(msg, flush=True), interpreted=args.interpreted)
+    text = report(results, time.monotonic() - started, stale)
+    (args.report / "report.md").write_text(text)
+    (args.report / "results.json").write_text(json.dumps(
+        {p: [{**asdict(o.mutant), "status": o.status, "seconds": round(o.seconds, 2), "detail": o.detail}
+             for o in outs] for p, outs in results.items()}, indent=1))
+    print(text)
+    print(f"report: {args.report / 'report.md'}")
+    return 1 if any(o.status in ("survived", "error") for outs in results.values() for o in outs) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
