@@ -110,13 +110,16 @@ def test_gamma_exactly_at_the_release_level_holds_the_latch():
 
 def test_nan_margins_for_longer_than_the_dwell_keep_a_latched_slip():
     # No verdict (NaN) is no information: however long it lasts it neither starts nor
-    # runs the release timer, so the grip law keeps seeing slip.
+    # runs the release timer, so the grip law keeps seeing slip; a NaN inside the dwell
+    # restarts it (release needs 20 ms of valid stick frames in a row).
     latch = SlipLatch(DetectorConfig(release_ns=20 * MS))
     assert latch.update(0, 0.0) is True
     assert all(latch.update(t * MS, math.nan) is True for t in range(1, 60, 3))
     assert latch.update(60 * MS, 0.5) is True               # a real stick frame starts the dwell
-    assert latch.update(75 * MS, math.nan) is True
-    assert latch.update(80 * MS, 0.5) is False              # 20 ms of real stick frames: released
+    assert latch.update(75 * MS, math.nan) is True          # no information: the dwell starts again
+    assert latch.update(80 * MS, 0.5) is True               # the dwell restarts here
+    assert latch.update(99 * MS, 0.5) is True
+    assert latch.update(100 * MS, 0.5) is False             # 20 ms of valid stick frames: released
     # and a NaN keeps "stick" too
     stick = SlipLatch()
     assert stick.update(0, 0.5) is False

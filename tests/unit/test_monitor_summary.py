@@ -108,7 +108,7 @@ def test_summary_of_a_controlled_run_counts_force_fail_safe_and_late_commands(fi
         if topic == "grip/command":
             m = decode(payload)
             h = m.header
-            stamp = h.pub_ns - 30 * MS if k % 11 == 0 else h.stamp_ns
+            stamp = max(h.pub_ns - 30 * MS, 0) if k % 11 == 0 else h.stamp_ns  # stamps are never negative
             reason = "fail-safe" if k % 7 == 0 else m.reason
             payload = encode(dataclasses.replace(m, reason=reason), Header(stamp, h.seq, h.pub_ns, h.sources))
         events.append((t, topic, payload))
