@@ -95,11 +95,14 @@ class GripController(Node):
         return None if self.slip is None else self._last_publish_ns + self.governor.timeout_ns
 
     def on_deadline(self, ctx: Context) -> None:
-        self._step(ctx)  # inputs stale: the governor holds the grip and says so, and re-arms
+        # no new verdict for a whole timeout: hold (and escalate), never re-run the law on the
+        # old inputs (law (14) would lower the command to the lagging measured force)
+        self._step(ctx, verdict_missing=True)
 
-    def _step(self, ctx: Context) -> None:
+    def _step(self, ctx: Context, *, verdict_missing: bool = False) -> None:
         now = ctx.now_ns()
         inp, stamps, ok = self._gather()
+        ok = ok and not verdict_missing
         loaded = self.slip is not None and self.slip.state != "no-contact"
         decision = self.governor.step(inp, now_ns=now, stamps_ns=stamps, status_ok=ok, loaded=loaded)
         stamp = max(stamps) if stamps else now

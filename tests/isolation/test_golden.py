@@ -223,13 +223,7 @@ GAP_NS = (150_000_000, 200_000_000)
 """Slip verdicts cut from the replay (ns from the scene start): mid-episode in both recordings."""
 
 
-@pytest.mark.parametrize("golden", [
-    pytest.param(GOLDENS[0], id=GOLDENS[0].name, marks=pytest.mark.xfail(strict=True, reason=(
-        "known defect in nodes/grip_controller.py (safety issue): the first watchdog step after "
-        "the verdicts stop re-runs law (14) and lowers the command (6.07 -> 5.91 N at 168 ms) "
-        "before the fail-safe hold; remove this mark when it is fixed"))),
-    *[pytest.param(g, id=g.name) for g in GOLDENS[1:]],
-])
+@pytest.mark.parametrize("golden", GOLDENS, ids=[g.name for g in GOLDENS])
 def test_grip_never_falls_while_the_slip_verdicts_stop(golden: Golden, tmp_path: Path) -> None:
     """The recording replayed into the grip controller with 50 ms of verdicts cut out: the
     watchdog keeps commanding, and the command never falls until a verdict comes again."""

@@ -34,7 +34,9 @@ def test_inputs_that_stop_hold_the_last_grip_and_say_so():
     assert live and abs(live[-1].f_n_desired - 8.0) < 1e-9
     held = [c for c in cmds if c.reason == "fail-safe"]
     assert len(held) >= 3  # the watchdog keeps saying it, every timeout
-    assert all(c.f_n_desired == live[-1].f_n_desired for c in held)
+    assert held[0].f_n_desired == live[-1].f_n_desired  # held first ...
+    assert all(b.f_n_desired >= a.f_n_desired >= live[-1].f_n_desired for a, b in zip(held, held[1:]))
+    assert held[-1].f_n_desired > live[-1].f_n_desired  # ... then raised: blind with a load past the grace
 
 
 def test_a_stale_input_never_lowers_the_grip():
