@@ -501,14 +501,16 @@ class Launcher:
                                                                   indent=1))
 
     def _check_problems(self) -> list[str]:
-        """What failed the run: the monitor's ``check.json`` problems, processes that died and stayed down."""
+        """What failed the run: the monitor's ``check.json`` problems (none expected without a monitor in
+        the launch), processes that died and stayed down."""
         try:
             fd = os.open(self.run_dir / CHECK_FILE, os.O_RDONLY | os.O_NOFOLLOW)
             with os.fdopen(fd, "rb") as fh:
                 doc = json.loads(fh.read(CHECK_FILE_MAX_BYTES))
             problems = [] if doc["passed"] is True else [str(p) for p in doc.get("problems") or ["not passed"]]
         except FileNotFoundError:
-            problems = [f"no {CHECK_FILE} from the monitor (is it disabled, or did it not stop cleanly?)"]
+            monitored = any(e.type == "monitor" for e in self.launch.nodes)
+            problems = [f"no {CHECK_FILE} from the monitor (did it not stop cleanly?)"] if monitored else []
         except (OSError, ValueError, TypeError, KeyError) as exc:
             problems = [f"{CHECK_FILE} is unreadable ({exc})"]
         for c in self.processes.values():

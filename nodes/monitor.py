@@ -85,7 +85,13 @@ class MonitorParams:
 @dataclass
 class CommandStats:
     """Running numbers of ``grip/command``: count, sum and peak of f_n (N), fail-safe and
-    late counts, and the largest age at publish (ns)."""
+    late counts, and the largest age at publish (ns).
+
+    Two stretches of fail-safe commands are expected and kept apart from the share that
+    judges the run: *starting* (every command before the first one on valid data: the
+    sensors were not streaming yet) and, with a simulated rig, *after the scene* (the
+    commands since the rig's last truth message: the world stopped before its controller).
+    """
 
     count: int = 0
     f_n_sum: float = 0.0
@@ -93,15 +99,32 @@ class CommandStats:
     fail_safe: int = 0
     late: int = 0
     age_max_ns: int = 0
+    starting: int = 0
+    after_truth: int = 0
+    fail_safe_after_truth: int = 0
 
     def add(self, msg: GripCommand, deadline_ns: int) -> None:
         self.count += 1
         self.f_n_sum += msg.f_n_desired
         self.f_n_peak = max(self.f_n_peak, msg.f_n_desired)
-        self.fail_safe += msg.reason == FAIL_SAFE
+        held = msg.reason == FAIL_SAFE
+        self.fail_safe += held
+        self.starting += held and self.starting == self.count - 1
+        self.after_truth += 1
+        self.fail_safe_after_truth += held
         age = msg.header.pub_ns - msg.header.stamp_ns
         self.late += age > deadline_ns
         self.age_max_ns = max(self.age_max_ns, age)
+
+    def truth_seen(self) -> None:
+        """The scene is still running: the commands so far were during it."""
+        self.after_truth = self.fail_safe_after_truth = 0
+
+    def judged(self, with_rig: bool) -> tuple[int, int]:
+        """(commands, fail-safe commands) while the stack ran: without the starting and,
+        with a rig, the after-the-scene stretches."""
+        tail, tail_held = (self.after_truth, self.fail_safe_after_truth) if with_rig else (0, 0)
+        return self.count - self.starting - tail, self.fail_safe - self.starting - tail_held
 
 
 @dataclass
@@ -168,6 +191,7 @@ class Monitor(Node):
         self.applied_f_n_sum += msg.f_n_applied
         self.episodes.add_truth(msg.header.stamp_ns, msg.gross_slip, msg.sliding_fraction >= INCIPIENT_SHARE)
         self.last["truth"] = msg
+        self.commands.truth_seen()
 
     def on_diagnostics(self, msg: Diagnostics, ctx: Context) -> None:
         self.nodes.setdefault(msg.node, NodeWatch()).report(msg, ctx.now_ns(), self._silent_after_ns)
@@ -264,6 +288,7 @@ def summarise(m: Monitor, now_ns: int) -> dict:
     silent_now = m.silent_nodes(now_ns)
     went_silent = {name: w.longest_silence_ns / 1e9 for name, w in m.nodes.items() if w.silences}
     truth = m.last.get("truth")
+    judged, judged_fail_safe = cmd.judged(with_rig=truth is not None)
     return {
         "slip_frames": m.slip_frames,
         "true_episodes": m.episodes.episode_count,
@@ -276,8 +301,11 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "grip_commands": cmd.count,
         "grip_command_mean_n": cmd.f_n_sum / cmd.count if cmd.count else None,
         "grip_command_peak_n": cmd.f_n_peak if cmd.count else None,
-        "fail_safe_commands": cmd.fail_safe,
-        "fail_safe_share": _share(cmd.fail_safe, cmd.count),
+        "commands_while_running": judged,
+        "fail_safe_commands": judged_fail_safe,
+        "fail_safe_share": _share(judged_fail_safe, judged),
+        "fail_safe_while_starting": cmd.starting,
+        "fail_safe_after_scene": cmd.fail_safe_after_truth if truth else 0,
         "command_deadline_ms": m.params.command_deadline_ms,
         "late_commands": cmd.late,
         "late_share": _share(cmd.late, cmd.count),
@@ -305,7 +333,7 @@ def check_problems(s: dict, p: MonitorParams) -> list[str]:
         problems.append(f"the object turned {abs(s['slip_angle_deg']):.2f} deg (allowed {p.check_turn_deg:g} deg)")
     if s["fail_safe_share"] is not None and s["fail_safe_share"] > p.check_fail_safe_share:
         problems.append(f"{s['fail_safe_share'] * 100:.1f}% of the grip commands were fail-safe"
-                        f" ({s['fail_safe_commands']} of {s['grip_commands']};"
+                        f" ({s['fail_safe_commands']} of {s['commands_while_running']};"
                         f" allowed {p.check_fail_safe_share * 100:g}%)")
     if s["missed_episodes"]:
         problems.append(f"the detector missed {s['missed_episodes']} of {s['true_episodes']} true slip episodes")
@@ -351,8 +379,9 @@ def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
         f"grip force commanded: mean {num(s['grip_command_mean_n'], '.2f')} N, peak {num(s['grip_command_peak_n'], '.2f')} N;"
         f" applied mean {num(s['applied_f_n_mean_n'], '.2f')} N",
         f"object slid {num(s['slip_distance_mm'], '.2f')} mm and turned {num(s['slip_angle_deg'], '.2f')} deg in all",
-        f"control path: {s['grip_commands']} grip commands, {pct(s['fail_safe_share'])} fail-safe,"
-        f" {pct(s['late_share'])} later than {s['command_deadline_ms']:g} ms after their sample",
+        f"control path: {s['grip_commands']} grip commands, {pct(s['fail_safe_share'])} fail-safe while running"
+        f" ({s['fail_safe_while_starting']} more while the sensors started, {s['fail_safe_after_scene']} after the"
+        f" scene ended), {pct(s['late_share'])} later than {s['command_deadline_ms']:g} ms after their sample",
     ]
     problems = check_problems(s, p or MonitorParams()) + behind_problems(s)
     lines.extend(f"HEALTH: {problem}" for problem in problems or ["ok"])

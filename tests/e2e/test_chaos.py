@@ -49,7 +49,9 @@ def _respawned(g, node: str, old_pid: int, timeout: float = 30.0) -> float:
 
 def test_the_stack_survives_kills_and_freezes_mid_disturbance(launch, run_root):
     summary = run_root / "chaos.json"
-    g = launch("fig15", f"recording:={run_root / 'chaos.mcap'}", f"summary:={summary}")
+    # check:=false: a run with processes killed fails its check by design (deaths, fail-safe time);
+    # the test judges the slip and the recovery itself
+    g = launch("fig15", f"recording:={run_root / 'chaos.mcap'}", f"summary:={summary}", "check:=false")
     g.wait_ready(timeout=120)
     _pid(g, "rig")
     time.sleep(2.0)  # into the disturbance's ramp

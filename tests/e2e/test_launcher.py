@@ -292,7 +292,7 @@ def test_a_node_whose_address_is_taken_says_so_in_one_line():
     try:
         out = subprocess.run(
             [sys.executable, "-m", "slipstack.launch.cli", "run", "wrench_source", "--pub", f"tcp://127.0.0.1:{port}"],
-            capture_output=True, text=True, timeout=60,
+            capture_output=True, text=True, timeout=60, env=dict(os.environ, SLIPSTACK_INSECURE="1"),  # tcp, no keys
         )
     finally:
         holder.close()

@@ -27,7 +27,10 @@ SCENES = ["fig10", "fig11", "fig12", "fig15"]
 
 def _run(launch, run_root, scene: str, controller: bool) -> dict:
     summary = run_root / f"{scene}-{controller}.json"
-    g = launch(scene, f"controller:={str(controller).lower()}", "record:=false", f"summary:={summary}")
+    # check:=false: the scenes' own check fails a run whose control path held the grip in fail-safe
+    # for more than 1 % of its commands, which a busy machine can cause; these tests judge the
+    # outcome themselves (the check's verdicts are tested in test_launcher.py)
+    g = launch(scene, f"controller:={str(controller).lower()}", "record:=false", f"summary:={summary}", "check:=false")
     code = g.proc.wait(100)  # well within the 120 s test timeout, so a hang shows its log
     assert code == 0, g.log()
     assert summary.exists(), g.log()

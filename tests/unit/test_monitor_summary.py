@@ -297,7 +297,9 @@ def test_memory_stays_bounded_over_200k_messages(tmp_path):
     assert s["true_episodes"] == s["detected_episodes"] == episodes and s["missed_episodes"] == 0
     assert s["detection_delay_ms_p50"] == pytest.approx(-5.0)
     assert s["false_slip_rate"] == 0.0
-    assert s["grip_commands"] == n_ticks and s["fail_safe_commands"] == math.ceil(n_ticks / 100)
+    # every 100th command is fail-safe; the very first one came before any valid command: "while starting"
+    assert s["grip_commands"] == n_ticks and s["fail_safe_commands"] == math.ceil(n_ticks / 100) - 1
+    assert s["fail_safe_while_starting"] == 1
     assert s["grip_command_peak_n"] == pytest.approx(2.999)
     assert s["slip_frames"] == n_ticks
 
@@ -309,3 +311,24 @@ def test_format_summary_without_a_rig_leaves_the_rig_numbers_out():
     lines = format_summary(summarise(monitor, 0))
     assert "object slid - mm and turned - deg in all" in lines
     assert "HEALTH: ok" in lines
+
+
+def test_fail_safe_while_starting_and_after_the_scene_is_kept_apart_from_the_running_share():
+    from slipstack.messages import GripCommand, Header
+    from slipstack.nodes.monitor import CommandStats
+
+    stats = CommandStats()
+
+    def command(k: int, reason: str) -> GripCommand:
+        return GripCommand(f_n_desired=5.0, law="exact", reason=reason, header=Header(k * MS, k, k * MS, {}))
+
+    for k in range(3):
+        stats.add(command(k, "fail-safe"), 20 * MS)  # sensors not streaming yet
+    for k in range(3, 103):
+        stats.add(command(k, "fail-safe" if k % 50 == 0 else "slip"), 20 * MS)  # 2 of 100 while running
+        stats.truth_seen()
+    for k in range(103, 110):
+        stats.add(command(k, "fail-safe"), 20 * MS)  # the rig stopped: no truth any more
+    assert (stats.count, stats.fail_safe, stats.starting) == (110, 12, 3)
+    assert stats.judged(with_rig=True) == (100, 2)
+    assert stats.judged(with_rig=False) == (107, 9)  # on hardware the tail is a real hold
