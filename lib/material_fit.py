@@ -8,8 +8,8 @@ The pieces of :mod:`slipstack.nodes.identify_cli` that are plain computation:
   deviation of its first differences over √2. A slow trend (a load ramp, the friction's
   decay while sliding) changes consecutive frames by far less than the noise, so it
   hardly enters; the difference of two independent noisy frames has variance 2σ².
-- :func:`onset_levels`: the load factor γ of the last frame at or before each
-  gross-slip onset (dimensionless).
+- :func:`onset_levels`: the load factor γ of the last frame before each gross-slip
+  onset, the last one still sticking (dimensionless).
 
 Times are integer ns; nothing here raises on data (empty inputs give NaN or empty).
 """
@@ -51,7 +51,7 @@ def frame_noise(gamma: np.ndarray) -> float:
 
 def onset_levels(frame_ns: np.ndarray, gamma: np.ndarray, onsets_ns: list[int], *,
                  max_age_ns: int = 20_000_000) -> list[float]:
-    """γ of the newest finite frame at or before each onset, if no older than ``max_age_ns``.
+    """γ of the newest finite frame before each onset, if no older than ``max_age_ns``.
 
     Args:
         frame_ns: frame stamps, ns, increasing.
@@ -65,7 +65,7 @@ def onset_levels(frame_ns: np.ndarray, gamma: np.ndarray, onsets_ns: list[int], 
     t, g = t[keep], g[keep]
     levels = []
     for onset in onsets_ns:
-        k = int(np.searchsorted(t, onset, side="right")) - 1
+        k = int(np.searchsorted(t, onset, side="left")) - 1
         if k >= 0 and onset - t[k] <= max_age_ns:
             levels.append(float(g[k]))
     return levels

@@ -15,7 +15,7 @@ identified ``μ_s``; without tactile frames the ratio over its static value), gi
 - ``gamma_noise_stick``: its frame-to-frame noise over the 300 ms before the first
   onset (stopping 20 ms short of it), and ``gamma_noise_slide`` while sliding (from
   100 ms after the onset, only while the truth says gross slip, if it is recorded);
-- ``onset_gamma``: γ of the last frame at or before each gross-slip onset (every
+- ``onset_gamma``: γ of the last frame before each gross-slip onset (every
   episode of ``rig/truth``, else the estimate's onset).
 
 ``lib/material.py`` turns those into the detector's band and release level. A
