@@ -39,12 +39,12 @@ the key.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from slipstack.lib.errors import ConfigError
+from slipstack.lib.toml_file import read_toml
 
 __all__ = ["Material", "DetectorThresholds", "detector_thresholds", "load_material", "material_toml",
            "NOISE_FLOOR", "DELTA_MIN", "DELTA_MAX"]
@@ -160,16 +160,7 @@ def load_material(path: str | Path) -> Material:
     Raises:
         ConfigError: unreadable file, TOML syntax error, or an invalid key (named).
     """
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(f"cannot read material file {path}: {exc.strerror}") from exc
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path.name}: TOML syntax error: {exc}") from exc
-    return parse_material(data, source=path.name)
+    return parse_material(read_toml(path, "material"), source=Path(path).name)
 
 
 def _toml_value(value: Any) -> str:

@@ -29,12 +29,12 @@ Layout of a scene file (every table but ``[object]``, ``[contact]``, ``[dof]`` a
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
 from slipstack.lib.errors import ConfigError
+from slipstack.lib.toml_file import read_toml
 from slipstack.lib.pad import PadGeometry
 
 __all__ = [
@@ -671,13 +671,4 @@ def load_scene(path: str | Path) -> Scene:
     Raises:
         ConfigError: unreadable file, TOML syntax error, or an invalid key (named).
     """
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(f"cannot read scene file {path}: {exc.strerror}") from exc
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path.name}: TOML syntax error: {exc}") from exc
-    return parse_scene(data, source=path.name)
+    return parse_scene(read_toml(path, "scene"), source=Path(path).name)
