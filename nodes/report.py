@@ -19,7 +19,8 @@ Panels whose topics are missing (no truth on real hardware) are left out.
 
 ``--identify`` runs :func:`slipstack.lib.identify.identify_mu` on the F/T data of a
 ramp recording (paper Fig. 4, MATH.md §6; scenes ``fig4a``/``fig4b``), with the
-rig's object displacement as the slip-onset signal when the recording has it, and
+rig's slip distance (angle) after the elastic pre-slip as the slip-onset signal when the
+recording has it (``slipstack identify`` writes the result as a material file), and
 :func:`~slipstack.lib.identify.identify_beta` as well when the torque ramp dominates
 (``max|τ|/L > max|f_t|``, ``L`` = :data:`TORQUE_ARM_M`). It needs no matplotlib.
 """
