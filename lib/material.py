@@ -17,12 +17,16 @@ A material file (TOML, written by ``slipstack identify``; shipped ones in
 so the detector flags slip in a band ``γ ≥ 1 − δ`` below 1 and latches it down to a
 release level (``lib/detection.py``). Both come from the material:
 
-- band: the band's edge sits ``3·σ_stick`` below the lowest γ at which gross slip
-  began, ``1 − δ = min(onset_gamma) − 3·σ_stick``, so every identified onset is inside
-  the band even with a noisy frame. A contact that slips at its full capacity (Coulomb,
-  ``μ_d = μ_s``) gets a narrow band; a slip-weakening one, whose edges already slide
-  at ``μ_d`` before gross slip, a wide one. Without onset episodes the sliding level
-  ``μ_d/μ_s`` stands in for ``min(onset_gamma)`` (the earliest weakening can start).
+- band: the band's edge sits ``3·σ_stick`` below the lowest load factor at which gross
+  slip can begin, ``1 − δ = min(min(onset_gamma), μ_d/μ_s) − 3·σ_stick``, so every
+  onset is inside the band even with a noisy frame. A contact that slips at its full
+  capacity (Coulomb, ``μ_d = μ_s``) gets a band as narrow as its identified onsets allow.
+  A slip-weakening contact can let go anywhere down to its sliding level: its edges
+  slide and weaken to ``μ_d`` before the core lets go, and how far depends on the load's
+  path (a combined force and torque on a curved fingertip slips at ``γ ≈ μ_d/μ_s``, a
+  pure pull on a flat face near 1), which a few identification ramps cannot cover; so
+  its band reaches ``μ_d/μ_s``. What such a contact carries for certain is its sliding
+  friction, and a load held above that is inside its band by necessity.
 - release: while the contact slides its friction stays at or above ``μ_d``, so the
   measured γ stays at or above ``μ_d/μ_s``; below that by more than the sliding noise
   the contact sticks again: ``γ_release = μ_d/μ_s − 4·σ_slide``, never above the
@@ -108,7 +112,7 @@ def _noise(value: float) -> float:
 
 def detector_thresholds(material: Material) -> DetectorThresholds:
     """Band and release level from a material, by the rule of the module docstring."""
-    lowest_onset = min(material.onset_gamma) if material.onset_gamma else material.sliding_level
+    lowest_onset = min((*material.onset_gamma, material.sliding_level))
     edge = min(lowest_onset, 1.0) - _BAND_SIGMAS * _noise(material.gamma_noise_stick)
     delta = min(max(1.0 - edge, DELTA_MIN), DELTA_MAX)
     release = material.sliding_level - _RELEASE_SIGMAS * _noise(material.gamma_noise_slide)

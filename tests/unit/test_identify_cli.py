@@ -51,7 +51,8 @@ def test_identify_writes_a_material_that_drives_the_detector(tmp_path: Path, cap
     assert len(m.onset_gamma) == 2 and all(g == pytest.approx(1.0, abs=0.02) for g in m.onset_gamma)
     assert m.gamma_noise_stick == pytest.approx(0.002 / 0.5, rel=0.3)
     t = detector_thresholds(m)
-    assert 0.005 < t.delta < 0.06 and t.gamma_release == pytest.approx(m.sliding_level - 4 * m.gamma_noise_slide)
+    assert t.delta == pytest.approx(1.0 - (m.sliding_level - 3 * m.gamma_noise_stick))
+    assert t.gamma_release == pytest.approx(m.sliding_level - 4 * m.gamma_noise_slide)
     report = capsys.readouterr()
     assert "material mine: mu_s 0.5" in report.out and "identify: [2/2]" in report.err
 
