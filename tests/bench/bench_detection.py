@@ -33,9 +33,10 @@ with the contact's μ_s; the F/T period is 2 ms at the default 500 Hz):
   over-predicts γ) follows;
 - *latch hold*: for each episode, how long the flag stays up after the true slip ended
   (until the next episode at most; p50 / p95 ms over all episodes), split by whether the
-  true load factor fell below the material's release level during the hold (*could
-  release*: the detector could have let go; timed from that moment, so it is the
-  detector's own lag: release dwell plus noise) or stayed above it, between the release
+  true load factor fell below the material's release level by more than its sliding
+  noise during the hold (*could release*: the detector could have let go; timed from that
+  moment, so it is the detector's own lag: the release dwell and the frames the noise
+  keeps above the level) or did not, staying between the release
   level and the sliding level μ_d/μ_s or higher (*cannot tell*: force data cannot tell
   such a load from sliding; timed from the slip's end); counts in brackets;
 - *negative*: flag rising edges and flagged frames in the negative scenes.
@@ -220,6 +221,7 @@ def evaluate(data: dict[str, np.ndarray], material: Material, contact: str, tall
     """Run the latch with ``material``'s thresholds over one recording; add to ``tally``."""
     thr = detector_thresholds(material)
     sigma = material.gamma_noise_stick if math.isfinite(material.gamma_noise_stick) else 0.0
+    slide_sigma = material.gamma_noise_slide if math.isfinite(material.gamma_noise_slide) else 0.0
     latch = SlipLatch(DetectorConfig(delta=thr.delta, gamma_release=thr.gamma_release))
     gamma = data["gamma"] * RECORD_MU / material.mu_s
     margin = 1.0 - gamma
@@ -260,7 +262,7 @@ def evaluate(data: dict[str, np.ndarray], material: Material, contact: str, tall
         end = t[after[down[0]]] if down.size else stop
         held = after[t[after] < end]
         tally.hold_all.append((end - ep.end_ns) / 1e6)
-        below = held[true_gamma[held] < thr.gamma_release]
+        below = held[true_gamma[held] < thr.gamma_release - slide_sigma]
         if below.size:
             tally.hold_release.append((end - t[below[0]]) / 1e6)
         else:
