@@ -14,14 +14,14 @@ __all__ = ["main", "build_parser", "run_guarded"]
 def build_parser() -> argparse.ArgumentParser:
     from slipstack.analysis import reproduce
     from slipstack.launch import keys_cli, launcher, run_node
-    from slipstack.nodes import bag_tools, report, topic_tools
+    from slipstack.nodes import bag_tools, identify_cli, report, topic_tools
 
     parser = argparse.ArgumentParser(
         prog="slipstack",
         description="Slip detection and control as a ZeroMQ node graph (after Melchiorri 2000).",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for module in (launcher, run_node, topic_tools, bag_tools, report, reproduce, keys_cli):
+    for module in (launcher, run_node, topic_tools, bag_tools, report, identify_cli, reproduce, keys_cli):
         module.add_parser(sub)
     return parser
 

@@ -8,14 +8,24 @@ with a rising torque ``β(t) = |τ|/f_n`` (m) peaks at ``β_s`` and settles to `
 1. Reject samples with a non-finite value or ``f_n < min_normal_force_n`` (counted).
 2. Smooth the ratio with a centred moving average of ``smooth_window_s`` (rounded to
    an odd number of samples, using the median sample spacing) and take its maximum
-   ``k*`` as the peak region. With an object displacement (or rotation) the onset is
-   instead the first sample whose displacement from its initial value exceeds
-   ``slip_threshold_m`` (``slip_threshold_rad``), and ``k*`` is searched up to it.
+   ``k*`` as the peak region. With a motion signal the onset comes from the motion and
+   ``k*`` is searched up to it:
+
+   - ``slip_m`` / ``slip_rad`` (preferred): the object's slip distance or angle *after*
+     the elastic pre-slip (zero while the contact sticks, e.g. ``rig/truth``'s
+     ``slip_distance_m``). The onset is the last sample at which it had not yet grown
+     by ``slip_start_m`` (``slip_start_rad``): the last stuck sample.
+   - ``displacement_m`` / ``rotation_rad``: the total displacement, which includes
+     the elastic twist before slip; the onset is the sample before it first exceeds
+     ``slip_threshold_m`` (``slip_threshold_rad``) from its initial value — late by
+     the time the slip needs to cover that distance.
 3. Fit a straight line to the raw ratio on the rising ramp, ``fit_window_s`` before
    the smoothing-affected zone ``[k* − w/2, …)``; its residual std is the noise level
    ``s_r``. The onset (ratio-based) is the sample before the first of two successive
    samples, after the fitted zone, that fall below the line by ``drop_sigma · s_r``.
-4. ``static`` = the line at the onset, with the standard error of that prediction;
+4. ``static`` = the value at the onset of a line fitted to the raw ratio over the
+   ``static_window_s`` *ending at the onset* (never a line extended past its data), with
+   the standard error of that value;
    ``dynamic`` = mean of the raw ratio from ``settle_s`` after the onset to the end
    (with a motion signal: over the samples that are sliding, not stuck),
    with its standard error corrected for lag-1 autocorrelation (AR(1):
@@ -77,6 +87,10 @@ class IdentifyConfig:
         min_slope_t: least t-statistic of the ramp slope for a rising ramp.
         slip_threshold_m: displacement that means slip, m (force ramps).
         slip_threshold_rad: rotation that means slip, rad (torque ramps).
+        slip_start_m: growth of a slip distance that ends the stick phase, m.
+        slip_start_rad: growth of a slip angle that ends the stick phase, rad.
+        static_window_s: length of the ramp, ending at the onset, whose line gives the
+            static coefficient, s.
         min_normal_force_n: samples with smaller ``f_n`` (N) are rejected.
         sliding_fraction: with a motion signal, the dynamic level is taken only over the
             samples where it moves faster than this fraction of its mean rate after
@@ -91,12 +105,16 @@ class IdentifyConfig:
     min_slope_t: float = 3.0
     slip_threshold_m: float = 1e-4
     slip_threshold_rad: float = 1e-2
+    slip_start_m: float = 1e-7
+    slip_start_rad: float = 1e-5
+    static_window_s: float = 0.05
     min_normal_force_n: float = 1e-3
     sliding_fraction: float = 0.5
 
     def __post_init__(self) -> None:
         for name in ("smooth_window_s", "fit_window_s", "drop_sigma", "min_prominence_sigma",
-                     "slip_threshold_m", "slip_threshold_rad", "min_normal_force_n", "sliding_fraction"):
+                     "slip_threshold_m", "slip_threshold_rad", "min_normal_force_n", "sliding_fraction",
+                     "slip_start_m", "slip_start_rad", "static_window_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ConfigError(f"identify setting {name} must be a finite number > 0, got {value!r}")
@@ -120,7 +138,7 @@ class RampEstimate:
         onset_t_s: slip-onset time, s (NaN if none).
         onset_index: index of the onset sample in the input arrays (-1 if none).
         onset_interval_s: ``(earliest, latest)`` times the onset can be at, s.
-        onset_source: ``"ratio"``, ``"displacement"`` or ``"none"``.
+        onset_source: ``"ratio"``, ``"displacement"``, ``"slip"`` or ``"none"``.
         prominence: height of the peak above ``dynamic`` (see module doc; same unit).
         noise_std: residual std ``s_r`` of the ratio on the ramp (same unit).
         n_used: samples used; ``n_rejected``: samples rejected in step 1.
@@ -151,7 +169,7 @@ class RampEstimate:
 
 
 def identify_mu(t_s: ArrayLike, f_n_n: ArrayLike, f_t_n: ArrayLike, *,
-                displacement_m: ArrayLike | None = None,
+                displacement_m: ArrayLike | None = None, slip_m: ArrayLike | None = None,
                 config: IdentifyConfig = IdentifyConfig()) -> RampEstimate:
     """``μ_s``, ``μ_d`` and slip onset from a tangential-force ramp.
 
@@ -161,13 +179,17 @@ def identify_mu(t_s: ArrayLike, f_n_n: ArrayLike, f_t_n: ArrayLike, *,
         f_t_n: tangential force in ``F``, N: shape ``(N, 2)`` or magnitudes ``(N,)``.
         displacement_m: optional object displacement along the load, m, ``(N,)``
             or ``(N, 2)`` (its norm is used).
+        slip_m: optional slip distance after the elastic pre-slip, m, ``(N,)``
+            (takes precedence over ``displacement_m``).
         config: estimator settings.
     """
+    if slip_m is not None:
+        return _identify("mu", t_s, f_n_n, f_t_n, slip_m, config.slip_start_m, config, from_slip=True)
     return _identify("mu", t_s, f_n_n, f_t_n, displacement_m, config.slip_threshold_m, config)
 
 
 def identify_beta(t_s: ArrayLike, f_n_n: ArrayLike, tau_nm: ArrayLike, *,
-                  rotation_rad: ArrayLike | None = None,
+                  rotation_rad: ArrayLike | None = None, slip_rad: ArrayLike | None = None,
                   config: IdentifyConfig = IdentifyConfig()) -> RampEstimate:
     """``β_s``, ``β_d`` (m) and slip onset from a torque ramp (``|τ|/f_n``).
 
@@ -176,8 +198,12 @@ def identify_beta(t_s: ArrayLike, f_n_n: ArrayLike, tau_nm: ArrayLike, *,
         f_n_n: normal force, N, shape ``(N,)``.
         tau_nm: torque about the pad normal, N·m, shape ``(N,)``.
         rotation_rad: optional object rotation about the normal, rad, ``(N,)``.
+        slip_rad: optional slip angle after the elastic twist, rad, ``(N,)`` (takes
+            precedence over ``rotation_rad``).
         config: estimator settings.
     """
+    if slip_rad is not None:
+        return _identify("beta", t_s, f_n_n, tau_nm, slip_rad, config.slip_start_rad, config, from_slip=True)
     return _identify("beta", t_s, f_n_n, tau_nm, rotation_rad, config.slip_threshold_rad, config)
 
 
@@ -202,7 +228,7 @@ def _from_start(a: np.ndarray) -> np.ndarray:
 
 def _identify(quantity: str, t_raw: ArrayLike, fn_raw: ArrayLike, load_raw: ArrayLike,
               motion_raw: ArrayLike | None, motion_threshold: float,
-              cfg: IdentifyConfig) -> RampEstimate:
+              cfg: IdentifyConfig, *, from_slip: bool = False) -> RampEstimate:
     try:
         t = np.asarray(t_raw, dtype=float)
         fn = np.asarray(fn_raw, dtype=float)
@@ -235,7 +261,7 @@ def _identify(quantity: str, t_raw: ArrayLike, fn_raw: ArrayLike, load_raw: Arra
     step = float(np.median(dt))
     with np.errstate(all="ignore"):  # absurd magnitudes give a status, not warnings
         return _RampFit(quantity, t, ratio, None if motion is None else motion[index], motion_threshold,
-                        index, n_rejected, step, cfg).run()
+                        index, n_rejected, step, cfg, from_slip).run()
 
 
 class _RampFit:
@@ -243,8 +269,10 @@ class _RampFit:
 
     def __init__(self, quantity: str, t: np.ndarray, ratio: np.ndarray, motion: np.ndarray | None,
                  motion_threshold: float, index: np.ndarray, n_rejected: int, step: float,
-                 cfg: IdentifyConfig) -> None:
+                 cfg: IdentifyConfig, from_slip: bool = False) -> None:
         self.quantity, self.t, self.r, self.motion = quantity, t, ratio, motion
+        self.from_slip = from_slip
+        self.static_len = max(_MIN_FIT_SAMPLES, int(round(cfg.static_window_s / step)))
         self.motion_threshold, self.index, self.cfg = motion_threshold, index, cfg
         self.w = 2 * int(round(cfg.smooth_window_s / step / 2.0)) + 1
         self.fit_len = max(_MIN_FIT_SAMPLES, int(round(cfg.fit_window_s / step)))
@@ -292,9 +320,14 @@ class _RampFit:
             return self._knee(float(smooth[k_peak]), f"ratio does not rise before its peak (slope t = "
                               f"{line.slope_t:.2f} < {self.cfg.min_slope_t})")
         onset, lo, source = self._onset(line, fit_end, k_peak, moved)
-        static = float(line.at(self.t[onset]))
+        onset_line = line  # the crossing-based displacement onset keeps the ramp's line
+        if self.from_slip or source == "ratio":
+            up_to_onset = slice(max(0, onset + 1 - self.static_len), onset + 1)
+            if onset + 1 - up_to_onset.start >= _MIN_FIT_SAMPLES:
+                onset_line = _LineFit(self.t[up_to_onset], self.r[up_to_onset])
+        static = float(onset_line.at(self.t[onset]))
         plateau = self._sliding(self.r, min(n, onset + 1 + self.settle))
-        common = dict(static=static, static_se=line.se_at(self.t[onset]), onset_t_s=float(self.t[onset]),
+        common = dict(static=static, static_se=onset_line.se_at(self.t[onset]), onset_t_s=float(self.t[onset]),
                       onset_index=int(self.index[onset]), onset_source=source, noise_std=line.s_r,
                       onset_interval_s=(float(self.t[lo]), float(self.t[min(onset + 1, n - 1)])))
         if plateau.size < _MIN_PLATEAU_SAMPLES:
@@ -340,6 +373,10 @@ class _RampFit:
 
     def _onset(self, line: "_LineFit", fit_end: int, k_peak: int, moved: int | None) -> tuple[int, int, str]:
         """(onset, earliest, source): onset = last sample on the ramp before the drop."""
+        if moved is not None and self.from_slip:
+            resting = np.flatnonzero(self.motion[:moved] <= self.motion_threshold)
+            last = int(resting[-1]) if resting.size else max(moved - 1, 0)
+            return last, last, "slip"
         if moved is not None:
             return max(moved - 1, 0), max(moved - 1, 0), "displacement"
         n = self.r.size

@@ -11,6 +11,7 @@ frame (e.g. 500 Hz) rather than for every contact (the F/T rate), halving its lo
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,6 +21,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.lib.limit_set import compile_kernels, load_factor
 from slipstack.messages import Contact, Cor
 from slipstack.nodes.contact_view import ContactView
+from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material
 from slipstack.nodes.node import Context, Input, Node, Output
 
 __all__ = ["CorEstimator", "CorParams", "SOLVERS"]
@@ -30,12 +32,16 @@ SOLVERS = ("exact", "robust", "paper")
 @dataclass(frozen=True)
 class CorParams:
     solver: str = field(default="exact", metadata={"help": f"one of {SOLVERS}"})
-    mu: float = field(default=0.45, metadata={"help": "static friction coefficient"})
+    material: str = field(default=DEFAULT_MATERIAL, metadata={"help": "material file (launch/materials/ name or path)"})
+    mu: float = field(default=math.nan, metadata={"help": "static friction coefficient; nan: the material's mu_s"})
     paper_gain: float = field(default=0.5, metadata={"help": "gain h of the paper's iteration (solver=paper)"})
     warm_start: bool = field(default=True, metadata={"help": "start from the previous frame's COR"})
     pool: int = field(default=1, metadata={"help": "sum taxels in pool x pool blocks before solving (1: off)"})
     per_tactile_frame: bool = field(default=False, metadata={
         "help": "solve once per tactile frame (its rate) instead of once per contact (the F/T rate)"})
+
+    def __post_init__(self) -> None:
+        fill_from_material(self, mu="mu_s")
 
 
 class CorEstimator(Node):

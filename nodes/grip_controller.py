@@ -19,10 +19,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from slipstack.lib.detection import DetectorConfig
 from slipstack.lib.grip_laws import LAWS, GripDecision, GripGovernor, GripInput, GripReason, make_law
 from slipstack.messages import Contact, Cor, GripCommand, Slip
 from slipstack.nodes.contact_view import pad_positions
+from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material
 from slipstack.nodes.node import Context, Input, Node, Output
 
 __all__ = ["GripController", "GripControllerParams"]
@@ -33,21 +33,27 @@ class GripControllerParams:
     law: str = field(default="exact", metadata={"help": f"grip law: one of {sorted(LAWS)}"})
     f_nom_n: float = field(default=2.0, metadata={"help": "lowest commanded normal force (N)"})
     f_max_n: float = field(default=40.0, metadata={"help": "highest commanded normal force (N)"})
-    mu: float = field(default=0.45, metadata={"help": "static friction coefficient used by the law"})
+    material: str = field(default=DEFAULT_MATERIAL, metadata={
+        "help": "material file (launch/materials/ name or path): mu, beta_m, delta, gamma_release unless given"})
+    mu: float = field(default=math.nan, metadata={"help": "static friction coefficient used by the law; nan: mu_s"})
     sigma: float = field(default=0.5, metadata={"help": "safety factor sigma <= 1"})
-    beta_m: float = field(default=2.5e-3, metadata={"help": "torsional coefficient beta (m) for ft13 laws"})
+    beta_m: float = field(default=math.nan, metadata={
+        "help": "torsional coefficient beta (m) for ft13 laws; nan: the material's beta_s"})
     k_n: float = field(default=2.0, metadata={"help": "offset k (N) of law (13)"})
     increment: str = field(default="total", metadata={"help": "(14): 'total' N_A*dphi or 'per_taxel' dphi"})
     decay_n_per_s: float = field(default=0.0, metadata={"help": "(14): release rate while (11) holds (N/s)"})
-    delta: float = field(default=DetectorConfig.delta, metadata={
-        "help": "(14): onset band of MATH.md 3.1: (11) counts as failing once |n| > (1 - delta) T"})
-    gamma_release: float = field(default=DetectorConfig.gamma_release, metadata={
-        "help": "(14): while the detector reports slip, (11) counts as failing once |n| > gamma_release T"})
+    delta: float = field(default=math.nan, metadata={
+        "help": "(14): onset band: (11) counts as failing once |n| > (1 - delta) T; nan: from the material"})
+    gamma_release: float = field(default=math.nan, metadata={
+        "help": "(14): while slip is reported, (11) fails once |n| > gamma_release T; nan: from the material"})
     max_rate_n_per_s: float = field(default=200.0, metadata={"help": "actuator slew limit (N/s)"})
     timeout_ms: float = field(default=20.0, metadata={"help": "inputs older than this hold the grip (ms)"})
     blind_grace_ms: float = field(default=50.0, metadata={
         "help": "fail-safe this long with a loaded contact starts raising the grip (ms); < 0: never"})
     blind_rise_n_per_s: float = field(default=10.0, metadata={"help": "rate of that raise (N/s)"})
+
+    def __post_init__(self) -> None:
+        fill_from_material(self, mu="mu_s", beta_m="beta_s_m", delta="delta", gamma_release="gamma_release")
 
 
 class GripController(Node):

@@ -19,7 +19,8 @@ Panels whose topics are missing (no truth on real hardware) are left out.
 
 ``--identify`` runs :func:`slipstack.lib.identify.identify_mu` on the F/T data of a
 ramp recording (paper Fig. 4, MATH.md §6; scenes ``fig4a``/``fig4b``), with the
-rig's object displacement as the slip-onset signal when the recording has it, and
+rig's slip distance (angle) after the elastic pre-slip as the slip-onset signal when the
+recording has it (``slipstack identify`` writes the result as a material file), and
 :func:`~slipstack.lib.identify.identify_beta` as well when the torque ramp dominates
 (``max|τ|/L > max|f_t|``, ``L`` = :data:`TORQUE_ARM_M`). It needs no matplotlib.
 """
@@ -177,7 +178,7 @@ class Identification:
 
     mu: the ``|f_t|/f_n`` estimate; beta: the ``|τ|/f_n`` estimate (m), only when the
     torque ramp dominates; motion_source: ``"rig/truth"`` when the object's true
-    displacement/rotation was given to the estimators (``onset_source`` of each
+    slip distance/angle (after the elastic pre-slip) was given to the estimators (``onset_source`` of each
     estimate says what set the onset), else ``"none"`` (ratio drop only);
     samples: usable F/T samples; merged: of those, how many shared a stamp with
     another and were averaged into it.
@@ -225,14 +226,14 @@ def identify_recording(series: RecordingSeries, config: IdentifyConfig | None = 
     keep = w["usable"].astype(bool)
     t, f_n, f_t, tau = _merge_ties(w["t_s"][keep], w["f_n"][keep], w["f_t"][keep], w["tau"][keep])
     truth = series.has("rig/truth")
-    displacement = rotation = None
-    if truth:
-        displacement = np.column_stack([_interp_truth(series, t, "x"), _interp_truth(series, t, "y")])
-        rotation = _interp_truth(series, t, "theta")
+    slip = slip_angle = None
+    if truth:  # slip after the elastic pre-slip: the onset without the elastic twist
+        slip = _interp_truth(series, t, "slip_distance_m")
+        slip_angle = np.abs(_interp_truth(series, t, "slip_angle_rad"))
     torque_dominates = float(np.max(np.abs(tau))) / TORQUE_ARM_M > float(np.max(np.hypot(f_t[:, 0], f_t[:, 1])))
     config = config or IdentifyConfig()
-    mu = identify_mu(t, f_n, f_t, displacement_m=displacement, config=config)
-    beta = identify_beta(t, f_n, tau, rotation_rad=rotation, config=config) if torque_dominates else None
+    mu = identify_mu(t, f_n, f_t, slip_m=slip, config=config)
+    beta = identify_beta(t, f_n, tau, slip_rad=slip_angle, config=config) if torque_dominates else None
     return Identification(mu, beta, torque_dominates, "rig/truth" if truth else "none",
                           int(keep.sum()), int(keep.sum() - t.size))
 

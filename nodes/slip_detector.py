@@ -17,6 +17,7 @@ on the shape of the pressure, not on its size) and shared by every F/T test.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -27,6 +28,7 @@ from slipstack.lib.slip_tests import SLIP_TESTS, SlipParams, get_slip_test
 from slipstack.lib.status import SolverStatus
 from slipstack.messages import STATUS_OK, Contact, Slip
 from slipstack.nodes.contact_view import ContactView
+from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material
 from slipstack.nodes.node import Context, Input, Node, Output
 
 __all__ = ["SlipDetector", "SlipDetectorParams"]
@@ -38,14 +40,20 @@ _FT_TESTS = ["coulomb", "decoupled", "linear_ls", "elliptic_ls"]
 class SlipDetectorParams:
     method: str = field(default="exact", metadata={"help": f"deciding test: one of {sorted(SLIP_TESTS)}"})
     also: list[str] = field(default_factory=lambda: list(_FT_TESTS), metadata={"help": "tests published alongside"})
-    mu: float = field(default=0.45, metadata={"help": "static friction coefficient"})
+    material: str = field(default=DEFAULT_MATERIAL, metadata={
+        "help": "material file (launch/materials/ name or path): mu, delta, gamma_release unless given"})
+    mu: float = field(default=math.nan, metadata={"help": "static friction coefficient; nan: the material's mu_s"})
     beta_m: float = field(default=0.0, metadata={"help": "torsional coefficient for F/T tests (m); 0: from tactile"})
-    delta: float = field(default=DetectorConfig.delta, metadata={"help": "onset band: slip when gamma >= 1 - delta"})
-    gamma_release: float = field(default=DetectorConfig.gamma_release, metadata={
-        "help": "slip stays latched while gamma >= this; just below the sliding level mu_d/mu_s"})
+    delta: float = field(default=math.nan, metadata={
+        "help": "onset band: slip when gamma >= 1 - delta; nan: from the material (lib/material.py)"})
+    gamma_release: float = field(default=math.nan, metadata={
+        "help": "slip stays latched while gamma >= this (just below mu_d/mu_s); nan: from the material"})
     release_ms: float = field(default=DetectorConfig.release_ns / 1e6,
                               metadata={"help": "gamma below release this long -> stick (ms)"})
     pool: int = field(default=1, metadata={"help": "sum taxels in pool x pool blocks before testing (1: off)"})
+
+    def __post_init__(self) -> None:
+        fill_from_material(self, mu="mu_s", delta="delta", gamma_release="gamma_release")
 
 
 class SlipDetector(Node):

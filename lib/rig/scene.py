@@ -14,7 +14,7 @@ Layout of a scene file (every table but ``[object]``, ``[contact]``, ``[dof]`` a
     [pad]            rows, cols, pitch_m
     [sim]            step_us, truth_rate_hz
     [object]         mass_kg, inertia_kgm2, pose = [x_m, y_m, theta_rad]
-    [contact]        model = "flat" | "hertz" | "offset" | "edge", friction and bristle
+    [contact]        model = "flat" | "hertz" | "offset" | "edge", material (RIG_MATERIALS), friction and bristle
                      parameters, and the pressure model's geometry (see ContactSpec)
     [dof]            free = ["x", "y", "theta"] (any non-empty subset), pivot_m
     [finger]         f_initial_N, bandwidth_hz, rate_N_per_s, f_max_N
@@ -29,12 +29,12 @@ Layout of a scene file (every table but ``[object]``, ``[contact]``, ``[dof]`` a
 from __future__ import annotations
 
 import math
-import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
 from slipstack.lib.errors import ConfigError
+from slipstack.lib.toml_file import read_toml
 from slipstack.lib.pad import PadGeometry
 
 __all__ = [
@@ -54,9 +54,18 @@ __all__ = [
     "parse_scene",
     "PRESSURE_MODELS",
     "SEGMENT_KINDS",
+    "RIG_MATERIALS",
+    "with_rig_material",
 ]
 
 PRESSURE_MODELS = ("flat", "hertz", "offset", "edge")
+RIG_MATERIALS: dict[str, tuple[float, float]] = {
+    "rubber": (0.45, 0.36),     # the rig's slip-weakening rubber, mu_d/mu_s = 0.8
+    "coulomb": (0.45, 0.45),    # no weakening: mu_d = mu_s
+    "weakening": (0.50, 0.30),  # strongly weakening, mu_d/mu_s = 0.6
+}
+"""The rig's contact materials, ``name → (μ_s, μ_d)``; a scene picks one with
+``[contact] material = "coulomb"`` (its ``mu_s``/``mu_d`` keys, if given, win)."""
 SEGMENT_KINDS = ("hold", "step", "ramp", "sine")
 DOF_NAMES = ("x", "y", "theta")
 Vec2 = tuple[float, float]
@@ -418,8 +427,9 @@ def _object(t: _Table) -> ObjectSpec:
 def _contact(t: _Table) -> ContactSpec:
     d = ContactSpec()
     model = t.text("model", choices=PRESSURE_MODELS)
-    mu_s = t.real("mu_s", d.mu_s, lo=0.0, lo_open=True)
-    mu_d = t.real("mu_d", min(d.mu_d, mu_s), lo=0.0, lo_open=True)
+    material = RIG_MATERIALS[t.text("material", "rubber", choices=tuple(RIG_MATERIALS))]
+    mu_s = t.real("mu_s", material[0], lo=0.0, lo_open=True)
+    mu_d = t.real("mu_d", min(material[1], mu_s), lo=0.0, lo_open=True)
     if mu_d > mu_s:
         raise t.error("mu_d", f"must be <= {t.key('mu_s')} ({mu_s}), got {mu_d}")
     spec = ContactSpec(
@@ -592,6 +602,15 @@ def _expect(t: _Table) -> ExpectSpec:
     })
 
 
+def with_rig_material(scene: Scene, material: str) -> Scene:
+    """``scene`` with its contact made of the rig material ``material`` (see
+    :data:`RIG_MATERIALS`), everything else unchanged; its name gets ``@material``."""
+    if material not in RIG_MATERIALS:
+        raise ConfigError(f"unknown rig material {material!r}; known: {', '.join(RIG_MATERIALS)}")
+    mu_s, mu_d = RIG_MATERIALS[material]
+    return replace(scene, name=f"{scene.name}@{material}", contact=replace(scene.contact, mu_s=mu_s, mu_d=mu_d))
+
+
 def parse_scene(data: Mapping[str, Any], *, source: str = "<scene>") -> Scene:
     """Build a :class:`Scene` from a parsed TOML mapping.
 
@@ -652,13 +671,4 @@ def load_scene(path: str | Path) -> Scene:
     Raises:
         ConfigError: unreadable file, TOML syntax error, or an invalid key (named).
     """
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(f"cannot read scene file {path}: {exc.strerror}") from exc
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path.name}: TOML syntax error: {exc}") from exc
-    return parse_scene(data, source=path.name)
+    return parse_scene(read_toml(path, "scene"), source=Path(path).name)

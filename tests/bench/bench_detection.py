@@ -1,176 +1,330 @@
-"""Detection quality of every slip test over the shipped scenes (issue 6, Must show 2).
+"""Detection measured against the truth, per contact material (issue 12).
 
-Each scene runs once in lock-step (``nodes/lockstep.py``: the real driver, fusion and
-detector nodes on device-codec bytes, controller off, so every slip the scene
-provokes happens) at the stack's default rates (F/T 500 Hz, tactile 250 Hz; truth
-1 kHz). The slip detector publishes every test's margin on every frame; each test's
-margins then go through the same latch (``lib/detection.py``) for each onset band δ,
-and are matched to the rig's true gross-slip episodes (``lib/episodes.py``):
-median and p95 delay from true onset to the first slip verdict (negative: warned
-before gross slip), false-slip rate on truly sticking frames (partial slip with at
-least a quarter of the friction capacity sliding counts as incipient, not sticking), and
-missed episodes. False-slip frames are split by cause: *onset band* (the frame's own
-margin is ≤ δ: the load is near the limit although the contact sticks — the price of δ)
-and *latch hold* (the latch kept an earlier verdict, γ ≥ γ_release, after the object
-re-stuck). Onset-band frames are checked against the *true* load factor (the true
-load on the true pressure, μ_s): where it is ≥ 1 − δ too, the measurement was right and
-the verdict is the band's intended early warning on a contact that has not yet slipped.
-The tactile tests run only on scenes with a tactile pad (the ``scenes``
-column); on the F/T-only scenes (fig10–12) they are not applicable.
+The workflow a user follows, on each of the rig's materials (``lib/rig/scene.py``
+RIG_MATERIALS: the rubber, a Coulomb contact with μ_d = μ_s, a strongly weakening one):
 
-    python tests/bench/bench_detection.py                 # all scenes, δ sweep
-    python tests/bench/bench_detection.py --scenes fig15 --deltas 0.05 0.1
-    python tests/bench/bench_detection.py --gamma-release 0.7 --release-ms 30   # other latch
+1. **Identify**: the identification scenes ``ident_force`` and ``ident_torsion`` on
+   that material run in lock-step (controller off) and are recorded to MCAP;
+   ``slipstack identify`` (:func:`slipstack.nodes.identify_cli.identify_material`)
+   turns them into a material file. The first table compares it with the scene's truth
+   (μ from the material; β = μ × the pressure-weighted mean taxel distance about the
+   geometric median of the scene's true pressure at 5 N); intervals are ± 2 standard errors.
+2. **Detect**: every detection scene (the paper scenes fig4a–fig15 and ``default``) and
+   the material's negative scenes (``hold_force_<material>``, ``hold_torsion_<material>``,
+   which must not slip) run on that material with the controller off and the deciding
+   test of the scene's launch file. The load factor γ of every frame is recorded once
+   (with μ = 0.45; the F/T-only tests with the launch file's β); γ of all these tests is
+   inversely proportional to μ (β scaling with μ, as a contact's β does), so a material
+   file's μ_s gives ``γ·0.45/μ_s``, and its band δ and release level (``lib/material.py``)
+   drive the detector's latch (``lib/detection.py``) over those frames.
+
+Metrics per material (the true load factor is the rig's true load on its true pressure,
+with the contact's μ_s; the F/T period is 2 ms at the default 500 Hz):
+
+- *missed*: true gross-slip episodes with no flag from 100 ms before their onset to
+  50 ms after their end (``lib/episodes.py``);
+- *delay*: first flag minus true onset, in F/T periods, p50 / p95 (negative: before);
+- *false alarms*: frames flagged by the band itself (margin ≤ δ, not merely held by
+  the latch) while the truth says stick and the true load factor is below the band by
+  more than the material's noise (γ_true < 1 − δ − σ_stick), in % of the sticking
+  frames (truth not in gross slip); *raised* counts the flag's rising edges among them,
+  and the share on the scenes decided by a tactile test (all but the F/T-only fig10–12,
+  whose tests carry their own model error: the linear limit surface of fig11/12
+  over-predicts γ) follows;
+- *latch hold*: for each episode, how long the flag stays up after the true slip ended
+  (until the next episode at most; p50 / p95 ms over all episodes), split by whether the
+  true load factor fell below the material's release level by more than its sliding
+  noise during the hold (*could release*: the detector could have let go; timed from that
+  moment, so it is the detector's own lag: the release dwell and the frames the noise
+  keeps above the level) or did not, staying between the release
+  level and the sliding level μ_d/μ_s or higher (*cannot tell*: force data cannot tell
+  such a load from sliding; timed from the slip's end); counts in brackets;
+- *negative*: flag rising edges and flagged frames in the negative scenes.
+
+The second part repeats the detection table with the wrong material file (the rubber's
+on the Coulomb contact, the Coulomb's on the rubber): what a missing identification costs.
+
+    python tests/bench/bench_detection.py                        # all materials and scenes
+    python tests/bench/bench_detection.py --materials coulomb --scenes fig15 default
+    python tests/bench/bench_detection.py --cache /tmp/slipstack-bench-detection   # reuse runs
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from slipstack.lib.detection import DetectorConfig, SlipLatch
-from slipstack.lib.episodes import INCIPIENT_SHARE, DetectionQuality, detection_quality
-from slipstack.lib.limit_set import load_factor
+from slipstack.lib.episodes import find_episodes
+from slipstack.lib.limit_set import load_factor, torsional_coefficient
+from slipstack.lib.material import Material, detector_thresholds, load_material, material_toml
 from slipstack.lib.rig.contact import PressureModel
-from slipstack.lib.rig.scene import Scene
+from slipstack.lib.rig.scene import RIG_MATERIALS, Scene, with_rig_material
 from slipstack.launch.launch_file import load_launch_file
+from slipstack.messages import encode
+from slipstack.nodes.bag_io import RecordingWriter
+from slipstack.nodes.identify_cli import identify_material
 from slipstack.nodes.lockstep import LockstepStack, StackConfig, load_scene_by_name
 from slipstack.nodes.rig import with_rates
 
-SCENES = ["fig4a", "fig4b", "fig10", "fig11", "fig12", "fig13", "fig14", "fig15", "default"]
-FT_TESTS = ["coulomb", "decoupled", "linear_ls", "elliptic_ls"]
-TACTILE_TESTS = ["tactile_cor", "tactile_cor_robust", "exact"]
+DETECTION_SCENES = ["fig4a", "fig4b", "fig10", "fig11", "fig12", "fig13", "fig14", "fig15", "default"]
+NEGATIVE_SCENES = ["hold_force", "hold_torsion"]
+IDENT_SCENES = ["ident_force", "ident_torsion"]
+WRONG_FILES = [("coulomb", "rubber"), ("rubber", "coulomb")]  # (contact, material file)
+RECORD_MU = 0.45
+LEAD_NS, GRACE_NS, GAP_NS = 100_000_000, 50_000_000, 20_000_000
+RECORDED_TOPICS = ["ft/wrench", "tactile/frame", "slip", "rig/truth"]
+TACTILE_TESTS = ("exact", "tactile_cor", "tactile_cor_robust")
 
 
-def _scene_args(scene: str) -> dict:
-    """The launch arguments the scene's own launch file sets (beta_m, tactile)."""
-    lf = load_launch_file(scene, builtins={"run_dir": "/tmp"})
-    return lf.args
+def _say(msg: str) -> None:
+    print(f"\r  {msg:<72}", end="", file=sys.stderr, flush=True)
 
 
-def record_scene(scene: str, cache: Path, ft_hz: float, tactile_hz: float) -> dict[str, np.ndarray]:
-    """Run ``scene`` with the controller off; return (and cache) the margins and truth."""
-    path = cache / f"{scene}-{ft_hz:g}-{tactile_hz:g}.npz"
-    if path.exists():
-        cached = dict(np.load(path))
-        if "true_gamma" in cached:  # older caches lack it: record again
-            return cached
-    args = _scene_args(scene)
-    sc = with_rates(load_scene_by_name(args["scene"]), ft_hz, tactile_hz, 1000.0)
-    tests = (FT_TESTS + TACTILE_TESTS) if sc.tactile.enabled and args["tactile"] else FT_TESTS
-    slip = {"method": tests[-1], "also": tests, "beta_m": float(args["beta_m"]), "mu": float(args["mu"])}
-    stack = LockstepStack(sc, StackConfig(controller=False, tactile=bool(args["tactile"]), slip=slip))
+def _run(scene: Scene, slip: dict, tactile: bool) -> dict:
+    stack = LockstepStack(scene, StackConfig(controller=False, tactile=tactile, slip=slip))
     t0 = time.monotonic()
-    ex = stack.run(progress=lambda f: print(f"\r  {scene}: {100 * f:5.1f}% ", end="", file=sys.stderr, flush=True))
-    print(f"\r  {scene}: done in {time.monotonic() - t0:.0f} s ({sc.duration_s:g} s simulated)", file=sys.stderr)
+    ex = stack.run(progress=lambda f: _say(f"{scene.name}: {100 * f:5.1f}%"))
+    _say(f"{scene.name}: {time.monotonic() - t0:.0f} s for {scene.duration_s:g} s simulated\n")
     stack.close()
-    slips = ex.published["slip"]
-    truth = ex.published["rig/truth"]
-    data = {
-        "t": np.array([m.header.stamp_ns for m in slips], dtype=np.int64),
-        "contact": np.array([m.state != "no-contact" for m in slips]),
-        "truth_t": np.array([m.header.stamp_ns for m in truth], dtype=np.int64),
-        "gross": np.array([m.gross_slip for m in truth]),
-        "sliding": np.array([m.sliding_fraction for m in truth]),
-        "true_gamma": true_load_factors(sc, truth),
-        "tests": np.array(tests),
-    }
-    for name in tests:
-        data[f"margin_{name}"] = np.array([m.verdicts.get(name, [False, np.nan])[1] for m in slips], dtype=float)
-    cache.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, **data)
-    return data
+    return ex.published
 
+
+# -- 1. identification ------------------------------------------------------------------
+
+def true_friction(material: str) -> dict[str, float]:
+    """The rig material's μ_s, μ_d and the β_s, β_d of ``ident_torsion``'s contact (m)."""
+    mu_s, mu_d = RIG_MATERIALS[material]
+    sc = load_scene_by_name("ident_torsion")
+    phi = PressureModel(sc.contact, sc.pad, sc.object.pose).phi_uncached(sc.finger.f_initial_N, 0j, 0.0)
+    mean_distance = torsional_coefficient(phi, sc.pad.positions, 1.0).beta_m
+    return {"mu_s": mu_s, "mu_d": mu_d, "beta_s_m": mu_s * mean_distance, "beta_d_m": mu_d * mean_distance}
+
+
+def identified_material(material: str, cache: Path, rates: tuple[float, float]) -> Path:
+    """Record the identification scenes on ``material`` and write its material file."""
+    out = cache / f"material-{material}.toml"
+    if out.exists():
+        return out
+    paths = []
+    for name in IDENT_SCENES:
+        path = cache / f"{name}@{material}.mcap"
+        if not path.exists():
+            scene = with_rig_material(with_rates(load_scene_by_name(name), *rates, 1000.0), material)
+            published = _run(scene, {"method": "exact", "also": [], "mu": RECORD_MU}, tactile=True)
+            writer = RecordingWriter(path)
+            for topic in RECORDED_TOPICS:
+                for m in published[topic]:
+                    writer.write(topic, encode(m), m.header.stamp_ns)
+            writer.close()
+        paths.append(path)
+    found, _lines = identify_material(paths, name=material, progress=_say,
+                                      provenance=f"slipstack identify on the rig's {material} contact "
+                                                 f"({', '.join(IDENT_SCENES)}, lock-step, F/T {rates[0]:g} Hz, "
+                                                 f"tactile {rates[1]:g} Hz)")
+    _say(f"identified {material}\n")
+    out.write_text(material_toml(found, f"The rig's {material} contact, identified by bench_detection.py."))
+    return out
+
+
+def identification_rows(materials: list[str], files: dict[str, Material]) -> list[str]:
+    rows = ["| contact | quantity | truth | identified ± 2 SE | error | truth inside |",
+            "| --- | --- | ---: | ---: | ---: | :---: |"]
+    for material in materials:
+        truth, found = true_friction(material), files[material]
+        for key, se_key, scale, unit in (("mu_s", "mu_s_se", 1, ""), ("mu_d", "mu_d_se", 1, ""),
+                                         ("beta_s_m", "beta_s_se_m", 1e3, " mm"), ("beta_d_m", "beta_d_se_m", 1e3, " mm")):
+            value, se, true = getattr(found, key), getattr(found, se_key), truth[key]
+            inside = "yes" if abs(value - true) <= 2 * se else "no"
+            rows.append(f"| {material} | {key.replace('_m', '')} | {true * scale:.4f}{unit} | {value * scale:.4f} ± "
+                        f"{2 * se * scale:.4f}{unit} | {100 * (value / true - 1):+.1f} % | {inside} |")
+    return rows
+
+
+# -- 2. detection -------------------------------------------------------------------------
 
 def true_load_factors(scene: Scene, truth: list) -> np.ndarray:
-    """γ of the *true* load on the *true* pressure at each truth sample (μ_s, no sensor).
+    """γ of the true load on the true pressure at each truth sample (the contact's μ_s).
 
-    The pressure is the scene's model at the applied normal force and the object's pose
-    (without the simulator's shape cache); the load is the disturbance's, at the pad.
-    NaN where no γ.
+    The pressure is the scene's model at the applied normal force and the object's pose;
+    the load is the one the contact transmits, at the pad. NaN where no γ.
     """
-    P, mu_s = scene.pad.positions, scene.contact.mu_s
+    positions, mu_s = scene.pad.positions, scene.contact.mu_s
     pressure = PressureModel(scene.contact, scene.pad, scene.object.pose)
     out = np.full(len(truth), np.nan)
     for i, tr in enumerate(truth):
         phi = pressure.phi_uncached(tr.f_n_applied, complex(tr.x, tr.y), tr.theta)
-        r = load_factor(phi, P, tr.load_f_t, tr.load_tau, mu_s)
+        r = load_factor(phi, positions, tr.load_f_t, tr.load_tau, mu_s)
         if r.status.usable:
             out[i] = r.gamma
     return out
 
 
-def evaluate(data: dict[str, np.ndarray], test: str, delta: float,
-             gamma_release: float = DetectorConfig.gamma_release,
-             release_ns: int = DetectorConfig.release_ns) -> tuple[DetectionQuality, int, int]:
-    """Latch one test's margins at ``delta``; match them to the true episodes.
+def recorded_scene(scene_name: str, material: str, cache: Path, rates: tuple[float, float]) -> dict[str, np.ndarray]:
+    """γ of the launch file's deciding test on every frame, and the truth (cached)."""
+    path = cache / f"{scene_name}@{material}.npz"
+    if path.exists():
+        return dict(np.load(path))
+    base = scene_name if scene_name in DETECTION_SCENES else "stack"
+    args = load_launch_file(base, builtins={"run_dir": "/tmp"}).args
+    file_name = f"{scene_name}_{material}" if scene_name in NEGATIVE_SCENES else scene_name
+    scene = with_rig_material(with_rates(load_scene_by_name(file_name), *rates, 1000.0), material)
+    tactile = bool(args["tactile"]) and scene.tactile.enabled
+    slip = {"method": args["method"], "also": [], "mu": RECORD_MU, "beta_m": float(args["beta_m"])}
+    published = _run(scene, slip, tactile)
+    slips, truth = published["slip"], published["rig/truth"]
+    _say(f"{scene.name}: true load factors")
+    data = {
+        "t": np.array([m.header.stamp_ns for m in slips], dtype=np.int64),
+        "contact": np.array([m.state != "no-contact" for m in slips]),
+        "gamma": np.array([1.0 - m.margin if m.status == "ok" else np.nan for m in slips], dtype=float),
+        "truth_t": np.array([m.header.stamp_ns for m in truth], dtype=np.int64),
+        "gross": np.array([m.gross_slip for m in truth]),
+        "true_gamma": true_load_factors(scene, truth),
+        "method": np.array(args["method"]),
+    }
+    cache.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(path, **data)
+    return data
 
-    Returns the quality, how many of its false-slip frames are onset-band frames, and
-    how many of those carried a true load factor (:func:`true_load_factors`) ≥ 1 − δ.
-    """
-    latch = SlipLatch(DetectorConfig(delta=delta, gamma_release=gamma_release, release_ns=release_ns))
-    margins = data[f"margin_{test}"]
+
+@dataclass
+class Tally:
+    """Sums of one table row over scenes."""
+
+    episodes: int = 0
+    missed: int = 0
+    stick_frames: int = 0
+    false_frames: int = 0
+    false_raised: int = 0
+    tactile_stick_frames: int = 0
+    tactile_false_frames: int = 0
+    negative_raised: int = 0
+    negative_flagged: int = 0
+    negative_frames: int = 0
+
+    def __post_init__(self) -> None:
+        self.delays: list[float] = []
+        self.hold_all: list[float] = []
+        self.hold_release: list[float] = []
+        self.hold_between: list[float] = []
+
+
+def evaluate(data: dict[str, np.ndarray], material: Material, contact: str, tally: Tally, period_ns: float,
+             negative: bool) -> None:
+    """Run the latch with ``material``'s thresholds over one recording; add to ``tally``."""
+    thr = detector_thresholds(material)
+    sigma = material.gamma_noise_stick if math.isfinite(material.gamma_noise_stick) else 0.0
+    slide_sigma = material.gamma_noise_slide if math.isfinite(material.gamma_noise_slide) else 0.0
+    latch = SlipLatch(DetectorConfig(delta=thr.delta, gamma_release=thr.gamma_release))
+    gamma = data["gamma"] * RECORD_MU / material.mu_s
+    margin = 1.0 - gamma
     flags = np.array([latch.update(int(t), float(m), in_contact=bool(c))
-                      for t, m, c in zip(data["t"], margins, data["contact"])])
-    incipient = data["sliding"] >= INCIPIENT_SHARE
-    q = detection_quality(data["truth_t"], data["gross"], data["t"], flags, incipient=incipient)
-    in_band = flags & (margins <= delta)  # NaN margins compare False: held, not onset
-    onset = detection_quality(data["truth_t"], data["gross"], data["t"], in_band, incipient=incipient)
-    nearest = np.clip(np.searchsorted(data["truth_t"], data["t"]), 0, data["truth_t"].size - 1)
-    at_limit = data["true_gamma"][nearest] >= 1.0 - delta  # NaN compares False
-    truly = detection_quality(data["truth_t"], data["gross"], data["t"], in_band & at_limit, incipient=incipient)
-    return q, onset.false_slip_frames, truly.false_slip_frames
+                      for t, m, c in zip(data["t"], margin, data["contact"])])
+    raised = flags & ~np.concatenate([[False], flags[:-1]])
+    tt = data["truth_t"]
+    nearest = np.clip(np.searchsorted(tt, data["t"]), 0, tt.size - 1)
+    gross, true_gamma = data["gross"][nearest], data["true_gamma"][nearest]
+    if negative:
+        tally.negative_raised += int(raised.sum())
+        tally.negative_flagged += int(flags.sum())
+        tally.negative_frames += int(flags.size)
+    sticking = ~gross & data["contact"]
+    in_band = flags & (margin <= thr.delta)
+    wrong = in_band & sticking & (true_gamma < 1.0 - thr.delta - sigma)
+    tally.stick_frames += int(sticking.sum())
+    tally.false_frames += int(wrong.sum())
+    tally.false_raised += int((raised & wrong).sum())
+    if str(data["method"]) in TACTILE_TESTS:
+        tally.tactile_stick_frames += int(sticking.sum())
+        tally.tactile_false_frames += int(wrong.sum())
+    episodes = find_episodes(tt, data["gross"], min_gap_ns=GAP_NS)
+    t = data["t"]
+    for i, ep in enumerate(episodes):
+        tally.episodes += 1
+        window = (t >= ep.start_ns - LEAD_NS) & (t <= ep.end_ns + GRACE_NS)
+        hits = np.flatnonzero(window & flags)
+        if not hits.size:
+            tally.missed += 1
+            continue
+        tally.delays.append((t[hits[0]] - ep.start_ns) / period_ns)
+        stop = episodes[i + 1].start_ns if i + 1 < len(episodes) else t[-1]
+        after = np.flatnonzero((t > ep.end_ns) & (t <= stop))
+        if not after.size:
+            continue
+        down = np.flatnonzero(~flags[after])
+        end = t[after[down[0]]] if down.size else stop
+        held = after[t[after] < end]
+        tally.hold_all.append((end - ep.end_ns) / 1e6)
+        below = held[true_gamma[held] < thr.gamma_release - slide_sigma]
+        if below.size:
+            tally.hold_release.append((end - t[below[0]]) / 1e6)
+        else:
+            tally.hold_between.append((end - ep.end_ns) / 1e6)
+
+
+def _pct(values: list[float], q: float, fmt: str = "{:.1f}") -> str:
+    return fmt.format(float(np.percentile(values, q))) if values else "-"
+
+
+def detection_row(label: str, material: Material, tally: Tally) -> str:
+    thr = detector_thresholds(material)
+    stick = max(tally.stick_frames, 1)
+    return (f"| {label} | {thr.delta:.3f} / {thr.gamma_release:.3f} | {tally.episodes} | {tally.missed} | "
+            f"{_pct(tally.delays, 50)} / {_pct(tally.delays, 95)} | {100 * tally.false_frames / stick:.2f} % "
+            f"({tally.false_raised}; {100 * tally.tactile_false_frames / max(tally.tactile_stick_frames, 1):.2f} %) | {_pct(tally.hold_all, 50, '{:.0f}')} / {_pct(tally.hold_all, 95, '{:.0f}')} | "
+            f"{_pct(tally.hold_release, 50, '{:.0f}')} / {_pct(tally.hold_release, 95, '{:.0f}')} "
+            f"({len(tally.hold_release)}) | {_pct(tally.hold_between, 50, '{:.0f}')} / "
+            f"{_pct(tally.hold_between, 95, '{:.0f}')} ({len(tally.hold_between)}) | {tally.negative_raised} "
+            f"({100 * tally.negative_flagged / max(tally.negative_frames, 1):.1f} %) |")
+
+
+DETECTION_HEADER = [
+    "| contact, material file | δ / γ_release | episodes | missed | delay p50 / p95 (periods) | false alarms "
+    "(raised; tactile tests only) | hold after slip: p50 / p95 ms | hold, could release: p50 / p95 ms (n) | hold, cannot tell: "
+    "p50 / p95 ms (n) | negative: raised (flagged) |",
+    "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+]
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--scenes", nargs="+", default=SCENES, help="scene names (default: all shipped)")
-    ap.add_argument("--deltas", nargs="+", type=float, default=[0.05, 0.1, 0.15, 0.18, 0.25], help="onset bands δ")
+    ap.add_argument("--materials", nargs="+", default=list(RIG_MATERIALS), choices=list(RIG_MATERIALS),
+                    help="rig materials (default: all)")
+    ap.add_argument("--scenes", nargs="+", default=DETECTION_SCENES, help="detection scenes (default: all shipped)")
     ap.add_argument("--ft-rate", type=float, default=500.0, help="F/T rate (Hz), default the stack's 500")
     ap.add_argument("--tactile-rate", type=float, default=250.0, help="tactile rate (Hz), default 250")
-    ap.add_argument("--gamma-release", type=float, default=DetectorConfig.gamma_release,
-                    help="latch release level γ_release (default: the detector's, %(default)g)")
-    ap.add_argument("--release-ms", type=float, default=DetectorConfig.release_ns / 1e6,
-                    help="latch release dwell in ms (default: the detector's, %(default)g)")
-    ap.add_argument("--cache", type=Path, default=Path("/tmp/slipstack-bench-detection"),
-                    help="where the per-scene runs are cached (delete to re-run)")
+    ap.add_argument("--cache", type=Path, default=Path("/tmp/slipstack-bench-detection-materials"),
+                    help="recordings, material files and per-scene runs (delete to re-run)")
     args = ap.parse_args()
-    period_ms = 1000.0 / args.ft_rate
-    runs = {s: record_scene(s, args.cache, args.ft_rate, args.tactile_rate) for s in args.scenes}
-    tests = [t for t in FT_TESTS + TACTILE_TESTS if any(t in r["tests"] for r in runs.values())]
-    print(f"\nDetection quality, controller off, F/T {args.ft_rate:g} Hz (period {period_ms:g} ms), "
-          f"tactile {args.tactile_rate:g} Hz; latch release γ < {args.gamma_release:g} for {args.release_ms:g} ms; "
-          f"scenes: {', '.join(args.scenes)}\n")
-    print("| test | δ | scenes | episodes | missed | delay p50 ms | delay p95 ms | p95 ≤ 2 periods "
-          "| false-slip rate | onset band | … true γ ≥ 1−δ | latch hold |")
-    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | :---: | ---: | ---: | ---: | ---: |")
-    for test in tests:
-        for delta in args.deltas:
-            scenes = episodes = missed = false = onset = truly = stick = 0
-            delays: list[int] = []
-            for data in runs.values():
-                if test not in data["tests"]:
-                    continue
-                q, in_band, at_limit = evaluate(data, test, delta, args.gamma_release, round(args.release_ms * 1e6))
-                scenes += 1
-                episodes += len(q.episodes)
-                missed += q.missed
-                delays += list(q.delays_ns)
-                false += q.false_slip_frames
-                onset += in_band
-                truly += at_limit
-                stick += q.stick_frames
-            d = np.array(delays, dtype=float) / 1e6
-            p50 = f"{np.percentile(d, 50):.1f}" if d.size else "-"
-            p95v = float(np.percentile(d, 95)) if d.size else float("nan")
-            ok = "yes" if d.size and p95v <= 2 * period_ms and missed == 0 else "no"
-            pct = [f"{100 * n / stick:.3f}%" if stick else "-" for n in (false, onset, truly, false - onset)]
-            print(f"| {test} | {delta:g} | {scenes} | {episodes} | {missed} | {p50} | "
-                  f"{'-' if not d.size else f'{p95v:.1f}'} | {ok} | {' | '.join(pct)} |")
+    args.cache.mkdir(parents=True, exist_ok=True)
+    rates = (args.ft_rate, args.tactile_rate)
+    period_ns = 1e9 / args.ft_rate
+    t0 = time.monotonic()
+    files = {m: load_material(identified_material(m, args.cache, rates)) for m in args.materials}
+    runs = {(s, m): recorded_scene(s, m, args.cache, rates) for m in args.materials
+            for s in args.scenes + NEGATIVE_SCENES}
+    print(f"\nwall time {time.monotonic() - t0:.0f} s (cache {args.cache})\n")
+    print("Identification (ident_force + ident_torsion, lock-step, F/T "
+          f"{args.ft_rate:g} Hz, tactile {args.tactile_rate:g} Hz):\n")
+    print("\n".join(identification_rows(args.materials, files)))
+    print(f"\nDetection, controller off, scenes: {', '.join(args.scenes)}; negative: "
+          f"{', '.join(NEGATIVE_SCENES)}; F/T period {period_ns / 1e6:g} ms\n")
+    print("\n".join(DETECTION_HEADER))
+    pairs = [(m, m) for m in args.materials] + [p for p in WRONG_FILES if set(p) <= set(args.materials)]
+    for contact, file in pairs:
+        tally = Tally()
+        for scene in args.scenes + NEGATIVE_SCENES:
+            evaluate(runs[(scene, contact)], files[file], contact, tally, period_ns, scene in NEGATIVE_SCENES)
+        label = contact if contact == file else f"{contact}, **{file}'s file**"
+        print(detection_row(label, files[file], tally))
+
 
 if __name__ == "__main__":
     main()

@@ -35,6 +35,7 @@ GOLDEN_DIR = Path(__file__).parent / "golden"
 # Sensor rates of stack.toml (ft_rate_hz, tactile_rate_hz, truth_rate_hz), Hz.
 FT_HZ, TACTILE_HZ, TRUTH_HZ = 500.0, 250.0, 250.0
 MU, DELTA, F_MAX_N = 0.45, 0.1, 20.0
+GAMMA_RELEASE = 0.76  # pinned: the goldens were recorded with it (the default now comes from the material)
 
 
 @dataclass(frozen=True)
@@ -82,8 +83,8 @@ GOLDENS: tuple[Golden, ...] = (
                   Segment("ramp", 0.1, target=(0.0, 0.0, 0.0))),
         tactile=True,
         fusion={"use_tactile": True},
-        slip={"method": "exact", "mu": MU, "beta_m": 0.0, "delta": DELTA},
-        grip={"law": "tactile14", "mu": MU, "beta_m": 0.0, "f_nom_n": 2.0, "f_max_n": F_MAX_N, "delta": DELTA},
+        slip={"method": "exact", "mu": MU, "beta_m": 0.0, "delta": DELTA, "gamma_release": GAMMA_RELEASE},
+        grip={"law": "tactile14", "mu": MU, "beta_m": 0.0, "f_nom_n": 2.0, "f_max_n": F_MAX_N, "delta": DELTA, "gamma_release": GAMMA_RELEASE},
         cor={"solver": "exact", "mu": MU, "per_tactile_frame": True},
     ),
     # fig12's flat object, a step of force and torque at its centre (faster than the
@@ -96,8 +97,8 @@ GOLDENS: tuple[Golden, ...] = (
         segments=(Segment("hold", 0.1), Segment("step", 0.4, target=(0.0, 2.0, 0.01))),
         tactile=False,
         fusion={"use_tactile": False},
-        slip={"method": "linear_ls", "mu": MU, "beta_m": 0.00344, "delta": DELTA},
-        grip={"law": "ft13_sigma", "mu": MU, "beta_m": 0.00344, "f_nom_n": 2.0, "f_max_n": F_MAX_N, "delta": DELTA},
+        slip={"method": "linear_ls", "mu": MU, "beta_m": 0.00344, "delta": DELTA, "gamma_release": GAMMA_RELEASE},
+        grip={"law": "ft13_sigma", "mu": MU, "beta_m": 0.00344, "f_nom_n": 2.0, "f_max_n": F_MAX_N, "delta": DELTA, "gamma_release": GAMMA_RELEASE},
         cor={},
     ),
 )

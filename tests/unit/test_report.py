@@ -98,8 +98,8 @@ def test_identify_recovers_mu_and_onset_with_truth(tmp_path):
     ident = identify_recording(load_series(path))
     mu = ident.mu
     assert mu.ok and ident.beta is None and not ident.torque_dominates
-    assert ident.motion_source == "rig/truth" and mu.onset_source == "displacement"
-    # onset: the last sample before the displacement passes 0.1 mm (2 ms after the true onset)
+    assert ident.motion_source == "rig/truth" and mu.onset_source == "slip"
+    # onset: the last sample before the slip distance grows (the truth's gross-slip onset)
     assert mu.onset_t_s == pytest.approx(ONSET_S, abs=0.005)
     assert mu.static == pytest.approx(MU_S, abs=0.005)
     assert mu.dynamic == pytest.approx(MU_D, abs=0.002)
@@ -130,7 +130,7 @@ def test_identify_torque_ramp_gives_beta(tmp_path, capsys):
     write_ramp(path, torque=True)
     ident = identify_recording(load_series(path))
     assert ident.torque_dominates and ident.beta is not None and ident.beta.ok
-    assert ident.beta.onset_source == "displacement"
+    assert ident.beta.onset_source == "slip"
     assert ident.beta.static == pytest.approx(BETA_S, rel=0.02)
     assert ident.beta.dynamic == pytest.approx(BETA_D, rel=0.01)
     assert ident.beta.onset_t_s == pytest.approx(ONSET_S, abs=0.005)

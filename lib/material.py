@@ -1,0 +1,187 @@
+"""Material files: the identified friction of one contact, and the thresholds derived from it.
+
+A material file (TOML, written by ``slipstack identify``; shipped ones in
+``launch/materials/``) holds what the paper's Fig. 4 identification measures::
+
+    [material]
+    name = "rubber"
+    provenance = "how and from what it was identified"
+    mu_s = 0.45          # static friction coefficient (dimensionless), with mu_s_se
+    mu_d = 0.36          # dynamic (sliding) coefficient, with mu_d_se
+    beta_s_m = 1.3e-3    # torsional coefficients (m), with beta_s_se_m, beta_d_m, beta_d_se_m
+    gamma_noise_stick = 0.004   # std of the detector's load factor γ while sticking
+    gamma_noise_slide = 0.008   # ... and while sliding (frame-to-frame, detrended)
+    onset_gamma = [0.95, 0.97]  # γ at which each identified gross-slip episode began
+
+**The rule** (:func:`detector_thresholds`): measured loads never exceed the capacity,
+so the detector flags slip in a band ``γ ≥ 1 − δ`` below 1 and latches it down to a
+release level (``lib/detection.py``). Both come from the material:
+
+- band: the band's edge sits ``3·σ_stick`` below the lowest load factor at which gross
+  slip can begin, ``1 − δ = min(min(onset_gamma), μ_d/μ_s) − 3·σ_stick``, so every
+  onset is inside the band even with a noisy frame. A contact that slips at its full
+  capacity (Coulomb, ``μ_d = μ_s``) gets a band as narrow as its identified onsets allow.
+  A slip-weakening contact can let go anywhere down to its sliding level: its edges
+  slide and weaken to ``μ_d`` before the core lets go, and how far depends on the load's
+  path (a combined force and torque on a curved fingertip slips at ``γ ≈ μ_d/μ_s``, a
+  pure pull on a flat face near 1), which a few identification ramps cannot cover; so
+  its band reaches ``μ_d/μ_s``. What such a contact carries for certain is its sliding
+  friction, and a load held above that is inside its band by necessity.
+- release: while the contact slides its friction stays at or above ``μ_d``, so the
+  measured γ stays at or above ``μ_d/μ_s``; below that by more than the sliding noise
+  the contact sticks again: ``γ_release = μ_d/μ_s − 4·σ_slide``, never above the
+  band's edge ``1 − δ``.
+
+``σ`` below ``NOISE_FLOOR`` is raised to it (a noise-free record would otherwise give a
+band of zero width). δ is kept in ``[DELTA_MIN, DELTA_MAX]``.
+
+The grip laws take ``μ_s`` and ``β_s`` from the file. Nothing here imports zmq; a
+missing key, a wrong type or an out-of-range value raises :class:`ConfigError` naming
+the key.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from slipstack.lib.errors import ConfigError
+from slipstack.lib.toml_file import read_toml
+
+__all__ = ["Material", "DetectorThresholds", "detector_thresholds", "load_material", "material_toml",
+           "NOISE_FLOOR", "DELTA_MIN", "DELTA_MAX"]
+
+NOISE_FLOOR = 0.002
+DELTA_MIN = 0.005
+DELTA_MAX = 0.5
+_BAND_SIGMAS = 3.0
+_RELEASE_SIGMAS = 4.0
+
+
+@dataclass(frozen=True)
+class Material:
+    """Identified friction of one contact (see the module docstring for the file).
+
+    Coefficients are dimensionless, β in m, ``*_se`` are standard errors in the same
+    unit (NaN: not identified). ``onset_gamma``: the load factor at the start of each
+    identified gross-slip episode, in the order found.
+    """
+
+    name: str
+    mu_s: float
+    mu_d: float
+    provenance: str = ""
+    mu_s_se: float = math.nan
+    mu_d_se: float = math.nan
+    beta_s_m: float = math.nan
+    beta_s_se_m: float = math.nan
+    beta_d_m: float = math.nan
+    beta_d_se_m: float = math.nan
+    gamma_noise_stick: float = math.nan
+    gamma_noise_slide: float = math.nan
+    onset_gamma: tuple[float, ...] = field(default_factory=tuple)
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.mu_s) and self.mu_s > 0):
+            raise ConfigError(f"material {self.name!r}: mu_s must be a finite number > 0, got {self.mu_s}")
+        if not (math.isfinite(self.mu_d) and 0 < self.mu_d <= self.mu_s * (1 + 1e-9)):
+            raise ConfigError(f"material {self.name!r}: mu_d must lie in (0, mu_s = {self.mu_s}], got {self.mu_d}")
+        for g in self.onset_gamma:
+            if not (math.isfinite(g) and 0 < g <= 1.5):
+                raise ConfigError(f"material {self.name!r}: onset_gamma entries must lie in (0, 1.5], got {g}")
+
+    @property
+    def sliding_level(self) -> float:
+        """``μ_d/μ_s``: the load factor a sliding contact keeps (dimensionless)."""
+        return min(1.0, self.mu_d / self.mu_s)
+
+
+@dataclass(frozen=True)
+class DetectorThresholds:
+    """The detector's onset band ``delta`` and latch ``gamma_release`` (dimensionless)."""
+
+    delta: float
+    gamma_release: float
+
+
+def _noise(value: float) -> float:
+    return max(value, NOISE_FLOOR) if math.isfinite(value) else NOISE_FLOOR
+
+
+def detector_thresholds(material: Material) -> DetectorThresholds:
+    """Band and release level from a material, by the rule of the module docstring."""
+    lowest_onset = min((*material.onset_gamma, material.sliding_level))
+    edge = min(lowest_onset, 1.0) - _BAND_SIGMAS * _noise(material.gamma_noise_stick)
+    delta = min(max(1.0 - edge, DELTA_MIN), DELTA_MAX)
+    release = material.sliding_level - _RELEASE_SIGMAS * _noise(material.gamma_noise_slide)
+    release = min(max(release, 1e-3), 1.0 - delta)
+    return DetectorThresholds(delta=delta, gamma_release=release)
+
+
+_FLOATS = ("mu_s", "mu_d", "mu_s_se", "mu_d_se", "beta_s_m", "beta_s_se_m", "beta_d_m", "beta_d_se_m",
+           "gamma_noise_stick", "gamma_noise_slide")
+
+
+def _number(table: dict[str, Any], key: str, source: str) -> float:
+    value = table.pop(key, math.nan)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(f"{source}: material.{key}: must be a number, got {value!r}")
+    return float(value)
+
+
+def parse_material(data: dict[str, Any], *, source: str = "<material>") -> Material:
+    """A :class:`Material` from a parsed TOML mapping (``source`` names it in errors)."""
+    table = data.get("material")
+    if not isinstance(table, dict) or set(data) - {"material"}:
+        raise ConfigError(f"{source}: a material file has exactly one table, [material] "
+                          "(write one with `slipstack identify RECORDING... -o FILE`)")
+    table = dict(table)
+    for key in ("mu_s", "mu_d"):
+        if key not in table:
+            raise ConfigError(f"{source}: material.{key}: missing required key")
+    name = table.pop("name", Path(source).stem)
+    provenance = table.pop("provenance", "")
+    onset = table.pop("onset_gamma", [])
+    if not isinstance(name, str) or not isinstance(provenance, str):
+        raise ConfigError(f"{source}: material.name and material.provenance must be strings")
+    if not isinstance(onset, list) or any(isinstance(g, bool) or not isinstance(g, (int, float)) for g in onset):
+        raise ConfigError(f"{source}: material.onset_gamma: must be a list of numbers, got {onset!r}")
+    values = {key: _number(table, key, source) for key in _FLOATS}
+    if table:
+        raise ConfigError(f"{source}: material.{sorted(table)[0]}: unknown key (known: name, provenance, "
+                          f"onset_gamma, {', '.join(_FLOATS)})")
+    try:
+        return Material(name=name, provenance=provenance, onset_gamma=tuple(float(g) for g in onset), **values)
+    except ConfigError as exc:
+        raise ConfigError(f"{source}: {exc}") from None
+
+
+def load_material(path: str | Path) -> Material:
+    """Read and validate a material file.
+
+    Raises:
+        ConfigError: unreadable file, TOML syntax error, or an invalid key (named).
+    """
+    return parse_material(read_toml(path, "material"), source=Path(path).name)
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, tuple):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    return "nan" if not math.isfinite(value) else f"{float(value):.6g}"
+
+
+def material_toml(material: Material, comment: str = "") -> str:
+    """The material as the text of a material file (``comment`` lines go on top)."""
+    lines = [f"# {line}" if line else "#" for line in comment.splitlines()]
+    t = detector_thresholds(material)
+    lines.append(f"# derived detector thresholds (lib/material.py): delta = {t.delta:.4f}, "
+                 f"gamma_release = {t.gamma_release:.4f}")
+    lines.append("[material]")
+    for key in ("name", "provenance", *_FLOATS, "onset_gamma"):
+        lines.append(f"{key} = {_toml_value(getattr(material, key))}")
+    return "\n".join(lines) + "\n"

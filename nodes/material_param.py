@@ -1,0 +1,61 @@
+"""The ``material`` parameter of the nodes that need friction: fills what was not given.
+
+A node's parameter dataclass names a material file (``material``: a shipped name in
+``launch/materials/``, e.g. ``rubber``, or a path) and leaves the friction-derived
+parameters at NaN ("from the material"). :func:`fill_from_material` replaces each NaN
+one by the material's value (``lib/material.py`` states the rule for ``delta`` and
+``gamma_release``); a value given explicitly is kept. Loaded files are cached (at most
+``_CACHE_SIZE``), keyed by their resolved path.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from pathlib import Path
+from typing import Any
+
+from slipstack.lib.material import Material, detector_thresholds, load_material
+from slipstack.launch.launch_file import resolve_path
+
+__all__ = ["DEFAULT_MATERIAL", "resolve_material", "fill_from_material"]
+
+DEFAULT_MATERIAL = "rubber"
+"""The shipped default (``launch/materials/rubber.toml``; its provenance is in the file)."""
+
+_CACHE_SIZE = 16
+
+
+@functools.lru_cache(maxsize=_CACHE_SIZE)
+def _load(path: Path) -> Material:
+    return load_material(path)
+
+
+def resolve_material(name: str) -> Material:
+    """The material ``name`` (a path, or a shipped name with or without ``.toml``).
+
+    Raises:
+        ConfigError: no such file, or an invalid one (naming the key).
+    """
+    return _load(resolve_path(name, Path.cwd(), "materials"))
+
+
+def _value(material: Material, source: str) -> float:
+    if source in ("delta", "gamma_release"):
+        return getattr(detector_thresholds(material), source)
+    return float(getattr(material, source))
+
+
+def fill_from_material(params: Any, **sources: str) -> None:
+    """Set each NaN field ``name`` of the frozen dataclass ``params`` from its material.
+
+    ``sources`` maps a field to the material quantity it takes: a :class:`Material`
+    attribute (``mu_s``, ``beta_s_m``, …) or ``delta`` / ``gamma_release`` (derived).
+    The material is read only if some field is NaN.
+    """
+    missing = {name: src for name, src in sources.items() if math.isnan(getattr(params, name))}
+    if not missing:
+        return
+    material = resolve_material(params.material)
+    for name, src in missing.items():
+        object.__setattr__(params, name, _value(material, src))

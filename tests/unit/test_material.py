@@ -1,0 +1,112 @@
+"""Material files: the thresholds rule, the file format, and the nodes' ``material`` parameter."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from slipstack.lib.errors import ConfigError
+from slipstack.lib.material import (
+    DELTA_MIN,
+    NOISE_FLOOR,
+    Material,
+    detector_thresholds,
+    load_material,
+    material_toml,
+    parse_material,
+)
+from slipstack.launch.launch_file import load_launch_file
+from slipstack.nodes.cor_estimator import CorParams
+from slipstack.nodes.grip_controller import GripControllerParams
+from slipstack.nodes.slip_detector import SlipDetectorParams
+
+MATERIALS_DIR = Path(__file__).resolve().parents[2] / "launch" / "materials"
+
+
+def test_band_reaches_the_lowest_onset_minus_three_sigma() -> None:
+    # Coulomb: gross slip at the capacity (gamma ~ 1): a narrow band.
+    coulomb = Material("c", mu_s=0.45, mu_d=0.45, onset_gamma=(0.995, 0.99, 1.0),
+                       gamma_noise_stick=0.004, gamma_noise_slide=0.006)
+    t = detector_thresholds(coulomb)
+    assert t.delta == pytest.approx(1.0 - (0.99 - 3 * 0.004))
+    # release: mu_d/mu_s - 4 sigma_slide = 0.976, under the band edge 0.978
+    assert t.gamma_release == pytest.approx(1.0 - 4 * 0.006)
+    # A weakening contact (identified onsets 0.85, 0.97): the band reaches its sliding
+    # level 0.6, the release level sits under it.
+    weak = Material("w", mu_s=0.5, mu_d=0.3, onset_gamma=(0.85, 0.97), gamma_noise_stick=0.005,
+                    gamma_noise_slide=0.01)
+    t = detector_thresholds(weak)
+    assert t.delta == pytest.approx(0.4 + 0.015)
+    assert t.gamma_release == pytest.approx(0.6 - 0.04)
+    # Mildly weakening with an onset below its sliding level (noise): the onset decides.
+    t = detector_thresholds(Material("m", mu_s=0.45, mu_d=0.43, onset_gamma=(0.9,), gamma_noise_stick=0.005))
+    assert t.delta == pytest.approx(0.1 + 0.015)
+
+
+def test_release_never_above_the_band_edge_and_noise_floor() -> None:
+    # Noise-free record: the floor keeps the band open; Coulomb release capped at 1 - delta.
+    t = detector_thresholds(Material("c", mu_s=0.45, mu_d=0.45, onset_gamma=(1.0,), gamma_noise_stick=0.0,
+                                     gamma_noise_slide=0.0))
+    assert t.delta == pytest.approx(max(3 * NOISE_FLOOR, DELTA_MIN))
+    assert t.gamma_release <= 1.0 - t.delta
+    # Without onset episodes the sliding level stands in for the lowest onset.
+    t = detector_thresholds(Material("r", mu_s=0.45, mu_d=0.36))
+    assert t.delta == pytest.approx(1.0 - (0.8 - 3 * NOISE_FLOOR))
+
+
+def test_file_round_trip_and_errors(tmp_path: Path) -> None:
+    m = Material("rubber", mu_s=0.4527, mu_d=0.3612, provenance='rig "rubber"', mu_s_se=0.001, beta_s_m=1.3e-3,
+                 onset_gamma=(0.98, 0.91), gamma_noise_stick=0.007)
+    path = tmp_path / "m.toml"
+    path.write_text(material_toml(m, "a comment"))
+    back = load_material(path)
+    assert back.mu_s == pytest.approx(m.mu_s) and back.onset_gamma == m.onset_gamma
+    assert back.provenance == m.provenance and math.isnan(back.beta_d_m)
+    with pytest.raises(ConfigError, match="material.mu_d: missing"):
+        parse_material({"material": {"mu_s": 0.4}}, source="x.toml")
+    with pytest.raises(ConfigError, match="x.toml: material.mu_x: unknown key"):
+        parse_material({"material": {"mu_s": 0.4, "mu_d": 0.3, "mu_x": 1}}, source="x.toml")
+    with pytest.raises(ConfigError, match="mu_d must lie in"):
+        parse_material({"material": {"mu_s": 0.4, "mu_d": 0.5}}, source="x.toml")
+    with pytest.raises(ConfigError, match="slipstack identify"):
+        parse_material({"mu_s": 0.4}, source="x.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[material\n")
+    with pytest.raises(ConfigError, match="bad.toml: TOML syntax error"):
+        load_material(bad)
+
+
+@pytest.mark.parametrize("path", sorted(MATERIALS_DIR.glob("*.toml")), ids=lambda p: p.stem)
+def test_shipped_materials_load_with_provenance(path: Path) -> None:
+    m = load_material(path)
+    assert m.provenance and "provisional" not in m.provenance
+    assert math.isfinite(m.beta_s_m) and m.onset_gamma
+
+
+def test_node_params_take_the_material_and_explicit_values_win(tmp_path: Path) -> None:
+    m = Material("mine", mu_s=0.6, mu_d=0.3, beta_s_m=2e-3, onset_gamma=(0.9,), gamma_noise_stick=0.005,
+                 gamma_noise_slide=0.01)
+    path = tmp_path / "mine.toml"
+    path.write_text(material_toml(m))
+    t = detector_thresholds(m)
+    p = SlipDetectorParams(material=str(path))
+    assert (p.mu, p.delta, p.gamma_release) == pytest.approx((0.6, t.delta, t.gamma_release))
+    p = SlipDetectorParams(material=str(path), delta=0.05, mu=0.5)
+    assert (p.mu, p.delta, p.gamma_release) == pytest.approx((0.5, 0.05, t.gamma_release))
+    g = GripControllerParams(material=str(path), law="ft13")
+    assert (g.mu, g.beta_m, g.delta) == pytest.approx((0.6, 2e-3, t.delta))
+    assert CorParams(material=str(path)).mu == pytest.approx(0.6)
+    with pytest.raises(ConfigError, match="cannot find 'nosuch'"):
+        SlipDetectorParams(material="nosuch")
+
+
+def test_every_stack_launch_file_takes_material(tmp_path: Path) -> None:
+    path = tmp_path / "mine.toml"
+    path.write_text(material_toml(Material("mine", mu_s=0.6, mu_d=0.3)))
+    for name in ("default", "fig15", "fig11", "fig4a", "hardware"):
+        lf = load_launch_file(name, {"material": str(path)}, builtins={"run_dir": "/tmp/x"})
+        for entry in lf.nodes:
+            if entry.type in ("slip_detector", "grip_controller", "cor_estimator"):
+                assert entry.params["material"] == str(path), (name, entry.name)
