@@ -238,8 +238,8 @@ def test_a_node_out_of_restarts_is_abandoned_loudly_and_ends_a_required_or_check
     how = "a new process" if "respawn_standby = false" in relay_policy else "its warm standby"
     assert f"[launch] respawning relay (restart 1/1) from {how}" in log
     if args:
-        assert "[launch] CHECK FAILED: no check.json from the monitor" in log
-        assert "relay abandoned after 1 restarts" in log.split("CHECK FAILED")[1]
+        # no monitor in this launch: the check judges the processes alone
+        assert "[launch] CHECK FAILED: relay abandoned after 1 restarts" in log and "check.json" not in log
     assert _events(g)["processes"]["relay"] == {"nodes": ["relay"], "died": 2, "respawned": 1, "abandoned": True}
     _wait_until(lambda: not any(pid_alive(p) for p in pids.values()), "nodes left running", g)
 
