@@ -123,6 +123,10 @@ class NodeHost:
     def log(self, text: str) -> None:
         self._log(text)
 
+    def report_error(self, text: str) -> None:
+        self.last_error = text
+        self._log(f"error: {text}")
+
     def shutdown(self) -> None:
         self.shutdown_requested = True
 

@@ -81,6 +81,9 @@ class Context(Protocol):
     def log(self, text: str) -> None:
         """Write one log line (the launcher prefixes it with the node name)."""
 
+    def report_error(self, text: str) -> None:
+        """Say what went wrong: ``last_error`` on ``diagnostics`` and one log line."""
+
     def shutdown(self) -> None:
         """Ask the executor to stop this node after the current handler (e.g. a scene ended)."""
 

@@ -459,6 +459,9 @@ class ProcessExecutor:
                 events = poller.poll(0)
                 if not events:
                     time.sleep(wait_ns / 1e9)
+            elif not poller.sockets:  # nothing to watch (a device not open, no inputs): zmq would not wait
+                events = []
+                time.sleep(min(wait_ns, 50_000_000) / 1e9)
             else:
                 events = poller.poll(min(-(-wait_ns // 1_000_000), 50))
             for item, _ in events:
