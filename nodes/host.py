@@ -25,6 +25,7 @@ from slipstack.nodes.node import Node
 __all__ = ["NodeHost", "DIAGNOSTICS_TOPIC"]
 
 DIAGNOSTICS_TOPIC = "diagnostics"
+_MAX_LOGGED_ERRORS = 64  # distinct handler errors remembered so that each is logged once
 
 
 def _clip(text: str) -> str:
@@ -81,6 +82,7 @@ class NodeHost:
         self.shutdown_requested = False
         self._measure = measure_handlers
         self._durations: deque[int] = deque(maxlen=2000)
+        self._logged_errors: set[tuple[str, str, str]] = set()
         self._log = log or (lambda text: print(text, file=sys.stderr, flush=True))
         self._handlers = {n: getattr(node, f"on_{n}") for n in node.inputs}
         self.on_publish: Callable[[str, Message, Header], None] | None = None
@@ -179,11 +181,17 @@ class NodeHost:
         t0 = time.perf_counter_ns() if self._measure else 0
         try:
             fn(*args)
-        except Exception:  # a handler bug must not kill the control loop
+        except Exception as exc:  # a handler bug must not kill the control loop
             self.counters["handler_errors"] += 1
             self.status = "error"
             self.detail = f"{label} raised; see log"
-            self._log(f"error in {label}:\n{traceback.format_exc().rstrip()}")
+            self.last_error = _clip(f"{label}: {type(exc).__name__}: {exc}")
+            seen = (label, type(exc).__name__, str(exc))
+            if seen not in self._logged_errors:  # a repeating error is logged once, then counted
+                if len(self._logged_errors) < _MAX_LOGGED_ERRORS:
+                    self._logged_errors.add(seen)
+                self._log(f"error in {label} (logged once; repeats count as handler_errors on diagnostics):\n"
+                          f"{traceback.format_exc().rstrip()}")
         if self._measure:
             self._durations.append(time.perf_counter_ns() - t0)
 
