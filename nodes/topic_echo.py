@@ -82,7 +82,11 @@ class MessagePrinter:
         self._csv = csv.writer(self._buf, lineterminator="\n")
 
     def format(self, msg: Message) -> str | None:
-        """Text for one message, or ``None`` if it lacks the requested field."""
+        """Text for one message, or ``None`` if it lacks the requested map key.
+
+        Raises:
+            ConfigError: the field path cannot exist in this message type (bad index).
+        """
         tree: Any = as_tree(msg)
         if self.field is not None:
             found, tree = pick(tree, self.field)
@@ -120,7 +124,11 @@ def _write(stream: TextIO, text: str) -> None:
 
 
 def main_echo(args: argparse.Namespace) -> int:
-    """Run ``topic echo``; returns 0, or 1 if ``--timeout`` passed without any message."""
+    """Run ``topic echo``; returns 0, or 1 if ``--timeout`` passed without any message printed.
+
+    Raises:
+        ConfigError: a field path no message can have, or a ``--filter`` that raises.
+    """
     _, graph = load_graph(args.run_dir)
     info = resolve_topic(graph, args.topic)
     cls = info.message_type()
@@ -142,19 +150,18 @@ def main_echo(args: argparse.Namespace) -> int:
         poller.register(s, zmq.POLLIN)
     out, err = sys.stdout, sys.stderr
     printed = rejected = 0
-    filter_failed = False
-    last_msg = time.monotonic()
+    deadline = None if args.timeout is None else time.monotonic() + args.timeout
     try:
         while limit is None or printed < limit:
+            if deadline is not None and time.monotonic() >= deadline:
+                if printed == 0:
+                    print(f"topic echo: no message on {info.name} within {args.timeout:g} s"
+                          + (" (none passed --filter)" if keep is not None else ""), file=err)
+                    return 1
+                return 0
             ready = dict(poller.poll(200))
             if not ready:
-                if args.timeout is not None and time.monotonic() - last_msg > args.timeout:
-                    if printed == 0:
-                        print(f"topic echo: no message on {info.name} within {args.timeout:g} s", file=err)
-                        return 1
-                    return 0
                 continue
-            last_msg = time.monotonic()
             chunks: list[str] = []
             notes: list[str] = []
             for sock in ready:
@@ -187,11 +194,11 @@ def main_echo(args: argparse.Namespace) -> int:
                         try:
                             if not keep(msg):
                                 continue
-                        except Exception as exc:  # the user's expression: report once, skip
-                            if not filter_failed:
-                                notes.append(f"topic echo: --filter raised {type(exc).__name__}: {exc}")
-                                filter_failed = True
-                            continue
+                        except Exception as exc:  # the user's expression: say why and stop
+                            raise ConfigError(
+                                f"--filter {args.filter!r} raised {type(exc).__name__}: {exc} on a "
+                                f"{cls.TYPE} message; the message is `m`, e.g. 'm.header.seq % 10 == 0'"
+                            ) from None
                     text = printer.format(msg)
                     if text is None:
                         continue
@@ -235,7 +242,8 @@ def add_arguments(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--filter", metavar="EXPR",
                    help="print only messages for which the Python expression is true, e.g. 'm.node == \"relay\"'")
     p.add_argument("--timeout", type=float, metavar="S",
-                   help="exit after S seconds without a message (exit code 1 if none came at all)")
+                   help="exit S seconds after the start, however many messages came (exit code 1 if "
+                        "none was printed)")
     p.add_argument("--qos-depth", type=int, default=2000, metavar="N",
                    help="frames queued per publisher before the publisher drops for us (default 2000)")
     p.set_defaults(func=main_echo)
