@@ -25,6 +25,7 @@ from slipstack.nodes.node import Node
 __all__ = ["NodeHost", "DIAGNOSTICS_TOPIC"]
 
 DIAGNOSTICS_TOPIC = "diagnostics"
+_MAX_ORIGINS = 256  # (input, origin) sequence trackers kept; the oldest is forgotten first
 _MAX_LOGGED_ERRORS = 64  # distinct handler errors remembered so that each is logged once
 
 
@@ -137,7 +138,7 @@ class NodeHost:
         """Decode and validate one frame; count it; ``None`` if rejected.
 
         ``origin`` names the stream the frame came from (the publisher's endpoint, or
-        ``"inject"`` for frames put in by tools): sequence gaps are tracked per topic and
+        ``"inject/<sender>"`` for frames put in by tools, ``"inject"`` if the sender gave no name): sequence gaps are tracked per topic and
         origin, and a sequence that goes back (a respawned publisher) is no loss.
         ``skipped``: frames of the same origin received before this one but not decoded
         (:meth:`skip`); they fill as much of a sequence gap.
@@ -156,6 +157,8 @@ class NodeHost:
         last = self._last_seq.get(key)
         if last is not None and seq > last + 1 + skipped:
             counters[lost] += seq - last - 1 - skipped
+        if key not in self._last_seq and len(self._last_seq) >= _MAX_ORIGINS:
+            del self._last_seq[next(iter(self._last_seq))]  # forget the oldest origin
         self._last_seq[key] = seq
         return msg
 

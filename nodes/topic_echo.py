@@ -1,6 +1,7 @@
 """``slipstack topic echo``: print a topic's messages as they arrive.
 
-One SUB socket per publisher (from ``graph.json``), so sequence gaps are counted
+One SUB socket per publisher (from ``graph.json``, re-read every
+:data:`REFRESH_PERIOD_S` for tools that publish, such as ``topic pub``), so sequence gaps are counted
 per publisher (``diagnostics`` has one publisher per node); a sequence number that
 does not go up is a restart (a respawned node starts again at 0), not a loss.
 Frames are drained in batches and printed with one buffered write per batch, which
@@ -28,12 +29,15 @@ import zmq
 from slipstack.lib.errors import ConfigError, DecodeError
 from slipstack.messages import Message, decode
 from slipstack.nodes.topic_format import as_tree, check_field, csv_cell, flatten, pick, render_yaml
-from slipstack.nodes.topic_tools import load_graph, resolve_topic
+from slipstack.nodes.graph_info import read_graph
+from slipstack.nodes.topic_tools import TopicInfo, load_graph, resolve_topic
 from slipstack.nodes.transport import make_sub
 
 __all__ = ["SeqTracker", "MessagePrinter", "add_arguments", "main_echo"]
 
 BATCH = 500  # frames read from one publisher before the output is written
+REFRESH_PERIOD_S = 0.5  # how often the graph is re-read for new publishers (tools that publish)
+MAX_PUBLISHERS = 256  # publishers of one topic listened to at most
 _FILTER_BUILTINS = {f.__name__: f for f in (abs, all, any, len, max, min, round, sum, float, int, bool, str)}
 
 
@@ -129,7 +133,7 @@ def main_echo(args: argparse.Namespace) -> int:
     Raises:
         ConfigError: a field path no message can have, or a ``--filter`` that raises.
     """
-    _, graph = load_graph(args.run_dir)
+    run_dir, graph = load_graph(args.run_dir)
     info = resolve_topic(graph, args.topic)
     cls = info.message_type()
     if args.field:
@@ -143,11 +147,23 @@ def main_echo(args: argparse.Namespace) -> int:
 
     ctx = zmq.Context.instance()
     topic_b = info.name.encode()
-    socks = {make_sub(ctx, [e.address], info.name, rcvhwm=args.qos_depth): e.node for e in publishers}
-    trackers = {node: SeqTracker() for node in socks.values()}
+    socks: dict[zmq.Socket, str] = {}
+    trackers: dict[str, SeqTracker] = {}
     poller = zmq.Poller()
-    for s in socks:
-        poller.register(s, zmq.POLLIN)
+    connected: set[str] = set()
+
+    def connect_new(found: TopicInfo) -> None:
+        """A SUB for each publisher not yet connected (tools such as ``topic pub`` come and go)."""
+        for e in found.publishers:
+            if e.address and e.address not in connected and len(connected) < MAX_PUBLISHERS:
+                sock = make_sub(ctx, [e.address], found.name, rcvhwm=args.qos_depth)
+                socks[sock] = e.node
+                trackers.setdefault(e.node, SeqTracker())
+                poller.register(sock, zmq.POLLIN)
+                connected.add(e.address)
+
+    connect_new(info)
+    next_refresh = time.monotonic() + REFRESH_PERIOD_S
     out, err = sys.stdout, sys.stderr
     printed = rejected = 0
     deadline = None if args.timeout is None else time.monotonic() + args.timeout
@@ -159,6 +175,12 @@ def main_echo(args: argparse.Namespace) -> int:
                           + (" (none passed --filter)" if keep is not None else ""), file=err)
                     return 1
                 return 0
+            if time.monotonic() >= next_refresh:
+                next_refresh = time.monotonic() + REFRESH_PERIOD_S
+                try:
+                    connect_new(resolve_topic(read_graph(run_dir), info.name))
+                except (OSError, ValueError, ConfigError):
+                    pass  # the graph file is being rewritten or the launch ended: keep what we have
             ready = dict(poller.poll(200))
             if not ready:
                 continue

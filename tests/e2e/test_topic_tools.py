@@ -210,3 +210,47 @@ def test_echo_a_filter_that_never_matches_ends_at_the_timeout(demo):
     out = demo.cli("topic", "echo", "ft/wrench", "--filter", "m.header.seq < 0", "--timeout", "1", timeout=30)
     assert out.returncode == 1, out
     assert "none passed --filter" in out.stderr
+
+
+# -- issue 13 item 6: what topic pub sends is on the bus, and injectors do not fake losses ------
+def _relay_lost(demo) -> float:
+    out = _ok(demo.cli("topic", "echo", "diagnostics", "--field", "counters", "--once",
+                       "--timeout", "8", "--filter", "m.node == 'relay'"))
+    counters = dict(ln.split(": ") for ln in out.splitlines() if ": " in ln)
+    return float(counters.get("in.ft/wrench.lost", 0))
+
+
+def test_pub_is_seen_by_echo_and_bag_record_on_the_topic_itself(demo, tmp_path):
+    def tool(*args):
+        return subprocess.Popen([sys.executable, "-m", "slipstack.launch.cli", *args], env=demo.env,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+    echo = tool("topic", "echo", "ft/wrench", "--field", "force", "--filter", "m.force[0] == 7.25",
+                "--count", "3", "--timeout", "20")
+    bag = tmp_path / "pub.mcap"
+    record = tool("bag", "record", "ft/wrench", "-o", str(bag))
+    pub = demo.cli("topic", "pub", "ft/wrench", "{force: [7.25, 0, 1]}", "--times", "60", "--rate", "20",
+                   "-p", "0", timeout=60)
+    assert pub.returncode == 0, pub.stderr
+    out, err = echo.communicate(timeout=30)
+    assert echo.returncode == 0, err
+    assert out.split("\n---\n")[:3] == ["[7.25, 0.0, 1.0]"] * 3
+    record.send_signal(signal.SIGINT)
+    record.communicate(timeout=30)
+    from slipstack.messages import decode
+    from slipstack.nodes.bag_io import read_recording
+    injected = [f for f in read_recording(str(bag), ["ft/wrench"]) if decode(f.payload).force[0] == 7.25]
+    assert len(injected) >= 3
+    assert not list(demo.run_root.glob("*/tool-*.json"))  # the tools unregistered at exit
+
+
+def test_two_tools_injecting_at_once_are_no_loss(demo):
+    lost_before = _relay_lost(demo)
+    pubs = [subprocess.Popen([sys.executable, "-m", "slipstack.launch.cli", "topic", "pub", "ft/wrench",
+                              f"{{force: [{x}, 0, 1]}}", "--times", "40", "--rate", "40", "-p", "0"],
+                             env=demo.env, stderr=subprocess.PIPE, text=True) for x in (1.5, 2.5)]
+    for p in pubs:
+        _, err = p.communicate(timeout=60)
+        assert p.returncode == 0, err
+    time.sleep(1.5)  # a diagnostics period or two
+    assert _relay_lost(demo) == lost_before
