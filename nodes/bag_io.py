@@ -26,6 +26,7 @@ File layout (one MCAP file per recording, https://mcap.dev/spec):
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import json
 import math
 import os
@@ -550,6 +551,8 @@ def export_recording(path: str | os.PathLike, out: str | os.PathLike, fmt: str =
     if Path(out).resolve() == Path(path).resolve():
         raise RecordingError(f"export output {out} is the recording itself; choose another path")
     n = 0
+    frames = read_recording(path)
+    first = next(frames, None)  # an unreadable input raises here, before the output exists
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     with open(out, "wb") as fh:
         writer = None
@@ -558,7 +561,7 @@ def export_recording(path: str | os.PathLike, out: str | os.PathLike, fmt: str =
         if fmt == "mcap-json":
             writer = Writer(fh, chunk_size=DEFAULT_CHUNK_SIZE, compression=CompressionType.ZSTD)
             writer.start(profile="", library="slipstack")
-        for frame in read_recording(path):
+        for frame in itertools.chain([first] if first is not None else [], frames):
             try:
                 msg = decode(frame.payload)
             except DecodeError:

@@ -254,3 +254,11 @@ def test_two_tools_injecting_at_once_are_no_loss(demo):
         assert p.returncode == 0, err
     time.sleep(1.5)  # a diagnostics period or two
     assert _relay_lost(demo) == lost_before
+
+
+def test_bag_record_of_an_unknown_topic_names_the_known_ones(demo, tmp_path):
+    """Issue 13 item 8: ``bag record nosuch/topic`` wrote an empty file and exited 0."""
+    out = demo.cli("bag", "record", "nosuch/topic", "-o", str(tmp_path / "x.mcap"), "--duration", "1")
+    assert out.returncode == 2, out
+    assert "nosuch/topic" in out.stderr and "ft/wrench" in out.stderr
+    assert not (tmp_path / "x.mcap").exists()
