@@ -42,7 +42,9 @@ def parse_assignments(items: list[str]) -> dict[str, str]:
     for item in items:
         name, sep, value = item.partition(":=")
         if not sep or not name:
-            raise ConfigError(f"expected name:=value, got {item!r}")
+            one = item.partition("=")
+            hint = f" (did you mean {one[0]}:={one[2]}?)" if one[1] and one[0] else ""
+            raise ConfigError(f"expected name:=value, got {item!r}{hint}")
         out[name] = value
     return out
 

@@ -15,6 +15,7 @@ from datetime import datetime
 from pathlib import Path
 
 from slipstack.lib.errors import ConfigError
+from slipstack.nodes.graph_info import RUN_DIR_HELP
 
 __all__ = ["add_parser", "format_info", "EXPORT_FORMATS"]
 
@@ -33,7 +34,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     rec.add_argument("topics", nargs="*", metavar="TOPIC", help="topics to record")
     rec.add_argument("-a", "--all", action="store_true", help="record every topic (also ones appearing later)")
     rec.add_argument("-o", "--output", help="output .mcap file")
-    rec.add_argument("--run-dir", help="run directory of the graph (default: the current one)")
+    rec.add_argument("--run-dir", metavar="DIR", help=RUN_DIR_HELP)
     rec.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     rec.set_defaults(func=_main_record)
 
@@ -49,7 +50,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     pl.add_argument("--start-offset", type=float, default=0.0, metavar="S", help="skip the first S seconds")
     pl.add_argument("--restamp", action="store_true", help="shift header stamps to the current time")
     pl.add_argument("--endpoint", help="endpoint to bind (default ipc://<run dir>/bag_play-<pid>.pub)")
-    pl.add_argument("--run-dir", help="run directory of the graph (default: the current one)")
+    pl.add_argument("--run-dir", metavar="DIR", help=RUN_DIR_HELP)
     pl.set_defaults(func=_main_play)
 
     info = verbs.add_parser("info", help="summarise a recording",

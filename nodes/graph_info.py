@@ -30,16 +30,18 @@ from pathlib import Path
 from typing import Any
 
 from slipstack.lib.errors import ConfigError
-from slipstack.nodes.curve import use_keys
 from slipstack.nodes.run_dir import CURRENT_LINK, point_current, run_root, write_private_file
 
-__all__ = ["GRAPH_FILE", "write_graph", "read_graph", "find_run_dir", "topic_endpoints", "process_start_ticks",
+__all__ = ["GRAPH_FILE", "RUN_DIR_HELP", "write_graph", "read_graph", "find_run_dir", "topic_endpoints", "process_start_ticks",
            "register_tool"]
 
 GRAPH_FILE = "graph.json"
 _TOOL_GLOB = "tool-*.json"
 MAX_TOOLS = 32  # live registered tools listed at most (by name)
 RUN_DIR_ENV = "SLIPSTACK_RUN_DIR"
+RUN_DIR_HELP = (f"run directory of the graph (default: ${RUN_DIR_ENV} if set, else the newest run, "
+                f"$SLIPSTACK_RUN_ROOT/current; the run root defaults to /tmp/slipstack-<uid>)")
+"""The ``--run-dir`` help of every tool: one wording for the two variables."""
 
 
 def process_start_ticks(pid: int) -> int | None:
@@ -97,6 +99,8 @@ def read_graph(run_dir: Path) -> dict[str, Any]:
     (a tool attaching from outside the launch)."""
     graph = json.loads((run_dir / GRAPH_FILE).read_text())
     if graph.get("keys"):
+        from slipstack.nodes.curve import use_keys  # zmq: only for a graph with keys
+
         use_keys(graph["keys"])
     for name, tool in _live_tools(run_dir):
         graph["nodes"].setdefault(name, tool)

@@ -33,7 +33,7 @@ from slipstack.nodes.graph_info import read_graph
 from slipstack.nodes.topic_tools import TopicInfo, load_graph, resolve_topic
 from slipstack.nodes.transport import make_sub
 
-__all__ = ["SeqTracker", "MessagePrinter", "add_arguments", "main_echo"]
+__all__ = ["SeqTracker", "MessagePrinter", "main_echo"]
 
 BATCH = 500  # frames read from one publisher before the output is written
 REFRESH_PERIOD_S = 0.5  # how often the graph is re-read for new publishers (tools that publish)
@@ -244,29 +244,3 @@ def main_echo(args: argparse.Namespace) -> int:
     if lost or rejected:
         print(f"topic echo: {printed} printed, {lost} lost, {rejected} rejected", file=err)
     return 0
-
-
-def add_arguments(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = verbs.add_parser(
-        "echo", help="print a topic's messages",
-        description="Print the messages of TOPIC as YAML-ish text (one message per block, "
-                    "separated by '---'), or as CSV. Lost messages (sequence gaps, per publisher) "
-                    "and rejected frames are reported on stderr.",
-    )
-    p.add_argument("topic", help="topic name, e.g. ft/wrench")
-    p.add_argument("--once", action="store_true", help="print one message and exit")
-    p.add_argument("--count", type=int, metavar="N", help="print N messages and exit")
-    p.add_argument("--field", metavar="a.b", help="print only this field, e.g. force or header.stamp_ns")
-    p.add_argument("--csv", action="store_true", help="one CSV line per message (arrays flattened), after a header line")
-    p.add_argument("--no-arr", action="store_true", help="hide array values (show dtype and shape)")
-    p.add_argument("--truncate-length", type=int, default=16, metavar="N",
-                   help="array values shown before '...' (default 16)")
-    p.add_argument("--filter", metavar="EXPR",
-                   help="print only messages for which the Python expression is true, e.g. 'm.node == \"relay\"'")
-    p.add_argument("--timeout", type=float, metavar="S",
-                   help="exit S seconds after the start, however many messages came (exit code 1 if "
-                        "none was printed)")
-    p.add_argument("--qos-depth", type=int, default=2000, metavar="N",
-                   help="frames queued per publisher before the publisher drops for us (default 2000)")
-    p.set_defaults(func=main_echo)
-    return p

@@ -28,7 +28,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.nodes.topic_tools import load_graph, resolve_topic
 from slipstack.nodes.transport import make_sub
 
-__all__ = ["peek_header", "RateStats", "rate_stats", "add_arguments", "main_hz"]
+__all__ = ["peek_header", "RateStats", "rate_stats", "main_hz"]
 
 _BATCH = 5000
 _UINT = {0xCC: struct.Struct(">B"), 0xCD: struct.Struct(">H"), 0xCE: struct.Struct(">I"), 0xCF: struct.Struct(">Q"),
@@ -164,19 +164,3 @@ def main_hz(args: argparse.Namespace) -> int:
     finally:
         sock.close(linger=0)
     return 0
-
-
-def add_arguments(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = verbs.add_parser(
-        "hz", help="print a topic's rate",
-        description="Print the average rate and period min/max/std of TOPIC over the last --window "
-                    "messages, once per second, from receive times (or header stamps).",
-    )
-    p.add_argument("topic", help="topic name, e.g. ft/wrench")
-    p.add_argument("-w", "--window", type=int, default=10000, metavar="N",
-                   help="messages the statistics cover (default 10000)")
-    p.add_argument("--use-stamps", action="store_true",
-                   help="use the messages' header.stamp_ns instead of receive times")
-    p.add_argument("--duration", type=float, metavar="S", help="exit after S seconds (default: until Ctrl-C)")
-    p.set_defaults(func=main_hz)
-    return p

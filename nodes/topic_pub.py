@@ -35,7 +35,7 @@ from slipstack.nodes.topic_tools import TopicInfo, load_graph, resolve_topic
 from slipstack.nodes.tool_pub import BusPublisher, InjectionSender, tool_name
 from slipstack.nodes.topic_yaml import parse_flow
 
-__all__ = ["build_message", "Injector", "add_arguments", "main_pub"]
+__all__ = ["build_message", "Injector", "main_pub"]
 
 
 def build_message(cls: type[Message], values: Any) -> Message:
@@ -152,25 +152,3 @@ def main_pub(args: argparse.Namespace) -> int:
             injector.close()
         bus.close()
     return 0
-
-
-def add_arguments(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = verbs.add_parser(
-        "pub", help="publish messages by hand",
-        description="Publish a message on TOPIC to the nodes that subscribe to it (through their "
-                    "injection endpoints). VALUES are YAML flow text; unset fields keep defaults. "
-                    "Example: slipstack topic pub grip/command '{f_n_desired: 12.0, law: manual}' --rate 10",
-    )
-    p.add_argument("topic", help="topic name, e.g. grip/command")
-    p.add_argument("values", nargs="*", metavar="[TYPE] VALUES",
-                   help="optional message type (checked against the graph), then the field values")
-    p.add_argument("-r", "--rate", type=float, default=1.0, metavar="HZ", help="publishing rate (default 1 Hz)")
-    once = p.add_mutually_exclusive_group()
-    once.add_argument("-1", "--once", action="store_true", help="publish one message and exit")
-    once.add_argument("-t", "--times", type=int, metavar="N", help="publish N messages and exit")
-    p.add_argument("-w", "--wait", type=float, default=3.0, metavar="S",
-                   help="how long to wait for the subscribers to join (default 3 s)")
-    p.add_argument("-p", "--print", dest="print_nth", type=int, default=1, metavar="N",
-                   help="print every N-th publication (0: never; default 1)")
-    p.set_defaults(func=main_pub)
-    return p
