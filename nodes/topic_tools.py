@@ -4,6 +4,7 @@
     slipstack topic info TOPIC [-v]
     slipstack topic echo TOPIC [--once] [--count N] [--field a.b] [--csv] [--no-arr] ...
     slipstack topic hz TOPIC [--window N] [--use-stamps]
+    slipstack topic delay TOPIC [--window N]
     slipstack topic pub TOPIC [TYPE] [VALUES] [--once | --times N] [--rate HZ]
 
 Every verb reads the graph from ``<run_dir>/graph.json`` (``--run-dir``, else
@@ -180,7 +181,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     _run_dir_option(p)
     p.set_defaults(func=main_info)
 
-    for add in (_add_echo, _add_hz, _add_pub):
+    for add in (_add_echo, _add_hz, _add_delay, _add_pub):
         _run_dir_option(add(verbs))
 
 
@@ -225,14 +226,30 @@ def _add_hz(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
         description="Print the average rate and period min/max/std of TOPIC over the last --window "
                     "messages, once per second, from receive times (or header stamps).",
     )
+    _window_options(p)
+    p.add_argument("--use-stamps", action="store_true",
+                   help="use the messages' header.stamp_ns instead of receive times")
+    p.set_defaults(func=_lazy("slipstack.nodes.topic_hz", "main_hz"))
+    return p
+
+
+def _add_delay(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    p = verbs.add_parser(
+        "delay", help="print a topic's sample-to-here latency",
+        description="Print the average, min, max and std of (receive time - header.stamp_ns) of TOPIC over "
+                    "the last --window messages, once per second. The stamp is the time of the sensor "
+                    "sample a message derives from, so this is the latency from the sample to this tool.",
+    )
+    _window_options(p)
+    p.set_defaults(func=_lazy("slipstack.nodes.topic_hz", "main_delay"))
+    return p
+
+
+def _window_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("topic", help="topic name, e.g. ft/wrench")
     p.add_argument("-w", "--window", type=int, default=10000, metavar="N",
                    help="messages the statistics cover (default 10000)")
-    p.add_argument("--use-stamps", action="store_true",
-                   help="use the messages' header.stamp_ns instead of receive times")
     p.add_argument("--duration", type=float, metavar="S", help="exit after S seconds (default: until Ctrl-C)")
-    p.set_defaults(func=_lazy("slipstack.nodes.topic_hz", "main_hz"))
-    return p
 
 
 def _add_pub(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:

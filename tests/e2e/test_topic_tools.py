@@ -262,3 +262,12 @@ def test_bag_record_of_an_unknown_topic_names_the_known_ones(demo, tmp_path):
     assert out.returncode == 2, out
     assert "nosuch/topic" in out.stderr and "ft/wrench" in out.stderr
     assert not (tmp_path / "x.mcap").exists()
+
+
+def test_delay_reports_sample_to_here_latency(demo):
+    """Issue 13 item 10: ``topic delay`` (receive time - header stamp), ros2's output form."""
+    out = _ok(demo.cli("topic", "delay", "ft/wrench", "--duration", "2.5", "--window", "500"))
+    delays = [float(m) for m in re.findall(r"average delay: ([0-9.e-]+)s", out)]
+    assert delays, out
+    assert all(0 <= d < 5.0 for d in delays), out  # stamps are taken before sending: never negative
+    assert "window: 500" in out
