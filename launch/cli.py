@@ -19,6 +19,7 @@ COMMANDS = {
     "launch": ("slipstack.launch.launcher", "run a graph (default: the simulated rig and the full stack)"),
     "run": ("slipstack.launch.run_node", "run one node as a process"),
     "topic": ("slipstack.nodes.topic_tools", "inspect and poke the running graph's topics"),
+    "node": ("slipstack.nodes.node_tools", "list the running graph's nodes, or one node's state"),
     "bag": ("slipstack.nodes.bag_tools", "record, play, inspect and export recordings (MCAP)"),
     "report": ("slipstack.nodes.report", "paper-style figure or friction identification of a recording"),
     "reproduce": ("slipstack.analysis.reproduce", "run the paper's experiments in lock-step and draw its figures"),

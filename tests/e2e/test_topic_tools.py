@@ -271,3 +271,17 @@ def test_delay_reports_sample_to_here_latency(demo):
     assert delays, out
     assert all(0 <= d < 5.0 for d in delays), out  # stamps are taken before sending: never negative
     assert "window: 500" in out
+
+
+def test_node_list_and_info_show_processes_parameters_and_counters(demo):
+    """Issue 13 item 10: ``node list`` / ``node info`` (pid, rates, counters, parameters)."""
+    listing = _ok(demo.cli("node", "list"))
+    pids = {n: e["pid"] for n, e in demo.graph()["nodes"].items()}
+    for name in ("source", "relay", "sink"):
+        assert f"{name}  [" in listing and f"pid {pids[name]} running" in listing
+    info = _ok(demo.cli("node", "info", "source"))
+    assert "type: wrench_source" in info and "ft/wrench [slipstack/Wrench]" in info
+    assert "rate_hz: 1000.0" in info  # the launch parameter, from the run spec
+    assert "status: ok" in info and re.search(r"out\.ft/wrench\.published: \d+", info)
+    out = demo.cli("node", "info", "nosuch")
+    assert out.returncode == 2 and "relay" in out.stderr
