@@ -99,10 +99,6 @@ class InjectionSender:
         tag = self.origin if origin is None else (self.origin + b"/" + origin.encode())[:MAX_ORIGIN_BYTES]
         self.sock.send_multipart((topic.encode(), payload, tag), copy=True)
 
-    def send_parts(self, parts: list[bytes]) -> None:
-        """Any frame as is (fault injection)."""
-        self.sock.send_multipart(parts, copy=True)
-
     def close(self, linger_s: float = 1.0) -> None:
         self.sock.close(linger=round(linger_s * 1000))
 

@@ -256,7 +256,8 @@ def _add_pub(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p = verbs.add_parser(
         "pub", help="publish messages by hand",
         description="Publish a message on TOPIC to the nodes that subscribe to it (through their "
-                    "injection endpoints). VALUES are YAML flow text; unset fields keep defaults. "
+                    "injection endpoints) and on the bus, where topic echo and the recorders see it. "
+                    "VALUES are YAML flow text; unset fields keep defaults. "
                     "Example: slipstack topic pub grip/command '{f_n_desired: 12.0, law: manual}' --rate 10",
     )
     p.add_argument("topic", help="topic name, e.g. grip/command")
