@@ -149,3 +149,17 @@ def test_help_and_topic_list_start_without_the_numeric_stack(args, tmp_path):
     env = dict(os.environ, SLIPSTACK_RUN_ROOT=str(tmp_path))  # topic list: no graph here, a one-line error
     out = subprocess.run([PY, "-c", probe], capture_output=True, text=True, timeout=60, env=env)
     assert "HEAVY []" in out.stderr, out.stderr
+
+
+# -- item 1, as the issue typed it -------------------------------------------------------------------
+def test_hardware_launch_with_a_wrong_device_path_says_so(launch):
+    """``slipstack launch hardware.toml ft_url:=robotiq:///dev/ttyNOPE tactile:=false record:=false``:
+    an error line from ft_driver on the terminal and ``disconnected`` with the error on diagnostics."""
+    g = launch("hardware.toml", "ft_url:=robotiq:///dev/ttyNOPE", "tactile:=false", "record:=false")
+    g.wait_ready()
+    out = g.cli("topic", "echo", "diagnostics", "--once", "--timeout", "20", "--filter", "m.node == 'ft_driver'")
+    assert out.returncode == 0, out.stderr
+    assert "status: \"disconnected: robotiq:///dev/ttyNOPE" in out.stdout, out.stdout
+    assert "No such file or directory" in out.stdout
+    errors = [ln for ln in g.log().splitlines() if ln.startswith("[ft_driver] error:") and "ttyNOPE" in ln]
+    assert len(errors) == 1, g.log()
