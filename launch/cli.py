@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 from typing import Callable
 
@@ -11,23 +12,43 @@ from slipstack.lib.errors import SlipstackError
 __all__ = ["main", "build_parser", "run_guarded"]
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from slipstack.analysis import reproduce
-    from slipstack.launch import keys_cli, launcher, run_node
-    from slipstack.nodes import bag_tools, identify_cli, report, topic_tools
+# command → (module with ``add_parser(sub)``, one-line help). Only the module of the command
+# being run is imported: ``slipstack --help`` and ``slipstack topic list`` start without
+# numpy, scipy or the node types.
+COMMANDS = {
+    "launch": ("slipstack.launch.launcher", "run a graph (default: the simulated rig and the full stack)"),
+    "run": ("slipstack.launch.run_node", "run one node as a process"),
+    "topic": ("slipstack.nodes.topic_tools", "inspect and poke the running graph's topics"),
+    "node": ("slipstack.nodes.node_tools", "list the running graph's nodes, or one node's state"),
+    "bag": ("slipstack.nodes.bag_tools", "record, play, inspect and export recordings (MCAP)"),
+    "report": ("slipstack.nodes.report", "paper-style figure or friction identification of a recording"),
+    "identify": ("slipstack.nodes.identify_cli", "a material file (friction and thresholds) from friction ramps"),
+    "reproduce": ("slipstack.analysis.reproduce", "run the paper's experiments in lock-step and draw its figures"),
+    "keys": ("slipstack.launch.keys_cli", "make the key pair a graph's tcp links need"),
+}
 
+
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The ``slipstack`` parser; the command named in ``argv`` gets its full parser, the
+    others only their name and help (``argv`` ``None``: every command in full)."""
     parser = argparse.ArgumentParser(
         prog="slipstack",
         description="Slip detection and control as a ZeroMQ node graph (after Melchiorri 2000).",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for module in (launcher, run_node, topic_tools, bag_tools, report, identify_cli, reproduce, keys_cli):
-        module.add_parser(sub)
+    words = [a for a in (argv or []) if not a.startswith("-")]
+    chosen = set(COMMANDS) if argv is None else {w for w in words[:1] if w in COMMANDS}
+    for name, (module, help_text) in COMMANDS.items():
+        if name in chosen:
+            importlib.import_module(module).add_parser(sub)
+        else:
+            sub.add_parser(name, help=help_text)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else argv
+    parser = build_parser(argv)
     args, extra = parser.parse_known_args(argv)
     # `name:=value` may follow options (`run rig --pub X a:=1`): argparse leaves those over
     assignments = [e for e in extra if ":=" in e and not e.startswith("-")]

@@ -64,7 +64,7 @@ from slipstack.nodes.catalog import node_class
 from slipstack.nodes.node import Node, make_params
 
 __all__ = ["NodeEntry", "LaunchFile", "load_launch_file", "default_launch_file", "launch_files_dir", "free_port",
-           "resolve_path", "CHECK_ARG"]
+           "resolve_path", "CHECK_ARG", "arg_comments"]
 
 _SUBST = re.compile(r"\$\((\w+)\)")
 _IDENTIFIER = re.compile(r"[A-Za-z0-9_-]+")
@@ -256,6 +256,53 @@ def _names(value: Any, where: str) -> list[str]:
     return value
 
 
+_ARG_LINE = re.compile(r"\s*([A-Za-z_][\w-]*)\s*=")
+
+
+def arg_comments(path: Path) -> dict[str, str]:
+    """The comment of each ``[args]`` entry of a launch file and the files it extends
+    (the file's own comment wins): the ``# ...`` after the value, else the comment lines
+    right above it. For ``--show-args``; a file that does not parse gives what it can."""
+    text = path.read_text()
+    comments: dict[str, str] = {}
+    above: list[str] = []
+    section = ""
+    for line in text.splitlines():
+        stripped = line.strip()
+        if stripped.startswith("["):
+            section, above = stripped, []
+            continue
+        if stripped.startswith("#"):
+            above.append(stripped.lstrip("#").strip())
+            continue
+        m = _ARG_LINE.match(line)
+        if section == "[args]" and m:
+            inline = next((line[i + 1:].strip() for i in range(len(line)) if line[i] == "#"
+                           and _parses(line[:i])), "")
+            if inline or above:
+                comments[m.group(1)] = inline or " ".join(above)
+        above = []
+    try:
+        base_name = tomllib.loads(text).get("launch", {}).get("extends")
+    except tomllib.TOMLDecodeError:
+        base_name = None
+    if isinstance(base_name, str):
+        try:
+            return {**arg_comments(resolve_path(base_name, path.parent, "files")), **comments}
+        except (ConfigError, OSError):
+            pass
+    return comments
+
+
+def _parses(toml_line: str) -> bool:
+    """True if ``toml_line`` is a whole ``key = value`` (so a ``#`` after it starts a comment)."""
+    try:
+        tomllib.loads(toml_line)
+    except tomllib.TOMLDecodeError:
+        return False
+    return True
+
+
 def resolve_path(value: str, base: Path, folder: str) -> Path:
     """The file a launch or scene file names: shipped first, a file of your own only as a path.
 
@@ -276,6 +323,11 @@ def resolve_path(value: str, base: Path, folder: str) -> Path:
         if cand.is_file():
             return cand.resolve()
     hint = "" if "/" in value else f"; for a file of your own give a path, e.g. ./{value}"
+    if "=" in value and ":=" not in value:
+        name, _, arg = value.partition("=")
+        hint = f"; launch arguments take ':=': {name}:={arg}"
+    elif folder == "files":
+        hint += f". Shipped launch files: {', '.join(sorted(f.stem for f in shipped.glob('*.toml')))}"
     raise ConfigError(f"cannot find {value!r} (looked in {', '.join(str(c) for c in cands)}){hint}")
 
 

@@ -45,7 +45,7 @@ import msgpack
 import zmq
 
 from slipstack.lib.errors import ConfigError, SlipstackError
-from slipstack.launch.launch_file import LaunchFile, NodeEntry, free_port, load_launch_file
+from slipstack.launch.launch_file import LaunchFile, NodeEntry, arg_comments, free_port, load_launch_file
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.messages import Diagnostics
 from slipstack.nodes.curve import INSECURE_ENV, KEYS_ENV
@@ -564,7 +564,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("file", nargs="?", help="launch file (path or shipped name); default: the default graph")
     p.add_argument("assignments", nargs="*", metavar="name:=value", help="launch argument overrides")
-    p.add_argument("--show-args", action="store_true", help="print the launch arguments and exit")
+    p.add_argument("--show-args", action="store_true",
+                   help="print the launch arguments with their values and comments, and exit")
     p.set_defaults(func=main_launch)
 
 
@@ -579,9 +580,11 @@ def main_launch(args: argparse.Namespace) -> int:
         builtins = {"run_dir": str(run_dir)}
         launch = load_launch_file(file, parse_assignments(positional), builtins=builtins)
         if args.show_args:
+            comments = arg_comments(launch.path)
             for name, value in launch.args.items():
                 if name not in ("run_dir", "free_udp_port", "stamp"):
-                    print(f"{name} := {value!r}")
+                    note = f"  # {comments[name]}" if name in comments else ""
+                    print(f"{name} := {value!r}{note}")
             remove_run_dir(run_dir)
             return 0
         launcher = Launcher(launch, run_dir)

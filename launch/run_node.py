@@ -42,7 +42,9 @@ def parse_assignments(items: list[str]) -> dict[str, str]:
     for item in items:
         name, sep, value = item.partition(":=")
         if not sep or not name:
-            raise ConfigError(f"expected name:=value, got {item!r}")
+            one = item.partition("=")
+            hint = f" (did you mean {one[0]}:={one[2]}?)" if one[1] and one[0] else ""
+            raise ConfigError(f"expected name:=value, got {item!r}{hint}")
         out[name] = value
     return out
 
@@ -121,7 +123,22 @@ def main_run(args: argparse.Namespace) -> int:
             subs.setdefault(topic, []).append(ep)
         raw = {"name": args.name or args.node, "pub": args.pub, "subs": subs}
     raw.setdefault("params", {}).update(parse_assignments(args.assignments))
-    return _executor([_member({**raw, "type": args.node})]).run()
+    member = _member({**raw, "type": args.node})  # parameter errors first
+    if not args.spec:
+        _require_pub(member[0], raw["name"], args.pub)
+    return _executor([member]).run()
+
+
+def _require_pub(node: Node, name: str, pub: str | None) -> None:
+    """Refuse to run a publishing node by hand without ``--pub``: it would publish nowhere."""
+    outputs = sorted(o.topic for o in node.outputs.values())
+    if pub or not outputs:
+        return
+    raise ConfigError(
+        f"{name} publishes {', '.join(outputs)} and diagnostics: give it an endpoint to bind, e.g. "
+        f"--pub ipc:///tmp/{name}.pub (then `--sub TOPIC=ipc:///tmp/{name}.pub` for a consumer), "
+        "or start it from a launch file, which wires the graph and the tools"
+    )
 
 
 def main_spawned(argv: list[str] | None = None) -> int:

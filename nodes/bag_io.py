@@ -26,6 +26,7 @@ File layout (one MCAP file per recording, https://mcap.dev/spec):
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import json
 import math
 import os
@@ -37,8 +38,10 @@ from typing import Any, Iterable, Iterator, NamedTuple
 
 import numpy as np
 from mcap.records import Channel, Chunk, Footer, Message as McapMessage, Metadata, Schema
+from mcap.data_stream import ReadDataStream
+from mcap.reader import SeekingReader
 from mcap.stream_reader import StreamReader, breakup_chunk
-from mcap.writer import CompressionType, Writer
+from mcap.writer import MCAP0_MAGIC, CompressionType, Writer
 
 from slipstack.lib.errors import DecodeError, SlipstackError
 from slipstack.messages import Message, decode, registry
@@ -308,14 +311,36 @@ class _ScanState:
     error: str = ""
 
 
+def _check_magic(path: str | os.PathLike, fh: Any) -> None:
+    """Raise :class:`RecordingError` unless the file starts like an MCAP file."""
+    head = fh.read(len(MCAP0_MAGIC))
+    fh.seek(0)
+    if not head:
+        raise RecordingError(f"{path} is empty (0 bytes): not a recording. Record one with `slipstack bag record`")
+    if head != MCAP0_MAGIC:
+        raise RecordingError(f"{path} is not an MCAP recording (it starts with {head[:8]!r}, not the MCAP magic); "
+                             "give a file written by `slipstack bag record` or the recorder node")
+
+
 def _scan(path: str | os.PathLike, state: _ScanState, tolerant: bool) -> Iterator[McapMessage]:
-    """Messages in file order; fills ``state``. Stops at the first damaged record if tolerant."""
+    """Messages in file order; fills ``state``.
+
+    Tolerant: a damaged record ends the sequential read; if the file is finished, its
+    chunk index then leads past the damage to the intact chunks after it (a damaged
+    chunk costs only its own messages). Not tolerant: the first damage raises.
+
+    Raises:
+        RecordingError: not an MCAP file (empty, text, ...), cannot be opened, or damaged
+            and not ``tolerant``.
+    """
     try:
         fh = open(path, "rb")
     except OSError as exc:
         raise RecordingError(f"cannot open recording {path}: {exc}") from None
     with fh:
+        _check_magic(path, fh)
         reader = StreamReader(fh, emit_chunks=True, validate_crcs=True)
+        good_until = 0  # file offset up to which every record was read intact
         try:
             for rec in reader.records:
                 if isinstance(rec, Chunk):
@@ -323,24 +348,60 @@ def _scan(path: str | os.PathLike, state: _ScanState, tolerant: bool) -> Iterato
                     state.chunks += 1
                 else:
                     inner = [rec]
-                for r in inner:
-                    if isinstance(r, McapMessage):
-                        yield r
-                    elif isinstance(r, Channel):
-                        state.channels[r.id] = r
-                    elif isinstance(r, Schema):
-                        state.schemas[r.id] = r
-                    elif isinstance(r, Metadata):
-                        state.metadata[r.name] = dict(r.metadata)
-                    elif isinstance(r, Footer):
-                        state.finished = True
-        except Exception as exc:  # noqa: BLE001 — any damage ends the readable part
+                yield from _take(inner, state)
+                good_until = fh.tell()
+        except Exception as exc:  # noqa: BLE001 — any damage ends the sequential read
             # A file cut by kill -9 ends inside a record: mcap raises EndOfFile (an
             # McapError); a torn or corrupt chunk gives a CRC, struct or zstd error.
             state.truncated_at = fh.tell()
             state.error = f"{type(exc).__name__}: {exc}"
             if not tolerant:
                 raise RecordingError(f"recording {path} is damaged or unfinished ({state.error})") from None
+            yield from _chunks_after(fh, good_until, state)
+
+
+def _take(records: Iterable[Any], state: _ScanState) -> Iterator[McapMessage]:
+    """The messages of ``records``; the other records go into ``state``."""
+    for r in records:
+        if isinstance(r, McapMessage):
+            yield r
+        elif isinstance(r, Channel):
+            state.channels[r.id] = r
+        elif isinstance(r, Schema):
+            state.schemas[r.id] = r
+        elif isinstance(r, Metadata):
+            state.metadata[r.name] = dict(r.metadata)
+        elif isinstance(r, Footer):
+            state.finished = True
+
+
+def _chunks_after(fh: Any, offset: int, state: _ScanState) -> Iterator[McapMessage]:
+    """Messages of the intact indexed chunks that start at or after ``offset`` (none if the
+    file has no summary: an unfinished file); counts the chunks skipped as damaged."""
+    try:
+        fh.seek(0)  # the reader checks the magic where it starts
+        summary = SeekingReader(fh, validate_crcs=True).get_summary()
+    except Exception:  # noqa: BLE001 — no readable footer or summary: nothing to recover
+        return
+    if summary is None or not summary.chunk_indexes:
+        return
+    state.channels.update(summary.channels)
+    state.schemas.update(summary.schemas)
+    damaged = recovered = 0
+    for index in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
+        if index.chunk_start_offset < offset:
+            continue
+        try:
+            fh.seek(index.chunk_start_offset + 1 + 8)  # past the opcode and the record length
+            records = breakup_chunk(Chunk.read(ReadDataStream(fh)), validate_crc=True)
+        except Exception:  # noqa: BLE001 — this chunk is damaged too: skip it
+            damaged += 1
+            continue
+        recovered += 1
+        state.chunks += 1
+        yield from _take(records, state)
+    state.finished = True
+    state.error += f"; {damaged} chunk(s) skipped as damaged, {recovered} after them read through the index"
 
 
 def read_recording(
@@ -490,6 +551,8 @@ def export_recording(path: str | os.PathLike, out: str | os.PathLike, fmt: str =
     if Path(out).resolve() == Path(path).resolve():
         raise RecordingError(f"export output {out} is the recording itself; choose another path")
     n = 0
+    frames = read_recording(path)
+    first = next(frames, None)  # an unreadable input raises here, before the output exists
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     with open(out, "wb") as fh:
         writer = None
@@ -498,7 +561,7 @@ def export_recording(path: str | os.PathLike, out: str | os.PathLike, fmt: str =
         if fmt == "mcap-json":
             writer = Writer(fh, chunk_size=DEFAULT_CHUNK_SIZE, compression=CompressionType.ZSTD)
             writer.start(profile="", library="slipstack")
-        for frame in read_recording(path):
+        for frame in itertools.chain([first] if first is not None else [], frames):
             try:
                 msg = decode(frame.payload)
             except DecodeError:

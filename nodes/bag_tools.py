@@ -3,7 +3,7 @@
     slipstack bag record [-a | TOPIC ...] [-o PATH] [--run-dir D] [--duration S]
     slipstack bag play PATH [--rate R] [--loop] [--topics T ...] [--start-offset S] [--restamp]
     slipstack bag info PATH
-    slipstack bag export PATH -o OUT.mcap|OUT.jsonl [--format mcap-json|jsonl]
+    slipstack bag export PATH -o OUT.mcap|OUT.jsonl [--format mcap-json|jsonl]   (other suffixes refused)
 
 The file layout (encodings, clocks, chunking) is described in ``nodes/bag_io.py``.
 """
@@ -15,8 +15,12 @@ from datetime import datetime
 from pathlib import Path
 
 from slipstack.lib.errors import ConfigError
+from slipstack.nodes.graph_info import RUN_DIR_HELP
 
-__all__ = ["add_parser", "format_info"]
+__all__ = ["add_parser", "format_info", "EXPORT_FORMATS"]
+
+EXPORT_SUFFIXES = {".mcap": "mcap-json", ".jsonl": "jsonl"}
+EXPORT_FORMATS = tuple(EXPORT_SUFFIXES.values())
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -30,7 +34,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     rec.add_argument("topics", nargs="*", metavar="TOPIC", help="topics to record")
     rec.add_argument("-a", "--all", action="store_true", help="record every topic (also ones appearing later)")
     rec.add_argument("-o", "--output", help="output .mcap file")
-    rec.add_argument("--run-dir", help="run directory of the graph (default: the current one)")
+    rec.add_argument("--run-dir", metavar="DIR", help=RUN_DIR_HELP)
     rec.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     rec.set_defaults(func=_main_record)
 
@@ -39,25 +43,31 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                                       "Running nodes subscribed to a played topic receive it through their inject "
                                       "endpoints. Without --restamp the recorded headers go out unchanged; with it, "
                                       "stamp_ns, pub_ns and sources are shifted so the first frame is stamped now.")
-    pl.add_argument("path")
+    pl.add_argument("path", help="recording (.mcap)")
     pl.add_argument("--rate", type=float, default=1.0, help="speed factor (default 1)")
     pl.add_argument("--loop", action="store_true", help="start over at the end")
     pl.add_argument("--topics", nargs="+", metavar="T", help="topics to play (default: all but diagnostics)")
     pl.add_argument("--start-offset", type=float, default=0.0, metavar="S", help="skip the first S seconds")
     pl.add_argument("--restamp", action="store_true", help="shift header stamps to the current time")
-    pl.add_argument("--endpoint", help="endpoint to bind (default ipc://<run dir>/player-<pid>.pub)")
-    pl.add_argument("--run-dir", help="run directory of the graph (default: the current one)")
+    pl.add_argument("--endpoint", help="endpoint to bind (default ipc://<run dir>/bag_play-<pid>.pub)")
+    pl.add_argument("--run-dir", metavar="DIR", help=RUN_DIR_HELP)
     pl.set_defaults(func=_main_play)
 
-    info = verbs.add_parser("info", help="summarise a recording")
-    info.add_argument("path")
+    info = verbs.add_parser("info", help="summarise a recording",
+                            description="Topics, counts, rates, sequence gaps and damage of a recording; reads "
+                                        "unfinished (killed) and damaged files as far as they go.")
+    info.add_argument("path", help="recording (.mcap)")
     info.set_defaults(func=_main_info)
 
-    ex = verbs.add_parser("export", help="export to JSON (Foxglove-readable MCAP or JSON lines)")
-    ex.add_argument("path")
+    ex = verbs.add_parser("export", help="export to JSON (Foxglove-readable MCAP or JSON lines)",
+                          description="Export a recording as MCAP with JSON messages and JSON Schemas (opens in "
+                                      "Foxglove) or as JSON lines. The format follows the output's suffix; "
+                                      "other suffixes (.csv ...) are refused: for CSV use "
+                                      "`slipstack topic echo TOPIC --csv` on a played recording.")
+    ex.add_argument("path", help="recording (.mcap)")
     ex.add_argument("-o", "--output", required=True, help="OUT.mcap or OUT.jsonl")
-    ex.add_argument("--format", choices=("mcap-json", "jsonl"),
-                    help="default: from the output suffix (.jsonl → jsonl, else mcap-json)")
+    ex.add_argument("--format", choices=EXPORT_FORMATS,
+                    help="mcap-json or jsonl; default: from the output suffix (.mcap, .jsonl)")
     ex.set_defaults(func=_main_export)
 
 
@@ -72,6 +82,8 @@ def _main_record(args: argparse.Namespace) -> int:
 
 
 def _main_play(args: argparse.Namespace) -> int:
+    if not args.rate > 0:  # before anything is read or connected
+        raise ConfigError(f"--rate must be > 0 (a speed factor: 1 = as recorded, 2 = twice as fast), got {args.rate:g}")
     from slipstack.nodes.player import play
 
     play(args.path, topics=args.topics, rate=args.rate, loop=args.loop, start_offset_s=args.start_offset,
@@ -118,7 +130,10 @@ def _main_info(args: argparse.Namespace) -> int:
 def _main_export(args: argparse.Namespace) -> int:
     from slipstack.nodes.bag_io import export_recording
 
-    fmt = args.format or ("jsonl" if args.output.endswith(".jsonl") else "mcap-json")
+    fmt = args.format or EXPORT_SUFFIXES.get(Path(args.output).suffix.lower())
+    if fmt is None:
+        raise ConfigError(f"cannot tell the export format from {args.output!r}: name it OUT.mcap (MCAP with JSON, "
+                          "for Foxglove) or OUT.jsonl (JSON lines), or give --format; CSV is not an export format")
     n = export_recording(args.path, args.output, fmt)
     print(f"wrote {args.output}: {n} messages ({fmt})")
     return 0

@@ -23,6 +23,7 @@ NODE_TYPES: dict[str, str] = {
     "player": "slipstack.nodes.player:Player",
     "ft_driver": "slipstack.nodes.ft_driver:FtDriver",
     "tactile_driver": "slipstack.nodes.tactile_driver:TactileDriver",
+    "foxglove": "slipstack.nodes.foxglove_bridge:FoxgloveBridge",
 }
 
 

@@ -19,7 +19,11 @@ A :class:`DeviceDriver` owns one back-end chosen by URL
   nominal sample period (strictly increasing), not one shared stamp;
 - the back-end's counters are mirrored into ``diagnostics`` as ``device.<name>``
   (``device.frames``, ``device.crc_errors``, ``device.rejected_bytes``,
-  ``device.reconnects``, …), and the node status is the link status.
+  ``device.reconnects``, …), and the node status is the link status;
+- a device that cannot be opened or is lost is said at once: one log line per new
+  error (the terminal of ``slipstack run`` / ``launch``), ``last_error`` on
+  ``diagnostics``, status ``disconnected: URL: error``; retries follow the
+  back-off without a busy loop.
 
 Subclasses set ``kind`` ("ft" or "tactile") and implement :meth:`on_sample` and
 :meth:`publish_status`.
@@ -68,7 +72,8 @@ class DeviceDriver(Node):
             raise ConfigError(f"{self.name}: {p.url!r} is a {self.backend.kind} device; use one of {wanted}")
         self.status_period_ns = round(p.stale_status_period_ms * 1e6)
         self.sample_period_s = 1.0 / self.backend.rate_hz
-        self.status = LinkStatus.DISCONNECTED.value
+        self.status = "starting"  # not a link status: the first poll reports whatever it finds
+        self._reported_error = ""
         self._last_status_pub_ns: int | None = None
         self._sources: list[IoSource] = []
         self._seen: dict[str, int] = {}
@@ -172,7 +177,13 @@ class DeviceDriver(Node):
             return
         if changed:
             self.on_link_lost()
-            ctx.set_status(status, self.params.url)
+        error = self.backend.last_error if status == LinkStatus.DISCONNECTED.value else ""
+        if changed or error != self._reported_error:
+            ctx.set_status(status, f"{self.params.url}: {error}" if error else self.params.url)
+        if error and error != self._reported_error:
+            ctx.report_error(f"{self.params.url}: {error}; retrying (back-off up to "
+                             f"{self.backend.backoff_max_s:g} s). Check the device path or address (docs/drivers.md)")
+        self._reported_error = error
         if changed or self._last_status_pub_ns is None or (
             ctx.now_ns() - self._last_status_pub_ns >= self.status_period_ns
         ):

@@ -11,6 +11,12 @@
                       "inject": {topic: endpoint the node's SUB binds, for `topic pub`},
                       "restarts": int}}}
 
+A tool that publishes on the bus (``topic pub``, ``bag play``) registers its own
+publish endpoint beside it, in ``<run_dir>/tool-<name>.json`` (:func:`register_tool`:
+``{"type", "pid", "start_ticks", "pub", "outputs"}``); :func:`read_graph` lists the
+tools whose process is alive among the nodes (``"tool": true``, no inputs), so
+``topic echo``, ``topic list`` and the recorder find what they publish.
+
 ``<run root>/current`` is a symlink to the newest run directory; tools use it
 unless ``--run-dir`` or ``$SLIPSTACK_RUN_DIR`` names another. A run directory whose
 launcher is gone (SIGKILLed: nobody removed the directory) is refused as stale.
@@ -24,13 +30,18 @@ from pathlib import Path
 from typing import Any
 
 from slipstack.lib.errors import ConfigError
-from slipstack.nodes.curve import use_keys
 from slipstack.nodes.run_dir import CURRENT_LINK, point_current, run_root, write_private_file
 
-__all__ = ["GRAPH_FILE", "write_graph", "read_graph", "find_run_dir", "topic_endpoints", "process_start_ticks"]
+__all__ = ["GRAPH_FILE", "RUN_DIR_HELP", "write_graph", "read_graph", "find_run_dir", "topic_endpoints", "process_start_ticks",
+           "register_tool"]
 
 GRAPH_FILE = "graph.json"
+_TOOL_GLOB = "tool-*.json"
+MAX_TOOLS = 32  # live registered tools listed at most (by name)
 RUN_DIR_ENV = "SLIPSTACK_RUN_DIR"
+RUN_DIR_HELP = (f"run directory of the graph (default: ${RUN_DIR_ENV} if set, else the newest run, "
+                f"$SLIPSTACK_RUN_ROOT/current; the run root defaults to /tmp/slipstack-<uid>)")
+"""The ``--run-dir`` help of every tool: one wording for the two variables."""
 
 
 def process_start_ticks(pid: int) -> int | None:
@@ -88,8 +99,41 @@ def read_graph(run_dir: Path) -> dict[str, Any]:
     (a tool attaching from outside the launch)."""
     graph = json.loads((run_dir / GRAPH_FILE).read_text())
     if graph.get("keys"):
+        from slipstack.nodes.curve import use_keys  # zmq: only for a graph with keys
+
         use_keys(graph["keys"])
+    for name, tool in _live_tools(run_dir):
+        graph["nodes"].setdefault(name, tool)
     return graph
+
+
+def _live_tools(run_dir: Path) -> list[tuple[str, dict[str, Any]]]:
+    """``(name, node entry)`` of the registered tools whose process still runs."""
+    out: list[tuple[str, dict[str, Any]]] = []
+    for path in sorted(run_dir.glob(_TOOL_GLOB)):
+        if len(out) >= MAX_TOOLS:
+            break
+        try:
+            tool = json.loads(path.read_text())
+            alive = process_start_ticks(int(tool["pid"])) == tool["start_ticks"]
+            entry = {"type": str(tool["type"]), "pid": tool["pid"], "pub": str(tool["pub"]), "tool": True,
+                     "inputs": {}, "outputs": {str(k): str(v) for k, v in dict(tool["outputs"]).items()},
+                     "inject": {}, "restarts": 0}
+        except (OSError, ValueError, KeyError, TypeError):
+            continue  # removed meanwhile, or not one of ours
+        if alive:
+            out.append((path.stem.removeprefix("tool-"), entry))
+    return out
+
+
+def register_tool(run_dir: Path, name: str, pub: str, outputs: dict[str, str]) -> Path:
+    """List a bus tool's publish endpoint ``pub`` (topics ``outputs``: topic → message type)
+    in ``run_dir`` for the other tools and the recorder; returns the file to remove at exit
+    (a file left by a killed tool is ignored: its process is gone)."""
+    pid = os.getpid()
+    doc = {"type": name.split("-")[0], "pid": pid, "start_ticks": process_start_ticks(pid), "pub": pub,
+           "outputs": outputs}
+    return write_private_file(run_dir, f"tool-{name}.json", json.dumps(doc))
 
 
 def topic_endpoints(graph: dict[str, Any]) -> dict[str, list[str]]:

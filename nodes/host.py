@@ -25,6 +25,8 @@ from slipstack.nodes.node import Node
 __all__ = ["NodeHost", "DIAGNOSTICS_TOPIC"]
 
 DIAGNOSTICS_TOPIC = "diagnostics"
+_MAX_ORIGINS = 256  # (input, origin) sequence trackers kept; the oldest is forgotten first
+_MAX_LOGGED_ERRORS = 64  # distinct handler errors remembered so that each is logged once
 
 
 def _clip(text: str) -> str:
@@ -81,6 +83,7 @@ class NodeHost:
         self.shutdown_requested = False
         self._measure = measure_handlers
         self._durations: deque[int] = deque(maxlen=2000)
+        self._logged_errors: set[tuple[str, str, str]] = set()
         self._log = log or (lambda text: print(text, file=sys.stderr, flush=True))
         self._handlers = {n: getattr(node, f"on_{n}") for n in node.inputs}
         self.on_publish: Callable[[str, Message, Header], None] | None = None
@@ -123,6 +126,10 @@ class NodeHost:
     def log(self, text: str) -> None:
         self._log(text)
 
+    def report_error(self, text: str) -> None:
+        self.last_error = text
+        self._log(f"error: {text}")
+
     def shutdown(self) -> None:
         self.shutdown_requested = True
 
@@ -131,7 +138,7 @@ class NodeHost:
         """Decode and validate one frame; count it; ``None`` if rejected.
 
         ``origin`` names the stream the frame came from (the publisher's endpoint, or
-        ``"inject"`` for frames put in by tools): sequence gaps are tracked per topic and
+        ``"inject/<sender>"`` for frames put in by tools, ``"inject"`` if the sender gave no name): sequence gaps are tracked per topic and
         origin, and a sequence that goes back (a respawned publisher) is no loss.
         ``skipped``: frames of the same origin received before this one but not decoded
         (:meth:`skip`); they fill as much of a sequence gap.
@@ -150,6 +157,8 @@ class NodeHost:
         last = self._last_seq.get(key)
         if last is not None and seq > last + 1 + skipped:
             counters[lost] += seq - last - 1 - skipped
+        if key not in self._last_seq and len(self._last_seq) >= _MAX_ORIGINS:
+            del self._last_seq[next(iter(self._last_seq))]  # forget the oldest origin
         self._last_seq[key] = seq
         return msg
 
@@ -175,11 +184,17 @@ class NodeHost:
         t0 = time.perf_counter_ns() if self._measure else 0
         try:
             fn(*args)
-        except Exception:  # a handler bug must not kill the control loop
+        except Exception as exc:  # a handler bug must not kill the control loop
             self.counters["handler_errors"] += 1
             self.status = "error"
             self.detail = f"{label} raised; see log"
-            self._log(f"error in {label}:\n{traceback.format_exc().rstrip()}")
+            self.last_error = _clip(f"{label}: {type(exc).__name__}: {exc}")
+            seen = (label, type(exc).__name__, str(exc))
+            if seen not in self._logged_errors:  # a repeating error is logged once, then counted
+                if len(self._logged_errors) < _MAX_LOGGED_ERRORS:
+                    self._logged_errors.add(seen)
+                self._log(f"error in {label} (logged once; repeats count as handler_errors on diagnostics):\n"
+                          f"{traceback.format_exc().rstrip()}")
         if self._measure:
             self._durations.append(time.perf_counter_ns() - t0)
 

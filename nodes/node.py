@@ -81,6 +81,9 @@ class Context(Protocol):
     def log(self, text: str) -> None:
         """Write one log line (the launcher prefixes it with the node name)."""
 
+    def report_error(self, text: str) -> None:
+        """Say what went wrong: ``last_error`` on ``diagnostics`` and one log line."""
+
     def shutdown(self) -> None:
         """Ask the executor to stop this node after the current handler (e.g. a scene ended)."""
 
@@ -178,7 +181,8 @@ def make_params(params_cls: type, values: dict[str, Any], node_name: str = "node
     """Build a params dataclass from loose values (launch file, ``name:=value``).
 
     Raises:
-        ConfigError: an unknown name (listing the known ones) or an unreadable value.
+        ConfigError: an unknown name (listing the known ones), a missing required one
+            (with its help text) or an unreadable value.
     """
     hints = typing.get_type_hints(params_cls)
     known = {f.name for f in dataclasses.fields(params_cls)}
@@ -187,6 +191,13 @@ def make_params(params_cls: type, values: dict[str, Any], node_name: str = "node
         raise ConfigError(
             f"{node_name}: unknown parameter(s) {', '.join(unknown)}; known: {', '.join(sorted(known)) or 'none'}"
         )
+    missing = [f for f in dataclasses.fields(params_cls) if f.name not in values
+               and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
+    if missing:
+        f = missing[0]
+        about = f" ({f.metadata['help']})" if f.metadata.get("help") else ""
+        raise ConfigError(f"{node_name}: missing parameter {f.name}{about}; give it as {f.name}:=VALUE "
+                          "(or in the node's params in the launch file)")
     coerced = {k: _coerce(v, hints[k], f"{node_name}.{k}") for k, v in values.items()}
     try:
         return params_cls(**coerced)

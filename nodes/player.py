@@ -10,9 +10,12 @@ stamps keep the recorded spacing, not the played one).
 
 Two front ends share :class:`Playback`:
 
-* ``slipstack bag play`` (:func:`play`): binds its own XPUB (``--endpoint``) and
-  connects it to the *inject* endpoints (``graph.json``) of the running nodes that
-  subscribe to the played topics, so they receive the frames;
+* ``slipstack bag play`` (:func:`play`): publishes on its own endpoint
+  (``--endpoint``), registered in the run directory so ``topic echo`` and the
+  recorders see the frames, and injects them into the running nodes that subscribe
+  to the played topics (their *inject* endpoints in ``graph.json``), each frame named
+  after the recorded publisher it came from, so the nodes track sequence gaps per
+  recorded publisher (:mod:`slipstack.nodes.tool_pub`);
 * the ``player`` node type in a launch file: outputs are the recording's topics, so
   the launcher wires subscribers to it (needs the launcher to read a node's outputs
   from the instance; see the report on issue 6).
@@ -21,22 +24,20 @@ Two front ends share :class:`Playback`:
 from __future__ import annotations
 
 import bisect
-import os
 import sys
 import time
 from dataclasses import dataclass, field
 from typing import Callable
 
-import zmq
 
 from slipstack.lib.errors import ConfigError
 from slipstack.messages import registry
-from slipstack.nodes.bag_io import RecordedFrame, clock_offset_ns, peek_header, read_recording, restamp
+from slipstack.nodes.bag_io import RecordedFrame, clock_offset_ns, peek_header, publisher_key, read_recording, restamp
 from slipstack.nodes.stop_signal import StopSignal
 from slipstack.nodes.graph_info import find_run_dir, read_graph
 from slipstack.nodes.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.node import Context, Node, Output
-from slipstack.nodes.transport import ipc_endpoint, make_pub
+from slipstack.nodes.tool_pub import BusPublisher, InjectionSender, tool_name
 
 __all__ = ["Playback", "Player", "PlayerParams", "load_frames", "play"]
 
@@ -186,9 +187,10 @@ def play(
 ) -> int:
     """``slipstack bag play``: publish until done or SIGINT/SIGTERM; returns frames sent.
 
-    The XPUB binds ``endpoint`` (default ``ipc://<run dir>/player-<pid>.pub``) and connects
-    to the inject endpoint of every running node that subscribes to a played topic;
-    playback starts once they have all subscribed (or after ``wait_s``).
+    Publishes on ``endpoint`` (default ``ipc://<run dir>/bag_play-<pid>.pub``, registered in
+    the run directory) and injects into every running node that subscribes to a played
+    topic; playback starts once they and the graph's recorders have subscribed (or after
+    ``wait_s`` each).
 
     Raises:
         ConfigError: neither ``endpoint`` nor a running graph.
@@ -196,6 +198,7 @@ def play(
     frames = load_frames(path, topics, start_offset_s)
     played = {f.topic for f in frames}
     injects: list[tuple[str, str]] = []
+    graph_nodes: dict = {}
     rd = None
     try:
         rd = find_run_dir(run_dir)
@@ -203,22 +206,29 @@ def play(
         if endpoint is None:
             raise
     if rd is not None:
-        for node in read_graph(rd)["nodes"].values():
+        graph_nodes = read_graph(rd)["nodes"]
+        for node in graph_nodes.values():
             injects += [(t, ep) for t, ep in node.get("inject", {}).items() if t in played]
-    endpoint = endpoint or ipc_endpoint(rd, f"player-{os.getpid()}")  # one path per player: ipc binds steal
-    zctx = zmq.Context.instance()
-    sock = make_pub(zctx, endpoint, sndhwm=100_000)
-    for ep in sorted({ep for _, ep in injects}):  # one endpoint per node, whatever its topics
-        sock.connect(ep)
+    types = {}
+    for f in frames:
+        types.setdefault(f.topic, _type_of(f.payload))
+    name = tool_name("bag_play")  # one endpoint per player: ipc binds steal
+    bus = BusPublisher(rd, name, types, endpoint=endpoint, sndhwm=100_000)
+    injector = InjectionSender([ep for _, ep in injects], name, sndhwm=100_000)  # one per node, whatever its topics
     stop = StopSignal().install()
     try:
-        _wait_for_subscriptions(sock, injects, wait_s)
+        want: dict[str, int] = {}
+        for topic, _ in injects:
+            want[topic] = want.get(topic, 0) + 1
+        injector.wait_for_subscriptions(want, wait_s)
+        bus.wait_for_recorders(sum(1 for n in graph_nodes.values() if n.get("type") == "recorder"), wait_s)
         echo(f"playing {path}: {len(frames)} frames on {', '.join(sorted(played))} at {rate:g}x "
-             f"from {endpoint}, into {len(injects)} subscriber(s)")
+             f"from {bus.endpoint}, into {len(injects)} subscriber(s)")
         pb = Playback(frames, rate, loop, clock_offset_ns(path, frames) if restamp_stamps else None)
         while not stop.requested and not pb.done:
             for topic, payload in pb.due(time.monotonic_ns()):
-                sock.send_multipart((topic.encode(), payload), copy=True)
+                bus.send(topic, payload)
+                injector.send(topic, payload, publisher_key(topic, peek_header(payload)))
             nxt = pb.next_due_ns()
             if nxt is not None:
                 wait = nxt - time.monotonic_ns()
@@ -227,19 +237,6 @@ def play(
         echo(f"played {pb.sent} frames ({pb.passes} loops)")
         return pb.sent
     finally:
-        sock.close(linger=1000)
+        injector.close()
+        bus.close()
         stop.restore()
-
-
-def _wait_for_subscriptions(sock: zmq.Socket, injects: list[tuple[str, str]], wait_s: float) -> None:
-    """Wait until each connected inject SUB has subscribed (XPUB_VERBOSE shows them)."""
-    want: dict[bytes, int] = {}
-    for topic, _ in injects:
-        want[topic.encode()] = want.get(topic.encode(), 0) + 1
-    seen: dict[bytes, int] = {}
-    deadline = time.monotonic() + wait_s
-    while any(seen.get(t, 0) < n for t, n in want.items()) and time.monotonic() < deadline:
-        if sock.poll(20):
-            frame = sock.recv()
-            if frame[:1] == b"\x01":
-                seen[frame[1:]] = seen.get(frame[1:], 0) + 1

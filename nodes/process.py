@@ -48,7 +48,7 @@ from slipstack.nodes.host import DIAGNOSTICS_TOPIC, NodeHost
 from slipstack.nodes.node import Node
 from slipstack.nodes.rate_limit import TokenBucket
 from slipstack.nodes.curve import secure_bind
-from slipstack.nodes.transport import bound_socket, make_pub, make_sub
+from slipstack.nodes.transport import MAX_ORIGIN_BYTES, bound_socket, make_pub, make_sub
 
 __all__ = ["ProcessExecutor", "RunSpec"]
 
@@ -67,7 +67,9 @@ class RunSpec:
 
     pub: endpoint to bind (``ipc://…`` or ``tcp://…``); ``None`` for a pure sink.
     subs: topic → endpoints publishing it.
-    inject: topic → endpoint that one extra SUB socket of this node *binds* (the same
+    inject: topic → endpoint that one extra SUB socket of this node *binds* (frames
+        ``[topic, payload]`` or ``[topic, payload, origin]``, sequence gaps tracked per
+        origin; the same
         endpoint for all its input topics), so a tool (``topic pub``, ``bag play``, a
         fault injector) can connect a PUB to it and reach the node.
     expected_subscribers: topic → number of subscriptions to wait for before data flows.
@@ -252,12 +254,14 @@ class _Member:
                     host.count("inject.pauses")
                     break
                 continue
-            names = self.inject_routes.get(parts[0], []) if len(parts) == 2 else []
+            names = self.inject_routes.get(parts[0], []) if len(parts) in (2, 3) else []
             if not names:
                 host.count("in.injected.rejected")
-                host.last_error = f"injected frame: expected [topic, payload] on an input topic, got {len(parts)} parts"
+                host.last_error = (f"injected frame: expected [topic, payload(, origin)] on an input topic, "
+                                   f"got {len(parts)} parts")
+            origin = "inject/" + parts[2][:MAX_ORIGIN_BYTES].decode(errors="replace") if len(parts) == 3 else "inject"
             for input_name in names:
-                msg = host.receive(input_name, parts[1], "inject")
+                msg = host.receive(input_name, parts[1], origin)
                 if msg is None:
                     continue
                 if input_name in self.queues:
@@ -459,6 +463,9 @@ class ProcessExecutor:
                 events = poller.poll(0)
                 if not events:
                     time.sleep(wait_ns / 1e9)
+            elif not poller.sockets:  # nothing to watch (a device not open, no inputs): zmq would not wait
+                events = []
+                time.sleep(min(wait_ns, 50_000_000) / 1e9)
             else:
                 events = poller.poll(min(-(-wait_ns // 1_000_000), 50))
             for item, _ in events:

@@ -213,9 +213,15 @@ def record(
     Prints the output path on stdout first.
 
     Raises:
-        ConfigError: no running graph (names how to start one).
+        ConfigError: no running graph (names how to start one), or a topic no node of
+            the graph publishes (names the ones it does); nothing is written then.
     """
     rd = find_run_dir(run_dir)
+    published = topic_endpoints(read_graph(rd))
+    unknown = sorted(set(topics or []) - set(published))
+    if unknown:
+        raise ConfigError(f"no node of the running graph publishes {', '.join(unknown)}; "
+                          f"its topics: {', '.join(sorted(published)) or 'none'} (or -a for all)")
     writer = RecordingWriter(out, wall_minus_monotonic_ns=time.time_ns() - time.monotonic_ns())
     bus = BusRecorder(writer, topics, run_dir=rd)
     stop = StopSignal().install()

@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 from slipstack.lib.episodes import find_episodes
-from slipstack.lib.errors import DecodeError
+from slipstack.lib.errors import ConfigError, DecodeError
 from slipstack.lib.identify import (
     IdentifyConfig,
     RampEstimate,
@@ -462,6 +462,9 @@ def plot_report(series: RecordingSeries, out: str | Path, *, title: str | None =
 
 # -- command line -------------------------------------------------------------------------
 
+FIGURE_FORMATS = ("png", "pdf", "svg", "svgz", "eps", "ps", "jpg", "jpeg", "tif", "tiff", "webp", "pgf")
+"""Figure files matplotlib writes without extra packages (its Agg, PDF, SVG, PS and PGF backends)."""
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("report", help="paper-style figure or friction identification of a recording",
                        description="Plot a recording as a paper-style figure (normal force, tangential load and "
@@ -481,6 +484,10 @@ def main_report(args: argparse.Namespace) -> int:
     path = Path(args.recording)
     if not path.is_file():
         raise RecordingError(f"no recording at {path}")
+    out = Path(args.output) if args.output else path.with_suffix(".png")
+    if not args.identify and out.suffix.lower().lstrip(".") not in FIGURE_FORMATS:
+        raise ConfigError(f"cannot write a figure as {out.name!r}: the suffix names the format; use one of "
+                          f"{', '.join('.' + f for f in FIGURE_FORMATS)}")
     if not args.identify:
         try:
             import matplotlib  # noqa: F401
@@ -491,7 +498,6 @@ def main_report(args: argparse.Namespace) -> int:
     if args.identify:
         print(format_identification(identify_recording(series)))
         return 0
-    out = Path(args.output) if args.output else path.with_suffix(".png")
     panels = plot_report(series, out, title=args.title, mu=args.mu)
     print(out)
     print(summarize(series))

@@ -1,6 +1,7 @@
 """``slipstack topic echo``: print a topic's messages as they arrive.
 
-One SUB socket per publisher (from ``graph.json``), so sequence gaps are counted
+One SUB socket per publisher (from ``graph.json``, re-read every
+:data:`REFRESH_PERIOD_S` for tools that publish, such as ``topic pub``), so sequence gaps are counted
 per publisher (``diagnostics`` has one publisher per node); a sequence number that
 does not go up is a restart (a respawned node starts again at 0), not a loss.
 Frames are drained in batches and printed with one buffered write per batch, which
@@ -28,12 +29,15 @@ import zmq
 from slipstack.lib.errors import ConfigError, DecodeError
 from slipstack.messages import Message, decode
 from slipstack.nodes.topic_format import as_tree, check_field, csv_cell, flatten, pick, render_yaml
-from slipstack.nodes.topic_tools import load_graph, resolve_topic
+from slipstack.nodes.graph_info import read_graph
+from slipstack.nodes.topic_tools import TopicInfo, load_graph, resolve_topic
 from slipstack.nodes.transport import make_sub
 
-__all__ = ["SeqTracker", "MessagePrinter", "add_arguments", "main_echo"]
+__all__ = ["SeqTracker", "MessagePrinter", "main_echo"]
 
 BATCH = 500  # frames read from one publisher before the output is written
+REFRESH_PERIOD_S = 0.5  # how often the graph is re-read for new publishers (tools that publish)
+MAX_PUBLISHERS = 256  # publishers of one topic listened to at most
 _FILTER_BUILTINS = {f.__name__: f for f in (abs, all, any, len, max, min, round, sum, float, int, bool, str)}
 
 
@@ -82,7 +86,11 @@ class MessagePrinter:
         self._csv = csv.writer(self._buf, lineterminator="\n")
 
     def format(self, msg: Message) -> str | None:
-        """Text for one message, or ``None`` if it lacks the requested field."""
+        """Text for one message, or ``None`` if it lacks the requested map key.
+
+        Raises:
+            ConfigError: the field path cannot exist in this message type (bad index).
+        """
         tree: Any = as_tree(msg)
         if self.field is not None:
             found, tree = pick(tree, self.field)
@@ -120,8 +128,12 @@ def _write(stream: TextIO, text: str) -> None:
 
 
 def main_echo(args: argparse.Namespace) -> int:
-    """Run ``topic echo``; returns 0, or 1 if ``--timeout`` passed without any message."""
-    _, graph = load_graph(args.run_dir)
+    """Run ``topic echo``; returns 0, or 1 if ``--timeout`` passed without any message printed.
+
+    Raises:
+        ConfigError: a field path no message can have, or a ``--filter`` that raises.
+    """
+    run_dir, graph = load_graph(args.run_dir)
     info = resolve_topic(graph, args.topic)
     cls = info.message_type()
     if args.field:
@@ -135,26 +147,43 @@ def main_echo(args: argparse.Namespace) -> int:
 
     ctx = zmq.Context.instance()
     topic_b = info.name.encode()
-    socks = {make_sub(ctx, [e.address], info.name, rcvhwm=args.qos_depth): e.node for e in publishers}
-    trackers = {node: SeqTracker() for node in socks.values()}
+    socks: dict[zmq.Socket, str] = {}
+    trackers: dict[str, SeqTracker] = {}
     poller = zmq.Poller()
-    for s in socks:
-        poller.register(s, zmq.POLLIN)
+    connected: set[str] = set()
+
+    def connect_new(found: TopicInfo) -> None:
+        """A SUB for each publisher not yet connected (tools such as ``topic pub`` come and go)."""
+        for e in found.publishers:
+            if e.address and e.address not in connected and len(connected) < MAX_PUBLISHERS:
+                sock = make_sub(ctx, [e.address], found.name, rcvhwm=args.qos_depth)
+                socks[sock] = e.node
+                trackers.setdefault(e.node, SeqTracker())
+                poller.register(sock, zmq.POLLIN)
+                connected.add(e.address)
+
+    connect_new(info)
+    next_refresh = time.monotonic() + REFRESH_PERIOD_S
     out, err = sys.stdout, sys.stderr
     printed = rejected = 0
-    filter_failed = False
-    last_msg = time.monotonic()
+    deadline = None if args.timeout is None else time.monotonic() + args.timeout
     try:
         while limit is None or printed < limit:
+            if deadline is not None and time.monotonic() >= deadline:
+                if printed == 0:
+                    print(f"topic echo: no message on {info.name} within {args.timeout:g} s"
+                          + (" (none passed --filter)" if keep is not None else ""), file=err)
+                    return 1
+                return 0
+            if time.monotonic() >= next_refresh:
+                next_refresh = time.monotonic() + REFRESH_PERIOD_S
+                try:
+                    connect_new(resolve_topic(read_graph(run_dir), info.name))
+                except (OSError, ValueError, ConfigError):
+                    pass  # the graph file is being rewritten or the launch ended: keep what we have
             ready = dict(poller.poll(200))
             if not ready:
-                if args.timeout is not None and time.monotonic() - last_msg > args.timeout:
-                    if printed == 0:
-                        print(f"topic echo: no message on {info.name} within {args.timeout:g} s", file=err)
-                        return 1
-                    return 0
                 continue
-            last_msg = time.monotonic()
             chunks: list[str] = []
             notes: list[str] = []
             for sock in ready:
@@ -187,11 +216,11 @@ def main_echo(args: argparse.Namespace) -> int:
                         try:
                             if not keep(msg):
                                 continue
-                        except Exception as exc:  # the user's expression: report once, skip
-                            if not filter_failed:
-                                notes.append(f"topic echo: --filter raised {type(exc).__name__}: {exc}")
-                                filter_failed = True
-                            continue
+                        except Exception as exc:  # the user's expression: say why and stop
+                            raise ConfigError(
+                                f"--filter {args.filter!r} raised {type(exc).__name__}: {exc} on a "
+                                f"{cls.TYPE} message; the message is `m`, e.g. 'm.header.seq % 10 == 0'"
+                            ) from None
                     text = printer.format(msg)
                     if text is None:
                         continue
@@ -215,28 +244,3 @@ def main_echo(args: argparse.Namespace) -> int:
     if lost or rejected:
         print(f"topic echo: {printed} printed, {lost} lost, {rejected} rejected", file=err)
     return 0
-
-
-def add_arguments(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = verbs.add_parser(
-        "echo", help="print a topic's messages",
-        description="Print the messages of TOPIC as YAML-ish text (one message per block, "
-                    "separated by '---'), or as CSV. Lost messages (sequence gaps, per publisher) "
-                    "and rejected frames are reported on stderr.",
-    )
-    p.add_argument("topic", help="topic name, e.g. ft/wrench")
-    p.add_argument("--once", action="store_true", help="print one message and exit")
-    p.add_argument("--count", type=int, metavar="N", help="print N messages and exit")
-    p.add_argument("--field", metavar="a.b", help="print only this field, e.g. force or header.stamp_ns")
-    p.add_argument("--csv", action="store_true", help="one CSV line per message (arrays flattened), after a header line")
-    p.add_argument("--no-arr", action="store_true", help="hide array values (show dtype and shape)")
-    p.add_argument("--truncate-length", type=int, default=16, metavar="N",
-                   help="array values shown before '...' (default 16)")
-    p.add_argument("--filter", metavar="EXPR",
-                   help="print only messages for which the Python expression is true, e.g. 'm.node == \"relay\"'")
-    p.add_argument("--timeout", type=float, metavar="S",
-                   help="exit after S seconds without a message (exit code 1 if none came at all)")
-    p.add_argument("--qos-depth", type=int, default=2000, metavar="N",
-                   help="frames queued per publisher before the publisher drops for us (default 2000)")
-    p.set_defaults(func=main_echo)
-    return p

@@ -37,24 +37,34 @@ def pick(tree: Any, path: str) -> tuple[bool, Any]:
     """Follow ``a.b.c`` into ``tree``; returns ``(found, value)``.
 
     Map keys may contain dots themselves (``counters.in.ft/wrench.rejected``): the
-    longest key that matches a prefix of the remaining path wins.
+    longest key that matches a prefix of the remaining path wins; a key absent from a
+    map is ``(False, None)`` (another message may have it). Arrays take a flat index
+    (``pressure_pa.17`` is row 1, column 1 of a 16-column pad, as in the CSV columns).
+
+    Raises:
+        ConfigError: the path indexes an array out of range or goes into a scalar; no
+            message of the same type can have it.
     """
     rest = path
     node = tree
     while rest:
+        done = path[: len(path) - len(rest)].rstrip(".") or "the message"
         if isinstance(node, dict):
             for key in sorted((k for k in node if rest == k or rest.startswith(k + ".")), key=len, reverse=True):
                 node, rest = node[key], rest[len(key) + 1:]
                 break
             else:
                 return False, None
-        elif isinstance(node, np.ndarray) and node.ndim == 1:
+        elif isinstance(node, np.ndarray):
             head, _, rest = rest.partition(".")
-            if not head.isdigit() or int(head) >= node.shape[0]:
-                return False, None
-            node = node[int(head)].item()
+            if not head.isdigit() or int(head) >= node.size:
+                raise ConfigError(f"field {path!r}: {done} is an array of {node.size} value(s) "
+                                  f"(shape {tuple(node.shape)}); index it with 0..{node.size - 1}, "
+                                  f"e.g. --field {done}.0")
+            node = node.reshape(-1)[int(head)].item()
         else:
-            return False, None
+            raise ConfigError(f"field {path!r}: {done} is a single value ({_scalar(node)}); "
+                              f"nothing to index with {rest!r}: use --field {done}")
     return True, node
 
 

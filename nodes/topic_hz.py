@@ -1,4 +1,4 @@
-"""``slipstack topic hz``: a topic's rate and period statistics over a window.
+"""``slipstack topic hz`` and ``topic delay``: a topic's rate, or its latency, over a window.
 
 Cheap by design (a 1 kHz topic must cost a few percent of a core, ros2cli#795):
 payloads are never decoded. The loop blocks in ``poll`` until frames arrive, then
@@ -10,6 +10,10 @@ Statistics over the last ``window`` times (ros2's ``topic hz`` output)::
 
     average rate: 1000.012
         min: 0.000412s max: 0.001603s std dev: 0.00008s window: 1000
+
+``topic delay`` prints receive time minus ``stamp_ns`` the same way (``average
+delay: ...``): the stamp is the time of the sensor sample a message derives from, so
+this is the sample-to-here latency on the same host (both CLOCK_MONOTONIC).
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ import sys
 import time
 from collections import deque
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 import zmq
@@ -28,7 +33,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.nodes.topic_tools import load_graph, resolve_topic
 from slipstack.nodes.transport import make_sub
 
-__all__ = ["peek_header", "RateStats", "rate_stats", "add_arguments", "main_hz"]
+__all__ = ["peek_header", "RateStats", "rate_stats", "format_delay", "main_hz", "main_delay"]
 
 _BATCH = 5000
 _UINT = {0xCC: struct.Struct(">B"), 0xCD: struct.Struct(">H"), 0xCE: struct.Struct(">I"), 0xCF: struct.Struct(">Q"),
@@ -97,8 +102,42 @@ def rate_stats(times_ns: np.ndarray) -> RateStats | None:
                      float(periods.std()), int(times_ns.size))
 
 
+def _format_rate(times_ns: np.ndarray, use_stamps: bool) -> str:
+    series = np.sort(times_ns) if use_stamps else times_ns
+    s = rate_stats(series)
+    if s is None:
+        return ""
+    return (f"average rate: {s.rate_hz:.3f}\n\tmin: {s.min_s:.6f}s max: {s.max_s:.6f}s "
+            f"std dev: {s.std_s:.6f}s window: {s.window}\n")
+
+
+def format_delay(delays_ns: np.ndarray) -> str:
+    """ros2's ``topic delay`` lines for delays (receive time − header stamp, ns)."""
+    if not delays_ns.size:
+        return ""
+    d = delays_ns * 1e-9
+    return (f"average delay: {d.mean():.6f}s\n\tmin: {d.min():.6f}s max: {d.max():.6f}s "
+            f"std dev: {d.std():.6f}s window: {d.size}\n")
+
+
 def main_hz(args: argparse.Namespace) -> int:
     """Print rate statistics once per second until Ctrl-C (or ``--duration``)."""
+    use_stamps = args.use_stamps
+    return _watch(args, lambda now, stamp: stamp if use_stamps else now, use_stamps,
+                  lambda series: _format_rate(series, use_stamps))
+
+
+def main_delay(args: argparse.Namespace) -> int:
+    """``topic delay``: receive time minus the header's ``stamp_ns`` (the sensor sample the
+    message derives from: sample-to-here latency), once per second."""
+    return _watch(args, lambda now, stamp: now - stamp, True, format_delay)
+
+
+def _watch(args: argparse.Namespace, value: Callable[[int, int], int], needs_stamp: bool,
+           report: Callable[[np.ndarray], str]) -> int:
+    """Collect ``value(receive_ns, stamp_ns)`` per frame of ``args.topic`` over the last
+    ``args.window`` frames; print ``report(values)`` once per second until Ctrl-C or
+    ``args.duration``. Receive times and stamps are CLOCK_MONOTONIC ns (one host)."""
     _, graph = load_graph(args.run_dir)
     info = resolve_topic(graph, args.topic)
     endpoints = [e.address for e in info.publishers if e.address]
@@ -107,11 +146,10 @@ def main_hz(args: argparse.Namespace) -> int:
     if args.window < 2:
         raise ConfigError("--window must be at least 2")
     topic_b = info.name.encode()
-    use_stamps = args.use_stamps
     ctx = zmq.Context.instance()
     sock = make_sub(ctx, endpoints, info.name, rcvhwm=max(1000, args.window))
-    times: deque[int] = deque(maxlen=args.window)
-    append = times.append
+    values: deque[int] = deque(maxlen=args.window)
+    append = values.append
     clock = time.monotonic_ns
     recv = sock.recv_multipart
     unparsed = 0
@@ -134,27 +172,21 @@ def main_hz(args: argparse.Namespace) -> int:
                     if topic != topic_b:
                         continue
                     new += 1
-                    if use_stamps:
+                    stamp = 0
+                    if needs_stamp:
                         head = peek_header(payload)
                         if head is None:
                             unparsed += 1
                             continue
-                        append(head[0])
-                    else:
-                        append(clock())
+                        stamp = head[0]
+                    append(value(clock(), stamp))
             now = clock()
             if now >= next_print:
                 next_print += 1_000_000_000 * (1 + (now - next_print) // 1_000_000_000)
                 if not new:
                     out.write("no new messages\n")
                 else:
-                    series = np.fromiter(times, dtype=np.int64, count=len(times))
-                    if use_stamps:
-                        series.sort()
-                    s = rate_stats(series)
-                    if s is not None:
-                        out.write(f"average rate: {s.rate_hz:.3f}\n\tmin: {s.min_s:.6f}s max: {s.max_s:.6f}s "
-                                  f"std dev: {s.std_s:.6f}s window: {s.window}\n")
+                    out.write(report(np.fromiter(values, dtype=np.int64, count=len(values))))
                     if unparsed:
                         out.write(f"\t{unparsed} frame(s) without a readable header stamp\n")
                 new = 0
@@ -164,19 +196,3 @@ def main_hz(args: argparse.Namespace) -> int:
     finally:
         sock.close(linger=0)
     return 0
-
-
-def add_arguments(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = verbs.add_parser(
-        "hz", help="print a topic's rate",
-        description="Print the average rate and period min/max/std of TOPIC over the last --window "
-                    "messages, once per second, from receive times (or header stamps).",
-    )
-    p.add_argument("topic", help="topic name, e.g. ft/wrench")
-    p.add_argument("-w", "--window", type=int, default=10000, metavar="N",
-                   help="messages the statistics cover (default 10000)")
-    p.add_argument("--use-stamps", action="store_true",
-                   help="use the messages' header.stamp_ns instead of receive times")
-    p.add_argument("--duration", type=float, metavar="S", help="exit after S seconds (default: until Ctrl-C)")
-    p.set_defaults(func=main_hz)
-    return p

@@ -4,25 +4,30 @@
     slipstack topic info TOPIC [-v]
     slipstack topic echo TOPIC [--once] [--count N] [--field a.b] [--csv] [--no-arr] ...
     slipstack topic hz TOPIC [--window N] [--use-stamps]
+    slipstack topic delay TOPIC [--window N]
     slipstack topic pub TOPIC [TYPE] [VALUES] [--once | --times N] [--rate HZ]
 
 Every verb reads the graph from ``<run_dir>/graph.json`` (``--run-dir``, else
 ``$SLIPSTACK_RUN_DIR``, else the newest run; see
 :func:`slipstack.nodes.graph_info.find_run_dir`). This module holds the graph
 view the verbs share, ``list`` and ``info``, and the argument parsers; ``echo``,
-``hz`` and ``pub`` live in :mod:`.topic_echo`, :mod:`.topic_hz`, :mod:`.topic_pub`.
+``hz`` and ``pub`` live in :mod:`.topic_echo`, :mod:`.topic_hz`, :mod:`.topic_pub`,
+imported only when they run (``topic list`` starts without numpy).
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Callable
 
 from slipstack.lib.errors import ConfigError
-from slipstack.messages import Message, registry
-from slipstack.nodes.graph_info import find_run_dir, read_graph
+from slipstack.nodes.graph_info import RUN_DIR_HELP, find_run_dir, read_graph
+
+if TYPE_CHECKING:
+    from slipstack.messages import Message
 
 __all__ = ["Endpoint", "TopicInfo", "load_graph", "graph_topics", "resolve_topic", "add_parser"]
 
@@ -62,6 +67,8 @@ class TopicInfo:
             ConfigError: the topic's publishers and subscribers disagree on the type, or
                 the type is not known to this installation.
         """
+        from slipstack.messages import registry  # numpy: only for the verbs that decode
+
         if len(self.types) != 1:
             raise ConfigError(f"topic {self.name} is declared with several types: {', '.join(self.types)}")
         cls = registry.get(self.types[0])
@@ -149,13 +156,12 @@ def main_info(args: argparse.Namespace) -> int:
 
 
 def _run_dir_option(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--run-dir", metavar="DIR",
-                   help="run directory of the graph (default: $SLIPSTACK_RUN_DIR, else the newest run)")
+    p.add_argument("--run-dir", metavar="DIR", help=RUN_DIR_HELP)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add ``topic`` and its verbs to the ``slipstack`` command."""
-    from slipstack.nodes import topic_echo, topic_hz, topic_pub
+    """Add ``topic`` and its verbs to the ``slipstack`` command (the verbs' modules are
+    imported when the verb runs)."""
 
     topic = sub.add_parser("topic", help="inspect and poke the running graph's topics",
                            description="Inspect and poke the topics of a running graph.")
@@ -175,6 +181,96 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     _run_dir_option(p)
     p.set_defaults(func=main_info)
 
-    for module in (topic_echo, topic_hz, topic_pub):
-        p = module.add_arguments(verbs)
-        _run_dir_option(p)
+    for add in (_add_echo, _add_hz, _add_delay, _add_pub):
+        _run_dir_option(add(verbs))
+
+
+def _lazy(module: str, function: str) -> Callable[[argparse.Namespace], int]:
+    """``module.function``, imported when called."""
+
+    def run(args: argparse.Namespace) -> int:
+        return getattr(importlib.import_module(module), function)(args)
+
+    return run
+
+
+def _add_echo(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    p = verbs.add_parser(
+        "echo", help="print a topic's messages",
+        description="Print the messages of TOPIC as YAML-ish text (one message per block, "
+                    "separated by '---'), or as CSV. Lost messages (sequence gaps, per publisher) "
+                    "and rejected frames are reported on stderr.",
+    )
+    p.add_argument("topic", help="topic name, e.g. ft/wrench")
+    p.add_argument("--once", action="store_true", help="print one message and exit")
+    p.add_argument("--count", type=int, metavar="N", help="print N messages and exit")
+    p.add_argument("--field", metavar="a.b", help="print only this field, e.g. force or header.stamp_ns")
+    p.add_argument("--csv", action="store_true", help="one CSV line per message (arrays flattened), after a header line")
+    p.add_argument("--no-arr", action="store_true", help="hide array values (show dtype and shape)")
+    p.add_argument("--truncate-length", type=int, default=16, metavar="N",
+                   help="array values shown before '...' (default 16)")
+    p.add_argument("--filter", metavar="EXPR",
+                   help="print only messages for which the Python expression is true, e.g. 'm.node == \"relay\"'")
+    p.add_argument("--timeout", type=float, metavar="S",
+                   help="exit S seconds after the start, however many messages came (exit code 1 if "
+                        "none was printed)")
+    p.add_argument("--qos-depth", type=int, default=2000, metavar="N",
+                   help="frames queued per publisher before the publisher drops for us (default 2000)")
+    p.set_defaults(func=_lazy("slipstack.nodes.topic_echo", "main_echo"))
+    return p
+
+
+def _add_hz(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    p = verbs.add_parser(
+        "hz", help="print a topic's rate",
+        description="Print the average rate and period min/max/std of TOPIC over the last --window "
+                    "messages, once per second, from receive times (or header stamps).",
+    )
+    _window_options(p)
+    p.add_argument("--use-stamps", action="store_true",
+                   help="use the messages' header.stamp_ns instead of receive times")
+    p.set_defaults(func=_lazy("slipstack.nodes.topic_hz", "main_hz"))
+    return p
+
+
+def _add_delay(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    p = verbs.add_parser(
+        "delay", help="print a topic's sample-to-here latency",
+        description="Print the average, min, max and std of (receive time - header.stamp_ns) of TOPIC over "
+                    "the last --window messages, once per second. The stamp is the time of the sensor "
+                    "sample a message derives from, so this is the latency from the sample to this tool.",
+    )
+    _window_options(p)
+    p.set_defaults(func=_lazy("slipstack.nodes.topic_hz", "main_delay"))
+    return p
+
+
+def _window_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("topic", help="topic name, e.g. ft/wrench")
+    p.add_argument("-w", "--window", type=int, default=10000, metavar="N",
+                   help="messages the statistics cover (default 10000)")
+    p.add_argument("--duration", type=float, metavar="S", help="exit after S seconds (default: until Ctrl-C)")
+
+
+def _add_pub(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    p = verbs.add_parser(
+        "pub", help="publish messages by hand",
+        description="Publish a message on TOPIC to the nodes that subscribe to it (through their "
+                    "injection endpoints) and on the bus, where topic echo and the recorders see it. "
+                    "VALUES are YAML flow text; unset fields keep defaults. "
+                    "Example: slipstack topic pub grip/command '{f_n_desired: 12.0, law: manual}' --rate 10",
+    )
+    p.add_argument("topic", help="topic name, e.g. grip/command")
+    p.add_argument("values", nargs="*", metavar="[TYPE] VALUES",
+                   help="optional message type (checked against the graph), then the field values")
+    p.add_argument("-r", "--rate", type=float, default=1.0, metavar="HZ", help="publishing rate (default 1 Hz)")
+    once = p.add_mutually_exclusive_group()
+    once.add_argument("-1", "--once", action="store_true", help="publish one message and exit")
+    once.add_argument("-t", "--times", type=int, metavar="N", help="publish N messages and exit")
+    p.add_argument("-w", "--wait", type=float, default=3.0, metavar="S",
+                   help="how long to wait for the subscribers to join (default 3 s)")
+    p.add_argument("-p", "--print", dest="print_nth", type=int, default=1, metavar="N",
+                   help="print every N-th publication (0: never; default 1)")
+    p.set_defaults(func=_lazy("slipstack.nodes.topic_pub", "main_pub"))
+    return p
+

@@ -24,10 +24,14 @@ from slipstack.nodes.run_dir import RUN_ROOT_ENV, make_run_dir, run_root
 
 __all__ = [
     "make_run_dir", "ipc_endpoint", "make_pub", "make_sub", "bound_socket", "RUN_ROOT_ENV", "run_root",
-    "MAX_SUBSCRIPTION_BYTES", "SUBSCRIPTION_HWM",
+    "MAX_SUBSCRIPTION_BYTES", "SUBSCRIPTION_HWM", "MAX_ORIGIN_BYTES",
 ]
 
 IPC_PATH_MAX = 107  # Linux sun_path limit (libzmq zmq_ipc)
+
+MAX_ORIGIN_BYTES = 64
+"""Longest sender name an injected ``[topic, payload, origin]`` frame may carry (bytes, UTF-8);
+longer ones are cut."""
 
 
 def ipc_endpoint(run_dir: Path, name: str) -> str:

@@ -178,6 +178,11 @@ class Backend(ABC):
         return min(times) if times else None
 
     @property
+    def last_error(self) -> str:
+        """Why the link last failed to open or was lost ("" if it never failed)."""
+        return self._link.last_error
+
+    @property
     def counters(self) -> dict[str, int]:
         """Snapshot of the counters (module docstring)."""
         c = dict(self._own)

@@ -222,3 +222,30 @@ def test_garbage_unplug_and_replug(backend, run_dir):
     finally:
         assert driver.stop() == 0, driver.log()
         emu.close()
+
+
+@pytest.mark.parametrize("node,url", [("ft_driver", "robotiq:///dev/ttyNOPE"),
+                                      ("tactile_driver", "dsacon32:///dev/ttyNOPE?fps=100")])
+def test_wrong_device_path_is_said_and_retried_without_spinning(node, url, run_dir):
+    """Issue 13 item 1: ``slipstack run ft_driver url:=robotiq:///dev/ttyNOPE``: an error line
+    on the terminal, ``disconnected`` with the open error on diagnostics, and a back-off that
+    sleeps (loop wake-ups per second of diagnostics stamps stay far below a busy loop's)."""
+    driver = Driver(node, url, run_dir)
+    try:
+        diags = []
+        deadline = time.monotonic() + 20
+        while len(diags) < 3:
+            assert time.monotonic() < deadline, f"diagnostics: {diags}\n{driver.log()}"
+            diags += [m for t, m in driver.receive(1.0) if t == "diagnostics"]
+        last = diags[-1]
+        assert last.status.startswith("disconnected"), last.status
+        assert "/dev/ttyNOPE" in last.status and "No such file" in last.last_error, last
+        first, last = diags[0], diags[-1]
+        span_s = (last.header.stamp_ns - first.header.stamp_ns) / 1e9
+        wakeups_per_s = (last.counters["loop.wakeups"] - first.counters["loop.wakeups"]) / span_s
+        assert wakeups_per_s < 2000, f"{wakeups_per_s:.0f} loop wake-ups per second: a busy loop"
+        errors = [line for line in driver.log().splitlines() if "error" in line and "/dev/ttyNOPE" in line]
+        assert len(errors) == 1, driver.log()  # said once, not once per retry
+        assert "docs/drivers.md" in errors[0]
+    finally:
+        assert driver.stop() == 0, driver.log()

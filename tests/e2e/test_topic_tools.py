@@ -199,3 +199,106 @@ def test_peek_header_and_rate_stats_match_hand_values():
     s = rate_stats(np.array([0, 1_000_000, 2_000_000, 4_000_000], dtype=np.int64))  # periods 1, 1, 2 ms
     assert s.rate_hz == pytest.approx(750.0) and (s.min_s, s.max_s) == pytest.approx((1e-3, 2e-3))
     assert s.std_s == pytest.approx(np.std([1e-3, 1e-3, 2e-3]))
+
+
+# -- issue 13 item 3: echo exits on what can never print, and --timeout is a total deadline ----
+@pytest.mark.parametrize("field,words", [("force.5", "force is an array of 3 value(s)"),
+                                         ("status.0", "status is a single value")])
+def test_echo_a_field_no_message_can_have_is_a_clear_error(demo, field, words):
+    out = demo.cli("topic", "echo", "ft/wrench", "--field", field, "--once")
+    assert out.returncode == 2, out
+    assert words in out.stderr and "Traceback" not in out.stderr, out.stderr
+
+
+def test_echo_a_filter_that_raises_is_a_clear_error(demo):
+    out = demo.cli("topic", "echo", "ft/wrench", "--filter", "m.nosuch > 1")
+    assert out.returncode == 2, out
+    assert "--filter 'm.nosuch > 1' raised AttributeError" in out.stderr, out.stderr
+
+
+def test_echo_timeout_is_a_total_deadline_on_a_busy_topic(demo):
+    """1 kHz keeps arriving: a per-frame timeout would never expire (the subprocess timeout would)."""
+    out = demo.cli("topic", "echo", "ft/wrench", "--field", "header.seq", "--timeout", "1", timeout=30)
+    assert out.returncode == 0, out.stderr
+    assert len(out.stdout.split("---")) > 10
+
+
+def test_echo_a_filter_that_never_matches_ends_at_the_timeout(demo):
+    out = demo.cli("topic", "echo", "ft/wrench", "--filter", "m.header.seq < 0", "--timeout", "1", timeout=30)
+    assert out.returncode == 1, out
+    assert "none passed --filter" in out.stderr
+
+
+# -- issue 13 item 6: what topic pub sends is on the bus, and injectors do not fake losses ------
+def _relay_lost(demo) -> float:
+    out = _ok(demo.cli("topic", "echo", "diagnostics", "--field", "counters", "--once",
+                       "--timeout", "8", "--filter", "m.node == 'relay'"))
+    counters = dict(ln.split(": ") for ln in out.splitlines() if ": " in ln)
+    return float(counters.get("in.ft/wrench.lost", 0))
+
+
+def test_pub_is_seen_by_echo_and_bag_record_on_the_topic_itself(demo, tmp_path):
+    def tool(*args):
+        return subprocess.Popen([sys.executable, "-m", "slipstack.launch.cli", *args], env=demo.env,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+    echo = tool("topic", "echo", "ft/wrench", "--field", "force", "--filter", "m.force[0] == 7.25",
+                "--count", "3", "--timeout", "20")
+    bag = tmp_path / "pub.mcap"
+    record = tool("bag", "record", "ft/wrench", "-o", str(bag))
+    pub = demo.cli("topic", "pub", "ft/wrench", "{force: [7.25, 0, 1]}", "--times", "60", "--rate", "20",
+                   "-p", "0", timeout=60)
+    assert pub.returncode == 0, pub.stderr
+    out, err = echo.communicate(timeout=30)
+    assert echo.returncode == 0, err
+    assert out.split("\n---\n")[:3] == ["[7.25, 0.0, 1.0]"] * 3
+    record.send_signal(signal.SIGINT)
+    record.communicate(timeout=30)
+    from slipstack.messages import decode
+    from slipstack.nodes.bag_io import read_recording
+    injected = [f for f in read_recording(str(bag), ["ft/wrench"]) if decode(f.payload).force[0] == 7.25]
+    assert len(injected) >= 3
+    assert not list(demo.run_root.glob("*/tool-*.json"))  # the tools unregistered at exit
+
+
+def test_two_tools_injecting_at_once_are_no_loss(demo):
+    lost_before = _relay_lost(demo)
+    pubs = [subprocess.Popen([sys.executable, "-m", "slipstack.launch.cli", "topic", "pub", "ft/wrench",
+                              f"{{force: [{x}, 0, 1]}}", "--times", "40", "--rate", "40", "-p", "0"],
+                             env=demo.env, stderr=subprocess.PIPE, text=True) for x in (1.5, 2.5)]
+    for p in pubs:
+        _, err = p.communicate(timeout=60)
+        assert p.returncode == 0, err
+    time.sleep(1.5)  # a diagnostics period or two
+    assert _relay_lost(demo) == lost_before
+
+
+def test_bag_record_of_an_unknown_topic_names_the_known_ones(demo, tmp_path):
+    """Issue 13 item 8: ``bag record nosuch/topic`` wrote an empty file and exited 0."""
+    out = demo.cli("bag", "record", "nosuch/topic", "-o", str(tmp_path / "x.mcap"), "--duration", "1")
+    assert out.returncode == 2, out
+    assert "nosuch/topic" in out.stderr and "ft/wrench" in out.stderr
+    assert not (tmp_path / "x.mcap").exists()
+
+
+def test_delay_reports_sample_to_here_latency(demo):
+    """Issue 13 item 10: ``topic delay`` (receive time - header stamp), ros2's output form."""
+    out = _ok(demo.cli("topic", "delay", "ft/wrench", "--duration", "2.5", "--window", "500"))
+    delays = [float(m) for m in re.findall(r"average delay: ([0-9.e-]+)s", out)]
+    assert delays, out
+    assert all(0 <= d < 5.0 for d in delays), out  # stamps are taken before sending: never negative
+    assert "window: 500" in out
+
+
+def test_node_list_and_info_show_processes_parameters_and_counters(demo):
+    """Issue 13 item 10: ``node list`` / ``node info`` (pid, rates, counters, parameters)."""
+    listing = _ok(demo.cli("node", "list"))
+    pids = {n: e["pid"] for n, e in demo.graph()["nodes"].items()}
+    for name in ("source", "relay", "sink"):
+        assert f"{name}  [" in listing and f"pid {pids[name]} running" in listing
+    info = _ok(demo.cli("node", "info", "source"))
+    assert "type: wrench_source" in info and "ft/wrench [slipstack/Wrench]" in info
+    assert "rate_hz: 1000.0" in info  # the launch parameter, from the run spec
+    assert "status: ok" in info and re.search(r"out\.ft/wrench\.published: \d+", info)
+    out = demo.cli("node", "info", "nosuch")
+    assert out.returncode == 2 and "relay" in out.stderr

@@ -211,3 +211,28 @@ def test_player_node_feeds_a_relay_in_process(tmp_path):
     plain = InProcessExecutor([Player(PlayerParams(path=str(path))), Relay()])
     plain.run(until_ns=60_000_000)
     assert [m.header.stamp_ns for m in plain.published["ft/relayed"]] == [5_000_000_000 + k * 1_000_000 for k in range(50)]
+
+
+def test_a_corrupt_chunk_costs_only_its_own_messages(tmp_path):
+    """Issue 13 item 8: a finished file with one damaged chunk is read past it through its index."""
+    path = tmp_path / "e.mcap"
+    write_wrenches(path, 1000)  # 10 chunks: 9 of 101 messages, then 91
+    with open(path, "rb") as fh:
+        third = sorted(make_reader(fh).get_summary().chunk_indexes, key=lambda c: c.chunk_start_offset)[2]
+    data = bytearray(path.read_bytes())
+    middle = third.chunk_start_offset + third.chunk_length // 2
+    data[middle:middle + 16] = bytes(16)
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(bytes(data))
+    seqs = [decode(f.payload).header.seq for f in read_recording(damaged)]
+    assert seqs == [*range(202), *range(303, 1000)]
+    info = recording_info(damaged)
+    assert info.message_count == 1000 - 101 and "1 chunk(s) skipped as damaged" in info.damage
+
+
+@pytest.mark.parametrize("content", [b"", b"hello, not a recording\n"])
+def test_an_empty_or_text_file_is_not_a_recording(tmp_path, content):
+    path = tmp_path / "x.mcap"
+    path.write_bytes(content)
+    with pytest.raises(RecordingError, match="empty|not an MCAP recording"):
+        recording_info(path)

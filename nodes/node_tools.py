@@ -1,0 +1,125 @@
+"""``slipstack node list | info NAME``: the running graph's nodes (ros2's ``node`` verbs).
+
+``list`` reads ``graph.json`` (nodes and registered tools). ``info`` adds the node's
+launch parameters (from its process's run spec, ``<run_dir>/<process>.spec.json``)
+and its newest ``diagnostics`` frame (status, last error, counters), waiting up to
+``--timeout`` for one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+from slipstack.lib.errors import ConfigError
+from slipstack.nodes.graph_info import RUN_DIR_HELP, find_run_dir, process_start_ticks, read_graph
+
+__all__ = ["add_parser", "node_params"]
+
+_SPEC_GLOB = "*.spec.json"
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    node = sub.add_parser("node", help="list the running graph's nodes, or one node's state",
+                          description="The nodes of a running graph: names, types, processes; one node's "
+                                      "endpoints, parameters, status and counters.")
+    verbs = node.add_subparsers(dest="verb", required=True, metavar="VERB")
+    p = verbs.add_parser("list", help="the nodes: name, type, pid, restarts",
+                         description="List the nodes (and publishing tools) of the running graph.")
+    p.add_argument("--run-dir", metavar="DIR", help=RUN_DIR_HELP)
+    p.set_defaults(func=main_list)
+    p = verbs.add_parser("info", help="one node: endpoints, parameters, status, counters",
+                         description="Print a node's type, pid, topics, launch parameters and its newest "
+                                     "diagnostics (status, last error, counters).")
+    p.add_argument("name", help="node name (see `slipstack node list`)")
+    p.add_argument("--timeout", type=float, default=3.0, metavar="S",
+                   help="how long to wait for the node's diagnostics (default 3 s)")
+    p.add_argument("--run-dir", metavar="DIR", help=RUN_DIR_HELP)
+    p.set_defaults(func=main_info)
+
+
+def _alive(entry: dict[str, Any]) -> str:
+    pid = entry.get("pid")
+    return "running" if pid is not None and process_start_ticks(int(pid)) is not None else "down"
+
+
+def main_list(args: argparse.Namespace) -> int:
+    graph = read_graph(find_run_dir(args.run_dir))
+    for name, entry in sorted(graph["nodes"].items()):
+        kind = "tool" if entry.get("tool") else entry.get("type", "?")
+        print(f"{name}  [{kind}] pid {entry.get('pid')} {_alive(entry)}, restarts {entry.get('restarts', 0)}")
+    return 0
+
+
+def node_params(run_dir: Path, name: str) -> dict[str, Any] | None:
+    """The launch parameters of node ``name`` from the run specs (``None``: no spec names it)."""
+    for path in sorted(run_dir.glob(_SPEC_GLOB)):
+        try:
+            doc = json.loads(path.read_text())
+        except (OSError, ValueError):
+            continue
+        for member in doc.get("members", [doc]):
+            if isinstance(member, dict) and member.get("name") == name:
+                return dict(member.get("params", {}))
+    return None
+
+
+def _newest_diagnostics(endpoint: str, name: str, timeout_s: float) -> Any:
+    import zmq
+
+    from slipstack.lib.errors import DecodeError
+    from slipstack.messages import Diagnostics, decode
+    from slipstack.nodes.transport import make_sub
+
+    sock = make_sub(zmq.Context.instance(), [endpoint], "diagnostics", rcvhwm=100)
+    deadline = time.monotonic() + timeout_s
+    try:
+        while (left := deadline - time.monotonic()) > 0:
+            if not sock.poll(max(1, round(left * 1000))):
+                break
+            parts = sock.recv_multipart()
+            if len(parts) != 2 or parts[0] != b"diagnostics":
+                continue
+            try:
+                msg = decode(parts[1], Diagnostics)
+            except DecodeError:
+                continue
+            if msg.node == name:
+                return msg
+    finally:
+        sock.close(linger=0)
+    return None
+
+
+def main_info(args: argparse.Namespace) -> int:
+    run_dir = find_run_dir(args.run_dir)
+    graph = read_graph(run_dir)
+    entry = graph["nodes"].get(args.name)
+    if entry is None:
+        raise ConfigError(f"no node {args.name!r} in the running graph; nodes: {', '.join(sorted(graph['nodes']))}")
+    print(f"{args.name}")
+    print(f"  type: {entry.get('type')}  pid: {entry.get('pid')} ({_alive(entry)})  restarts: {entry.get('restarts', 0)}")
+    print(f"  publishes on {entry.get('pub') or 'nothing'}:")
+    for topic, type_name in sorted(entry.get("outputs", {}).items()):
+        print(f"    {topic} [{type_name}]")
+    print("  subscribes:")
+    for topic, type_name in sorted(entry.get("inputs", {}).items()):
+        print(f"    {topic} [{type_name}] (inject: {entry.get('inject', {}).get(topic, 'none')})")
+    params = node_params(run_dir, args.name)
+    print("  parameters:" + ("" if params else " (defaults)"))
+    for key, value in sorted((params or {}).items()):
+        print(f"    {key}: {value!r}")
+    diag = _newest_diagnostics(entry["pub"], args.name, args.timeout) if entry.get("pub") else None
+    if diag is None:
+        print(f"  diagnostics: none within {args.timeout:g} s")
+        return 0
+    print(f"  status: {diag.status}")
+    if diag.last_error:
+        print(f"  last error: {diag.last_error}")
+    print("  counters:")
+    for key, value in sorted(diag.counters.items()):
+        print(f"    {key}: {value:g}")
+    return 0

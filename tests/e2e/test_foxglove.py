@@ -1,0 +1,105 @@
+"""The live ``foxglove`` node against a real WebSocket client (issue 13, Foxglove).
+
+The test process publishes a wrench and a 16x16 tactile frame on its own XPUB; the node
+runs as ``slipstack run foxglove`` subscribed to it; a ``websockets`` client speaks the
+Foxglove WebSocket protocol (subprotocol ``foxglove.sdk.v1``): reads the advertised channels,
+subscribes, and decodes what arrives.
+"""
+
+from __future__ import annotations
+
+import json
+import socket
+import struct
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import zmq
+
+pytest.importorskip("foxglove", reason="the foxglove extra is not installed")
+sync_client = pytest.importorskip("websockets.sync.client", reason="websockets (a WebSocket client) is not installed")
+
+from slipstack.messages import Header, TactileFrame, Wrench, encode  # noqa: E402
+from slipstack.nodes.transport import make_pub  # noqa: E402
+
+pytestmark = pytest.mark.e2e
+
+SUBPROTOCOL = "foxglove.sdk.v1"  # the SDK's name for the Foxglove WebSocket protocol
+MESSAGE_DATA = 0x01
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _frames(k: int) -> list[tuple[str, bytes]]:
+    stamp = time.monotonic_ns()
+    pressure = np.arange(256, dtype="<f4") * 10.0 + k
+    return [
+        ("ft/wrench", encode(Wrench(force=np.array([0.0, 3.0, -4.0]), torque=np.zeros(3), frame="pad",
+                                    header=Header(stamp, k, stamp, {})))),
+        ("tactile/frame", encode(TactileFrame(pressure_pa=pressure, saturated=np.zeros(256, bool),
+                                              dead=np.zeros(256, bool), header=Header(stamp, k, stamp, {})))),
+    ]
+
+
+def test_a_websocket_client_subscribes_and_decodes_the_live_graph(tmp_path):
+    endpoint = f"ipc://{tmp_path}/bus.pub"
+    pub = make_pub(zmq.Context.instance(), endpoint)
+    port = _free_port()
+    log = open(tmp_path / "foxglove.log", "wb")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "slipstack.launch.cli", "run", "foxglove", f"port:={port}",
+         "--sub", f"ft/wrench={endpoint}", "--sub", f"tactile/frame={endpoint}"],
+        stdout=log, stderr=subprocess.STDOUT)
+    try:
+        ws = None
+        deadline = time.monotonic() + 30
+        while ws is None:
+            assert proc.poll() is None and time.monotonic() < deadline, (tmp_path / "foxglove.log").read_text()
+            try:
+                ws = sync_client.connect(f"ws://127.0.0.1:{port}", subprotocols=[SUBPROTOCOL], open_timeout=2)
+            except OSError:
+                time.sleep(0.2)
+        with ws:
+            channels: dict[str, dict] = {}
+            while not {"/slipstack/ft/wrench", "/pad/pressure", "/pad/scene"} <= set(channels):
+                msg = json.loads(ws.recv(timeout=10))
+                if msg.get("op") == "advertise":
+                    channels.update({c["topic"]: c for c in msg["channels"]})
+            assert channels["/pad/pressure"]["schemaName"] == "foxglove.RawImage"
+            assert channels["/pad/scene"]["schemaName"] == "foxglove.SceneUpdate"
+            wrench_schema = json.loads(channels["/slipstack/ft/wrench"]["schema"])
+            assert "force" in wrench_schema["properties"]
+            wanted = {"/slipstack/ft/wrench": 1, "/pad/pressure": 2}
+            ws.send(json.dumps({"op": "subscribe", "subscriptions": [
+                {"id": sub_id, "channelId": channels[topic]["id"]} for topic, sub_id in wanted.items()]}))
+            got: dict[int, bytes] = {}
+            k = 0
+            while len(got) < len(wanted):
+                assert time.monotonic() < deadline + 30, f"received only {sorted(got)}"
+                for topic, payload in _frames(k):  # until the node has joined and forwarded both
+                    pub.send_multipart((topic.encode(), payload))
+                k += 1
+                try:
+                    frame = ws.recv(timeout=0.2)
+                except TimeoutError:
+                    continue
+                if isinstance(frame, bytes) and frame[0] == MESSAGE_DATA:
+                    sub_id, _log_time = struct.unpack_from("<IQ", frame, 1)
+                    got[sub_id] = frame[13:]
+            wrench = json.loads(got[1])
+            assert wrench["force"] == [0.0, 3.0, -4.0] and wrench["frame"] == "pad"
+            # the pad as an image: the 16x16 float32 pressures, row 0 first, inside the RawImage
+            image = got[2]
+            assert any((np.arange(256, dtype="<f4") * 10.0 + j).tobytes() in image for j in range(k))
+    finally:
+        proc.terminate()
+        proc.wait(20)
+        log.close()
+        pub.close(linger=0)

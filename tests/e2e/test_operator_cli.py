@@ -1,0 +1,165 @@
+"""Issue 13 ("the operator's day"): the exact commands a new user types, as subprocesses.
+
+Each test is one item of the issue: the command, its exit code and the words it prints.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.e2e
+
+PY = sys.executable
+
+
+def slipstack(*args: str, timeout: float = 60.0, env: dict | None = None) -> subprocess.CompletedProcess:
+    """``slipstack ARGS`` as a subprocess (never hangs the suite: a hard timeout)."""
+    return subprocess.run([PY, "-m", "slipstack.launch.cli", *args], capture_output=True, text=True,
+                          timeout=timeout, env=env or dict(os.environ))
+
+
+# -- item 2: slipstack run NODE ----------------------------------------------------------------
+def test_run_without_pub_says_what_to_do_in_one_line():
+    out = slipstack("run", "wrench_source")
+    assert out.returncode == 2, out
+    assert "Traceback" not in out.stderr and len(out.stderr.splitlines()) == 1, out.stderr
+    assert "--pub ipc://" in out.stderr and "ft/wrench" in out.stderr
+
+
+def test_run_driver_without_url_names_the_missing_parameter():
+    out = slipstack("run", "ft_driver")
+    assert out.returncode == 2, out
+    assert len(out.stderr.splitlines()) == 1, out.stderr
+    assert "missing parameter url" in out.stderr and "url:=" in out.stderr
+    assert "__init__" not in out.stderr and "positional argument" not in out.stderr
+
+
+# -- item 8: bag and report error paths ----------------------------------------------------------
+@pytest.fixture
+def text_file(tmp_path):
+    path = tmp_path / "notes.txt"
+    path.write_text("hello, not a recording\n")
+    return path
+
+
+@pytest.fixture
+def recording(tmp_path):
+    """A small real recording (RecordingWriter, as the recorder writes it)."""
+    import numpy as np
+
+    from slipstack.messages import Header, Wrench, encode
+    from slipstack.nodes.bag_io import RecordingWriter
+
+    path = tmp_path / "run.mcap"
+    with RecordingWriter(path, wall_minus_monotonic_ns=1_000) as w:
+        for k in range(50):
+            stamp = 1_000_000_000 + k * 1_000_000
+            w.write("ft/wrench", encode(Wrench(force=np.array([0.0, 0.0, -5.0]), torque=np.zeros(3),
+                                               header=Header(stamp, k, stamp, {}))), stamp + 1_000)
+    return path
+
+
+@pytest.mark.parametrize("verb", ["info", "export"])
+@pytest.mark.parametrize("content", ["text", "empty"])
+def test_bag_info_and_export_refuse_what_is_not_a_recording(verb, content, text_file, tmp_path):
+    path = text_file if content == "text" else tmp_path / "empty.mcap"
+    if content == "empty":
+        path.write_bytes(b"")
+    args = ["bag", verb, str(path)] + (["-o", str(tmp_path / "out.mcap")] if verb == "export" else [])
+    out = slipstack(*args)
+    assert out.returncode == 2, out
+    assert ("not an MCAP recording" if content == "text" else "is empty") in out.stderr
+    assert not (tmp_path / "out.mcap").exists()
+
+
+def test_bag_export_to_csv_is_refused_with_the_formats(recording, tmp_path):
+    out = slipstack("bag", "export", str(recording), "-o", str(tmp_path / "x.csv"))
+    assert out.returncode == 2, out
+    assert "OUT.mcap" in out.stderr and "OUT.jsonl" in out.stderr
+    assert not (tmp_path / "x.csv").exists()
+
+
+def test_bag_play_rate_zero_is_refused_before_connecting(recording):
+    env = dict(os.environ, SLIPSTACK_RUN_DIR="/nonexistent/run")  # connecting would fail differently
+    out = slipstack("bag", "play", str(recording), "--rate", "0", env=env)
+    assert out.returncode == 2, out
+    assert "--rate must be > 0" in out.stderr and "no running" not in out.stderr
+
+
+def test_report_to_an_unknown_figure_format_lists_the_formats(recording, tmp_path):
+    out = slipstack("report", str(recording), "-o", str(tmp_path / "fig.xyz"))
+    assert out.returncode == 2, out
+    assert "fig.xyz" in out.stderr and ".png" in out.stderr and ".svg" in out.stderr
+    assert "Traceback" not in out.stderr
+
+
+# -- item 9: discoverability ------------------------------------------------------------------------
+def test_show_args_prints_each_arguments_comment():
+    out = slipstack("launch", "hardware", "--show-args")
+    assert out.returncode == 0, out.stderr
+    lines = {ln.split(" := ")[0]: ln for ln in out.stdout.splitlines()}
+    assert lines["sensor_offset_m"].endswith("# F/T sensor origin in the pad frame (m)")
+    assert "# or robotiq:///dev/ttyUSB0" in lines["ft_url"]  # a '#' after a value holding '?' and '='
+    assert "#" not in lines["pad_rows"]  # no comment, none invented
+
+
+def test_launch_of_an_unknown_file_lists_the_shipped_ones():
+    out = slipstack("launch", "nosuch")
+    assert out.returncode == 2, out
+    assert "Shipped launch files:" in out.stderr and "fig15" in out.stderr and "hardware" in out.stderr
+
+
+@pytest.mark.parametrize("args", [["controller=false"], ["demo", "controller=false"]])
+def test_one_equals_sign_hints_the_launch_argument_form(args):
+    out = slipstack("launch", *args)
+    assert out.returncode == 2, out
+    assert "controller:=false" in out.stderr
+
+
+def test_every_bag_verb_has_help_text():
+    out = slipstack("bag", "--help")
+    for verb in ("record", "play", "info", "export"):
+        line = next(ln for ln in out.stdout.splitlines() if ln.strip().startswith(verb))
+        assert len(line.split()) > 1, line
+
+
+def test_run_dir_help_names_both_variables_like_the_readme():
+    readme = (Path(__file__).parents[2] / "README.md").read_text()
+    for args in (["topic", "list", "--help"], ["bag", "record", "--help"]):
+        text = " ".join(slipstack(*args).stdout.split())
+        assert "$SLIPSTACK_RUN_DIR" in text and "$SLIPSTACK_RUN_ROOT/current" in text, text
+    assert "$SLIPSTACK_RUN_DIR" in readme and "$SLIPSTACK_RUN_ROOT/current" in readme
+
+
+@pytest.mark.parametrize("args", [["--help"], ["topic", "list"]])
+def test_help_and_topic_list_start_without_the_numeric_stack(args, tmp_path):
+    """Start-up cost is what is imported (a load-independent check): no numpy, scipy, numba
+    or node types for ``--help`` and ``topic list`` (measured: ~0.06-0.1 s, from 1.5 s)."""
+    probe = ("import sys, runpy\n"
+             f"sys.argv = ['slipstack', *{args!r}]\n"
+             "try:\n    runpy.run_module('slipstack.launch.cli', run_name='__main__')\n"
+             "except SystemExit:\n    pass\n"
+             "heavy = sorted(m for m in ('numpy', 'scipy', 'numba', 'zmq', 'slipstack.nodes.node') if m in sys.modules)\n"
+             "print('HEAVY', heavy, file=sys.stderr)\n")
+    env = dict(os.environ, SLIPSTACK_RUN_ROOT=str(tmp_path))  # topic list: no graph here, a one-line error
+    out = subprocess.run([PY, "-c", probe], capture_output=True, text=True, timeout=60, env=env)
+    assert "HEAVY []" in out.stderr, out.stderr
+
+
+# -- item 1, as the issue typed it -------------------------------------------------------------------
+def test_hardware_launch_with_a_wrong_device_path_says_so(launch):
+    """``slipstack launch hardware.toml ft_url:=robotiq:///dev/ttyNOPE tactile:=false record:=false``:
+    an error line from ft_driver on the terminal and ``disconnected`` with the error on diagnostics."""
+    g = launch("hardware.toml", "ft_url:=robotiq:///dev/ttyNOPE", "tactile:=false", "record:=false")
+    g.wait_ready()
+    out = g.cli("topic", "echo", "diagnostics", "--once", "--timeout", "20", "--filter", "m.node == 'ft_driver'")
+    assert out.returncode == 0, out.stderr
+    assert "status: \"disconnected: robotiq:///dev/ttyNOPE" in out.stdout, out.stdout
+    assert "No such file or directory" in out.stdout
+    errors = [ln for ln in g.log().splitlines() if ln.startswith("[ft_driver] error:") and "ttyNOPE" in ln]
+    assert len(errors) == 1, g.log()
