@@ -60,7 +60,7 @@ import sys
 import tempfile
 import time
 import tomllib
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -114,11 +114,13 @@ class Mutant:
     end_col: int
     in_kernel: bool
     at_module_level: bool
+    occurrence: int = 0
 
     @property
     def key(self) -> str:
-        """Stable name used in ``equivalent.txt``: ``path:line:col operator``."""
-        return f"{self.path}:{self.line}:{self.col} {self.operator}"
+        """Stable name used in ``equivalent.txt``: ``path:line:col operator``, with ``/k`` for
+        the k-th further mutant of the same kind at the same place (a chained comparison)."""
+        return f"{self.path}:{self.line}:{self.col} {self.operator}" + (f"/{self.occurrence}" if self.occurrence else "")
 
     def describe(self) -> str:
         return f"{self.key}: `{self.original}` -> `{self.mutated}`"
@@ -264,7 +266,12 @@ def collect_mutants(path: str, source: str) -> list[Mutant]:
     """Every mutant of one module's source, in source order."""
     collector = _Collector(path, source)
     collector.visit(ast.parse(source))
-    return sorted(collector.mutants, key=lambda m: (m.line, m.col, m.operator, m.mutated))
+    mutants, seen = [], {}
+    for m in sorted(collector.mutants, key=lambda m: (m.line, m.col, m.operator, m.mutated)):
+        place = (m.line, m.col, m.operator)
+        seen[place] = seen.get(place, -1) + 1
+        mutants.append(replace(m, occurrence=seen[place]))
+    return mutants
 
 
 def apply(source: str, mutant: Mutant) -> str:
@@ -537,8 +544,8 @@ def main(argv: list[str] | None = None) -> int:
         selected[path] = mutants
     if args.rerun:
         earlier = json.loads(args.rerun.read_text())
-        again = {f"{o['path']}:{o['line']}:{o['col']} {o['operator']}" for outs in earlier.values() for o in outs
-                 if o["status"] in ("survived", "error", "equivalent")}
+        again = {Mutant(**{k: v for k, v in o.items() if k not in ("status", "seconds", "detail")}).key
+                 for outs in earlier.values() for o in outs if o["status"] in ("survived", "error", "equivalent")}
         selected = {p: [m for m in ms if m.key in again] for p, ms in selected.items()}
     if args.list:
         for path, mutants in selected.items():
