@@ -301,4 +301,4 @@ def test_far_warm_starts_are_pulled_in_by_the_line_search_within_a_few_steps():
         for c0 in ((1.0, 0.0), (-3e-2, 5e-2), (0.3, -0.4)):
             res = solve_weber(PAD.positions, phi, b, c0=c0)
             assert res.status is SolverStatus.CONVERGED and res.iterations <= 7, (b, c0, res)
-            assert res.c == pytest.approx(cold.c, abs=1e-12)
+            assert res.c == pytest.approx(cold.c, abs=1e-10)  # xtol 1e-9 of the 3 mm contact radius
