@@ -326,27 +326,31 @@ def test_coincident_taxels_are_a_point_contact_and_loads_beyond_float_range_inva
     pad = PadGeometry(4, 4, 1e-3)
     huge = load_factor(np.full(16, 1e-300), pad.positions, (1e300, 1e300), 1e-3, MU)
     assert huge.status is SolverStatus.INVALID_INPUT
+    # |f_t|/(μ f_n) overflows while the torque about the (exactly central) centre of pressure does not
+    square = PadGeometry(2, 2, 1e-3).positions
+    assert load_factor(np.full(4, 1e-300), square, (1e300, 0.0), 1e-3, MU).status is SolverStatus.INVALID_INPUT
 
 
-def test_near_translation_switch_sits_at_1e_5_of_the_spread_along_the_force():
+@pytest.mark.parametrize("along", ["y", "x"])
+def test_near_translation_switch_sits_at_1e_5_of_the_spread_along_the_force(along):
     # A contact elongated along x, pushed along y with the line of action a lever arm
     # a = k·1e-5·σ off the centre of pressure (σ: RMS spread along f_t, computed here).
     # Below the switch (k < 1): TRANSLATION by the expansion γ = γ_t (1 + a²/(2σ²));
     # above: the Dinkelbach iteration, whose COR lies about σ²/a away. Both sides must
     # agree with the expansion to rounding, so the switch is continuous.
     pad = PadGeometry(8, 8, 1.25e-3)
-    P = pad.positions
-    x, y = P.T
+    P = pad.positions if along == "y" else pad.positions[:, ::-1]  # the same contact turned
+    x, y = pad.positions.T
     phi = np.where(np.abs(y) < 2e-3, 1.0 + 0.3 * (x > 0), 0.0)
     f_n = phi.sum()
     cop = phi @ P / f_n
-    f_t = np.array([0.0, 0.02])
-    sigma = math.sqrt(phi @ ((P - cop) @ np.array([0.0, 1.0])) ** 2 / f_n)
+    f_t = np.array([0.0, 0.02]) if along == "y" else np.array([0.02, 0.0])
+    sigma = math.sqrt(phi @ ((P - cop) @ (f_t / 0.02)) ** 2 / f_n)
     gamma_t = 0.02 / (MU * f_n)
     tau_through_cop = -(f_t[0] * cop[1] - f_t[1] * cop[0])
     for k in (0.5, 0.999, 1.001, 2.0):
         lever = k * 1e-5 * sigma
-        res = load_factor(phi, P, f_t, tau_through_cop + lever * 0.02, MU)
+        res = load_factor(phi, P, f_t, tau_through_cop + lever * 0.02 * (1 if along == "y" else -1), MU)
         assert res.gamma / gamma_t - 1.0 == pytest.approx((lever / sigma) ** 2 / 2, rel=1e-4, abs=1e-15), k
         if k < 1:
             assert res.case is SlipCase.TRANSLATION and res.p_c is None, k
