@@ -442,3 +442,13 @@ def test_a_force_through_a_point_contact_perpendicular_to_its_position_is_a_tran
             f_t = (k * py, -k * px)
             res = load_factor(phi, pad.positions, f_t, -(f_t[0] * py - f_t[1] * px), MU)
             assert res.status is SolverStatus.TRANSLATION, (taxel, k, res)
+
+
+def test_a_line_contact_pushed_across_through_its_centre_is_a_plain_translation():
+    # Taxels on the x axis have no spread along y: a force along y through the centre of
+    # pressure has γ = |f_t|/(μ f_n) exactly (no correction term, no division by zero).
+    pts = np.array([[-1e-3, 0.0], [0.0, 0.0], [2e-3, 0.0]])
+    phi = np.array([1.0, 2.0, 1.0])
+    cop_x = phi @ pts[:, 0] / phi.sum()
+    res = load_factor(phi, pts, (0.0, 0.1), 0.1 * cop_x, MU)  # τ = −(f × p̄) = f_y·p̄_x
+    assert res.status is SolverStatus.TRANSLATION and res.gamma == 0.1 / (MU * 4.0)
