@@ -358,6 +358,7 @@ def test_near_translation_switch_sits_at_1e_5_of_the_spread_along_the_force(alon
         if k < 1:
             assert res.case is SlipCase.TRANSLATION and res.p_c is None, k
             assert (res.torque_capacity, res.load_torque, res.sense, res.iterations, res.residual) == (0, 0, 0, 0, 0)
+        assert res.taxel == -1 and res.cop == tuple(p)
             assert res.cop == pytest.approx(tuple(cop), abs=1e-15) and res.taxel == -1
         else:
             assert res.case is SlipCase.ROTATION and res.status is SolverStatus.CONVERGED, k
@@ -410,10 +411,12 @@ def test_point_contact_in_both_senses_and_a_force_through_it(sign):
         assert res.status is SolverStatus.TRANSLATION and res.p_c is None, (taxel, res)
         assert res.gamma == pytest.approx(np.hypot(*f_t) / (MU * 2.0))
         assert (res.torque_capacity, res.load_torque, res.sense, res.iterations, res.residual) == (0, 0, 0, 0, 0)
+        assert res.taxel == -1 and res.cop == tuple(p)
         twisted = load_factor(phi, pad.positions, f_t, through + sign * 1e-4, MU)
         assert twisted.status is SolverStatus.POINT_CONTACT and twisted.gamma == math.inf
         assert twisted.sense == (1 if sign > 0 else -1) and twisted.load_torque == pytest.approx(sign * 1e-4)
         assert twisted.taxel == taxel and twisted.torque_capacity == 0.0 and twisted.iterations == 0
+        assert twisted.residual == 0.0 and twisted.cop == tuple(p)
     # a single taxel at the pad origin under a pure force: a translation, not a point contact
     res = load_factor(np.array([1.0, 0.0]), np.array([[0.0, 0.0], [1e-3, 0.0]]), (0.2, 0.1), 0.0, MU)
     assert res.status is SolverStatus.TRANSLATION and res.gamma == pytest.approx(np.hypot(0.2, 0.1) / MU)
