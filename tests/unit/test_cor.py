@@ -256,7 +256,7 @@ def test_weber_solver_out_of_steps_says_so():
     assert full.status is SolverStatus.CONVERGED
     short = solve_weber(PAD.positions, phi, (0.2 * phi.sum(), 0.1 * phi.sum()), c0=(-9e-3, 9e-3), max_iter=1)
     assert short.status is SolverStatus.MAX_ITER and not short.converged
-    assert short.c is not None and short.iterations == 1 and short.residual > 1e-3
+    assert short.c is not None and short.iterations == 1 and 1e-3 < short.residual < np.inf  # |grad F| there
 
 
 def test_weber_warm_start_at_the_answer_off_centre_takes_one_step():
