@@ -400,7 +400,7 @@ def test_warm_start_at_the_answer_off_centre_takes_one_update_and_bad_ones_chang
 @pytest.mark.parametrize("sign", [1.0, -1.0])
 def test_point_contact_in_both_senses_and_a_force_through_it(sign):
     pad = PadGeometry(8, 8, 1.25e-3)
-    for taxel in (9, 27, 54):
+    for taxel in (10, 29, 53):  # off the diagonals: x != ±y
         phi = np.zeros(64)
         phi[taxel] = 2.0
         p = pad.positions[taxel]
