@@ -126,7 +126,7 @@ class Mutant:
         return f"{self.key}: `{self.original}` -> `{self.mutated}`"
 
 
-def _is_docstring(node: ast.AST, parent: ast.AST | None) -> bool:
+def _is_docstring(node: ast.AST) -> bool:
     return (
         isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant) and isinstance(node.value.value, str)
     )
@@ -152,7 +152,7 @@ class _Collector(ast.NodeVisitor):
         for default in node.args.defaults + [d for d in node.args.kw_defaults if d is not None]:
             self.visit(default)
         for stmt in node.body:
-            if not _is_docstring(stmt, node):
+            if not _is_docstring(stmt):
                 self.visit(stmt)
         self._func_stack.pop()
 
@@ -160,12 +160,12 @@ class _Collector(ast.NodeVisitor):
 
     def visit_ClassDef(self, node: ast.ClassDef) -> None:
         for stmt in node.body:
-            if not _is_docstring(stmt, node):
+            if not _is_docstring(stmt):
                 self.visit(stmt)
 
     def visit_Module(self, node: ast.Module) -> None:
         for stmt in node.body:
-            if _is_docstring(stmt, node) or isinstance(stmt, (ast.Import, ast.ImportFrom)):
+            if _is_docstring(stmt) or isinstance(stmt, (ast.Import, ast.ImportFrom)):
                 continue
             if isinstance(stmt, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "__all__" for t in stmt.targets):
                 continue
