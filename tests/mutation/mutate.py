@@ -20,18 +20,23 @@ How: the module's source is parsed (``ast``) and one operator is changed at a ti
 so every other line, comment and line number stays as it was. The runner copies the
 worktree into a temporary folder once (see :class:`_Sandbox`: the tests import
 ``slipstack`` from the copy), writes each mutant over the copy's file, runs the
-module's test selection (``config.toml``) in a fresh ``pytest -x`` process and puts the
-original text back. The worktree is never modified.
+module's test selection (``config.toml``) with ``pytest -x`` in a process forked from
+the runner (numpy, scipy, numba, pytest and hypothesis already imported; slipstack
+is imported afresh from the copy in each child) and puts the original text back. The
+worktree is never modified.
 
 Outcomes: *killed* (a test failed), *timeout* (the tests ran longer than
 ``max(60 s, 5 × the clean run)``: an endless loop, counted as killed), *survived*
 (every selected test passed), *equivalent* (survived and listed in
 ``equivalent.txt`` with a reason: no test can tell it from the original).
 
-The numba kernels (:mod:`slipstack.lib.weber`, :mod:`slipstack.lib.limit_set`): the
-mutants run compiled, as in production (``NUMBA_DISABLE_JIT=1`` would turn a division
-by zero, which the kernels define as IEEE ``inf``, into an exception and kill mutants
-that the compiled code lets through). numba's cache beside the source is never used:
+The numba kernels (:mod:`slipstack.lib.weber`, :mod:`slipstack.lib.limit_set`): by
+default the mutants run compiled, as in production. That costs a recompile of the
+mutated file's kernels per mutant (10-30 s on two busy cores), so ``--interpreted``
+(what ``make mutation`` uses) runs them under ``NUMBA_DISABLE_JIT=1`` (1.5-3 s); as
+interpreted code raises on a division by zero or a math domain error where the
+compiled kernels return IEEE ``inf``/NaN, a mutant killed only by such an exception is
+re-run compiled before it counts. In compiled runs numba's cache beside the source is never used:
 ``NUMBA_CACHE_DIR`` points into a temporary folder. A mutant inside a kernel, or at
 module level (a constant is frozen into every kernel that reads it), gets a fresh,
 empty cache folder: a kernel of another file that calls the mutated one (``limit_set``
