@@ -20,18 +20,23 @@ How: the module's source is parsed (``ast``) and one operator is changed at a ti
 so every other line, comment and line number stays as it was. The runner copies the
 worktree into a temporary folder once (see :class:`_Sandbox`: the tests import
 ``slipstack`` from the copy), writes each mutant over the copy's file, runs the
-module's test selection (``config.toml``) in a fresh ``pytest -x`` process and puts the
-original text back. The worktree is never modified.
+module's test selection (``config.toml``) with ``pytest -x`` in a process forked from
+the runner (numpy, scipy, numba, pytest and hypothesis already imported; slipstack
+is imported afresh from the copy in each child) and puts the original text back. The
+worktree is never modified.
 
 Outcomes: *killed* (a test failed), *timeout* (the tests ran longer than
 ``max(60 s, 5 × the clean run)``: an endless loop, counted as killed), *survived*
 (every selected test passed), *equivalent* (survived and listed in
 ``equivalent.txt`` with a reason: no test can tell it from the original).
 
-The numba kernels (:mod:`slipstack.lib.weber`, :mod:`slipstack.lib.limit_set`): the
-mutants run compiled, as in production (``NUMBA_DISABLE_JIT=1`` would turn a division
-by zero, which the kernels define as IEEE ``inf``, into an exception and kill mutants
-that the compiled code lets through). numba's cache beside the source is never used:
+The numba kernels (:mod:`slipstack.lib.weber`, :mod:`slipstack.lib.limit_set`): by
+default the mutants run compiled, as in production. That costs a recompile of the
+mutated file's kernels per mutant (10-30 s on two busy cores), so ``--interpreted``
+(what ``make mutation`` uses) runs them under ``NUMBA_DISABLE_JIT=1`` (1.5-3 s); as
+interpreted code raises on a division by zero or a math domain error where the
+compiled kernels return IEEE ``inf``/NaN, a mutant killed only by such an exception is
+re-run compiled before it counts. In compiled runs numba's cache beside the source is never used:
 ``NUMBA_CACHE_DIR`` points into a temporary folder. A mutant inside a kernel, or at
 module level (a constant is frozen into every kernel that reads it), gets a fresh,
 empty cache folder: a kernel of another file that calls the mutated one (``limit_set``
@@ -60,7 +65,7 @@ import sys
 import tempfile
 import time
 import tomllib
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -114,17 +119,19 @@ class Mutant:
     end_col: int
     in_kernel: bool
     at_module_level: bool
+    occurrence: int = 0
 
     @property
     def key(self) -> str:
-        """Stable name used in ``equivalent.txt``: ``path:line:col operator``."""
-        return f"{self.path}:{self.line}:{self.col} {self.operator}"
+        """Stable name used in ``equivalent.txt``: ``path:line:col operator``, with ``/k`` for
+        the k-th further mutant of the same kind at the same place (a chained comparison)."""
+        return f"{self.path}:{self.line}:{self.col} {self.operator}" + (f"/{self.occurrence}" if self.occurrence else "")
 
     def describe(self) -> str:
         return f"{self.key}: `{self.original}` -> `{self.mutated}`"
 
 
-def _is_docstring(node: ast.AST, parent: ast.AST | None) -> bool:
+def _is_docstring(node: ast.AST) -> bool:
     return (
         isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant) and isinstance(node.value.value, str)
     )
@@ -150,7 +157,7 @@ class _Collector(ast.NodeVisitor):
         for default in node.args.defaults + [d for d in node.args.kw_defaults if d is not None]:
             self.visit(default)
         for stmt in node.body:
-            if not _is_docstring(stmt, node):
+            if not _is_docstring(stmt):
                 self.visit(stmt)
         self._func_stack.pop()
 
@@ -158,12 +165,12 @@ class _Collector(ast.NodeVisitor):
 
     def visit_ClassDef(self, node: ast.ClassDef) -> None:
         for stmt in node.body:
-            if not _is_docstring(stmt, node):
+            if not _is_docstring(stmt):
                 self.visit(stmt)
 
     def visit_Module(self, node: ast.Module) -> None:
         for stmt in node.body:
-            if _is_docstring(stmt, node) or isinstance(stmt, (ast.Import, ast.ImportFrom)):
+            if _is_docstring(stmt) or isinstance(stmt, (ast.Import, ast.ImportFrom)):
                 continue
             if isinstance(stmt, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "__all__" for t in stmt.targets):
                 continue
@@ -264,7 +271,12 @@ def collect_mutants(path: str, source: str) -> list[Mutant]:
     """Every mutant of one module's source, in source order."""
     collector = _Collector(path, source)
     collector.visit(ast.parse(source))
-    return sorted(collector.mutants, key=lambda m: (m.line, m.col, m.operator, m.mutated))
+    mutants, seen = [], {}
+    for m in sorted(collector.mutants, key=lambda m: (m.line, m.col, m.operator, m.mutated)):
+        place = (m.line, m.col, m.operator)
+        seen[place] = seen.get(place, -1) + 1
+        mutants.append(replace(m, occurrence=seen[place]))
+    return mutants
 
 
 def apply(source: str, mutant: Mutant) -> str:
@@ -537,8 +549,8 @@ def main(argv: list[str] | None = None) -> int:
         selected[path] = mutants
     if args.rerun:
         earlier = json.loads(args.rerun.read_text())
-        again = {f"{o['path']}:{o['line']}:{o['col']} {o['operator']}" for outs in earlier.values() for o in outs
-                 if o["status"] in ("survived", "error", "equivalent")}
+        again = {Mutant(**{k: v for k, v in o.items() if k not in ("status", "seconds", "detail")}).key
+                 for outs in earlier.values() for o in outs if o["status"] in ("survived", "error", "equivalent")}
         selected = {p: [m for m in ms if m.key in again] for p, ms in selected.items()}
     if args.list:
         for path, mutants in selected.items():

@@ -107,3 +107,10 @@ def test_the_score_counts_timeouts_as_kills_and_leaves_equivalents_out():
     score = mutate.summarise(outcomes)
     assert (score["mutants"], score["equivalent"], score["survived"]) == (5, 1, 1)
     assert score["killed_pct"] == 75.0
+
+
+def test_each_mutant_has_its_own_key_even_in_a_chained_comparison():
+    mutants = mutate.collect_mutants("m.py", "def g(x):\n    return 0.0 <= x < 1.0\n")
+    keys = [m.key for m in mutants]
+    assert len(keys) == len(set(keys))
+    assert {"m.py:2:11 cmp", "m.py:2:11 cmp/1"} <= set(keys)
