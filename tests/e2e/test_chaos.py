@@ -47,6 +47,19 @@ def _respawned(g, node: str, old_pid: int, timeout: float = 30.0) -> float:
     raise AssertionError(f"{node} was not respawned within {timeout} s:\n{g.log()}")
 
 
+def _kill_and_see_it_respawn(g, node: str) -> None:
+    pid = _pid(g, node)
+    os.kill(pid, signal.SIGKILL)
+    _respawned(g, node, pid)
+
+
+def _freeze(g, node: str, seconds: float) -> None:
+    pid = _pid(g, node)
+    os.kill(pid, signal.SIGSTOP)
+    time.sleep(seconds)
+    os.kill(pid, signal.SIGCONT)
+
+
 def test_the_stack_survives_kills_and_freezes_mid_disturbance(launch, run_root):
     summary = run_root / "chaos.json"
     # check:=false: a run with processes killed fails its check by design (deaths, fail-safe time);
@@ -56,23 +69,10 @@ def test_the_stack_survives_kills_and_freezes_mid_disturbance(launch, run_root):
     _pid(g, "rig")
     time.sleep(2.0)  # into the disturbance's ramp
 
-    tactile = _pid(g, "tactile_driver")
-    os.kill(tactile, signal.SIGKILL)
-    _respawned(g, "tactile_driver", tactile)
-
-    ft = _pid(g, "ft_driver")
-    os.kill(ft, signal.SIGSTOP)
-    time.sleep(0.3)
-    os.kill(ft, signal.SIGCONT)
-
-    control = _pid(g, "grip_controller")
-    os.kill(control, signal.SIGKILL)
-    _respawned(g, "grip_controller", control)
-
-    monitor = _pid(g, "monitor")
-    os.kill(monitor, signal.SIGSTOP)
-    time.sleep(0.3)
-    os.kill(monitor, signal.SIGCONT)
+    _kill_and_see_it_respawn(g, "tactile_driver")
+    _freeze(g, "ft_driver", 0.3)
+    _kill_and_see_it_respawn(g, "grip_controller")  # the whole control container
+    _freeze(g, "monitor", 0.3)
 
     recorder = _pid(g, "recorder")
     os.kill(recorder, signal.SIGKILL)
