@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from slipstack.lib.contact_view import ContactView, FusedContact
-from slipstack.lib.detection import DetectorConfig, SlipLatch
+from slipstack.lib.detection import NO_CONTACT, STICK, DetectorConfig, SlipLatch
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.limit_set import torsional_coefficient
 from slipstack.lib.material import Material, detector_thresholds
@@ -46,8 +46,6 @@ from slipstack.lib.status import SolverStatus
 __all__ = [
     "FT_TESTS",
     "VALID",
-    "STICK",
-    "NO_CONTACT",
     "CONTACT_LOST",
     "PadContact",
     "DetectorSettings",
@@ -60,12 +58,6 @@ FT_TESTS: tuple[str, ...] = ("coulomb", "decoupled", "linear_ls", "elliptic_ls")
 
 VALID = SolverStatus.OK.value
 """The status of a verdict that judged valid data (and of a valid contact)."""
-
-STICK = "stick"
-"""Slip state: the contact sticks (also a test's kind)."""
-
-NO_CONTACT = "no-contact"
-"""Slip state: nothing touches the pad (also a test's kind)."""
 
 CONTACT_LOST = "no_contact"
 """The fused contact's status when the wrench says nothing touches the pad."""
