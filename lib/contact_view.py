@@ -30,26 +30,16 @@ class FusedContact(Protocol):
     why no frame was paired, when none was (``ok`` when one was).
     """
 
-    @property
-    def f_n(self) -> float: ...
-    @property
-    def f_t(self) -> np.ndarray: ...
-    @property
-    def tau(self) -> float: ...
-    @property
-    def phi(self) -> np.ndarray: ...
-    @property
-    def rows(self) -> int: ...
-    @property
-    def cols(self) -> int: ...
-    @property
-    def pitch_m(self) -> float: ...
-    @property
-    def has_tactile(self) -> bool: ...
-    @property
-    def status(self) -> str: ...
-    @property
-    def tactile_status(self) -> str: ...
+    f_n: float
+    f_t: np.ndarray
+    tau: float
+    phi: np.ndarray
+    rows: int
+    cols: int
+    pitch_m: float
+    has_tactile: bool
+    status: str
+    tactile_status: str
 
 
 @lru_cache(maxsize=8)
