@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from slipstack.lib.contact_view import pad_positions
 from slipstack.lib.grip_laws import LAWS, GripDecision, GripGovernor, GripInput, GripReason, make_law
 from slipstack.messages import Contact, Cor, GripCommand, Slip
-from slipstack.lib.contact_view import pad_positions
 from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material
 from slipstack.nodes.node import Context, Input, Node, Output
 

@@ -15,9 +15,9 @@ import pytest
 
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.grip_laws import GripInput, GripReason, Tactile14Law, make_law
+from slipstack.lib.material import detector_thresholds
 from slipstack.nodes.grip_controller import GripController, GripControllerParams
 from slipstack.nodes.material_param import resolve_material
-from slipstack.lib.material import detector_thresholds
 
 LAW = Tactile14Law(mu=0.5, sigma=0.5, delta=0.2, gamma_release=0.7, f_nom_n=1.0, f_max_n=30.0)
 BELOW_T = GripInput(f_n=5.0, n_c=0.05, t_c=0.06, sum_dist_m=0.08, n_contact=10, cor_case="rotation",
