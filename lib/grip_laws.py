@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 from enum import Enum
 from typing import ClassVar, Literal, Mapping, Sequence
 
+from slipstack.lib.detection import NO_CONTACT, STICK
 from slipstack.lib.errors import ConfigError
 
 __all__ = [
@@ -104,6 +105,12 @@ class GripInput:
         t_c: ``T(p_c) = μ Σ φ_i |p_i − p_c|``, resistible torque about the COR, N·m.
         sum_dist_m: ``Σ_{i∈A} |p_i − p_c|`` over the taxels in contact, m.
         n_contact: ``N_A``, number of taxels in contact.
+        cor_case: the COR estimator's case for this contact (``lib/cor.py``):
+            ``rotation`` or ``on-taxel`` (a COR about which the contact would rotate:
+            ``n_c``, ``t_c``, ``sum_dist_m`` refer to it), ``translation`` or ``none``
+            (no COR: test (11) cannot fail by rotation). Used by ``tactile14``.
+        slip_state: the slip detector's latched state (``stick``, ``no-contact`` or a
+            slip kind); decides the level at which ``tactile14`` counts (11) as failing.
     """
 
     f_t: tuple[float, float] = (_NAN, _NAN)
@@ -114,6 +121,8 @@ class GripInput:
     t_c: float = _NAN
     sum_dist_m: float = _NAN
     n_contact: int = 0
+    cor_case: str = "rotation"
+    slip_state: str = STICK
 
     @property
     def f_t_abs(self) -> float:
@@ -216,9 +225,13 @@ class GripLaw:
         """The law's unbounded demand in N (inputs already checked finite)."""
         raise NotImplementedError
 
+    def required(self, inp: GripInput) -> tuple[str, ...]:
+        """The :class:`GripInput` fields this step reads (each must be finite)."""
+        return self.needs
+
     def decide(self, inp: GripInput, dt_s: float = 0.0) -> GripDecision:
         """Bounded decision for one step; ``dt_s`` (s) is only used by ``tactile14``."""
-        bad = [k for k in self.needs if not _finite(getattr(inp, k))]
+        bad = [k for k in self.required(inp) if not _finite(getattr(inp, k))]
         if bad:
             return GripDecision(self.f_max_n, self.name, GripReason.FAIL_SAFE, self.f_max_n,
                                 f"non-finite input {', '.join(bad)}")
@@ -313,14 +326,27 @@ class Tactile14Law(GripLaw):
     the present ``f_n``; with ``decay_n_per_s > 0`` (N/s) it lowers the demand by
     ``decay_n_per_s · dt_s`` per step, towards ``f_nom``. ``f_n`` is the force now
     applied (N).
+
+    The test is applied to loads *measured* while the contact holds, which never
+    exceed the capacity: so (11) counts as failing once ``|n(p_c)| > (1 − δ) T(p_c)``
+    (the slip detector's onset band ``delta``), and, while the detector reports slip
+    (``inp.slip_state`` neither ``stick`` nor ``no-contact``), as long as
+    ``|n(p_c)| > γ_release T(p_c)`` (its release level ``gamma_release``: sliding
+    friction holds the load near ``μ_d/μ_s`` of the capacity). The defaults
+    (``delta = 0``, ``gamma_release = 1``) give the paper's plain test ``|n| > T``.
+    Without a COR of rotation (``inp.cor_case`` ``translation`` or ``none``) (11)
+    cannot fail by rotation: the law holds (or decays) and reads only ``f_n``.
     """
 
     name: ClassVar[str] = "tactile14"
     needs: ClassVar[tuple[str, ...]] = ("f_n", "n_c", "t_c", "sum_dist_m")
+    rotation_cases: ClassVar[tuple[str, ...]] = ("rotation", "on-taxel")
     mu: float = 0.45
     sigma: float = 0.5
     increment: Literal["total", "per_taxel"] = "total"
     decay_n_per_s: float = 0.0
+    delta: float = 0.0
+    gamma_release: float = 1.0
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -331,11 +357,24 @@ class Tactile14Law(GripLaw):
         if not (math.isfinite(self.decay_n_per_s) and self.decay_n_per_s >= 0.0):
             raise ConfigError(
                 f"tactile14 decay_n_per_s must be a finite rate >= 0 N/s, got {self.decay_n_per_s!r}")
+        if not (math.isfinite(self.delta) and 0.0 <= self.delta < 1.0):
+            raise ConfigError(f"tactile14 delta must lie in [0, 1), got {self.delta!r}")
+        if not (math.isfinite(self.gamma_release) and 0.0 < self.gamma_release <= 1.0):
+            raise ConfigError(f"tactile14 gamma_release must lie in (0, 1], got {self.gamma_release!r}")
+
+    def required(self, inp: GripInput) -> tuple[str, ...]:
+        return self.needs if inp.cor_case in self.rotation_cases else ("f_n",)
+
+    def failing_level(self, slip_state: str) -> float:
+        """The share of ``T(p_c)`` above which (11) counts as failing (dimensionless)."""
+        return self.gamma_release if slip_state not in (STICK, NO_CONTACT) else 1.0 - self.delta
 
     def demand(self, inp: GripInput, dt_s: float) -> float:
-        if abs(inp.n_c) > inp.t_c:  # test (11) fails
-            return inp.f_n + tactile14_increment(inp.n_c, inp.t_c, inp.sum_dist_m, inp.n_contact,
-                                                 self.mu, self.sigma, self.increment)
+        if inp.cor_case in self.rotation_cases:
+            t_c = self.failing_level(inp.slip_state) * inp.t_c
+            if abs(inp.n_c) > t_c:  # test (11) fails
+                return inp.f_n + tactile14_increment(inp.n_c, t_c, inp.sum_dist_m, inp.n_contact,
+                                                     self.mu, self.sigma, self.increment)
         step = self.decay_n_per_s * dt_s if math.isfinite(dt_s) and dt_s > 0.0 else 0.0
         return inp.f_n - step
 

@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from slipstack.lib.contact_view import pad_positions
 from slipstack.lib.grip_laws import LAWS, GripDecision, GripGovernor, GripInput, GripReason, make_law
 from slipstack.messages import Contact, Cor, GripCommand, Slip
-from slipstack.nodes.contact_view import pad_positions
 from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material
 from slipstack.nodes.node import Context, Input, Node, Output
 
@@ -121,31 +121,30 @@ class GripController(Node):
             return GripInput(), [], False
         stamps = [s.header.stamp_ns]
         ok = s.status == "ok"
-        n_c = t_c = sum_dist = math.nan
-        n_contact = 0
+        inp = GripInput(f_t=(float(s.f_t[0]), float(s.f_t[1])), tau=s.tau, f_n=s.f_n, gamma=s.gamma,
+                        slip_state=s.state)
         if self.law.name == "tactile14":
             c, r = self.contact, self.cor
             if c is None or r is None:
                 return GripInput(f_n=s.f_n), stamps, False
             stamps += [c.header.stamp_ns, r.header.stamp_ns]
             ok = ok and c.status == "ok"
-            n_contact = int(np.count_nonzero(c.mask)) if c.mask.size else 0
-            if r.case in ("rotation", "on-taxel") and c.phi.size:
-                dist = np.linalg.norm(pad_positions(c.rows, c.cols, c.pitch_m)[c.mask] - r.p_c, axis=1)
-                # Measured loads never exceed the capacity (MATH.md 3.1): (11) "fails" at the
-                # onset band, and, once the detector reports slip, as long as the load stays
-                # above its release level (sliding friction holds γ near μ_d/μ_s < 1 − δ).
-                level = self.params.gamma_release if s.state not in ("stick", "no-contact") else 1.0 - self.params.delta
-                n_c, t_c, sum_dist = r.load_torque, level * r.torque_capacity, float(dist.sum())
-            else:  # translation or no COR: (11) cannot fail by rotation; hold
-                n_c, t_c, sum_dist = 0.0, 1.0, 1.0
-        inp = GripInput(f_t=(float(s.f_t[0]), float(s.f_t[1])), tau=s.tau, f_n=s.f_n, gamma=s.gamma,
-                        n_c=n_c, t_c=t_c, sum_dist_m=sum_dist, n_contact=n_contact)
+            inp = dataclasses.replace(inp, **self._rotation_inputs(c, r))
         return inp, stamps, ok
 
+    @staticmethod
+    def _rotation_inputs(c: Contact, r: Cor) -> dict[str, object]:
+        """Law (14)'s inputs about the COR ``r`` on the pressure frame of ``c``; a COR
+        needs that frame (without one the case is ``none``)."""
+        if not c.phi.size:
+            return {"cor_case": "none"}
+        dist = np.linalg.norm(pad_positions(c.rows, c.cols, c.pitch_m)[c.mask] - r.p_c, axis=1)
+        return {"n_c": r.load_torque, "t_c": r.torque_capacity, "sum_dist_m": float(dist.sum()),
+                "n_contact": int(np.count_nonzero(c.mask)), "cor_case": r.case}
+
     def _publish(self, d: GripDecision, stamp: int, sources: dict[str, int], ctx: Context) -> None:
-        reason = d.reason.value if isinstance(d.reason, GripReason) else str(d.reason)
-        if reason == "fail-safe":
+        reason = d.reason.value
+        if d.reason is GripReason.FAIL_SAFE:
             ctx.count("grip.fail_safe_steps")
             if d.detail:
                 ctx.set_status("fail-safe", d.detail)

@@ -1,0 +1,232 @@
+"""The slip detector without the node graph: one fused contact in, one verdict out.
+
+:class:`Detector` is what the ``slip_detector`` node runs, usable offline on
+recorded or synthetic data: feed it, frame by frame, a contact in the pad frame ``F``
+(a wrench, and the pressure frame paired with it, if any) and its time stamp; it
+returns a :class:`DetectorVerdict` with the deciding test's load factor γ and margin,
+the latched slip state, the kind of slip, the COR of impending slip, the solver
+status, the verdict's validity status and every side test's ``[stick, margin]``.
+
+- The deciding test is ``method``; the cheaper tests in ``also`` are computed
+  alongside, so their agreement can be watched.
+- A :class:`~slipstack.lib.detection.SlipLatch` turns the margin into the latched
+  state (onset band ``delta``, release level ``gamma_release``, dwell ``release_ns``).
+- The F/T tests need a torsional coefficient β: ``beta_m`` if set, otherwise β_s of
+  the pressure frame, computed once per frame (it depends only on the shape of the
+  pressure, not its size) and shared by every F/T test.
+- The deciding test's COR warm-starts the next frame's.
+
+Validity (docs/safety.md): ``status`` is ``ok`` only when the verdict judged valid
+data; otherwise it is the contact's status, ``tactile_<why>`` for a tactile test
+without a paired pressure frame, or the solver's status. A frame without a valid
+verdict keeps the latch as it is (a sensor hiccup never releases it) and restarts its
+release dwell; only a real loss of contact clears it.
+
+Defaults: :meth:`DetectorSettings.from_material` derives μ, δ and γ_release from a
+material exactly as the node does (``lib/material.py``); the node's default material
+is ``launch/materials/rubber.toml``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from slipstack.lib.contact_view import ContactView, FusedContact
+from slipstack.lib.detection import NO_CONTACT, STICK, DetectorConfig, SlipLatch
+from slipstack.lib.errors import ConfigError
+from slipstack.lib.limit_set import torsional_coefficient
+from slipstack.lib.material import Material, detector_thresholds
+from slipstack.lib.slip_tests import SlipParams, SlipVerdict, get_slip_test
+from slipstack.lib.status import SolverStatus
+
+__all__ = [
+    "FT_TESTS",
+    "VALID",
+    "CONTACT_LOST",
+    "PadContact",
+    "DetectorSettings",
+    "DetectorVerdict",
+    "Detector",
+]
+
+FT_TESTS: tuple[str, ...] = ("coulomb", "decoupled", "linear_ls", "elliptic_ls")
+"""The slip tests that read only the wrench (and β): valid without a pressure frame."""
+
+VALID = SolverStatus.OK.value
+"""The status of a verdict that judged valid data (and of a valid contact)."""
+
+CONTACT_LOST = "no_contact"
+"""The fused contact's status when the wrench says nothing touches the pad."""
+
+
+@dataclass(frozen=True)
+class PadContact:
+    """A :class:`~slipstack.lib.contact_view.FusedContact` built from its parts.
+
+    f_n: normal force, N; f_t: (2,) tangential force, N; tau: torque about z through
+    the pad origin, N·m (all in the pad frame ``F``); phi: (rows·cols,) N per taxel,
+    row-major, or empty without a pressure frame; rows, cols, pitch_m (m): the pad;
+    status: the wrench's status (``ok`` for valid data).
+    """
+
+    f_n: float
+    f_t: np.ndarray
+    tau: float
+    phi: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    rows: int = 16
+    cols: int = 16
+    pitch_m: float = 1.25e-3
+    status: str = VALID
+
+    @property
+    def has_tactile(self) -> bool:
+        """Whether a pressure frame is given."""
+        return self.phi.size > 0
+
+    @property
+    def tactile_status(self) -> str:
+        """``ok`` with a pressure frame, ``none`` without."""
+        return VALID if self.has_tactile else "none"
+
+
+@dataclass(frozen=True)
+class DetectorSettings:
+    """What :class:`Detector` needs; the ``slip_detector`` node's parameters.
+
+    mu: static friction coefficient μ_s (> 0).
+    delta: onset band: slip when γ ≥ 1 − delta (in [0, 1)).
+    gamma_release: slip stays latched while γ ≥ this (in (0, 1]).
+    method: the deciding slip test (``lib/slip_tests.py`` registry name).
+    also: tests computed alongside (the deciding one is skipped if listed).
+    beta_m: torsional coefficient β for the F/T tests, m; 0: β_s of each pressure frame.
+    release_ns: γ below the release level this long releases the latch, ns.
+    pool: sum taxels in pool × pool blocks before testing (1: off).
+    """
+
+    mu: float
+    delta: float
+    gamma_release: float
+    method: str = "exact"
+    also: tuple[str, ...] = FT_TESTS
+    beta_m: float = 0.0
+    release_ns: int = DetectorConfig.release_ns
+    pool: int = 1
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.beta_m) and self.beta_m >= 0.0):
+            raise ConfigError(f"detector beta_m must be a length >= 0 m (0: from tactile), got {self.beta_m!r}")
+        if not (isinstance(self.pool, int) and self.pool >= 1):
+            raise ConfigError(f"detector pool must be an integer >= 1 (1: off), got {self.pool!r}")
+
+    @classmethod
+    def from_material(cls, material: Material, **overrides: Any) -> DetectorSettings:
+        """Settings with μ = μ_s and the thresholds ``lib/material.py`` derives from it;
+        ``overrides`` replaces any field (e.g. ``method="tactile_cor"``)."""
+        thresholds = detector_thresholds(material)
+        derived = {"mu": material.mu_s, "delta": thresholds.delta, "gamma_release": thresholds.gamma_release}
+        return cls(**{**derived, **overrides})
+
+
+@dataclass(frozen=True)
+class DetectorVerdict:
+    """One frame's verdict.
+
+    t_ns: the contact's time stamp, ns.
+    state: ``stick``, ``no-contact``, or while slip is latched the latest slip kind
+        (``translation``, ``rotation``, ``combined``).
+    slipping: whether slip is latched.
+    kind: this frame's kind by the deciding test (``stick``, ``no-contact`` or a slip kind).
+    gamma: the deciding test's load factor γ; margin: ``1 − γ`` (dimensionless).
+    method: the deciding test.
+    p_c: COR of impending slip in ``F`` (m), or ``None``.
+    solver_status: the deciding test's computation status.
+    status: ``ok`` when the verdict judged valid data, otherwise why not (module docstring).
+    verdicts: test name → ``(stick, margin)``, the deciding test first.
+    """
+
+    t_ns: int
+    state: str
+    slipping: bool
+    kind: str
+    gamma: float
+    margin: float
+    method: str
+    p_c: tuple[float, float] | None
+    solver_status: SolverStatus
+    status: str
+    verdicts: dict[str, tuple[bool, float]]
+
+
+class Detector:
+    """Slip verdicts over a sequence of contacts; keeps the latch, β_s and the warm start."""
+
+    def __init__(self, settings: DetectorSettings) -> None:
+        """Raises ConfigError for an unknown test or a threshold out of range."""
+        s = self.settings = settings
+        self._test = get_slip_test(s.method)
+        self._others = [(name, get_slip_test(name)) for name in s.also if name != s.method]
+        self._params = SlipParams(mu=s.mu, beta_m=s.beta_m or None, delta=s.delta)
+        self._ft_params = self._params  # with β_s of the current pressure frame when beta_m is 0
+        self._beta_frame: object = None
+        self._latch = SlipLatch(DetectorConfig(s.delta, s.gamma_release, s.release_ns))
+        self._warm: tuple[float, float] | None = None
+        self._kind = "translation"  # the latest slip kind, reported while the latch holds
+
+    def step(self, contact: FusedContact, t_ns: int, *, tactile_frame: object = None) -> DetectorVerdict:
+        """The verdict on ``contact`` stamped ``t_ns`` (ns; one clock, non-decreasing).
+
+        ``tactile_frame`` identifies the pressure frame (e.g. its stamp): β_s is computed
+        once per frame; ``None`` recomputes it whenever the previous frame was not ``None``.
+        Never raises on bad data: it shows in ``status``.
+        """
+        view = ContactView(contact, self.settings.pool)
+        ft_params = self._params_for_ft_tests(view, tactile_frame)
+        deciding_ft = self.settings.method in FT_TESTS
+        v = self._test(view, ft_params if deciding_ft else self._params, self._warm)
+        if v.p_c is not None:
+            self._warm = v.p_c
+        status = self._verdict_status(contact, v)
+        fresh = status == VALID
+        in_contact = v.kind != NO_CONTACT if fresh else contact.status != CONTACT_LOST
+        slipping = self._latch.update(t_ns, v.margin if fresh else math.nan, in_contact=in_contact)
+        verdicts = {v.method: (v.stick, v.margin)}
+        for name, test in self._others:
+            o = test(view, ft_params, None)
+            verdicts[name] = (o.stick, o.margin)
+        if not in_contact:
+            state = NO_CONTACT
+        elif slipping:
+            if v.kind not in (STICK, NO_CONTACT):
+                self._kind = v.kind
+            state = self._kind
+        else:
+            state = STICK
+        return DetectorVerdict(t_ns=t_ns, state=state, slipping=slipping, kind=v.kind, gamma=v.gamma,
+                               margin=v.margin, method=v.method, p_c=v.p_c, solver_status=v.status,
+                               status=status, verdicts=verdicts)
+
+    def _params_for_ft_tests(self, view: ContactView, frame: object) -> SlipParams:
+        """SlipParams with β fixed: the configured one, or β_s of this pressure frame."""
+        if self._params.beta_m is not None or not view.phi.size:
+            return self._params
+        if frame != self._beta_frame:
+            tor = torsional_coefficient(view.phi, view.positions, self._params.mu)
+            beta = tor.beta_m if tor.status.usable and tor.median is not None else None
+            self._ft_params = replace(self._params, beta_m=beta) if beta else self._params
+            self._beta_frame = frame
+        return self._ft_params
+
+    def _verdict_status(self, contact: FusedContact, v: SlipVerdict) -> str:
+        """``ok`` when the verdict judged valid data; otherwise the contact's status,
+        ``tactile_<why>`` for a tactile test without a paired frame, or the solver's."""
+        if contact.status != VALID:
+            return contact.status
+        if not contact.has_tactile and self.settings.method not in FT_TESTS:
+            # a contact without a frame that claims its pairing was fine contradicts itself
+            why = contact.tactile_status if contact.tactile_status != VALID else "fault"
+            return f"tactile_{why}"
+        return VALID if v.status.usable else v.status.value
