@@ -1,4 +1,4 @@
-"""grip_controller: the grip-force law of MATH.md §5 behind a fail-safe governor.
+"""grip_controller: the grip-force law of docs/math.md §5 behind a fail-safe governor.
 
 Inputs: ``slip`` (triggers a step; it carries the load it judged and γ); law (14)
 also needs the contact mask and the COR, so only then ``contact`` and ``cor``
@@ -132,7 +132,7 @@ class GripController(Node):
             n_contact = int(np.count_nonzero(c.mask)) if c.mask.size else 0
             if r.case in ("rotation", "on-taxel") and c.phi.size:
                 dist = np.linalg.norm(pad_positions(c.rows, c.cols, c.pitch_m)[c.mask] - r.p_c, axis=1)
-                # Measured loads never exceed the capacity (MATH.md 3.1): (11) "fails" at the
+                # Measured loads never exceed the capacity (docs/math.md §3.1): (11) "fails" at the
                 # onset band, and, once the detector reports slip, as long as the load stays
                 # above its release level (sliding friction holds γ near μ_d/μ_s < 1 − δ).
                 level = self.params.gamma_release if s.state not in ("stick", "no-contact") else 1.0 - self.params.delta
