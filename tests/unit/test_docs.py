@@ -71,6 +71,14 @@ def _sections(doc: Path) -> set[str]:
     return set(_SECTION.findall(doc.read_text(encoding="utf-8")))
 
 
+def _citation_problem(doc: str, section: str) -> str:
+    """Why ``docs/<doc>.md §<section>`` does not resolve, or '' if it does."""
+    target = ROOT / "docs" / f"{doc}.md"
+    if not target.is_file():
+        return "no such file"
+    return "" if section in _sections(target) else "no such section"
+
+
 def test_the_table_lists_every_numbered_equation_of_the_paper():
     listed = {int(n) for n in _EQUATION.findall(_equation_table())}
     assert listed == set(range(1, 15)), f"missing equations: {sorted(set(range(1, 15)) - listed)}"
@@ -111,13 +119,9 @@ def test_every_cited_docs_section_exists():
             for doc, section in _CITATION.findall(line):
                 citations.setdefault((doc, section), []).append(f"{path.relative_to(ROOT)}:{lineno}")
     assert citations, "no docs/<file>.md §N citation found: is the pattern still right?"
-    broken = []
-    for (doc, section), where in sorted(citations.items()):
-        target = ROOT / "docs" / f"{doc}.md"
-        if not target.is_file():
-            broken.append(f"docs/{doc}.md (no such file), cited at {', '.join(where)}")
-        elif section not in _sections(target):
-            broken.append(f"docs/{doc}.md §{section} (no such section), cited at {', '.join(where)}")
+    broken = [f"docs/{doc}.md §{section} ({problem}), cited at {', '.join(where)}"
+              for (doc, section), where in sorted(citations.items())
+              if (problem := _citation_problem(doc, section))]
     assert not broken, "citations into docs/ that do not resolve:\n" + "\n".join(broken)
 
 
