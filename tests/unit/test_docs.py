@@ -11,13 +11,14 @@ from __future__ import annotations
 
 import ast
 import importlib
+import os
 import re
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-SOURCE_DIRS = ("lib", "messages", "nodes", "launch", "analysis", "tests", "docs")
+SKIP_DIRS = {"__pycache__", "build", "dist", "runs", "node_modules"}
 SOURCE_SUFFIXES = (".py", ".md", ".toml")
 
 _TABLE_HEADING = re.compile(r"^## 7\. ", re.M)
@@ -61,9 +62,13 @@ def _test_functions(path: Path) -> set[str]:
 
 
 def _source_files() -> list[Path]:
-    files = [ROOT / "README.md", ROOT / "pyproject.toml"]
-    for folder in SOURCE_DIRS:
-        files += [p for p in sorted((ROOT / folder).rglob("*")) if p.suffix in SOURCE_SUFFIXES and p.is_file()]
+    """Every .py, .md and .toml file of the working tree (hidden folders such as .venv,
+    .git and build output left out)."""
+    files = []
+    for folder, subdirs, names in os.walk(ROOT):
+        subdirs[:] = sorted(d for d in subdirs if not d.startswith(".") and d not in SKIP_DIRS
+                            and not d.endswith(".egg-info"))
+        files += [Path(folder) / n for n in sorted(names) if n.endswith(SOURCE_SUFFIXES)]
     return files
 
 
