@@ -22,7 +22,7 @@ Two solvers:
   test, warm start), and reports the binding sense. ``|f_t| ≥ μ f_n`` makes
   ``g_s`` unbounded: case TRANSLATION, the contact slips.
 
-Stick per (11) iff ``max_s max_c g_s(c) ≤ 0``, which is exactly ``γ ≤ 1`` (MATH.md §4.2).
+Stick per (11) iff ``max_s max_c g_s(c) ≤ 0``, which is exactly ``γ ≤ 1`` (docs/math.md §4.2).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Slip detection over time: thresholds, hysteresis and latching (MATH.md §3.1).
+"""Slip detection over time: thresholds, hysteresis and latching (docs/math.md §3.1).
 
 A load factor computed from *measured* data never exceeds 1: it reaches 1 at slip
 onset and, once sliding, drops to about ``μ_d/μ_s`` (the peak of the paper's

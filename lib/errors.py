@@ -1,4 +1,4 @@
-"""The one exception tree of slipstack (STYLE.md §8)."""
+"""The one exception tree of slipstack (docs/architecture.md §10.2)."""
 
 from __future__ import annotations
 

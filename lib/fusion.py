@@ -1,4 +1,4 @@
-"""Fusion of a tactile frame and an F/T wrench into local normal forces (MATH.md §2).
+"""Fusion of a tactile frame and an F/T wrench into local normal forces (docs/math.md §2).
 
 The tactile pad gives the *shape* of the pressure, the F/T sensor its *size*::
 
@@ -35,7 +35,7 @@ def wrench_to_pad(
 
     ``force_F = R_FS·force_S`` and ``torque_F = R_FS·torque_S + p_SF × force_F``:
     the torque about F's origin equals the torque about S's origin plus
-    ``(p_S − p_F) × f`` (MATH.md §1).
+    ``(p_S − p_F) × f`` (docs/math.md §1).
 
     Args:
         force_S: (3,) force in S coordinates, N.
@@ -179,7 +179,7 @@ def pressure_shape(
     *,
     saturated: np.ndarray | None = None,
 ) -> PressureShape:
-    """Clean one tactile frame and normalise its shape (MATH.md §2); never raises.
+    """Clean one tactile frame and normalise its shape (docs/math.md §2); never raises.
 
     Args:
         pressure_pa: (N,) or (R, C) calibrated pressure per taxel, Pa, row-major.
@@ -298,7 +298,7 @@ def fuse(
     tactile_stamp_ns: int | None = None,
     wrench_stamp_ns: int | None = None,
 ) -> FusionResult:
-    """Fuse calibrated taxel pressures with an F/T wrench (MATH.md §2):
+    """Fuse calibrated taxel pressures with an F/T wrench (docs/math.md §2):
     :func:`pressure_shape` then :func:`fuse_shape` (see them for the arguments).
 
     Returns:

@@ -1,4 +1,4 @@
-"""Grip-force laws of the paper's §V (MATH.md §5), bounds, rate limit and fail-safe.
+"""Grip-force laws of the paper's §V (docs/math.md §5), bounds, rate limit and fail-safe.
 
 Every law maps one control step's load to a desired normal force ``f_n`` (N) on the
 pad, bounded to ``[f_nom, f_max]``:
@@ -10,11 +10,11 @@ registry name             law
 ``"ft13"``                (13): ``f_n = |f_t|/μ + |τ|/β + k``  (paper: ``k = 2 N``)
 ``"ft13_sigma"``          Fig. 12 variant of (13): ``f_n = (|f_t|/μ + |τ|/β) / σ``
 ``"tactile14"``           (14): raise ``f_n`` by ``δf_n`` while the tactile test (11) fails
-``"exact"``               ``f_n = γ f_n / σ`` with ``γ`` the load factor of MATH.md §4.1
+``"exact"``               ``f_n = γ f_n / σ`` with ``γ`` the load factor of docs/math.md §4.1
 ========================  ================================================================
 
 each followed by ``min(max(·, f_nom), f_max)``. Loads are in the pad frame ``F``
-(MATH.md §1): ``f_t = (f_x, f_y)`` in N, ``τ`` about ``z`` through the pad origin in
+(docs/math.md §1): ``f_t = (f_x, f_y)`` in N, ``τ`` about ``z`` through the pad origin in
 N·m, ``β`` in m (``τ/f_n`` at slip), ``μ`` and ``σ`` dimensionless, ``σ ≤ 1`` the
 safety factor (paper: ``σ = 0.5``, ``μ = 0.45``).
 
@@ -100,7 +100,7 @@ class GripInput:
         tau: torque about ``z`` through the pad origin, N·m.
         f_n: normal force now applied (measured by fusion), N — used by ``tactile14``
             (the value it raises or holds) and ``exact`` (the force ``γ`` refers to).
-        gamma: load factor ``γ`` (MATH.md §4.1) at ``f_n``, dimensionless.
+        gamma: load factor ``γ`` (docs/math.md §4.1) at ``f_n``, dimensionless.
         n_c: ``n(p_c) = τ + f_t × p_c``, torque of the load about the COR, N·m.
         t_c: ``T(p_c) = μ Σ φ_i |p_i − p_c|``, resistible torque about the COR, N·m.
         sum_dist_m: ``Σ_{i∈A} |p_i − p_c|`` over the taxels in contact, m.
@@ -168,7 +168,7 @@ def tactile14_increment(
 
     ``increment="total"`` (default) returns ``δf_n``; ``"per_taxel"`` returns ``δφ``,
     the quantity the paper prints under the name ``δf_n``. ``|n|`` is used so that
-    both senses of rotation count (MATH.md §4.2). Returns 0 when (11) holds and
+    both senses of rotation count (docs/math.md §4.2). Returns 0 when (11) holds and
     ``inf`` when it fails with no lever arm (``Σ|p_i − p_c| = 0``: point contact,
     no torsional capacity can be bought by squeezing).
     """
@@ -183,7 +183,7 @@ def tactile14_increment(
 
 
 def exact_demand(gamma: float, f_n: float, sigma: float) -> float:
-    """``f_n* / σ = γ f_n / σ`` in N: least holding force with margin (MATH.md §4.1)."""
+    """``f_n* / σ = γ f_n / σ`` in N: least holding force with margin (docs/math.md §4.1)."""
     return gamma * f_n / sigma
 
 

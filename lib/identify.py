@@ -1,4 +1,4 @@
-"""Friction identification from a ramp recording (MATH.md §6, the paper's Fig. 4).
+"""Friction identification from a ramp recording (docs/math.md §6, the paper's Fig. 4).
 
 At (nearly) constant ``f_n`` with a slowly rising tangential load the ratio
 ``μ(t) = |f_t|/f_n`` rises, peaks at ``μ_s`` when slip starts and settles to ``μ_d``;

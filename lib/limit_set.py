@@ -1,6 +1,6 @@
 """The exact limit set of a tactile contact: load factor γ and the COR of impending slip.
 
-MATH.md §4. Each taxel ``i`` (position ``p_i`` in the pad frame F, m; normal force
+docs/math.md §4. Each taxel ``i`` (position ``p_i`` in the pad frame F, m; normal force
 ``φ_i`` N) supplies a tangential force ``|q_i| ≤ μ φ_i``. The load
 ``w = (f_t, τ)`` (N, N·m about z through the pad origin, in F) sticks iff
 ``γ(w) ≤ 1`` with the load factor::
@@ -341,7 +341,7 @@ def _dinkelbach(px, py, a, s, tn, fx, fy, lever, warm, wx, wy, xtol, max_iter):
 
 
 def _point_contact(n_bar, tau, fx, fy, pbar, gt, taxel) -> LimitSetResult:
-    """All force on one taxel: no torsional friction about it (MATH.md §4.4)."""
+    """All force on one taxel: no torsional friction about it (docs/math.md §4.4)."""
     scale = abs(tau) + math.hypot(fx, fy) * math.hypot(pbar[0], pbar[1])
     if abs(n_bar) <= 1e-12 * scale:
         return LimitSetResult(SlipCase.TRANSLATION, float(gt), None, 0.0, 0.0, 0, 0, 0.0, SolverStatus.TRANSLATION,
@@ -368,7 +368,7 @@ def _pure_torque(positions, phi, tn, tau, pbar, L, cap, f_n, c0) -> LimitSetResu
 
 @dataclass(frozen=True)
 class TorsionResult:
-    """Torsional coefficient from tactile data (MATH.md §4.3).
+    """Torsional coefficient from tactile data (docs/math.md §4.3).
 
     Attributes:
         beta_m: ``β_s = μ·min_c Σ φ_i|p_i − c| / f_n`` (m); 0 for a point contact.

@@ -1,4 +1,4 @@
-"""The oracle grip: the least normal force that holds a known load (MATH.md §4.1).
+"""The oracle grip: the least normal force that holds a known load (docs/math.md §4.1).
 
 Benchmarks compare a grip law's force with this lower bound, computed from the
 *true* pressure and load (e.g. the simulated rig's), not from sensor data.

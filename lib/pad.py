@@ -1,6 +1,6 @@
 """Tactile pad geometry: taxel positions in the pad frame and pooling.
 
-Pad frame ``F`` (MATH.md §1): origin at the pad centre, ``x`` along columns,
+Pad frame ``F`` (docs/math.md §1): origin at the pad centre, ``x`` along columns,
 ``y`` along rows, ``z`` the outward normal. Taxel ``i`` at row ``r``, column ``k``
 sits at ``p_i = ((k - (C-1)/2)·h, (r - (R-1)/2)·h)`` metres; row-major order,
 row 0 first.

@@ -1,4 +1,4 @@
-"""Slip tests of the paper (§III–IV, MATH.md §3) behind one interface.
+"""Slip tests of the paper (§III–IV, docs/math.md §3) behind one interface.
 
 Every test has the signature ``test(contact, params, warm_start=None) -> SlipVerdict``
 and returns a load factor ``γ`` (or its analogue) with ``margin = 1 − γ``:
@@ -18,7 +18,7 @@ name               γ (stick iff margin ≥ δ, i.e. γ ≤ 1 − δ)          n
 
 ``τ`` in the F/T tests is the torque about the pad origin (what the F/T sensor
 gives). ``β`` is ``params.beta_m`` if set, otherwise ``β_s`` computed from the
-tactile data (MATH.md §4.3) — so the F/T tests become tactile-aware; without
+tactile data (docs/math.md §4.3) — so the F/T tests become tactile-aware; without
 either, the verdict has status INVALID_INPUT. A tactile point contact has
 ``β_s = 0``: any torque then gives ``γ = +inf`` with status POINT_CONTACT.
 
@@ -93,7 +93,7 @@ class SlipParams:
     Attributes:
         mu: static friction coefficient μ_s (> 0).
         beta_m: torsional coefficient β (m, > 0) for the F/T tests; ``None`` → β_s from tactile data.
-        delta: detection margin δ (MATH.md §3.1): stick iff ``γ ≤ 1 − δ``; 0 ≤ δ < 1.
+        delta: detection margin δ (docs/math.md §3.1): stick iff ``γ ≤ 1 − δ``; 0 ≤ δ < 1.
         paper_gain: gain ``h`` of the paper's COR iteration (``tactile_cor``).
     """
 

@@ -1,4 +1,4 @@
-"""Outcome codes shared by every slipstack solver (STYLE.md §3).
+"""Outcome codes shared by every slipstack solver (docs/architecture.md §10.1).
 
 Solvers in ``lib/`` never raise inside the control loop: they return a frozen
 result with a :class:`SolverStatus`, whose :attr:`~SolverStatus.message` says in

@@ -1,4 +1,4 @@
-"""Weighted Fermat–Weber problem with a linear term (MATH.md §4.2).
+"""Weighted Fermat–Weber problem with a linear term (docs/math.md §4.2).
 
 Minimise over ``c ∈ R²``::
 

@@ -1,6 +1,6 @@
-"""The message types of the slipstack graph (ARCHITECTURE.md, topic table).
+"""The message types of the slipstack graph (docs/architecture.md §3).
 
-SI units throughout; ``F`` is the pad frame of MATH.md §1. Array fields give their
+SI units throughout; ``F`` is the pad frame of docs/math.md §1. Array fields give their
 dtype and shape; ``N`` is the number of taxels (rows × cols, row-major).
 
 Declared bounds (checked on decode, by ``topic pub``, written into the exported
@@ -100,7 +100,7 @@ class TactileFrame(Message):
 
 @message("slipstack/Contact", version=2)  # 2: tactile_status
 class Contact(Message):
-    """``contact``: fused contact state in the pad frame ``F`` (MATH.md §2).
+    """``contact``: fused contact state in the pad frame ``F`` (docs/math.md §2).
 
     phi: (N,) N, local normal force per taxel, Σφ = f_n.
     f_n: N; f_t: (2,) N; tau: N·m about z through the pad origin.

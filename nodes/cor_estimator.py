@@ -1,7 +1,7 @@
 """cor_estimator: the centre of rotation of impending slip from each ``contact``.
 
 Solvers (parameter ``solver``): ``exact`` — the load factor γ and the COR of
-impending slip (Dinkelbach over the Fermat–Weber sub-solver, MATH.md §4.2);
+impending slip (Dinkelbach over the Fermat–Weber sub-solver, docs/math.md §4.2);
 ``robust`` — the maximiser of ``s·n − T`` over both senses, the paper's (12) solved
 globally; ``paper`` — the paper's fixed-gain Jacobian iteration (its Fig. 7), kept as
 the faithful baseline. Each frame warm-starts from the previous COR. F/T-only

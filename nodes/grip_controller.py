@@ -1,4 +1,4 @@
-"""grip_controller: the grip-force law of MATH.md §5 behind a fail-safe governor.
+"""grip_controller: the grip-force law of docs/math.md §5 behind a fail-safe governor.
 
 Inputs: ``slip`` (triggers a step; it carries the load it judged and γ); law (14)
 also needs the contact mask and the COR, so only then ``contact`` and ``cor``

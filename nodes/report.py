@@ -9,7 +9,7 @@ on hardware, the first usable F/T sample):
 
 1. normal force, N: applied by the finger (``rig/truth``), commanded
    (``grip/command``, else the rig's own command) and measured by the F/T sensor
-   (``−force[2]`` of ``ft/wrench`` in the pad frame ``F``, MATH.md §1);
+   (``−force[2]`` of ``ft/wrench`` in the pad frame ``F``, docs/math.md §1);
 2. tangential load ``|f_t|`` and the friction limit ``μ·f_n`` (N), torque ``τ`` (N·mm);
 3. the verdict of the deciding method, margin ``1 − γ`` (> 0 sticks), with the spans
    where ``slip.state`` is a slip state and the rig's true gross-slip spans;
@@ -18,7 +18,7 @@ on hardware, the first usable F/T sample):
 Panels whose topics are missing (no truth on real hardware) are left out.
 
 ``--identify`` runs :func:`slipstack.lib.identify.identify_mu` on the F/T data of a
-ramp recording (paper Fig. 4, MATH.md §6; scenes ``fig4a``/``fig4b``), with the
+ramp recording (paper Fig. 4, docs/math.md §6; scenes ``fig4a``/``fig4b``), with the
 rig's slip distance (angle) after the elastic pre-slip as the slip-onset signal when the
 recording has it (``slipstack identify`` writes the result as a material file), and
 :func:`~slipstack.lib.identify.identify_beta` as well when the torque ramp dominates

@@ -1,4 +1,4 @@
-"""slip_detector: the slip verdict from each ``contact`` (MATH.md §3).
+"""slip_detector: the slip verdict from each ``contact`` (docs/math.md §3).
 
 The chosen ``method`` decides; the cheaper tests in ``also`` are computed alongside
 and published in ``verdicts`` (name → [stick, margin]) so their agreement can be
@@ -11,7 +11,7 @@ The detector computes its verdict from ``contact`` directly rather than waiting 
 impending slip warm-starts the next frame.
 
 The F/T tests need a torsional coefficient β: ``beta_m`` if set, otherwise β_s from
-the tactile data (MATH.md §4.3), computed once per tactile frame (β_s depends only
+the tactile data (docs/math.md §4.3), computed once per tactile frame (β_s depends only
 on the shape of the pressure, not on its size) and shared by every F/T test.
 
 All of this is :class:`~slipstack.lib.detector.Detector` (usable offline, without the

@@ -1,1 +1,1 @@
-"""Device wire-protocol codecs: bytes in, values out (PROTOCOLS.md)."""
+"""Device wire-protocol codecs: bytes in, values out (docs/protocols.md)."""

@@ -1,7 +1,7 @@
 """ATI Net F/T and Axia80 Raw Data Transfer (RDT) over UDP.
 
 Sources: ATI Net F/T manual 9620-05, Axia80 manual, netft_utils
-``netft_rdt_driver.cpp`` (see PROTOCOLS.md). All fields big-endian.
+``netft_rdt_driver.cpp`` (see docs/protocols.md §3). All fields big-endian.
 
 Request (8 bytes, to UDP port 49152)::
 

@@ -1,7 +1,7 @@
 """Bota Systems serial F/T sensors (Rokubi, SensONE): the 37-byte stream frame.
 
 Sources: BOTAsys/matlab ``bota_serial/*.m``; public BotaSerialDriver sources
-(see PROTOCOLS.md). 460800 baud 8N1. Frame, little-endian, packed::
+(see docs/protocols.md §5). 460800 baud 8N1. Frame, little-endian, packed::
 
     offset  type        content
     0       u8          0xAA

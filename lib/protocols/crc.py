@@ -1,4 +1,4 @@
-"""Table-driven CRC-16 with the parameters of the device protocols (PROTOCOLS.md).
+"""Table-driven CRC-16 with the parameters of the device protocols (docs/protocols.md).
 
 One implementation, parameterised in the Rocksoft/Williams style (polynomial,
 initial value, bit order, final XOR) plus one extra switch that the DSACON32 needs:
@@ -20,7 +20,7 @@ what every Rocksoft-model reflected CRC uses) or from the normal polynomial shif
 left (MSB-first). The DSACON32 firmware (SCHUNK SDHLibrary ``dsa.cpp``) combines an
 MSB-first CCITT table with the reflected update; that is not any catalogued CRC (it is
 *not* CCITT-FALSE, whose check value is 0x29B1), and it is the only combination that
-reproduces both the check value 0x6EB4 and the packet CRCs printed in PROTOCOLS.md
+reproduces both the check value 0x6EB4 and the packet CRCs printed in docs/protocols.md §6
 (``AA AA AA 0B 01 00 00 CB FB``).
 
 The loop is pure Python (about 60 ns per byte); MSB-first 0x1021 CRCs

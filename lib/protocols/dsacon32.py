@@ -1,7 +1,7 @@
 """Weiss Robotics DSACON32 tactile controller (DSA 9205/9335, SCHUNK SDH pads).
 
 Sources: SCHUNK SDHLibrary ``dsa.cpp``/``dsa.h``; RobWork ``DSACON32.cpp``
-(see PROTOCOLS.md). 115200 baud. Every packet, both directions, little-endian::
+(see docs/protocols.md §6). 115200 baud. Every packet, both directions, little-endian::
 
     AA AA AA | u8 id | u16 payload size | payload | u16 CRC (only if size > 0)
 

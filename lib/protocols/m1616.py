@@ -1,6 +1,6 @@
 """16×16 piezoresistive tactile module ("M1616"), a preset of the framed format.
 
-Source: public serial monitor for the module (see PROTOCOLS.md). 115200 baud;
+Source: public serial monitor for the module (see docs/protocols.md §7). 115200 baud;
 frame = header ``AA AB AC``, 256 × u16 big-endian row-major, then 4 trailing bytes
 of unknown meaning (not verified; skipped on decode, zeros on encode). There is no
 checksum, so only the weaker recovery guarantee of

@@ -1,7 +1,7 @@
 """Robotiq FT 300 / FT 300-S: Modbus RTU commands and the 16-byte stream frame.
 
 Sources: Robotiq FT 150/300 manual p.44, FT 300-S manual pp.33-34;
-ros-industrial-attic/robotiq ``rq_sensor_com.cpp`` (see PROTOCOLS.md).
+ros-industrial-attic/robotiq ``rq_sensor_com.cpp`` (see docs/protocols.md §4).
 
 Link 19200 baud 8N1, Modbus slave id 9. Streaming starts when 0x0200 is written to
 holding register 410 (function 16); the sensor echoes the 8-byte write response and

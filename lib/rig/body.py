@@ -5,7 +5,7 @@ centre of mass ``o`` (m), the angle ``θ`` (rad), and the twist about a *referen
 point* ``r``: the velocity ``v_r`` of the body point at ``r`` and the rate ``ω``. The
 reference point is the centre of mass, or the fixed pivot of a rotation-only rig
 (the paper's Fig. 13). The velocity of the body point at ``p`` is
-``v_r + i·ω·(p − r)`` (``i·d`` is MATH.md's ``perp(d)``).
+``v_r + i·ω·(p − r)`` (``i·d`` is ``perp(d)`` of docs/math.md §1).
 
 Generalised coordinates are ``ξ = (v_x, v_y, ω)``; the constrained ones are held at
 zero and never integrated. One step solves the implicit mid-point equations

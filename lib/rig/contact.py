@@ -1,6 +1,6 @@
 """Pressure models: the normal force on each taxel, ``φ_i ≥ 0`` with ``Σ φ_i = f_n``.
 
-Positions are complex numbers ``x + i·y`` in the pad frame ``F`` (MATH.md §1), metres.
+Positions are complex numbers ``x + i·y`` in the pad frame ``F`` (docs/math.md §1), metres.
 Each taxel cell is sampled at ``s × s`` sub-taxel points and its weight is the mean
 pressure over them, so a contact smaller than a taxel or an edge crossing a cell is
 not aliased onto a single taxel centre. Models (parameters in
@@ -10,7 +10,7 @@ not aliased onto a single taxel centre. Models (parameters in
 - ``offset``: a footprint with a linear pressure gradient (tilted or off-centre face).
 - ``hertz``: curved fingertip on a flat object; ``p ∝ sqrt(1 − r²/a²)`` with
   ``a = a_ref·(f_n/f_ref)^{1/3}`` (Hertz: contact radius ∝ ``f_n^{1/3}``; Johnson,
-  *Contact Mechanics*, 1985, §4.2), so the torsional limit ∝ ``f_n^{4/3}`` (MATH.md §4.3).
+  *Contact Mechanics*, 1985, §4.2), so the torsional limit ∝ ``f_n^{4/3}`` (docs/math.md §4.3).
 - ``edge``: an object edge pressed on the pad; uniform along a strip of length ``L``,
   Hertzian line-contact profile ``sqrt(1 − d²/b²)`` across it with half-width
   ``b = b_ref·(f_n/f_ref)^{1/2}`` (Johnson §4.3: ``b ∝ sqrt(load per length)``).

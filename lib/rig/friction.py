@@ -99,7 +99,7 @@ class BristleField:
         """Share of the friction capacity in use by slipping taxels, in [0, 1].
 
         ``Σ_slip φ_i |ū_i| / Σ φ_i |ū_i|`` over the last step: the share of the
-        frictional dissipation ``D(ξ) = Σ μ φ_i |u_i|`` (MATH.md §4) due to slipping
+        frictional dissipation ``D(ξ) = Σ μ φ_i |u_i|`` (docs/math.md §4) due to slipping
         patches. Weighting by the slip speed discounts the taxels near a centre of
         rotation, which stick during a gross rotation because they barely move. With
         the object at rest it falls back to the share of ``f_n``; 0 with no contact.

@@ -1,9 +1,9 @@
 """Scene files: a simulated experiment as frozen dataclasses, loaded from TOML.
 
-A scene (ARCHITECTURE.md "Launch") says which object is pressed by the pad, how the
+A scene (docs/architecture.md §6) says which object is pressed by the pad, how the
 pressure is distributed, which degrees of freedom move, what the disturbance motor
 does, and how the sensors behave. Units are SI throughout (N, N·m, m, s, Pa); vectors
-in the pad frame ``F`` of MATH.md §1. The loader is strict: an unknown key, a wrong
+in the pad frame ``F`` of docs/math.md §1. The loader is strict: an unknown key, a wrong
 type or an out-of-range value raises :class:`ConfigError` naming the key, e.g.
 ``fig10.toml: contact.mu_d: must be <= contact.mu_s (0.45), got 0.5``.
 

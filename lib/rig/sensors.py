@@ -3,10 +3,10 @@
 Sign convention (an honest plant): the F/T sensor in the finger measures the wrench
 the **object exerts on the finger**, through the contact only (never the disturbance
 directly). Its tangential force and torque about the pad's ``z`` are therefore the
-*load on the object* of MATH.md §1 (in equilibrium they equal the disturbance, and
+*load on the object* of docs/math.md §1 (in equilibrium they equal the disturbance, and
 friction on the object is their negative); its normal force is ``f_z = −f_n`` (the
-object pushes the pad inwards, along ``−z``). A driver maps a reading to MATH.md's
-quantities with :meth:`FtSensorModel.pad_load`:
+object pushes the pad inwards, along ``−z``). A driver maps a reading to the
+quantities of docs/math.md §1 with :meth:`FtSensorModel.pad_load`:
 
     f_F = R_z(yaw)·f_S,  τ_F = R_z(yaw)·τ_S + p_S × f_F,
     f_t = (f_F,x, f_F,y),  τ = τ_F,z,  f_n = −f_F,z.
@@ -122,7 +122,7 @@ class FtSensorModel:
         return FtSample(t_ns, seq, np.array(out[:3]), np.array(out[3:]), saturated)
 
     def pad_load(self, force_S: np.ndarray, torque_S: np.ndarray) -> tuple[float, float, float, float]:
-        """Map a reading to MATH.md §1: returns ``(f_x N, f_y N, τ N·m, f_n N)`` in ``F``.
+        """Map a reading to docs/math.md §1: returns ``(f_x N, f_y N, τ N·m, f_n N)`` in ``F``.
 
         ``f_t = (f_x, f_y)`` and ``τ`` are the load on the object; ``f_n = −f_z``.
         """

@@ -3,7 +3,7 @@
 
 For each scene and grip law the whole stack runs in lock-step with the simulated rig
 (:class:`slipstack.nodes.lockstep.LockstepStack`, controller on, F/T 500 Hz, tactile
-250 Hz, truth 250 Hz). Laws (MATH.md §5, parameters of launch/files/stack.toml:
+250 Hz, truth 250 Hz). Laws (docs/math.md §5, parameters of launch/files/stack.toml:
 μ = 0.45, σ = 0.5, f_nom = 2 N, f_max = the scene's finger limit):
 
 * ``ft13`` — F/T only, paper (13) ``|f_t|/μ + |τ|/β + k`` (k = 2 N), no tactile

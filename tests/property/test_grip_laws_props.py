@@ -1,4 +1,4 @@
-"""Properties of the grip laws and the governor (MATH.md §5)."""
+"""Properties of the grip laws and the governor (docs/math.md §5)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Property tests for every row of MATH.md §4.4 (numerics at the extremes); example counts
+"""Property tests for every row of docs/math.md §4.4 (numerics at the extremes); example counts
 follow the hypothesis profile (tests/conftest.py)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""CRC-16 variants against catalogue check values and the vectors of PROTOCOLS.md."""
+"""CRC-16 variants against catalogue check values and the vectors of docs/protocols.md §2."""
 
 from __future__ import annotations
 

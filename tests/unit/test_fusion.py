@@ -1,4 +1,4 @@
-"""Fusion of tactile pressure and F/T wrench (MATH.md §2) and the sensor-to-pad transform."""
+"""Fusion of tactile pressure and F/T wrench (docs/math.md §2) and the sensor-to-pad transform."""
 
 from __future__ import annotations
 

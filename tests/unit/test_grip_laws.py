@@ -1,4 +1,4 @@
-"""Grip laws (MATH.md §5): hand-checked values, bounds, rate limit, fail-safe."""
+"""Grip laws (docs/math.md §5): hand-checked values, bounds, rate limit, fail-safe."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Friction identification (MATH.md §6) on synthetic ramps with known answers."""
+"""Friction identification (docs/math.md §6) on synthetic ramps with known answers."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Exact limit set: analytic values (MATH.md §4.3), special cases (§4.4), brute-force cross-check."""
+"""Exact limit set: analytic values (docs/math.md §4.3), special cases (§4.4), brute-force cross-check."""
 
 from __future__ import annotations
 

@@ -47,7 +47,7 @@ def truths(sim: Simulator) -> list[Truth]:
 
 
 def pure_torque_limit(phi: np.ndarray, pos: np.ndarray, mu: float) -> tuple[float, np.ndarray]:
-    """min over c of μ Σ φ_i |p_i − c| (MATH.md §4.3), by scipy, independent of the rig."""
+    """min over c of μ Σ φ_i |p_i − c| (docs/math.md §4.3), by scipy, independent of the rig."""
     def torque(c):
         return mu * float(np.sum(phi * np.hypot(pos[:, 0] - c[0], pos[:, 1] - c[1])))
     res = scipy.optimize.minimize(torque, (phi @ pos) / phi.sum(), method="Nelder-Mead",

@@ -1,4 +1,4 @@
-"""Slip tests of the paper behind one interface (MATH.md §3)."""
+"""Slip tests of the paper behind one interface (docs/math.md §3)."""
 
 from __future__ import annotations
 
