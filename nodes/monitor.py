@@ -350,8 +350,9 @@ def behind_problems(s: dict) -> list[str]:
     than :data:`SKIP_WARN_SHARE` of a sensor topic's samples skipped for newer ones."""
     problems = []
     if s["late_commands"]:
-        problems.append(f"{s['late_share'] * 100:.1f}% of the grip commands left later than "
-                        f"{s['command_deadline_ms']:g} ms after their sample (worst {s['command_age_ms_max']:.1f} ms)")
+        problems.append(f"{s['late_commands']} of {s['grip_commands']} grip commands ({s['late_share'] * 100:.2g}%) left "
+                        f"later than {s['command_deadline_ms']:g} ms after their sample "
+                        f"(worst {s['command_age_ms_max']:.1f} ms)")
     for node, timers in sorted(s["behind_real_time"].items()):
         ticks = ", ".join(f"{k.split('.')[1]} {v:g}" for k, v in sorted(timers.items()))
         problems.append(f"{node} fell behind real time (timer ticks skipped: {ticks})")

@@ -78,6 +78,8 @@ def test_law_14_holds_over_a_step_of_unknown_length():
     law = Tactile14Law(f_nom_n=1.0, f_max_n=30.0, decay_n_per_s=100.0)
     holding = GripInput(f_n=10.0, n_c=0.0, t_c=1.0, sum_dist_m=0.1, n_contact=10)
     assert law.decide(holding, dt_s=math.nan).f_n_desired == 10.0  # no time known: no decay
+    assert law.decide(holding, dt_s=math.inf).f_n_desired == 10.0  # nor an infinite step
+    assert law.decide(holding).f_n_desired == 10.0  # a step given no length holds
     assert law.decide(holding, dt_s=0.01).f_n_desired == pytest.approx(9.0)
 
 
