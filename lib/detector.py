@@ -38,9 +38,8 @@ import numpy as np
 from slipstack.lib.contact_view import ContactView, FusedContact
 from slipstack.lib.detection import NO_CONTACT, STICK, DetectorConfig, SlipLatch
 from slipstack.lib.errors import ConfigError
-from slipstack.lib.limit_set import torsional_coefficient
 from slipstack.lib.material import Material, detector_thresholds
-from slipstack.lib.slip_tests import SlipParams, SlipVerdict, get_slip_test
+from slipstack.lib.slip_tests import SlipParams, SlipVerdict, ft_beta, get_slip_test
 from slipstack.lib.status import SolverStatus
 
 __all__ = [
@@ -214,8 +213,7 @@ class Detector:
         if self._params.beta_m is not None or not view.phi.size:
             return self._params
         if frame != self._beta_frame:
-            tor = torsional_coefficient(view.phi, view.positions, self._params.mu)
-            beta = tor.beta_m if tor.status.usable and tor.median is not None else None
+            beta = ft_beta(view, self._params)  # β_s: the configured β is None on this path
             self._ft_params = replace(self._params, beta_m=beta) if beta else self._params
             self._beta_frame = frame
         return self._ft_params

@@ -58,6 +58,7 @@ __all__ = [
     "SlipVerdict",
     "SlipTest",
     "SLIP_TESTS",
+    "ft_beta",
     "get_slip_test",
     "coulomb",
     "decoupled",
@@ -171,8 +172,9 @@ def _verdict(gamma: float, rho: float, params: SlipParams, status, p_c, method) 
     return SlipVerdict(stick, margin, kind, status, gamma, p_c, method)
 
 
-def _beta(contact: ContactLike, params: SlipParams) -> float | None:
-    """``params.beta_m``, else β_s from the tactile data (0 for a point contact), else None."""
+def ft_beta(contact: ContactLike, params: SlipParams) -> float | None:
+    """β (m) for the F/T tests: ``params.beta_m``, else β_s from the tactile data (0 for a
+    point contact), else None."""
     if params.beta_m is not None:
         return params.beta_m
     tor = torsional_coefficient(contact.phi, contact.positions, params.mu)
@@ -189,7 +191,7 @@ def _ft_test(contact, params, combine: Callable[[float, float], float], method: 
     a_t = math.hypot(fx, fy) / (params.mu * f_n)
     if a_t == 0.0 and tau == 0.0:
         return _verdict(0.0, 0.0, params, SolverStatus.NO_LOAD, None, method)
-    beta = _beta(contact, params)
+    beta = ft_beta(contact, params)
     if beta is None:
         return _bad(method)
     if beta == 0.0:  # tactile point contact: no torsional friction
