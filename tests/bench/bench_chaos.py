@@ -20,6 +20,7 @@ stamps, the same clock as this script):
 from __future__ import annotations
 
 import argparse
+import json
 import multiprocessing
 import os
 import signal
@@ -45,8 +46,6 @@ def _hog() -> None:
 
 
 def _pid(graph_path: Path, node: str) -> int | None:
-    import json
-
     try:
         return json.loads(graph_path.read_text())["nodes"][node].get("pid")
     except (FileNotFoundError, ValueError, KeyError):
