@@ -3,7 +3,7 @@
 Each :class:`Experiment` names a shipped scene and the stack the paper used on it —
 detection-only experiments (Figs. 4, 13, 14) run with the controller off, at the
 scene's constant normal force; control experiments (Figs. 10–12, 15) with the paper's
-law. :func:`run_experiment` runs it through :class:`~slipstack.nodes.lockstep.LockstepStack`
+law. :func:`run_experiment` runs it through :class:`~slipstack.launch.lockstep.LockstepStack`
 (the same nodes and device codecs the launched stack runs, deterministic) and returns
 a :class:`Run`: each topic as numpy arrays, time in seconds from the scene start.
 """
@@ -17,7 +17,7 @@ from typing import Any, Callable
 import numpy as np
 
 from slipstack.lib.rig.scene import Scene
-from slipstack.nodes.lockstep import LockstepStack, StackConfig, load_scene_by_name
+from slipstack.launch.lockstep import LockstepStack, StackConfig, load_scene_by_name
 
 __all__ = ["Experiment", "EXPERIMENTS", "Run", "run_experiment"]
 

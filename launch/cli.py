@@ -5,11 +5,10 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
-from typing import Callable
 
-from slipstack.lib.errors import SlipstackError
+from slipstack.lib.errors import run_guarded
 
-__all__ = ["main", "build_parser", "run_guarded"]
+__all__ = ["main", "build_parser"]
 
 
 # command → (module with ``add_parser(sub)``, one-line help). Only the module of the command
@@ -18,11 +17,11 @@ __all__ = ["main", "build_parser", "run_guarded"]
 COMMANDS = {
     "launch": ("slipstack.launch.launcher", "run a graph (default: the simulated rig and the full stack)"),
     "run": ("slipstack.launch.run_node", "run one node as a process"),
-    "topic": ("slipstack.nodes.topic_tools", "inspect and poke the running graph's topics"),
-    "node": ("slipstack.nodes.node_tools", "list the running graph's nodes, or one node's state"),
-    "bag": ("slipstack.nodes.bag_tools", "record, play, inspect and export recordings (MCAP)"),
-    "report": ("slipstack.nodes.report", "paper-style figure or friction identification of a recording"),
-    "identify": ("slipstack.nodes.identify_cli", "a material file (friction and thresholds) from friction ramps"),
+    "topic": ("slipstack.nodes.tools.topic_tools", "inspect and poke the running graph's topics"),
+    "node": ("slipstack.nodes.tools.node_tools", "list the running graph's nodes, or one node's state"),
+    "bag": ("slipstack.nodes.tools.bag_tools", "record, play, inspect and export recordings (MCAP)"),
+    "report": ("slipstack.analysis.report", "paper-style figure or friction identification of a recording"),
+    "identify": ("slipstack.analysis.identify_cli", "a material file (friction and thresholds) from friction ramps"),
     "reproduce": ("slipstack.analysis.reproduce", "run the paper's experiments in lock-step and draw its figures"),
     "keys": ("slipstack.launch.keys_cli", "make the key pair a graph's tcp links need"),
 }
@@ -58,19 +57,6 @@ def main(argv: list[str] | None = None) -> int:
         args.assignments.extend(assignments)
     return run_guarded(args.command, lambda: args.func(args))
 
-
-def run_guarded(command: str, func: Callable[[], int | None]) -> int:
-    """The exit code of ``func()``; a SlipstackError becomes one line on stderr and exit 2."""
-    try:
-        return int(func() or 0)
-    except SlipstackError as exc:
-        print(f"slipstack {command}: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        return 130
-    except BrokenPipeError:  # output piped into `head` and closed: not an error
-        sys.stderr.close()
-        return 0
 
 
 if __name__ == "__main__":

@@ -1,10 +1,10 @@
-"""``slipstack keys DIR``: a key pair for a graph's tcp links (ZeroMQ CURVE, nodes/curve.py)."""
+"""``slipstack keys DIR``: a key pair for a graph's tcp links (ZeroMQ CURVE, nodes/runtime/curve.py)."""
 
 from __future__ import annotations
 
 import argparse
 
-from slipstack.nodes.curve import make_keys
+from slipstack.nodes.runtime.curve import make_keys
 
 __all__ = ["add_parser", "main_keys"]
 

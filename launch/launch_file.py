@@ -59,12 +59,13 @@ from pathlib import Path
 from typing import Any, Callable
 
 from slipstack.lib.errors import ConfigError
-from slipstack.nodes.curve import GraphKeys
+from slipstack.lib.toml_file import resolve_path
+from slipstack.nodes.runtime.curve import GraphKeys
 from slipstack.nodes.catalog import node_class
-from slipstack.nodes.node import Node, make_params
+from slipstack.nodes.runtime.node import Node, make_params
 
 __all__ = ["NodeEntry", "LaunchFile", "load_launch_file", "default_launch_file", "launch_files_dir", "free_port",
-           "resolve_path", "CHECK_ARG", "arg_comments"]
+           "CHECK_ARG", "arg_comments"]
 
 _SUBST = re.compile(r"\$\((\w+)\)")
 _IDENTIFIER = re.compile(r"[A-Za-z0-9_-]+")
@@ -133,7 +134,7 @@ class LaunchFile:
     check: bool = False
     """Exit 1 at the end unless the run passed (``<run_dir>/check.json``, no node died and stayed down)."""
     keys: Path | None = None
-    """Key directory of the graph's tcp links (``slipstack keys DIR``; nodes/curve.py)."""
+    """Key directory of the graph's tcp links (``slipstack keys DIR``; nodes/runtime/curve.py)."""
     insecure: bool = False
     """tcp links without CURVE, explicitly allowed."""
 
@@ -303,33 +304,6 @@ def _parses(toml_line: str) -> bool:
     return True
 
 
-def resolve_path(value: str, base: Path, folder: str) -> Path:
-    """The file a launch or scene file names: shipped first, a file of your own only as a path.
-
-    A bare name (``fig15``, ``stack.toml``) is the shipped file in ``launch/<folder>/``;
-    if none is shipped, a name ending in ``.toml`` is looked for in ``base``. A name with
-    a ``/`` is a path, relative to ``base``. So a stray file in the current directory
-    never shadows a shipped one.
-
-    Raises:
-        ConfigError: no such file (says where it looked).
-    """
-    shipped = Path(__file__).parent / folder
-    if "/" in value:
-        cands = [base / value]
-    else:
-        cands = [shipped / value, shipped / f"{value}.toml"] + ([base / value] if value.endswith(".toml") else [])
-    for cand in cands:
-        if cand.is_file():
-            return cand.resolve()
-    hint = "" if "/" in value else f"; for a file of your own give a path, e.g. ./{value}"
-    if "=" in value and ":=" not in value:
-        name, _, arg = value.partition("=")
-        hint = f"; launch arguments take ':=': {name}:={arg}"
-    elif folder == "files":
-        hint += f". Shipped launch files: {', '.join(sorted(f.stem for f in shipped.glob('*.toml')))}"
-    raise ConfigError(f"cannot find {value!r} (looked in {', '.join(str(c) for c in cands)}){hint}")
-
 
 def free_port(kind: int = socket.SOCK_STREAM) -> int:
     """A port free on 127.0.0.1 now (TCP by default, UDP with ``socket.SOCK_DGRAM``)."""
@@ -494,7 +468,7 @@ def load_launch_file(
 
 def _tcp_security(p: Path, meta: dict[str, Any], entries: list[NodeEntry]) -> tuple[Path | None, bool]:
     """``[launch] keys`` (a key directory, relative to the launch file) and ``insecure``;
-    a graph with tcp links needs one of them (nodes/curve.py)."""
+    a graph with tcp links needs one of them (nodes/runtime/curve.py)."""
     insecure = _flag(meta.get("insecure", False), f"{p.name}: [launch] insecure")
     raw = meta.get("keys", "")
     if not isinstance(raw, str):

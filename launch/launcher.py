@@ -2,7 +2,7 @@
 
 Each node runs in a process of its own, or with the other nodes of its ``container``
 in one process (their messages to each other then skip the bus; see
-``nodes/process.py``). Starts processes subscribers-first (reverse topological order
+``nodes/runtime/process.py``). Starts processes subscribers-first (reverse topological order
 of the topic graph, so a publisher's subscribers exist before its data flows), waits
 for each to report ready, forwards every log line prefixed with ``[node]``, respawns
 crashed nodes per their policy, and on SIGINT/SIGTERM stops them in reverse start
@@ -48,11 +48,11 @@ from slipstack.lib.errors import ConfigError, SlipstackError
 from slipstack.launch.launch_file import LaunchFile, NodeEntry, arg_comments, free_port, load_launch_file
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.messages import Diagnostics
-from slipstack.nodes.curve import INSECURE_ENV, KEYS_ENV
-from slipstack.nodes.graph_info import process_start_ticks, write_graph
-from slipstack.nodes.host import DIAGNOSTICS_TOPIC
-from slipstack.nodes.run_dir import finish_run_dir, make_run_dir, remove_run_dir, write_private_file
-from slipstack.nodes.transport import ipc_endpoint
+from slipstack.nodes.runtime.curve import INSECURE_ENV, KEYS_ENV
+from slipstack.nodes.runtime.graph_info import process_start_ticks, write_graph
+from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
+from slipstack.nodes.runtime.run_dir import finish_run_dir, make_run_dir, remove_run_dir, write_private_file
+from slipstack.nodes.runtime.transport import ipc_endpoint
 
 __all__ = ["Launcher", "add_parser", "main_launch"]
 

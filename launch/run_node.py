@@ -20,8 +20,8 @@ import zmq
 
 from slipstack.lib.errors import ConfigError, SlipstackError
 from slipstack.nodes.catalog import NODE_TYPES, node_class
-from slipstack.nodes.node import Node, make_params, param_help
-from slipstack.nodes.process import ProcessExecutor, RunSpec
+from slipstack.nodes.runtime.node import Node, make_params, param_help
+from slipstack.nodes.runtime.process import ProcessExecutor, RunSpec
 
 __all__ = ["add_parser", "main_run", "main_spawned", "parse_assignments", "set_parent_death_signal"]
 
@@ -143,7 +143,7 @@ def _require_pub(node: Node, name: str, pub: str | None) -> None:
 
 def main_spawned(argv: list[str] | None = None) -> int:
     """``python -m slipstack.launch.run_node NODE --spec FILE``: the launcher's lean way to start a process."""
-    from slipstack.launch.cli import run_guarded
+    from slipstack.lib.errors import run_guarded
 
     parser = argparse.ArgumentParser(
         prog="python -m slipstack.launch.run_node",

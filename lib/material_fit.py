@@ -1,6 +1,6 @@
 """From identified ramps to a material: pooled coefficients, load-factor noise, onset levels.
 
-The pieces of :mod:`slipstack.nodes.identify_cli` that are plain computation:
+The pieces of :mod:`slipstack.analysis.identify_cli` that are plain computation:
 
 - :func:`pooled`: several estimates of one coefficient (one per recording) as their
   inverse-variance weighted mean and its standard error.

@@ -1,4 +1,4 @@
-"""Reading a TOML settings file (scene, material) with errors that name the file."""
+"""Finding and reading a TOML settings file (launch, scene, material); errors name the file."""
 
 from __future__ import annotations
 
@@ -8,7 +8,10 @@ from typing import Any
 
 from slipstack.lib.errors import ConfigError
 
-__all__ = ["read_toml"]
+__all__ = ["read_toml", "resolve_path", "SHIPPED_ROOT"]
+
+#: Where the shipped launch files (``files/``), scenes and materials live.
+SHIPPED_ROOT = Path(__file__).resolve().parents[1] / "launch"
 
 
 def read_toml(path: str | Path, kind: str) -> dict[str, Any]:
@@ -26,3 +29,31 @@ def read_toml(path: str | Path, kind: str) -> dict[str, Any]:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path.name}: TOML syntax error: {exc}") from exc
+
+
+def resolve_path(value: str, base: Path, folder: str) -> Path:
+    """The file a launch or scene file names: shipped first, a file of your own only as a path.
+
+    A bare name (``fig15``, ``stack.toml``) is the shipped file in ``launch/<folder>/``;
+    if none is shipped, a name ending in ``.toml`` is looked for in ``base``. A name with
+    a ``/`` is a path, relative to ``base``. So a stray file in the current directory
+    never shadows a shipped one.
+
+    Raises:
+        ConfigError: no such file (says where it looked).
+    """
+    shipped = SHIPPED_ROOT / folder
+    if "/" in value:
+        cands = [base / value]
+    else:
+        cands = [shipped / value, shipped / f"{value}.toml"] + ([base / value] if value.endswith(".toml") else [])
+    for cand in cands:
+        if cand.is_file():
+            return cand.resolve()
+    hint = "" if "/" in value else f"; for a file of your own give a path, e.g. ./{value}"
+    if "=" in value and ":=" not in value:
+        name, _, arg = value.partition("=")
+        hint = f"; launch arguments take ':=': {name}:={arg}"
+    elif folder == "files":
+        hint += f". Shipped launch files: {', '.join(sorted(f.stem for f in shipped.glob('*.toml')))}"
+    raise ConfigError(f"cannot find {value!r} (looked in {', '.join(str(c) for c in cands)}){hint}")

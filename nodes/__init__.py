@@ -1,1 +1,11 @@
-"""Nodes: thin adapters from topics to ``slipstack.lib`` calls, and tools on the bus."""
+"""The graph's nodes: thin adapters from topics to ``slipstack.lib`` calls.
+
+The modules directly in this package are the node types a launch file names
+(``runtime/catalog.py``). Beside them, by kind (docs/architecture.md §1):
+
+* ``runtime/``: the node model, the executors (process and in-process), transport,
+  run directories — what every node runs on;
+* ``devices/``: byte links, one back-end per URL scheme, and the device emulators;
+* ``recording/``: MCAP recordings (file format, the recorder and the player);
+* ``tools/``: the ``slipstack topic | node | bag`` verbs that attach to a running graph.
+"""

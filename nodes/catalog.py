@@ -5,7 +5,7 @@ from __future__ import annotations
 import importlib
 
 from slipstack.lib.errors import ConfigError
-from slipstack.nodes.node import Node
+from slipstack.nodes.runtime.node import Node
 
 __all__ = ["NODE_TYPES", "node_class"]
 
@@ -19,8 +19,8 @@ NODE_TYPES: dict[str, str] = {
     "fusion": "slipstack.nodes.fusion:Fusion",
     "cor_estimator": "slipstack.nodes.cor_estimator:CorEstimator",
     "slip_detector": "slipstack.nodes.slip_detector:SlipDetector",
-    "recorder": "slipstack.nodes.recorder:Recorder",
-    "player": "slipstack.nodes.player:Player",
+    "recorder": "slipstack.nodes.recording.recorder:Recorder",
+    "player": "slipstack.nodes.recording.player:Player",
     "ft_driver": "slipstack.nodes.ft_driver:FtDriver",
     "tactile_driver": "slipstack.nodes.tactile_driver:TactileDriver",
     "foxglove": "slipstack.nodes.foxglove_bridge:FoxgloveBridge",

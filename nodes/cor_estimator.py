@@ -20,9 +20,9 @@ from slipstack.lib.cor import paper_cor, robust_cor
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.limit_set import compile_kernels, load_factor
 from slipstack.messages import Contact, Cor
-from slipstack.nodes.contact_view import ContactView
+from slipstack.lib.contact_view import ContactView
 from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material
-from slipstack.nodes.node import Context, Input, Node, Output
+from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
 __all__ = ["CorEstimator", "CorParams", "SOLVERS"]
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from slipstack.messages import Wrench
-from slipstack.nodes.node import Context, Input, Node, Output
+from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
 __all__ = ["WrenchSource", "Relay", "Sink"]
 

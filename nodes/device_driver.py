@@ -38,7 +38,7 @@ from typing import Any, ClassVar
 from slipstack.lib.errors import ConfigError
 from slipstack.nodes.devices import LinkStatus
 from slipstack.nodes.devices.backends import SCHEMES, Backend, Sample, backend_from_url
-from slipstack.nodes.node import Context, IoSource, Node
+from slipstack.nodes.runtime.node import Context, IoSource, Node
 
 __all__ = ["DeviceDriver"]
 

@@ -27,7 +27,7 @@ import numpy as np
 
 from slipstack.lib.errors import ConfigError
 from slipstack.messages import Cor, GripCommand, Message, Slip, TactileFrame, Wrench
-from slipstack.nodes.node import Context, Input, Node
+from slipstack.nodes.runtime.node import Context, Input, Node
 
 __all__ = ["FoxgloveBridge", "FoxgloveParams", "arrow_orientation"]
 
@@ -84,7 +84,7 @@ class FoxgloveBridge(Node):
             from foxglove.channels import RawImageChannel, SceneUpdateChannel
         except ImportError:
             raise ConfigError(INSTALL_HINT) from None
-        from slipstack.nodes.bag_io import json_schema
+        from slipstack.nodes.recording.bag_io import json_schema
 
         self._wall_offset_ns = time.time_ns() - time.monotonic_ns()
         self._server = foxglove.start_server(name="slipstack", host=self.params.host, port=self.params.port)
@@ -137,7 +137,7 @@ class FoxgloveBridge(Node):
         return Timestamp(sec=sec, nsec=nsec)
 
     def _log_json(self, name: str, msg: Message) -> None:
-        from slipstack.nodes.bag_io import to_json
+        from slipstack.nodes.recording.bag_io import to_json
 
         self._json[name].log(to_json(msg), log_time=self._wall_ns(msg))
 

@@ -36,7 +36,7 @@ from slipstack.lib.fusion import SensorMount, wrench_to_pad
 from slipstack.messages import Wrench
 from slipstack.nodes.device_driver import DeviceDriver
 from slipstack.nodes.devices.backends import FtSample
-from slipstack.nodes.node import Context, Output
+from slipstack.nodes.runtime.node import Context, Output
 
 __all__ = ["FtDriver", "FtDriverParams"]
 

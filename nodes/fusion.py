@@ -23,7 +23,7 @@ import numpy as np
 from slipstack.lib.fusion import FusionThresholds, PressureShape, ft_understates_pad, fuse_shape, pressure_shape
 from slipstack.lib.pad import PadGeometry
 from slipstack.messages import STATUS_OK, TACTILE_PAIRING, Contact, TactileFrame, Wrench
-from slipstack.nodes.node import Context, Input, Node, Output
+from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
 __all__ = ["Fusion", "FusionParams"]
 

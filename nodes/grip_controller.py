@@ -23,7 +23,7 @@ from slipstack.lib.contact_view import pad_positions
 from slipstack.lib.grip_laws import LAWS, GripDecision, GripGovernor, GripInput, GripReason, make_law
 from slipstack.messages import Contact, Cor, GripCommand, Slip
 from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material
-from slipstack.nodes.node import Context, Input, Node, Output
+from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
 __all__ = ["GripController", "GripControllerParams"]
 

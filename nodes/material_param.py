@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from slipstack.lib.material import Material, detector_thresholds, load_material
-from slipstack.launch.launch_file import resolve_path
+from slipstack.lib.toml_file import resolve_path
 
 __all__ = ["DEFAULT_MATERIAL", "resolve_material", "fill_from_material"]
 

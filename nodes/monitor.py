@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 from slipstack.lib.episodes import INCIPIENT_SHARE, EpisodeTracker
 from slipstack.lib.errors import ConfigError
 from slipstack.messages import Diagnostics, GripCommand, RigTruth, Slip
-from slipstack.nodes.node import Context, Input, Node
+from slipstack.nodes.runtime.node import Context, Input, Node
 
 __all__ = ["Monitor", "MonitorParams", "summarise", "check_problems", "format_summary", "status_line"]
 

@@ -26,12 +26,12 @@ from slipstack.lib.rig.actuator import CommandWatchdog
 from slipstack.lib.rig.scene import Scene, load_scene
 from slipstack.lib.rig.sensors import FtSample, TactileSample
 from slipstack.lib.rig.simulator import Simulator, Truth
-from slipstack.launch.launch_file import resolve_path
+from slipstack.lib.toml_file import resolve_path
 from slipstack.messages import GripCommand, RigTruth
 from slipstack.nodes.devices.emulators import (
     BotaEmulator, Dsacon32Emulator, M1616Emulator, RdtUdpServer, RobotiqEmulator,
 )
-from slipstack.nodes.node import Context, Input, Node, Output
+from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
 __all__ = ["Rig", "RigParams", "truth_message", "with_rates"]
 

@@ -31,7 +31,7 @@ from slipstack.lib.limit_set import compile_kernels
 from slipstack.lib.slip_tests import SLIP_TESTS
 from slipstack.messages import Contact, Slip
 from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material
-from slipstack.nodes.node import Context, Input, Node, Output
+from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
 __all__ = ["SlipDetector", "SlipDetectorParams"]
 

@@ -42,7 +42,7 @@ from slipstack.lib.pad import PadMount
 from slipstack.messages import TactileFrame
 from slipstack.nodes.device_driver import DeviceDriver
 from slipstack.nodes.devices.backends import Dsacon32Backend, FramedBackend, TactileSample
-from slipstack.nodes.node import Context, Output
+from slipstack.nodes.runtime.node import Context, Output
 
 __all__ = ["TactileDriver", "TactileDriverParams", "DEFAULT_PA_PER_COUNT"]
 

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from slipstack.launch.launch_file import resolve_path
+from slipstack.lib.toml_file import resolve_path
 
 __all__ = ["long_scene", "free_udp_port", "StackRun", "ProcSampler", "CpuShare", "pid_alive"]
 

@@ -35,7 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _stack import StackRun, free_udp_port, long_scene, pid_alive  # noqa: E402
 
 from slipstack.messages import decode  # noqa: E402
-from slipstack.nodes.bag_io import read_recording  # noqa: E402
+from slipstack.nodes.recording.bag_io import read_recording  # noqa: E402
 
 TARGETS = {"tactile_driver": "tactile_driver", "ft_driver": "ft_driver", "control": "grip_controller"}
 

@@ -5,7 +5,7 @@ RIG_MATERIALS: the rubber, a Coulomb contact with μ_d = μ_s, a strongly weaken
 
 1. **Identify**: the identification scenes ``ident_force`` and ``ident_torsion`` on
    that material run in lock-step (controller off) and are recorded to MCAP;
-   ``slipstack identify`` (:func:`slipstack.nodes.identify_cli.identify_material`)
+   ``slipstack identify`` (:func:`slipstack.analysis.identify_cli.identify_material`)
    turns them into a material file. The first table compares it with the scene's truth
    (μ from the material; β = μ × the pressure-weighted mean taxel distance about the
    geometric median of the scene's true pressure at 5 N); intervals are ± 2 standard errors.
@@ -68,9 +68,9 @@ from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.scene import RIG_MATERIALS, Scene, with_rig_material
 from slipstack.launch.launch_file import load_launch_file
 from slipstack.messages import encode
-from slipstack.nodes.bag_io import RecordingWriter
-from slipstack.nodes.identify_cli import identify_material
-from slipstack.nodes.lockstep import LockstepStack, StackConfig, load_scene_by_name
+from slipstack.nodes.recording.bag_io import RecordingWriter
+from slipstack.analysis.identify_cli import identify_material
+from slipstack.launch.lockstep import LockstepStack, StackConfig, load_scene_by_name
 from slipstack.nodes.rig import with_rates
 
 DETECTION_SCENES = ["fig4a", "fig4b", "fig10", "fig11", "fig12", "fig13", "fig14", "fig15", "default"]

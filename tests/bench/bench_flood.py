@@ -54,8 +54,8 @@ def flood(graph_path: Path, kind: str, rate_hz: float, big_mb: float, payload: s
     import zmq
 
     from slipstack.messages import Header, Wrench, encode
-    from slipstack.nodes.topic_pub import Injector
-    from slipstack.nodes.topic_tools import resolve_topic
+    from slipstack.nodes.tools.topic_pub import Injector
+    from slipstack.nodes.tools.topic_tools import resolve_topic
 
     injector = Injector(resolve_topic(json.loads(graph_path.read_text()), FLOOD_TOPIC), linger_s=0.0)
     injector.wait_for_subscribers(5.0)

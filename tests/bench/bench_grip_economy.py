@@ -2,7 +2,7 @@
 """Grip economy: how much normal force each grip law spends to hold a disturbance.
 
 For each scene and grip law the whole stack runs in lock-step with the simulated rig
-(:class:`slipstack.nodes.lockstep.LockstepStack`, controller on, F/T 500 Hz, tactile
+(:class:`slipstack.launch.lockstep.LockstepStack`, controller on, F/T 500 Hz, tactile
 250 Hz, truth 250 Hz). Laws (docs/math.md §5, parameters of launch/files/stack.toml:
 μ = 0.45, σ = 0.5, f_nom = 2 N, f_max = the scene's finger limit):
 
@@ -56,7 +56,7 @@ from slipstack.lib.limit_set import torsional_coefficient
 from slipstack.lib.oracle import least_holding_force, oracle_normal_force
 from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.scene import Scene
-from slipstack.nodes.lockstep import LockstepStack, StackConfig, load_scene_by_name
+from slipstack.launch.lockstep import LockstepStack, StackConfig, load_scene_by_name
 from slipstack.nodes.rig import with_rates
 
 DEFAULT_SCENES = ["fig12", "fig14", "fig15", "default"]

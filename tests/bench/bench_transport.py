@@ -35,7 +35,7 @@ import msgpack
 import numpy as np
 
 from slipstack.messages import Header, Message, TactileFrame, Wrench, decode, encode
-from slipstack.nodes.node import Input, Node, Output
+from slipstack.nodes.runtime.node import Input, Node, Output
 
 WARMUP = 200  # first messages left out of the statistics
 
@@ -153,7 +153,7 @@ class BenchSink(Node):
 
 
 def _slip_process(node_factory: Any, spec_kwargs: dict, ready: Any) -> None:
-    from slipstack.nodes.process import ProcessExecutor, RunSpec
+    from slipstack.nodes.runtime.process import ProcessExecutor, RunSpec
 
     node = node_factory()
     ex = ProcessExecutor([(node, RunSpec(**spec_kwargs))])

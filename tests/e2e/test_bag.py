@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from slipstack.messages import Header, Wrench, decode, encode
-from slipstack.nodes.bag_io import RecordingWriter, match_outputs, read_recording, recording_info, replay_into
+from slipstack.nodes.recording.bag_io import RecordingWriter, match_outputs, read_recording, recording_info, replay_into
 from slipstack.nodes.demo import Relay
 
 pytestmark = pytest.mark.e2e

@@ -15,8 +15,8 @@ import time
 import pytest
 import zmq
 
-from slipstack.nodes import curve
-from slipstack.nodes.transport import make_sub
+from slipstack.nodes.runtime import curve
+from slipstack.nodes.runtime.transport import make_sub
 
 pytestmark = pytest.mark.e2e
 

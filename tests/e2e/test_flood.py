@@ -11,10 +11,10 @@ import pytest
 import zmq
 
 from slipstack.messages import Header, Wrench, decode, encode
-from slipstack.nodes.process import RunSpec
-from slipstack.nodes.topic_pub import Injector
-from slipstack.nodes.topic_tools import resolve_topic
-from slipstack.nodes.transport import make_sub
+from slipstack.nodes.runtime.process import RunSpec
+from slipstack.nodes.tools.topic_pub import Injector
+from slipstack.nodes.tools.topic_tools import resolve_topic
+from slipstack.nodes.runtime.transport import make_sub
 
 pytestmark = pytest.mark.e2e
 

@@ -23,7 +23,7 @@ pytest.importorskip("foxglove", reason="the foxglove extra is not installed")
 sync_client = pytest.importorskip("websockets.sync.client", reason="websockets (a WebSocket client) is not installed")
 
 from slipstack.messages import Header, TactileFrame, Wrench, encode  # noqa: E402
-from slipstack.nodes.transport import make_pub  # noqa: E402
+from slipstack.nodes.runtime.transport import make_pub  # noqa: E402
 
 pytestmark = pytest.mark.e2e
 

@@ -53,7 +53,7 @@ def recording(tmp_path):
     import numpy as np
 
     from slipstack.messages import Header, Wrench, encode
-    from slipstack.nodes.bag_io import RecordingWriter
+    from slipstack.nodes.recording.bag_io import RecordingWriter
 
     path = tmp_path / "run.mcap"
     with RecordingWriter(path, wall_minus_monotonic_ns=1_000) as w:
@@ -144,7 +144,7 @@ def test_help_and_topic_list_start_without_the_numeric_stack(args, tmp_path):
              f"sys.argv = ['slipstack', *{args!r}]\n"
              "try:\n    runpy.run_module('slipstack.launch.cli', run_name='__main__')\n"
              "except SystemExit:\n    pass\n"
-             "heavy = sorted(m for m in ('numpy', 'scipy', 'numba', 'zmq', 'slipstack.nodes.node') if m in sys.modules)\n"
+             "heavy = sorted(m for m in ('numpy', 'scipy', 'numba', 'zmq', 'slipstack.nodes.runtime.node') if m in sys.modules)\n"
              "print('HEAVY', heavy, file=sys.stderr)\n")
     env = dict(os.environ, SLIPSTACK_RUN_ROOT=str(tmp_path))  # topic list: no graph here, a one-line error
     out = subprocess.run([PY, "-c", probe], capture_output=True, text=True, timeout=60, env=env)

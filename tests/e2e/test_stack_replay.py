@@ -27,7 +27,7 @@ import pytest
 
 from slipstack.launch.launch_file import launch_files_dir, load_launch_file
 from slipstack.messages import Contact, Slip, decode
-from slipstack.nodes.bag_io import (RecordedFrame, RecordingWriter, clock_offset_ns, match_outputs, read_recording,
+from slipstack.nodes.recording.bag_io import (RecordedFrame, RecordingWriter, clock_offset_ns, match_outputs, read_recording,
                                     recording_info, replay_into)
 
 pytestmark = pytest.mark.e2e

@@ -16,10 +16,10 @@ import pytest
 import zmq
 
 from slipstack.messages import Header, Wrench, encode
-from slipstack.nodes.topic_hz import peek_header, rate_stats
-from slipstack.nodes.topic_pub import Injector
-from slipstack.nodes.topic_tools import resolve_topic
-from slipstack.nodes.topic_yaml import parse_flow
+from slipstack.nodes.tools.topic_hz import peek_header, rate_stats
+from slipstack.nodes.tools.topic_pub import Injector
+from slipstack.nodes.tools.topic_tools import resolve_topic
+from slipstack.nodes.tools.topic_yaml import parse_flow
 
 from .conftest import LaunchedGraph, pid_alive
 
@@ -254,7 +254,7 @@ def test_pub_is_seen_by_echo_and_bag_record_on_the_topic_itself(demo, tmp_path):
     record.send_signal(signal.SIGINT)
     record.communicate(timeout=30)
     from slipstack.messages import decode
-    from slipstack.nodes.bag_io import read_recording
+    from slipstack.nodes.recording.bag_io import read_recording
     injected = [f for f in read_recording(str(bag), ["ft/wrench"]) if decode(f.payload).force[0] == 7.25]
     assert len(injected) >= 3
     assert not list(demo.run_root.glob("*/tool-*.json"))  # the tools unregistered at exit

@@ -23,8 +23,8 @@ from slipstack.lib.rig.scene import DisturbanceSpec, Scene, Segment
 from slipstack.nodes.cor_estimator import CorEstimator, CorParams
 from slipstack.nodes.fusion import Fusion, FusionParams
 from slipstack.nodes.grip_controller import GripController, GripControllerParams
-from slipstack.nodes.lockstep import StackConfig, load_scene_by_name
-from slipstack.nodes.node import Node
+from slipstack.launch.lockstep import StackConfig, load_scene_by_name
+from slipstack.nodes.runtime.node import Node
 from slipstack.nodes.rig import with_rates
 from slipstack.nodes.slip_detector import SlipDetector, SlipDetectorParams
 

@@ -6,7 +6,7 @@ Run from the repository root::
     .venv/bin/python tests/isolation/make_golden.py --check    # exit 1 if they are stale
 
 Each recording (``golden_config.GOLDENS``) is the whole stack run in lock-step on a
-short simulated scene (``nodes/lockstep.py``), every topic written as it was
+short simulated scene (``launch/lockstep.py``), every topic written as it was
 published: log_time = ``header.pub_ns`` (the in-process executor's clock, ns from
 the scene start) and ``wall_minus_monotonic_ns = 0``, so ``replay_into`` feeds each
 frame at the very time, and in the very order, the live node received it.
@@ -21,8 +21,8 @@ from pathlib import Path
 
 from golden_config import GOLDEN_DIR, GOLDENS, Golden
 
-from slipstack.nodes.bag_io import RecordingWriter, peek_header, read_recording
-from slipstack.nodes.lockstep import LockstepStack
+from slipstack.nodes.recording.bag_io import RecordingWriter, peek_header, read_recording
+from slipstack.launch.lockstep import LockstepStack
 
 __all__ = ["write_golden", "compare_recordings", "main"]
 

@@ -13,7 +13,7 @@ import pytest
 from slipstack.messages import GripCommand, Header, TactileFrame, Wrench
 from slipstack.nodes.fusion import Fusion, FusionParams
 from slipstack.nodes.grip_controller import GripController, GripControllerParams
-from slipstack.nodes.inprocess import InProcessExecutor
+from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.nodes.slip_detector import SlipDetector, SlipDetectorParams
 
 MS = 1_000_000

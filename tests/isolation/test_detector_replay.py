@@ -11,7 +11,7 @@ from golden_config import GOLDENS, Golden, build_node
 
 from slipstack.lib.detector import Detector, DetectorSettings
 from slipstack.messages import Contact, Slip, decode
-from slipstack.nodes.bag_io import read_recording, replay_into
+from slipstack.nodes.recording.bag_io import read_recording, replay_into
 from slipstack.nodes.material_param import resolve_material
 
 

@@ -20,7 +20,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.messages import decode
 from slipstack.nodes.devices.emulators import BotaEmulator, Dsacon32Emulator, M1616Emulator
 from slipstack.nodes.ft_driver import FtDriver, FtDriverParams
-from slipstack.nodes.host import NodeHost
+from slipstack.nodes.runtime.host import NodeHost
 from slipstack.nodes.tactile_driver import TactileDriver, TactileDriverParams
 
 MS = 1_000_000

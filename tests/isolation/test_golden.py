@@ -38,7 +38,7 @@ from make_golden import compare_recordings, write_golden
 
 from slipstack.lib.pad import PadGeometry
 from slipstack.messages import Message, decode, encode
-from slipstack.nodes.bag_io import RecordingWriter, match_outputs, read_recording, replay_into
+from slipstack.nodes.recording.bag_io import RecordingWriter, match_outputs, read_recording, replay_into
 
 CASES = [(g, n) for g in GOLDENS for n in NODES if g.tactile or n != "cor_estimator"]
 

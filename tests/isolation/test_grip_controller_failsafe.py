@@ -7,7 +7,7 @@ import numpy as np
 
 from slipstack.messages import Header, Slip
 from slipstack.nodes.grip_controller import GripController, GripControllerParams
-from slipstack.nodes.inprocess import InProcessExecutor
+from slipstack.nodes.runtime.inprocess import InProcessExecutor
 
 MS = 1_000_000
 

@@ -32,8 +32,8 @@ from slipstack.messages import (
 )
 from slipstack.messages.codec import packb
 from slipstack.nodes.catalog import node_class
-from slipstack.nodes.inprocess import InProcessExecutor
-from slipstack.nodes.node import make_params
+from slipstack.nodes.runtime.inprocess import InProcessExecutor
+from slipstack.nodes.runtime.node import make_params
 
 CPU_FACTOR = 50
 MEMORY_FACTOR = 50

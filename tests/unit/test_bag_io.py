@@ -10,13 +10,13 @@ import pytest
 from mcap.reader import make_reader
 
 from slipstack.messages import Diagnostics, Header, Wrench, decode, encode
-from slipstack.nodes.bag_io import (
+from slipstack.nodes.recording.bag_io import (
     MESSAGE_ENCODING, SCHEMA_ENCODING, RecordingError, RecordingWriter, export_recording,
     match_outputs, message_schema, read_recording, recording_info, replay_into, restamp, same_output,
 )
 from slipstack.nodes.demo import Relay, WrenchSource
-from slipstack.nodes.inprocess import InProcessExecutor
-from slipstack.nodes.player import Playback, Player, PlayerParams
+from slipstack.nodes.runtime.inprocess import InProcessExecutor
+from slipstack.nodes.recording.player import Playback, Player, PlayerParams
 
 WALL0 = 1_700_000_000_000_000_000  # a wall-clock epoch for log times (ns)
 OFFSET = WALL0 - 5_000_000_000     # wall − monotonic of the fake host: monotonic starts at 5 s

@@ -14,12 +14,12 @@ from slipstack.lib.status import SolverStatus
 from slipstack.messages import Contact, Cor, Diagnostics, GripCommand, Slip, TactileFrame, Wrench, decode, encode
 from slipstack.messages.codec import MAX_PAYLOAD_BYTES, packb
 from slipstack.messages.types import MAX_COUNTERS, MAX_TEXT_LEN
-from slipstack.nodes.bag_io import json_schema, message_schema
+from slipstack.nodes.recording.bag_io import json_schema, message_schema
 from slipstack.nodes.devices import LinkStatus
-from slipstack.nodes.host import NodeHost
-from slipstack.nodes.node import Node, Output
-from slipstack.nodes.topic_pub import build_message
-from slipstack.nodes.transport import make_sub
+from slipstack.nodes.runtime.host import NodeHost
+from slipstack.nodes.runtime.node import Node, Output
+from slipstack.nodes.tools.topic_pub import build_message
+from slipstack.nodes.runtime.transport import make_sub
 
 _HEADER = [10, 0, 11, {}]
 

@@ -12,10 +12,10 @@ import pytest
 import zmq
 
 from slipstack.messages import Header, Wrench, encode
-from slipstack.nodes import process
-from slipstack.nodes.node import Input, Node
-from slipstack.nodes.process import RunSpec, _Member
-from slipstack.nodes.transport import make_pub
+from slipstack.nodes.runtime import process
+from slipstack.nodes.runtime.node import Input, Node
+from slipstack.nodes.runtime.process import RunSpec, _Member
+from slipstack.nodes.runtime.transport import make_pub
 
 
 class _Recorder(Node):

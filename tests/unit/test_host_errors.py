@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from slipstack.nodes.host import NodeHost
-from slipstack.nodes.node import Node
+from slipstack.nodes.runtime.host import NodeHost
+from slipstack.nodes.runtime.node import Node
 
 
 class _Broken(Node):

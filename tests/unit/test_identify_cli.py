@@ -10,7 +10,7 @@ import pytest
 from slipstack.launch.cli import main
 from slipstack.lib.material import detector_thresholds, load_material
 from slipstack.messages import Header, RigTruth, Wrench, encode
-from slipstack.nodes.bag_io import RecordingWriter
+from slipstack.nodes.recording.bag_io import RecordingWriter
 
 FS = 500.0
 F_N = 5.0

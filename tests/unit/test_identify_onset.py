@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from slipstack.lib.identify import identify_beta, identify_mu
-from slipstack.nodes.report import RecordingSeries, identify_recording
+from slipstack.analysis.report import RecordingSeries, identify_recording
 
 FS = 500.0
 DT = 1.0 / FS

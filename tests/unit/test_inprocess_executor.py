@@ -6,8 +6,8 @@ import numpy as np
 
 from slipstack.messages import Header, Wrench, encode
 from slipstack.nodes.demo import Relay, SourceParams, WrenchSource
-from slipstack.nodes.inprocess import InProcessExecutor
-from slipstack.nodes.node import Context, Input, Node
+from slipstack.nodes.runtime.inprocess import InProcessExecutor
+from slipstack.nodes.runtime.node import Context, Input, Node
 
 
 def _wrench(seq: int, t: int) -> Wrench:

@@ -208,7 +208,7 @@ def test_a_malformed_file_gives_one_line_and_leaves_no_run_directory(tmp_path, m
 
 
 def test_a_recording_that_exists_is_refused_and_kept(tmp_path):
-    from slipstack.nodes.recorder import Recorder, RecorderParams
+    from slipstack.nodes.recording.recorder import Recorder, RecorderParams
 
     existing = tmp_path / "take1.mcap"
     existing.write_bytes(b"precious")

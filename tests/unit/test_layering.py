@@ -1,13 +1,17 @@
 """The import layers of docs/architecture.md §9, checked over the source tree with ast.
 
 Lowest first: ``lib`` imports nothing of ours but ``lib``; ``messages`` imports ``lib``;
-``nodes`` imports ``lib`` and ``messages``; ``analysis`` imports those and ``nodes``;
-``launch`` is the top and may import anything. ``lib`` and ``messages`` never import
-zmq. An import counts wherever it is written (module level or inside a function), and
-so does a module named in a string (``importlib.import_module("slipstack.x.y")``, the
-node catalog's ``"slipstack.nodes.demo:Relay"``).
+``nodes`` imports ``lib`` and ``messages``; ``launch`` imports those three;
+``analysis`` (offline runs and figures, on lock-step launches) imports those four; the
+command line (``launch/cli.py``) names a verb of every layer and is the top. Inside ``nodes`` the same holds by
+folder: ``runtime`` and ``devices`` know no node; ``recording`` sits on ``runtime``;
+the graph's nodes (the modules directly in ``nodes/``) use those three; ``tools`` may
+use everything in ``nodes`` and nothing uses ``tools``. ``lib`` and ``messages`` never
+import zmq. An import counts wherever it is written (module level or inside a
+function), and so does a module named in a string (``importlib.import_module(
+"slipstack.x.y")``, the node catalog's ``"slipstack.nodes.demo:Relay"``).
 
-Today's violations are listed one by one in :data:`ALLOWED`; a new one fails the test,
+Violations would be listed one by one in :data:`ALLOWED`; a new one fails the test,
 and an entry that no longer occurs fails it too, so the list only shrinks.
 """
 
@@ -19,32 +23,52 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 
+_NODES = frozenset({"nodes", "nodes.runtime", "nodes.devices", "nodes.recording", "nodes.tools"})
+
 MAY_IMPORT: dict[str, frozenset[str]] = {
     "lib": frozenset({"lib"}),
     "messages": frozenset({"lib", "messages"}),
-    "nodes": frozenset({"lib", "messages", "nodes"}),
-    "analysis": frozenset({"lib", "messages", "nodes", "analysis"}),
-    "launch": frozenset({"lib", "messages", "nodes", "analysis", "launch"}),
+    "nodes.runtime": frozenset({"lib", "messages", "nodes.runtime"}),
+    "nodes.devices": frozenset({"lib", "nodes.devices"}),
+    "nodes.recording": frozenset({"lib", "messages", "nodes.runtime", "nodes.recording"}),
+    "nodes": frozenset({"lib", "messages", "nodes.runtime", "nodes.devices", "nodes.recording", "nodes"}),
+    "nodes.tools": frozenset({"lib", "messages"}) | _NODES,
+    "launch": frozenset({"lib", "messages", "launch"}) | _NODES,
+    "analysis": frozenset({"lib", "messages", "launch", "analysis"}) | _NODES,
+    "cli": frozenset({"lib", "messages", "launch", "analysis", "cli"}) | _NODES,
 }
-"""Package → the packages of ours it may import."""
+"""Layer (a top-level package, or a folder of ``nodes``) → the layers it may import."""
+
+_TOP = frozenset(name.split(".")[0] for name in MAY_IMPORT) - {"cli"}
+_CLI = "launch/cli.py"
 
 NO_ZMQ = ("lib", "messages")
 
-ALLOWED: dict[tuple[str, str], str] = {
-    ("nodes/rig.py", "slipstack.launch.launch_file"):
-        "resolve_path finds a shipped scene by name; issue 11: to move",
-    ("nodes/lockstep.py", "slipstack.launch.launch_file"):
-        "resolve_path finds a shipped scene by name; issue 11: to move",
-    ("nodes/material_param.py", "slipstack.launch.launch_file"):
-        "resolve_path finds a shipped material by name; issue 11: to move",
-}
+ALLOWED: dict[tuple[str, str], str] = {}
 """(file, imported module) → why it is allowed for now."""
 
 _MODULE_STRING = re.compile(r"^slipstack\.(\w+)(?:\.\w+)*(?::\w+)?$")
 
 
-def _package_of(path: Path) -> str:
-    return path.relative_to(ROOT).parts[0]
+def _layer_of_path(path: Path) -> str:
+    parts = path.relative_to(ROOT).parts
+    if "/".join(parts) == _CLI:
+        return "cli"
+    if parts[0] == "nodes" and len(parts) > 2:
+        return f"nodes.{parts[1]}"
+    return parts[0]
+
+
+def _layer_of_module(module: str) -> str | None:
+    """The layer of ``slipstack.<package>…``; None for a module that is not ours."""
+    parts = module.split(".")
+    if parts[0] != "slipstack" or len(parts) < 2 or parts[1] not in _TOP:
+        return None
+    if ".".join(parts[1:3]) == "launch.cli":
+        return "cli"
+    if parts[1] == "nodes" and len(parts) > 2 and f"nodes.{parts[2]}" in _NODES:
+        return f"nodes.{parts[2]}"
+    return parts[1]
 
 
 def _module_name(path: Path) -> str:
@@ -73,22 +97,22 @@ def imported_modules(path: Path) -> set[str]:
                 found.add(node.module)
         elif isinstance(node, ast.Constant) and isinstance(node.value, str):
             named = _MODULE_STRING.match(node.value)
-            if named and named.group(1) in MAY_IMPORT:  # not a key such as "slipstack.clock"
+            if named and named.group(1) in _TOP:  # not a key such as "slipstack.clock"
                 found.add(node.value.split(":")[0])
     return found
 
 
 def _sources() -> list[Path]:
-    return [p for pkg in MAY_IMPORT for p in sorted((ROOT / pkg).rglob("*.py"))]
+    return [p for pkg in sorted(_TOP) for p in sorted((ROOT / pkg).rglob("*.py"))]
 
 
 def _layer_breaches() -> set[tuple[str, str]]:
     breaches = set()
     for path in _sources():
-        own = _package_of(path)
+        own = _layer_of_path(path)
         for module in imported_modules(path):
-            parts = module.split(".")
-            if parts[0] == "slipstack" and len(parts) > 1 and parts[1] not in MAY_IMPORT[own]:
+            layer = _layer_of_module(module)
+            if layer is not None and layer not in MAY_IMPORT[own]:
                 breaches.add((str(path.relative_to(ROOT)), module))
     return breaches
 
@@ -108,7 +132,7 @@ def test_the_allowlist_holds_only_breaches_that_still_exist():
 def test_lib_and_messages_never_import_zmq():
     offenders = sorted(
         f"{path.relative_to(ROOT)} imports {module}"
-        for path in _sources() if _package_of(path) in NO_ZMQ
+        for path in _sources() if _layer_of_path(path) in NO_ZMQ
         for module in imported_modules(path) if module.split(".")[0] == "zmq")
     assert not offenders, "lib/ and messages/ must stay free of sockets:\n" + "\n".join(offenders)
 
@@ -118,4 +142,7 @@ def test_the_checker_sees_relative_and_string_imports():
     found = imported_modules(probe)
     assert "slipstack.nodes.devices.serial_link" in found  # ``from .serial_link import …``
     assert "slipstack.nodes.demo" in imported_modules(ROOT / "nodes" / "catalog.py")  # a string
-    assert ("nodes/rig.py", "slipstack.launch.launch_file") in _layer_breaches()
+    assert _layer_of_module("slipstack.nodes.runtime.host") == "nodes.runtime"
+    assert _layer_of_module("slipstack.nodes.fusion") == "nodes"
+    assert _layer_of_path(ROOT / "nodes" / "tools" / "topic_echo.py") == "nodes.tools"
+    assert "nodes.tools" not in MAY_IMPORT["nodes"]  # a graph node never reaches for a CLI tool

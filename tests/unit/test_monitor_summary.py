@@ -16,8 +16,8 @@ import pytest
 
 from slipstack.lib.errors import ConfigError
 from slipstack.messages import Diagnostics, GripCommand, Header, RigTruth, Slip, decode, encode
-from slipstack.nodes.inprocess import InProcessExecutor
-from slipstack.nodes.lockstep import LockstepStack, StackConfig, load_scene_by_name
+from slipstack.nodes.runtime.inprocess import InProcessExecutor
+from slipstack.launch.lockstep import LockstepStack, StackConfig, load_scene_by_name
 from slipstack.nodes.monitor import Monitor, MonitorParams, format_summary
 
 MS = 1_000_000

@@ -10,8 +10,8 @@ import sys
 import numpy as np
 import pytest
 from slipstack.messages import GripCommand, Header, RigTruth, Slip, Wrench, encode
-from slipstack.nodes.bag_io import RecordingWriter
-from slipstack.nodes.report import (
+from slipstack.nodes.recording.bag_io import RecordingWriter
+from slipstack.analysis.report import (
     MATPLOTLIB_HINT,
     add_parser,
     identify_recording,

@@ -10,8 +10,8 @@ import pytest
 
 from slipstack.launch.launch_file import load_launch_file
 from slipstack.lib.errors import ConfigError
-from slipstack.nodes.graph_info import find_run_dir, write_graph
-from slipstack.nodes.transport import make_run_dir, run_root
+from slipstack.nodes.runtime.graph_info import find_run_dir, write_graph
+from slipstack.nodes.runtime.transport import make_run_dir, run_root
 
 
 @pytest.fixture
@@ -107,7 +107,7 @@ def test_a_graph_whose_launcher_is_gone_is_stale(root):
 
 def test_a_reused_launcher_pid_is_not_taken_for_the_launcher(root):
     """Our own pid, alive, but with another start time: not the process that wrote the graph."""
-    from slipstack.nodes.graph_info import process_start_ticks
+    from slipstack.nodes.runtime.graph_info import process_start_ticks
 
     run = make_run_dir()
     write_graph(run, {"launcher_pid": os.getpid(), "launcher_start_ticks": process_start_ticks(os.getpid()) + 1,
@@ -120,7 +120,7 @@ def test_a_reused_launcher_pid_is_not_taken_for_the_launcher(root):
 
 
 def test_finished_run_directories_keep_their_reports_and_only_the_newest_are_kept(root):
-    from slipstack.nodes.run_dir import KEEP_FINISHED_RUNS, finish_run_dir
+    from slipstack.nodes.runtime.run_dir import KEEP_FINISHED_RUNS, finish_run_dir
 
     runs = []
     for k in range(KEEP_FINISHED_RUNS + 3):

@@ -7,8 +7,8 @@ import pytest
 
 from slipstack.lib.errors import ConfigError
 from slipstack.messages import Header, TactileFrame
-from slipstack.nodes.topic_echo import MessagePrinter
-from slipstack.nodes.topic_format import as_tree, pick
+from slipstack.nodes.tools.topic_echo import MessagePrinter
+from slipstack.nodes.tools.topic_format import as_tree, pick
 
 
 def _frame() -> TactileFrame:

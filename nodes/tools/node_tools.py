@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from slipstack.lib.errors import ConfigError
-from slipstack.nodes.graph_info import RUN_DIR_HELP, find_run_dir, process_start_ticks, read_graph
+from slipstack.nodes.runtime.graph_info import RUN_DIR_HELP, find_run_dir, process_start_ticks, read_graph
 
 __all__ = ["add_parser", "node_params"]
 
@@ -72,7 +72,7 @@ def _newest_diagnostics(endpoint: str, name: str, timeout_s: float) -> Any:
 
     from slipstack.lib.errors import DecodeError
     from slipstack.messages import Diagnostics, decode
-    from slipstack.nodes.transport import make_sub
+    from slipstack.nodes.runtime.transport import make_sub
 
     sock = make_sub(zmq.Context.instance(), [endpoint], "diagnostics", rcvhwm=100)
     deadline = time.monotonic() + timeout_s

@@ -45,7 +45,7 @@ from slipstack.lib.identify import (
     identify_mu,
 )
 from slipstack.messages import STATUS_OK, Message, decode
-from slipstack.nodes.bag_io import RecordingError, read_recording
+from slipstack.nodes.recording.bag_io import RecordingError, read_recording
 
 __all__ = [
     "SLIP_STATES",

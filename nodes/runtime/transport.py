@@ -19,8 +19,8 @@ import zmq
 
 from slipstack.lib.errors import ConfigError
 from slipstack.messages.codec import MAX_PAYLOAD_BYTES
-from slipstack.nodes.curve import secure_bind, secure_connect
-from slipstack.nodes.run_dir import RUN_ROOT_ENV, make_run_dir, run_root
+from slipstack.nodes.runtime.curve import secure_bind, secure_connect
+from slipstack.nodes.runtime.run_dir import RUN_ROOT_ENV, make_run_dir, run_root
 
 __all__ = [
     "make_run_dir", "ipc_endpoint", "make_pub", "make_sub", "bound_socket", "RUN_ROOT_ENV", "run_root",

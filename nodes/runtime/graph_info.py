@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from slipstack.lib.errors import ConfigError
-from slipstack.nodes.run_dir import CURRENT_LINK, point_current, run_root, write_private_file
+from slipstack.nodes.runtime.run_dir import CURRENT_LINK, point_current, run_root, write_private_file
 
 __all__ = ["GRAPH_FILE", "RUN_DIR_HELP", "write_graph", "read_graph", "find_run_dir", "topic_endpoints", "process_start_ticks",
            "register_tool"]
@@ -99,7 +99,7 @@ def read_graph(run_dir: Path) -> dict[str, Any]:
     (a tool attaching from outside the launch)."""
     graph = json.loads((run_dir / GRAPH_FILE).read_text())
     if graph.get("keys"):
-        from slipstack.nodes.curve import use_keys  # zmq: only for a graph with keys
+        from slipstack.nodes.runtime.curve import use_keys  # zmq: only for a graph with keys
 
         use_keys(graph["keys"])
     for name, tool in _live_tools(run_dir):

@@ -20,7 +20,7 @@ from slipstack.lib.errors import DecodeError
 from slipstack.messages import Diagnostics, Header, Message, decode, encode
 from slipstack.messages.codec import MAX_PAYLOAD_BYTES
 from slipstack.messages.types import MAX_COUNTERS, MAX_TEXT_LEN
-from slipstack.nodes.node import Node
+from slipstack.nodes.runtime.node import Node
 
 __all__ = ["NodeHost", "DIAGNOSTICS_TOPIC"]
 

@@ -44,11 +44,11 @@ import msgpack
 import zmq
 
 from slipstack.messages import Header, Message
-from slipstack.nodes.host import DIAGNOSTICS_TOPIC, NodeHost
-from slipstack.nodes.node import Node
-from slipstack.nodes.rate_limit import TokenBucket
-from slipstack.nodes.curve import secure_bind
-from slipstack.nodes.transport import MAX_ORIGIN_BYTES, bound_socket, make_pub, make_sub
+from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC, NodeHost
+from slipstack.nodes.runtime.node import Node
+from slipstack.nodes.runtime.rate_limit import TokenBucket
+from slipstack.nodes.runtime.curve import secure_bind
+from slipstack.nodes.runtime.transport import MAX_ORIGIN_BYTES, bound_socket, make_pub, make_sub
 
 __all__ = ["ProcessExecutor", "RunSpec"]
 

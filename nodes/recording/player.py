@@ -15,7 +15,7 @@ Two front ends share :class:`Playback`:
   recorders see the frames, and injects them into the running nodes that subscribe
   to the played topics (their *inject* endpoints in ``graph.json``), each frame named
   after the recorded publisher it came from, so the nodes track sequence gaps per
-  recorded publisher (:mod:`slipstack.nodes.tool_pub`);
+  recorded publisher (:mod:`slipstack.nodes.runtime.tool_pub`);
 * the ``player`` node type in a launch file: outputs are the recording's topics, so
   the launcher wires subscribers to it (needs the launcher to read a node's outputs
   from the instance; see the report on issue 6).
@@ -32,12 +32,12 @@ from typing import Callable
 
 from slipstack.lib.errors import ConfigError
 from slipstack.messages import registry
-from slipstack.nodes.bag_io import RecordedFrame, clock_offset_ns, peek_header, publisher_key, read_recording, restamp
-from slipstack.nodes.stop_signal import StopSignal
-from slipstack.nodes.graph_info import find_run_dir, read_graph
-from slipstack.nodes.host import DIAGNOSTICS_TOPIC
-from slipstack.nodes.node import Context, Node, Output
-from slipstack.nodes.tool_pub import BusPublisher, InjectionSender, tool_name
+from slipstack.nodes.recording.bag_io import RecordedFrame, clock_offset_ns, peek_header, publisher_key, read_recording, restamp
+from slipstack.nodes.runtime.stop_signal import StopSignal
+from slipstack.nodes.runtime.graph_info import find_run_dir, read_graph
+from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
+from slipstack.nodes.runtime.node import Context, Node, Output
+from slipstack.nodes.runtime.tool_pub import BusPublisher, InjectionSender, tool_name
 
 __all__ = ["Playback", "Player", "PlayerParams", "load_frames", "play"]
 

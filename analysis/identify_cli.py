@@ -3,7 +3,7 @@
 Each recording is one friction ramp at constant ``f_n`` (``slipstack launch fig4a`` /
 ``fig4b``, or the identification scenes ``ident_force`` / ``ident_torsion``, or the
 same on real hardware with ``bag record``). For each, :func:`identify_recording`
-(``nodes/report.py``) estimates ``μ_s, μ_d`` (a tangential-force ramp) or
+(``analysis/report.py``) estimates ``μ_s, μ_d`` (a tangential-force ramp) or
 ``β_s, β_d`` (a torque ramp), the slip onset taken from the object's slip distance or
 angle after the elastic pre-slip when the recording has ``rig/truth``, else from the
 ratio's drop. Several recordings of one kind are pooled (inverse-variance mean).
@@ -42,8 +42,8 @@ from slipstack.lib.material import Material, detector_thresholds, material_toml
 from slipstack.lib.material_fit import frame_noise, onset_levels, pooled
 from slipstack.lib.pad import PadGeometry
 from slipstack.messages import decode
-from slipstack.nodes.bag_io import RecordingError, read_recording
-from slipstack.nodes.report import Identification, RecordingSeries, format_identification, identify_recording, load_series
+from slipstack.nodes.recording.bag_io import RecordingError, read_recording
+from slipstack.analysis.report import Identification, RecordingSeries, format_identification, identify_recording, load_series
 
 __all__ = ["IdentifiedRecording", "identify_material", "add_parser", "main_identify"]
 

@@ -30,8 +30,8 @@ import numpy as np
 import zmq
 
 from slipstack.lib.errors import ConfigError
-from slipstack.nodes.topic_tools import load_graph, resolve_topic
-from slipstack.nodes.transport import make_sub
+from slipstack.nodes.tools.topic_tools import load_graph, resolve_topic
+from slipstack.nodes.runtime.transport import make_sub
 
 __all__ = ["peek_header", "RateStats", "rate_stats", "format_delay", "main_hz", "main_delay"]
 

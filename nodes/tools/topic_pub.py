@@ -9,11 +9,11 @@ no slow-joiner loss), then publishes with its own header sequence from 0 and
 pub`` processes can inject at once: ZeroMQ lets many peers connect to one bound SUB,
 and each frame names its sender, so the nodes count sequence gaps per sender. The
 same frames go on the bus from the tool's own registered endpoint
-(:mod:`slipstack.nodes.tool_pub`): ``topic echo`` and the recorders see them; the
+(:mod:`slipstack.nodes.runtime.tool_pub`): ``topic echo`` and the recorders see them; the
 recorder nodes of the graph are waited for, a listener that attaches later misses
 the frames sent before it joined.
 
-Values are YAML flow text (:mod:`slipstack.nodes.topic_yaml`), e.g.
+Values are YAML flow text (:mod:`slipstack.nodes.tools.topic_yaml`), e.g.
 ``'{f_n_desired: 12.0, law: manual}'``; fields left out keep their defaults, and the
 message is validated exactly as a subscriber would before it is sent.
 """
@@ -31,9 +31,9 @@ import numpy as np
 
 from slipstack.lib.errors import ConfigError, DecodeError
 from slipstack.messages import Header, Message, encode, registry, validate
-from slipstack.nodes.topic_tools import TopicInfo, load_graph, resolve_topic
-from slipstack.nodes.tool_pub import BusPublisher, InjectionSender, tool_name
-from slipstack.nodes.topic_yaml import parse_flow
+from slipstack.nodes.tools.topic_tools import TopicInfo, load_graph, resolve_topic
+from slipstack.nodes.runtime.tool_pub import BusPublisher, InjectionSender, tool_name
+from slipstack.nodes.tools.topic_yaml import parse_flow
 
 __all__ = ["build_message", "Injector", "main_pub"]
 

@@ -47,8 +47,8 @@ from slipstack.lib.errors import DecodeError, SlipstackError
 from slipstack.messages import Message, decode, registry
 from slipstack.messages.base import declared_bounds
 from slipstack.messages.codec import packb, unpackb
-from slipstack.nodes.inprocess import InProcessExecutor
-from slipstack.nodes.node import Node
+from slipstack.nodes.runtime.inprocess import InProcessExecutor
+from slipstack.nodes.runtime.node import Node
 
 __all__ = [
     "SCHEMA_ENCODING", "MESSAGE_ENCODING", "CLOCK_METADATA", "RecordingError", "RecordedFrame",

@@ -9,7 +9,7 @@
 
 Every verb reads the graph from ``<run_dir>/graph.json`` (``--run-dir``, else
 ``$SLIPSTACK_RUN_DIR``, else the newest run; see
-:func:`slipstack.nodes.graph_info.find_run_dir`). This module holds the graph
+:func:`slipstack.nodes.runtime.graph_info.find_run_dir`). This module holds the graph
 view the verbs share, ``list`` and ``info``, and the argument parsers; ``echo``,
 ``hz`` and ``pub`` live in :mod:`.topic_echo`, :mod:`.topic_hz`, :mod:`.topic_pub`,
 imported only when they run (``topic list`` starts without numpy).
@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
 from slipstack.lib.errors import ConfigError
-from slipstack.nodes.graph_info import RUN_DIR_HELP, find_run_dir, read_graph
+from slipstack.nodes.runtime.graph_info import RUN_DIR_HELP, find_run_dir, read_graph
 
 if TYPE_CHECKING:
     from slipstack.messages import Message
@@ -216,7 +216,7 @@ def _add_echo(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         "none was printed)")
     p.add_argument("--qos-depth", type=int, default=2000, metavar="N",
                    help="frames queued per publisher before the publisher drops for us (default 2000)")
-    p.set_defaults(func=_lazy("slipstack.nodes.topic_echo", "main_echo"))
+    p.set_defaults(func=_lazy("slipstack.nodes.tools.topic_echo", "main_echo"))
     return p
 
 
@@ -229,7 +229,7 @@ def _add_hz(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
     _window_options(p)
     p.add_argument("--use-stamps", action="store_true",
                    help="use the messages' header.stamp_ns instead of receive times")
-    p.set_defaults(func=_lazy("slipstack.nodes.topic_hz", "main_hz"))
+    p.set_defaults(func=_lazy("slipstack.nodes.tools.topic_hz", "main_hz"))
     return p
 
 
@@ -241,7 +241,7 @@ def _add_delay(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
                     "sample a message derives from, so this is the latency from the sample to this tool.",
     )
     _window_options(p)
-    p.set_defaults(func=_lazy("slipstack.nodes.topic_hz", "main_delay"))
+    p.set_defaults(func=_lazy("slipstack.nodes.tools.topic_hz", "main_delay"))
     return p
 
 
@@ -271,6 +271,6 @@ def _add_pub(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="how long to wait for the subscribers to join (default 3 s)")
     p.add_argument("-p", "--print", dest="print_nth", type=int, default=1, metavar="N",
                    help="print every N-th publication (0: never; default 1)")
-    p.set_defaults(func=_lazy("slipstack.nodes.topic_pub", "main_pub"))
+    p.set_defaults(func=_lazy("slipstack.nodes.tools.topic_pub", "main_pub"))
     return p
 

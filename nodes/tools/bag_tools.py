@@ -5,7 +5,7 @@
     slipstack bag info PATH
     slipstack bag export PATH -o OUT.mcap|OUT.jsonl [--format mcap-json|jsonl]   (other suffixes refused)
 
-The file layout (encodings, clocks, chunking) is described in ``nodes/bag_io.py``.
+The file layout (encodings, clocks, chunking) is described in ``nodes/recording/bag_io.py``.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from datetime import datetime
 from pathlib import Path
 
 from slipstack.lib.errors import ConfigError
-from slipstack.nodes.graph_info import RUN_DIR_HELP
+from slipstack.nodes.runtime.graph_info import RUN_DIR_HELP
 
 __all__ = ["add_parser", "format_info", "EXPORT_FORMATS"]
 
@@ -72,7 +72,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _main_record(args: argparse.Namespace) -> int:
-    from slipstack.nodes.recorder import default_output_path, record
+    from slipstack.nodes.recording.recorder import default_output_path, record
 
     if args.all == bool(args.topics):
         raise ConfigError("give either -a (all topics) or TOPIC names")
@@ -84,7 +84,7 @@ def _main_record(args: argparse.Namespace) -> int:
 def _main_play(args: argparse.Namespace) -> int:
     if not args.rate > 0:  # before anything is read or connected
         raise ConfigError(f"--rate must be > 0 (a speed factor: 1 = as recorded, 2 = twice as fast), got {args.rate:g}")
-    from slipstack.nodes.player import play
+    from slipstack.nodes.recording.player import play
 
     play(args.path, topics=args.topics, rate=args.rate, loop=args.loop, start_offset_s=args.start_offset,
          restamp_stamps=args.restamp, endpoint=args.endpoint, run_dir=args.run_dir)
@@ -121,14 +121,14 @@ def format_info(info) -> str:  # noqa: ANN001 — a bag_io.RecordingInfo
 
 
 def _main_info(args: argparse.Namespace) -> int:
-    from slipstack.nodes.bag_io import recording_info
+    from slipstack.nodes.recording.bag_io import recording_info
 
     print(format_info(recording_info(args.path)))
     return 0
 
 
 def _main_export(args: argparse.Namespace) -> int:
-    from slipstack.nodes.bag_io import export_recording
+    from slipstack.nodes.recording.bag_io import export_recording
 
     fmt = args.format or EXPORT_SUFFIXES.get(Path(args.output).suffix.lower())
     if fmt is None:

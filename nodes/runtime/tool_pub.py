@@ -1,7 +1,7 @@
 """The two sockets of a tool that publishes into a running graph (``topic pub``, ``bag play``).
 
 * :class:`BusPublisher`: an XPUB bound on the tool's own endpoint and registered in the
-  run directory (:func:`slipstack.nodes.graph_info.register_tool`), so ``topic echo``,
+  run directory (:func:`slipstack.nodes.runtime.graph_info.register_tool`), so ``topic echo``,
   ``bag record`` and the recorder node see what the tool sends, as they see any node;
 * :class:`InjectionSender`: an XPUB connected to the injection endpoints of the nodes
   that subscribe (their SUB sockets bind them; nodes never connect to new publishers).
@@ -18,8 +18,8 @@ from pathlib import Path
 
 import zmq
 
-from slipstack.nodes.graph_info import register_tool
-from slipstack.nodes.transport import (
+from slipstack.nodes.runtime.graph_info import register_tool
+from slipstack.nodes.runtime.transport import (
     MAX_ORIGIN_BYTES, MAX_SUBSCRIPTION_BYTES, SUBSCRIPTION_HWM, bound_socket, ipc_endpoint, make_pub,
 )
 

@@ -13,7 +13,7 @@ handshake, so frames published before it connected are not recorded (the first
 recorded sequence number shows how many).
 
 Frames are written raw (the bus bytes) with log_time = receive time,
-``time.time_ns()`` (wall clock, the MCAP convention); see ``nodes/bag_io.py``.
+``time.time_ns()`` (wall clock, the MCAP convention); see ``nodes/recording/bag_io.py``.
 """
 
 from __future__ import annotations
@@ -29,12 +29,12 @@ from typing import Any, Callable
 import zmq
 
 from slipstack.lib.errors import ConfigError
-from slipstack.nodes.bag_io import RecordingWriter, peek_header, publisher_key
-from slipstack.nodes.curve import secure_connect
-from slipstack.nodes.stop_signal import StopSignal
-from slipstack.nodes.graph_info import GRAPH_FILE, RUN_DIR_ENV, find_run_dir, read_graph, topic_endpoints
-from slipstack.nodes.node import Context, Node
-from slipstack.nodes.transport import make_sub, run_root
+from slipstack.nodes.recording.bag_io import RecordingWriter, peek_header, publisher_key
+from slipstack.nodes.runtime.curve import secure_connect
+from slipstack.nodes.runtime.stop_signal import StopSignal
+from slipstack.nodes.runtime.graph_info import GRAPH_FILE, RUN_DIR_ENV, find_run_dir, read_graph, topic_endpoints
+from slipstack.nodes.runtime.node import Context, Node
+from slipstack.nodes.runtime.transport import make_sub, run_root
 
 __all__ = ["BusRecorder", "Recorder", "RecorderParams", "default_output_path", "record"]
 

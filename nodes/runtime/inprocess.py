@@ -15,8 +15,8 @@ from collections import defaultdict
 from typing import Iterable
 
 from slipstack.messages import Message, decode, encode
-from slipstack.nodes.host import DIAGNOSTICS_TOPIC, NodeHost
-from slipstack.nodes.node import Node
+from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC, NodeHost
+from slipstack.nodes.runtime.node import Node
 
 __all__ = ["InProcessExecutor"]
 

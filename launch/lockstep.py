@@ -5,7 +5,7 @@ as fast as the machine allows. Each F/T and tactile sample of the simulator stil
 travels as device bytes — encoded by the emulator-side codec (ATI RDT records,
 DSACON32 packets), decoded by the driver-side codec — and enters the real driver
 nodes through their ``on_sample``; from there the real nodes run on the
-:class:`~slipstack.nodes.inprocess.InProcessExecutor`. A grip command takes effect at
+:class:`~slipstack.nodes.runtime.inprocess.InProcessExecutor`. A grip command takes effect at
 the next simulator tick (``tick_ms``), like the real-time rig.
 """
 
@@ -25,15 +25,15 @@ from slipstack.lib.rig.scene import Scene, load_scene
 from slipstack.lib.rig.sensors import FtSample as SimFt
 from slipstack.lib.rig.sensors import TactileSample as SimTactile
 from slipstack.lib.rig.simulator import Simulator
-from slipstack.launch.launch_file import resolve_path
+from slipstack.lib.toml_file import resolve_path
 from slipstack.messages import RigTruth
 from slipstack.nodes.cor_estimator import CorEstimator, CorParams
 from slipstack.nodes.devices.backends import FtSample, TactileSample
 from slipstack.nodes.ft_driver import FtDriver, FtDriverParams
 from slipstack.nodes.fusion import Fusion, FusionParams
 from slipstack.nodes.grip_controller import GripController, GripControllerParams
-from slipstack.nodes.inprocess import InProcessExecutor
-from slipstack.nodes.node import Node, Output
+from slipstack.nodes.runtime.inprocess import InProcessExecutor
+from slipstack.nodes.runtime.node import Node, Output
 from slipstack.nodes.rig import truth_message
 from slipstack.nodes.slip_detector import SlipDetector, SlipDetectorParams
 from slipstack.nodes.tactile_driver import TactileDriver, TactileDriverParams

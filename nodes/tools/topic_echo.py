@@ -28,10 +28,10 @@ import zmq
 
 from slipstack.lib.errors import ConfigError, DecodeError
 from slipstack.messages import Message, decode
-from slipstack.nodes.topic_format import as_tree, check_field, csv_cell, flatten, pick, render_yaml
-from slipstack.nodes.graph_info import read_graph
-from slipstack.nodes.topic_tools import TopicInfo, load_graph, resolve_topic
-from slipstack.nodes.transport import make_sub
+from slipstack.nodes.tools.topic_format import as_tree, check_field, csv_cell, flatten, pick, render_yaml
+from slipstack.nodes.runtime.graph_info import read_graph
+from slipstack.nodes.tools.topic_tools import TopicInfo, load_graph, resolve_topic
+from slipstack.nodes.runtime.transport import make_sub
 
 __all__ = ["SeqTracker", "MessagePrinter", "main_echo"]
 

@@ -1,0 +1,1 @@
+"""Recordings: the MCAP file of slipstack frames, the recorder and the player."""

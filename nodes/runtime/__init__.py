@@ -1,0 +1,1 @@
+"""What every node runs on: the node model, host, executors, transport, run directories."""
