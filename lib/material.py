@@ -58,6 +58,7 @@ DELTA_MIN = 0.005
 DELTA_MAX = 0.5
 _BAND_SIGMAS = 3.0
 _RELEASE_SIGMAS = 4.0
+_RESUME_SIGMAS = 2.0
 
 
 @dataclass(frozen=True)
@@ -100,10 +101,12 @@ class Material:
 
 @dataclass(frozen=True)
 class DetectorThresholds:
-    """The detector's onset band ``delta`` and latch ``gamma_release`` (dimensionless)."""
+    """The detector's onset band ``delta``, latch ``gamma_release`` and the level
+    ``gamma_resume`` at which a frame restarts the release dwell (dimensionless)."""
 
     delta: float
     gamma_release: float
+    gamma_resume: float
 
 
 def _noise(value: float) -> float:
@@ -117,7 +120,9 @@ def detector_thresholds(material: Material) -> DetectorThresholds:
     delta = min(max(1.0 - edge, DELTA_MIN), DELTA_MAX)
     release = material.sliding_level - _RELEASE_SIGMAS * _noise(material.gamma_noise_slide)
     release = min(max(release, 1e-3), 1.0 - delta)
-    return DetectorThresholds(delta=delta, gamma_release=release)
+    resume = material.sliding_level - _RESUME_SIGMAS * _noise(material.gamma_noise_slide)
+    resume = max(release, min(resume, 1.0 - delta))
+    return DetectorThresholds(delta=delta, gamma_release=release, gamma_resume=resume)
 
 
 _FLOATS = ("mu_s", "mu_d", "mu_s_se", "mu_d_se", "beta_s_m", "beta_s_se_m", "beta_d_m", "beta_d_se_m",

@@ -222,7 +222,7 @@ def evaluate(data: dict[str, np.ndarray], material: Material, contact: str, tall
     thr = detector_thresholds(material)
     sigma = material.gamma_noise_stick if math.isfinite(material.gamma_noise_stick) else 0.0
     slide_sigma = material.gamma_noise_slide if math.isfinite(material.gamma_noise_slide) else 0.0
-    latch = SlipLatch(DetectorConfig(delta=thr.delta, gamma_release=thr.gamma_release))
+    latch = SlipLatch(DetectorConfig(delta=thr.delta, gamma_release=thr.gamma_release, gamma_resume=thr.gamma_resume))
     gamma = data["gamma"] * RECORD_MU / material.mu_s
     margin = 1.0 - gamma
     flags = np.array([latch.update(int(t), float(m), in_contact=bool(c))

@@ -132,3 +132,52 @@ def test_losing_contact_clears_the_latch_for_the_next_contact():
     assert latch.update(1 * MS, 0.0, in_contact=False) is False
     assert latch.slipping is False
     assert latch.update(2 * MS, 0.5) is False               # a new contact that sticks: no old latch
+
+
+def test_frames_between_release_and_resume_levels_do_not_restart_the_dwell():
+    # Release level 0.58, resume level 0.59: 0.585 (above the level by noise alone) keeps
+    # the dwell running, 0.595 restarts it.
+    latch = SlipLatch(DetectorConfig(delta=0.4, gamma_release=0.58, release_ns=20 * MS, gamma_resume=0.59))
+    assert latch.update(0, 0.0) is True
+    assert latch.update(2 * MS, 1.0 - 0.585) is True    # above the level, dwell not started
+    assert latch.update(4 * MS, 1.0 - 0.57) is True     # below: dwell starts at 4 ms
+    assert latch.update(10 * MS, 1.0 - 0.585) is True   # noise above the level: dwell runs on
+    assert latch.update(23 * MS, 1.0 - 0.57) is True    # 19 ms
+    assert latch.update(24 * MS, 1.0 - 0.585) is False  # 20 ms: released on a frame between the levels
+    latch = SlipLatch(DetectorConfig(delta=0.4, gamma_release=0.58, release_ns=20 * MS, gamma_resume=0.59))
+    latch.update(0, 0.0)
+    latch.update(4 * MS, 1.0 - 0.57)                    # dwell starts
+    assert latch.update(10 * MS, 1.0 - 0.595) is True   # at/above resume: still sliding, dwell restarts
+    assert latch.update(24 * MS, 1.0 - 0.57) is True    # dwell starts again at 24 ms
+    assert latch.update(43 * MS, 1.0 - 0.57) is True
+    assert latch.update(44 * MS, 1.0 - 0.57) is False
+
+
+def test_resume_level_below_the_release_level_acts_as_the_release_level():
+    cfg = DetectorConfig(delta=0.2, gamma_release=0.7, gamma_resume=0.65)
+    assert cfg.resume_level == 0.7
+    assert DetectorConfig(gamma_release=0.7).resume_level == 0.7       # NaN: the release level
+    with pytest.raises(ConfigError, match="gamma_resume"):
+        DetectorConfig(gamma_resume=1.5)
+
+
+def test_noisy_load_falling_through_the_release_level_is_let_go_within_two_dwells():
+    # A re-stuck load 0.6 sigma under the release level (sigma 0.01, 500 Hz frames):
+    # about 27 % of the frames read above the level. With the resume level 2 sigma
+    # above it the latch lets go one dwell after the load is below; restarting on every
+    # frame above the level would need 10 frames in a row below it (p ~ 0.04 per try).
+    import numpy as np
+
+    rng = np.random.default_rng(7)
+    release, sigma = 0.58, 0.01
+    holds = []
+    for _ in range(50):
+        latch = SlipLatch(DetectorConfig(delta=0.4, gamma_release=release, release_ns=20 * MS,
+                                         gamma_resume=release + 2 * sigma))
+        latch.update(0, 0.0)
+        t = 0
+        while latch.slipping and t < 1000 * MS:
+            t += 2 * MS
+            latch.update(t, 1.0 - (release - 0.6 * sigma + sigma * rng.standard_normal()))
+        holds.append(t / MS)
+    assert max(holds) <= 40.0

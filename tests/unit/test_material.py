@@ -40,6 +40,7 @@ def test_band_reaches_the_lowest_onset_minus_three_sigma() -> None:
     t = detector_thresholds(weak)
     assert t.delta == pytest.approx(0.4 + 0.015)
     assert t.gamma_release == pytest.approx(0.6 - 0.04)
+    assert t.gamma_resume == pytest.approx(0.6 - 0.02)  # mu_d/mu_s - 2 sigma_slide
     # Mildly weakening with an onset below its sliding level (noise): the onset decides.
     t = detector_thresholds(Material("m", mu_s=0.45, mu_d=0.43, onset_gamma=(0.9,), gamma_noise_stick=0.005))
     assert t.delta == pytest.approx(0.1 + 0.015)
@@ -51,6 +52,7 @@ def test_release_never_above_the_band_edge_and_noise_floor() -> None:
                                      gamma_noise_slide=0.0))
     assert t.delta == pytest.approx(max(3 * NOISE_FLOOR, DELTA_MIN))
     assert t.gamma_release <= 1.0 - t.delta
+    assert t.gamma_release <= t.gamma_resume <= 1.0 - t.delta
     # Without onset episodes the sliding level stands in for the lowest onset.
     t = detector_thresholds(Material("r", mu_s=0.45, mu_d=0.36))
     assert t.delta == pytest.approx(1.0 - (0.8 - 3 * NOISE_FLOOR))
