@@ -9,9 +9,16 @@ A material file (TOML, written by ``slipstack identify``; shipped ones in
     mu_s = 0.45          # static friction coefficient (dimensionless), with mu_s_se
     mu_d = 0.36          # dynamic (sliding) coefficient, with mu_d_se
     beta_s_m = 1.3e-3    # torsional coefficients (m), with beta_s_se_m, beta_d_m, beta_d_se_m
+    mu_s_model = 0.003   # model error of each coefficient, apart from its standard error:
+                         # mu_s_model, mu_d_model, beta_s_model_m, beta_d_model_m
     gamma_noise_stick = 0.004   # std of the detector's load factor γ while sticking
     gamma_noise_slide = 0.008   # ... and while sliding (frame-to-frame, detrended)
     onset_gamma = [0.95, 0.97]  # γ at which each identified gross-slip episode began
+
+A standard error (``*_se``) is the noise's share of the uncertainty; the model error
+(``*_model``, ``lib/identify.py`` step 5 and ``lib/material_fit.py``) is what the
+estimator's assumptions miss, as a standard uncertainty. A coefficient's ± 2-sigma
+interval is ``value ± 2·√(se² + model²)``.
 
 **The rule** (:func:`detector_thresholds`): measured loads never exceed the capacity,
 so the detector flags slip in a band ``γ ≥ 1 − δ`` below 1 and latches it down to a
@@ -66,8 +73,9 @@ class Material:
     """Identified friction of one contact (see the module docstring for the file).
 
     Coefficients are dimensionless, β in m, ``*_se`` are standard errors in the same
-    unit (NaN: not identified). ``onset_gamma``: the load factor at the start of each
-    identified gross-slip episode, in the order found.
+    unit (NaN: not identified), ``*_model`` their model errors (same unit; NaN: not
+    estimated). ``onset_gamma``: the load factor at the start of each identified
+    gross-slip episode, in the order found.
     """
 
     name: str
@@ -80,6 +88,10 @@ class Material:
     beta_s_se_m: float = math.nan
     beta_d_m: float = math.nan
     beta_d_se_m: float = math.nan
+    mu_s_model: float = math.nan
+    mu_d_model: float = math.nan
+    beta_s_model_m: float = math.nan
+    beta_d_model_m: float = math.nan
     gamma_noise_stick: float = math.nan
     gamma_noise_slide: float = math.nan
     onset_gamma: tuple[float, ...] = field(default_factory=tuple)
@@ -126,7 +138,7 @@ def detector_thresholds(material: Material) -> DetectorThresholds:
 
 
 _FLOATS = ("mu_s", "mu_d", "mu_s_se", "mu_d_se", "beta_s_m", "beta_s_se_m", "beta_d_m", "beta_d_se_m",
-           "gamma_noise_stick", "gamma_noise_slide")
+           "mu_s_model", "mu_d_model", "beta_s_model_m", "beta_d_model_m", "gamma_noise_stick", "gamma_noise_slide")
 
 
 def _number(table: dict[str, Any], key: str, source: str) -> float:

@@ -64,6 +64,7 @@ from slipstack.lib.detection import DetectorConfig, SlipLatch
 from slipstack.lib.episodes import find_episodes
 from slipstack.lib.limit_set import load_factor, torsional_coefficient
 from slipstack.lib.material import Material, detector_thresholds, load_material, material_toml
+from slipstack.lib.material_fit import interval_half_width
 from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.scene import RIG_MATERIALS, Scene, with_rig_material
 from slipstack.launch.launch_file import load_launch_file
@@ -134,16 +135,22 @@ def identified_material(material: str, cache: Path, rates: tuple[float, float]) 
 
 
 def identification_rows(materials: list[str], files: dict[str, Material]) -> list[str]:
-    rows = ["| contact | quantity | truth | identified ± 2 SE | error | truth inside |",
-            "| --- | --- | ---: | ---: | ---: | :---: |"]
+    """One row per (material, coefficient): truth, identified ± 2 SE, model error, the
+    ± 2-sigma interval ``2·√(SE² + model²)`` in % of the value, and whether it holds the truth."""
+    rows = ["| contact | quantity | truth | identified ± 2 SE (stat) | model error | ± 2 sigma (stat + model) "
+            "| error | truth inside |", "| --- | --- | ---: | ---: | ---: | ---: | ---: | :---: |"]
     for material in materials:
         truth, found = true_friction(material), files[material]
-        for key, se_key, scale, unit in (("mu_s", "mu_s_se", 1, ""), ("mu_d", "mu_d_se", 1, ""),
-                                         ("beta_s_m", "beta_s_se_m", 1e3, " mm"), ("beta_d_m", "beta_d_se_m", 1e3, " mm")):
-            value, se, true = getattr(found, key), getattr(found, se_key), truth[key]
-            inside = "yes" if abs(value - true) <= 2 * se else "no"
-            rows.append(f"| {material} | {key.replace('_m', '')} | {true * scale:.4f}{unit} | {value * scale:.4f} ± "
-                        f"{2 * se * scale:.4f}{unit} | {100 * (value / true - 1):+.1f} % | {inside} |")
+        for key, scale, unit in (("mu_s", 1, ""), ("mu_d", 1, ""), ("beta_s_m", 1e3, " mm"), ("beta_d_m", 1e3, " mm")):
+            stem = key.removesuffix("_m")
+            suffix = "_m" if key.endswith("_m") else ""
+            value, true = getattr(found, key), truth[key]
+            se, model = getattr(found, f"{stem}_se{suffix}"), getattr(found, f"{stem}_model{suffix}")
+            half = interval_half_width(se, model)
+            inside = "yes" if abs(value - true) <= half else "no"
+            rows.append(f"| {material} | {stem} | {true * scale:.4f}{unit} | {value * scale:.4f} ± "
+                        f"{2 * se * scale:.4f}{unit} | {model * scale:.4f}{unit} | ± {half * scale:.4f}{unit} "
+                        f"({100 * half / value:.1f} %) | {100 * (value / true - 1):+.1f} % | {inside} |")
     return rows
 
 
