@@ -4,7 +4,8 @@ A load factor computed from *measured* data never exceeds 1: it reaches 1 at sli
 onset and, once sliding, drops to about ``μ_d/μ_s`` (the peak of the paper's
 Fig. 4). So :class:`SlipLatch`
 
-- flags slip when the contact is *at* the limit: ``γ ≥ 1 − δ`` (margin ``≤ δ``),
+- flags slip when the contact is *at* the limit: ``γ ≥ 1 − δ`` (margin ``≤ δ``) on
+  ``onset_frames`` (two) valid frames in a row,
 - latches it through the static→dynamic drop: slip stays flagged while
   ``γ ≥ γ_release``, and
 - releases only after ``γ < γ_release`` has held for ``release_ns``; a frame at or
@@ -69,12 +70,17 @@ class DetectorConfig:
         (dimensionless); NaN or anything below ``gamma_release`` acts as
         ``gamma_release``. Set it a noise margin above the release level, so that a
         frame above the level only by the noise does not restart the dwell.
+    onset_frames: how many valid frames in a row must be in the band to raise the flag
+        (≥ 1; frames without a verdict neither count nor break the row). Two: a load
+        held just under the band's edge crosses it on single noisy frames; two in a
+        row are that much rarer, at the cost of one frame at an onset.
     """
 
     delta: float = 0.18
     gamma_release: float = 0.76
     release_ns: int = 20_000_000
     gamma_resume: float = math.nan
+    onset_frames: int = 2
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.delta < 1.0:
@@ -83,6 +89,8 @@ class DetectorConfig:
             raise ConfigError(f"detector gamma_release must lie in (0, 1], got {self.gamma_release}")
         if self.release_ns < 0:
             raise ConfigError(f"detector release_ns must be >= 0 ns, got {self.release_ns}")
+        if not (isinstance(self.onset_frames, int) and self.onset_frames >= 1):
+            raise ConfigError(f"detector onset_frames must be an integer >= 1, got {self.onset_frames!r}")
         if not (math.isnan(self.gamma_resume) or 0.0 < self.gamma_resume <= 1.0):
             raise ConfigError(f"detector gamma_resume must lie in (0, 1] (or be nan: gamma_release), "
                               f"got {self.gamma_resume}")
@@ -102,6 +110,7 @@ class SlipLatch:
         self.config = config or DetectorConfig()
         self.slipping = False
         self._below_since: int | None = None
+        self._in_band = 0  # valid frames in a row in the band (while not yet slipping)
 
     def update(self, t_ns: int, margin: float, *, in_contact: bool = True) -> bool:
         """Feed one frame's margin (``1 − γ``); returns whether slip is flagged.
@@ -111,7 +120,7 @@ class SlipLatch:
         without information never counts towards it. No contact clears the flag.
         """
         if not in_contact:
-            self.slipping, self._below_since = False, None
+            self.slipping, self._below_since, self._in_band = False, None, 0
             return False
         if margin != margin:  # NaN: no information, keep the flag, start the dwell again
             self._below_since = None
@@ -119,8 +128,12 @@ class SlipLatch:
         gamma = 1.0 - margin
         cfg = self.config
         if margin <= cfg.delta:
-            self.slipping, self._below_since = True, None
-        elif self.slipping:
+            self._in_band = min(self._in_band + 1, cfg.onset_frames)
+            if self.slipping or self._in_band >= cfg.onset_frames:
+                self.slipping, self._below_since = True, None
+            return self.slipping
+        self._in_band = 0
+        if self.slipping:
             if gamma >= cfg.resume_level:
                 self._below_since = None
             elif self._below_since is None:

@@ -105,6 +105,7 @@ class DetectorSettings:
     release_ns: γ below the release level this long releases the latch, ns.
     pool: sum taxels in pool × pool blocks before testing (1: off).
     gamma_resume: a frame with γ ≥ this restarts the release dwell (NaN: gamma_release).
+    onset_frames: valid frames in a row in the band that raise the flag.
     """
 
     mu: float
@@ -116,6 +117,7 @@ class DetectorSettings:
     release_ns: int = DetectorConfig.release_ns
     pool: int = 1
     gamma_resume: float = math.nan
+    onset_frames: int = DetectorConfig.onset_frames
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.beta_m) and self.beta_m >= 0.0):
@@ -174,7 +176,7 @@ class Detector:
         self._params = SlipParams(mu=s.mu, beta_m=s.beta_m or None, delta=s.delta)
         self._ft_params = self._params  # with β_s of the current pressure frame when beta_m is 0
         self._beta_frame: object = None
-        self._latch = SlipLatch(DetectorConfig(s.delta, s.gamma_release, s.release_ns, s.gamma_resume))
+        self._latch = SlipLatch(DetectorConfig(s.delta, s.gamma_release, s.release_ns, s.gamma_resume, s.onset_frames))
         self._warm: tuple[float, float] | None = None
         self._kind = "translation"  # the latest slip kind, reported while the latch holds
 

@@ -3,8 +3,8 @@
 The chosen ``method`` decides; the cheaper tests in ``also`` are computed alongside
 and published in ``verdicts`` (name → [stick, margin]) so their agreement can be
 watched and recorded. A :class:`~slipstack.lib.detection.SlipLatch` turns the
-method's margin into the latched state (onset band ``delta``, hysteresis
-``gamma_release``, ``release_ms``).
+method's margin into the latched state (onset band ``delta`` held for
+``onset_frames``, release level ``gamma_release`` and ``gamma_resume``, ``release_ms``).
 
 The detector computes its verdict from ``contact`` directly rather than waiting for
 ``cor``: one hop less between the sensor sample and the grip command. Its own COR of
@@ -50,6 +50,8 @@ class SlipDetectorParams:
         "help": "slip stays latched while gamma >= this (just below mu_d/mu_s); nan: from the material"})
     release_ms: float = field(default=DetectorConfig.release_ns / 1e6,
                               metadata={"help": "gamma below release this long -> stick (ms)"})
+    onset_frames: int = field(default=DetectorConfig.onset_frames, metadata={
+        "help": "valid frames in a row in the band that raise the slip flag (>= 1)"})
     gamma_resume: float = field(default=math.nan, metadata={
         "help": "a frame with gamma >= this restarts the release dwell (a noise margin above gamma_release); "
                 "nan: from the material"})
@@ -73,7 +75,8 @@ class SlipDetector(Node):
         p = self.params
         self.detector = Detector(DetectorSettings(
             mu=p.mu, delta=p.delta, gamma_release=p.gamma_release, method=p.method, also=tuple(p.also),
-            beta_m=p.beta_m, release_ns=round(p.release_ms * 1e6), pool=p.pool, gamma_resume=p.gamma_resume))
+            beta_m=p.beta_m, release_ns=round(p.release_ms * 1e6), pool=p.pool, gamma_resume=p.gamma_resume,
+            onset_frames=p.onset_frames))
 
     def start(self, ctx: Context) -> None:
         compile_kernels()  # before the node reports ready, so its first contact runs at full speed
