@@ -38,6 +38,9 @@ release level (``lib/detection.py``). Both come from the material:
   measured γ stays at or above ``μ_d/μ_s``; below that by more than the sliding noise
   the contact sticks again: ``γ_release = μ_d/μ_s − 4·σ_slide``, never above the
   band's edge ``1 − δ``.
+- resume: ``γ_resume = μ_d/μ_s − 2·σ_slide`` (between ``γ_release`` and ``1 − δ``):
+  a sliding contact reads above it on almost every frame, and only a frame that high
+  restarts the release dwell; one above ``γ_release`` by the noise alone does not.
 
 ``σ`` below ``NOISE_FLOOR`` is raised to it (a noise-free record would otherwise give a
 band of zero width). δ is kept in ``[DELTA_MIN, DELTA_MAX]``.
