@@ -200,7 +200,7 @@ def material_toml(material: Material, comment: str = "") -> str:
     lines = [f"# {line}" if line else "#" for line in comment.splitlines()]
     t = detector_thresholds(material)
     lines.append(f"# derived detector thresholds (lib/material.py): delta = {t.delta:.4f}, "
-                 f"gamma_release = {t.gamma_release:.4f}")
+                 f"gamma_release = {t.gamma_release:.4f}, gamma_resume = {t.gamma_resume:.4f}")
     lines.append("[material]")
     for key in ("name", "provenance", *_FLOATS, "onset_gamma"):
         lines.append(f"{key} = {_toml_value(getattr(material, key))}")

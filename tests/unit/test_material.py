@@ -85,6 +85,8 @@ def test_shipped_materials_load_with_provenance(path: Path) -> None:
     m = load_material(path)
     assert m.provenance and "provisional" not in m.provenance
     assert math.isfinite(m.beta_s_m) and m.onset_gamma
+    # identified with model errors, written apart from the standard errors
+    assert all(math.isfinite(v) and v >= 0 for v in (m.mu_s_model, m.mu_d_model, m.beta_s_model_m, m.beta_d_model_m))
 
 
 def test_node_params_take_the_material_and_explicit_values_win(tmp_path: Path) -> None:
@@ -95,6 +97,7 @@ def test_node_params_take_the_material_and_explicit_values_win(tmp_path: Path) -
     t = detector_thresholds(m)
     p = SlipDetectorParams(material=str(path))
     assert (p.mu, p.delta, p.gamma_release) == pytest.approx((0.6, t.delta, t.gamma_release))
+    assert p.gamma_resume == pytest.approx(t.gamma_resume) and p.gamma_resume > p.gamma_release
     p = SlipDetectorParams(material=str(path), delta=0.05, mu=0.5)
     assert (p.mu, p.delta, p.gamma_release) == pytest.approx((0.5, 0.05, t.gamma_release))
     g = GripControllerParams(material=str(path), law="ft13")
