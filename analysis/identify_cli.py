@@ -18,6 +18,12 @@ identified ``μ_s``; without tactile frames the ratio over its static value), gi
 - ``onset_gamma``: γ of the last frame before each gross-slip onset (every
   episode of ``rig/truth``, else the estimate's onset).
 
+Each coefficient has a standard error and, apart from it, a model error
+(``lib/identify.py`` step 5, pooled by ``lib/material_fit.pooled_model``); for β the
+disagreement with ``μ × r̄`` of the torque ramp's pressure frames
+(``lib/material_fit.beta_from_pressure``: β_s with μ_s over the stick window, β_d
+with μ_d while sliding) is added to it in quadrature.
+
 ``lib/material.py`` turns those into the detector's band and release level. A
 recording without ``ft/wrench`` is an error that names it; one without motion truth
 falls back to the ratio (said in the output).
@@ -39,7 +45,8 @@ from slipstack.lib.episodes import find_episodes
 from slipstack.lib.errors import DecodeError
 from slipstack.lib.limit_set import load_factor
 from slipstack.lib.material import Material, detector_thresholds, material_toml
-from slipstack.lib.material_fit import frame_noise, onset_levels, pooled
+from slipstack.lib.material_fit import (beta_from_pressure, frame_noise, interval_half_width, onset_levels,
+                                         pooled, pooled_model)
 from slipstack.lib.pad import PadGeometry
 from slipstack.messages import decode
 from slipstack.nodes.recording.bag_io import RecordingError, read_recording
@@ -127,8 +134,25 @@ def _sliding_mask(rec: IdentifiedRecording, stamps_ns: np.ndarray, first_onset_n
 
 @dataclass(frozen=True)
 class _Pooled:
+    """A pooled coefficient: value, standard error and model error (same unit)."""
+
     value: float
     se: float
+    model: float = math.nan
+
+    def with_route(self, other_route: float) -> _Pooled:
+        """This estimate with its disagreement with ``other_route`` added to the model error."""
+        if not math.isfinite(other_route):
+            return self
+        own = self.model if math.isfinite(self.model) else 0.0
+        return _Pooled(self.value, self.se, math.hypot(own, self.value - other_route))
+
+    def text(self, scale: float = 1.0, unit: str = "") -> str:
+        """``value ± se (stat) ± model (model)``, and the ± 2-sigma interval in % of the value."""
+        half = interval_half_width(self.se, self.model)
+        share = f"{100 * half / abs(self.value):.1f} %" if self.value else "-"
+        return (f"{self.value * scale:.4f} ± {self.se * scale:.4f} (stat) ± {self.model * scale:.4f} (model)"
+                f"{unit} [± 2 sigma: {share}]")
 
 
 def _pool(recs: list[IdentifiedRecording], quantity: str) -> tuple[_Pooled, _Pooled]:
@@ -136,7 +160,15 @@ def _pool(recs: list[IdentifiedRecording], quantity: str) -> tuple[_Pooled, _Poo
     ests = [e for e in ests if e is not None and math.isfinite(e.static)]
     static = pooled([e.static for e in ests], [e.static_se for e in ests])
     dynamic = pooled([e.dynamic for e in ests], [e.dynamic_se for e in ests])
-    return _Pooled(*static), _Pooled(*dynamic)
+    return (_Pooled(*static, pooled_model([e.static for e in ests], [e.static_model for e in ests])),
+            _Pooled(*dynamic, pooled_model([e.dynamic for e in ests], [e.dynamic_model for e in ests])))
+
+
+def _pressure_frames(rec: IdentifiedRecording, stamps_ns: np.ndarray, keep: np.ndarray) -> list[np.ndarray]:
+    """The recording's usable pressure frames whose stamps are in ``stamps_ns[keep]``."""
+    wanted = set(stamps_ns[keep].tolist())
+    return [np.where(m.dead, 0.0, np.maximum(m.pressure_pa.astype(float), 0.0))
+            for m in _tactile_frames(rec.path) if m.status == "ok" and m.header.stamp_ns in wanted]
 
 
 def identify_material(paths: list[Path], *, name: str, provenance: str = "",
@@ -161,6 +193,7 @@ def identify_material(paths: list[Path], *, name: str, provenance: str = "",
     mu_s, mu_d = _pool(forces, "mu")
     beta_s, beta_d = _pool(torsions, "beta") if torsions else (_Pooled(math.nan, math.nan),) * 2
     stick, slide, onset_gamma, lines = [], [], [], []
+    beta_s_routes, beta_d_routes = [], []
     for i, rec in enumerate(recs, 1):
         say(f"[{i}/{len(recs)}] {rec.path.name}: load factor per frame")
         stamps, gamma, source = _gamma_series(rec, mu_s.value, beta_s.value)
@@ -169,24 +202,39 @@ def identify_material(paths: list[Path], *, name: str, provenance: str = "",
         if onsets:
             first = onsets[0]
             before = (stamps >= first - _STICK_WINDOW_NS) & (stamps <= first - _STICK_GUARD_NS)
+            sliding = _sliding_mask(rec, stamps, first)
             stick.append(frame_noise(gamma[before]))
-            slide.append(frame_noise(gamma[_sliding_mask(rec, stamps, first)]))
+            slide.append(frame_noise(gamma[sliding]))
+            if rec.torsion and source.startswith("exact"):
+                positions = _pad_positions(rec)
+                beta_s_routes.append(beta_from_pressure(_pressure_frames(rec, stamps, before), positions, mu_s.value))
+                beta_d_routes.append(beta_from_pressure(_pressure_frames(rec, stamps, sliding), positions,
+                                                        mu_d.value))
         onset_gamma += levels
         lines += [f"== {rec.path}", format_identification(rec.ident),
                   f"load factor {source}: {len(onsets)} gross-slip onsets, γ there "
                   + (", ".join(f"{g:.3f}" for g in levels) or "-")]
+    beta_s, beta_d = beta_s.with_route(_median(beta_s_routes)), beta_d.with_route(_median(beta_d_routes))
     material = Material(
         name=name, provenance=provenance, mu_s=mu_s.value, mu_s_se=mu_s.se, mu_d=min(mu_d.value, mu_s.value),
         mu_d_se=mu_d.se, beta_s_m=beta_s.value, beta_s_se_m=beta_s.se, beta_d_m=beta_d.value,
-        beta_d_se_m=beta_d.se, gamma_noise_stick=_median(stick), gamma_noise_slide=_median(slide),
+        beta_d_se_m=beta_d.se, mu_s_model=mu_s.model, mu_d_model=mu_d.model, beta_s_model_m=beta_s.model,
+        beta_d_model_m=beta_d.model, gamma_noise_stick=_median(stick), gamma_noise_slide=_median(slide),
         onset_gamma=tuple(round(g, 5) for g in onset_gamma))
     t = detector_thresholds(material)
-    lines.append(f"material {name}: mu_s {mu_s.value:.4f} ± {mu_s.se:.4f}, mu_d {mu_d.value:.4f} ± {mu_d.se:.4f}, "
-                 f"beta_s {beta_s.value * 1e3:.4f} ± {beta_s.se * 1e3:.4f} mm, beta_d {beta_d.value * 1e3:.4f} ± "
-                 f"{beta_d.se * 1e3:.4f} mm (± one standard error); gamma noise stick "
-                 f"{material.gamma_noise_stick:.4f}, slide {material.gamma_noise_slide:.4f}; "
-                 f"detector delta {t.delta:.4f}, gamma_release {t.gamma_release:.4f}")
+    lines += [f"material {name} (± standard error, ± model error; the ± 2-sigma interval in % of the value):",
+              f"  mu_s   {mu_s.text()}", f"  mu_d   {mu_d.text()}",
+              f"  beta_s {beta_s.text(1e3, ' mm')}", f"  beta_d {beta_d.text(1e3, ' mm')}",
+              f"  gamma noise stick {material.gamma_noise_stick:.4f}, slide {material.gamma_noise_slide:.4f}; "
+              f"detector delta {t.delta:.4f}, gamma_release {t.gamma_release:.4f}, gamma_resume {t.gamma_resume:.4f}"]
     return material, lines
+
+
+def _pad_positions(rec: IdentifiedRecording) -> np.ndarray:
+    """Taxel centres (m) of the recording's pad, from its first tactile frame."""
+    for m in _tactile_frames(rec.path):
+        return PadGeometry(m.rows, m.cols, m.pitch_m).positions
+    return np.zeros((0, 2))
 
 
 def _median(values: list[float]) -> float:

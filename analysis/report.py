@@ -259,7 +259,11 @@ def _estimate_lines(est: RampEstimate, symbol: str, scale: float, unit: str) -> 
     extras = "".join(f"; {label} {value * scale:.2g}{unit_s}" for label, value in
                      (("ramp noise", est.noise_std), ("peak prominence", est.prominence)) if math.isfinite(value))
     used = f"  {est.n_used} samples used, {est.n_rejected} rejected{extras}"
-    return [f"  {symbol}_s = {static}{unit_s}   {symbol}_d = {dynamic}{unit_s}", onset, status, used]
+    models = [f"{symbol}_{kind} {value * scale:.2g}{unit_s}" for kind, value in
+              (("s", est.static_model), ("d", est.dynamic_model)) if math.isfinite(value)]
+    model = f"  model error (apart from the ± standard errors): {', '.join(models)}" if models else ""
+    return [f"  {symbol}_s = {static}{unit_s}   {symbol}_d = {dynamic}{unit_s}", *([model] if model else []),
+            onset, status, used]
 
 
 def format_identification(ident: Identification) -> str:

@@ -1,38 +1,48 @@
-"""Slip detection over time: thresholds, hysteresis and latching (docs/math.md §3.1).
+"""Slip detection over time: onset band, latch and release (docs/math.md §3.1).
 
 A load factor computed from *measured* data never exceeds 1: it reaches 1 at slip
 onset and, once sliding, drops to about ``μ_d/μ_s`` (the peak of the paper's
-Fig. 4). So the detector
+Fig. 4). So :class:`SlipLatch`
 
-- flags slip when the contact is *at* the limit: ``γ ≥ 1 − δ`` (margin ``≤ δ``),
+- flags slip when the contact is *at* the limit: ``γ ≥ 1 − δ`` (margin ``≤ δ``) on
+  ``onset_frames`` (two) valid frames in a row,
 - latches it through the static→dynamic drop: slip stays flagged while
   ``γ ≥ γ_release``, and
-- releases only after ``γ < γ_release`` has held for ``release_ns``.
+- releases only after ``γ < γ_release`` has held for ``release_ns``; a frame at or
+  above ``γ_resume`` (a noise margin above ``γ_release``) restarts that dwell, one
+  between the two does not.
 
-The release level is the *kinetic-friction floor*: while the contact slides, every
-sliding patch carries at least ``μ_d φ_i`` (Coulomb friction only weakens from μ_s
-down to μ_d with the distance slid, never below), so the measured load factor stays at
-or above ``μ_d/μ_s``, up to sensor noise; a γ clearly below that floor means the
-friction is no longer saturated: the object sticks again. Hence
-``γ_release = μ_d/μ_s − 4σ_γ``: with the shipped rubber (μ_d/μ_s = 0.36/0.45 = 0.80)
-and the measured frame-to-frame noise of the exact test's γ while sliding
-(σ_γ ≈ 0.006–0.010 at F/T 500 Hz, tactile 250 Hz; ``tests/bench/bench_detection.py``)
-the default is 0.76: under 0.03 % of the gross-slip frames of the shipped scenes fall
-below it, except in the fast stick–slip jumps of Fig. 4a, which dip below it for under
-20 ms as the object decelerates and re-sticks; the release dwell (20 ms) rides them
-out. A different material needs ``gamma_release`` set from its own μ_d/μ_s
-(``lib/identify.py`` identifies both from a Fig. 4a record).
+The thresholds belong to the contact, not to this module: ``lib/material.py`` derives
+all three from the user's material file (``slipstack identify``), by a rule written
+there. In short, with ``σ`` the identified frame-to-frame noise of γ:
+
+- the band's edge ``1 − δ`` sits ``3σ_stick`` below the lowest load factor at which
+  the identified gross slips began, and never above the sliding level ``μ_d/μ_s``
+  (a slip-weakening contact can let go anywhere down to it): a Coulomb contact gets a
+  narrow band (the rig's: δ ≈ 0.03), a strongly weakening one a wide one (δ ≈ 0.4);
+- ``γ_release = μ_d/μ_s − 4σ_slide`` is the *kinetic-friction floor* less the noise:
+  while the contact slides every sliding patch carries at least ``μ_d φ_i`` (friction
+  weakens from μ_s down to μ_d with the distance slid, never below), so the measured γ
+  stays at or above ``μ_d/μ_s`` up to noise; clearly below it, the object sticks again;
+- ``γ_resume = μ_d/μ_s − 2σ_slide``: a sliding contact reads above it on almost every
+  frame, so it restarts the dwell at once, while a load falling slowly through the
+  release level is let go one dwell after it is clearly below it, not held on by
+  single frames that the noise lifts just above the level.
+
+The module's defaults (δ = 0.18, γ_release = 0.76, no resume margin) are the latch's
+own, for tests and offline use without a material; the nodes always take the
+material's (``launch/materials/rubber.toml`` unless told otherwise).
 
 What force data cannot tell: after the object re-sticks, the load can stay at or above
 ``μ_d/μ_s`` (a load held just under the sliding friction, or re-loading towards the
 limit between stick–slip episodes); the latch then holds, or the onset band flags,
-although the contact sticks. ``δ`` is the speed/accuracy knob: larger warns earlier and
-costs such false alarms (measured in ``tests/bench/bench_detection.py``). Times are
-integer ns.
+although the contact sticks. ``tests/bench/bench_detection.py`` measures both against
+the rig's truth, per material. Times are integer ns.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from slipstack.lib.errors import ConfigError
@@ -56,11 +66,21 @@ class DetectorConfig:
         docstring). Above ``1 − delta`` it acts as ``1 − delta`` (the onset band then
         holds the flag by itself), so a wide band needs no matching release level.
     release_ns: how long ``γ < gamma_release`` must hold before stick is declared (ns).
+    gamma_resume: a frame with ``γ ≥ gamma_resume`` restarts the release dwell
+        (dimensionless); NaN or anything below ``gamma_release`` acts as
+        ``gamma_release``. Set it a noise margin above the release level, so that a
+        frame above the level only by the noise does not restart the dwell.
+    onset_frames: how many valid frames in a row must be in the band to raise the flag
+        (≥ 1; frames without a verdict neither count nor break the row). Two: a load
+        held just under the band's edge crosses it on single noisy frames; two in a
+        row are that much rarer, at the cost of one frame at an onset.
     """
 
     delta: float = 0.18
     gamma_release: float = 0.76
     release_ns: int = 20_000_000
+    gamma_resume: float = math.nan
+    onset_frames: int = 2
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.delta < 1.0:
@@ -69,6 +89,18 @@ class DetectorConfig:
             raise ConfigError(f"detector gamma_release must lie in (0, 1], got {self.gamma_release}")
         if self.release_ns < 0:
             raise ConfigError(f"detector release_ns must be >= 0 ns, got {self.release_ns}")
+        if not (isinstance(self.onset_frames, int) and self.onset_frames >= 1):
+            raise ConfigError(f"detector onset_frames must be an integer >= 1, got {self.onset_frames!r}")
+        if not (math.isnan(self.gamma_resume) or 0.0 < self.gamma_resume <= 1.0):
+            raise ConfigError(f"detector gamma_resume must lie in (0, 1] (or be nan: gamma_release), "
+                              f"got {self.gamma_resume}")
+
+    @property
+    def resume_level(self) -> float:
+        """The γ at or above which a frame restarts the release dwell (dimensionless)."""
+        if math.isnan(self.gamma_resume):
+            return self.gamma_release
+        return max(self.gamma_resume, self.gamma_release)
 
 
 class SlipLatch:
@@ -78,6 +110,7 @@ class SlipLatch:
         self.config = config or DetectorConfig()
         self.slipping = False
         self._below_since: int | None = None
+        self._in_band = 0  # valid frames in a row in the band (while not yet slipping)
 
     def update(self, t_ns: int, margin: float, *, in_contact: bool = True) -> bool:
         """Feed one frame's margin (``1 − γ``); returns whether slip is flagged.
@@ -87,7 +120,7 @@ class SlipLatch:
         without information never counts towards it. No contact clears the flag.
         """
         if not in_contact:
-            self.slipping, self._below_since = False, None
+            self.slipping, self._below_since, self._in_band = False, None, 0
             return False
         if margin != margin:  # NaN: no information, keep the flag, start the dwell again
             self._below_since = None
@@ -95,12 +128,17 @@ class SlipLatch:
         gamma = 1.0 - margin
         cfg = self.config
         if margin <= cfg.delta:
-            self.slipping, self._below_since = True, None
-        elif self.slipping:
-            if gamma >= cfg.gamma_release:
+            self._in_band = min(self._in_band + 1, cfg.onset_frames)
+            if self.slipping or self._in_band >= cfg.onset_frames:
+                self.slipping, self._below_since = True, None
+            return self.slipping
+        self._in_band = 0
+        if self.slipping:
+            if gamma >= cfg.resume_level:
                 self._below_since = None
             elif self._below_since is None:
-                self._below_since = t_ns
+                if gamma < cfg.gamma_release:
+                    self._below_since = t_ns
             elif t_ns - self._below_since >= cfg.release_ns:
                 self.slipping, self._below_since = False, None
         return self.slipping

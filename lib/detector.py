@@ -22,7 +22,7 @@ without a paired pressure frame, or the solver's status. A frame without a valid
 verdict keeps the latch as it is (a sensor hiccup never releases it) and restarts its
 release dwell; only a real loss of contact clears it.
 
-Defaults: :meth:`DetectorSettings.from_material` derives μ, δ and γ_release from a
+Defaults: :meth:`DetectorSettings.from_material` derives μ, δ, γ_release and γ_resume from a
 material exactly as the node does (``lib/material.py``); the node's default material
 is ``launch/materials/rubber.toml``.
 """
@@ -104,6 +104,8 @@ class DetectorSettings:
     beta_m: torsional coefficient β for the F/T tests, m; 0: β_s of each pressure frame.
     release_ns: γ below the release level this long releases the latch, ns.
     pool: sum taxels in pool × pool blocks before testing (1: off).
+    gamma_resume: a frame with γ ≥ this restarts the release dwell (NaN: gamma_release).
+    onset_frames: valid frames in a row in the band that raise the flag.
     """
 
     mu: float
@@ -114,6 +116,8 @@ class DetectorSettings:
     beta_m: float = 0.0
     release_ns: int = DetectorConfig.release_ns
     pool: int = 1
+    gamma_resume: float = math.nan
+    onset_frames: int = DetectorConfig.onset_frames
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.beta_m) and self.beta_m >= 0.0):
@@ -126,7 +130,8 @@ class DetectorSettings:
         """Settings with μ = μ_s and the thresholds ``lib/material.py`` derives from it;
         ``overrides`` replaces any field (e.g. ``method="tactile_cor"``)."""
         thresholds = detector_thresholds(material)
-        derived = {"mu": material.mu_s, "delta": thresholds.delta, "gamma_release": thresholds.gamma_release}
+        derived = {"mu": material.mu_s, "delta": thresholds.delta, "gamma_release": thresholds.gamma_release,
+                   "gamma_resume": thresholds.gamma_resume}
         return cls(**{**derived, **overrides})
 
 
@@ -171,7 +176,7 @@ class Detector:
         self._params = SlipParams(mu=s.mu, beta_m=s.beta_m or None, delta=s.delta)
         self._ft_params = self._params  # with β_s of the current pressure frame when beta_m is 0
         self._beta_frame: object = None
-        self._latch = SlipLatch(DetectorConfig(s.delta, s.gamma_release, s.release_ns))
+        self._latch = SlipLatch(DetectorConfig(s.delta, s.gamma_release, s.release_ns, s.gamma_resume, s.onset_frames))
         self._warm: tuple[float, float] | None = None
         self._kind = "translation"  # the latest slip kind, reported while the latch holds
 

@@ -26,10 +26,22 @@ with a rising torque ``β(t) = |τ|/f_n`` (m) peaks at ``β_s`` and settles to `
 4. ``static`` = the value at the onset of a line fitted to the raw ratio over the
    ``static_window_s`` *ending at the onset* (never a line extended past its data), with
    the standard error of that value;
-   ``dynamic`` = mean of the raw ratio from ``settle_s`` after the onset to the end
-   (with a motion signal: over the samples that are sliding, not stuck),
-   with its standard error corrected for lag-1 autocorrelation (AR(1):
-   ``s/√n · √((1+ρ)/(1−ρ))``).
+   ``dynamic`` = mean of the raw ratio over the second half of the plateau that runs
+   from ``settle_s`` after the onset to the end (with a motion signal: over the samples
+   that are sliding, not stuck; friction that weakens with the distance slid reaches
+   its sliding level late), with its standard error corrected for lag-1
+   autocorrelation (AR(1): ``s/√n · √((1+ρ)/(1−ρ))``).
+5. Model error, reported apart from the standard errors (which only see the noise):
+   what the estimator's assumptions miss, as a standard uncertainty in the same unit.
+
+   - ``static_model`` = ``|static − the same line's value over the last half of
+     static_window_s|``: a straight line cannot follow a ramp that bends over before
+     the onset (patches that slip and weaken, bristle compliance), and then the two
+     windows disagree.
+   - ``dynamic_model``: how much the level still drifts where it is measured, the
+     difference between the means of the two halves of the plateau's second half.
+
+   ``slipstack identify`` adds a third term for β (``lib/material_fit.py``).
 
 The peak's *prominence* is ``min(static, max smoothed ratio) − dynamic`` (the smoothed
 maximum guards against a line extrapolated past a knee).
@@ -133,8 +145,10 @@ class RampEstimate:
         status: see :class:`IdentifyStatus`; ``message`` says which test decided it.
         static: ``μ_s`` / ``β_s`` (NaN if not estimated; a lower bound for ``no-onset``).
         static_se: standard error of ``static`` (same unit).
+        static_model: model error of ``static`` (step 5 of the module doc; same unit).
         dynamic: ``μ_d`` / ``β_d`` (NaN if not estimated).
         dynamic_se: standard error of ``dynamic`` (same unit).
+        dynamic_model: model error of ``dynamic`` (same unit).
         onset_t_s: slip-onset time, s (NaN if none).
         onset_index: index of the onset sample in the input arrays (-1 if none).
         onset_interval_s: ``(earliest, latest)`` times the onset can be at, s.
@@ -152,6 +166,8 @@ class RampEstimate:
     static_se: float = _NAN
     dynamic: float = _NAN
     dynamic_se: float = _NAN
+    static_model: float = _NAN
+    dynamic_model: float = _NAN
     onset_t_s: float = _NAN
     onset_index: int = -1
     onset_interval_s: tuple[float, float] = (_NAN, _NAN)
@@ -326,6 +342,7 @@ class _RampFit:
             if onset + 1 - up_to_onset.start >= _MIN_FIT_SAMPLES:
                 onset_line = _LineFit(self.t[up_to_onset], self.r[up_to_onset])
         static = float(onset_line.at(self.t[onset]))
+        static_model = self._bend(onset, static)
         plateau = self._sliding(self.r, min(n, onset + 1 + self.settle))
         common = dict(static=static, static_se=onset_line.se_at(self.t[onset]), onset_t_s=float(self.t[onset]),
                       onset_index=int(self.index[onset]), onset_source=source, noise_std=line.s_r,
@@ -334,7 +351,8 @@ class _RampFit:
             return self.result(IdentifyStatus.INSUFFICIENT_DATA,
                                f"only {plateau.size} samples after onset + settle ({self.cfg.settle_s} s)",
                                **common)
-        dynamic, dynamic_se = _mean_ar1(plateau)
+        dynamic, dynamic_se, drift = _sliding_level(plateau)
+        common.update(static_model=static_model, dynamic_model=drift)
         prominence = min(static, float(smooth[k_peak])) - dynamic
         if not prominence >= self.cfg.min_prominence_sigma * line.s_r:
             knee = self._knee(float(smooth[k_peak]), "no drop")
@@ -346,6 +364,13 @@ class _RampFit:
                                prominence=prominence, **common)
         return self.result(IdentifyStatus.OK, f"peak {prominence / max(line.s_r, 1e-300):.1f} x noise",
                            dynamic=dynamic, dynamic_se=dynamic_se, prominence=prominence, **common)
+
+    def _bend(self, onset: int, static: float) -> float:
+        """``|static − the value at the onset of a line over the last half of its window|``."""
+        last_half = slice(max(0, onset + 1 - self.static_len // 2), onset + 1)
+        if last_half.stop - last_half.start < _MIN_FIT_SAMPLES:
+            return math.nan
+        return abs(static - float(_LineFit(self.t[last_half], self.r[last_half]).at(self.t[onset])))
 
     def _knee(self, peak: float, why: str) -> RampEstimate:
         """No rising ramp right before a peak: look for a ramp that levels off (a knee).
@@ -362,11 +387,12 @@ class _RampFit:
         if not (knee_t >= self.cfg.min_slope_t and k >= _MIN_FIT_SAMPLES
                 and plateau.size >= max(self.fit_len, _MIN_PLATEAU_SAMPLES)):
             return self.result(IdentifyStatus.NO_ONSET, f"{why}; no knee either", static=peak)
-        dynamic, dynamic_se = _mean_ar1(plateau)
+        dynamic, dynamic_se, drift = _sliding_level(plateau)
         return self.result(IdentifyStatus.NO_CLEAR_PEAK,
                            "ratio levels off without a drop (static ~ dynamic, or the load stopped "
                            "rising: pass the displacement to tell)", static=dynamic, static_se=dynamic_se,
-                           dynamic=dynamic, dynamic_se=dynamic_se, onset_t_s=float(self.t[k]),
+                           dynamic=dynamic, dynamic_se=dynamic_se, static_model=drift, dynamic_model=drift,
+                           onset_t_s=float(self.t[k]),
                            onset_index=int(self.index[k]), onset_source="ratio", prominence=0.0,
                            onset_interval_s=(float(self.t[max(k - self.w, 0)]),
                                              float(self.t[min(k + self.w, self.r.size - 1)])))
@@ -442,6 +468,18 @@ def _hinge(t: np.ndarray, r: np.ndarray) -> tuple[int, float]:
     s_r = math.sqrt(max(float(sse[best]), 0.0) / max(n - 2, 1))
     t_stat = b * math.sqrt(vxx[best]) / s_r if s_r > 0 else (math.inf if b > 0 else 0.0)
     return int(k[best]), float(t_stat)
+
+
+def _sliding_level(plateau: np.ndarray) -> tuple[float, float, float]:
+    """(level, its standard error, drift): the mean of the plateau's second half (the
+    whole plateau if that half is too short), and how much that half still drifts, the
+    difference between the means of its own two halves."""
+    late = plateau[plateau.size // 2:]
+    if late.size < _MIN_PLATEAU_SAMPLES:
+        late = plateau
+    level, se = _mean_ar1(late)
+    half = late.size // 2
+    return level, se, abs(float(late[:half].mean()) - float(late[half:].mean())) if half else 0.0
 
 
 def _mean_ar1(x: np.ndarray) -> tuple[float, float]:

@@ -9,9 +9,16 @@ A material file (TOML, written by ``slipstack identify``; shipped ones in
     mu_s = 0.45          # static friction coefficient (dimensionless), with mu_s_se
     mu_d = 0.36          # dynamic (sliding) coefficient, with mu_d_se
     beta_s_m = 1.3e-3    # torsional coefficients (m), with beta_s_se_m, beta_d_m, beta_d_se_m
+    mu_s_model = 0.003   # model error of each coefficient, apart from its standard error:
+                         # mu_s_model, mu_d_model, beta_s_model_m, beta_d_model_m
     gamma_noise_stick = 0.004   # std of the detector's load factor γ while sticking
     gamma_noise_slide = 0.008   # ... and while sliding (frame-to-frame, detrended)
     onset_gamma = [0.95, 0.97]  # γ at which each identified gross-slip episode began
+
+A standard error (``*_se``) is the noise's share of the uncertainty; the model error
+(``*_model``, ``lib/identify.py`` step 5 and ``lib/material_fit.py``) is what the
+estimator's assumptions miss, as a standard uncertainty. A coefficient's ± 2-sigma
+interval is ``value ± 2·√(se² + model²)``.
 
 **The rule** (:func:`detector_thresholds`): measured loads never exceed the capacity,
 so the detector flags slip in a band ``γ ≥ 1 − δ`` below 1 and latches it down to a
@@ -31,6 +38,9 @@ release level (``lib/detection.py``). Both come from the material:
   measured γ stays at or above ``μ_d/μ_s``; below that by more than the sliding noise
   the contact sticks again: ``γ_release = μ_d/μ_s − 4·σ_slide``, never above the
   band's edge ``1 − δ``.
+- resume: ``γ_resume = μ_d/μ_s − 2·σ_slide`` (between ``γ_release`` and ``1 − δ``):
+  a sliding contact reads above it on almost every frame, and only a frame that high
+  restarts the release dwell; one above ``γ_release`` by the noise alone does not.
 
 ``σ`` below ``NOISE_FLOOR`` is raised to it (a noise-free record would otherwise give a
 band of zero width). δ is kept in ``[DELTA_MIN, DELTA_MAX]``.
@@ -58,6 +68,7 @@ DELTA_MIN = 0.005
 DELTA_MAX = 0.5
 _BAND_SIGMAS = 3.0
 _RELEASE_SIGMAS = 4.0
+_RESUME_SIGMAS = 2.0
 
 
 @dataclass(frozen=True)
@@ -65,8 +76,9 @@ class Material:
     """Identified friction of one contact (see the module docstring for the file).
 
     Coefficients are dimensionless, β in m, ``*_se`` are standard errors in the same
-    unit (NaN: not identified). ``onset_gamma``: the load factor at the start of each
-    identified gross-slip episode, in the order found.
+    unit (NaN: not identified), ``*_model`` their model errors (same unit; NaN: not
+    estimated). ``onset_gamma``: the load factor at the start of each identified
+    gross-slip episode, in the order found.
     """
 
     name: str
@@ -79,6 +91,10 @@ class Material:
     beta_s_se_m: float = math.nan
     beta_d_m: float = math.nan
     beta_d_se_m: float = math.nan
+    mu_s_model: float = math.nan
+    mu_d_model: float = math.nan
+    beta_s_model_m: float = math.nan
+    beta_d_model_m: float = math.nan
     gamma_noise_stick: float = math.nan
     gamma_noise_slide: float = math.nan
     onset_gamma: tuple[float, ...] = field(default_factory=tuple)
@@ -100,10 +116,12 @@ class Material:
 
 @dataclass(frozen=True)
 class DetectorThresholds:
-    """The detector's onset band ``delta`` and latch ``gamma_release`` (dimensionless)."""
+    """The detector's onset band ``delta``, latch ``gamma_release`` and the level
+    ``gamma_resume`` at which a frame restarts the release dwell (dimensionless)."""
 
     delta: float
     gamma_release: float
+    gamma_resume: float
 
 
 def _noise(value: float) -> float:
@@ -117,11 +135,13 @@ def detector_thresholds(material: Material) -> DetectorThresholds:
     delta = min(max(1.0 - edge, DELTA_MIN), DELTA_MAX)
     release = material.sliding_level - _RELEASE_SIGMAS * _noise(material.gamma_noise_slide)
     release = min(max(release, 1e-3), 1.0 - delta)
-    return DetectorThresholds(delta=delta, gamma_release=release)
+    resume = material.sliding_level - _RESUME_SIGMAS * _noise(material.gamma_noise_slide)
+    resume = max(release, min(resume, 1.0 - delta))
+    return DetectorThresholds(delta=delta, gamma_release=release, gamma_resume=resume)
 
 
 _FLOATS = ("mu_s", "mu_d", "mu_s_se", "mu_d_se", "beta_s_m", "beta_s_se_m", "beta_d_m", "beta_d_se_m",
-           "gamma_noise_stick", "gamma_noise_slide")
+           "mu_s_model", "mu_d_model", "beta_s_model_m", "beta_d_model_m", "gamma_noise_stick", "gamma_noise_slide")
 
 
 def _number(table: dict[str, Any], key: str, source: str) -> float:
@@ -180,7 +200,7 @@ def material_toml(material: Material, comment: str = "") -> str:
     lines = [f"# {line}" if line else "#" for line in comment.splitlines()]
     t = detector_thresholds(material)
     lines.append(f"# derived detector thresholds (lib/material.py): delta = {t.delta:.4f}, "
-                 f"gamma_release = {t.gamma_release:.4f}")
+                 f"gamma_release = {t.gamma_release:.4f}, gamma_resume = {t.gamma_resume:.4f}")
     lines.append("[material]")
     for key in ("name", "provenance", *_FLOATS, "onset_gamma"):
         lines.append(f"{key} = {_toml_value(getattr(material, key))}")

@@ -10,6 +10,14 @@ The pieces of :mod:`slipstack.analysis.identify_cli` that are plain computation:
   hardly enters; the difference of two independent noisy frames has variance 2σ².
 - :func:`onset_levels`: the load factor γ of the last frame before each gross-slip
   onset, the last one still sticking (dimensionless).
+- :func:`pooled_model`: the model error of a pooled coefficient (see there).
+- :func:`beta_from_pressure`: the torsional coefficient that rigid Coulomb friction
+  gives a measured pressure, ``μ × r̄`` (m): a second route to β, independent of the
+  torque ramp. The two routes disagree by what the rigid model misses (bristle
+  compliance: the patches next to the centre of rotation never reach their limit
+  before the object turns; edges that weaken before the core lets go), so
+  ``slipstack identify`` adds that disagreement to β's model error.
+- :func:`interval_half_width`: ``2·√(se² + model²)``, the ± of a reported value.
 
 Times are integer ns; nothing here raises on data (empty inputs give NaN or empty).
 """
@@ -20,7 +28,10 @@ import math
 
 import numpy as np
 
-__all__ = ["pooled", "frame_noise", "onset_levels"]
+from slipstack.lib.limit_set import torsional_coefficient
+
+__all__ = ["pooled", "pooled_model", "frame_noise", "onset_levels", "beta_from_pressure",
+           "interval_half_width"]
 
 _MIN_NOISE_FRAMES = 5
 
@@ -38,6 +49,46 @@ def pooled(values: list[float], standard_errors: list[float]) -> tuple[float, fl
     w = np.array([1.0 / (s * s) for _, s in weighted])
     v = np.array([v for v, _ in weighted])
     return float(w @ v / w.sum()), float(1.0 / math.sqrt(w.sum()))
+
+
+def pooled_model(values: list[float], models: list[float]) -> float:
+    """Model error of a pooled coefficient (same unit as ``values``).
+
+    The largest finite model error of the estimates (a model error does not average
+    away over recordings of the same contact), or, with two or more finite values, their
+    scatter (sample standard deviation) if that is larger: ramps that disagree by more
+    than their model errors show an error none of them saw. NaN without any.
+    """
+    finite_values = [v for v in values if math.isfinite(v)]
+    candidates = [m for m in models if math.isfinite(m)]
+    if len(finite_values) >= 2:
+        candidates.append(float(np.std(finite_values, ddof=1)))
+    return max(candidates) if candidates else math.nan
+
+
+def beta_from_pressure(phis: list[np.ndarray], positions: np.ndarray, mu: float) -> float:
+    """``μ × r̄`` (m): β of rigid Coulomb friction on the measured pressure.
+
+    Args:
+        phis: pressure frames, each ``(N,)`` per taxel (any unit: only its shape counts).
+        positions: ``(N, 2)`` taxel centres in ``F``, m.
+        mu: friction coefficient (``μ_s`` for β_s, ``μ_d`` for β_d).
+
+    ``r̄`` is the median over the frames of the pressure-weighted mean distance from the
+    geometric median (``lib/limit_set.torsional_coefficient``); NaN without a usable frame.
+    """
+    distances = []
+    for phi in phis:
+        r = torsional_coefficient(phi, positions, 1.0)
+        if r.status.usable and r.beta_m > 0:
+            distances.append(r.beta_m)
+    return mu * float(np.median(distances)) if distances and math.isfinite(mu) else math.nan
+
+
+def interval_half_width(se: float, model: float) -> float:
+    """``2·√(se² + model²)``: the ± of a value with standard error ``se`` and model error
+    ``model`` (a NaN model error counts as 0, a NaN ``se`` gives NaN)."""
+    return 2.0 * math.hypot(se, model if math.isfinite(model) else 0.0)
 
 
 def frame_noise(gamma: np.ndarray) -> float:

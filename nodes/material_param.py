@@ -41,7 +41,7 @@ def resolve_material(name: str) -> Material:
 
 
 def _value(material: Material, source: str) -> float:
-    if source in ("delta", "gamma_release"):
+    if source in ("delta", "gamma_release", "gamma_resume"):
         return getattr(detector_thresholds(material), source)
     return float(getattr(material, source))
 
@@ -50,7 +50,7 @@ def fill_from_material(params: Any, **sources: str) -> None:
     """Set each NaN field ``name`` of the frozen dataclass ``params`` from its material.
 
     ``sources`` maps a field to the material quantity it takes: a :class:`Material`
-    attribute (``mu_s``, ``beta_s_m``, …) or ``delta`` / ``gamma_release`` (derived).
+    attribute (``mu_s``, ``beta_s_m``, …) or ``delta`` / ``gamma_release`` / ``gamma_resume`` (derived).
     The material is read only if some field is NaN.
     """
     missing = {name: src for name, src in sources.items() if math.isnan(getattr(params, name))}

@@ -3,8 +3,8 @@
 The chosen ``method`` decides; the cheaper tests in ``also`` are computed alongside
 and published in ``verdicts`` (name → [stick, margin]) so their agreement can be
 watched and recorded. A :class:`~slipstack.lib.detection.SlipLatch` turns the
-method's margin into the latched state (onset band ``delta``, hysteresis
-``gamma_release``, ``release_ms``).
+method's margin into the latched state (onset band ``delta`` held for
+``onset_frames``, release level ``gamma_release`` and ``gamma_resume``, ``release_ms``).
 
 The detector computes its verdict from ``contact`` directly rather than waiting for
 ``cor``: one hop less between the sensor sample and the grip command. Its own COR of
@@ -41,7 +41,7 @@ class SlipDetectorParams:
     method: str = field(default="exact", metadata={"help": f"deciding test: one of {sorted(SLIP_TESTS)}"})
     also: list[str] = field(default_factory=lambda: list(FT_TESTS), metadata={"help": "tests published alongside"})
     material: str = field(default=DEFAULT_MATERIAL, metadata={
-        "help": "material file (launch/materials/ name or path): mu, delta, gamma_release unless given"})
+        "help": "material file (launch/materials/ name or path): mu, delta, gamma_release, gamma_resume unless given"})
     mu: float = field(default=math.nan, metadata={"help": "static friction coefficient; nan: the material's mu_s"})
     beta_m: float = field(default=0.0, metadata={"help": "torsional coefficient for F/T tests (m); 0: from tactile"})
     delta: float = field(default=math.nan, metadata={
@@ -50,10 +50,16 @@ class SlipDetectorParams:
         "help": "slip stays latched while gamma >= this (just below mu_d/mu_s); nan: from the material"})
     release_ms: float = field(default=DetectorConfig.release_ns / 1e6,
                               metadata={"help": "gamma below release this long -> stick (ms)"})
+    onset_frames: int = field(default=DetectorConfig.onset_frames, metadata={
+        "help": "valid frames in a row in the band that raise the slip flag (>= 1)"})
+    gamma_resume: float = field(default=math.nan, metadata={
+        "help": "a frame with gamma >= this restarts the release dwell (a noise margin above gamma_release); "
+                "nan: from the material"})
     pool: int = field(default=1, metadata={"help": "sum taxels in pool x pool blocks before testing (1: off)"})
 
     def __post_init__(self) -> None:
-        fill_from_material(self, mu="mu_s", delta="delta", gamma_release="gamma_release")
+        fill_from_material(self, mu="mu_s", delta="delta", gamma_release="gamma_release",
+                           gamma_resume="gamma_resume")
 
 
 class SlipDetector(Node):
@@ -69,7 +75,8 @@ class SlipDetector(Node):
         p = self.params
         self.detector = Detector(DetectorSettings(
             mu=p.mu, delta=p.delta, gamma_release=p.gamma_release, method=p.method, also=tuple(p.also),
-            beta_m=p.beta_m, release_ns=round(p.release_ms * 1e6), pool=p.pool))
+            beta_m=p.beta_m, release_ns=round(p.release_ms * 1e6), pool=p.pool, gamma_resume=p.gamma_resume,
+            onset_frames=p.onset_frames))
 
     def start(self, ctx: Context) -> None:
         compile_kernels()  # before the node reports ready, so its first contact runs at full speed

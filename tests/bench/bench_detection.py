@@ -27,10 +27,10 @@ with the contact's μ_s; the F/T period is 2 ms at the default 500 Hz):
 - *false alarms*: frames flagged by the band itself (margin ≤ δ, not merely held by
   the latch) while the truth says stick and the true load factor is below the band by
   more than the material's noise (γ_true < 1 − δ − σ_stick), in % of the sticking
-  frames (truth not in gross slip); *raised* counts the flag's rising edges among them,
-  and the share on the scenes decided by a tactile test (all but the F/T-only fig10–12,
-  whose tests carry their own model error: the linear limit surface of fig11/12
-  over-predicts γ) follows;
+  frames (truth not in gross slip); *raised* counts the flag's rising edges among them;
+  then the same split by the deciding test: the scenes a tactile test decides, and the
+  F/T-only fig10–12, whose tests carry their own model error (the linear limit surface
+  of fig11/12 over-predicts γ on combined loads, by up to 0.3);
 - *latch hold*: for each episode, how long the flag stays up after the true slip ended
   (until the next episode at most; p50 / p95 ms over all episodes), split by whether the
   true load factor fell below the material's release level by more than its sliding
@@ -64,6 +64,7 @@ from slipstack.lib.detection import DetectorConfig, SlipLatch
 from slipstack.lib.episodes import find_episodes
 from slipstack.lib.limit_set import load_factor, torsional_coefficient
 from slipstack.lib.material import Material, detector_thresholds, load_material, material_toml
+from slipstack.lib.material_fit import interval_half_width
 from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.scene import RIG_MATERIALS, Scene, with_rig_material
 from slipstack.launch.launch_file import load_launch_file
@@ -134,16 +135,22 @@ def identified_material(material: str, cache: Path, rates: tuple[float, float]) 
 
 
 def identification_rows(materials: list[str], files: dict[str, Material]) -> list[str]:
-    rows = ["| contact | quantity | truth | identified ± 2 SE | error | truth inside |",
-            "| --- | --- | ---: | ---: | ---: | :---: |"]
+    """One row per (material, coefficient): truth, identified ± 2 SE, model error, the
+    ± 2-sigma interval ``2·√(SE² + model²)`` in % of the value, and whether it holds the truth."""
+    rows = ["| contact | quantity | truth | identified ± 2 SE (stat) | model error | ± 2 sigma (stat + model) "
+            "| error | truth inside |", "| --- | --- | ---: | ---: | ---: | ---: | ---: | :---: |"]
     for material in materials:
         truth, found = true_friction(material), files[material]
-        for key, se_key, scale, unit in (("mu_s", "mu_s_se", 1, ""), ("mu_d", "mu_d_se", 1, ""),
-                                         ("beta_s_m", "beta_s_se_m", 1e3, " mm"), ("beta_d_m", "beta_d_se_m", 1e3, " mm")):
-            value, se, true = getattr(found, key), getattr(found, se_key), truth[key]
-            inside = "yes" if abs(value - true) <= 2 * se else "no"
-            rows.append(f"| {material} | {key.replace('_m', '')} | {true * scale:.4f}{unit} | {value * scale:.4f} ± "
-                        f"{2 * se * scale:.4f}{unit} | {100 * (value / true - 1):+.1f} % | {inside} |")
+        for key, scale, unit in (("mu_s", 1, ""), ("mu_d", 1, ""), ("beta_s_m", 1e3, " mm"), ("beta_d_m", 1e3, " mm")):
+            stem = key.removesuffix("_m")
+            suffix = "_m" if key.endswith("_m") else ""
+            value, true = getattr(found, key), truth[key]
+            se, model = getattr(found, f"{stem}_se{suffix}"), getattr(found, f"{stem}_model{suffix}")
+            half = interval_half_width(se, model)
+            inside = "yes" if abs(value - true) <= half else "no"
+            rows.append(f"| {material} | {stem} | {true * scale:.4f}{unit} | {value * scale:.4f} ± "
+                        f"{2 * se * scale:.4f}{unit} | {model * scale:.4f}{unit} | ± {half * scale:.4f}{unit} "
+                        f"({100 * half / value:.1f} %) | {100 * (value / true - 1):+.1f} % | {inside} |")
     return rows
 
 
@@ -205,6 +212,8 @@ class Tally:
     false_raised: int = 0
     tactile_stick_frames: int = 0
     tactile_false_frames: int = 0
+    ft_stick_frames: int = 0
+    ft_false_frames: int = 0
     negative_raised: int = 0
     negative_flagged: int = 0
     negative_frames: int = 0
@@ -222,7 +231,7 @@ def evaluate(data: dict[str, np.ndarray], material: Material, contact: str, tall
     thr = detector_thresholds(material)
     sigma = material.gamma_noise_stick if math.isfinite(material.gamma_noise_stick) else 0.0
     slide_sigma = material.gamma_noise_slide if math.isfinite(material.gamma_noise_slide) else 0.0
-    latch = SlipLatch(DetectorConfig(delta=thr.delta, gamma_release=thr.gamma_release))
+    latch = SlipLatch(DetectorConfig(delta=thr.delta, gamma_release=thr.gamma_release, gamma_resume=thr.gamma_resume))
     gamma = data["gamma"] * RECORD_MU / material.mu_s
     margin = 1.0 - gamma
     flags = np.array([latch.update(int(t), float(m), in_contact=bool(c))
@@ -244,6 +253,9 @@ def evaluate(data: dict[str, np.ndarray], material: Material, contact: str, tall
     if str(data["method"]) in TACTILE_TESTS:
         tally.tactile_stick_frames += int(sticking.sum())
         tally.tactile_false_frames += int(wrong.sum())
+    else:
+        tally.ft_stick_frames += int(sticking.sum())
+        tally.ft_false_frames += int(wrong.sum())
     episodes = find_episodes(tt, data["gross"], min_gap_ns=GAP_NS)
     t = data["t"]
     for i, ep in enumerate(episodes):
@@ -278,7 +290,9 @@ def detection_row(label: str, material: Material, tally: Tally) -> str:
     stick = max(tally.stick_frames, 1)
     return (f"| {label} | {thr.delta:.3f} / {thr.gamma_release:.3f} | {tally.episodes} | {tally.missed} | "
             f"{_pct(tally.delays, 50)} / {_pct(tally.delays, 95)} | {100 * tally.false_frames / stick:.2f} % "
-            f"({tally.false_raised}; {100 * tally.tactile_false_frames / max(tally.tactile_stick_frames, 1):.2f} %) | {_pct(tally.hold_all, 50, '{:.0f}')} / {_pct(tally.hold_all, 95, '{:.0f}')} | "
+            f"({tally.false_raised}) | {100 * tally.tactile_false_frames / max(tally.tactile_stick_frames, 1):.2f} % / "
+            f"{100 * tally.ft_false_frames / max(tally.ft_stick_frames, 1):.2f} % | "
+            f"{_pct(tally.hold_all, 50, '{:.0f}')} / {_pct(tally.hold_all, 95, '{:.0f}')} | "
             f"{_pct(tally.hold_release, 50, '{:.0f}')} / {_pct(tally.hold_release, 95, '{:.0f}')} "
             f"({len(tally.hold_release)}) | {_pct(tally.hold_between, 50, '{:.0f}')} / "
             f"{_pct(tally.hold_between, 95, '{:.0f}')} ({len(tally.hold_between)}) | {tally.negative_raised} "
@@ -287,9 +301,9 @@ def detection_row(label: str, material: Material, tally: Tally) -> str:
 
 DETECTION_HEADER = [
     "| contact, material file | δ / γ_release | episodes | missed | delay p50 / p95 (periods) | false alarms "
-    "(raised; tactile tests only) | hold after slip: p50 / p95 ms | hold, could release: p50 / p95 ms (n) | hold, cannot tell: "
-    "p50 / p95 ms (n) | negative: raised (flagged) |",
-    "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+    "(raised) | false alarms: tactile tests / F/T tests | hold after slip: p50 / p95 ms | hold, could release: "
+    "p50 / p95 ms (n) | hold, cannot tell: p50 / p95 ms (n) | negative: raised (flagged) |",
+    "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
 ]
 
 

@@ -15,6 +15,7 @@ every output.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -36,6 +37,8 @@ GOLDEN_DIR = Path(__file__).parent / "golden"
 FT_HZ, TACTILE_HZ, TRUTH_HZ = 500.0, 250.0, 250.0
 MU, DELTA, F_MAX_N = 0.45, 0.1, 20.0
 GAMMA_RELEASE = 0.76  # pinned: the goldens were recorded with it (the default now comes from the material)
+ONSET_FRAMES = 1  # pinned: the goldens were recorded when one frame in the band raised the flag
+GAMMA_RESUME = math.nan  # pinned: recorded when any frame at the release level restarted the dwell
 
 
 @dataclass(frozen=True)
@@ -83,7 +86,8 @@ GOLDENS: tuple[Golden, ...] = (
                   Segment("ramp", 0.1, target=(0.0, 0.0, 0.0))),
         tactile=True,
         fusion={"use_tactile": True},
-        slip={"method": "exact", "mu": MU, "beta_m": 0.0, "delta": DELTA, "gamma_release": GAMMA_RELEASE},
+        slip={"method": "exact", "mu": MU, "beta_m": 0.0, "delta": DELTA, "gamma_release": GAMMA_RELEASE,
+              "gamma_resume": GAMMA_RESUME, "onset_frames": ONSET_FRAMES},
         grip={"law": "tactile14", "mu": MU, "beta_m": 0.0, "f_nom_n": 2.0, "f_max_n": F_MAX_N, "delta": DELTA, "gamma_release": GAMMA_RELEASE},
         cor={"solver": "exact", "mu": MU, "per_tactile_frame": True},
     ),
@@ -97,7 +101,8 @@ GOLDENS: tuple[Golden, ...] = (
         segments=(Segment("hold", 0.1), Segment("step", 0.4, target=(0.0, 2.0, 0.01))),
         tactile=False,
         fusion={"use_tactile": False},
-        slip={"method": "linear_ls", "mu": MU, "beta_m": 0.00344, "delta": DELTA, "gamma_release": GAMMA_RELEASE},
+        slip={"method": "linear_ls", "mu": MU, "beta_m": 0.00344, "delta": DELTA, "gamma_release": GAMMA_RELEASE,
+              "gamma_resume": GAMMA_RESUME, "onset_frames": ONSET_FRAMES},
         grip={"law": "ft13_sigma", "mu": MU, "beta_m": 0.00344, "f_nom_n": 2.0, "f_max_n": F_MAX_N, "delta": DELTA, "gamma_release": GAMMA_RELEASE},
         cor={},
     ),

@@ -8,10 +8,13 @@ from slipstack.lib.detection import DetectorConfig, SlipLatch
 from slipstack.lib.errors import ConfigError
 
 MS = 1_000_000
+ONE_FRAME = DetectorConfig(onset_frames=1)
+"""The latch's defaults, but one frame in the band raises the flag (the tests of the latch
+and its release below; the two-frame onset has its own test)."""
 
 
 def test_onset_latch_and_release_by_hand():
-    latch = SlipLatch(DetectorConfig(delta=0.05, gamma_release=0.6, release_ns=10 * MS))
+    latch = SlipLatch(DetectorConfig(delta=0.05, gamma_release=0.6, release_ns=10 * MS, onset_frames=1))
     assert latch.update(0, 0.5) is False          # gamma 0.5: stick
     assert latch.update(1 * MS, 0.04) is True     # gamma 0.96 >= 0.95: slip
     assert latch.update(2 * MS, 0.22) is True     # sliding, gamma ~ mu_d/mu_s = 0.78: latched
@@ -21,7 +24,7 @@ def test_onset_latch_and_release_by_hand():
 
 
 def test_nan_keeps_state_and_no_contact_clears():
-    latch = SlipLatch()
+    latch = SlipLatch(ONE_FRAME)
     latch.update(0, 0.0)
     assert latch.update(1, math.nan) is True
     assert latch.update(2, 0.9, in_contact=False) is False
@@ -37,7 +40,7 @@ def test_bad_config_says_what_to_fix():
 def test_release_level_above_the_band_acts_as_the_band_edge():
     # delta 0.25 (band edge 0.75) with the default release level 0.76: gamma 0.755 is
     # in the band (flagged), 0.745 is below both and releases after the dwell.
-    latch = SlipLatch(DetectorConfig(delta=0.25))
+    latch = SlipLatch(DetectorConfig(delta=0.25, onset_frames=1))
     assert latch.update(0, 0.0) is True
     assert latch.update(10 * MS, 1.0 - 0.755) is True
     assert latch.update(12 * MS, 1.0 - 0.745) is True    # below from 12 ms
@@ -48,7 +51,7 @@ def test_release_level_above_the_band_acts_as_the_band_edge():
 def test_default_release_sits_just_under_the_kinetic_floor():
     # Shipped rubber: mu_d/mu_s = 0.36/0.45 = 0.80; sliding keeps gamma at or above it
     # (noise sigma ~0.01), so the default latch holds there and lets go below 0.76.
-    cfg = DetectorConfig()
+    cfg = ONE_FRAME
     assert cfg.gamma_release == pytest.approx(0.36 / 0.45 - 0.04)
     latch = SlipLatch(cfg)
     assert latch.update(0, 0.17) is True                # gamma 0.83 >= 1 - 0.18: slip
@@ -58,7 +61,7 @@ def test_default_release_sits_just_under_the_kinetic_floor():
 
 def test_dip_below_the_floor_shorter_than_the_dwell_keeps_slip():
     # A fast stick-slip jump decelerates below the floor for < 20 ms while still sliding.
-    latch = SlipLatch(DetectorConfig())
+    latch = SlipLatch(ONE_FRAME)
     latch.update(0, 0.0)                                 # gamma 1.0: slip
     assert latch.update(2 * MS, 1.0 - 0.70) is True      # below 0.76: timer starts at 2 ms
     assert latch.update(20 * MS, 1.0 - 0.72) is True     # 18 ms below: still latched
@@ -71,7 +74,7 @@ def test_dip_below_the_floor_shorter_than_the_dwell_keeps_slip():
 def test_restuck_load_just_under_the_floor_releases_after_the_dwell():
     # After re-sticking the load eases off from the sliding level 0.80 at 0.5 /s
     # (the default scene's ramp-down): gamma passes 0.76 at 80 ms, release 20 ms later.
-    latch = SlipLatch(DetectorConfig())
+    latch = SlipLatch(ONE_FRAME)
     latch.update(0, 0.0)
     verdicts = {t: latch.update(t * MS, 1.0 - (0.80 - 0.5 * t / 1000)) for t in range(1, 120, 2)}
     assert verdicts[79] is True                          # gamma 0.7605: at the floor, held
@@ -94,14 +97,14 @@ def test_config_boundaries_are_accepted_and_just_outside_rejected():
 
 def test_margin_exactly_at_the_band_edge_is_slip():
     # margin 1 - gamma <= delta flags slip; 0.25 is exact in binary, so this is the edge itself.
-    latch = SlipLatch(DetectorConfig(delta=0.25, gamma_release=0.5))
+    latch = SlipLatch(DetectorConfig(delta=0.25, gamma_release=0.5, onset_frames=1))
     assert latch.update(0, 0.25) is True
-    assert SlipLatch(DetectorConfig(delta=0.25, gamma_release=0.5)).update(0, 0.25 + 1e-12) is False
+    assert SlipLatch(DetectorConfig(delta=0.25, gamma_release=0.5, onset_frames=1)).update(0, 0.25 + 1e-12) is False
 
 
 def test_gamma_exactly_at_the_release_level_holds_the_latch():
     # gamma >= gamma_release holds: 1 - 0.25 = 0.75 exactly, held far beyond the dwell.
-    latch = SlipLatch(DetectorConfig(delta=0.125, gamma_release=0.75, release_ns=10 * MS))
+    latch = SlipLatch(DetectorConfig(delta=0.125, gamma_release=0.75, release_ns=10 * MS, onset_frames=1))
     assert latch.update(0, 0.0) is True
     assert all(latch.update(t * MS, 0.25) for t in range(1, 100, 5))
     assert latch.update(101 * MS, 0.25 + 1e-12) is True    # just below: the dwell starts here
@@ -112,7 +115,7 @@ def test_nan_margins_for_longer_than_the_dwell_keep_a_latched_slip():
     # No verdict (NaN) is no information: however long it lasts it neither starts nor
     # runs the release timer, so the grip law keeps seeing slip; a NaN inside the dwell
     # restarts it (release needs 20 ms of valid stick frames in a row).
-    latch = SlipLatch(DetectorConfig(release_ns=20 * MS))
+    latch = SlipLatch(DetectorConfig(release_ns=20 * MS, onset_frames=1))
     assert latch.update(0, 0.0) is True
     assert all(latch.update(t * MS, math.nan) is True for t in range(1, 60, 3))
     assert latch.update(60 * MS, 0.5) is True               # a real stick frame starts the dwell
@@ -121,14 +124,83 @@ def test_nan_margins_for_longer_than_the_dwell_keep_a_latched_slip():
     assert latch.update(99 * MS, 0.5) is True
     assert latch.update(100 * MS, 0.5) is False             # 20 ms of valid stick frames: released
     # and a NaN keeps "stick" too
-    stick = SlipLatch()
+    stick = SlipLatch(ONE_FRAME)
     assert stick.update(0, 0.5) is False
     assert stick.update(1 * MS, math.nan) is False
 
 
 def test_losing_contact_clears_the_latch_for_the_next_contact():
-    latch = SlipLatch(DetectorConfig(release_ns=20 * MS))
+    latch = SlipLatch(DetectorConfig(release_ns=20 * MS, onset_frames=1))
     assert latch.update(0, 0.0) is True
     assert latch.update(1 * MS, 0.0, in_contact=False) is False
     assert latch.slipping is False
     assert latch.update(2 * MS, 0.5) is False               # a new contact that sticks: no old latch
+
+
+def test_frames_between_release_and_resume_levels_do_not_restart_the_dwell():
+    # Release level 0.58, resume level 0.59: 0.585 (above the level by noise alone) keeps
+    # the dwell running, 0.595 restarts it.
+    latch = SlipLatch(DetectorConfig(delta=0.4, gamma_release=0.58, release_ns=20 * MS, gamma_resume=0.59,
+                                     onset_frames=1))
+    assert latch.update(0, 0.0) is True
+    assert latch.update(2 * MS, 1.0 - 0.585) is True    # above the level, dwell not started
+    assert latch.update(4 * MS, 1.0 - 0.57) is True     # below: dwell starts at 4 ms
+    assert latch.update(10 * MS, 1.0 - 0.585) is True   # noise above the level: dwell runs on
+    assert latch.update(23 * MS, 1.0 - 0.57) is True    # 19 ms
+    assert latch.update(24 * MS, 1.0 - 0.585) is False  # 20 ms: released on a frame between the levels
+    latch = SlipLatch(DetectorConfig(delta=0.4, gamma_release=0.58, release_ns=20 * MS, gamma_resume=0.59,
+                                     onset_frames=1))
+    latch.update(0, 0.0)
+    latch.update(4 * MS, 1.0 - 0.57)                    # dwell starts
+    assert latch.update(10 * MS, 1.0 - 0.595) is True   # at/above resume: still sliding, dwell restarts
+    assert latch.update(24 * MS, 1.0 - 0.57) is True    # dwell starts again at 24 ms
+    assert latch.update(43 * MS, 1.0 - 0.57) is True
+    assert latch.update(44 * MS, 1.0 - 0.57) is False
+
+
+def test_resume_level_below_the_release_level_acts_as_the_release_level():
+    cfg = DetectorConfig(delta=0.2, gamma_release=0.7, gamma_resume=0.65)
+    assert cfg.resume_level == 0.7
+    assert DetectorConfig(gamma_release=0.7).resume_level == 0.7       # NaN: the release level
+    with pytest.raises(ConfigError, match="gamma_resume"):
+        DetectorConfig(gamma_resume=1.5)
+
+
+def test_noisy_load_falling_through_the_release_level_is_let_go_within_two_dwells():
+    # A re-stuck load 0.6 sigma under the release level (sigma 0.01, 500 Hz frames):
+    # about 27 % of the frames read above the level. With the resume level 2 sigma
+    # above it the latch lets go one dwell after the load is below; restarting on every
+    # frame above the level would need 10 frames in a row below it (p ~ 0.04 per try).
+    import numpy as np
+
+    rng = np.random.default_rng(7)
+    release, sigma = 0.58, 0.01
+    holds = []
+    for _ in range(50):
+        latch = SlipLatch(DetectorConfig(delta=0.4, gamma_release=release, release_ns=20 * MS,
+                                         gamma_resume=release + 2 * sigma, onset_frames=1))
+        latch.update(0, 0.0)
+        t = 0
+        while latch.slipping and t < 1000 * MS:
+            t += 2 * MS
+            latch.update(t, 1.0 - (release - 0.6 * sigma + sigma * rng.standard_normal()))
+        holds.append(t / MS)
+    assert max(holds) <= 40.0
+
+
+def test_two_frames_in_a_row_in_the_band_raise_the_flag_by_default():
+    # A load held 3.4 sigma under the band's edge reads in the band on single frames
+    # (hold_force_coulomb: 1 frame in 1700): one such frame is not slip, two in a row are.
+    latch = SlipLatch(DetectorConfig(delta=0.033, gamma_release=0.966))
+    assert latch.config.onset_frames == 2
+    assert latch.update(0, 1.0 - 0.950) is False
+    assert latch.update(2 * MS, 1.0 - 0.968) is False    # one frame in the band: no flag
+    assert latch.update(4 * MS, 1.0 - 0.952) is False    # out again: the row is broken
+    assert latch.update(6 * MS, 1.0 - 0.970) is False
+    assert latch.update(8 * MS, math.nan) is False       # no verdict: neither counts nor breaks the row
+    assert latch.update(10 * MS, 1.0 - 0.975) is True    # second valid frame in a row: slip
+    assert latch.update(12 * MS, 1.0 - 0.990) is True
+    latch.update(14 * MS, 0.5, in_contact=False)         # lost contact clears the row too
+    assert latch.update(16 * MS, 1.0 - 0.975) is False
+    with pytest.raises(ConfigError, match="onset_frames"):
+        DetectorConfig(onset_frames=0)

@@ -15,7 +15,7 @@ from slipstack.nodes.slip_detector import SlipDetector
 ROWS = COLS = 16
 PITCH_M = 1.25e-3
 MU, DELTA, GAMMA_RELEASE = 0.45, 0.1, 0.76
-SETTINGS = DetectorSettings(mu=MU, delta=DELTA, gamma_release=GAMMA_RELEASE)
+SETTINGS = DetectorSettings(mu=MU, delta=DELTA, gamma_release=GAMMA_RELEASE, onset_frames=1)
 
 
 def pressed(f_x_n: float, f_n: float = 10.0, status: str = "ok") -> PadContact:

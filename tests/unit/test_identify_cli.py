@@ -54,7 +54,13 @@ def test_identify_writes_a_material_that_drives_the_detector(tmp_path: Path, cap
     assert t.delta == pytest.approx(1.0 - (m.sliding_level - 3 * m.gamma_noise_stick))
     assert t.gamma_release == pytest.approx(m.sliding_level - 4 * m.gamma_noise_slide)
     report = capsys.readouterr()
-    assert "material mine: mu_s 0.5" in report.out and "identify: [2/2]" in report.err
+    assert "identify: [2/2]" in report.err
+    assert "material mine (± standard error, ± model error" in report.out
+    mu_s_line = next(line for line in report.out.splitlines() if line.startswith("  mu_s "))
+    assert mu_s_line.startswith("  mu_s   0.5") and "(stat)" in mu_s_line and "(model)" in mu_s_line
+    # Straight synthetic ramps and plateaus that have settled: model errors stay within the noise.
+    assert 0.0 <= m.mu_s_model < 0.01 and 0.0 <= m.mu_d_model < 0.003
+    assert 0.0 <= m.beta_d_model_m < 0.03e-3
 
 
 def test_identify_names_what_is_missing(tmp_path: Path, capsys) -> None:

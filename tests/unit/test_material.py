@@ -40,6 +40,7 @@ def test_band_reaches_the_lowest_onset_minus_three_sigma() -> None:
     t = detector_thresholds(weak)
     assert t.delta == pytest.approx(0.4 + 0.015)
     assert t.gamma_release == pytest.approx(0.6 - 0.04)
+    assert t.gamma_resume == pytest.approx(0.6 - 0.02)  # mu_d/mu_s - 2 sigma_slide
     # Mildly weakening with an onset below its sliding level (noise): the onset decides.
     t = detector_thresholds(Material("m", mu_s=0.45, mu_d=0.43, onset_gamma=(0.9,), gamma_noise_stick=0.005))
     assert t.delta == pytest.approx(0.1 + 0.015)
@@ -51,6 +52,7 @@ def test_release_never_above_the_band_edge_and_noise_floor() -> None:
                                      gamma_noise_slide=0.0))
     assert t.delta == pytest.approx(max(3 * NOISE_FLOOR, DELTA_MIN))
     assert t.gamma_release <= 1.0 - t.delta
+    assert t.gamma_release <= t.gamma_resume <= 1.0 - t.delta
     # Without onset episodes the sliding level stands in for the lowest onset.
     t = detector_thresholds(Material("r", mu_s=0.45, mu_d=0.36))
     assert t.delta == pytest.approx(1.0 - (0.8 - 3 * NOISE_FLOOR))
@@ -83,6 +85,8 @@ def test_shipped_materials_load_with_provenance(path: Path) -> None:
     m = load_material(path)
     assert m.provenance and "provisional" not in m.provenance
     assert math.isfinite(m.beta_s_m) and m.onset_gamma
+    # identified with model errors, written apart from the standard errors
+    assert all(math.isfinite(v) and v >= 0 for v in (m.mu_s_model, m.mu_d_model, m.beta_s_model_m, m.beta_d_model_m))
 
 
 def test_node_params_take_the_material_and_explicit_values_win(tmp_path: Path) -> None:
@@ -93,6 +97,7 @@ def test_node_params_take_the_material_and_explicit_values_win(tmp_path: Path) -
     t = detector_thresholds(m)
     p = SlipDetectorParams(material=str(path))
     assert (p.mu, p.delta, p.gamma_release) == pytest.approx((0.6, t.delta, t.gamma_release))
+    assert p.gamma_resume == pytest.approx(t.gamma_resume) and p.gamma_resume > p.gamma_release
     p = SlipDetectorParams(material=str(path), delta=0.05, mu=0.5)
     assert (p.mu, p.delta, p.gamma_release) == pytest.approx((0.5, 0.05, t.gamma_release))
     g = GripControllerParams(material=str(path), law="ft13")
