@@ -19,13 +19,12 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from slipstack.analysis.runs import BETA_FIG11_M, Run  # noqa: E402
+from slipstack.analysis.runs import BETA_FIG11_M, MU_PAPER, Run  # noqa: E402
 from slipstack.lib.limit_set import load_factor, torsional_coefficient  # noqa: E402
 from slipstack.lib.pad import PadGeometry  # noqa: E402
 
 __all__ = ["FigureText", "FIGURES"]
 
-MU_PAPER = 0.45
 SIGMA_PAPER = 0.5
 K_PAPER_N = 2.0
 
@@ -217,34 +216,50 @@ def _slid(run: Run) -> tuple[float, float]:
     return float(tr["slip_distance_m"][-1] * 1e3), float(math.degrees(tr["slip_angle_rad"][-1]))
 
 
+def _friction_note(run: Run) -> str:
+    mu, beta = run.experiment.law_friction
+    return run.experiment.friction or f"μ = {mu:g}, β = {beta * 1e3:.2f} mm as declared"
+
+
 def fig10(run: Run, out: Path) -> FigureText:
+    mu, _ = run.experiment.law_friction
     png = _cone_plot(run, out, "fig10", "|f_t| (N)", lambda s: np.hypot(s["f_t"][:, 0], s["f_t"][:, 1]),
-                     lambda x: np.maximum(x / (SIGMA_PAPER * MU_PAPER), 2.0), "law f_n = |f_t|/(σμ), σ = 0.5",
+                     lambda x: np.maximum(x / (SIGMA_PAPER * mu), 2.0),
+                     f"law f_n = |f_t|/(σμ), σ = {SIGMA_PAPER:g}, μ = {mu:.3f}",
                      "Fig. 10a: f_n against |f_t| (linear law)")
     slid, turned = _slid(run)
     peak = float(run["grip/command"]["f_n"].max())
     return FigureText("fig10", "Fig. 10 — linear slip control, F/T sensor only", png,
-                      "The normal force follows |f_t|/(σμ) with σ = 0.5, μ = 0.45: the set points lie on a line "
-                      "twice as steep as the friction cone, and the object does not slip.",
+                      f"The normal force follows |f_t|/(σμ) with σ = {SIGMA_PAPER:g}, μ = {MU_PAPER} (identified in "
+                      "Fig. 4a): the set points lie on a line twice as steep as the friction cone, and the object "
+                      "does not slip.",
+                      f"Friction used: {_friction_note(run)}; the scene's μ_s = {run.scene.contact.mu_s:g}. "
                       f"Peak set point {peak:.2f} N; object slid {slid:.3f} mm in all.",
                       "None in kind; the disturbance profile is the scene's (ramp, hold, sine), not the paper's "
                       "recorded one.")
 
 
 def fig11(run: Run, out: Path) -> FigureText:
+    _, beta = run.experiment.law_friction
     png = _cone_plot(run, out, "fig11", "|τ| (N·mm)", lambda s: np.abs(s["tau"]) * 1e3,
-                     lambda x: x * 1e-3 / BETA_FIG11_M + K_PAPER_N, "law (13): f_n = |τ|/β + k, k = 2 N",
+                     lambda x: x * 1e-3 / beta + K_PAPER_N,
+                     f"law (13): f_n = |τ|/β + k, k = {K_PAPER_N:g} N, β = {beta * 1e3:.2f} mm",
                      "Fig. 11: f_n against |τ| (law 13)")
     slid, turned = _slid(run)
     return FigureText("fig11", "Fig. 11 — pure torque, law (13)", png,
-                      "With pure torque the normal force follows |τ|/β + k (k = 2 N): a line offset by k.",
-                      f"Object turned {turned:.3f}° in all; peak set point {run['grip/command']['f_n'].max():.2f} N "
-                      f"with β = {BETA_FIG11_M * 1e3:.2f} mm (β_s of the full-pad contact).",
-                      "β here is the contact's exact β_s computed from the pad geometry; the paper identified its "
-                      "β from Fig. 4b.")
+                      f"With pure torque the normal force follows |τ|/β + k (k = {K_PAPER_N:g} N): a line offset by "
+                      "k, with β identified in Fig. 4b.",
+                      f"Friction used: {_friction_note(run)}; this contact's exact β_s is "
+                      f"{BETA_FIG11_M * 1e3:.2f} mm. Object turned {turned:.3f}° in all; peak set point "
+                      f"{run['grip/command']['f_n'].max():.2f} N.",
+                      "Fig. 4b's ramp runs on a curved (Hertzian) fingertip, Fig. 11 on a flat contact over the "
+                      "whole pad: β depends on the pressure's shape, so the identified β is smaller than this "
+                      "contact's and law (13) squeezes harder than it needs to (safe, not economical). In the "
+                      "paper both experiments use the same finger.")
 
 
 def fig12(run: Run, out: Path) -> FigureText:
+    mu, beta = run.experiment.law_friction
     s = run["slip"]
     ft = np.hypot(s["f_t"][:, 0], s["f_t"][:, 1])
     tau = np.abs(s["tau"])
@@ -253,12 +268,13 @@ def fig12(run: Run, out: Path) -> FigureText:
     ax0.scatter(ft, tau * 1e3, s["f_n"], s=1, c=s["t"], cmap="viridis")
     ax0.set(xlabel="|f_t| (N)", ylabel="|τ| (N·mm)", zlabel="f_n (N)", title="Fig. 12: set points {f_t, τ, f_n}")
     ax1 = fig.add_subplot(1, 2, 2)
-    x = ft / MU_PAPER + tau / BETA_FIG11_M
+    x = ft / mu + tau / beta
     ax1.plot(x, s["f_n"], ".", ms=1.5, label="measured")
     xs = np.linspace(0, x.max() * 1.05, 50)
     ax1.plot(xs, np.maximum(xs / SIGMA_PAPER, 2.0), color="C3", label="law: f_n = (|f_t|/μ + |τ|/β)/σ")
     ax1.plot(xs, xs, color="k", ls="--", lw=1, label="limit (5): f_n = |f_t|/μ + |τ|/β")
-    ax1.set(xlabel="|f_t|/μ + |τ|/β (N)", ylabel="f_n (N)", title="projection")
+    ax1.set(xlabel=f"|f_t|/μ + |τ|/β (N), μ = {mu:.3f}, β = {beta * 1e3:.2f} mm", ylabel="f_n (N)",
+            title="projection")
     ax1.legend(fontsize=8)
     png = _save(fig, out, "fig12")
     slid, turned = _slid(run)
@@ -266,9 +282,10 @@ def fig12(run: Run, out: Path) -> FigureText:
     return FigureText("fig12", "Fig. 12 — force and torque, F/T only", png,
                       "The set points {f_t, τ, f_n} stay above the linear limit surface; projected on "
                       "f_t/μ + τ/β they lie on the law's line, with margin 1/σ = 2.",
-                      f"Least f_n/(|f_t|/μ + |τ|/β) over the loaded samples {margin:.2f}; slid {slid:.3f} mm, "
-                      f"turned {turned:.3f}°.",
-                      "The ratio dips below 2 while the rate-limited actuator catches up with a rising load.")
+                      f"Friction used: {_friction_note(run)}. Least f_n/(|f_t|/μ + |τ|/β) over the loaded samples "
+                      f"{margin:.2f}; slid {slid:.3f} mm, turned {turned:.3f}°.",
+                      "The ratio dips below 2 while the rate-limited actuator catches up with a rising load. β is "
+                      "Fig. 4b's fingertip's (see Fig. 11).")
 
 
 def fig13(run: Run, out: Path) -> FigureText:

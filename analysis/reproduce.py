@@ -24,29 +24,47 @@ __all__ = ["add_parser", "main_reproduce", "reproduce"]
 QUICK_DURATION_S = 3.0
 
 
+IDENTIFICATION = ("fig4a", "fig4b")  # the ramps the friction of the control experiments comes from
+USES_IDENTIFIED_FRICTION = ("fig10", "fig11", "fig12")
+
+
 def reproduce(out_dir: Path, *, quick: bool = False, only: list[str] | None = None,
               progress=None) -> list:
-    """Run the experiments, draw the figures into ``out_dir``; returns the FigureTexts."""
+    """Run the experiments, draw the figures into ``out_dir``; returns the FigureTexts.
+
+    Figs. 10–12 run with the μ and β ``slipstack identify`` finds on the Fig. 4 runs
+    (:mod:`slipstack.analysis.friction`), which therefore run first whenever one of
+    them is asked for; their recordings and the material file stay in ``out_dir``.
+    """
     from slipstack.analysis import figures
+    from slipstack.analysis.friction import identify_friction, with_friction
     from slipstack.analysis.runs import EXPERIMENTS, run_experiment
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    keys = [k for k in ["fig4a", "fig4b", "fig5a", *[k for k in EXPERIMENTS if k not in ("fig4a", "fig4b")]]
+    keys = [k for k in ["fig4a", "fig4b", "fig5a", *[k for k in EXPERIMENTS if k not in IDENTIFICATION]]
             if not only or k in only]
-    texts = []
-    for n, key in enumerate(keys):
+    runs_needed = [k for k in keys if k in EXPERIMENTS]
+    if any(k in USES_IDENTIFIED_FRICTION for k in keys):
+        runs_needed = [*IDENTIFICATION, *[k for k in runs_needed if k not in IDENTIFICATION]]
+    duration = QUICK_DURATION_S if quick else None
+    runs, friction = {}, None
+    for n, key in enumerate(runs_needed):
         def step(fraction: float, key=key, n=n) -> None:
             if progress:
-                progress(key, (n + fraction) / len(keys))
+                progress(key, (n + fraction) / len(runs_needed))
 
-        step(0.0)
-        if key == "fig5a":
-            texts.append(figures.fig5a(out_dir))
-            continue
-        run = run_experiment(EXPERIMENTS[key], duration_s=QUICK_DURATION_S if quick else None, progress=step)
-        texts.append(figures.FIGURES[key](run, out_dir))
+        exp = EXPERIMENTS[key]
+        if key in USES_IDENTIFIED_FRICTION:
+            if friction is None:
+                friction = identify_friction([out_dir / f"{k}.mcap" for k in IDENTIFICATION], out_dir)
+            exp = with_friction(exp, friction)
+        record = out_dir / f"{key}.mcap" if key in IDENTIFICATION else None
+        runs[key] = run_experiment(exp, duration_s=duration, progress=step, record=record)
     if progress:
         progress("done", 1.0)
+    texts = [figures.fig5a(out_dir) if key == "fig5a" else figures.FIGURES[key](runs[key], out_dir) for key in keys]
+    if friction is not None:
+        (out_dir / "identification.txt").write_text("\n".join(friction.log) + "\n")
     (out_dir / "index.html").write_text(_html(texts, quick))
     (out_dir / "report.md").write_text(_markdown(texts, quick))
     return texts

@@ -12,16 +12,22 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
 from slipstack.lib.rig.scene import Scene
+from slipstack.messages import encode
+from slipstack.nodes.bag_io import RecordingWriter
 from slipstack.nodes.lockstep import LockstepStack, StackConfig, load_scene_by_name
 
-__all__ = ["Experiment", "EXPERIMENTS", "Run", "run_experiment"]
+__all__ = ["Experiment", "EXPERIMENTS", "Run", "run_experiment", "write_recording"]
 
 BETA_FIG11_M = 0.00344  # β_s of the full-pad flat contact of fig11/fig12 (launch files fig11, fig12)
+MU_PAPER = 0.45  # the paper's identified μ_s, and every paper scene's
+RECORDED_TOPICS = ("ft/wrench", "tactile/frame", "cor", "slip", "grip/command", "rig/truth")
+"""What a run's recording keeps: the stack's default recording (``launch/files/stack.toml``)."""
 
 
 @dataclass(frozen=True)
@@ -29,13 +35,21 @@ class Experiment:
     """One paper experiment: a scene and the stack the paper ran on it.
 
     key: the figure id (``fig4a`` …); scene: a shipped scene name; protocol: one line
-    for the report; config: the stack (:class:`StackConfig` keyword arguments).
+    for the report; config: the stack (:class:`StackConfig` keyword arguments);
+    friction: where the law's μ and β come from (set by ``analysis/friction.py``).
     """
 
     key: str
     scene: str
     protocol: str
     config: dict[str, Any] = field(default_factory=dict)
+    friction: str = ""
+
+    @property
+    def law_friction(self) -> tuple[float, float]:
+        """(μ, β in m) the grip law runs with."""
+        grip = self.config.get("grip", {})
+        return grip.get("mu", MU_PAPER), grip.get("beta_m", BETA_FIG11_M)
 
 
 EXPERIMENTS: dict[str, Experiment] = {e.key: e for e in (
@@ -43,9 +57,9 @@ EXPERIMENTS: dict[str, Experiment] = {e.key: e for e in (
                {"controller": False}),
     Experiment("fig4b", "fig4b", "constant f_n = 5 N, torque rising through a torsional spring; no controller",
                {"controller": False}),
-    Experiment("fig10", "fig10", "F/T only: Coulomb test (7), linear law f_n = |f_t|/(σμ), σ = 0.5, μ = 0.45",
+    Experiment("fig10", "fig10", "F/T only: Coulomb test (7), linear law f_n = |f_t|/(σμ), σ = 0.5",
                {"controller": True, "slip": {"method": "coulomb"}, "grip": {"law": "linear", "f_max_n": 20.0}}),
-    Experiment("fig11", "fig11", "F/T only: pure torque, law (13) with k = 2 N and β = 3.44 mm",
+    Experiment("fig11", "fig11", "F/T only: pure torque, law (13) with k = 2 N",
                {"controller": True, "slip": {"method": "linear_ls", "beta_m": BETA_FIG11_M},
                 "grip": {"law": "ft13", "beta_m": BETA_FIG11_M, "f_max_n": 20.0}}),
     Experiment("fig12", "fig12", "F/T only: force and torque, the σ-variant of law (13)",
@@ -101,9 +115,21 @@ def _arrays(messages: list, extract: Callable[[Any], dict[str, Any]]) -> dict[st
     return out
 
 
+def write_recording(published: dict[str, list], path: Path) -> None:
+    """Write the :data:`RECORDED_TOPICS` of a lock-step run as an MCAP recording at ``path``."""
+    writer = RecordingWriter(path)
+    try:
+        for topic in RECORDED_TOPICS:
+            for m in published.get(topic, []):
+                writer.write(topic, encode(m), m.header.stamp_ns)
+    finally:
+        writer.close()
+
+
 def run_experiment(exp: Experiment, *, duration_s: float | None = None,
-                   progress: Callable[[float], None] | None = None) -> Run:
-    """Run ``exp`` in lock-step (``duration_s`` shortens the scene; None: the scene's own)."""
+                   progress: Callable[[float], None] | None = None, record: Path | None = None) -> Run:
+    """Run ``exp`` in lock-step (``duration_s`` shortens the scene; None: the scene's own);
+    ``record``: also write the run there as a recording (:func:`write_recording`)."""
     scene = load_scene_by_name(exp.scene)
     if duration_s is not None:
         scene = dataclasses.replace(scene, duration_s=min(duration_s, scene.duration_s))
@@ -112,6 +138,8 @@ def run_experiment(exp: Experiment, *, duration_s: float | None = None,
         ex = stack.run(progress)
     finally:
         stack.close()
+    if record is not None:
+        write_recording(ex.published, record)
     topics = {topic: _arrays(ex.published.get(topic, []), extract) for topic, extract in _FIELDS.items()}
     tactile = [c for c in ex.published.get("contact", []) if c.has_tactile and c.phi.size]
     return Run(exp, scene, topics, tactile[len(tactile) // 2].phi if tactile else None)
