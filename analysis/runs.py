@@ -66,7 +66,9 @@ EXPERIMENTS: dict[str, Experiment] = {e.key: e for e in (
                {"controller": True, "slip": {"method": "linear_ls", "beta_m": BETA_FIG11_M},
                 "grip": {"law": "ft13_sigma", "beta_m": BETA_FIG11_M, "f_max_n": 20.0}}),
     Experiment("fig13", "fig13", "rotation about a known COR (the motor shaft) at constant f_n = 2 N; "
-               "no controller: detection only", {"controller": False, "slip": {"method": "tactile_cor_robust"}}),
+               "no controller: detection only, test (11) about the shaft",
+               {"controller": False, "slip": {"method": "tactile_cor_known", "known_cor_x_m": 0.004,
+                                              "known_cor_y_m": 0.002}}),  # launch/scenes/fig13.toml pivot_m
     Experiment("fig14", "fig14", "free object, unknown COR, at constant f_n = 3 N; no controller: detection only",
                {"controller": False, "slip": {"method": "exact"}}),
     Experiment("fig15", "fig15", "both sensors: exact test, law (14) with the total increment N_A·δφ",
