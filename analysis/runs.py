@@ -71,6 +71,8 @@ EXPERIMENTS: dict[str, Experiment] = {e.key: e for e in (
                                               "known_cor_y_m": 0.002}}),  # launch/scenes/fig13.toml pivot_m
     Experiment("fig14", "fig14", "free object, unknown COR, at constant f_n = 3 N; no controller: detection only",
                {"controller": False, "slip": {"method": "exact"}}),
+    Experiment("cor_median", "pure_torque_wedge", "pure torque on a wedge-shaped pressure at constant f_n = 3 N; "
+               "no controller: detection only", {"controller": False, "slip": {"method": "exact"}}),
     Experiment("fig15", "fig15", "both sensors: exact test, law (14) with the total increment N_A·δφ",
                {"controller": True, "slip": {"method": "exact"}, "grip": {"law": "tactile14", "f_max_n": 20.0}}),
 )}
