@@ -190,6 +190,48 @@ def fig5a(out: Path) -> FigureText:
                       "units); the exact curve is what the simulated contact really holds.")
 
 
+def fig5b(out: Path) -> FigureText:
+    """The limit surface in {|f_t|, |τ|, f_n}: the plane (5) and the exact surface, both cones."""
+    mu = 0.5
+    pad = PadGeometry()
+    unit = np.full(pad.n_taxels, 1.0 / pad.n_taxels)  # 1 N spread evenly: the set scales with f_n
+    beta = torsional_coefficient(unit, pad.positions, mu).beta_m
+    edge = _exact_boundary(unit, pad, mu, 1.0)  # (|f_t|, τ) per newton of f_n
+    edge = edge[(edge[:, 0] >= 0) & (edge[:, 1] >= 0)]
+    f_n = np.linspace(0, 10, 11)
+    fig = plt.figure(figsize=(12, 5))
+    ax0 = fig.add_subplot(1, 2, 1, projection="3d")
+    ft_unit, tau_unit = np.meshgrid(np.linspace(0, 1, 15), f_n)  # the plane: f_n = |f_t|/μ + |τ|/β
+    ft_plane = mu * tau_unit * ft_unit
+    tau_plane = beta * tau_unit * (1 - ft_unit)
+    ax0.plot_surface(ft_plane, tau_plane * 1e3, tau_unit, color="C0", alpha=0.35, lw=0)
+    for fn in f_n[1::3]:
+        ax0.plot(edge[:, 0] * fn, edge[:, 1] * fn * 1e3, fn, color="k", lw=1)
+    ax0.plot([], [], color="C0", lw=6, alpha=0.35, label="(5): |f_t|/μ + |τ|/β = f_n (a plane)")
+    ax0.plot([], [], color="k", lw=1, label="exact limit set of a uniform pad, at f_n = 1, 4, 7, 10 N")
+    ax0.set(xlabel="|f_t| (N)", ylabel="|τ| (N·mm)", zlabel="f_n (N)", title="Fig. 5b: the limit surface")
+    ax0.view_init(elev=20, azim=-55)
+    ax0.legend(fontsize=8, loc="upper left")
+    ax1 = fig.add_subplot(1, 2, 2)
+    for k, fn in enumerate((2.5, 5.0, 10.0)):
+        ax1.plot(edge[:, 0] * fn, edge[:, 1] * fn * 1e3, color=f"C{k}", lw=2, label=f"exact, f_n = {fn:g} N")
+        ax1.plot([0, mu * fn], [beta * fn * 1e3, 0], color=f"C{k}", ls="--", lw=1,
+                 label=f"(5), f_n = {fn:g} N")
+    ax1.set(xlabel="|f_t| (N)", ylabel="|τ| (N·mm)", xlim=(0, None), ylim=(0, None),
+            title="sections at constant f_n: the set grows in proportion")
+    ax1.legend(fontsize=8, ncol=2)
+    bulge = float(np.max(edge[:, 0] / mu + edge[:, 1] / beta))
+    return FigureText("fig5b", "Fig. 5b — the friction plane in {f_t, τ, f_n}", _save(fig, out, "fig5b"),
+                      "The linear limit surface (5) is a plane through the origin of the {|f_t|, |τ|, f_n} space: "
+                      "the contact sticks while the load lies above it, and every section at constant f_n is "
+                      "the straight line of Fig. 5a, scaled by f_n.",
+                      f"With μ = {mu:g} and the β_s of a uniform 16×16 pad ({beta * 1e3:.2f} mm), the exact limit "
+                      f"set is also a cone (it scales with f_n) but bulges outside the plane: at its furthest "
+                      f"point |f_t|/μ + |τ|/β = {bulge:.2f} f_n.",
+                      "The plane is conservative: a load between it and the exact surface still sticks, so a "
+                      "law built on (5) squeezes up to that factor harder than the contact needs.")
+
+
 def _cone_plot(run: Run, out: Path, key: str, x_label: str, x_of, law_line, law_label: str, title: str):
     w = run["slip"]
     cmd = run["grip/command"]
@@ -433,7 +475,7 @@ def fig15(run: Run, out: Path) -> FigureText:
                       f"Peak set point {cmd['f_n'].max():.2f} N, mean {cmd['f_n'].mean():.2f} N; slid {slid:.3f} mm, "
                       f"turned {turned:.3f}°.",
                       "slipstack's (14) uses the total increment N_A·δφ; the printed per-taxel δφ under-raises "
-                      "(the README's grip-economy table measures both).")
+                      "(Correction 2 below runs both, and law (13), on this scene).")
 
 
 def cor_median(run: Run, out: Path) -> FigureText:
@@ -489,6 +531,59 @@ def _row_major_x_first(pad: PadGeometry) -> bool:
     return bool(grid[0, 1, 0] > grid[0, 0, 0] and grid[1, 0, 1] > grid[0, 0, 1])
 
 
-FIGURES = {"fig4a": fig4a, "fig4b": fig4b, "fig10": fig10, "fig11": fig11, "fig12": fig12, "fig13": fig13,
-           "fig14": fig14, "cor_median": cor_median, "fig15": fig15}
-"""Figure key → function(run, out_dir); ``fig5a`` needs no run and is drawn by :func:`fig5a`."""
+def increment(total: Run, per_taxel: Run, ft13: Run, out: Path) -> FigureText:
+    """Correction (b): law (14)'s total increment against the per-taxel one as printed,
+    and law (13) with the F/T sensor only, on fig15 in closed loop."""
+    runs = (("(14) total N_A·δφ (ours)", total, "C0"), ("(14) per-taxel δφ (as printed)", per_taxel, "C3"),
+            ("(13) F/T only, exact β_s", ft13, "C2"))
+    fig, ((ax0, axd), (ax1, ax2)) = plt.subplots(2, 2, figsize=(12, 7.5))
+    rows = []
+    for label, run, color in runs:
+        cmd = run["grip/command"]
+        tr = run["rig/truth"]
+        ax0.plot(cmd["t"], cmd["f_n"], color=color, lw=1, label=label)
+        ax1.plot(tr["t"], tr["slip_distance_m"] * 1e3, color=color, lw=1.2, label=label)
+        ax2.plot(tr["t"], np.degrees(tr["slip_angle_rad"]), color=color, lw=1.2, label=label)
+        slid, turned = _slid(run)
+        rows.append((label, float(cmd["f_n"].max()), float(cmd["f_n"].mean()), slid, turned))
+    load = total["rig/truth"]
+    axd.plot(load["t"], np.hypot(load["load_f_t"][:, 0], load["load_f_t"][:, 1]), color="k", lw=1,
+             label="|f_t| of the motor (N)")
+    axt = axd.twinx()
+    axt.plot(load["t"], np.abs(load["load_tau"]) * 1e3, color="C1", lw=1, label="|τ| of the motor (N·mm)")
+    axt.set_ylabel("N·mm")
+    lines = axd.get_legend_handles_labels()[0] + axt.get_legend_handles_labels()[0]
+    axd.legend(lines, [h.get_label() for h in lines], fontsize=8, loc="upper left")
+    axd.set(xlabel="time (s)", ylabel="N", title="the disturbance (the same in all three runs)")
+    ax0.set(xlabel="time (s)", ylabel="set point f_n (N)", title="fig15: grip force commanded")
+    ax1.set(xlabel="time (s)", ylabel="mm", title="object slid (rig)")
+    ax2.set(xlabel="time (s)", ylabel="deg", title="object turned (rig)")
+    for ax in (ax0, ax1, ax2):
+        ax.legend(fontsize=8, loc="upper left")
+    png = _save(fig, out, "increment")
+    numbers = "; ".join(f"{label}: peak {peak:.2f} N, mean {mean:.2f} N, slid {slid:.2f} mm, turned {turned:.2f}°"
+                        for label, peak, mean, slid, turned in rows)
+    (_, peak14, mean14, *_), _, (_, peak13, mean13, *_) = rows
+    return FigureText("increment", "Correction 2 — law (14)'s increment in closed loop, and (14) against (13)", png,
+                      "Law (14) raises every taxel in contact by δφ so that (11) holds again; the paper prints δφ as "
+                      "the increment of the normal force. It reports that with both sensors the grip needs less "
+                      "force than with the F/T sensor alone.",
+                      f"On fig15: {numbers}.",
+                      "Raising every taxel by δφ raises f_n by N_A·δφ: the printed per-taxel value commands "
+                      "1/N_A of the force that restores (11), so the grip lags the load and the object slides. "
+                      f"Less force with both sensors holds for the peak ({peak14:.2f} against {peak13:.2f} N) "
+                      f"{'and' if mean14 < mean13 else 'but not'} for the mean ({mean14:.2f} against "
+                      f"{mean13:.2f} N): law (14) never releases, so it keeps its peak, and (13) is given this "
+                      "contact's exact β_s here.")
+
+
+FIGURES = {"fig4a": fig4a, "fig4b": fig4b, "fig5a": fig5a, "fig5b": fig5b, "fig10": fig10, "fig11": fig11, "fig12": fig12,
+           "fig13": fig13, "fig14": fig14, "cor_median": cor_median, "fig15": fig15, "increment": increment}
+"""Figure key → function(*runs, out_dir), in the report's order; the runs are :func:`figure_runs`."""
+
+_RUNS = {"fig5a": (), "fig5b": (), "increment": ("fig15", "fig15_per_taxel", "fig15_ft13")}
+
+
+def figure_runs(key: str) -> tuple[str, ...]:
+    """The experiments (``analysis/runs.py`` keys) a figure is drawn from, in argument order."""
+    return _RUNS.get(key, (key,))

@@ -41,10 +41,9 @@ def reproduce(out_dir: Path, *, quick: bool = False, only: list[str] | None = No
     from slipstack.analysis.runs import EXPERIMENTS, run_experiment
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    keys = [k for k in ["fig4a", "fig4b", "fig5a", *[k for k in EXPERIMENTS if k not in IDENTIFICATION]]
-            if not only or k in only]
-    runs_needed = [k for k in keys if k in EXPERIMENTS]
-    if any(k in USES_IDENTIFIED_FRICTION for k in keys):
+    keys = [k for k in figures.FIGURES if not only or k in only]
+    runs_needed = list(dict.fromkeys(k for key in keys for k in figures.figure_runs(key)))
+    if any(k in USES_IDENTIFIED_FRICTION for k in runs_needed):
         runs_needed = [*IDENTIFICATION, *[k for k in runs_needed if k not in IDENTIFICATION]]
     duration = QUICK_DURATION_S if quick else None
     runs, friction = {}, None
@@ -62,7 +61,7 @@ def reproduce(out_dir: Path, *, quick: bool = False, only: list[str] | None = No
         runs[key] = run_experiment(exp, duration_s=duration, progress=step, record=record)
     if progress:
         progress("done", 1.0)
-    texts = [figures.fig5a(out_dir) if key == "fig5a" else figures.FIGURES[key](runs[key], out_dir) for key in keys]
+    texts = [figures.FIGURES[key](*[runs[k] for k in figures.figure_runs(key)], out_dir) for key in keys]
     if friction is not None:
         (out_dir / "identification.txt").write_text("\n".join(friction.log) + "\n")
     (out_dir / "index.html").write_text(_html(texts, quick))
@@ -103,7 +102,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", default="reproduce", help="output folder (PNG per figure, index.html, report.md)")
     p.add_argument("--quick", action="store_true", help=f"cut every scene to {QUICK_DURATION_S:g} s (CI)")
-    p.add_argument("--only", nargs="+", metavar="FIG", help="only these figures (fig4a fig5a fig10 ...)")
+    p.add_argument("--only", nargs="+", metavar="FIG", help="only these figures (fig4a fig5a fig10 ... cor_median increment)")
     p.set_defaults(func=main_reproduce)
 
 
@@ -113,12 +112,12 @@ def main_reproduce(args: argparse.Namespace) -> int:
     except ImportError:
         print("slipstack reproduce needs matplotlib: pip install 'slipstack[report]'", file=sys.stderr)
         return 2
-    from slipstack.analysis.runs import EXPERIMENTS
+    from slipstack.analysis.figures import FIGURES
 
-    known = {"fig5a", *EXPERIMENTS}
+    known = set(FIGURES)
     unknown = sorted(set(args.only or []) - known)
     if unknown:
-        print(f"slipstack reproduce: unknown figure(s) {', '.join(unknown)}; choose from {', '.join(sorted(known))}",
+        print(f"slipstack reproduce: unknown figure(s) {', '.join(unknown)}; choose from {', '.join(list(FIGURES))}",
               file=sys.stderr)
         return 2
     t0 = time.monotonic()

@@ -17,6 +17,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from slipstack.lib.limit_set import torsional_coefficient
+from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.scene import Scene
 from slipstack.messages import encode
 from slipstack.nodes.bag_io import RecordingWriter
@@ -36,7 +38,9 @@ class Experiment:
 
     key: the figure id (``fig4a`` …); scene: a shipped scene name; protocol: one line
     for the report; config: the stack (:class:`StackConfig` keyword arguments);
-    friction: where the law's μ and β come from (set by ``analysis/friction.py``).
+    friction: where the law's μ and β come from (set by ``analysis/friction.py``);
+    beta_from_contact: give the F/T test and the law the scene contact's exact β_s
+    (:func:`contact_beta_s`), as ``tests/bench/bench_grip_economy.py`` does.
     """
 
     key: str
@@ -44,6 +48,7 @@ class Experiment:
     protocol: str
     config: dict[str, Any] = field(default_factory=dict)
     friction: str = ""
+    beta_from_contact: bool = False  # β of the F/T test and law: the scene contact's exact β_s
 
     @property
     def law_friction(self) -> tuple[float, float]:
@@ -75,6 +80,12 @@ EXPERIMENTS: dict[str, Experiment] = {e.key: e for e in (
                "no controller: detection only", {"controller": False, "slip": {"method": "exact"}}),
     Experiment("fig15", "fig15", "both sensors: exact test, law (14) with the total increment N_A·δφ",
                {"controller": True, "slip": {"method": "exact"}, "grip": {"law": "tactile14", "f_max_n": 20.0}}),
+    Experiment("fig15_per_taxel", "fig15", "both sensors: exact test, law (14) with the per-taxel δφ as printed",
+               {"controller": True, "slip": {"method": "exact"},
+                "grip": {"law": "tactile14", "increment": "per_taxel", "f_max_n": 20.0}}),
+    Experiment("fig15_ft13", "fig15", "F/T only: linear test (5), law (13) with k = 2 N and the contact's exact β_s",
+               {"controller": True, "tactile": False, "slip": {"method": "linear_ls", "mu": MU_PAPER},
+                "grip": {"law": "ft13", "mu": MU_PAPER, "f_max_n": 20.0}}, beta_from_contact=True),
 )}
 
 
@@ -119,6 +130,25 @@ def _arrays(messages: list, extract: Callable[[Any], dict[str, Any]]) -> dict[st
     return out
 
 
+def contact_beta_s(scene: Scene) -> float:
+    """β_s (m) of the scene's contact at its initial grip and pose: μ_s times the
+    pressure-weighted mean distance from the pure-torque COR (``lib/limit_set.py``)."""
+    x, y, theta = scene.object.pose
+    phi = PressureModel(scene.contact, scene.pad, scene.object.pose).phi(scene.finger.f_initial_N, complex(x, y),
+                                                                          theta)
+    return torsional_coefficient(phi, scene.pad.positions, scene.contact.mu_s).beta_m
+
+
+def with_contact_beta(exp: Experiment, scene: Scene) -> Experiment:
+    """``exp`` with the scene contact's β_s in its detector and law if it asks for it."""
+    if not exp.beta_from_contact:
+        return exp
+    beta = contact_beta_s(scene)
+    config = {**exp.config, "slip": {**exp.config.get("slip", {}), "beta_m": beta},
+              "grip": {**exp.config.get("grip", {}), "beta_m": beta}}
+    return dataclasses.replace(exp, config=config, beta_from_contact=False)
+
+
 def write_recording(published: dict[str, list], path: Path) -> None:
     """Write the :data:`RECORDED_TOPICS` of a lock-step run as an MCAP recording at ``path``."""
     writer = RecordingWriter(path)
@@ -137,6 +167,7 @@ def run_experiment(exp: Experiment, *, duration_s: float | None = None,
     scene = load_scene_by_name(exp.scene)
     if duration_s is not None:
         scene = dataclasses.replace(scene, duration_s=min(duration_s, scene.duration_s))
+    exp = with_contact_beta(exp, scene)
     stack = LockstepStack(scene, StackConfig(**exp.config))
     try:
         ex = stack.run(progress)
