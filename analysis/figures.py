@@ -492,13 +492,13 @@ def cor_median(run: Run, out: Path) -> FigureText:
     true = np.median(tr["cor"][sliding], axis=0) if sliding.any() else np.full(2, np.nan)
     fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(12, 4.6), gridspec_kw={"width_ratios": [1.1, 1]})
     half = pad.pitch_m * pad.cols / 2 * 1e3
-    image = ax0.imshow(phi.reshape(pad.rows, pad.cols) * 1e3, origin="lower", cmap="Greys",
-                       extent=(-half, half, -half, half) if _row_major_x_first(pad) else None)
+    image = ax0.scatter(*(positions * 1e3).T, c=phi * 1e3, cmap="Greys", marker="s", s=110)
     fig.colorbar(image, ax=ax0, label="φ per taxel (mN)")
     ax0.plot(*true * 1e3, "+", color="C2", ms=16, mew=2.5, label="true COR while slipping (rig, median)")
     ax0.plot(*est_median * 1e3, "o", mfc="none", mec="C3", ms=11, mew=2, label="our COR estimate (cor topic)")
     ax0.plot(*cop * 1e3, "x", color="C0", ms=11, mew=2.5, label="centre of pressure")
-    ax0.set(xlabel="x (mm)", ylabel="y (mm)", ylim=(-half / 2, half / 2), title="the pad: pressure and the three points")
+    ax0.set(xlabel="x (mm)", ylabel="y (mm)", xlim=(-half, half), ylim=(-half / 2, half / 2), aspect="equal",
+            title="the pad: pressure and the three points")
     ax0.legend(fontsize=8, loc="lower left", markerscale=1)
     x_mm = positions[:, 0] * 1e3
     columns = np.unique(np.round(x_mm, 6))
@@ -513,22 +513,21 @@ def cor_median(run: Run, out: Path) -> FigureText:
     png = _save(fig, out, "cor_median")
     err_est = float(np.hypot(*(est_median - true)) * 1e3)
     err_cop = float(np.hypot(*(cop - true)) * 1e3)
+    if not sliding.any():
+        outcome = (f"The object did not slip in this run; our estimate x = {est_median[0] * 1e3:.2f} mm, the "
+                   f"centre of pressure x = {cop[0] * 1e3:.2f} mm.")
+    else:
+        outcome = (f"On a wedge-shaped pressure twisted by a pure torque the object turned about x = "
+                   f"{true[0] * 1e3:.2f} mm (rig, median over the gross slip); our estimate, the pressure's "
+                   f"weighted geometric median, lies {err_est:.2f} mm from it, the centre of pressure "
+                   f"{err_cop:.2f} mm.")
     return FigureText("cor_median", "Correction 1 — a pure torque turns the object about the geometric median", png,
                       "The paper computes the COR from (12). For a pure torque (f_t = 0) it does not say where that "
                       "point is; it is easy to take the centre of pressure.",
-                      f"On a wedge-shaped pressure twisted by a pure torque the object turned about x = "
-                      f"{true[0] * 1e3:.2f} mm (rig, median over the gross slip); our estimate, the pressure's "
-                      f"weighted geometric median, lies {err_est:.2f} mm from it, the centre of pressure "
-                      f"{err_cop:.2f} mm.",
+                      outcome,
                       "(12) with f_t = 0 is the optimality condition of min Σ φ_i |p_i − c|: the weighted geometric "
                       "median, which equals the centre of pressure only for a symmetric pressure. The capacity "
                       "T(c) is least there, so a test about the centre of pressure overstates it.")
-
-
-def _row_major_x_first(pad: PadGeometry) -> bool:
-    """Whether ``phi.reshape(rows, cols)`` puts x along the columns, rising (so imshow's extent fits)."""
-    grid = pad.positions.reshape(pad.rows, pad.cols, 2)
-    return bool(grid[0, 1, 0] > grid[0, 0, 0] and grid[1, 0, 1] > grid[0, 0, 1])
 
 
 def increment(total: Run, per_taxel: Run, ft13: Run, out: Path) -> FigureText:

@@ -9,12 +9,17 @@ shows (its numbers) and where they differ and why. The HTML is self-contained
 
 ``--quick`` shortens every scene to 3 s (for CI: checks that everything runs and
 draws, not the paper's numbers).
+
+Beside the figures: ``digests.json`` (per experiment, the SHA-256 of every message
+payload it published: two runs with equal digests were byte-identical), the Fig. 4
+recordings, the material file identified from them and the identification's log.
 """
 
 from __future__ import annotations
 
 import argparse
 import html
+import json
 import sys
 import time
 from pathlib import Path
@@ -24,6 +29,7 @@ __all__ = ["add_parser", "main_reproduce", "reproduce"]
 QUICK_DURATION_S = 3.0
 
 
+DIGESTS_FILE = "digests.json"  # experiment → SHA-256 of every payload it published: equal across runs
 IDENTIFICATION = ("fig4a", "fig4b")  # the ramps the friction of the control experiments comes from
 USES_IDENTIFIED_FRICTION = ("fig10", "fig11", "fig12")
 
@@ -64,6 +70,8 @@ def reproduce(out_dir: Path, *, quick: bool = False, only: list[str] | None = No
     texts = [figures.FIGURES[key](*[runs[k] for k in figures.figure_runs(key)], out_dir) for key in keys]
     if friction is not None:
         (out_dir / "identification.txt").write_text("\n".join(friction.log) + "\n")
+    digests = {key: run.digest for key, run in runs.items()}
+    (out_dir / DIGESTS_FILE).write_text(json.dumps(digests, indent=1) + "\n")
     (out_dir / "index.html").write_text(_html(texts, quick))
     (out_dir / "report.md").write_text(_markdown(texts, quick))
     return texts

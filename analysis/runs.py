@@ -11,6 +11,7 @@ a :class:`Run`: each topic as numpy arrays, time in seconds from the scene start
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -24,7 +25,7 @@ from slipstack.messages import encode
 from slipstack.nodes.bag_io import RecordingWriter
 from slipstack.nodes.lockstep import LockstepStack, StackConfig, load_scene_by_name
 
-__all__ = ["Experiment", "EXPERIMENTS", "Run", "run_experiment", "write_recording"]
+__all__ = ["Experiment", "EXPERIMENTS", "Run", "run_experiment", "payload_digest", "write_recording"]
 
 BETA_FIG11_M = 0.00344  # β_s of the full-pad flat contact of fig11/fig12 (launch files fig11, fig12)
 MU_PAPER = 0.45  # the paper's identified μ_s, and every paper scene's
@@ -92,12 +93,14 @@ EXPERIMENTS: dict[str, Experiment] = {e.key: e for e in (
 @dataclass
 class Run:
     """One experiment's output: ``topics[name][field]`` arrays, ``t`` in s from the start,
-    and one tactile contact's ``φ`` from mid-run (``None`` without a tactile pad)."""
+    one tactile contact's ``φ`` from mid-run (``None`` without a tactile pad), and the
+    digest of every message it published (equal digests: byte-identical runs)."""
 
     experiment: Experiment
     scene: Scene
     topics: dict[str, dict[str, np.ndarray]]
     phi_sample: np.ndarray | None = None  # one tactile contact's φ (N,), N, for β_s of the contact
+    digest: str = ""  # :func:`payload_digest` of everything the run published
 
     def __getitem__(self, topic: str) -> dict[str, np.ndarray]:
         return self.topics.get(topic, {})
@@ -149,6 +152,17 @@ def with_contact_beta(exp: Experiment, scene: Scene) -> Experiment:
     return dataclasses.replace(exp, config=config, beta_from_contact=False)
 
 
+def payload_digest(published: dict[str, list]) -> str:
+    """SHA-256 (hex) over every topic's name and its messages' encoded payloads, in order."""
+    h = hashlib.sha256()
+    for topic in sorted(published):
+        h.update(topic.encode() + b"\0")
+        for m in published[topic]:
+            payload = encode(m)
+            h.update(len(payload).to_bytes(8, "little") + payload)
+    return h.hexdigest()
+
+
 def write_recording(published: dict[str, list], path: Path) -> None:
     """Write the :data:`RECORDED_TOPICS` of a lock-step run as an MCAP recording at ``path``."""
     writer = RecordingWriter(path)
@@ -177,4 +191,5 @@ def run_experiment(exp: Experiment, *, duration_s: float | None = None,
         write_recording(ex.published, record)
     topics = {topic: _arrays(ex.published.get(topic, []), extract) for topic, extract in _FIELDS.items()}
     tactile = [c for c in ex.published.get("contact", []) if c.has_tactile and c.phi.size]
-    return Run(exp, scene, topics, tactile[len(tactile) // 2].phi if tactile else None)
+    return Run(exp, scene, topics, tactile[len(tactile) // 2].phi if tactile else None,
+               payload_digest(ex.published))
