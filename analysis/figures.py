@@ -232,7 +232,10 @@ def fig5b(out: Path) -> FigureText:
                       "law built on (5) squeezes up to that factor harder than the contact needs.")
 
 
-def _cone_plot(run: Run, out: Path, key: str, x_label: str, x_of, law_line, law_label: str, title: str):
+def _cone_plot(run: Run, out: Path, key: str, x_label: str, x_of, law_line, law_label: str, title: str,
+               turns: bool = False):
+    """The law's set points against its line, and force and slip over time (``turns``: the
+    object can only rotate, so its slip is an angle)."""
     w = run["slip"]
     cmd = run["grip/command"]
     tr = run["rig/truth"]
@@ -246,8 +249,10 @@ def _cone_plot(run: Run, out: Path, key: str, x_label: str, x_of, law_line, law_
     ax1.plot(cmd["t"], cmd["f_n"], color="C3", lw=1, label="set point f_n (grip/command)")
     ax1.plot(tr["t"], tr["f_n_applied"], color="C0", lw=1, label="applied f_n (rig)")
     ax1b = ax1.twinx()
-    ax1b.plot(tr["t"], tr["slip_distance_m"] * 1e3, color="C2", lw=1, label="slid (mm)")
-    ax1b.set_ylabel("slid (mm)")
+    slip, unit = (np.degrees(np.abs(tr["slip_angle_rad"])), "turned (deg)") if turns else \
+        (tr["slip_distance_m"] * 1e3, "slid (mm)")
+    ax1b.plot(tr["t"], slip, color="C2", lw=1, label=f"object {unit}, rig")
+    ax1b.set(ylabel=unit, ylim=(0, max(1.0, 1.2 * float(np.max(slip)))))
     ax1.set(xlabel="time (s)", ylabel="f_n (N)", title="set point, applied force and slip")
     lines = ax1.get_legend_handles_labels()[0] + ax1b.get_legend_handles_labels()[0]
     ax1.legend(lines, [h.get_label() for h in lines], fontsize=8, loc="upper left")
@@ -287,7 +292,7 @@ def fig11(run: Run, out: Path) -> FigureText:
     png = _cone_plot(run, out, "fig11", "|τ| (N·mm)", lambda s: np.abs(s["tau"]) * 1e3,
                      lambda x: x * 1e-3 / beta + K_PAPER_N,
                      f"law (13): f_n = |τ|/β + k, k = {K_PAPER_N:g} N, β = {beta * 1e3:.2f} mm",
-                     "Fig. 11: f_n against |τ| (law 13)")
+                     "Fig. 11: f_n against |τ| (law 13)", turns=True)
     slid, turned = _slid(run)
     return FigureText("fig11", "Fig. 11 — pure torque, law (13)", png,
                       f"With pure torque the normal force follows |τ|/β + k (k = {K_PAPER_N:g} N): a line offset by "

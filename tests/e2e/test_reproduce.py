@@ -12,7 +12,7 @@ import pytest
 
 pytest.importorskip("matplotlib")  # the `report` extra; the test extra installs it
 
-pytestmark = pytest.mark.e2e
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(900)]  # ~40 s of CPU; generous for a busy machine
 
 FIGURES = ["fig4a", "fig4b", "fig5a", "fig5b", "fig10", "fig11", "fig12", "fig13", "fig14", "cor_median", "fig15",
            "increment"]
@@ -24,13 +24,20 @@ def reproduce(out, *args):
     assert done.returncode == 0, done.stderr[-2000:]
 
 
-def test_quick_reproduction_draws_every_figure_and_links_it_and_repeats_byte_for_byte(tmp_path):
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    """One full ``--quick`` reproduction, shared by the tests of this module."""
+    out = tmp_path_factory.mktemp("reproduce") / "quick"
+    reproduce(out)
+    return out
+
+
+def test_quick_reproduction_draws_every_figure_and_links_it(quick):
     import matplotlib.image
 
     from slipstack.lib.material import load_material
 
-    out = tmp_path / "repro"
-    reproduce(out)
+    out = quick
     page = (out / "index.html").read_text()
     report = (out / "report.md").read_text()
     for key in FIGURES:
@@ -47,10 +54,13 @@ def test_quick_reproduction_draws_every_figure_and_links_it_and_repeats_byte_for
     identified = load_material(out / "material-identified.toml")
     assert abs(identified.mu_s - 0.45) < 0.02
     assert f"μ_s = {identified.mu_s:.3f} (identified on Fig. 4a)" in report
-    # lock-step: fig13 alone, in another process, publishes exactly the same bytes
+
+
+def test_a_second_run_publishes_the_same_bytes(quick, tmp_path):
+    # lock-step: fig13 alone, in another process, without the other experiments before it
     again = tmp_path / "again"
     reproduce(again, "--only", "fig13")
-    first, second = (json.loads((d / "digests.json").read_text()) for d in (out, again))
+    first, second = (json.loads((d / "digests.json").read_text()) for d in (quick, again))
     assert set(second) == {"fig13"} and second["fig13"] == first["fig13"]
 
 
