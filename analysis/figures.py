@@ -581,8 +581,9 @@ def increment(total: Run, per_taxel: Run, ft13: Run, out: Path) -> FigureText:
                       "contact's exact β_s here.")
 
 
-FIGURES = {"fig4a": fig4a, "fig4b": fig4b, "fig5a": fig5a, "fig5b": fig5b, "fig10": fig10, "fig11": fig11, "fig12": fig12,
-           "fig13": fig13, "fig14": fig14, "cor_median": cor_median, "fig15": fig15, "increment": increment}
+FIGURES = {"fig4a": fig4a, "fig4b": fig4b, "fig5a": fig5a, "fig5b": fig5b, "fig10": fig10, "fig11": fig11,
+           "fig12": fig12, "fig13": fig13, "fig14": fig14, "cor_median": cor_median, "fig15": fig15,
+           "increment": increment}
 """Figure key → function(*runs, out_dir), in the report's order; the runs are :func:`figure_runs`."""
 
 _RUNS = {"fig5a": (), "fig5b": (), "increment": ("fig15", "fig15_per_taxel", "fig15_ft13")}
