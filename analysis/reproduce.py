@@ -9,12 +9,17 @@ shows (its numbers) and where they differ and why. The HTML is self-contained
 
 ``--quick`` shortens every scene to 3 s (for CI: checks that everything runs and
 draws, not the paper's numbers).
+
+Beside the figures: ``digests.json`` (per experiment, the SHA-256 of every message
+payload it published: two runs with equal digests were byte-identical), the Fig. 4
+recordings, the material file identified from them and the identification's log.
 """
 
 from __future__ import annotations
 
 import argparse
 import html
+import json
 import sys
 import time
 from pathlib import Path
@@ -24,29 +29,49 @@ __all__ = ["add_parser", "main_reproduce", "reproduce"]
 QUICK_DURATION_S = 3.0
 
 
+DIGESTS_FILE = "digests.json"  # experiment → SHA-256 of every payload it published: equal across runs
+IDENTIFICATION = ("fig4a", "fig4b")  # the ramps the friction of the control experiments comes from
+USES_IDENTIFIED_FRICTION = ("fig10", "fig11", "fig12")
+
+
 def reproduce(out_dir: Path, *, quick: bool = False, only: list[str] | None = None,
               progress=None) -> list:
-    """Run the experiments, draw the figures into ``out_dir``; returns the FigureTexts."""
+    """Run the experiments, draw the figures into ``out_dir``; returns the FigureTexts.
+
+    Figs. 10–12 run with the μ and β ``slipstack identify`` finds on the Fig. 4 runs
+    (:mod:`slipstack.analysis.friction`), which therefore run first whenever one of
+    them is asked for; their recordings and the material file stay in ``out_dir``.
+    """
     from slipstack.analysis import figures
+    from slipstack.analysis.friction import identify_friction, with_friction
     from slipstack.analysis.runs import EXPERIMENTS, run_experiment
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    keys = [k for k in ["fig4a", "fig4b", "fig5a", *[k for k in EXPERIMENTS if k not in ("fig4a", "fig4b")]]
-            if not only or k in only]
-    texts = []
-    for n, key in enumerate(keys):
+    keys = [k for k in figures.FIGURES if not only or k in only]
+    runs_needed = list(dict.fromkeys(k for key in keys for k in figures.figure_runs(key)))
+    if any(k in USES_IDENTIFIED_FRICTION for k in runs_needed):
+        runs_needed = [*IDENTIFICATION, *[k for k in runs_needed if k not in IDENTIFICATION]]
+    duration = QUICK_DURATION_S if quick else None
+    runs, friction = {}, None
+    for n, key in enumerate(runs_needed):
         def step(fraction: float, key=key, n=n) -> None:
             if progress:
-                progress(key, (n + fraction) / len(keys))
+                progress(key, (n + fraction) / len(runs_needed))
 
-        step(0.0)
-        if key == "fig5a":
-            texts.append(figures.fig5a(out_dir))
-            continue
-        run = run_experiment(EXPERIMENTS[key], duration_s=QUICK_DURATION_S if quick else None, progress=step)
-        texts.append(figures.FIGURES[key](run, out_dir))
+        exp = EXPERIMENTS[key]
+        if key in USES_IDENTIFIED_FRICTION:
+            if friction is None:
+                friction = identify_friction([out_dir / f"{k}.mcap" for k in IDENTIFICATION], out_dir)
+            exp = with_friction(exp, friction)
+        record = out_dir / f"{key}.mcap" if key in IDENTIFICATION else None
+        runs[key] = run_experiment(exp, duration_s=duration, progress=step, record=record)
     if progress:
         progress("done", 1.0)
+    texts = [figures.FIGURES[key](*[runs[k] for k in figures.figure_runs(key)], out_dir) for key in keys]
+    if friction is not None:
+        (out_dir / "identification.txt").write_text("\n".join(friction.log) + "\n")
+    digests = {key: run.digest for key, run in runs.items()}
+    (out_dir / DIGESTS_FILE).write_text(json.dumps(digests, indent=1) + "\n")
     (out_dir / "index.html").write_text(_html(texts, quick))
     (out_dir / "report.md").write_text(_markdown(texts, quick))
     return texts
@@ -85,7 +110,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", default="reproduce", help="output folder (PNG per figure, index.html, report.md)")
     p.add_argument("--quick", action="store_true", help=f"cut every scene to {QUICK_DURATION_S:g} s (CI)")
-    p.add_argument("--only", nargs="+", metavar="FIG", help="only these figures (fig4a fig5a fig10 ...)")
+    p.add_argument("--only", nargs="+", metavar="FIG",
+                   help="only these figures (fig4a fig5a fig10 ... cor_median increment)")
     p.set_defaults(func=main_reproduce)
 
 
@@ -95,12 +121,12 @@ def main_reproduce(args: argparse.Namespace) -> int:
     except ImportError:
         print("slipstack reproduce needs matplotlib: pip install 'slipstack[report]'", file=sys.stderr)
         return 2
-    from slipstack.analysis.runs import EXPERIMENTS
+    from slipstack.analysis.figures import FIGURES
 
-    known = {"fig5a", *EXPERIMENTS}
+    known = set(FIGURES)
     unknown = sorted(set(args.only or []) - known)
     if unknown:
-        print(f"slipstack reproduce: unknown figure(s) {', '.join(unknown)}; choose from {', '.join(sorted(known))}",
+        print(f"slipstack reproduce: unknown figure(s) {', '.join(unknown)}; choose from {', '.join(list(FIGURES))}",
               file=sys.stderr)
         return 2
     t0 = time.monotonic()

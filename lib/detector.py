@@ -15,6 +15,8 @@ status, the verdict's validity status and every side test's ``[stick, margin]``.
   the pressure frame, computed once per frame (it depends only on the shape of the
   pressure, not its size) and shared by every F/T test.
 - The deciding test's COR warm-starts the next frame's.
+- ``method = "tactile_cor_known"`` with ``known_cor_m`` evaluates test (11) about
+  that fixed pivot instead of solving for the COR (``lib/known_cor.py``, Fig. 13).
 
 Validity (docs/safety.md): ``status`` is ``ok`` only when the verdict judged valid
 data; otherwise it is the contact's status, ``tactile_<why>`` for a tactile test
@@ -38,6 +40,7 @@ import numpy as np
 from slipstack.lib.contact_view import ContactView, FusedContact
 from slipstack.lib.detection import NO_CONTACT, STICK, DetectorConfig, SlipLatch
 from slipstack.lib.errors import ConfigError
+from slipstack.lib.known_cor import KNOWN_COR_METHOD, known_cor_test
 from slipstack.lib.material import Material, detector_thresholds
 from slipstack.lib.slip_tests import SlipParams, SlipVerdict, ft_beta, get_slip_test
 from slipstack.lib.status import SolverStatus
@@ -106,6 +109,8 @@ class DetectorSettings:
     pool: sum taxels in pool × pool blocks before testing (1: off).
     gamma_resume: a frame with γ ≥ this restarts the release dwell (NaN: gamma_release).
     onset_frames: valid frames in a row in the band that raise the flag.
+    known_cor_m: (x, y) of a fixed pivot in the pad frame, m; only with
+        ``method = "tactile_cor_known"``, which needs it.
     """
 
     mu: float
@@ -118,8 +123,13 @@ class DetectorSettings:
     pool: int = 1
     gamma_resume: float = math.nan
     onset_frames: int = DetectorConfig.onset_frames
+    known_cor_m: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
+        if (self.method == KNOWN_COR_METHOD) != (self.known_cor_m is not None):
+            raise ConfigError(f"detector method {KNOWN_COR_METHOD!r} goes with a known COR (x, y) in m, and a "
+                              f"known COR with that method only; got method {self.method!r}, known COR "
+                              f"{self.known_cor_m!r}")
         if not (math.isfinite(self.beta_m) and self.beta_m >= 0.0):
             raise ConfigError(f"detector beta_m must be a length >= 0 m (0: from tactile), got {self.beta_m!r}")
         if not (isinstance(self.pool, int) and self.pool >= 1):
@@ -171,7 +181,7 @@ class Detector:
     def __init__(self, settings: DetectorSettings) -> None:
         """Raises ConfigError for an unknown test or a threshold out of range."""
         s = self.settings = settings
-        self._test = get_slip_test(s.method)
+        self._test = known_cor_test(s.known_cor_m) if s.known_cor_m is not None else get_slip_test(s.method)
         self._others = [(name, get_slip_test(name)) for name in s.also if name != s.method]
         self._params = SlipParams(mu=s.mu, beta_m=s.beta_m or None, delta=s.delta)
         self._ft_params = self._params  # with β_s of the current pressure frame when beta_m is 0

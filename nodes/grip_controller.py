@@ -20,12 +20,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from slipstack.lib.contact_view import pad_positions
+from slipstack.lib.errors import ConfigError
 from slipstack.lib.grip_laws import LAWS, GripDecision, GripGovernor, GripInput, GripReason, make_law
 from slipstack.messages import Contact, Cor, GripCommand, Slip
 from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
-__all__ = ["GripController", "GripControllerParams"]
+__all__ = ["GripController", "GripControllerParams", "INCREMENTS"]
+
+INCREMENTS = ("total", "per_taxel")
+"""Law (14)'s raise: the total δf_n = N_A·δφ, or the per-taxel δφ the paper prints."""
 
 
 @dataclass(frozen=True)
@@ -40,7 +44,8 @@ class GripControllerParams:
     beta_m: float = field(default=math.nan, metadata={
         "help": "torsional coefficient beta (m) for ft13 laws; nan: the material's beta_s"})
     k_n: float = field(default=2.0, metadata={"help": "offset k (N) of law (13)"})
-    increment: str = field(default="total", metadata={"help": "(14): 'total' N_A*dphi or 'per_taxel' dphi"})
+    increment: str = field(default="total", metadata={
+        "help": "(14): 'total' N_A*dphi, or 'per_taxel' dphi as the paper prints it (under-raises)"})
     decay_n_per_s: float = field(default=0.0, metadata={"help": "(14): release rate while (11) holds (N/s)"})
     delta: float = field(default=math.nan, metadata={
         "help": "(14): onset band: (11) counts as failing once |n| > (1 - delta) T; nan: from the material"})
@@ -53,6 +58,9 @@ class GripControllerParams:
     blind_rise_n_per_s: float = field(default=10.0, metadata={"help": "rate of that raise (N/s)"})
 
     def __post_init__(self) -> None:
+        if self.increment not in INCREMENTS:  # checked for every law: a typo must not pass silently
+            raise ConfigError(f"grip_controller increment must be one of {', '.join(INCREMENTS)}, "
+                              f"got {self.increment!r}")
         fill_from_material(self, mu="mu_s", beta_m="beta_s_m", delta="delta", gamma_release="gamma_release")
 
 

@@ -6,6 +6,10 @@ watched and recorded. A :class:`~slipstack.lib.detection.SlipLatch` turns the
 method's margin into the latched state (onset band ``delta`` held for
 ``onset_frames``, release level ``gamma_release`` and ``gamma_resume``, ``release_ms``).
 
+``method = "tactile_cor_known"`` with ``known_cor_x_m``, ``known_cor_y_m`` evaluates test
+(11) about that fixed pivot (an object on a shaft, the paper's Fig. 13) instead of
+solving (12) for the COR.
+
 The detector computes its verdict from ``contact`` directly rather than waiting for
 ``cor``: one hop less between the sensor sample and the grip command. Its own COR of
 impending slip warm-starts the next frame.
@@ -27,6 +31,7 @@ import numpy as np
 
 from slipstack.lib.detection import DetectorConfig
 from slipstack.lib.detector import FT_TESTS, Detector, DetectorSettings
+from slipstack.lib.known_cor import KNOWN_COR_METHOD
 from slipstack.lib.limit_set import compile_kernels
 from slipstack.lib.slip_tests import SLIP_TESTS
 from slipstack.messages import Contact, Slip
@@ -38,7 +43,8 @@ __all__ = ["SlipDetector", "SlipDetectorParams"]
 
 @dataclass(frozen=True)
 class SlipDetectorParams:
-    method: str = field(default="exact", metadata={"help": f"deciding test: one of {sorted(SLIP_TESTS)}"})
+    method: str = field(default="exact", metadata={
+        "help": f"deciding test: one of {sorted([*SLIP_TESTS, KNOWN_COR_METHOD])}"})
     also: list[str] = field(default_factory=lambda: list(FT_TESTS), metadata={"help": "tests published alongside"})
     material: str = field(default=DEFAULT_MATERIAL, metadata={
         "help": "material file (launch/materials/ name or path): mu, delta, gamma_release, gamma_resume unless given"})
@@ -56,6 +62,10 @@ class SlipDetectorParams:
         "help": "a frame with gamma >= this restarts the release dwell (a noise margin above gamma_release); "
                 "nan: from the material"})
     pool: int = field(default=1, metadata={"help": "sum taxels in pool x pool blocks before testing (1: off)"})
+    known_cor_x_m: float = field(default=math.nan, metadata={
+        "help": f"{KNOWN_COR_METHOD}: the fixed pivot's x in the pad frame (m); nan: none"})
+    known_cor_y_m: float = field(default=math.nan, metadata={
+        "help": f"{KNOWN_COR_METHOD}: the fixed pivot's y in the pad frame (m); nan: none"})
 
     def __post_init__(self) -> None:
         fill_from_material(self, mu="mu_s", delta="delta", gamma_release="gamma_release",
@@ -76,7 +86,13 @@ class SlipDetector(Node):
         self.detector = Detector(DetectorSettings(
             mu=p.mu, delta=p.delta, gamma_release=p.gamma_release, method=p.method, also=tuple(p.also),
             beta_m=p.beta_m, release_ns=round(p.release_ms * 1e6), pool=p.pool, gamma_resume=p.gamma_resume,
-            onset_frames=p.onset_frames))
+            onset_frames=p.onset_frames, known_cor_m=self._known_cor(p)))
+
+    @staticmethod
+    def _known_cor(p: SlipDetectorParams) -> tuple[float, float] | None:
+        """The pivot if either coordinate is given (a half-given one is refused by the settings)."""
+        given = (p.known_cor_x_m, p.known_cor_y_m)
+        return None if all(math.isnan(v) for v in given) else given
 
     def start(self, ctx: Context) -> None:
         compile_kernels()  # before the node reports ready, so its first contact runs at full speed

@@ -1,7 +1,9 @@
-"""``slipstack reproduce --quick``: every paper figure drawn, valid, referenced by the report."""
+"""``slipstack reproduce --quick``: every paper figure drawn, valid, referenced by the report;
+Figs. 10–12 run with the friction identified on Fig. 4; a second run is byte-identical."""
 
 from __future__ import annotations
 
+import json
 import re
 import subprocess
 import sys
@@ -10,18 +12,32 @@ import pytest
 
 pytest.importorskip("matplotlib")  # the `report` extra; the test extra installs it
 
-pytestmark = pytest.mark.e2e
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(900)]  # ~40 s of CPU; generous for a busy machine
 
-FIGURES = ["fig4a", "fig4b", "fig5a", "fig10", "fig11", "fig12", "fig13", "fig14", "fig15"]
+FIGURES = ["fig4a", "fig4b", "fig5a", "fig5b", "fig10", "fig11", "fig12", "fig13", "fig14", "cor_median", "fig15",
+           "increment"]
 
 
-def test_quick_reproduction_draws_every_figure_and_links_it(tmp_path):
+def reproduce(out, *args):
+    done = subprocess.run([sys.executable, "-m", "slipstack.launch.cli", "reproduce", "--quick", "--out", str(out),
+                           *args], capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr[-2000:]
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    """One full ``--quick`` reproduction, shared by the tests of this module."""
+    out = tmp_path_factory.mktemp("reproduce") / "quick"
+    reproduce(out)
+    return out
+
+
+def test_quick_reproduction_draws_every_figure_and_links_it(quick):
     import matplotlib.image
 
-    out = tmp_path / "repro"
-    done = subprocess.run([sys.executable, "-m", "slipstack.launch.cli", "reproduce", "--quick", "--out", str(out)],
-                          capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stderr[-2000:]
+    from slipstack.lib.material import load_material
+
+    out = quick
     page = (out / "index.html").read_text()
     report = (out / "report.md").read_text()
     for key in FIGURES:
@@ -34,6 +50,18 @@ def test_quick_reproduction_draws_every_figure_and_links_it(tmp_path):
     sections = re.findall(r"<section id='(\w+)'>", page)
     assert sections == FIGURES
     assert page.count("<dt>The paper</dt>") == len(FIGURES) and "nan" not in page.lower().split("<body>")[1]
+    # Figs. 10-12 ran with what `slipstack identify` found on the Fig. 4 runs, and say so
+    identified = load_material(out / "material-identified.toml")
+    assert abs(identified.mu_s - 0.45) < 0.02
+    assert f"μ_s = {identified.mu_s:.3f} (identified on Fig. 4a)" in report
+
+
+def test_a_second_run_publishes_the_same_bytes(quick, tmp_path):
+    # lock-step: fig13 alone, in another process, without the other experiments before it
+    again = tmp_path / "again"
+    reproduce(again, "--only", "fig13")
+    first, second = (json.loads((d / "digests.json").read_text()) for d in (quick, again))
+    assert set(second) == {"fig13"} and second["fig13"] == first["fig13"]
 
 
 def test_an_unknown_figure_is_refused_with_the_list(tmp_path):

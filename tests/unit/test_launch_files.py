@@ -77,3 +77,20 @@ def test_on_shutdown_the_simulated_world_stops_before_its_controller(tmp_path):
         assert stop[1:] == [n for n in reversed(launcher.order) if n != "rig"]
     finally:
         launcher.control.close(linger=0)
+
+
+def test_the_default_recording_has_the_cor_so_tau_c_and_tau_t_can_be_drawn_afterwards():
+    for name in ("stack", "fig13", "fig14", "fig15"):
+        lf = load_launch_file(name, builtins={"run_dir": "/tmp/x"})
+        assert "cor" in next(e for e in lf.nodes if e.type == "recorder").params["topics"]
+
+
+def test_law_14_increment_is_a_launch_argument_and_a_typo_is_refused():
+    from slipstack.nodes.grip_controller import GripControllerParams
+
+    lf = load_launch_file("fig15", {"increment": "per_taxel"}, builtins={"run_dir": "/tmp/x"})
+    params = next(e for e in lf.nodes if e.type == "grip_controller").params
+    assert params["increment"] == "per_taxel"
+    assert GripControllerParams(**params).increment == "per_taxel"
+    with pytest.raises(ConfigError, match="increment must be one of total, per_taxel"):
+        GripControllerParams(law="linear", increment="per-taxel")
