@@ -12,15 +12,17 @@ from slipstack.nodes.inprocess import InProcessExecutor
 MS = 1_000_000
 
 
-def _slip(k: int, f_t: float, status: str = "ok") -> Slip:
-    # exact law: gamma = |f_t| / (mu f_n) for a pure force; f_n = 4 N, mu = 0.45
-    gamma = f_t / (0.45 * 4.0)
-    return Slip(state="stick", margin=1 - gamma, method="exact", gamma=gamma, status=status, f_n=4.0,
-                f_t=np.array([f_t, 0.0]), tau=0.0, p_c=np.zeros(2), header=Header(k * MS, k, k * MS, {}))
+def _slip(k: int, f_t: float, status: str = "ok", *, f_n: float = 4.0, stamp_ns: int | None = None) -> Slip:
+    """The verdict received at ``k`` ms on a pure force ``f_t`` (N) with ``f_n`` (N), stamped
+    at ``stamp_ns`` (default: ``k`` ms). Exact law: gamma = |f_t| / (mu f_n), mu = 0.45."""
+    gamma = f_t / (0.45 * f_n)
+    stamp = k * MS if stamp_ns is None else stamp_ns
+    return Slip(state="stick", margin=1 - gamma, method="exact", gamma=gamma, status=status, f_n=f_n,
+                f_t=np.array([f_t, 0.0]), tau=0.0, p_c=np.zeros(2), header=Header(stamp, k, stamp, {}))
 
 
-def _run(events, until_ms: int):
-    node = GripController(GripControllerParams(law="exact", timeout_ms=20.0, max_rate_n_per_s=1e6))
+def _run(events, until_ms: int, params: GripControllerParams | None = None):
+    node = GripController(params or GripControllerParams(law="exact", timeout_ms=20.0, max_rate_n_per_s=1e6))
     ex = InProcessExecutor([node])
     ex.feed(events)
     ex.run(until_ns=until_ms * MS)
@@ -46,3 +48,43 @@ def test_a_stale_input_never_lowers_the_grip():
     cmds = _run(events, until_ms=5)
     assert [c.reason for c in cmds[:4]] == ["slip", "slip", "fail-safe", "fail-safe"]
     assert [c.f_n_desired for c in cmds[1:4]] == [8.0, 8.0, 8.0]  # a stale "no load" does not release
+
+
+DEFAULTS = GripControllerParams(mu=0.45)  # law exact, sigma 0.5; the documented bounds, rates and times
+
+
+def test_the_default_command_stays_within_f_nom_and_f_max():
+    # gamma 10 asks for 10 * 4 / 0.5 = 80 N: from the measured 4 N up at 200 N/s to f_max, 40 N
+    cmds = _run([(k * MS, "slip", _slip(k, 18.0)) for k in range(1, 300)], until_ms=300, params=DEFAULTS)
+    assert cmds[0].f_n_desired == 4.0
+    assert max(c.f_n_desired for c in cmds) == 40.0 and cmds[-1].f_n_desired == 40.0
+    # no load on a light touch (1 N measured): the law asks for f_nom, 2 N, and gets it
+    cmds = _run([(k * MS, "slip", _slip(k, 0.0, f_n=1.0)) for k in range(1, 100)], until_ms=100, params=DEFAULTS)
+    assert cmds[0].f_n_desired == 2.0 and cmds[-1].f_n_desired == 2.0
+    assert all(c.reason != "fail-safe" for c in cmds)
+
+
+def test_the_default_timeout_accepts_a_verdict_20_ms_old_and_holds_on_an_older_one():
+    events = [(k * MS, "slip", _slip(k, 0.9)) for k in range(1, 31)]
+    events += [(31 * MS, "slip", _slip(31, 0.9, stamp_ns=11 * MS)),  # exactly 20 ms old: accepted
+               (32 * MS, "slip", _slip(32, 0.9, stamp_ns=12 * MS - 1))]  # 1 ns older: held
+    cmds = _run(events, until_ms=32, params=DEFAULTS)
+    assert [c.reason for c in cmds[-3:]] == ["slip", "slip", "fail-safe"]
+
+
+def test_by_default_a_blind_loaded_grip_rises_10_n_per_s_after_50_ms():
+    # stale verdicts every ms (each 30 ms old) after a valid phase: fail-safe from the first,
+    # held for the 50 ms grace, then 10 N/s = 0.01 N per 1 ms step
+    events = [(k * MS, "slip", _slip(k, 0.9)) for k in range(31, 41)]
+    events += [(k * MS, "slip", _slip(k, 0.9, stamp_ns=(k - 30) * MS)) for k in range(41, 130)]
+    cmds = _run(events, until_ms=130, params=DEFAULTS)
+    held = [c for c in cmds if c.reason == "fail-safe"]
+    start = held[0].header.pub_ns
+    assert start == 41 * MS
+    hold = held[0].f_n_desired
+    grace = [c for c in held if c.header.pub_ns - start < 50 * MS]
+    rising = [c for c in held if c.header.pub_ns - start >= 50 * MS]
+    assert len(grace) == 50 and all(c.f_n_desired == hold for c in grace)
+    assert rising and rising[0].header.pub_ns - start == 50 * MS
+    rises = np.diff([hold] + [c.f_n_desired for c in rising])
+    assert np.allclose(rises, 0.01, rtol=1e-9)
