@@ -4,6 +4,7 @@ or go stale, and never lowers it in fail-safe."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from slipstack.messages import Header, Slip
 from slipstack.nodes.grip_controller import GripController, GripControllerParams
@@ -12,13 +13,15 @@ from slipstack.nodes.inprocess import InProcessExecutor
 MS = 1_000_000
 
 
-def _slip(k: int, f_t: float, status: str = "ok", *, f_n: float = 4.0, stamp_ns: int | None = None) -> Slip:
-    """The verdict received at ``k`` ms on a pure force ``f_t`` (N) with ``f_n`` (N), stamped
-    at ``stamp_ns`` (default: ``k`` ms). Exact law: gamma = |f_t| / (mu f_n), mu = 0.45."""
+def _slip(k: int, f_t: float, status: str = "ok", *, f_n: float = 4.0, tau: float = 0.0,
+          stamp_ns: int | None = None) -> Slip:
+    """The verdict received at ``k`` ms on a force ``f_t`` (N, along x) with ``f_n`` (N) and
+    ``tau`` (N·m), stamped at ``stamp_ns`` (default: ``k`` ms). Its gamma is the pure-force
+    one, |f_t| / (mu f_n) with mu = 0.45, as the exact law reads it."""
     gamma = f_t / (0.45 * f_n)
     stamp = k * MS if stamp_ns is None else stamp_ns
     return Slip(state="stick", margin=1 - gamma, method="exact", gamma=gamma, status=status, f_n=f_n,
-                f_t=np.array([f_t, 0.0]), tau=0.0, p_c=np.zeros(2), header=Header(stamp, k, stamp, {}))
+                f_t=np.array([f_t, 0.0]), tau=tau, p_c=np.zeros(2), header=Header(stamp, k, stamp, {}))
 
 
 def _run(events, until_ms: int, params: GripControllerParams | None = None):
@@ -88,3 +91,11 @@ def test_by_default_a_blind_loaded_grip_rises_10_n_per_s_after_50_ms():
     assert rising and rising[0].header.pub_ns - start == 50 * MS
     rises = np.diff([hold] + [c.f_n_desired for c in rising])
     assert np.allclose(rises, 0.01, rtol=1e-9)
+
+
+def test_law_13_adds_its_default_2_n_offset():
+    # |f_t| / mu + |tau| / beta + k = 0.5 / 0.45 + 0.004 / 0.008 + 2 N = 3.611 N (paper (13))
+    params = GripControllerParams(law="ft13", mu=0.45, beta_m=0.008)
+    cmds = _run([(k * MS, "slip", _slip(k, 0.5, f_n=3.0, tau=-0.004)) for k in range(1, 50)], until_ms=50,
+                params=params)
+    assert cmds[-1].f_n_desired == pytest.approx(0.5 / 0.45 + 0.5 + 2.0, rel=1e-12)
