@@ -14,13 +14,13 @@ MS = 1_000_000
 
 
 def _slip(k: int, f_t: float, status: str = "ok", *, f_n: float = 4.0, tau: float = 0.0,
-          stamp_ns: int | None = None) -> Slip:
+          stamp_ns: int | None = None, state: str = "stick") -> Slip:
     """The verdict received at ``k`` ms on a force ``f_t`` (N, along x) with ``f_n`` (N) and
     ``tau`` (N·m), stamped at ``stamp_ns`` (default: ``k`` ms). Its gamma is the pure-force
     one, |f_t| / (mu f_n) with mu = 0.45, as the exact law reads it."""
     gamma = f_t / (0.45 * f_n)
     stamp = k * MS if stamp_ns is None else stamp_ns
-    return Slip(state="stick", margin=1 - gamma, method="exact", gamma=gamma, status=status, f_n=f_n,
+    return Slip(state=state, margin=1 - gamma, method="exact", gamma=gamma, status=status, f_n=f_n,
                 f_t=np.array([f_t, 0.0]), tau=tau, p_c=np.zeros(2), header=Header(stamp, k, stamp, {}))
 
 
@@ -91,6 +91,16 @@ def test_by_default_a_blind_loaded_grip_rises_10_n_per_s_after_50_ms():
     assert rising and rising[0].header.pub_ns - start == 50 * MS
     rises = np.diff([hold] + [c.f_n_desired for c in rising])
     assert np.allclose(rises, 0.01, rtol=1e-9)
+
+
+def test_a_blind_controller_holds_without_raising_when_the_last_verdicts_saw_no_contact():
+    # nothing in the finger (valid "no-contact" verdicts), then the verdicts stop: hold, say
+    # fail-safe, but do not squeeze harder: there is no load that could be growing unseen
+    events = [(k * MS, "slip", _slip(k, 0.0, f_n=0.01, state="no-contact")) for k in range(1, 41)]
+    cmds = _run(events, until_ms=400, params=DEFAULTS)
+    held = [c for c in cmds if c.reason == "fail-safe"]
+    assert len(held) >= 10  # the watchdog, every 20 ms for 340 ms
+    assert {c.f_n_desired for c in held} == {cmds[39].f_n_desired}
 
 
 def test_law_13_adds_its_default_2_n_offset():
