@@ -109,3 +109,19 @@ def test_law_13_adds_its_default_2_n_offset():
     cmds = _run([(k * MS, "slip", _slip(k, 0.5, f_n=3.0, tau=-0.004)) for k in range(1, 50)], until_ms=50,
                 params=params)
     assert cmds[-1].f_n_desired == pytest.approx(0.5 / 0.45 + 0.5 + 2.0, rel=1e-12)
+
+
+def test_diagnostics_say_fail_safe_and_why_while_the_grip_is_held_and_ok_once_valid_again():
+    events = [(k * MS, "slip", _slip(k, 0.9)) for k in range(1, 11)]
+    events += [(k * MS, "slip", _slip(k, 0.9, status="tactile_stale")) for k in range(11, 16)]
+    events += [(k * MS, "slip", _slip(k, 0.9)) for k in range(16, 21)]
+    ex = InProcessExecutor([GripController(DEFAULTS)], diagnostics_period_s=0.001)
+    ex.feed(events)
+    ex.run(until_ns=20 * MS + MS // 2)
+    reports = {d.header.stamp_ns: d for d in ex.published["diagnostics"]}
+    assert reports[10 * MS].status == "ok"  # after the 10 ms verdict (frames run before the report)
+    held = reports[15 * MS]
+    assert held.status.startswith("fail-safe: ") and "status not ok" in held.status
+    assert held.counters["grip.fail_safe_steps"] == 5
+    recovered = reports[20 * MS]
+    assert recovered.status == "ok" and recovered.counters["grip.fail_safe_steps"] == 5
