@@ -10,42 +10,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from slipstack.messages import GripCommand, Header, TactileFrame, Wrench
+from sensor_frames import MS, tactile, wrench
+
+from slipstack.messages import GripCommand
 from slipstack.nodes.fusion import Fusion, FusionParams
 from slipstack.nodes.grip_controller import GripController, GripControllerParams
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.nodes.slip_detector import SlipDetector, SlipDetectorParams
 
-MS = 1_000_000
 MU = 0.45
-ROWS = COLS = 16
-PITCH_M = 1.25e-3
-
-
-def wrench(t_ms: float, f_n: float, f_t: float, *, seq: int = 0, status: str = "ok", stamp_ms: float | None = None
-           ) -> tuple[int, str, Wrench]:
-    """An F/T sample at ``t_ms`` pressing with ``f_n`` N and pulling with ``f_t`` N along x."""
-    stamp = round((t_ms if stamp_ms is None else stamp_ms) * MS)
-    msg = Wrench(force=np.array([f_t, 0.0, -f_n]), torque=np.zeros(3), frame="pad", status=status,
-                 header=Header(stamp, seq, stamp, {}))
-    return round(t_ms * MS), "ft/wrench", msg
-
-
-def pressure_for(f_n: float) -> np.ndarray:
-    """A centred 6×6 patch of uniform pressure (Pa) whose total force is ``f_n`` N."""
-    p = np.zeros((ROWS, COLS), dtype=np.float32)
-    p[5:11, 5:11] = f_n / (36 * PITCH_M**2)
-    return p.reshape(-1)
-
-
-def tactile(t_ms: float, f_n: float, *, seq: int = 0, status: str = "ok", stamp_ms: float | None = None
-            ) -> tuple[int, str, TactileFrame]:
-    stamp = round((t_ms if stamp_ms is None else stamp_ms) * MS)
-    n = ROWS * COLS
-    msg = TactileFrame(rows=ROWS, cols=COLS, pitch_m=PITCH_M, pressure_pa=pressure_for(f_n),
-                       saturated=np.zeros(n, bool), dead=np.zeros(n, bool), status=status,
-                       header=Header(stamp, seq, stamp, {}))
-    return round(t_ms * MS), "tactile/frame", msg
 
 
 def chain(law: str = "exact", **controller: object) -> tuple[InProcessExecutor, GripController]:
@@ -211,3 +184,23 @@ def test_the_slip_latch_holds_through_sensor_hiccups_and_releases_only_on_valid_
     assert released, "valid light load must release the latch"
     # the dwell counts valid frames only: 20 ms from 80 ms, not from the light load at 20 ms
     assert 100 * MS <= released[0] <= 105 * MS
+
+
+@pytest.mark.parametrize("with_tactile", [True, False])
+def test_an_ft_sample_flagged_stale_by_its_driver_holds_the_grip(with_tactile):
+    # The F/T driver marks its samples stale (no fresh reading behind them) and they read
+    # "load gone": paired with fresh tactile frames or F/T-only, the grip must hold.
+    ex, _ = chain()
+    events = loaded_phase(40, 4.0, 0.9 * MU * 4.0)
+    for k in range(40, 100):
+        if with_tactile and k % 2 == 0:
+            events.append(tactile(k, 4.0, seq=k))
+        events.append(wrench(k + 0.1, 4.0, 0.0, seq=k, status="stale"))
+    ex.feed(events)
+    ex.run(until_ns=110 * MS)
+    raised = max(c.f_n_desired for c in commands(ex) if c.header.stamp_ns < 40 * MS)
+    late = [c for c in commands(ex) if c.header.stamp_ns >= 41 * MS]
+    assert raised > 6.0
+    assert late and all(c.reason == "fail-safe" for c in late)
+    assert min(c.f_n_desired for c in late) >= raised - 1e-9
+    assert all("stale" in s.status for s in ex.published["slip"] if s.header.stamp_ns >= 41 * MS)

@@ -4,6 +4,7 @@ or go stale, and never lowers it in fail-safe."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from slipstack.messages import Header, Slip
 from slipstack.nodes.grip_controller import GripController, GripControllerParams
@@ -12,15 +13,19 @@ from slipstack.nodes.runtime.inprocess import InProcessExecutor
 MS = 1_000_000
 
 
-def _slip(k: int, f_t: float, status: str = "ok") -> Slip:
-    # exact law: gamma = |f_t| / (mu f_n) for a pure force; f_n = 4 N, mu = 0.45
-    gamma = f_t / (0.45 * 4.0)
-    return Slip(state="stick", margin=1 - gamma, method="exact", gamma=gamma, status=status, f_n=4.0,
-                f_t=np.array([f_t, 0.0]), tau=0.0, p_c=np.zeros(2), header=Header(k * MS, k, k * MS, {}))
+def _slip(k: int, f_t: float, status: str = "ok", *, f_n: float = 4.0, tau: float = 0.0,
+          stamp_ns: int | None = None, state: str = "stick") -> Slip:
+    """The verdict received at ``k`` ms on a force ``f_t`` (N, along x) with ``f_n`` (N) and
+    ``tau`` (N·m), stamped at ``stamp_ns`` (default: ``k`` ms). Its gamma is the pure-force
+    one, |f_t| / (mu f_n) with mu = 0.45, as the exact law reads it."""
+    gamma = f_t / (0.45 * f_n)
+    stamp = k * MS if stamp_ns is None else stamp_ns
+    return Slip(state=state, margin=1 - gamma, method="exact", gamma=gamma, status=status, f_n=f_n,
+                f_t=np.array([f_t, 0.0]), tau=tau, p_c=np.zeros(2), header=Header(stamp, k, stamp, {}))
 
 
-def _run(events, until_ms: int):
-    node = GripController(GripControllerParams(law="exact", timeout_ms=20.0, max_rate_n_per_s=1e6))
+def _run(events, until_ms: int, params: GripControllerParams | None = None):
+    node = GripController(params or GripControllerParams(law="exact", timeout_ms=20.0, max_rate_n_per_s=1e6))
     ex = InProcessExecutor([node])
     ex.feed(events)
     ex.run(until_ns=until_ms * MS)
@@ -46,3 +51,77 @@ def test_a_stale_input_never_lowers_the_grip():
     cmds = _run(events, until_ms=5)
     assert [c.reason for c in cmds[:4]] == ["slip", "slip", "fail-safe", "fail-safe"]
     assert [c.f_n_desired for c in cmds[1:4]] == [8.0, 8.0, 8.0]  # a stale "no load" does not release
+
+
+DEFAULTS = GripControllerParams(mu=0.45)  # law exact, sigma 0.5; the documented bounds, rates and times
+
+
+def test_the_default_command_stays_within_f_nom_and_f_max():
+    # gamma 10 asks for 10 * 4 / 0.5 = 80 N: from the measured 4 N up at 200 N/s to f_max, 40 N
+    cmds = _run([(k * MS, "slip", _slip(k, 18.0)) for k in range(1, 300)], until_ms=300, params=DEFAULTS)
+    assert cmds[0].f_n_desired == 4.0
+    assert max(c.f_n_desired for c in cmds) == 40.0 and cmds[-1].f_n_desired == 40.0
+    # no load on a light touch (1 N measured): the law asks for f_nom, 2 N, and gets it
+    cmds = _run([(k * MS, "slip", _slip(k, 0.0, f_n=1.0)) for k in range(1, 100)], until_ms=100, params=DEFAULTS)
+    assert cmds[0].f_n_desired == 2.0 and cmds[-1].f_n_desired == 2.0
+    assert all(c.reason != "fail-safe" for c in cmds)
+
+
+def test_the_default_timeout_accepts_a_verdict_20_ms_old_and_holds_on_an_older_one():
+    events = [(k * MS, "slip", _slip(k, 0.9)) for k in range(1, 31)]
+    events += [(31 * MS, "slip", _slip(31, 0.9, stamp_ns=11 * MS)),  # exactly 20 ms old: accepted
+               (32 * MS, "slip", _slip(32, 0.9, stamp_ns=12 * MS - 1))]  # 1 ns older: held
+    cmds = _run(events, until_ms=32, params=DEFAULTS)
+    assert [c.reason for c in cmds[-3:]] == ["slip", "slip", "fail-safe"]
+
+
+def test_by_default_a_blind_loaded_grip_rises_10_n_per_s_after_50_ms():
+    # stale verdicts every ms (each 30 ms old) after a valid phase: fail-safe from the first,
+    # held for the 50 ms grace, then 10 N/s = 0.01 N per 1 ms step
+    events = [(k * MS, "slip", _slip(k, 0.9)) for k in range(31, 41)]
+    events += [(k * MS, "slip", _slip(k, 0.9, stamp_ns=(k - 30) * MS)) for k in range(41, 130)]
+    cmds = _run(events, until_ms=130, params=DEFAULTS)
+    held = [c for c in cmds if c.reason == "fail-safe"]
+    start = held[0].header.pub_ns
+    assert start == 41 * MS
+    hold = held[0].f_n_desired
+    grace = [c for c in held if c.header.pub_ns - start < 50 * MS]
+    rising = [c for c in held if c.header.pub_ns - start >= 50 * MS]
+    assert len(grace) == 50 and all(c.f_n_desired == hold for c in grace)
+    assert rising and rising[0].header.pub_ns - start == 50 * MS
+    rises = np.diff([hold] + [c.f_n_desired for c in rising])
+    assert np.allclose(rises, 0.01, rtol=1e-9)
+
+
+def test_a_blind_controller_holds_without_raising_when_the_last_verdicts_saw_no_contact():
+    # nothing in the finger (valid "no-contact" verdicts), then the verdicts stop: hold, say
+    # fail-safe, but do not squeeze harder: there is no load that could be growing unseen
+    events = [(k * MS, "slip", _slip(k, 0.0, f_n=0.01, state="no-contact")) for k in range(1, 41)]
+    cmds = _run(events, until_ms=400, params=DEFAULTS)
+    held = [c for c in cmds if c.reason == "fail-safe"]
+    assert len(held) >= 10  # the watchdog, every 20 ms for 340 ms
+    assert {c.f_n_desired for c in held} == {cmds[39].f_n_desired}
+
+
+def test_law_13_adds_its_default_2_n_offset():
+    # |f_t| / mu + |tau| / beta + k = 0.5 / 0.45 + 0.004 / 0.008 + 2 N = 3.611 N (paper (13))
+    params = GripControllerParams(law="ft13", mu=0.45, beta_m=0.008)
+    cmds = _run([(k * MS, "slip", _slip(k, 0.5, f_n=3.0, tau=-0.004)) for k in range(1, 50)], until_ms=50,
+                params=params)
+    assert cmds[-1].f_n_desired == pytest.approx(0.5 / 0.45 + 0.5 + 2.0, rel=1e-12)
+
+
+def test_diagnostics_say_fail_safe_and_why_while_the_grip_is_held_and_ok_once_valid_again():
+    events = [(k * MS, "slip", _slip(k, 0.9)) for k in range(1, 11)]
+    events += [(k * MS, "slip", _slip(k, 0.9, status="tactile_stale")) for k in range(11, 16)]
+    events += [(k * MS, "slip", _slip(k, 0.9)) for k in range(16, 21)]
+    ex = InProcessExecutor([GripController(DEFAULTS)], diagnostics_period_s=0.001)
+    ex.feed(events)
+    ex.run(until_ns=20 * MS + MS // 2)
+    reports = {d.header.stamp_ns: d for d in ex.published["diagnostics"]}
+    assert reports[10 * MS].status == "ok"  # after the 10 ms verdict (frames run before the report)
+    held = reports[15 * MS]
+    assert held.status.startswith("fail-safe: ") and "status not ok" in held.status
+    assert held.counters["grip.fail_safe_steps"] == 5
+    recovered = reports[20 * MS]
+    assert recovered.status == "ok" and recovered.counters["grip.fail_safe_steps"] == 5

@@ -38,7 +38,7 @@ interpreted code raises on a division by zero or a math domain error where the
 compiled kernels return IEEE ``inf``/NaN, a mutant killed only by such an exception is
 re-run compiled before it counts. In compiled runs numba's cache beside the source is never used:
 ``NUMBA_CACHE_DIR`` points into a temporary folder. A mutant inside a kernel, or at
-module level (a constant is frozen into every kernel that reads it), gets a fresh,
+module level in ``lib/`` (a constant is frozen into every kernel that reads it), gets a fresh,
 empty cache folder: a kernel of another file that calls the mutated one (``limit_set``
 calls ``weber.newton_step``) would otherwise be loaded from a cache compiled against
 the original callee. A mutant inside a plain Python function shares one cache folder
@@ -72,6 +72,9 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent.parent
 CONFIG = HERE / "config.toml"
 EQUIVALENT = HERE / "equivalent.txt"
+KERNEL_PACKAGE = "lib/"
+"""Where the numba kernels live: a module-level mutant elsewhere (``nodes/``) is frozen into
+no kernel, so it shares the run's numba cache instead of recompiling every kernel."""
 _SKIP = shutil.ignore_patterns(".venv", ".git", "__pycache__", "runs", "*.egg-info", "mutants")
 """Not copied into the mutation sandbox."""
 
@@ -436,7 +439,7 @@ _PYTHON_ONLY_ERRORS = ("ZeroDivisionError", "math domain error", "OverflowError"
 def _run_mutant(sandbox: _Sandbox, mutant: Mutant, tests: list[str], shared_cache: Path, timeout_s: float,
                 interpreted: bool) -> tuple[str, float, str]:
     """One mutant's test run (the mutant is in place in the copy). Compiled, kernel and
-    module-level mutants get an empty numba cache; with ``interpreted`` every mutant runs
+    module-level mutants of :data:`KERNEL_PACKAGE` get an empty numba cache; with ``interpreted`` every mutant runs
     under NUMBA_DISABLE_JIT, and a kill by an exception only interpreted code raises is
     confirmed compiled."""
     if interpreted:
@@ -444,7 +447,7 @@ def _run_mutant(sandbox: _Sandbox, mutant: Mutant, tests: list[str], shared_cach
                                           sandbox.tree)
         if not (status == "killed" and any(e in detail for e in _PYTHON_ONLY_ERRORS)):
             return status, seconds, detail
-    elif not (mutant.in_kernel or mutant.at_module_level):
+    elif not (mutant.in_kernel or (mutant.at_module_level and mutant.path.startswith(KERNEL_PACKAGE))):
         return _pytest(tests, _env(sandbox, shared_cache), timeout_s, sandbox.tree)
     cache = Path(tempfile.mkdtemp(prefix="numba-", dir=sandbox.tree.parent))
     try:
