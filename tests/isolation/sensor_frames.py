@@ -1,6 +1,6 @@
 """Hand-made sensor frames for the node-level tests: F/T samples and tactile frames on
 the 16×16 pad, stamped in simulated milliseconds, as ``(t_ns, topic, message)`` events
-for :class:`~slipstack.nodes.inprocess.InProcessExecutor`."""
+for :class:`~slipstack.nodes.runtime.inprocess.InProcessExecutor`."""
 
 from __future__ import annotations
 

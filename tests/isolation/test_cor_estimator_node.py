@@ -15,7 +15,7 @@ from slipstack.lib.limit_set import load_factor
 from slipstack.messages import Contact, Cor
 from slipstack.nodes.cor_estimator import CorEstimator, CorParams
 from slipstack.nodes.fusion import Fusion
-from slipstack.nodes.inprocess import InProcessExecutor
+from slipstack.nodes.runtime.inprocess import InProcessExecutor
 
 MU = 0.5
 

@@ -11,7 +11,7 @@ from sensor_frames import MS, pressure_for, tactile, wrench
 
 from slipstack.messages import Contact, Diagnostics
 from slipstack.nodes.fusion import Fusion, FusionParams
-from slipstack.nodes.inprocess import InProcessExecutor
+from slipstack.nodes.runtime.inprocess import InProcessExecutor
 
 DEFAULTS = FusionParams()
 

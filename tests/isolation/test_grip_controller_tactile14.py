@@ -12,7 +12,7 @@ import pytest
 
 from slipstack.messages import Contact, Cor, Header, Slip
 from slipstack.nodes.grip_controller import GripController, GripControllerParams
-from slipstack.nodes.inprocess import InProcessExecutor
+from slipstack.nodes.runtime.inprocess import InProcessExecutor
 
 MS = 1_000_000
 PITCH_M = 1.25e-3

@@ -8,7 +8,7 @@ import numpy as np
 from sensor_frames import MS, PITCH_M, tactile, wrench
 
 from slipstack.nodes.fusion import Fusion
-from slipstack.nodes.inprocess import InProcessExecutor
+from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.nodes.slip_detector import SlipDetector, SlipDetectorParams
 
 
