@@ -54,6 +54,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.lib.protocols import ati_rdt, bota, dsacon32, m1616, robotiq
 from slipstack.lib.protocols.framed import FramedCodec, FramedFormat
 from slipstack.lib.protocols.stream import Deframer
+from slipstack.lib.sequence import SeqTracker
 
 from . import Freshness, LinkStatus
 from .serial_link import SerialLink
@@ -464,10 +465,12 @@ class RdtBackend(Backend):
         self._own["requests"] = 0
         self._own["implausible_records"] = 0
         self._last: ati_rdt.RdtRecord | None = None
+        self._rdt_sequence = SeqTracker()
         self._last_request_ns = 0
 
     def _request(self, now_ns: int) -> None:
         self._last = None
+        self._rdt_sequence.forget()
         self._last_request_ns = now_ns
         self._own["requests"] += 1
         self._link.send(ati_rdt.encode_request(ati_rdt.Command.REALTIME, 0), now_ns)
@@ -490,11 +493,9 @@ class RdtBackend(Backend):
                 if not ati_rdt.follows(self._last, r):
                     self._own["implausible_records"] += 1
                     continue
-                seq = r.rdt_sequence
-                if self._last is not None and seq > self._last.rdt_sequence + 1:
-                    self._own["gaps"] += seq - self._last.rdt_sequence - 1
+                self._own["gaps"] += self._rdt_sequence.update(r.rdt_sequence)
                 self._last = r
-                out.append(FtSample(now_ns, r.counts[:3] / cpf, r.counts[3:] / cpt, seq, None, r.status))
+                out.append(FtSample(now_ns, r.counts[:3] / cpf, r.counts[3:] / cpt, r.rdt_sequence, None, r.status))
         self._own["frames"] += len(out)
         if not out and self._link.is_open and now_ns >= self._rerequest_at():
             self._request(now_ns)  # silent for backoff_ms: the sensor may have rebooted

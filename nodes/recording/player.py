@@ -32,7 +32,8 @@ from typing import Callable
 
 from slipstack.lib.errors import ConfigError
 from slipstack.messages import registry
-from slipstack.nodes.recording.bag_io import RecordedFrame, clock_offset_ns, peek_header, publisher_key, read_recording, restamp
+from slipstack.messages.frame import peek_header, publisher_key, restamp
+from slipstack.nodes.recording.bag_io import RecordedFrame, clock_offset_ns, read_recording
 from slipstack.nodes.runtime.stop_signal import StopSignal
 from slipstack.nodes.runtime.graph_info import find_run_dir, read_graph
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
@@ -228,7 +229,7 @@ def play(
         while not stop.requested and not pb.done:
             for topic, payload in pb.due(time.monotonic_ns()):
                 bus.send(topic, payload)
-                injector.send(topic, payload, publisher_key(topic, peek_header(payload)))
+                injector.send(topic, payload, publisher_key(topic, payload, peek_header(payload)))
             nxt = pb.next_due_ns()
             if nxt is not None:
                 wait = nxt - time.monotonic_ns()

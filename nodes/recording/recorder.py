@@ -29,7 +29,8 @@ from typing import Any, Callable
 import zmq
 
 from slipstack.lib.errors import ConfigError
-from slipstack.nodes.recording.bag_io import RecordingWriter, peek_header, publisher_key
+from slipstack.messages.frame import SeqTracker, peek_header, publisher_key
+from slipstack.nodes.recording.bag_io import RecordingWriter
 from slipstack.nodes.runtime.curve import secure_connect
 from slipstack.nodes.runtime.stop_signal import StopSignal
 from slipstack.nodes.runtime.graph_info import GRAPH_FILE, RUN_DIR_ENV, find_run_dir, read_graph, topic_endpoints
@@ -80,7 +81,7 @@ class BusRecorder:
         self.endpoints: set[str] = set()
         self.received = 0
         self.lost: dict[str, int] = {}
-        self._last_seq: dict[str, int] = {}
+        self._seq_tracker = SeqTracker()
         self._next_refresh = 0.0
 
     def fileno(self) -> int:
@@ -136,11 +137,9 @@ class BusRecorder:
         head = peek_header(payload)
         if head is None:
             return
-        key = publisher_key(topic, head)
-        last = self._last_seq.get(key)
-        if last is not None and head.seq > last + 1:
-            self.lost[topic] = self.lost.get(topic, 0) + head.seq - last - 1
-        self._last_seq[key] = head.seq
+        gap = self._seq_tracker.update(head.seq, publisher_key(topic, payload, head))
+        if gap:
+            self.lost[topic] = self.lost.get(topic, 0) + gap
 
     def close(self) -> None:
         """Write what is left and finish the file (summary and indexes)."""
