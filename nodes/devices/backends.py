@@ -43,7 +43,6 @@ Sensor values are in the sensor's frame; no frame transform is applied.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
 from enum import Enum
 from typing import Callable, ClassVar, Union
 from urllib.parse import parse_qs, urlsplit
@@ -55,6 +54,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.lib.protocols import ati_rdt, bota, dsacon32, m1616, robotiq
 from slipstack.lib.protocols.framed import FramedCodec, FramedFormat
 from slipstack.lib.protocols.stream import Deframer
+from slipstack.lib.samples import FtSample, TactileSample
 from slipstack.lib.sequence import SeqTracker
 
 from . import Freshness, LinkStatus
@@ -62,45 +62,9 @@ from .serial_link import SerialLink
 from .udp_link import UdpLink
 
 __all__ = [
-    "FtSample", "TactileSample", "Sample", "Backend", "RdtBackend", "RobotiqBackend",
+    "Sample", "Backend", "RdtBackend", "RobotiqBackend",
     "BotaBackend", "Dsacon32Backend", "FramedBackend", "backend_from_url", "SCHEMES",
 ]
-
-
-@dataclass(frozen=True, slots=True)
-class FtSample:
-    """One force/torque sample, sensor frame.
-
-    stamp_ns: caller's clock at the poll() that decoded it (ns).
-    force_n: (3,) float64, N. torque_nm: (3,) float64, N·m.
-    device_seq: device sequence number (RDT rdt_sequence) or None.
-    device_time_s: device clock (Bota timestamp) in s, or None.
-    status: device status word, 0 = no flag (RDT status, Bota status bits).
-    """
-
-    stamp_ns: int
-    force_n: np.ndarray
-    torque_nm: np.ndarray
-    device_seq: int | None = None
-    device_time_s: float | None = None
-    status: int = 0
-
-
-@dataclass(frozen=True, slots=True)
-class TactileSample:
-    """One tactile frame: raw counts (rows, cols) uint16, row = y, col = x.
-
-    stamp_ns: caller's clock at the poll() that decoded it (ns).
-    device_time_s: controller clock (DSACON32 ms timestamp) in s, or None.
-    device_seq: device sequence number or None (no tactile protocol has one).
-    status: device flags, 0 = none.
-    """
-
-    stamp_ns: int
-    counts: np.ndarray
-    device_time_s: float | None = None
-    device_seq: int | None = None
-    status: int = 0
 
 
 Sample = Union[FtSample, TactileSample]
