@@ -255,7 +255,7 @@ def test_backend_urls() -> None:
         ("robotiq://dev/ttyUSB0", "absolute path"),
         ("robotiq:///dev/ttyUSB0?baudrate=9600", r"\?baudrate=9600: baudrate: unknown key; known here: .*baud,"),
         ("rdt://host?cpf=abc", r"rdt://host\?cpf=abc: cpf: must be a number, got 'abc'"),
-        ("rdt://host?cpt=0", "cpt: must be > 0.0, got 0.0"),
+        ("rdt://host?cpt=0", "cpt: must be > 0.0, got '0'"),
         ("rdt://host?rate_hz=inf", "rate_hz: must be finite"),
         ("dsacon32:///dev/x?rle=maybe", "rle: must be true or false, got 'maybe'"),
         ("framed:///dev/x?header=zz", "header: must be hex digits"),
