@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 from slipstack.lib.episodes import find_episodes
 from slipstack.lib.errors import ConfigError, DecodeError
+from slipstack.lib.status import SLIP_STATES, SlipState
 from slipstack.lib.identify import (
     IdentifyConfig,
     RampEstimate,
@@ -64,7 +65,6 @@ TORQUE_ARM_M = 0.01
 """Lever arm (m, half the 16 × 1.25 mm pad) comparing a torque with a force: which ramp
 dominates, and the least torque-axis span (the force axis' span × this) in the figure."""
 
-SLIP_STATES = frozenset({"translation", "rotation", "combined"})
 """``slip.state`` values that are a slip verdict."""
 
 MATPLOTLIB_HINT = "matplotlib is not installed: pip install 'slipstack[report]'"
@@ -377,7 +377,7 @@ def _panel_verdict(ax, series: RecordingSeries) -> None:
     handles = []
     if series.has("slip"):
         s = series["slip"]
-        ok = s["ok"].astype(bool) & (s["state"] != "no-contact")  # stale or no contact: no margin
+        ok = s["ok"].astype(bool) & (s["state"] != SlipState.NO_CONTACT)  # stale or no contact: no margin
         margin = np.maximum(s["margin"][ok].astype(float), _MARGIN_FLOOR)
         handles += ax.plot(s["t_s"][ok], margin, color="tab:green", lw=1.0,
                            label=f"margin $1-\\gamma$ ({s['method'][-1]})")

@@ -49,7 +49,6 @@ current directory on the command line and to the including file for ``extends``.
 
 from __future__ import annotations
 
-import math
 import re
 import socket
 import time
@@ -58,6 +57,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
+from slipstack.lib.config import read_flag, read_number
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.toml_file import resolve_path
 from slipstack.nodes.runtime.curve import GraphKeys
@@ -195,46 +195,16 @@ def _resolve_args(args: dict[str, Any], file: str) -> dict[str, Any]:
 
 
 def _typed_override(default: Any, text: str, name: str) -> Any:
+    """A launch argument given as ``name:=text``, read as the type of its declared ``default``."""
+    where = f"launch argument {name}"
     if isinstance(default, bool):
-        if text.lower() in ("true", "1", "yes", "on"):
-            return True
-        if text.lower() in ("false", "0", "no", "off"):
-            return False
-        raise ConfigError(f"launch argument {name} is a bool; got {text!r} (use true or false)")
+        return read_flag(text, where)
     if isinstance(default, list):  # "[a, b]", "a,b" or "" (empty list)
         items = text.strip().removeprefix("[").removesuffix("]")
         return [item.strip().strip("'\"") for item in items.split(",") if item.strip()]
     if isinstance(default, (int, float)):
-        try:
-            value = type(default)(text)
-        except ValueError:
-            raise ConfigError(f"launch argument {name} is a {type(default).__name__}; got {text!r}") from None
-        if not math.isfinite(value):
-            raise ConfigError(f"launch argument {name} must be a finite number; got {text!r}")
-        return value
+        return read_number(text, where, type(default))
     return text
-
-
-def _flag(value: Any, where: str) -> bool:
-    """A boolean launch-file setting: ``true``/``false`` or the strings "true"/"false"."""
-    if isinstance(value, bool):
-        return value
-    if isinstance(value, str) and value.strip().lower() in ("true", "false"):
-        return value.strip().lower() == "true"
-    raise ConfigError(f"{where} must be true or false; got {value!r}")
-
-
-def _number(value: Any, where: str, kind: type = float, minimum: float = 0.0) -> float | int:
-    """A finite number >= ``minimum`` of a launch-file setting (``kind`` int or float; numeric strings too)."""
-    try:
-        if isinstance(value, bool) or (kind is int and isinstance(value, float)):
-            raise ValueError
-        number = kind(value)
-    except (TypeError, ValueError):
-        raise ConfigError(f"{where} must be a{'n integer' if kind is int else ' number'}; got {value!r}") from None
-    if not math.isfinite(number) or number < minimum:
-        raise ConfigError(f"{where} must be a finite number >= {minimum:g}; got {value!r}")
-    return number
 
 
 def _identifier(value: Any, where: str) -> str:
@@ -376,7 +346,7 @@ def _check_containers(file: str, entries: list[NodeEntry]) -> None:
 
 def _node_entry(raw: dict[str, Any], where: str) -> NodeEntry | None:
     """The entry of one substituted ``[[node]]`` table; None if it is not enabled."""
-    if not _flag(raw.get("enabled", True), f"{where}.enabled"):
+    if not read_flag(raw.get("enabled", True), f"{where}.enabled"):
         return None
     if "type" not in raw:
         raise ConfigError(f"{where}: missing 'type' (a node type from `slipstack run --help`)")
@@ -393,17 +363,17 @@ def _node_entry(raw: dict[str, Any], where: str) -> NodeEntry | None:
         raise ConfigError(f"{where}.remap maps topic names to topic names; got {remap!r}")
     params = _table(raw.get("params", {}), f"{where}.params")
     return NodeEntry(
-        name=name, type=raw["type"], cls=node_class(raw["type"]), params=dict(params), remap=dict(remap), respawn=_flag(raw.get("respawn", False), f"{where}.respawn"),
-        respawn_delay_s=_number(raw.get("respawn_delay_s", NodeEntry.respawn_delay_s), f"{where}.respawn_delay_s"),
-        respawn_max_retries=_number(raw.get("respawn_max_retries", NodeEntry.respawn_max_retries),
-                                    f"{where}.respawn_max_retries", int),
-        respawn_reset_s=_number(raw.get("respawn_reset_s", NodeEntry.respawn_reset_s), f"{where}.respawn_reset_s"),
-        respawn_standby=_flag(raw.get("respawn_standby", True), f"{where}.respawn_standby"),
-        required=_flag(raw.get("required", False), f"{where}.required"), transport=transport,
+        name=name, type=raw["type"], cls=node_class(raw["type"]), params=dict(params), remap=dict(remap), respawn=read_flag(raw.get("respawn", False), f"{where}.respawn"),
+        respawn_delay_s=read_number(raw.get("respawn_delay_s", NodeEntry.respawn_delay_s), f"{where}.respawn_delay_s", lo=0),
+        respawn_max_retries=read_number(raw.get("respawn_max_retries", NodeEntry.respawn_max_retries),
+                                        f"{where}.respawn_max_retries", int, lo=0),
+        respawn_reset_s=read_number(raw.get("respawn_reset_s", NodeEntry.respawn_reset_s), f"{where}.respawn_reset_s", lo=0),
+        respawn_standby=read_flag(raw.get("respawn_standby", True), f"{where}.respawn_standby"),
+        required=read_flag(raw.get("required", False), f"{where}.required"), transport=transport,
         after=list(_names(raw.get("after", []), f"{where}.after")),
-        nice=_number(raw.get("nice", 0), f"{where}.nice", int, -20),
+        nice=read_number(raw.get("nice", 0), f"{where}.nice", int, lo=-20),
         container=_identifier(container, f"{where}.container") if container else "",
-        stop_first=_flag(raw.get("stop_first", False), f"{where}.stop_first"),
+        stop_first=read_flag(raw.get("stop_first", False), f"{where}.stop_first"),
     )
 
 
@@ -462,14 +432,15 @@ def load_launch_file(
     _check_containers(p.name, entries)
     check = meta.get("check", False) if check_override is None else _typed_override(False, check_override, CHECK_ARG)
     keys, insecure = _tcp_security(p, meta, entries)
-    return LaunchFile(p, str(meta.get("description", "")), _number(meta.get("duration_s", 0), f"{p.name}: duration_s"),
-                      args, entries, _flag(check, f"{p.name}: [launch] check"), keys, insecure)
+    duration_s = read_number(meta.get("duration_s", 0), f"{p.name}: duration_s", lo=0)
+    return LaunchFile(p, str(meta.get("description", "")), duration_s,
+                      args, entries, read_flag(check, f"{p.name}: [launch] check"), keys, insecure)
 
 
 def _tcp_security(p: Path, meta: dict[str, Any], entries: list[NodeEntry]) -> tuple[Path | None, bool]:
     """``[launch] keys`` (a key directory, relative to the launch file) and ``insecure``;
     a graph with tcp links needs one of them (nodes/runtime/curve.py)."""
-    insecure = _flag(meta.get("insecure", False), f"{p.name}: [launch] insecure")
+    insecure = read_flag(meta.get("insecure", False), f"{p.name}: [launch] insecure")
     raw = meta.get("keys", "")
     if not isinstance(raw, str):
         raise ConfigError(f"{p.name}: [launch] keys must be a directory path; got {raw!r}")

@@ -22,13 +22,11 @@ from slipstack.lib.calibration import Calibration, save_calibration
 from slipstack.lib.protocols import ati_rdt, dsacon32
 from slipstack.lib.protocols.stream import Deframer
 from slipstack.lib.rig.scene import Scene, load_scene
-from slipstack.lib.rig.sensors import FtSample as SimFt
-from slipstack.lib.rig.sensors import TactileSample as SimTactile
+from slipstack.lib.samples import FtSample, TactileSample
 from slipstack.lib.rig.simulator import Simulator
 from slipstack.lib.toml_file import resolve_path
 from slipstack.messages import RigTruth
 from slipstack.nodes.cor_estimator import CorEstimator, CorParams
-from slipstack.nodes.devices.backends import FtSample, TactileSample
 from slipstack.nodes.ft_driver import FtDriver, FtDriverParams
 from slipstack.nodes.fusion import Fusion, FusionParams
 from slipstack.nodes.grip_controller import GripController, GripControllerParams
@@ -74,12 +72,12 @@ class _RdtWire:
     def __init__(self) -> None:
         self.seq = 0
 
-    def __call__(self, s: SimFt) -> FtSample:
+    def __call__(self, s: FtSample) -> FtSample:
         self.seq += 1
-        counts = [round(v * _CPF) for v in (*s.force_S, *s.torque_S)]
+        counts = [round(v * _CPF) for v in (*s.force_n, *s.torque_nm)]
         (record,) = ati_rdt.decode_records(ati_rdt.encode_record(self.seq, self.seq, 0, counts))
         force, torque = ati_rdt.to_wrench(record, _CPF, _CPF)
-        return FtSample(stamp_ns=s.t_ns, force_n=force, torque_nm=torque, device_seq=record.rdt_sequence,
+        return FtSample(stamp_ns=s.stamp_ns, force_n=force, torque_nm=torque, device_seq=record.rdt_sequence,
                         device_time_s=None, status=record.status)
 
 
@@ -90,13 +88,13 @@ class _DsaconWire:
         self.rows, self.cols = rows, cols
         self.deframer = Deframer(dsacon32.PacketCodec(allow_empty=False))
 
-    def __call__(self, s: SimTactile) -> TactileSample | None:
-        wire = dsacon32.encode_packet(dsacon32.PacketId.FRAME, dsacon32.encode_frame_payload(s.t_ns // 1_000_000, s.counts))
+    def __call__(self, s: TactileSample) -> TactileSample | None:
+        wire = dsacon32.encode_packet(dsacon32.PacketId.FRAME, dsacon32.encode_frame_payload(s.stamp_ns // 1_000_000, s.counts))
         packets = self.deframer.feed(wire)
         frame = dsacon32.decode_frame_payload(packets[0].payload, self.rows * self.cols) if packets else None
         if frame is None:
             return None
-        return TactileSample(stamp_ns=s.t_ns, counts=frame.counts.reshape(self.rows, self.cols),
+        return TactileSample(stamp_ns=s.stamp_ns, counts=frame.counts.reshape(self.rows, self.cols),
                              device_time_s=frame.timestamp_ms / 1e3)
 
 
@@ -155,11 +153,11 @@ class LockstepStack:
         while not sim.done:
             t = min(t + tick, sim.end_ns)
             for s in sim.step_until(t):
-                ex.now = max(ex.now, s.t_ns)
-                if isinstance(s, SimFt):
+                ex.now = max(ex.now, s.stamp_ns)
+                if isinstance(s, FtSample):
                     host = self._host(self.ft_driver)
                     host.call("on_sample", self.ft_driver.on_sample, self._rdt(s), host)
-                elif isinstance(s, SimTactile):
+                elif isinstance(s, TactileSample):
                     if self.tactile_driver is not None:
                         sample = self._dsa(s)
                         host = self._host(self.tactile_driver)
@@ -168,7 +166,7 @@ class LockstepStack:
                         else:
                             host.call("on_sample", self.tactile_driver.on_sample, sample, host)
                 else:
-                    truth_host.publish("truth", truth_message(s), stamp_ns=s.t_ns)
+                    truth_host.publish("truth", truth_message(s), stamp_ns=s.stamp_ns)
                 ex.run(until_ns=ex.now)
             if len(commands) > self._commands_seen:
                 self._commands_seen = len(commands)

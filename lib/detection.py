@@ -47,13 +47,7 @@ from dataclasses import dataclass
 
 from slipstack.lib.errors import ConfigError
 
-__all__ = ["STICK", "NO_CONTACT", "DetectorConfig", "SlipLatch"]
-
-STICK = "stick"
-"""Slip state: the contact sticks (also a slip test's kind)."""
-
-NO_CONTACT = "no-contact"
-"""Slip state: nothing touches the pad (also a slip test's kind)."""
+__all__ = ["DetectorConfig", "SlipLatch"]
 
 
 @dataclass(frozen=True)

@@ -38,12 +38,12 @@ from typing import Any
 import numpy as np
 
 from slipstack.lib.contact_view import ContactView, FusedContact
-from slipstack.lib.detection import NO_CONTACT, STICK, DetectorConfig, SlipLatch
+from slipstack.lib.detection import DetectorConfig, SlipLatch
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.known_cor import KNOWN_COR_METHOD, known_cor_test
 from slipstack.lib.material import Material, detector_thresholds
 from slipstack.lib.slip_tests import SlipParams, SlipVerdict, ft_beta, get_slip_test
-from slipstack.lib.status import SolverStatus
+from slipstack.lib.status import SLIP_STATES, SlipState, SolverStatus
 
 __all__ = [
     "FT_TESTS",
@@ -61,7 +61,7 @@ FT_TESTS: tuple[str, ...] = ("coulomb", "decoupled", "linear_ls", "elliptic_ls")
 VALID = SolverStatus.OK.value
 """The status of a verdict that judged valid data (and of a valid contact)."""
 
-CONTACT_LOST = "no_contact"
+CONTACT_LOST = SolverStatus.NO_CONTACT.value
 """The fused contact's status when the wrench says nothing touches the pad."""
 
 
@@ -188,7 +188,7 @@ class Detector:
         self._beta_frame: object = None
         self._latch = SlipLatch(DetectorConfig(s.delta, s.gamma_release, s.release_ns, s.gamma_resume, s.onset_frames))
         self._warm: tuple[float, float] | None = None
-        self._kind = "translation"  # the latest slip kind, reported while the latch holds
+        self._kind = SlipState.TRANSLATION  # the latest slip kind, reported while the latch holds
 
     def step(self, contact: FusedContact, t_ns: int, *, tactile_frame: object = None) -> DetectorVerdict:
         """The verdict on ``contact`` stamped ``t_ns`` (ns; one clock, non-decreasing).
@@ -205,20 +205,20 @@ class Detector:
             self._warm = v.p_c
         status = self._verdict_status(contact, v)
         fresh = status == VALID
-        in_contact = v.kind != NO_CONTACT if fresh else contact.status != CONTACT_LOST
+        in_contact = v.kind != SlipState.NO_CONTACT if fresh else contact.status != CONTACT_LOST
         slipping = self._latch.update(t_ns, v.margin if fresh else math.nan, in_contact=in_contact)
         verdicts = {v.method: (v.stick, v.margin)}
         for name, test in self._others:
             o = test(view, ft_params, None)
             verdicts[name] = (o.stick, o.margin)
         if not in_contact:
-            state = NO_CONTACT
+            state = SlipState.NO_CONTACT
         elif slipping:
-            if v.kind not in (STICK, NO_CONTACT):
+            if v.kind in SLIP_STATES:
                 self._kind = v.kind
             state = self._kind
         else:
-            state = STICK
+            state = SlipState.STICK
         return DetectorVerdict(t_ns=t_ns, state=state, slipping=slipping, kind=v.kind, gamma=v.gamma,
                                margin=v.margin, method=v.method, p_c=v.p_c, solver_status=v.status,
                                status=status, verdicts=verdicts)

@@ -33,8 +33,8 @@ from dataclasses import dataclass, field
 from enum import Enum
 from typing import ClassVar, Literal, Mapping, Sequence
 
-from slipstack.lib.detection import NO_CONTACT, STICK
 from slipstack.lib.errors import ConfigError
+from slipstack.lib.status import SLIP_STATES, SlipCase, SlipState
 
 __all__ = [
     "GripReason",
@@ -121,8 +121,8 @@ class GripInput:
     t_c: float = _NAN
     sum_dist_m: float = _NAN
     n_contact: int = 0
-    cor_case: str = "rotation"
-    slip_state: str = STICK
+    cor_case: str = SlipCase.ROTATION
+    slip_state: str = SlipState.STICK
 
     @property
     def f_t_abs(self) -> float:
@@ -340,7 +340,7 @@ class Tactile14Law(GripLaw):
 
     name: ClassVar[str] = "tactile14"
     needs: ClassVar[tuple[str, ...]] = ("f_n", "n_c", "t_c", "sum_dist_m")
-    rotation_cases: ClassVar[tuple[str, ...]] = ("rotation", "on-taxel")
+    rotation_cases: ClassVar[tuple[str, ...]] = (SlipCase.ROTATION, SlipCase.ON_TAXEL)
     mu: float = 0.45
     sigma: float = 0.5
     increment: Literal["total", "per_taxel"] = "total"
@@ -367,7 +367,7 @@ class Tactile14Law(GripLaw):
 
     def failing_level(self, slip_state: str) -> float:
         """The share of ``T(p_c)`` above which (11) counts as failing (dimensionless)."""
-        return self.gamma_release if slip_state not in (STICK, NO_CONTACT) else 1.0 - self.delta
+        return self.gamma_release if slip_state in SLIP_STATES else 1.0 - self.delta
 
     def demand(self, inp: GripInput, dt_s: float) -> float:
         if inp.cor_case in self.rotation_cases:

@@ -15,7 +15,7 @@ import numpy as np
 
 from slipstack.lib.errors import ConfigError
 
-__all__ = ["PadGeometry", "PadMount", "DEFAULT_PAD"]
+__all__ = ["PadGeometry", "PadMount"]
 
 
 @dataclass(frozen=True)
@@ -86,9 +86,6 @@ class PadGeometry:
         grid = np.asarray(values, dtype=float).reshape(self.rows, self.cols)
         summed = grid.reshape(coarse.rows, block, coarse.cols, block).sum(axis=(1, 3))
         return summed.ravel()
-
-
-DEFAULT_PAD = PadGeometry()
 
 
 @dataclass(frozen=True)

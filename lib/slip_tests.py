@@ -11,9 +11,11 @@ name               γ (stick iff margin ≥ δ, i.e. γ ≤ 1 − δ)          n
 ``linear_ls``      ``|f_t|/(μ f_n) + |τ|/(β f_n)``            (5)  F/T, β
 ``elliptic_ls``    ``√((|f_t|/(μ f_n))² + (τ/(β f_n))²)``      (6)  F/T, β
 ``tactile_cor``    ``|n(p_c)|/T(p_c)``, p_c from the paper's  (11) F/T + tactile
-                   fixed-gain iteration for (12)
+                   fixed-gain iteration for (12) (COR solver ``paper``)
 ``tactile_cor_robust``  the same with the robust solver     (11) F/T + tactile
+                   (COR solver ``robust``)
 ``exact``          the load factor of the exact limit set     §4   F/T + tactile
+                   (COR solver ``exact``)
 =================  ==============================================  ==========================
 
 ``τ`` in the F/T tests is the torque about the pad origin (what the F/T sensor
@@ -50,7 +52,7 @@ import numpy as np
 from slipstack.lib.cor import CorResult, paper_cor, robust_cor
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.limit_set import load_factor, torsional_coefficient
-from slipstack.lib.status import SlipCase, SolverStatus
+from slipstack.lib.status import CorSolver, SlipCase, SlipState, SolverStatus
 
 __all__ = [
     "ContactLike",
@@ -133,7 +135,7 @@ class SlipVerdict:
 
     stick: bool
     margin: float
-    kind: str
+    kind: SlipState
     status: SolverStatus
     gamma: float
     p_c: tuple[float, float] | None
@@ -143,20 +145,20 @@ class SlipVerdict:
 SlipTest = Callable[[ContactLike, SlipParams, "tuple[float, float] | None"], SlipVerdict]
 
 
-def _kind_from_share(rho: float) -> str:
+def _kind_from_share(rho: float) -> SlipState:
     if rho < KIND_TRANSLATION_BELOW:
-        return "translation"
+        return SlipState.TRANSLATION
     if rho > KIND_ROTATION_ABOVE:
-        return "rotation"
-    return "combined"
+        return SlipState.ROTATION
+    return SlipState.COMBINED
 
 
 def _no_contact(method: str, status: SolverStatus = SolverStatus.NO_CONTACT) -> SlipVerdict:
-    return SlipVerdict(False, 0.0, "no-contact", status, 0.0, None, method)
+    return SlipVerdict(False, 0.0, SlipState.NO_CONTACT, status, 0.0, None, method)
 
 
 def _bad(method: str) -> SlipVerdict:
-    return SlipVerdict(False, 0.0, "no-contact", SolverStatus.INVALID_INPUT, 0.0, None, method)
+    return SlipVerdict(False, 0.0, SlipState.NO_CONTACT, SolverStatus.INVALID_INPUT, 0.0, None, method)
 
 
 def _load(contact: ContactLike) -> tuple[float, float, float, float] | None:
@@ -168,7 +170,7 @@ def _load(contact: ContactLike) -> tuple[float, float, float, float] | None:
 def _verdict(gamma: float, rho: float, params: SlipParams, status, p_c, method) -> SlipVerdict:
     margin = 1.0 - gamma
     stick = status.usable and margin >= params.delta
-    kind = "stick" if stick else _kind_from_share(rho)
+    kind = SlipState.STICK if stick else _kind_from_share(rho)
     return SlipVerdict(stick, margin, kind, status, gamma, p_c, method)
 
 

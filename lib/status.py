@@ -1,16 +1,23 @@
-"""Outcome codes shared by every slipstack solver (docs/architecture.md §10.1).
+"""The vocabularies of slipstack: solver outcomes, slip cases and states, COR solvers
+(docs/architecture.md §10.1).
 
 Solvers in ``lib/`` never raise inside the control loop: they return a frozen
 result with a :class:`SolverStatus`, whose :attr:`~SolverStatus.message` says in
 words what happened, and :attr:`~SolverStatus.usable` whether the numbers in the
 result may be acted on.
+
+Each member's value is its spelling on the wire and in recordings, kept as it has
+always been: status codes use underscores (``no_contact``, ``on_taxel``), the slip
+state and the COR case hyphens (``no-contact``, ``on-taxel``). Code names a value
+through its enum, never as a bare string; :class:`SlipCase`, :class:`SlipState`
+and :class:`CorSolver` are ``str`` enums, equal to their values.
 """
 
 from __future__ import annotations
 
 import enum
 
-__all__ = ["SolverStatus", "SlipCase"]
+__all__ = ["SolverStatus", "SlipCase", "SlipState", "SLIP_STATES", "CorSolver"]
 
 
 class SolverStatus(enum.Enum):
@@ -84,10 +91,39 @@ _USABLE = frozenset(
 )
 
 
-class SlipCase(enum.Enum):
-    """Which motion the contact would make at impending slip (ARCHITECTURE ``cor.case``)."""
+class SlipCase(enum.StrEnum):
+    """Which motion the contact would make at impending slip (the ``cor`` topic's ``case``)."""
 
     ROTATION = "rotation"
     TRANSLATION = "translation"
     ON_TAXEL = "on-taxel"
     NONE = "none"
+
+
+class SlipState(enum.StrEnum):
+    """The detector's verdict on the contact: the ``slip`` topic's ``state``, and the
+    ``kind`` of one slip test's verdict."""
+
+    STICK = "stick"
+    TRANSLATION = "translation"
+    ROTATION = "rotation"
+    COMBINED = "combined"
+    NO_CONTACT = "no-contact"
+
+
+SLIP_STATES = frozenset({SlipState.TRANSLATION, SlipState.ROTATION, SlipState.COMBINED})
+"""The states of slip (a plain string of one of these values is a member too)."""
+
+
+class CorSolver(enum.StrEnum):
+    """How the COR of impending slip is found (docs/math.md §3–4): ``cor_estimator``'s
+    ``solver``. The tactile slip tests of ``lib/slip_tests.py`` use one each:
+    ``exact`` the exact solver, ``tactile_cor_robust`` the robust one, ``tactile_cor``
+    the paper's."""
+
+    EXACT = "exact"
+    """the exact limit set: Dinkelbach load factor with Fermat–Weber steps."""
+    ROBUST = "robust"
+    """the paper's (12) solved robustly (the maximiser over both senses)."""
+    PAPER = "paper"
+    """the paper's fixed-gain iteration for (12)."""

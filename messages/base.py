@@ -3,7 +3,8 @@
 A message type is a frozen dataclass decorated with :func:`message`. Scalar fields
 are annotated ``float``, ``int``, ``bool``, ``str`` or ``dict``; array fields use
 :func:`array` to declare dtype, shape and finiteness. Every message carries a
-:class:`Header` filled in by the executor when it is published.
+:class:`~slipstack.messages.frame.Header` filled in by the executor when it is
+published; :mod:`slipstack.messages.frame` holds the frame layout around the body.
 
 Scalar fields may declare :class:`Bounds` with :func:`bounded` (numeric range,
 an enumeration or pattern of strings, a length or entry limit); every ``str`` and
@@ -27,7 +28,9 @@ from typing import Any, ClassVar, TypeVar, get_type_hints
 import numpy as np
 
 from slipstack.lib.errors import DecodeError
-from slipstack.messages.codec import packb, unpackb
+from slipstack.messages.frame import (
+    INT64_MAX, MAX_HEADER_SOURCES, MAX_KEY_LEN, Header, header_from_wire, pack_frame, unpack_frame,
+)
 
 __all__ = [
     "Header", "Message", "ArraySpec", "Bounds", "array", "bounded", "declared_bounds", "message", "encode", "decode", "validate",
@@ -38,31 +41,7 @@ MAX_STR_LEN = 256
 """Characters a ``str`` field may hold unless it declares its own ``max_len``."""
 MAX_DICT_ITEMS = 256
 """Entries a ``dict`` field may hold unless it declares its own ``max_len``."""
-MAX_KEY_LEN = 128
-"""Characters of one key of a ``dict`` field or of ``header.sources``."""
-MAX_HEADER_SOURCES = 32
-"""Entries of ``header.sources`` (one stamp per input a message derives from)."""
-INT64_MAX = 2**63 - 1
-"""Header stamps and sequence numbers are non-negative int64 (ns, counts)."""
 _SHOWN_CHARS = 40  # a rejected string is quoted up to this many characters in the error
-
-
-@dataclass(frozen=True, slots=True)
-class Header:
-    """Stamps common to every message.
-
-    Attributes:
-        stamp_ns: time of the sensor sample this message derives from, integer ns on
-            the executor clock (CLOCK_MONOTONIC for processes, simulated in-process).
-        seq: per-publisher, per-topic sequence number, from 0; gaps reveal loss.
-        pub_ns: when the message was published, same clock as ``stamp_ns``.
-        sources: stamps of the input samples used, by input name (e.g. ``{"ft": …}``).
-    """
-
-    stamp_ns: int = 0
-    seq: int = 0
-    pub_ns: int = 0
-    sources: dict[str, int] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -321,32 +300,9 @@ def _check_tied_lengths(msg: Message, fields: dict[str, Any]) -> None:
 
 def encode(msg: Message, header: Header | None = None) -> bytes:
     """Encode a message to its MessagePack payload, with ``header`` in place of its own."""
-    h = msg.header if header is None else header
     fields = msg.__dict__
     body = [fields[n] for n in msg._body_fields]  # type: ignore[attr-defined]
-    return packb([msg.TYPE, msg.VERSION, [h.stamp_ns, h.seq, h.pub_ns, h.sources], body])
-
-
-def _decode_header(raw: Any, type_name: str) -> Header:
-    if not isinstance(raw, list) or len(raw) != 4:
-        raise DecodeError(f"{type_name}.header: expected [stamp_ns, seq, pub_ns, sources]")
-    stamp, seq, pub, sources = raw
-    for label, v in (("stamp_ns", stamp), ("seq", seq), ("pub_ns", pub)):
-        if not isinstance(v, int) or isinstance(v, bool):
-            raise DecodeError(f"{type_name}.header.{label}: expected int, got {type(v).__name__}")
-        if not 0 <= v <= INT64_MAX:
-            raise DecodeError(f"{type_name}.header.{label}: must be within 0..2**63-1, got {v}")
-    if not isinstance(sources, dict) or not all(
-        isinstance(k, str) and len(k) <= MAX_KEY_LEN and isinstance(v, int) and not isinstance(v, bool)
-        and 0 <= v <= INT64_MAX
-        for k, v in sources.items()
-    ):
-        raise DecodeError(
-            f"{type_name}.header.sources: expected a map of names (<= {MAX_KEY_LEN} characters) to stamps in 0..2**63-1"
-        )
-    if len(sources) > MAX_HEADER_SOURCES:
-        raise DecodeError(f"{type_name}.header.sources: at most {MAX_HEADER_SOURCES} entries, got {len(sources)}")
-    return Header(stamp, seq, pub, sources)
+    return pack_frame(msg.TYPE, msg.VERSION, msg.header if header is None else header, body)
 
 
 def decode(payload: bytes, expected: type[M] | None = None) -> M:
@@ -361,10 +317,7 @@ def decode(payload: bytes, expected: type[M] | None = None) -> M:
         DecodeError: naming the field, for any malformed, mistyped, misshapen or
             non-finite content, an unknown type or an incompatible version.
     """
-    top = unpackb(payload)
-    if not isinstance(top, list) or len(top) != 4:
-        raise DecodeError("payload: expected [type, version, header, body]")
-    type_name, version, raw_header, raw_body = top
+    type_name, version, raw_header, raw_body = unpack_frame(payload)
     if not isinstance(type_name, str):
         raise DecodeError("payload.type: expected a type name string")
     cls = registry.get(type_name) if expected is None else expected
@@ -374,7 +327,7 @@ def decode(payload: bytes, expected: type[M] | None = None) -> M:
         raise DecodeError(f"payload.type: expected {cls.TYPE!r}, got {type_name!r}")
     if version != cls.VERSION:
         raise DecodeError(f"{type_name}.version: expected {cls.VERSION}, got {version!r}")
-    header = _decode_header(raw_header, type_name)
+    header = header_from_wire(raw_header, type_name)
     if not isinstance(raw_body, list):
         raise DecodeError(f"{type_name}.body: expected a list of fields")
     names = cls._body_fields  # type: ignore[attr-defined]

@@ -16,7 +16,7 @@ from dataclasses import field
 
 import numpy as np
 
-from slipstack.lib.status import SlipCase, SolverStatus
+from slipstack.lib.status import SlipCase, SlipState, SolverStatus
 from slipstack.messages.base import Bounds, Message, array, bounded, message
 
 __all__ = [
@@ -143,7 +143,7 @@ class Cor(Message):
     gamma: load factor (≤ 1 sticks); +inf for a load no friction can hold.
     """
 
-    case: str = bounded("none", choices=tuple(c.value for c in SlipCase))
+    case: str = bounded(SlipCase.NONE.value, choices=tuple(c.value for c in SlipCase))
     p_c: np.ndarray = array("<f8", (2,), doc="m")
     torque_capacity: float = bounded(0.0, doc="N·m")
     load_torque: float = bounded(0.0, doc="N·m")
@@ -166,7 +166,7 @@ class Slip(Message):
     p_c: (2,) m, the COR of impending slip the method found (valid if ``p_c_valid``).
     """
 
-    state: str = bounded("no-contact", choices=("stick", "translation", "rotation", "combined", "no-contact"))
+    state: str = bounded(SlipState.NO_CONTACT.value, choices=tuple(s.value for s in SlipState))
     margin: float = bounded(0.0, allow_inf=True)
     method: str = bounded("", **_NAME)
     verdicts: dict = field(default_factory=dict, metadata={"bounds": Bounds(max_len=MAX_VERDICTS)})

@@ -18,20 +18,21 @@ import numpy as np
 
 from slipstack.lib.cor import paper_cor, robust_cor
 from slipstack.lib.errors import ConfigError
+from slipstack.lib.status import CorSolver, SlipCase
 from slipstack.lib.limit_set import compile_kernels, load_factor
-from slipstack.messages import Contact, Cor
+from slipstack.messages import STATUS_OK, Contact, Cor
 from slipstack.lib.contact_view import ContactView
 from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
 __all__ = ["CorEstimator", "CorParams", "SOLVERS"]
 
-SOLVERS = ("exact", "robust", "paper")
+SOLVERS = tuple(s.value for s in CorSolver)
 
 
 @dataclass(frozen=True)
 class CorParams:
-    solver: str = field(default="exact", metadata={"help": f"one of {SOLVERS}"})
+    solver: str = field(default=CorSolver.EXACT.value, metadata={"help": f"one of {SOLVERS}"})
     material: str = field(default=DEFAULT_MATERIAL, metadata={"help": "material file (launch/materials/ name or path)"})
     mu: float = field(default=math.nan, metadata={"help": "static friction coefficient; nan: the material's mu_s"})
     paper_gain: float = field(default=0.5, metadata={"help": "gain h of the paper's iteration (solver=paper)"})
@@ -64,8 +65,8 @@ class CorEstimator(Node):
 
     def on_contact(self, msg: Contact, ctx: Context) -> None:
         stamp = msg.header.stamp_ns
-        if not msg.has_tactile or msg.status != "ok":
-            ctx.publish("cor", Cor(case="none", p_c=np.zeros(2), status=msg.status), stamp_ns=stamp,
+        if not msg.has_tactile or msg.status != STATUS_OK:
+            ctx.publish("cor", Cor(case=SlipCase.NONE, p_c=np.zeros(2), status=msg.status), stamp_ns=stamp,
                         sources=msg.header.sources)
             return
         if self.params.per_tactile_frame:
@@ -77,12 +78,12 @@ class CorEstimator(Node):
         view = ContactView(msg, self.params.pool)
         c0 = self._last_pc if self.params.warm_start else None
         p = self.params
-        if p.solver == "exact":
+        if p.solver == CorSolver.EXACT:
             r = load_factor(view.phi, view.positions, view.f_t, view.tau, p.mu, c0=c0)
             gamma = r.gamma
         else:
-            solve = robust_cor if p.solver == "robust" else paper_cor
-            extra = {"gain": p.paper_gain} if p.solver == "paper" else {}
+            solve = robust_cor if p.solver == CorSolver.ROBUST else paper_cor
+            extra = {"gain": p.paper_gain} if p.solver == CorSolver.PAPER else {}
             r = solve(view.phi, view.positions, view.f_t, view.tau, p.mu, c0=c0, **extra)
             gamma = r.ratio
         if r.p_c is not None:

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from slipstack.lib.errors import ConfigError
+from slipstack.lib.status import SlipCase
 from slipstack.messages import Cor, GripCommand, Message, Slip, TactileFrame, Wrench
 from slipstack.nodes.runtime.node import Context, Input, Node
 
@@ -117,7 +118,7 @@ class FoxgloveBridge(Node):
 
     def on_cor(self, msg: Cor, ctx: Context) -> None:
         self._log_json("cor", msg)
-        self._cor = np.asarray(msg.p_c, dtype=float) if msg.case in ("rotation", "on-taxel") else None
+        self._cor = np.asarray(msg.p_c, dtype=float) if msg.case in (SlipCase.ROTATION, SlipCase.ON_TAXEL) else None
         self._log_scene(msg)
 
     def on_slip(self, msg: Slip, ctx: Context) -> None:

@@ -33,9 +33,9 @@ from slipstack.lib.errors import ConfigError
 from slipstack.lib.filters import LowPass
 from slipstack.lib.frames import rotation_rpy
 from slipstack.lib.fusion import SensorMount, wrench_to_pad
+from slipstack.lib.samples import FtSample
 from slipstack.messages import Wrench
 from slipstack.nodes.device_driver import DeviceDriver
-from slipstack.nodes.devices.backends import FtSample
 from slipstack.nodes.runtime.node import Context, Output
 
 __all__ = ["FtDriver", "FtDriverParams"]

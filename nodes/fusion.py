@@ -22,10 +22,16 @@ import numpy as np
 
 from slipstack.lib.fusion import FusionThresholds, PressureShape, ft_understates_pad, fuse_shape, pressure_shape
 from slipstack.lib.pad import PadGeometry
+from slipstack.lib.status import SolverStatus
 from slipstack.messages import STATUS_OK, TACTILE_PAIRING, Contact, TactileFrame, Wrench
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
 __all__ = ["Fusion", "FusionParams"]
+
+_USABLE_AS_OK = (STATUS_OK, SolverStatus.CLIPPED_INPUT.value)
+"""Fusion outcomes a contact reports as ``ok`` (clipped taxels are counted, not flagged)."""
+_JUDGED_ON_THE_PAD = (*_USABLE_AS_OK, SolverStatus.NO_CONTACT.value)
+"""Fusion outcomes after which the F/T reading is checked against the pressed pad."""
 
 
 @dataclass(frozen=True)
@@ -102,7 +108,7 @@ class Fusion(Node):
                        tactile_stamp_ns=t.header.stamp_ns, wrench_stamp_ns=w.header.stamp_ns)
         status = w.status if w.status != STATUS_OK else r.status.value
         p = self.params
-        if status in (STATUS_OK, "clipped_input", "no_contact") and ft_understates_pad(
+        if status in _JUDGED_ON_THE_PAD and ft_understates_pad(
                 self._shape, pad, -float(w.force[2]), ratio=p.ft_plausibility_ratio, min_pad_force_n=p.ft_plausibility_min_n):
             ctx.count("fusion.implausible_ft")
             status = "implausible"
@@ -111,12 +117,13 @@ class Fusion(Node):
             f_t=np.asarray(r.f_t, dtype=float), tau=r.tau, cop=np.asarray(r.cop, dtype=float),
             area_m2=r.contact_area_m2, mask=np.asarray(r.mask, dtype=bool),
             pair_offset_ns=t.header.stamp_ns - w.header.stamp_ns, has_tactile=True,
-            status="ok" if status in ("ok", "clipped_input") else status,
+            status=STATUS_OK if status in _USABLE_AS_OK else status,
         )
 
     def _ft_only(self, w: Wrench, tactile_status: str) -> Contact:
         f_n = -float(w.force[2])
-        status = w.status if w.status != STATUS_OK else ("ok" if f_n > self.params.min_normal_force_n else "no_contact")
+        in_contact = f_n > self.params.min_normal_force_n
+        status = w.status if w.status != STATUS_OK else (STATUS_OK if in_contact else SolverStatus.NO_CONTACT.value)
         return Contact(
             rows=0, cols=0, pitch_m=0.0, phi=np.zeros(0), f_n=max(f_n, 0.0), f_t=np.asarray(w.force[:2], dtype=float),
             tau=float(w.torque[2]), cop=np.zeros(2), area_m2=0.0, mask=np.zeros(0, dtype=bool),

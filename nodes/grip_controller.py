@@ -22,6 +22,7 @@ import numpy as np
 from slipstack.lib.contact_view import pad_positions
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.grip_laws import LAWS, GripDecision, GripGovernor, GripInput, GripReason, make_law
+from slipstack.lib.status import SlipCase, SlipState
 from slipstack.messages import Contact, Cor, GripCommand, Slip
 from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
@@ -117,7 +118,7 @@ class GripController(Node):
         now = ctx.now_ns()
         inp, stamps, ok = self._gather()
         ok = ok and not verdict_missing
-        loaded = self.slip is not None and self.slip.state != "no-contact"
+        loaded = self.slip is not None and self.slip.state != SlipState.NO_CONTACT
         decision = self.governor.step(inp, now_ns=now, stamps_ns=stamps, status_ok=ok, loaded=loaded)
         stamp = max(stamps) if stamps else now
         sources = {"slip": self.slip.header.stamp_ns, **self.slip.header.sources} if self.slip else {}
@@ -145,7 +146,7 @@ class GripController(Node):
         """Law (14)'s inputs about the COR ``r`` on the pressure frame of ``c``; a COR
         needs that frame (without one the case is ``none``)."""
         if not c.phi.size:
-            return {"cor_case": "none"}
+            return {"cor_case": SlipCase.NONE}
         dist = np.linalg.norm(pad_positions(c.rows, c.cols, c.pitch_m)[c.mask] - r.p_c, axis=1)
         return {"n_c": r.load_torque, "t_c": r.torque_capacity, "sum_dist_m": float(dist.sum()),
                 "n_contact": int(np.count_nonzero(c.mask)), "cor_case": r.case}

@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 
 from slipstack.lib.episodes import INCIPIENT_SHARE, EpisodeTracker
 from slipstack.lib.errors import ConfigError
+from slipstack.lib.status import SLIP_STATES
 from slipstack.messages import Diagnostics, GripCommand, RigTruth, Slip
 from slipstack.nodes.runtime.node import Context, Input, Node
 
@@ -179,7 +180,7 @@ class Monitor(Node):
 
     def on_slip(self, msg: Slip, ctx: Context) -> None:
         self.slip_frames += 1
-        self.episodes.add_verdict(msg.header.stamp_ns, msg.state not in ("stick", "no-contact"))
+        self.episodes.add_verdict(msg.header.stamp_ns, msg.state in SLIP_STATES)
         self.last["slip"] = msg
 
     def on_grip(self, msg: GripCommand, ctx: Context) -> None:

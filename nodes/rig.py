@@ -24,7 +24,7 @@ from slipstack.lib.calibration import Calibration, save_calibration
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.rig.actuator import CommandWatchdog
 from slipstack.lib.rig.scene import Scene, load_scene
-from slipstack.lib.rig.sensors import FtSample, TactileSample
+from slipstack.lib.samples import FtSample, TactileSample
 from slipstack.lib.rig.simulator import Simulator, Truth
 from slipstack.lib.toml_file import resolve_path
 from slipstack.messages import GripCommand, RigTruth
@@ -166,13 +166,13 @@ class Rig(Node):
         self._guard_finger(ctx)
         for sample in sim.step_until(ctx.now_ns() - self._t0):
             if isinstance(sample, FtSample):
-                if self.ft_dev is not None and not self.ft_dev.send_ft(sample.force_S, sample.torque_S):
+                if self.ft_dev is not None and not self.ft_dev.send_ft(sample.force_n, sample.torque_nm):
                     ctx.count("rig.ft_not_sent")
             elif isinstance(sample, TactileSample):
                 if self.tactile_dev is not None and not self.tactile_dev.send_tactile(sample.counts):
                     ctx.count("rig.tactile_not_sent")
             else:
-                ctx.publish("truth", truth_message(sample), stamp_ns=self._t0 + sample.t_ns)
+                ctx.publish("truth", truth_message(sample), stamp_ns=self._t0 + sample.stamp_ns)
         if sim.done and self.params.exit_at_end:
             ctx.log(f"scene {self.scene.name} finished")
             ctx.shutdown()

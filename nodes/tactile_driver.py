@@ -39,9 +39,10 @@ import numpy as np
 from slipstack.lib.calibration import Calibration, load_calibration
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.pad import PadMount
+from slipstack.lib.samples import TactileSample
 from slipstack.messages import TactileFrame
 from slipstack.nodes.device_driver import DeviceDriver
-from slipstack.nodes.devices.backends import Dsacon32Backend, FramedBackend, TactileSample
+from slipstack.nodes.devices.backends import Dsacon32Backend, FramedBackend
 from slipstack.nodes.runtime.node import Context, Output
 
 __all__ = ["TactileDriver", "TactileDriverParams", "DEFAULT_PA_PER_COUNT"]

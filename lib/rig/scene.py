@@ -28,11 +28,11 @@ Layout of a scene file (every table but ``[object]``, ``[contact]``, ``[dof]`` a
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
+from slipstack.lib.config import REQUIRED, ConfigTable
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.toml_file import read_toml
 from slipstack.lib.pad import PadGeometry
@@ -314,106 +314,7 @@ class Scene:
 
 # ----------------------------------------------------------------------------- loader
 
-_REQUIRED = object()
-
-
-class _Table:
-    """A TOML table being consumed key by key; errors name ``where.key``."""
-
-    def __init__(self, data: Any, where: str, source: str) -> None:
-        if not isinstance(data, Mapping):
-            raise ConfigError(f"{source}: {where or 'scene'}: must be a table")
-        self._data = dict(data)
-        self._where = where
-        self._source = source
-
-    def key(self, name: str) -> str:
-        return f"{self._where}.{name}" if self._where else name
-
-    def error(self, name: str, message: str) -> ConfigError:
-        return ConfigError(f"{self._source}: {self.key(name)}: {message}")
-
-    def has(self, name: str) -> bool:
-        return name in self._data
-
-    def _pop(self, name: str, default: Any) -> Any:
-        if name in self._data:
-            return self._data.pop(name)
-        if default is _REQUIRED:
-            raise self.error(name, "missing required key")
-        return default
-
-    def real(self, name: str, default: Any = _REQUIRED, *, lo: float | None = None,
-             hi: float | None = None, lo_open: bool = False) -> float:
-        value = self._pop(name, default)
-        if value is None:
-            return value
-        value = self._as_real(name, value)
-        if lo is not None and (value < lo or (lo_open and value == lo)):
-            raise self.error(name, f"must be {'>' if lo_open else '>='} {lo}, got {value}")
-        if hi is not None and value > hi:
-            raise self.error(name, f"must be <= {hi}, got {value}")
-        return value
-
-    def _as_real(self, name: str, value: Any) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.error(name, f"must be a number, got {value!r}")
-        if not math.isfinite(value):
-            raise self.error(name, f"must be finite, got {value}")
-        return float(value)
-
-    def integer(self, name: str, default: Any = _REQUIRED, *, lo: int | None = None) -> int:
-        value = self._pop(name, default)
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise self.error(name, f"must be an integer, got {value!r}")
-        if lo is not None and value < lo:
-            raise self.error(name, f"must be >= {lo}, got {value}")
-        return value
-
-    def text(self, name: str, default: Any = _REQUIRED, *, choices: tuple[str, ...] = ()) -> str:
-        value = self._pop(name, default)
-        if not isinstance(value, str):
-            raise self.error(name, f"must be a string, got {value!r}")
-        if choices and value not in choices:
-            raise self.error(name, f"must be one of {', '.join(choices)}; got {value!r}")
-        return value
-
-    def flag(self, name: str, default: Any = _REQUIRED) -> bool:
-        value = self._pop(name, default)
-        if value is not None and not isinstance(value, bool):
-            raise self.error(name, f"must be true or false, got {value!r}")
-        return value
-
-    def vector(self, name: str, n: int, default: Any = _REQUIRED, *,
-               lo: float | None = None) -> tuple[float, ...] | None:
-        value = self._pop(name, default)
-        if value is None:
-            return None
-        if not isinstance(value, (list, tuple)) or len(value) != n:
-            raise self.error(name, f"must be a list of {n} numbers, got {value!r}")
-        out = tuple(self._as_real(name, v) for v in value)
-        if lo is not None and min(out) < lo:
-            raise self.error(name, f"entries must be >= {lo}, got {list(out)}")
-        return out
-
-    def raw(self, name: str, default: Any = _REQUIRED) -> Any:
-        return self._pop(name, default)
-
-    def table(self, name: str, required: bool = False) -> "_Table":
-        value = self._pop(name, _REQUIRED if required else {})
-        return _Table(value, self.key(name), self._source)
-
-    def child(self, data: Any, name: str) -> "_Table":
-        """A table nested in this one under the display name ``name`` (e.g. "segments[0]")."""
-        return _Table(data, self.key(name), self._source)
-
-    def finish(self) -> None:
-        if self._data:
-            name = sorted(self._data)[0]
-            raise self.error(name, "unknown key (check the spelling against lib/rig/scene.py)")
-
-
-def _object(t: _Table) -> ObjectSpec:
+def _object(t: ConfigTable) -> ObjectSpec:
     d = ObjectSpec()
     spec = ObjectSpec(
         mass_kg=t.real("mass_kg", d.mass_kg, lo=0.0, lo_open=True),
@@ -424,7 +325,7 @@ def _object(t: _Table) -> ObjectSpec:
     return spec
 
 
-def _contact(t: _Table) -> ContactSpec:
+def _contact(t: ConfigTable) -> ContactSpec:
     d = ContactSpec()
     model = t.text("model", choices=PRESSURE_MODELS)
     material = RIG_MATERIALS[t.text("material", "rubber", choices=tuple(RIG_MATERIALS))]
@@ -460,7 +361,7 @@ def _contact(t: _Table) -> ContactSpec:
     return spec
 
 
-def _dof(t: _Table) -> DofSpec:
+def _dof(t: ConfigTable) -> DofSpec:
     free = t.raw("free")
     if (not isinstance(free, list) or not free or len(set(free)) != len(free)
             or any(f not in DOF_NAMES for f in free)):
@@ -474,7 +375,7 @@ def _dof(t: _Table) -> DofSpec:
     return DofSpec(free=ordered, pivot_m=pivot)
 
 
-def _finger(t: _Table) -> FingerSpec:
+def _finger(t: ConfigTable) -> FingerSpec:
     d = FingerSpec()
     f_max = t.real("f_max_N", d.f_max_N, lo=0.0, lo_open=True)
     spec = FingerSpec(
@@ -490,7 +391,7 @@ def _finger(t: _Table) -> FingerSpec:
 _CHANNELS = {"wrench": (("force_N", 2), ("torque_Nm", 1)), "drag": (("position_m", 2), ("angle_rad", 1))}
 
 
-def _channels(t: _Table, mode: str, prefix: str) -> Vec3 | None:
+def _channels(t: ConfigTable, mode: str, prefix: str) -> Vec3 | None:
     """Read the three channels of ``mode`` from keys ``prefix + name``; None if absent."""
     (lin, _), (rot, _) = _CHANNELS[mode]
     if not t.has(prefix + lin) and not t.has(prefix + rot):
@@ -499,7 +400,7 @@ def _channels(t: _Table, mode: str, prefix: str) -> Vec3 | None:
     return (xy[0], xy[1], t.real(prefix + rot, 0.0))
 
 
-def _segment(t: _Table, mode: str) -> Segment:
+def _segment(t: ConfigTable, mode: str) -> Segment:
     kind = t.text("kind", choices=SEGMENT_KINDS)
     duration = t.real("duration_s", lo=0.0)
     target = _channels(t, mode, "")
@@ -509,13 +410,13 @@ def _segment(t: _Table, mode: str) -> Segment:
     if kind in ("hold", "sine") and target is not None:
         raise t.error("kind", f"a {kind} segment takes no target value")
     amplitude = _channels(t, mode, "amplitude_") if kind == "sine" else None
-    frequency = t.real("frequency_hz", 0.0 if kind != "sine" else _REQUIRED, lo=0.0)
+    frequency = t.real("frequency_hz", 0.0 if kind != "sine" else REQUIRED, lo=0.0)
     t.finish()
     return Segment(kind=kind, duration_s=duration, target=target,
                    amplitude=amplitude or (0.0, 0.0, 0.0), frequency_hz=frequency)
 
 
-def _disturbance(t: _Table) -> DisturbanceSpec:
+def _disturbance(t: ConfigTable) -> DisturbanceSpec:
     d = DisturbanceSpec()
     mode = t.text("mode", d.mode, choices=tuple(_CHANNELS))
     raw = t.raw("segments", [])
@@ -538,30 +439,30 @@ def _disturbance(t: _Table) -> DisturbanceSpec:
     return spec
 
 
-def _simple(t: _Table, cls: type, readers: dict[str, Callable[[_Table, str, Any], Any]]) -> Any:
+def _simple(t: ConfigTable, cls: type, readers: dict[str, Callable[[ConfigTable, str, Any], Any]]) -> Any:
     d = cls()
     spec = cls(**{name: read(t, name, getattr(d, name)) for name, read in readers.items()})
     t.finish()
     return spec
 
 
-def _pos(t: _Table, name: str, default: Any) -> float:
+def _pos(t: ConfigTable, name: str, default: Any) -> float:
     return t.real(name, default, lo=0.0, lo_open=True)
 
 
-def _nonneg(t: _Table, name: str, default: Any) -> float:
+def _nonneg(t: ConfigTable, name: str, default: Any) -> float:
     return t.real(name, default, lo=0.0)
 
 
-def _vec3(t: _Table, name: str, default: Any) -> Vec3:
+def _vec3(t: ConfigTable, name: str, default: Any) -> Vec3:
     return t.vector(name, 3, default)
 
 
-def _flag(t: _Table, name: str, default: Any) -> bool:
+def _flag(t: ConfigTable, name: str, default: Any) -> bool:
     return t.flag(name, default)
 
 
-def _dead(t: _Table, name: str, default: Any) -> tuple[tuple[int, int], ...]:
+def _dead(t: ConfigTable, name: str, default: Any) -> tuple[tuple[int, int], ...]:
     value = t.raw(name, list(default))
     ok = isinstance(value, list) and all(
         isinstance(p, list) and len(p) == 2 and all(isinstance(v, int) and not isinstance(v, bool)
@@ -571,7 +472,7 @@ def _dead(t: _Table, name: str, default: Any) -> tuple[tuple[int, int], ...]:
     return tuple((int(r), int(c)) for r, c in value)
 
 
-def _ft(t: _Table) -> FtSpec:
+def _ft(t: ConfigTable) -> FtSpec:
     return _simple(t, FtSpec, {
         "enabled": _flag, "rate_hz": _pos, "origin_m": _vec3,
         "yaw_rad": lambda t, n, d: t.real(n, d),
@@ -583,7 +484,7 @@ def _ft(t: _Table) -> FtSpec:
     })
 
 
-def _tactile(t: _Table) -> TactileSpec:
+def _tactile(t: ConfigTable) -> TactileSpec:
     return _simple(t, TactileSpec, {
         "enabled": _flag, "rate_hz": _pos, "p0_Pa": _pos,
         "full_scale_counts": lambda t, n, d: t.integer(n, d, lo=1),
@@ -595,7 +496,7 @@ def _tactile(t: _Table) -> TactileSpec:
     })
 
 
-def _expect(t: _Table) -> ExpectSpec:
+def _expect(t: ConfigTable) -> ExpectSpec:
     return _simple(t, ExpectSpec, {
         "slips_at_initial": _flag,
         "holds_at_N": lambda t, n, d: t.real(n, d, lo=0.0, lo_open=True),
@@ -621,7 +522,7 @@ def parse_scene(data: Mapping[str, Any], *, source: str = "<scene>") -> Scene:
     Raises:
         ConfigError: naming the offending key and what is expected.
     """
-    top = _Table(data, "", source)
+    top = ConfigTable(data, "", source)
     pad_t = top.table("pad")
     pad = PadGeometry(
         rows=pad_t.integer("rows", 16, lo=1),

@@ -17,42 +17,14 @@ Stamps are integer nanoseconds of simulated time.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from slipstack.lib.pad import PadGeometry
 from slipstack.lib.rig.scene import FtSpec, TactileSpec
+from slipstack.lib.samples import FtSample, TactileSample
 
-__all__ = ["FtSample", "TactileSample", "FtSensorModel", "TactileSensorModel"]
-
-
-@dataclass(frozen=True, slots=True)
-class FtSample:
-    """One F/T reading in the sensor frame ``S``.
-
-    Attributes:
-        t_ns: simulated time of the sample (ns).
-        seq: sample counter from 0.
-        force_S: force (N), shape (3,).
-        torque_S: torque about the sensor origin (N·m), shape (3,).
-        saturated: some axis hit its range (the value is clipped).
-    """
-
-    t_ns: int
-    seq: int
-    force_S: np.ndarray
-    torque_S: np.ndarray
-    saturated: bool
-
-
-@dataclass(frozen=True, slots=True)
-class TactileSample:
-    """One tactile frame: raw 12-bit counts, shape ``(R, C)``, dtype uint16, row-major."""
-
-    t_ns: int
-    seq: int
-    counts: np.ndarray
+__all__ = ["FtSensorModel", "TactileSensorModel"]
 
 
 class FtSensorModel:
@@ -119,7 +91,7 @@ class FtSensorModel:
                 saturated = True
                 v = math.copysign(lim, v)
             out.append(v)
-        return FtSample(t_ns, seq, np.array(out[:3]), np.array(out[3:]), saturated)
+        return FtSample(t_ns, np.array(out[:3]), np.array(out[3:]), device_seq=seq, saturated=saturated)
 
     def pad_load(self, force_S: np.ndarray, torque_S: np.ndarray) -> tuple[float, float, float, float]:
         """Map a reading to docs/math.md §1: returns ``(f_x N, f_y N, τ N·m, f_n N)`` in ``F``.
@@ -175,7 +147,7 @@ class TactileSensorModel:
         np.clip(level, 0.0, spec.full_scale_counts, out=level)
         level *= self._alive
         counts = np.rint(level).astype(np.uint16)
-        return TactileSample(t_ns, seq, counts.reshape(self.pad.rows, self.pad.cols))
+        return TactileSample(t_ns, counts.reshape(self.pad.rows, self.pad.cols), device_seq=seq)
 
     def _leak(self, phi: np.ndarray) -> np.ndarray:
         grid = phi.reshape(self.pad.rows, self.pad.cols)

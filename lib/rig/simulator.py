@@ -36,7 +36,8 @@ from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.disturbance import DisturbanceMotor
 from slipstack.lib.rig.friction import BristleField
 from slipstack.lib.rig.scene import Scene
-from slipstack.lib.rig.sensors import FtSample, FtSensorModel, TactileSample, TactileSensorModel
+from slipstack.lib.rig.sensors import FtSensorModel, TactileSensorModel
+from slipstack.lib.samples import FtSample, TactileSample
 
 __all__ = ["Truth", "TaxelState", "Sample", "Simulator", "GROSS_SLIP_FRACTION", "MAX_OMEGA_DT"]
 
@@ -61,7 +62,7 @@ class Truth:
     """Ground truth of the object relative to the pad (frame ``F``, SI units).
 
     Attributes:
-        t_ns: simulated time (ns).
+        stamp_ns: simulated time (ns).
         x, y, theta: pose of the object's centre of mass (m, m, rad).
         vx, vy, omega: its velocity (m/s) and angular rate (rad/s).
         gross_slip: ``slip_fraction ≥ GROSS_SLIP_FRACTION`` (with no contact: the
@@ -86,7 +87,7 @@ class Truth:
         work_J: work of the motor's active load since t = 0 (J).
     """
 
-    t_ns: int
+    stamp_ns: int
     x: float
     y: float
     theta: float
@@ -295,7 +296,7 @@ class Simulator:
         force, torque = self._load
         lf, lt = self._contact_load()
         return Truth(
-            t_ns=self._t_ns,
+            stamp_ns=self._t_ns,
             x=body.origin.real, y=body.origin.imag, theta=body.theta,
             vx=v_com.real, vy=v_com.imag, omega=omega,
             gross_slip=self._gross,

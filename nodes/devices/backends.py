@@ -43,88 +43,31 @@ Sensor values are in the sensor's frame; no frame transform is applied.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
 from enum import Enum
 from typing import Callable, ClassVar, Union
 from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
 
+from slipstack.lib.config import ConfigTable
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.protocols import ati_rdt, bota, dsacon32, m1616, robotiq
 from slipstack.lib.protocols.framed import FramedCodec, FramedFormat
 from slipstack.lib.protocols.stream import Deframer
+from slipstack.lib.samples import FtSample, TactileSample
+from slipstack.lib.sequence import SeqTracker
 
 from . import Freshness, LinkStatus
 from .serial_link import SerialLink
 from .udp_link import UdpLink
 
 __all__ = [
-    "FtSample", "TactileSample", "Sample", "Backend", "RdtBackend", "RobotiqBackend",
+    "Sample", "Backend", "RdtBackend", "RobotiqBackend",
     "BotaBackend", "Dsacon32Backend", "FramedBackend", "backend_from_url", "SCHEMES",
 ]
 
 
-@dataclass(frozen=True, slots=True)
-class FtSample:
-    """One force/torque sample, sensor frame.
-
-    stamp_ns: caller's clock at the poll() that decoded it (ns).
-    force_n: (3,) float64, N. torque_nm: (3,) float64, N·m.
-    device_seq: device sequence number (RDT rdt_sequence) or None.
-    device_time_s: device clock (Bota timestamp) in s, or None.
-    status: device status word, 0 = no flag (RDT status, Bota status bits).
-    """
-
-    stamp_ns: int
-    force_n: np.ndarray
-    torque_nm: np.ndarray
-    device_seq: int | None = None
-    device_time_s: float | None = None
-    status: int = 0
-
-
-@dataclass(frozen=True, slots=True)
-class TactileSample:
-    """One tactile frame: raw counts (rows, cols) uint16, row = y, col = x.
-
-    stamp_ns: caller's clock at the poll() that decoded it (ns).
-    device_time_s: controller clock (DSACON32 ms timestamp) in s, or None.
-    device_seq: device sequence number or None (no tactile protocol has one).
-    status: device flags, 0 = none.
-    """
-
-    stamp_ns: int
-    counts: np.ndarray
-    device_time_s: float | None = None
-    device_seq: int | None = None
-    status: int = 0
-
-
 Sample = Union[FtSample, TactileSample]
-
-
-class _Params:
-    """Query parameters with typed getters; ``finish()`` rejects unused keys."""
-
-    def __init__(self, url: str, query: str) -> None:
-        self.url = url
-        self._q = {k: v[-1] for k, v in parse_qs(query, keep_blank_values=True).items()}
-        self._used: set[str] = set()
-
-    def get(self, key: str, default: object, conv: Callable[[str], object]) -> object:
-        self._used.add(key)
-        if key not in self._q:
-            return default
-        try:
-            return conv(self._q[key])
-        except ValueError as e:
-            raise ConfigError(f"{self.url}: bad value for {key!r}: {self._q[key]!r} ({e})") from e
-
-    def finish(self) -> None:
-        unknown = set(self._q) - self._used
-        if unknown:
-            raise ConfigError(f"{self.url}: unknown parameter(s) {sorted(unknown)}; known: {sorted(self._used)}")
 
 
 class Backend(ABC):
@@ -133,14 +76,12 @@ class Backend(ABC):
     kind: ClassVar[str]  # "ft" or "tactile"
     default_rate_hz: ClassVar[float] = 100.0
 
-    def __init__(self, url: str, params: _Params) -> None:
+    def __init__(self, url: str, params: ConfigTable) -> None:
         self.url = url
-        self.rate_hz = float(params.get("rate_hz", self.default_rate_hz, float))
-        if self.rate_hz <= 0:
-            raise ConfigError(f"{url}: rate_hz must be > 0")
-        self.stale_after_s = float(params.get("stale_ms", 2500.0 / self.rate_hz, float)) / 1e3
-        self.backoff_min_s = float(params.get("backoff_ms", 50.0, float)) / 1e3
-        self.backoff_max_s = float(params.get("backoff_max_ms", 2000.0, float)) / 1e3
+        self.rate_hz = params.real("rate_hz", float(self.default_rate_hz), lo=0.0, lo_open=True)
+        self.stale_after_s = params.real("stale_ms", 2500.0 / self.rate_hz) / 1e3
+        self.backoff_min_s = params.real("backoff_ms", 50.0) / 1e3
+        self.backoff_max_s = params.real("backoff_max_ms", 2000.0) / 1e3
         self.status = LinkStatus.DISCONNECTED
         self._samples = Freshness(self.stale_after_s)
         self._own = dict(frames=0, crc_errors=0, rejected_bytes=0, gaps=0, flushed_bytes=0,
@@ -215,9 +156,9 @@ class _SerialBackend(Backend):
 
     default_baud: ClassVar[int]
 
-    def __init__(self, url: str, path: str, params: _Params) -> None:
+    def __init__(self, url: str, path: str, params: ConfigTable) -> None:
         super().__init__(url, params)
-        baud = int(params.get("baud", self.default_baud, int))
+        baud = params.integer("baud", self.default_baud, lo=1)
         self._link = SerialLink(path, baudrate=baud, stale_after_s=self.stale_after_s,
                                 backoff_min_s=self.backoff_min_s, backoff_max_s=self.backoff_max_s,
                                 on_open=self._on_open)
@@ -251,10 +192,10 @@ class RobotiqBackend(_SerialBackend):
     _FF_BURST = bytes([robotiq.STOP_BYTE]) * 16
     _FF_EVERY_NS = 8_000_000  # 16 bytes per 8 ms ≈ the 19200-baud line rate
 
-    def __init__(self, url: str, path: str, params: _Params) -> None:
+    def __init__(self, url: str, path: str, params: ConfigTable) -> None:
         super().__init__(url, path, params)
-        self.stop_ns = int(float(params.get("stop_ms", 500.0, float)) * 1e6)
-        self.echo_ns = int(float(params.get("echo_ms", 200.0, float)) * 1e6)
+        self.stop_ns = int(params.real("stop_ms", 500.0) * 1e6)
+        self.echo_ns = int(params.real("echo_ms", 200.0) * 1e6)
         self._deframer = Deframer(robotiq.StreamCodec())
         self._state = self._STOPPING
         self._timer = 0
@@ -310,7 +251,7 @@ class BotaBackend(_SerialBackend):
     default_rate_hz = bota.RATE_HZ
     default_baud = bota.BAUDRATE
 
-    def __init__(self, url: str, path: str, params: _Params) -> None:
+    def __init__(self, url: str, path: str, params: ConfigTable) -> None:
         super().__init__(url, path, params)
         self._deframer = Deframer(bota.StreamCodec())
 
@@ -330,7 +271,7 @@ class FramedBackend(_SerialBackend):
     kind = "tactile"
     default_baud = 115200
 
-    def __init__(self, url: str, path: str, params: _Params, fmt: FramedFormat) -> None:
+    def __init__(self, url: str, path: str, params: ConfigTable, fmt: FramedFormat) -> None:
         super().__init__(url, path, params)
         self.format = fmt
         self._deframer = Deframer(FramedCodec(fmt))
@@ -354,15 +295,13 @@ class Dsacon32Backend(_SerialBackend):
     kind = "tactile"
     default_baud = dsacon32.BAUDRATE
 
-    def __init__(self, url: str, path: str, params: _Params) -> None:
-        self.fps = int(params.get("fps", 30, int))
-        if not 0 < self.fps < 65536:
-            raise ConfigError(f"{url}: fps must be in 1..65535")
+    def __init__(self, url: str, path: str, params: ConfigTable) -> None:
+        self.fps = params.integer("fps", 30, lo=1, hi=65535)
         self.default_rate_hz = float(self.fps)
         super().__init__(url, path, params)
-        self.rle = bool(params.get("rle", 0, int))
-        self.matrix = int(params.get("matrix", 0, int))
-        self.reply_ns = int(float(params.get("reply_ms", 500.0, float)) * 1e6)
+        self.rle = params.flag("rle", False)
+        self.matrix = params.integer("matrix", 0, lo=0)
+        self.reply_ns = int(params.real("reply_ms", 500.0) * 1e6)
         self._codec = dsacon32.PacketCodec(allow_empty=False)
         self._deframer = Deframer(self._codec)
         self.matrices: list[dsacon32.MatrixInfo] = []
@@ -453,21 +392,21 @@ class RdtBackend(Backend):
     kind = "ft"
     default_rate_hz = ati_rdt.RATE_HZ
 
-    def __init__(self, url: str, host: str, port: int, params: _Params) -> None:
+    def __init__(self, url: str, host: str, port: int, params: ConfigTable) -> None:
         super().__init__(url, params)
-        self.counts_per_force = float(params.get("cpf", 1e6, float))
-        self.counts_per_torque = float(params.get("cpt", 1e6, float))
-        if self.counts_per_force <= 0 or self.counts_per_torque <= 0:
-            raise ConfigError(f"{url}: cpf and cpt must be > 0")
+        self.counts_per_force = params.real("cpf", 1e6, lo=0.0, lo_open=True)
+        self.counts_per_torque = params.real("cpt", 1e6, lo=0.0, lo_open=True)
         self._link = UdpLink(host, port, stale_after_s=self.stale_after_s, backoff_min_s=self.backoff_min_s,
                              backoff_max_s=self.backoff_max_s, on_open=self._request)
         self._own["requests"] = 0
         self._own["implausible_records"] = 0
         self._last: ati_rdt.RdtRecord | None = None
+        self._rdt_sequence = SeqTracker()
         self._last_request_ns = 0
 
     def _request(self, now_ns: int) -> None:
         self._last = None
+        self._rdt_sequence.forget()
         self._last_request_ns = now_ns
         self._own["requests"] += 1
         self._link.send(ati_rdt.encode_request(ati_rdt.Command.REALTIME, 0), now_ns)
@@ -490,11 +429,9 @@ class RdtBackend(Backend):
                 if not ati_rdt.follows(self._last, r):
                     self._own["implausible_records"] += 1
                     continue
-                seq = r.rdt_sequence
-                if self._last is not None and seq > self._last.rdt_sequence + 1:
-                    self._own["gaps"] += seq - self._last.rdt_sequence - 1
+                self._own["gaps"] += self._rdt_sequence.update(r.rdt_sequence)
                 self._last = r
-                out.append(FtSample(now_ns, r.counts[:3] / cpf, r.counts[3:] / cpt, seq, None, r.status))
+                out.append(FtSample(now_ns, r.counts[:3] / cpf, r.counts[3:] / cpt, r.rdt_sequence, None, r.status))
         self._own["frames"] += len(out)
         if not out and self._link.is_open and now_ns >= self._rerequest_at():
             self._request(now_ns)  # silent for backoff_ms: the sensor may have rebooted
@@ -514,11 +451,21 @@ def _serial_path(url: str, netloc: str, path: str) -> str:
     return path
 
 
+def _hex_bytes(params: ConfigTable, name: str) -> bytes:
+    """Bytes given as hex digits (``a5 5a``); empty if absent."""
+    text = params.text(name, "")
+    try:
+        return bytes.fromhex(text)
+    except ValueError:
+        raise params.error(name, f"must be hex digits such as 'a5 5a', got {text!r}") from None
+
+
 def backend_from_url(url: str) -> Backend:
     """Construct (not open) the back-end a URL names; ConfigError if the URL is invalid."""
     parts = urlsplit(url)
     scheme = parts.scheme.lower()
-    params = _Params(url, parts.query)
+    query = {k: v[-1] for k, v in parse_qs(parts.query, keep_blank_values=True).items()}
+    params = ConfigTable(query, "", url, from_text=True)
     if scheme == "rdt":
         if not parts.hostname:
             raise ConfigError(f"{url}: rdt needs a host, e.g. rdt://192.168.1.1:49152")
@@ -536,11 +483,10 @@ def backend_from_url(url: str) -> Backend:
             fmt = m1616.FORMAT
         else:
             fmt = FramedFormat(
-                header=params.get("header", b"", bytes.fromhex),  # type: ignore[arg-type]
-                rows=params.get("rows", 16, int), cols=params.get("cols", 16, int),  # type: ignore[arg-type]
-                dtype=params.get("dtype", "u16", str), endian=params.get("endian", "le", str),  # type: ignore[arg-type]
-                order=params.get("order", "row", str), trailer=params.get("trailer", 0, int),  # type: ignore[arg-type]
-                checksum=params.get("checksum", "none", str),  # type: ignore[arg-type]
+                header=_hex_bytes(params, "header"), rows=params.integer("rows", 16), cols=params.integer("cols", 16),
+                dtype=params.text("dtype", "u16"), endian=params.text("endian", "le"),  # type: ignore[arg-type]
+                order=params.text("order", "row"), trailer=params.integer("trailer", 0),  # type: ignore[arg-type]
+                checksum=params.text("checksum", "none"),  # type: ignore[arg-type]
             )
         backend = FramedBackend(url, path, params, fmt)
     else:

@@ -65,11 +65,6 @@ class PtyDevice:
     def plugged(self) -> bool:
         return self._master is not None
 
-    @property
-    def tty_name(self) -> str | None:
-        """The current /dev/pts/N, None while unplugged."""
-        return None if self._slave is None else os.ttyname(self._slave)
-
     def plug(self) -> None:
         """Open a new pty (raw mode) and point the link at its slave."""
         if self._master is not None:

@@ -46,15 +46,14 @@ from mcap.writer import MCAP0_MAGIC, CompressionType, Writer
 from slipstack.lib.errors import DecodeError, SlipstackError
 from slipstack.messages import Message, decode, registry
 from slipstack.messages.base import declared_bounds
-from slipstack.messages.codec import packb, unpackb
+from slipstack.messages.frame import FrameHeader, SeqTracker, peek_header, publisher_key
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.nodes.runtime.node import Node
 
 __all__ = [
     "SCHEMA_ENCODING", "MESSAGE_ENCODING", "CLOCK_METADATA", "RecordingError", "RecordedFrame",
     "RecordingWriter", "read_recording", "TopicInfo", "RecordingInfo", "recording_info",
-    "message_schema", "json_schema", "to_json", "export_recording", "peek_header", "publisher_key",
-    "clock_offset_ns", "restamp",
+    "message_schema", "json_schema", "to_json", "export_recording", "clock_offset_ns",
     "replay_into", "same_output", "match_outputs",
 ]
 
@@ -172,38 +171,6 @@ def to_json(msg: Message) -> dict[str, Any]:
     for name in msg._body_fields:  # type: ignore[attr-defined]
         out[name] = _jsonable(getattr(msg, name))
     return out
-
-
-# -- frame headers without a full decode --------------------------------------------------
-
-class FrameHeader(NamedTuple):
-    type_name: str
-    version: int
-    stamp_ns: int
-    seq: int
-    pub_ns: int
-    first_field: Any
-
-
-def peek_header(payload: bytes) -> FrameHeader | None:
-    """Type, version and header of a payload (no validation); ``None`` if malformed."""
-    try:
-        type_name, version, (stamp, seq, pub, _sources), body = unpackb(payload)
-        return FrameHeader(str(type_name), int(version), int(stamp), int(seq), int(pub),
-                           body[0] if body else None)
-    except (DecodeError, TypeError, ValueError):
-        return None
-
-
-def publisher_key(topic: str, head: FrameHeader | None) -> str:
-    """Whose sequence counter a frame follows: the topic, or ``diagnostics/<node>``.
-
-    Sequence numbers are per publisher and topic (``Header.seq``); every node
-    publishes ``diagnostics``, whose first field names the node.
-    """
-    if head is not None and head.type_name == "slipstack/Diagnostics":
-        return f"{topic}/{head.first_field}"
-    return topic
 
 
 # -- writing ------------------------------------------------------------------------------
@@ -470,7 +437,7 @@ def recording_info(path: str | os.PathLike) -> RecordingInfo:
     seq_first: dict[str, int] = {}
     seq_last: dict[str, int] = {}
     gaps: dict[str, int] = defaultdict(int)
-    last_seq_by_pub: dict[str, int] = {}
+    seq_tracker = SeqTracker()
     for m in _scan(path, state, tolerant=True):
         ch = state.channels[m.channel_id]
         topic = ch.topic
@@ -482,11 +449,7 @@ def recording_info(path: str | os.PathLike) -> RecordingInfo:
         seq = head.seq if head else m.sequence
         seq_first.setdefault(topic, seq)
         seq_last[topic] = seq
-        key = publisher_key(topic, head)
-        prev = last_seq_by_pub.get(key)
-        if prev is not None and seq > prev + 1:
-            gaps[topic] += seq - prev - 1
-        last_seq_by_pub[key] = seq
+        gaps[topic] += seq_tracker.update(seq, publisher_key(topic, m.data, head))
     topics = {
         t: TopicInfo(
             t, tuple(sorted(types[t])), counts[t],
@@ -516,23 +479,6 @@ def clock_offset_ns(path: str | os.PathLike, frames: list[RecordedFrame] | None 
         return int(meta["wall_minus_monotonic_ns"])
     frames = frames if frames is not None else list(read_recording(path))
     return min((f.log_time_ns - f.publish_time_ns for f in frames), default=0)
-
-
-def restamp(payload: bytes, delta_ns: int) -> bytes:
-    """The payload with ``stamp_ns``, ``pub_ns`` and every ``sources`` stamp shifted by ``delta_ns``.
-
-    Type, version, seq and body are unchanged (arrays are re-packed bit-exact).
-
-    Raises:
-        DecodeError: the payload is not a slipstack frame.
-    """
-    top = unpackb(payload)
-    try:
-        type_name, version, (stamp, seq, pub, sources), body = top
-        header = [stamp + delta_ns, seq, pub + delta_ns, {k: v + delta_ns for k, v in sources.items()}]
-    except (TypeError, ValueError, AttributeError):
-        raise DecodeError("payload: expected [type, version, [stamp_ns, seq, pub_ns, sources], body]") from None
-    return packb([type_name, version, header, body])
 
 
 # -- export -------------------------------------------------------------------------------

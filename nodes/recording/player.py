@@ -8,9 +8,9 @@ loop) chosen so the first frame's receive time maps to "now" on the player's clo
 ``seq``, bodies and spacing of the stamps stay as recorded (at ``rate`` ≠ 1 the
 stamps keep the recorded spacing, not the played one).
 
-Two front ends share :class:`Playback`:
+One player, the ``player`` node (:class:`Player`, on :class:`Playback`), two ways:
 
-* ``slipstack bag play`` (:func:`play`): publishes on its own endpoint
+* ``slipstack bag play`` (:func:`play`) runs it in its own process, sending on its own endpoint
   (``--endpoint``), registered in the run directory so ``topic echo`` and the
   recorders see the frames, and injects them into the running nodes that subscribe
   to the played topics (their *inject* endpoints in ``graph.json``), each frame named
@@ -25,18 +25,18 @@ from __future__ import annotations
 
 import bisect
 import sys
-import time
 from dataclasses import dataclass, field
 from typing import Callable
 
 
 from slipstack.lib.errors import ConfigError
 from slipstack.messages import registry
-from slipstack.nodes.recording.bag_io import RecordedFrame, clock_offset_ns, peek_header, publisher_key, read_recording, restamp
-from slipstack.nodes.runtime.stop_signal import StopSignal
+from slipstack.messages.frame import peek_header, publisher_key, restamp
+from slipstack.nodes.recording.bag_io import RecordedFrame, clock_offset_ns, read_recording
 from slipstack.nodes.runtime.graph_info import find_run_dir, read_graph
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.node import Context, Node, Output
+from slipstack.nodes.runtime.process import ProcessExecutor, RunSpec
 from slipstack.nodes.runtime.tool_pub import BusPublisher, InjectionSender, tool_name
 
 __all__ = ["Playback", "Player", "PlayerParams", "load_frames", "play"]
@@ -145,29 +145,35 @@ class Player(Node):
     timers = {"tick": 0.001}
     Params = PlayerParams
 
-    def __init__(self, params: PlayerParams | None = None) -> None:
+    def __init__(self, params: PlayerParams | None = None, *,
+                 send: Callable[[str, bytes], None] | None = None) -> None:
+        """``send(topic, payload)``, if given, takes every due frame in place of the
+        node's outputs, and the node stops after the last one (``bag play`` sends on its
+        own endpoint and into the running nodes)."""
         super().__init__(params)
         p = self.params
         if not p.path:
             raise ConfigError("player: parameter path (the recording to play) is required")
         frames = load_frames(p.path, list(p.topics), p.start_offset_s)
-        types: dict[str, str] = {}
+        self.types: dict[str, str] = {}
+        """Played topic → message type name (``""`` for a frame without a readable header)."""
         for f in frames:
-            types.setdefault(f.topic, _type_of(f.payload))
-        self.outputs = {t: Output(t, registry[name]) for t, name in types.items() if name in registry}
+            if f.topic not in self.types:
+                head = peek_header(f.payload)
+                self.types[f.topic] = head.type_name if head else ""
+        self.outputs = {t: Output(t, registry[name]) for t, name in self.types.items() if name in registry}
         offset = clock_offset_ns(p.path, frames) if p.restamp else None
         self.playback = Playback(frames, p.rate, p.loop, offset)
+        self._send = send
 
     def on_timer_tick(self, ctx: Context) -> None:
+        send = self._send or ctx.publish_raw
         for topic, payload in self.playback.due(ctx.now_ns()):
-            ctx.publish_raw(topic, payload)
+            send(topic, payload)
         if self.playback.done:
             ctx.set_status("done", f"{self.playback.sent} frames played")
-
-
-def _type_of(payload: bytes) -> str:
-    head = peek_header(payload)
-    return head.type_name if head else ""
+            if self._send is not None:
+                ctx.shutdown()
 
 
 # -- the command line -------------------------------------------------------------------
@@ -185,7 +191,8 @@ def play(
     wait_s: float = 2.0,
     echo: Callable[[str], None] = lambda s: print(s, file=sys.stderr, flush=True),
 ) -> int:
-    """``slipstack bag play``: publish until done or SIGINT/SIGTERM; returns frames sent.
+    """``slipstack bag play``: run a :class:`Player` until done or SIGINT/SIGTERM; returns
+    frames sent.
 
     Publishes on ``endpoint`` (default ``ipc://<run dir>/bag_play-<pid>.pub``, registered in
     the run directory) and injects into every running node that subscribes to a played
@@ -195,8 +202,13 @@ def play(
     Raises:
         ConfigError: neither ``endpoint`` nor a running graph.
     """
-    frames = load_frames(path, topics, start_offset_s)
-    played = {f.topic for f in frames}
+    def send(topic: str, payload: bytes) -> None:
+        bus.send(topic, payload)
+        injector.send(topic, payload, publisher_key(topic, payload, peek_header(payload)))
+
+    player = Player(PlayerParams(path=path, topics=list(topics or []), rate=rate, loop=loop, restamp=restamp_stamps,
+                                 start_offset_s=start_offset_s), send=send)
+    played = set(player.types)
     injects: list[tuple[str, str]] = []
     graph_nodes: dict = {}
     rd = None
@@ -209,34 +221,20 @@ def play(
         graph_nodes = read_graph(rd)["nodes"]
         for node in graph_nodes.values():
             injects += [(t, ep) for t, ep in node.get("inject", {}).items() if t in played]
-    types = {}
-    for f in frames:
-        types.setdefault(f.topic, _type_of(f.payload))
     name = tool_name("bag_play")  # one endpoint per player: ipc binds steal
-    bus = BusPublisher(rd, name, types, endpoint=endpoint, sndhwm=100_000)
+    bus = BusPublisher(rd, name, player.types, endpoint=endpoint, sndhwm=100_000)
     injector = InjectionSender([ep for _, ep in injects], name, sndhwm=100_000)  # one per node, whatever its topics
-    stop = StopSignal().install()
     try:
         want: dict[str, int] = {}
         for topic, _ in injects:
             want[topic] = want.get(topic, 0) + 1
         injector.wait_for_subscriptions(want, wait_s)
         bus.wait_for_recorders(sum(1 for n in graph_nodes.values() if n.get("type") == "recorder"), wait_s)
-        echo(f"playing {path}: {len(frames)} frames on {', '.join(sorted(played))} at {rate:g}x "
+        echo(f"playing {path}: {len(player.playback.frames)} frames on {', '.join(sorted(played))} at {rate:g}x "
              f"from {bus.endpoint}, into {len(injects)} subscriber(s)")
-        pb = Playback(frames, rate, loop, clock_offset_ns(path, frames) if restamp_stamps else None)
-        while not stop.requested and not pb.done:
-            for topic, payload in pb.due(time.monotonic_ns()):
-                bus.send(topic, payload)
-                injector.send(topic, payload, publisher_key(topic, peek_header(payload)))
-            nxt = pb.next_due_ns()
-            if nxt is not None:
-                wait = nxt - time.monotonic_ns()
-                if wait > 0:
-                    time.sleep(min(wait, 50_000_000) / 1e9)
-        echo(f"played {pb.sent} frames ({pb.passes} loops)")
-        return pb.sent
+        ProcessExecutor([(player, RunSpec(name=name))]).run()
+        echo(f"played {player.playback.sent} frames ({player.playback.passes} loops)")
+        return player.playback.sent
     finally:
         injector.close()
         bus.close()
-        stop.restore()

@@ -1,9 +1,9 @@
 """The recorder: subscribe to topics of the running graph and write them to MCAP.
 
-Two front ends share :class:`BusRecorder`:
-
-* ``slipstack bag record`` (:func:`record`) — a tool attached to a running graph;
-* the ``recorder`` node type, for a launch file (params ``topics``, ``path``).
+One recorder, the ``recorder`` node (:class:`Recorder`, on :class:`BusRecorder`):
+in a launch file (params ``topics``, ``path``) it records its own graph;
+``slipstack bag record`` (:func:`record`) runs the same node in its own process,
+attached to a running graph.
 
 Discovery: publishers are found in the graph's ``graph.json`` (``nodes/graph_info``),
 re-read every :data:`REFRESH_PERIOD_S`, so nodes added later are picked up; a
@@ -19,7 +19,6 @@ Frames are written raw (the bus bytes) with log_time = receive time,
 from __future__ import annotations
 
 import os
-import sys
 import time
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -29,11 +28,13 @@ from typing import Any, Callable
 import zmq
 
 from slipstack.lib.errors import ConfigError
-from slipstack.nodes.recording.bag_io import RecordingWriter, peek_header, publisher_key
+from slipstack.messages.frame import SeqTracker, peek_header, publisher_key
+from slipstack.nodes.recording.bag_io import RecordingWriter
 from slipstack.nodes.runtime.curve import secure_connect
-from slipstack.nodes.runtime.stop_signal import StopSignal
-from slipstack.nodes.runtime.graph_info import GRAPH_FILE, RUN_DIR_ENV, find_run_dir, read_graph, topic_endpoints
+from slipstack.nodes.runtime.graph_info import RUN_DIR_ENV, find_run_dir, read_graph, topic_endpoints
 from slipstack.nodes.runtime.node import Context, Node
+from slipstack.nodes.runtime.process import ProcessExecutor, RunSpec
+from slipstack.nodes.runtime.tool_pub import tool_name
 from slipstack.nodes.runtime.transport import make_sub, run_root
 
 __all__ = ["BusRecorder", "Recorder", "RecorderParams", "default_output_path", "record"]
@@ -80,7 +81,7 @@ class BusRecorder:
         self.endpoints: set[str] = set()
         self.received = 0
         self.lost: dict[str, int] = {}
-        self._last_seq: dict[str, int] = {}
+        self._seq_tracker = SeqTracker()
         self._next_refresh = 0.0
 
     def fileno(self) -> int:
@@ -136,11 +137,14 @@ class BusRecorder:
         head = peek_header(payload)
         if head is None:
             return
-        key = publisher_key(topic, head)
-        last = self._last_seq.get(key)
-        if last is not None and head.seq > last + 1:
-            self.lost[topic] = self.lost.get(topic, 0) + head.seq - last - 1
-        self._last_seq[key] = head.seq
+        gap = self._seq_tracker.update(head.seq, publisher_key(topic, payload, head))
+        if gap:
+            self.lost[topic] = self.lost.get(topic, 0) + gap
+
+    @property
+    def lost_total(self) -> int:
+        """Frames missing from sequence gaps since the start, all topics."""
+        return self._seq_tracker.lost
 
     def close(self) -> None:
         """Write what is left and finish the file (summary and indexes)."""
@@ -149,36 +153,55 @@ class BusRecorder:
         self.sock.close(linger=0)
 
 
-# -- the launch-file node ---------------------------------------------------------------
+# -- the node ---------------------------------------------------------------------------
 
 @dataclass(frozen=True)
 class RecorderParams:
     topics: list[str] = field(default_factory=list, metadata={"help": "topics to record; empty: all"})
     path: str = field(default="", metadata={"help": "output .mcap (default runs/<timestamp>.mcap)"})
+    run_dir: str = field(default="", metadata={
+        "help": "run directory of the graph to record; empty: the graph that launched this node"})
+    duration_s: float = field(default=0.0, metadata={"help": "stop after this long (s); 0: until stopped"})
 
 
 class Recorder(Node):
-    """Records topics of its own graph to an MCAP file (see ``slipstack bag``)."""
+    """Records topics of a graph to an MCAP file (its own graph in a launch file; the
+    one ``slipstack bag record`` attaches to)."""
 
     name = "recorder"
     timers = {"poll": 0.05}
     taps_bus = True  # subscribes to every topic in ``params.topics`` (all if empty)
     Params = RecorderParams
 
-    def __init__(self, params: RecorderParams | None = None) -> None:
+    def __init__(self, params: RecorderParams | None = None, *,
+                 on_recording: Callable[[Path], None] | None = None) -> None:
+        """``on_recording(path)`` is called once the file is open and the publishers the
+        graph lists are connected (``bag record`` prints the path then)."""
         super().__init__(params)
+        if not self.params.duration_s >= 0.0:
+            raise ConfigError(f"recorder duration_s must be >= 0 s (0: until stopped), got {self.params.duration_s!r}")
         self.bus: BusRecorder | None = None
+        self._on_recording = on_recording
+        self._end_ns: int | None = None
 
     def start(self, ctx: Context) -> None:
-        path = Path(self.params.path) if self.params.path else default_output_path()
+        p = self.params
+        path = Path(p.path) if p.path else default_output_path()
         if os.path.lexists(path):  # never overwrite a recording (or write through a link)
             raise ConfigError(f"recording {path} exists; pass recording:=NEW.mcap (or path:=NEW.mcap) or delete it")
         writer = RecordingWriter(path, wall_minus_monotonic_ns=time.time_ns() - time.monotonic_ns())
         # Launched: the launcher names our graph in $SLIPSTACK_RUN_DIR and counts us in
         # every publisher's readiness handshake (``taps_bus``), so no first sample is missed.
-        env_dir = os.environ.get(RUN_DIR_ENV)
-        self.bus = BusRecorder(writer, list(self.params.topics), run_dir=Path(env_dir) if env_dir else None)
-        ctx.log(f"recording to {path}")
+        chosen = p.run_dir or os.environ.get(RUN_DIR_ENV)
+        self.bus = BusRecorder(writer, list(p.topics), run_dir=Path(chosen) if chosen else None)
+        self.bus.refresh()
+        if not self.bus.endpoints:
+            ctx.log(f"warning: the graph lists no publisher of {', '.join(p.topics or ['any topic'])} yet; waiting")
+        ctx.log(f"recording {', '.join(p.topics) if p.topics else 'all topics'} to {path}")
+        if p.duration_s:
+            self._end_ns = ctx.now_ns() + round(p.duration_s * 1e9)
+        if self._on_recording is not None:
+            self._on_recording(path)
 
     def io_sources(self) -> list[BusRecorder]:
         return [self.bus] if self.bus is not None else []
@@ -192,11 +215,14 @@ class Recorder(Node):
             for topic, n in self.bus.lost.items():
                 ctx.count(f"recorder.{topic}.lost", n)
             self.bus.lost.clear()
+        if self._end_ns is not None and ctx.now_ns() >= self._end_ns:
+            ctx.shutdown()
 
     def stop(self, ctx: Context) -> None:
         if self.bus is not None:
             self.bus.close()
-            ctx.log(f"wrote {self.bus.writer.path} ({self.bus.received} frames)")
+            ctx.log(f"wrote {self.bus.writer.path}: {self.bus.received} frames; "
+                    f"sequence gaps seen: {self.bus.lost_total or 'none'}")
 
 
 # -- the command line -------------------------------------------------------------------
@@ -206,15 +232,16 @@ def record(
     topics: list[str] | None,
     run_dir: str | None = None,
     duration_s: float | None = None,
-    echo: Callable[[str], None] = lambda s: print(s, file=sys.stderr, flush=True),
 ) -> int:
-    """``slipstack bag record``: record until SIGINT/SIGTERM or ``duration_s``; returns the frame count.
+    """``slipstack bag record``: run a :class:`Recorder` attached to the running graph
+    until SIGINT/SIGTERM or ``duration_s``; returns the frame count.
 
-    Prints the output path on stdout first.
+    Prints the output path on stdout once recording.
 
     Raises:
-        ConfigError: no running graph (names how to start one), or a topic no node of
-            the graph publishes (names the ones it does); nothing is written then.
+        ConfigError: no running graph (names how to start one), a topic no node of
+            the graph publishes (names the ones it does), or an existing output file;
+            nothing is written then.
     """
     rd = find_run_dir(run_dir)
     published = topic_endpoints(read_graph(rd))
@@ -222,24 +249,11 @@ def record(
     if unknown:
         raise ConfigError(f"no node of the running graph publishes {', '.join(unknown)}; "
                           f"its topics: {', '.join(sorted(published)) or 'none'} (or -a for all)")
-    writer = RecordingWriter(out, wall_minus_monotonic_ns=time.time_ns() - time.monotonic_ns())
-    bus = BusRecorder(writer, topics, run_dir=rd)
-    stop = StopSignal().install()
-    try:
-        bus.refresh()
-        if not bus.endpoints:
-            echo(f"warning: {rd / GRAPH_FILE} lists no publisher of {', '.join(topics or ['any topic'])} yet; waiting")
-        print(out, flush=True)
-        echo(f"recording {', '.join(topics) if topics else 'all topics'} from {rd} to {out}")
-        end = None if not duration_s else time.monotonic() + duration_s
-        poller = zmq.Poller()
-        poller.register(bus.sock, zmq.POLLIN)
-        while not stop.requested and (end is None or time.monotonic() < end):
-            poller.poll(100)
-            bus.drain()
-    finally:
-        bus.close()
-        stop.restore()
-    lost = ", ".join(f"{t}: {n}" for t, n in sorted(bus.lost.items())) or "none"
-    echo(f"wrote {out}: {bus.received} frames; sequence gaps seen: {lost}")
-    return bus.received
+    if os.path.lexists(out):
+        raise ConfigError(f"{out} exists; choose another -o path or delete it")
+    node = Recorder(RecorderParams(topics=list(topics or []), path=str(out), run_dir=str(rd),
+                                   duration_s=duration_s or 0.0),
+                    on_recording=lambda path: print(path, flush=True))
+    if ProcessExecutor([(node, RunSpec(name=tool_name("bag_record")))]).run() != 0:
+        raise ConfigError(f"bag record could not start (said above); nothing was recorded to {out}")
+    return node.bus.received if node.bus is not None else 0

@@ -19,6 +19,7 @@ import numpy as np
 from slipstack.lib.errors import DecodeError
 from slipstack.messages import Diagnostics, Header, Message, decode, encode
 from slipstack.messages.codec import MAX_PAYLOAD_BYTES
+from slipstack.messages.frame import SeqTracker
 from slipstack.messages.types import MAX_COUNTERS, MAX_TEXT_LEN
 from slipstack.nodes.runtime.node import Node
 
@@ -73,7 +74,7 @@ class NodeHost:
             n: (f"in.{t}.received", f"in.{t}.rejected", f"in.{t}.lost", f"in.{t}.dropped")
             for n, t in self.input_topics.items()
         }
-        self._last_seq: dict[tuple[str, str], int] = {}
+        self._seq_tracker = SeqTracker(_MAX_ORIGINS)
         self._input_types = {n: i.type for n, i in node.inputs.items()}
         self.counters: dict[str, float] = defaultdict(int)
         self.status = "ok"
@@ -152,14 +153,9 @@ class NodeHost:
             counters[rejected] += 1
             self.last_error = f"{self.input_topics[input_name]}: {exc}"
             return None
-        seq = msg.header.seq
-        key = (input_name, origin)
-        last = self._last_seq.get(key)
-        if last is not None and seq > last + 1 + skipped:
-            counters[lost] += seq - last - 1 - skipped
-        if key not in self._last_seq and len(self._last_seq) >= _MAX_ORIGINS:
-            del self._last_seq[next(iter(self._last_seq))]  # forget the oldest origin
-        self._last_seq[key] = seq
+        gap = self._seq_tracker.update(msg.header.seq, (input_name, origin), skipped)
+        if gap:
+            counters[lost] += gap
         return msg
 
     def receive_local(self, input_name: str, msg: Message) -> None:

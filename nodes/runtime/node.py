@@ -26,6 +26,7 @@ import typing
 from dataclasses import dataclass
 from typing import Any, ClassVar, Protocol
 
+from slipstack.lib.config import read_typed
 from slipstack.lib.errors import ConfigError
 from slipstack.messages import Message
 
@@ -145,38 +146,6 @@ class Node:
         clear that deadline (the executor asks again right after)."""
 
 
-def _coerce(value: Any, hint: Any, name: str) -> Any:
-    origin = typing.get_origin(hint) or hint
-    if origin is typing.Union or str(origin) == "types.UnionType":
-        args = [a for a in typing.get_args(hint) if a is not type(None)]
-        if value is None or value == "none":
-            return None
-        return _coerce(value, args[0], name)
-    try:
-        if origin is bool:
-            if isinstance(value, str):
-                if value.lower() in ("1", "true", "yes", "on"):
-                    return True
-                if value.lower() in ("0", "false", "no", "off"):
-                    return False
-                raise ValueError(value)
-            return bool(value)
-        if origin in (int, float, str):
-            if origin is int and isinstance(value, float) and not value.is_integer():
-                raise ValueError(value)
-            return origin(value)
-        if origin in (list, tuple):
-            if isinstance(value, str):
-                value = [v for v in value.split(",") if v]
-            (item,) = typing.get_args(hint)[:1] or (str,)
-            return origin(_coerce(v, item, name) for v in value)
-        if origin is dict:
-            return dict(value)
-    except (TypeError, ValueError):
-        raise ConfigError(f"parameter {name}: cannot read {value!r} as {getattr(origin, '__name__', origin)}") from None
-    return value
-
-
 def make_params(params_cls: type, values: dict[str, Any], node_name: str = "node") -> Any:
     """Build a params dataclass from loose values (launch file, ``name:=value``).
 
@@ -198,7 +167,7 @@ def make_params(params_cls: type, values: dict[str, Any], node_name: str = "node
         about = f" ({f.metadata['help']})" if f.metadata.get("help") else ""
         raise ConfigError(f"{node_name}: missing parameter {f.name}{about}; give it as {f.name}:=VALUE "
                           "(or in the node's params in the launch file)")
-    coerced = {k: _coerce(v, hints[k], f"{node_name}.{k}") for k, v in values.items()}
+    coerced = {k: read_typed(v, hints[k], f"{node_name}.{k}") for k, v in values.items()}
     try:
         return params_cls(**coerced)
     except (TypeError, ValueError) as exc:

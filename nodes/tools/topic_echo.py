@@ -20,7 +20,6 @@ import io
 import os
 import sys
 import time
-from dataclasses import dataclass
 from typing import Any, Callable, TextIO
 
 import numpy as np
@@ -28,42 +27,18 @@ import zmq
 
 from slipstack.lib.errors import ConfigError, DecodeError
 from slipstack.messages import Message, decode
+from slipstack.messages.frame import SeqTracker
 from slipstack.nodes.tools.topic_format import as_tree, check_field, csv_cell, flatten, pick, render_yaml
 from slipstack.nodes.runtime.graph_info import read_graph
 from slipstack.nodes.tools.topic_tools import TopicInfo, load_graph, resolve_topic
 from slipstack.nodes.runtime.transport import make_sub
 
-__all__ = ["SeqTracker", "MessagePrinter", "main_echo"]
+__all__ = ["MessagePrinter", "main_echo"]
 
 BATCH = 500  # frames read from one publisher before the output is written
 REFRESH_PERIOD_S = 0.5  # how often the graph is re-read for new publishers (tools that publish)
 MAX_PUBLISHERS = 256  # publishers of one topic listened to at most
 _FILTER_BUILTINS = {f.__name__: f for f in (abs, all, any, len, max, min, round, sum, float, int, bool, str)}
-
-
-@dataclass
-class SeqTracker:
-    """Sequence numbers of one publisher on one topic.
-
-    lost: messages missing from gaps (seq jumped forward by more than one).
-    restarts: times the sequence went back (the publisher restarted).
-    """
-
-    last: int | None = None
-    lost: int = 0
-    restarts: int = 0
-
-    def update(self, seq: int) -> int:
-        """Record ``seq``; returns how many messages went missing just before it."""
-        gap = 0
-        if self.last is not None:
-            if seq > self.last + 1:
-                gap = seq - self.last - 1
-            elif seq <= self.last:
-                self.restarts += 1
-        self.lost += gap
-        self.last = seq
-        return gap
 
 
 class MessagePrinter:

@@ -4,7 +4,7 @@ Cheap by design (a 1 kHz topic must cost a few percent of a core, ros2cli#795):
 payloads are never decoded. The loop blocks in ``poll`` until frames arrive, then
 drains them, taking the receive time (CLOCK_MONOTONIC) of each frame. With
 ``--use-stamps`` the times are the header's ``stamp_ns`` instead, read by
-:func:`peek_header` straight from the MessagePack bytes without unpacking the body.
+:func:`~slipstack.messages.frame.peek_header` straight from the MessagePack bytes without unpacking the body.
 
 Statistics over the last ``window`` times (ros2's ``topic hz`` output)::
 
@@ -19,7 +19,6 @@ this is the sample-to-here latency on the same host (both CLOCK_MONOTONIC).
 from __future__ import annotations
 
 import argparse
-import struct
 import sys
 import time
 from collections import deque
@@ -30,53 +29,13 @@ import numpy as np
 import zmq
 
 from slipstack.lib.errors import ConfigError
+from slipstack.messages.frame import peek_header
 from slipstack.nodes.tools.topic_tools import load_graph, resolve_topic
 from slipstack.nodes.runtime.transport import make_sub
 
-__all__ = ["peek_header", "RateStats", "rate_stats", "format_delay", "main_hz", "main_delay"]
+__all__ = ["RateStats", "rate_stats", "format_delay", "main_hz", "main_delay"]
 
 _BATCH = 5000
-_UINT = {0xCC: struct.Struct(">B"), 0xCD: struct.Struct(">H"), 0xCE: struct.Struct(">I"), 0xCF: struct.Struct(">Q"),
-         0xD0: struct.Struct(">b"), 0xD1: struct.Struct(">h"), 0xD2: struct.Struct(">i"), 0xD3: struct.Struct(">q")}
-
-
-def _int_at(buf: bytes, i: int) -> tuple[int, int]:
-    """A MessagePack integer at ``buf[i]``: ``(value, next index)``; ValueError if not one."""
-    b = buf[i]
-    if b <= 0x7F:
-        return b, i + 1
-    if b >= 0xE0:
-        return b - 0x100, i + 1
-    fmt = _UINT.get(b)
-    if fmt is None:
-        raise ValueError("not an integer")
-    return fmt.unpack_from(buf, i + 1)[0], i + 1 + fmt.size
-
-
-def peek_header(payload: bytes) -> tuple[int, int] | None:
-    """``(stamp_ns, seq)`` from an encoded message, or ``None`` if it is not one.
-
-    Reads only the prefix ``[type, version, [stamp_ns, seq, ...`` of the wire format
-    (:mod:`slipstack.messages.codec`); ~1 µs instead of a full decode.
-    """
-    try:
-        if payload[0] != 0x94:  # fixarray of 4
-            return None
-        b = payload[1]
-        if 0xA0 <= b <= 0xBF:  # fixstr type name
-            i = 2 + (b - 0xA0)
-        elif b == 0xD9:  # str8
-            i = 3 + payload[2]
-        else:
-            return None
-        _, i = _int_at(payload, i)  # version
-        if payload[i] != 0x94:  # header: fixarray of 4
-            return None
-        stamp, i = _int_at(payload, i + 1)
-        seq, _ = _int_at(payload, i)
-        return stamp, seq
-    except (IndexError, ValueError, struct.error):
-        return None
 
 
 @dataclass(frozen=True)
@@ -178,7 +137,7 @@ def _watch(args: argparse.Namespace, value: Callable[[int, int], int], needs_sta
                         if head is None:
                             unparsed += 1
                             continue
-                        stamp = head[0]
+                        stamp = head.stamp_ns
                     append(value(clock(), stamp))
             now = clock()
             if now >= next_print:

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import slipstack.launch
 from slipstack.lib.rig.scene import Scene, load_scene
-from slipstack.lib.rig.sensors import FtSample, TactileSample
+from slipstack.lib.samples import FtSample, TactileSample
 from slipstack.lib.rig.simulator import Simulator, Truth
 
 SCENES_DIR = Path(slipstack.launch.__file__).parent / "scenes"

@@ -21,7 +21,8 @@ from pathlib import Path
 
 from golden_config import GOLDEN_DIR, GOLDENS, Golden
 
-from slipstack.nodes.recording.bag_io import RecordingWriter, peek_header, read_recording
+from slipstack.messages.frame import peek_header
+from slipstack.nodes.recording.bag_io import RecordingWriter, read_recording
 from slipstack.launch.lockstep import LockstepStack
 
 __all__ = ["write_golden", "compare_recordings", "main"]

@@ -12,7 +12,7 @@ from mcap.reader import make_reader
 from slipstack.messages import Diagnostics, Header, Wrench, decode, encode
 from slipstack.nodes.recording.bag_io import (
     MESSAGE_ENCODING, SCHEMA_ENCODING, RecordingError, RecordingWriter, export_recording,
-    match_outputs, message_schema, read_recording, recording_info, replay_into, restamp, same_output,
+    match_outputs, message_schema, read_recording, recording_info, replay_into, same_output,
 )
 from slipstack.nodes.demo import Relay, WrenchSource
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
@@ -141,13 +141,6 @@ def test_export_json_lists_and_infinities(tmp_path):
     assert (schema.encoding, channel.message_encoding) == ("jsonschema", "json")
     assert json.loads(msg.data) == line["message"]
     assert json.loads(schema.data)["properties"]["p_c"]["type"] == "array"
-
-
-def test_restamp_shifts_every_stamp_and_nothing_else():
-    src = Wrench(force=np.array([1.0, 2.0, 3.0]), torque=np.zeros(3), header=Header(100, 7, 150, {"ft": 90}))
-    out = decode(restamp(encode(src), 1_000))
-    assert (out.header.stamp_ns, out.header.seq, out.header.pub_ns, out.header.sources) == (1_100, 7, 1_150, {"ft": 1_090})
-    assert same_output(out, Wrench(force=src.force, torque=src.torque, header=Header(1_100, 0, 0, {"ft": 1_090}))) is None
 
 
 def _live_run(tmp_path, n: int = 300):

@@ -15,7 +15,8 @@ import pytest
 
 from slipstack.lib.protocols.framed import FramedFormat
 from slipstack.nodes.devices import LinkStatus
-from slipstack.nodes.devices.backends import Backend, FtSample, TactileSample, backend_from_url
+from slipstack.lib.samples import FtSample, TactileSample
+from slipstack.nodes.devices.backends import Backend, backend_from_url
 from slipstack.nodes.devices.emulators import (
     BotaEmulator, Dsacon32Emulator, FramedEmulator, M1616Emulator, RdtUdpServer, RobotiqEmulator,
 )

@@ -30,7 +30,7 @@ def test_overrides_are_typed_and_unknown_ones_are_named():
     assert next(e for e in lf.nodes if e.type == "slip_detector").params["delta"] == 0.2
     with pytest.raises(ConfigError, match="no launch argument 'bogus'"):
         load_launch_file("fig15", {"bogus": "1"}, builtins={"run_dir": "/tmp/x"})
-    with pytest.raises(ConfigError, match="is a bool"):
+    with pytest.raises(ConfigError, match="launch argument controller: must be true or false"):
         load_launch_file("fig15", {"controller": "maybe"}, builtins={"run_dir": "/tmp/x"})
 
 

@@ -218,7 +218,7 @@ def test_same_seed_gives_bit_identical_truth_and_sensors():
     assert t1 == t2  # dataclass equality: every float bit-identical
     assert len(s1) == len(s2)
     for a, b in zip(s1, s2):
-        fields = ("counts",) if hasattr(a, "counts") else ("force_S", "torque_S")
+        fields = ("counts",) if hasattr(a, "counts") else ("force_n", "torque_nm")
         assert all(np.array_equal(getattr(a, f), getattr(b, f)) for f in fields)
     t3, _ = _streams(8)
     assert t1 != t3
@@ -337,12 +337,12 @@ def test_ft_reading_maps_back_to_the_true_contact_load():
     sim = Simulator(scene)
     pairs = {}
     for s in sim:
-        pairs.setdefault(s.t_ns, {})[type(s).__name__] = s
+        pairs.setdefault(s.stamp_ns, {})[type(s).__name__] = s
     checked = 0
     for group in pairs.values():
         if "FtSample" in group and "Truth" in group:
             ft, truth = group["FtSample"], group["Truth"]
-            fx, fy, tau, f_n = sim.ft.pad_load(ft.force_S, ft.torque_S)
+            fx, fy, tau, f_n = sim.ft.pad_load(ft.force_n, ft.torque_nm)
             assert (fx, fy) == pytest.approx(truth.load_force, abs=1e-12)
             assert tau == pytest.approx(truth.load_torque, abs=1e-12)
             assert f_n == pytest.approx(5.0, rel=1e-12)
@@ -361,10 +361,10 @@ def test_ft_sees_moments_of_an_offset_sensor_and_quantises():
     assert torque == pytest.approx([0.0, 0.04, 0.0], abs=1e-12)
     sample = sim.ft.measure(0, 0, phi, 5.0, complex(2.0, 0.0), 0.0)
     res = scene.ft.resolution_force_N
-    assert np.allclose(sample.force_S / res, np.round(sample.force_S / res))
+    assert np.allclose(sample.force_n / res, np.round(sample.force_n / res))
     assert not sample.saturated
     big = sim.ft.measure(0, 1, phi, 5.0, complex(100.0, 0.0), 0.0)
-    assert big.saturated and big.force_S[0] == scene.ft.range_force_N[0]
+    assert big.saturated and big.force_n[0] == scene.ft.range_force_N[0]
 
 
 def test_tactile_counts_follow_the_rubber_curve_with_dead_taxels():

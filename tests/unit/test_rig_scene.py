@@ -10,7 +10,7 @@ import pytest
 import slipstack.launch
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.rig.scene import load_scene, parse_scene
-from slipstack.lib.rig.sensors import FtSample, TactileSample
+from slipstack.lib.samples import FtSample, TactileSample
 from slipstack.lib.rig.simulator import Simulator, Truth
 
 SCENES = Path(slipstack.launch.__file__).parent / "scenes"

@@ -1,0 +1,56 @@
+"""Sensor samples: one F/T reading, one tactile frame — as a device back-end decodes
+them and as the simulated rig's sensor models produce them.
+
+``stamp_ns`` is the time of the sample on the clock of whoever made it: the
+simulated time for the rig's sensor models, the caller's clock at the ``poll()`` that
+decoded it for a device back-end.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["FtSample", "TactileSample"]
+
+
+@dataclass(frozen=True, slots=True)
+class FtSample:
+    """One force/torque sample in the sensor frame ``S``.
+
+    stamp_ns: time of the sample (ns, see the module docstring).
+    force_n: (3,) float64, N. torque_nm: (3,) float64, N·m about the sensor origin.
+    device_seq: the sensor's sample counter (RDT ``rdt_sequence``; the simulated
+        sensor counts from 0), or None.
+    device_time_s: device clock (Bota timestamp) in s, or None.
+    status: device status word, 0 = no flag (RDT status, Bota status bits).
+    saturated: some axis hit its range and the value is clipped (the simulated
+        sensor says so here; a device says so in ``status``).
+    """
+
+    stamp_ns: int
+    force_n: np.ndarray
+    torque_nm: np.ndarray
+    device_seq: int | None = None
+    device_time_s: float | None = None
+    status: int = 0
+    saturated: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class TactileSample:
+    """One tactile frame: raw counts, shape (rows, cols), uint16, row = y, col = x.
+
+    stamp_ns: time of the frame (ns, see the module docstring).
+    device_time_s: controller clock (DSACON32 ms timestamp) in s, or None.
+    device_seq: the frame counter (the simulated sensor counts from 0; no tactile
+        protocol has one), or None.
+    status: device flags, 0 = none.
+    """
+
+    stamp_ns: int
+    counts: np.ndarray
+    device_time_s: float | None = None
+    device_seq: int | None = None
+    status: int = 0
