@@ -29,8 +29,9 @@ from slipstack.lib.rig.simulator import Simulator, Truth
 from slipstack.lib.toml_file import resolve_path
 from slipstack.messages import GripCommand, RigTruth
 from slipstack.nodes.devices.emulators import (
-    BotaEmulator, Dsacon32Emulator, M1616Emulator, RdtUdpServer, RobotiqEmulator,
+    BotaEmulator, Dsacon32Emulator, M1616Emulator, RdtSimServer, RdtUdpServer, RobotiqEmulator,
 )
+from slipstack.nodes.devices.sim_link import SIM_PREFIX, is_simulated
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
 __all__ = ["Rig", "RigParams", "truth_message", "with_rates"]
@@ -43,10 +44,14 @@ TACTILE_PROTOCOLS = ("dsacon32", "m1616")
 class RigParams:
     scene: str = field(default="default", metadata={"help": "scene file: a path or a shipped name (fig10, ...)"})
     ft_protocol: str = field(default="rdt", metadata={"help": f"F/T emulator: one of {FT_PROTOCOLS}"})
-    rdt_port: int = field(default=49152, metadata={"help": "UDP port of the RDT emulator on 127.0.0.1"})
-    ft_link: str = field(default="", metadata={"help": "pty symlink path for a serial F/T emulator"})
+    rdt_port: int = field(default=49152, metadata={"help": "UDP port of the RDT emulator"})
+    rdt_host: str = field(default="127.0.0.1", metadata={
+        "help": "address the RDT emulator binds; sim:HOST: the simulated device table instead (lock-step runs)"})
+    ft_link: str = field(default="", metadata={
+        "help": "pty symlink path for a serial F/T emulator; sim:PATH: the simulated device table (lock-step runs)"})
     tactile_protocol: str = field(default="dsacon32", metadata={"help": f"tactile emulator: one of {TACTILE_PROTOCOLS}"})
-    tactile_link: str = field(default="", metadata={"help": "pty symlink path for the tactile emulator"})
+    tactile_link: str = field(default="", metadata={
+        "help": "pty symlink path for the tactile emulator; sim:PATH: the simulated device table (lock-step runs)"})
     calibration_out: str = field(default="", metadata={"help": "write the tactile calibration TOML here"})
     ft_rate_hz: float = field(default=0.0, metadata={"help": "F/T sample rate (Hz); 0: the scene's"})
     tactile_rate_hz: float = field(default=0.0, metadata={"help": "tactile frame rate (Hz); 0: the scene's"})
@@ -97,7 +102,8 @@ class Rig(Node):
         self.sim = Simulator(scene)
         if scene.ft.enabled:
             self.ft_dev = {
-                "rdt": lambda: RdtUdpServer("127.0.0.1", p.rdt_port),
+                "rdt": lambda: (RdtSimServer(p.rdt_host[len(SIM_PREFIX):], p.rdt_port) if is_simulated(p.rdt_host)
+                                else RdtUdpServer(p.rdt_host, p.rdt_port)),
                 "robotiq": lambda: RobotiqEmulator(self._link(p.ft_link, "ft_link"), streaming=False),
                 "bota": lambda: BotaEmulator(self._link(p.ft_link, "ft_link"), streaming=False,
                                              rate_hz=scene.ft.rate_hz),
