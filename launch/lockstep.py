@@ -22,20 +22,21 @@ and a node with I/O of its own (the Foxglove bridge).
 from __future__ import annotations
 
 import os
+import tempfile
 import time
 from pathlib import Path
 from typing import Callable
 
 from slipstack.lib.errors import ConfigError
-from slipstack.launch.launch_file import LaunchFile
+from slipstack.launch.launch_file import SIM_ARG, LaunchFile, load_launch_file
 from slipstack.launch.plan import LaunchPlan, plan_launch, tapped_topics
 from slipstack.nodes.device_driver import DeviceDriver
-from slipstack.nodes.devices.sim_link import is_simulated
+from slipstack.nodes.devices.sim_link import SIM_PREFIX, is_simulated
 from slipstack.nodes.recording.bag_io import RecordingWriter
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.nodes.runtime.node import Node
 
-__all__ = ["LockstepRun", "check_lockstep", "STEP_NS", "DIAGNOSTICS_PERIOD_S"]
+__all__ = ["LockstepRun", "check_lockstep", "run_launch_file", "STEP_NS", "DIAGNOSTICS_PERIOD_S"]
 
 STEP_NS = 10_000_000
 """Simulated time advanced between checks for the end of the run and progress reports (10 ms)."""
@@ -81,9 +82,12 @@ class LockstepRun:
     """Run ``launch`` in lock-step in ``run_dir`` (for ``check.json`` and the device addresses).
 
     ``echo`` receives every log line (``[node] text``); :meth:`run` returns the exit code.
+    With ``keep_published`` the executor keeps every message (``executor.published``;
+    memory grows with the run: for analysis of short scenes).
     """
 
-    def __init__(self, launch: LaunchFile, run_dir: Path, *, echo: Callable[[str], None] = print) -> None:
+    def __init__(self, launch: LaunchFile, run_dir: Path, *, echo: Callable[[str], None] = print,
+                 keep_published: bool = False) -> None:
         check_lockstep(launch)
         self.launch = launch
         self.echo = echo
@@ -103,7 +107,7 @@ class LockstepRun:
             names.append(name)
         self.executor = InProcessExecutor(
             nodes, names=names, remaps={e.name: e.remap for e in launch.nodes},
-            diagnostics_period_s=DIAGNOSTICS_PERIOD_S, keep_published=False, on_frame=self._on_frame, log=echo)
+            diagnostics_period_s=DIAGNOSTICS_PERIOD_S, keep_published=keep_published, on_frame=self._on_frame, log=echo)
         self.required = [e.name for e in launch.nodes if e.required and e.name in names]
         self.end_ns = round(launch.duration_s * 1e9) if launch.duration_s > 0 else None
 
@@ -111,8 +115,11 @@ class LockstepRun:
         for recording in self.recordings:
             recording(t_ns, topic, payload)
 
-    def run(self) -> int:
-        """Run to the end, stop every node (stop order of the plan), close the recordings."""
+    def run(self, progress: Callable[[float], None] | None = None) -> int:
+        """Run to the end, stop every node (stop order of the plan), close the recordings.
+
+        ``progress(fraction)`` is called every 10 % of the expected simulated time (default: a
+        ``[lockstep] STATUS`` line)."""
         ex = self.executor
         wall0, cpu0 = time.monotonic(), time.process_time()
         scene_ns = self._expected_end_ns()
@@ -120,7 +127,7 @@ class LockstepRun:
         try:
             while True:
                 until = ex.now_ns + STEP_NS if self.end_ns is None else min(ex.now_ns + STEP_NS, self.end_ns)
-                ex.advance(until)
+                ex.advance(until, stop_at_shutdown_of=self.required)
                 finished = [n for n in ex.finished() if n in self.required]
                 if finished:
                     self.echo(f"[lockstep] {finished[0]} finished at {ex.now_ns / 1e9:.3f} s simulated")
@@ -128,9 +135,12 @@ class LockstepRun:
                 if self.end_ns is not None and ex.now_ns >= self.end_ns:
                     self.echo(f"[lockstep] duration {self.launch.duration_s:g} s reached")
                     break
-                if scene_ns and ex.now_ns * PROGRESS_STEPS >= next_report * scene_ns:
-                    self.echo(f"[lockstep] STATUS {ex.now_ns / 1e9:.1f} of {scene_ns / 1e9:.1f} s simulated "
-                              f"({100 * ex.now_ns // scene_ns}%), {time.monotonic() - wall0:.1f} s")
+                if scene_ns and next_report <= PROGRESS_STEPS and ex.now_ns * PROGRESS_STEPS >= next_report * scene_ns:
+                    if progress is not None:
+                        progress(min(ex.now_ns / scene_ns, 1.0))
+                    else:
+                        self.echo(f"[lockstep] STATUS {ex.now_ns / 1e9:.1f} of {scene_ns / 1e9:.1f} s simulated "
+                                  f"({100 * ex.now_ns // scene_ns}%), {time.monotonic() - wall0:.1f} s")
                     next_report += 1
         finally:
             running = {h.name for h in ex.hosts}
@@ -150,3 +160,19 @@ class LockstepRun:
             if host.name in self.required and scene is not None:
                 ends.append(round(scene.duration_s * 1e9))
         return min(ends) if ends else None
+
+
+def run_launch_file(file: str | Path, args: dict[str, str] | None = None, *,
+                    progress: Callable[[float], None] | None = None,
+                    echo: Callable[[str], None] = lambda line: None) -> InProcessExecutor:
+    """Run the launch file ``file`` with ``args`` (name → value, as ``name:=value``) in lock-step, in a
+    temporary run directory; the executor after the run, every published message in ``published``.
+
+    For analysis, benchmarks and golden files: pass ``record``/``monitor`` arguments to
+    leave those nodes out when they are not wanted.
+    """
+    with tempfile.TemporaryDirectory(prefix="slipstack-lockstep-") as run_dir:
+        launch = load_launch_file(file, args, builtins={"run_dir": run_dir, SIM_ARG: SIM_PREFIX})
+        run = LockstepRun(launch, Path(run_dir), echo=echo, keep_published=True)
+        run.run(progress)
+        return run.executor

@@ -34,7 +34,7 @@ from slipstack.nodes.devices.emulators import (
 from slipstack.nodes.devices.sim_link import SIM_PREFIX, is_simulated
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
-__all__ = ["Rig", "RigParams", "truth_message", "with_rates"]
+__all__ = ["Rig", "RigParams", "load_scene_by_name", "truth_message", "with_rates"]
 
 FT_PROTOCOLS = ("rdt", "robotiq", "bota")
 TACTILE_PROTOCOLS = ("dsacon32", "m1616")
@@ -83,8 +83,7 @@ class Rig(Node):
             raise ConfigError(f"rig ft_protocol must be one of {FT_PROTOCOLS}, got {p.ft_protocol!r}")
         if p.tactile_protocol not in TACTILE_PROTOCOLS:
             raise ConfigError(f"rig tactile_protocol must be one of {TACTILE_PROTOCOLS}, got {p.tactile_protocol!r}")
-        self.scene = with_rates(load_scene(resolve_path(p.scene, Path.cwd(), "scenes")),
-                                p.ft_rate_hz, p.tactile_rate_hz, p.truth_rate_hz)
+        self.scene = with_rates(load_scene_by_name(p.scene), p.ft_rate_hz, p.tactile_rate_hz, p.truth_rate_hz)
         self.timers = {"tick": p.tick_ms / 1e3}
         self.sim: Simulator | None = None
         self.ft_dev = None
@@ -187,6 +186,11 @@ class Rig(Node):
         for dev in (self.ft_dev, self.tactile_dev):
             if dev is not None:
                 dev.close()
+
+
+def load_scene_by_name(name: str) -> Scene:
+    """A shipped scene (``fig10``) or a scene file path (relative to the current directory)."""
+    return load_scene(resolve_path(name, Path.cwd(), "scenes"))
 
 
 def with_rates(scene: Scene, ft_hz: float = 0.0, tactile_hz: float = 0.0, truth_hz: float = 0.0) -> Scene:

@@ -114,9 +114,11 @@ class InProcessExecutor:
         """Deliver one frame on ``topic`` to its subscribers at ``at_ns`` (default: now)."""
         self.feed([(self.now if at_ns is None else at_ns, topic, item)])
 
-    def advance(self, until_ns: int) -> None:
-        """Run every event, timer and deadline due up to ``until_ns``; the clock ends there."""
-        self.run(until_ns=until_ns)
+    def advance(self, until_ns: int, *, stop_at_shutdown_of: Iterable[str] = ()) -> None:
+        """Run every event, timer and deadline due up to ``until_ns``; the clock ends there, or
+        at once when a node named in ``stop_at_shutdown_of`` asks to shut down (its last event)."""
+        watched = {id(self.host(name)) for name in stop_at_shutdown_of}
+        self._run(until_ns, watched)
 
     def finished(self) -> list[str]:
         """Names of the nodes that asked to shut down (``ctx.shutdown()``), in node order."""
@@ -151,6 +153,9 @@ class InProcessExecutor:
         (timers and deadlines stop with the last frame); give ``until_ns`` to run
         timer-driven nodes.
         """
+        self._run(until_ns, frozenset())
+
+    def _run(self, until_ns: int | None, stop_hosts: frozenset[int] | set[int]) -> None:
         if not self._started:
             self._started = True
             for host in self.hosts:
@@ -188,6 +193,8 @@ class InProcessExecutor:
             for other in self._io_hosts:  # this event may have given a device work
                 if other is not host:
                     self._schedule_deadline(other)
+            if host.shutdown_requested and id(host) in stop_hosts:
+                return
         if until_ns is not None:
             self.now = max(self.now, until_ns)
 
