@@ -1,11 +1,13 @@
 """The paper's §V experiments as lock-step runs, and their topics as arrays.
 
-Each :class:`Experiment` names a shipped scene and the stack the paper used on it —
-detection-only experiments (Figs. 4, 13, 14) run with the controller off, at the
-scene's constant normal force; control experiments (Figs. 10–12, 15) with the paper's
-law. :func:`run_experiment` runs it through :class:`~slipstack.launch.lockstep.LockstepStack`
-(the same nodes and device codecs the launched stack runs, deterministic) and returns
-a :class:`Run`: each topic as numpy arrays, time in seconds from the scene start.
+Each :class:`Experiment` is a shipped paper launch file (``launch/files/<key>.toml``,
+the graph ``slipstack launch <key>`` starts) and the arguments the paper's run differs
+in: detection-only experiments (Figs. 4, 13, 14) run with the controller off, at the
+scene's constant normal force; control experiments (Figs. 10–12, 15) with the launch
+file's law. :func:`run_experiment` runs it like ``slipstack launch <key> --lockstep``
+(``launch/lockstep.py``: the same nodes, device codecs and parameters, deterministic)
+and returns a :class:`Run`: each topic as numpy arrays, time in seconds from the start
+of the run (the scene starts once the drivers' devices stream, a few ms in).
 """
 
 from __future__ import annotations
@@ -17,19 +19,22 @@ from typing import Any, Callable
 import numpy as np
 
 from slipstack.lib.rig.scene import Scene
-from slipstack.launch.lockstep import LockstepStack, StackConfig, load_scene_by_name
+from slipstack.launch.launch_file import load_launch_file
+from slipstack.launch.lockstep import run_launch_file
 
-__all__ = ["Experiment", "EXPERIMENTS", "Run", "run_experiment"]
+__all__ = ["Experiment", "EXPERIMENTS", "Run", "run_experiment", "BETA_FIG11_M"]
 
-BETA_FIG11_M = 0.00344  # β_s of the full-pad flat contact of fig11/fig12 (launch files fig11, fig12)
+BETA_FIG11_M: float = load_launch_file("fig11", builtins={"run_dir": "/nonexistent"}).args["beta_m"]
+"""β_s of the full-pad flat contact of fig11/fig12 (m), as the launch file ``fig11`` sets it."""
 
 
 @dataclass(frozen=True)
 class Experiment:
-    """One paper experiment: a scene and the stack the paper ran on it.
+    """One paper experiment: a launch file and the arguments the paper ran it with.
 
-    key: the figure id (``fig4a`` …); scene: a shipped scene name; protocol: one line
-    for the report; config: the stack (:class:`StackConfig` keyword arguments).
+    key: the figure id and its launch file (``fig4a`` …); scene: the shipped scene it
+    runs; protocol: one line for the report; config: launch arguments overriding the
+    file's (name → value, as ``name:=value``; recording and monitor are off).
     """
 
     key: str
@@ -39,24 +44,16 @@ class Experiment:
 
 
 EXPERIMENTS: dict[str, Experiment] = {e.key: e for e in (
-    Experiment("fig4a", "fig4a", "constant f_n = 5 N, tangential load rising through a spring; no controller",
-               {"controller": False}),
-    Experiment("fig4b", "fig4b", "constant f_n = 5 N, torque rising through a torsional spring; no controller",
-               {"controller": False}),
-    Experiment("fig10", "fig10", "F/T only: Coulomb test (7), linear law f_n = |f_t|/(σμ), σ = 0.5, μ = 0.45",
-               {"controller": True, "slip": {"method": "coulomb"}, "grip": {"law": "linear", "f_max_n": 20.0}}),
-    Experiment("fig11", "fig11", "F/T only: pure torque, law (13) with k = 2 N and β = 3.44 mm",
-               {"controller": True, "slip": {"method": "linear_ls", "beta_m": BETA_FIG11_M},
-                "grip": {"law": "ft13", "beta_m": BETA_FIG11_M, "f_max_n": 20.0}}),
-    Experiment("fig12", "fig12", "F/T only: force and torque, the σ-variant of law (13)",
-               {"controller": True, "slip": {"method": "linear_ls", "beta_m": BETA_FIG11_M},
-                "grip": {"law": "ft13_sigma", "beta_m": BETA_FIG11_M, "f_max_n": 20.0}}),
+    Experiment("fig4a", "fig4a", "constant f_n = 5 N, tangential load rising through a spring; no controller"),
+    Experiment("fig4b", "fig4b", "constant f_n = 5 N, torque rising through a torsional spring; no controller"),
+    Experiment("fig10", "fig10", "F/T only: Coulomb test (7), linear law f_n = |f_t|/(σμ), σ = 0.5"),
+    Experiment("fig11", "fig11", "F/T only: pure torque, law (13) with k = 2 N and β = 3.44 mm"),
+    Experiment("fig12", "fig12", "F/T only: force and torque, the σ-variant of law (13)"),
     Experiment("fig13", "fig13", "rotation about a known COR (the motor shaft) at constant f_n = 2 N; "
-               "no controller: detection only", {"controller": False, "slip": {"method": "tactile_cor_robust"}}),
+               "no controller: detection only", {"controller": False}),
     Experiment("fig14", "fig14", "free object, unknown COR, at constant f_n = 3 N; no controller: detection only",
-               {"controller": False, "slip": {"method": "exact"}}),
-    Experiment("fig15", "fig15", "both sensors: exact test, law (14) with the total increment N_A·δφ",
-               {"controller": True, "slip": {"method": "exact"}, "grip": {"law": "tactile14", "f_max_n": 20.0}}),
+               {"controller": False}),
+    Experiment("fig15", "fig15", "both sensors: exact test, law (14) with the total increment N_A·δφ"),
 )}
 
 
@@ -104,14 +101,14 @@ def _arrays(messages: list, extract: Callable[[Any], dict[str, Any]]) -> dict[st
 def run_experiment(exp: Experiment, *, duration_s: float | None = None,
                    progress: Callable[[float], None] | None = None) -> Run:
     """Run ``exp`` in lock-step (``duration_s`` shortens the scene; None: the scene's own)."""
-    scene = load_scene_by_name(exp.scene)
+    args = {"record": "false", "monitor": "false",
+            **{k: str(v).lower() if isinstance(v, bool) else str(v) for k, v in exp.config.items()}}
+    if duration_s is not None:
+        args["duration_s"] = str(duration_s)
+    ex = run_launch_file(exp.key, args, progress=progress)
+    scene: Scene = ex.host("rig").node.scene
     if duration_s is not None:
         scene = dataclasses.replace(scene, duration_s=min(duration_s, scene.duration_s))
-    stack = LockstepStack(scene, StackConfig(**exp.config))
-    try:
-        ex = stack.run(progress)
-    finally:
-        stack.close()
     topics = {topic: _arrays(ex.published.get(topic, []), extract) for topic, extract in _FIELDS.items()}
     tactile = [c for c in ex.published.get("contact", []) if c.has_tactile and c.phi.size]
     return Run(exp, scene, topics, tactile[len(tactile) // 2].phi if tactile else None)
