@@ -23,7 +23,7 @@ import numpy as np
 from slipstack.lib.calibration import Calibration, save_calibration
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.rig.actuator import CommandWatchdog
-from slipstack.lib.rig.scene import Scene, load_scene
+from slipstack.lib.rig.scene import Scene, load_scene, with_rig_material
 from slipstack.lib.rig.sensors import FtSample, TactileSample
 from slipstack.lib.rig.simulator import Simulator, Truth
 from slipstack.lib.toml_file import resolve_path
@@ -53,6 +53,8 @@ class RigParams:
     tactile_link: str = field(default="", metadata={
         "help": "pty symlink path for the tactile emulator; sim:PATH: the simulated device table (lock-step runs)"})
     calibration_out: str = field(default="", metadata={"help": "write the tactile calibration TOML here"})
+    contact_material: str = field(default="", metadata={
+        "help": "make the scene's contact of this rig material (rubber, coulomb, weakening); empty: the scene's"})
     ft_rate_hz: float = field(default=0.0, metadata={"help": "F/T sample rate (Hz); 0: the scene's"})
     tactile_rate_hz: float = field(default=0.0, metadata={"help": "tactile frame rate (Hz); 0: the scene's"})
     truth_rate_hz: float = field(default=0.0, metadata={"help": "rig/truth rate (Hz); 0: the scene's"})
@@ -83,7 +85,10 @@ class Rig(Node):
             raise ConfigError(f"rig ft_protocol must be one of {FT_PROTOCOLS}, got {p.ft_protocol!r}")
         if p.tactile_protocol not in TACTILE_PROTOCOLS:
             raise ConfigError(f"rig tactile_protocol must be one of {TACTILE_PROTOCOLS}, got {p.tactile_protocol!r}")
-        self.scene = with_rates(load_scene_by_name(p.scene), p.ft_rate_hz, p.tactile_rate_hz, p.truth_rate_hz)
+        scene = load_scene_by_name(p.scene)
+        if p.contact_material:
+            scene = with_rig_material(scene, p.contact_material)
+        self.scene = with_rates(scene, p.ft_rate_hz, p.tactile_rate_hz, p.truth_rate_hz)
         self.timers = {"tick": p.tick_ms / 1e3}
         self.sim: Simulator | None = None
         self.ft_dev = None
