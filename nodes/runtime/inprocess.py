@@ -9,8 +9,8 @@ repeatable. :meth:`~InProcessExecutor.advance` moves the simulated clock; a whol
 launch file runs this way with ``slipstack launch --lockstep`` (``launch/lockstep.py``).
 
 A node's deadline (``next_deadline_ns``) is re-read after each of its events, and a
-node doing I/O of its own (``io_sources``) after every event of any node: a driver
-whose simulated device, fed by the rig, has bytes waiting (``nodes/devices/sim_link.py``)
+node doing I/O of its own (``io_sources``) before the clock moves on: a driver whose
+simulated device, fed by the rig, has bytes waiting (``nodes/devices/sim_link.py``)
 runs at the same simulated instant.
 """
 
@@ -161,7 +161,12 @@ class InProcessExecutor:
             for host in self.hosts:
                 host.call("start", host.node.start, host)
                 self._schedule_deadline(host)
-        while self._queue and (until_ns is None or self._queue[0][0] <= until_ns):
+        while True:
+            if self._io_hosts and (not self._queue or self._queue[0][0] > self.now):
+                for io_host in self._io_hosts:  # before the clock moves on: a device may have been given work
+                    self._schedule_deadline(io_host)
+            if not self._queue or (until_ns is not None and self._queue[0][0] > until_ns):
+                break
             t_ns, _, _, item = heapq.heappop(self._queue)
             self.now = max(self.now, t_ns)
             kind = item[0]
@@ -190,9 +195,6 @@ class InProcessExecutor:
                 if until_ns is not None or self._has_frames():
                     self._schedule(t_ns + period, item)
             self._schedule_deadline(host)
-            for other in self._io_hosts:  # this event may have given a device work
-                if other is not host:
-                    self._schedule_deadline(other)
             if host.shutdown_requested and id(host) in stop_hosts:
                 return
         if until_ns is not None:
