@@ -19,10 +19,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from slipstack.analysis.runs import BETA_FIG11_M, MU_PAPER, Run  # noqa: E402
+from slipstack.analysis.runs import BETA_FIG11_M, Run  # noqa: E402
+from slipstack.lib.defaults import MU  # noqa: E402
 from slipstack.lib.limit_set import load_factor, torsional_coefficient  # noqa: E402
 from slipstack.lib.pad import PadGeometry  # noqa: E402
-from slipstack.nodes.slip_detector import SlipDetectorParams  # noqa: E402
 
 __all__ = ["FigureText", "FIGURES"]
 
@@ -110,7 +110,7 @@ def fig4a(run: Run, out: Path) -> FigureText:
     ax.legend(fontsize=8, loc="lower right")
     return FigureText("fig4a", "Fig. 4a — μ(t) under a rising tangential load", _save(fig, out, "fig4a"),
                       f"At constant f_n the ratio |f_t|/f_n rises to the static coefficient and drops to a "
-                      f"lower sliding value with stick–slip; the paper measured μ_s = {MU_PAPER}.",
+                      f"lower sliding value with stick–slip; the paper measured μ_s = {MU}.",
                       f"Peak {peak:.3f} at {onset:.2f} s (true gross-slip onset), median while sliding "
                       f"{plateau:.3f}; the scene's rubber has μ_s = {c.mu_s:g}, μ_d = {c.mu_d:g}.",
                       "The peak sits slightly below μ_s: the contact's edges already slide at μ_d before the "
@@ -278,7 +278,7 @@ def fig10(run: Run, out: Path) -> FigureText:
     slid, turned = _slid(run)
     peak = float(run["grip/command"]["f_n"].max())
     return FigureText("fig10", "Fig. 10 — linear slip control, F/T sensor only", png,
-                      f"The normal force follows |f_t|/(σμ) with σ = {SIGMA_PAPER:g}, μ = {MU_PAPER} (identified in "
+                      f"The normal force follows |f_t|/(σμ) with σ = {SIGMA_PAPER:g}, μ = {MU} (identified in "
                       "Fig. 4a): the set points lie on a line twice as steep as the friction cone, and the object "
                       "does not slip.",
                       f"Friction used: {_friction_note(run)}; the scene's μ_s = {run.scene.contact.mu_s:g}. "
@@ -338,8 +338,7 @@ def fig12(run: Run, out: Path) -> FigureText:
 
 def _detector_delta(run: Run) -> float:
     """The onset band δ the run's detector used (its material's, unless set)."""
-    slip = run.experiment.config.get("slip", {})
-    return SlipDetectorParams(**slip).delta
+    return run.detector.delta
 
 
 def fig13(run: Run, out: Path) -> FigureText:
@@ -463,9 +462,9 @@ def fig15(run: Run, out: Path) -> FigureText:
     ax0.legend(lines, [h.get_label() for h in lines], fontsize=8, loc="center right")
     ax0.set(xlabel="time (s)", ylabel="N", title="Fig. 15a: set point, real force, disturbance, angle")
     pad = run.scene.pad
-    beta = torsional_coefficient(run.phi_sample, pad.positions, MU_PAPER).beta_m if run.phi_sample is not None \
+    beta = torsional_coefficient(run.phi_sample, pad.positions, MU).beta_m if run.phi_sample is not None \
         else BETA_FIG11_M
-    x = np.hypot(s["f_t"][:, 0], s["f_t"][:, 1]) / MU_PAPER + np.abs(s["tau"]) / beta
+    x = np.hypot(s["f_t"][:, 0], s["f_t"][:, 1]) / MU + np.abs(s["tau"]) / beta
     ax1.plot(x, s["f_n"], ".", ms=1.5, label="measured")
     xs = np.linspace(0, x.max() * 1.05, 50)
     ax1.plot(xs, xs, "k--", lw=1, label="f_n = |f_t|/μ + |τ|/β (limit (5))")

@@ -17,7 +17,8 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from slipstack.analysis.runs import BETA_FIG11_M, MU_PAPER, Experiment
+from slipstack.analysis.runs import BETA_FIG11_M, Experiment
+from slipstack.lib.defaults import MU
 from slipstack.lib.material import material_toml
 from slipstack.nodes.recording.bag_io import RecordingError
 from slipstack.analysis.identify_cli import identify_material
@@ -57,20 +58,19 @@ def identify_friction(recordings: list[Path], out_dir: Path) -> Friction:
         material, lines = identify_material(recordings, name="identified",
                                             provenance="slipstack reproduce: fig4a and fig4b, lock-step")
     except RecordingError as e:
-        return Friction(MU_PAPER, BETA_FIG11_M, None, False, False, (f"identification failed: {e}",))
+        return Friction(MU, BETA_FIG11_M, None, False, False, (f"identification failed: {e}",))
     path = out_dir / MATERIAL_FILE
     path.write_text(material_toml(material, "Identified by slipstack reproduce on its Fig. 4a/4b runs."))
     mu_ok, beta_ok = math.isfinite(material.mu_s), math.isfinite(material.beta_s_m)
-    return Friction(material.mu_s if mu_ok else MU_PAPER, material.beta_s_m if beta_ok else BETA_FIG11_M, path,
+    return Friction(material.mu_s if mu_ok else MU, material.beta_s_m if beta_ok else BETA_FIG11_M, path,
                     mu_ok, beta_ok, tuple(lines))
 
 
 def with_friction(exp: Experiment, friction: Friction) -> Experiment:
     """``exp`` with its detector and grip law given ``friction`` (material file, μ, β)."""
-    material = {"material": str(friction.material)} if friction.material else {}
-    config = dict(exp.config)
-    config["slip"] = {**config.get("slip", {}), **material, "mu": friction.mu_s}
-    if "beta_m" in config["slip"]:
-        config["slip"]["beta_m"] = friction.beta_s_m
-    config["grip"] = {**config.get("grip", {}), **material, "mu": friction.mu_s, "beta_m": friction.beta_s_m}
+    config = {**exp.config, "mu": friction.mu_s}
+    if friction.material:
+        config["material"] = str(friction.material)
+    if exp.arg("beta_m"):  # an F/T test and law with a declared β (the Coulomb test of fig10 takes none)
+        config["beta_m"] = friction.beta_s_m
     return dataclasses.replace(exp, config=config, friction=friction.describe())

@@ -15,7 +15,8 @@ Format::
     [args]                    # launch arguments, overridden by `name:=value`
     rate_hz = 1000.0          # built in: $(run_dir), this run's private directory, and
                               # $(free_udp_port), a UDP port free on 127.0.0.1 now,
-                              # $(stamp), the date-time the launch started
+                              # $(stamp), the date-time the launch started,
+                              # $(sim), "sim:" with --lockstep (simulated devices), else ""
 
     [[node]]
     name = "source"           # instance name (unique; letters, digits, _ and -)
@@ -65,7 +66,7 @@ from slipstack.nodes.catalog import node_class
 from slipstack.nodes.runtime.node import Node, make_params
 
 __all__ = ["NodeEntry", "LaunchFile", "load_launch_file", "default_launch_file", "launch_files_dir", "free_port",
-           "CHECK_ARG", "arg_comments"]
+           "CHECK_ARG", "SIM_ARG", "arg_comments"]
 
 _SUBST = re.compile(r"\$\((\w+)\)")
 _IDENTIFIER = re.compile(r"[A-Za-z0-9_-]+")
@@ -77,6 +78,9 @@ SUBST_MAX_CHARS = 65536
 """Longest value an argument substitution may produce (a guard against self-doubling arguments)."""
 SUBST_MAX_DEPTH = 32
 """Longest chain of arguments referring to arguments."""
+SIM_ARG = "sim"
+"""Built-in argument: ``"sim:"`` in a lock-step launch (``--lockstep``), else ``""``; written before a
+device URL or emulator address, it names the simulated device (``nodes/devices/sim_link.py``)."""
 CHECK_ARG = "check"
 """``check:=true`` on the command line sets ``[launch] check`` when the file declares no such argument."""
 
@@ -384,8 +388,8 @@ def load_launch_file(
 
     ``builtins`` are arguments the launcher provides (``run_dir``: this run's private
     directory, for device links and recordings); a file cannot override them.
-    ``free_udp_port`` (a UDP port free now) and ``stamp`` (the local date-time,
-    ``YYYYmmdd-HHMMSS``) are always provided.
+    ``free_udp_port`` (a UDP port free now), ``stamp`` (the local date-time,
+    ``YYYYmmdd-HHMMSS``) and ``sim`` (:data:`SIM_ARG`, ``""`` unless given) are always provided.
 
     Raises:
         ConfigError: naming the file and key that is wrong.
@@ -400,7 +404,7 @@ def load_launch_file(
             raise ConfigError(f"{p.name}: no launch argument {name!r}; declared: {', '.join(sorted(args)) or 'none'}")
         args[name] = _typed_override(args[name], text, name)
     args.update({"free_udp_port": free_port(socket.SOCK_DGRAM), "stamp": time.strftime("%Y%m%d-%H%M%S"),
-                 **(builtins or {})})
+                 SIM_ARG: "", **(builtins or {})})
     # an argument may refer to others ("rdt://127.0.0.1:$(rdt_port)", "$(run_dir)/ft.tty"),
     # which may refer to others again
     args = _resolve_args(args, p.name)

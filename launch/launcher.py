@@ -45,14 +45,13 @@ import msgpack
 import zmq
 
 from slipstack.lib.errors import ConfigError, SlipstackError
-from slipstack.launch.launch_file import LaunchFile, NodeEntry, arg_comments, free_port, load_launch_file
+from slipstack.launch.launch_file import SIM_ARG, LaunchFile, arg_comments, load_launch_file
+from slipstack.launch.plan import NodePlan, ProcessPlan, plan_launch
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
-from slipstack.messages import Diagnostics
+from slipstack.nodes.devices.sim_link import SIM_PREFIX
 from slipstack.nodes.runtime.curve import INSECURE_ENV, KEYS_ENV
 from slipstack.nodes.runtime.graph_info import process_start_ticks, write_graph
-from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.run_dir import finish_run_dir, make_run_dir, remove_run_dir, write_private_file
-from slipstack.nodes.runtime.transport import ipc_endpoint
 
 __all__ = ["Launcher", "add_parser", "main_launch"]
 
@@ -66,24 +65,9 @@ CHECK_FILE_MAX_BYTES = 1 << 20
 
 
 @dataclass
-class _Child:
-    """One node of the graph: how it is wired."""
+class _Process(ProcessPlan):
+    """One OS process of the plan and its state while the launch runs."""
 
-    entry: NodeEntry
-    endpoint: str
-    process: str  # name of the _Process that runs it
-    outputs: dict[str, str] = field(default_factory=dict)
-    inputs: dict[str, str] = field(default_factory=dict)
-    inject: dict[str, str] = field(default_factory=dict)
-
-
-@dataclass
-class _Process:
-    """One OS process: a single node, or a container of nodes sharing one loop."""
-
-    name: str
-    members: list[_Child]
-    spec_path: Path
     proc: subprocess.Popen | None = None
     restarts: int = 0
     """Restarts over the whole launch."""
@@ -100,32 +84,6 @@ class _Process:
     standby: subprocess.Popen | None = None
     """A process with the node's modules imported, waiting on stdin to start (respawn in a fraction of the time)."""
     buffer: bytes = b""
-
-    @property
-    def entry(self) -> NodeEntry:
-        """Process settings (respawn, required, nice): the members share them."""
-        return self.members[0].entry
-
-    @property
-    def is_container(self) -> bool:
-        return bool(self.entry.container)
-
-    @property
-    def label(self) -> str:
-        """How log lines name it: ``container NAME`` or ``node NAME (TYPE)``."""
-        return f"container {self.name}" if self.is_container else f"node {self.name} ({self.entry.type})"
-
-    @property
-    def node_names(self) -> set[str]:
-        return {c.entry.name for c in self.members}
-
-    @property
-    def inputs(self) -> set[str]:
-        return {t for c in self.members for t in c.inputs}
-
-    @property
-    def outputs(self) -> set[str]:
-        return {t for c in self.members for t in c.outputs}
 
 
 class Console:
@@ -156,111 +114,22 @@ class Launcher:
         self.launch = launch
         self.echo = echo or Console()
         self.run_dir = run_dir
+        self.plan = plan_launch(launch, run_dir)
         self.zctx = zmq.Context.instance()
-        self.control_ep = f"ipc://{self.run_dir}/launcher.ctl"
+        self.control_ep = self.plan.control_endpoint
         self.control = self.zctx.socket(zmq.PULL)
         self.control.setsockopt(zmq.LINGER, 0)
         self.control.bind(self.control_ep)
         self.selector = selectors.DefaultSelector()
-        self.children: dict[str, _Child] = {}
-        self.processes: dict[str, _Process] = {}
-        self.order: list[str] = []  # process names, in start order
+        self.children: dict[str, NodePlan] = self.plan.nodes
+        self.processes: dict[str, _Process] = {
+            name: _Process(p.name, p.members, p.spec_path, p.spec) for name, p in self.plan.processes.items()}
+        self.order: list[str] = self.plan.order  # process names, in start order
         self._stop_requested = False
         self.exit_code = 0
         self.start_ticks = process_start_ticks(os.getpid())
-        self._wire()
-
-    # -- wiring ---------------------------------------------------------------------------
-    def _wire(self) -> None:
-        nodes = {e.name: e.instance() for e in self.launch.nodes}
-        for e in self.launch.nodes:
-            ep = f"tcp://127.0.0.1:{free_port()}" if e.transport == "tcp" else ipc_endpoint(self.run_dir, e.name)
-            child = _Child(e, ep, e.container or e.name)
-            child.outputs = {t: nodes[e.name].outputs[n].type.TYPE for n, t in e.output_topics(nodes[e.name]).items()}
-            child.outputs[DIAGNOSTICS_TOPIC] = Diagnostics.TYPE  # every node publishes it
-            child.inputs = {t: nodes[e.name].inputs[n].type.TYPE for n, t in e.input_topics(nodes[e.name]).items()}
-            child.inject = {t: ipc_endpoint(self.run_dir, f"{e.name}.in") for t in child.inputs}
-            self.children[e.name] = child
-            proc = self.processes.setdefault(
-                child.process, _Process(child.process, [], self.run_dir / f"{child.process}.spec.json"))
-            proc.members.append(child)
-        publishers: dict[str, list[str]] = {}
-        for name, c in self.children.items():
-            for topic in c.outputs:
-                publishers.setdefault(topic, []).append(name)
-        taps = {n: tapped for n in self.children if (tapped := self._tapped_topics(nodes[n])) is not None}
-        specs: dict[str, dict] = {}
-        for name, c in self.children.items():
-            # a subscriber in the publisher's own process gets its messages handed over there
-            expected = {
-                topic: sum(1 for other in self.children.values() if topic in other.inputs and other.process != c.process)
-                + sum(1 for tap, tapped in taps.items() if tap != name and (not tapped or topic in tapped))
-                for topic in c.outputs
-            }
-            local = {t: [p for p in publishers.get(t, []) if p != name and self.children[p].process == c.process]
-                     for t in c.inputs}
-            specs[name] = {
-                "name": name,
-                "pub": c.endpoint,
-                "subs": {t: [self.children[p].endpoint for p in publishers.get(t, [])
-                             if self.children[p].process != c.process] for t in c.inputs},
-                "remap": c.entry.remap,
-                "inject": c.inject,
-                "expected_subscribers": {t: n for t, n in expected.items() if n},
-                "control": self.control_ep,
-                "local": {t: ps for t, ps in local.items() if ps},
-                "params": c.entry.params,
-            }
         for proc in self.processes.values():
-            if proc.is_container:
-                doc = {"container": proc.name,
-                       "members": [{"type": c.entry.type, **specs[c.entry.name]} for c in proc.members]}
-            else:
-                doc = specs[proc.members[0].entry.name]
-            write_private_file(self.run_dir, proc.spec_path.name, json.dumps(doc, indent=1))
-        self.order = self._start_order()
-
-    @staticmethod
-    def _tapped_topics(node: object) -> set[str] | None:
-        """Topics a bus tap (the recorder) subscribes to: a set, empty for all; None if no tap."""
-        if not getattr(node, "taps_bus", False):
-            return None
-        return set(node.params.topics)
-
-    def _start_order(self) -> list[str]:
-        """Processes, subscribers before publishers: reverse topological order, back edges ignored."""
-        procs = self.processes
-        downstream = {
-            name: [o for o, op in procs.items() if o != name and op.inputs & p.outputs] for name, p in procs.items()
-        }
-        after = {
-            name: {self.children[a].process for c in p.members for a in c.entry.after} - {name}
-            for name, p in procs.items()
-        }
-        seen: set[str] = set()
-        post: list[str] = []
-
-        def visit(n: str) -> None:
-            seen.add(n)
-            for m in downstream[n]:
-                if m not in seen:
-                    visit(m)
-            post.append(n)
-
-        for name in procs:  # launch-file order breaks ties
-            if name not in seen:
-                visit(name)
-        # post-order: every process after all it feeds (cycles cut where entered); then
-        # honour explicit `after` constraints, keeping that order otherwise
-        order: list[str] = []
-        pending = post
-        while pending:
-            ready = [n for n in pending if after[n] <= set(order)]
-            if not ready:
-                raise ConfigError(f"'after' constraints form a cycle among {pending}")
-            order.append(ready[0])
-            pending = [n for n in pending if n != ready[0]]
-        return order
+            write_private_file(self.run_dir, proc.spec_path.name, json.dumps(proc.spec, indent=1))
 
     # -- processes --------------------------------------------------------------------------
     def _spawn(self, c: _Process) -> None:
@@ -503,16 +372,7 @@ class Launcher:
     def _check_problems(self) -> list[str]:
         """What failed the run: the monitor's ``check.json`` problems (none expected without a monitor in
         the launch), processes that died and stayed down."""
-        try:
-            fd = os.open(self.run_dir / CHECK_FILE, os.O_RDONLY | os.O_NOFOLLOW)
-            with os.fdopen(fd, "rb") as fh:
-                doc = json.loads(fh.read(CHECK_FILE_MAX_BYTES))
-            problems = [] if doc["passed"] is True else [str(p) for p in doc.get("problems") or ["not passed"]]
-        except FileNotFoundError:
-            monitored = any(e.type == "monitor" for e in self.launch.nodes)
-            problems = [f"no {CHECK_FILE} from the monitor (did it not stop cleanly?)"] if monitored else []
-        except (OSError, ValueError, TypeError, KeyError) as exc:
-            problems = [f"{CHECK_FILE} is unreadable ({exc})"]
+        problems = monitor_check_problems(self.launch, self.run_dir)
         for c in self.processes.values():
             if c.abandoned:
                 problems.append(f"{c.name} abandoned after {c.restarts} restarts")
@@ -530,8 +390,7 @@ class Launcher:
 
     def _stop_order(self, started: list[str]) -> list[_Process]:
         """Processes marked ``stop_first`` (the simulated world), then the rest in reverse start order."""
-        procs = [self.processes[n] for n in reversed(started)]
-        return [p for p in procs if p.entry.stop_first] + [p for p in procs if not p.entry.stop_first]
+        return [self.processes[n] for n in self.plan.stop_order(started)]
 
     def _shutdown(self, started: list[str]) -> None:
         for c in self.processes.values():
@@ -557,6 +416,21 @@ class Launcher:
         self._forward_logs(0.0)
 
 
+def monitor_check_problems(launch: LaunchFile, run_dir: Path) -> list[str]:
+    """The problems in the monitor's ``check.json`` in ``run_dir`` (none expected without a monitor in the launch)."""
+    try:
+        fd = os.open(run_dir / CHECK_FILE, os.O_RDONLY | os.O_NOFOLLOW)
+        with os.fdopen(fd, "rb") as fh:
+            doc = json.loads(fh.read(CHECK_FILE_MAX_BYTES))
+        problems = [] if doc["passed"] is True else [str(p) for p in doc.get("problems") or ["not passed"]]
+    except FileNotFoundError:
+        monitored = any(e.type == "monitor" for e in launch.nodes)
+        problems = [f"no {CHECK_FILE} from the monitor (did it not stop cleanly?)"] if monitored else []
+    except (OSError, ValueError, TypeError, KeyError) as exc:
+        problems = [f"{CHECK_FILE} is unreadable ({exc})"]
+    return problems
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "launch", help="run a graph (default: the simulated rig and the full stack)",
@@ -566,6 +440,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("assignments", nargs="*", metavar="name:=value", help="launch argument overrides")
     p.add_argument("--show-args", action="store_true",
                    help="print the launch arguments with their values and comments, and exit")
+    p.add_argument("--lockstep", action="store_true",
+                   help="run every node in this process on the simulated clock, the rig in lock-step with the "
+                        "stack: faster than real time and repeatable bit for bit (simulated devices only)")
     p.set_defaults(func=main_launch)
 
 
@@ -577,18 +454,37 @@ def main_launch(args: argparse.Namespace) -> int:
         file = None
     run_dir = make_run_dir()
     try:
-        builtins = {"run_dir": str(run_dir)}
+        builtins = {"run_dir": str(run_dir), SIM_ARG: SIM_PREFIX if args.lockstep else ""}
         launch = load_launch_file(file, parse_assignments(positional), builtins=builtins)
         if args.show_args:
             comments = arg_comments(launch.path)
             for name, value in launch.args.items():
-                if name not in ("run_dir", "free_udp_port", "stamp"):
+                if name not in ("run_dir", "free_udp_port", "stamp", SIM_ARG):
                     note = f"  # {comments[name]}" if name in comments else ""
                     print(f"{name} := {value!r}{note}")
             remove_run_dir(run_dir)
             return 0
+        if args.lockstep:
+            return run_lockstep(launch, run_dir)
         launcher = Launcher(launch, run_dir)
     except BaseException:  # a bad launch file leaves no run directory behind
         remove_run_dir(run_dir)
         raise
     return launcher.run()
+
+
+def run_lockstep(launch: LaunchFile, run_dir: Path, echo: Callable[[str], None] | None = None) -> int:
+    """``--lockstep``: ``launch`` in this process on the simulated clock (``launch/lockstep.py``);
+    the exit code, 1 if ``check`` is on and the monitor's check failed."""
+    from slipstack.launch.lockstep import LockstepRun  # the real-time launch does not import the nodes
+
+    echo = echo or Console()
+    try:
+        exit_code = LockstepRun(launch, run_dir, echo=echo).run()
+        if launch.check:
+            problems = monitor_check_problems(launch, run_dir)
+            echo(f"[launch] CHECK FAILED: {'; '.join(problems)}" if problems else "[launch] check passed")
+            exit_code = exit_code or int(bool(problems))
+    finally:
+        finish_run_dir(run_dir, keep=(CHECK_FILE,))
+    return exit_code

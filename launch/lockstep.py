@@ -1,181 +1,178 @@
-"""The whole stack in one process, in lock-step with the simulated rig.
+"""``slipstack launch FILE --lockstep``: a launch plan run in one process on the simulated clock.
 
-For benchmarks and golden files: deterministic (a scene seed fixes everything) and
-as fast as the machine allows. Each F/T and tactile sample of the simulator still
-travels as device bytes — encoded by the emulator-side codec (ATI RDT records,
-DSACON32 packets), decoded by the driver-side codec — and enters the real driver
-nodes through their ``on_sample``; from there the real nodes run on the
-:class:`~slipstack.nodes.runtime.inprocess.InProcessExecutor`. A grip command takes effect at
-the next simulator tick (``tick_ms``), like the real-time rig.
+The nodes of the plan (``launch/plan.py``), the ones a real-time launch starts as
+processes, run on the :class:`~slipstack.nodes.runtime.inprocess.InProcessExecutor`:
+every timer, deadline and message in simulated time order, as fast as the CPU allows
+and bit-for-bit repeatable (a scene's seed fixes everything). The simulated rig's
+emulators and the drivers meet on simulated devices (``sim:`` URLs,
+``nodes/devices/sim_link.py``): each sample still travels as device bytes, encoded by
+the emulator and decoded by the driver's own back-end, handshakes included. A grip
+command takes effect at the rig's next tick, as in a real-time launch.
+
+The monitor prints the same summary and writes the same ``check.json``; the recorder
+entry of the plan writes the frames of its topics to its ``path`` as they are
+published, with the simulated publication time as log time (ns from the run's start).
+A launch ends when a ``required`` node finishes (the rig, at the end of its scene) or
+at ``[launch] duration_s`` of simulated time, whichever comes first.
+
+Refused, with what to do instead: a driver on a real device (a URL without ``sim:``),
+and a node with I/O of its own (the Foxglove bridge).
 """
 
 from __future__ import annotations
 
-import math
+import os
 import tempfile
-from dataclasses import dataclass, field
+import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Callable
 
-
-from slipstack.lib.calibration import Calibration, save_calibration
-from slipstack.lib.protocols import ati_rdt, dsacon32
-from slipstack.lib.protocols.stream import Deframer
-from slipstack.lib.rig.scene import Scene, load_scene
-from slipstack.lib.samples import FtSample, TactileSample
-from slipstack.lib.rig.simulator import Simulator
-from slipstack.lib.toml_file import resolve_path
-from slipstack.messages import RigTruth
-from slipstack.nodes.cor_estimator import CorEstimator, CorParams
-from slipstack.nodes.ft_driver import FtDriver, FtDriverParams
-from slipstack.nodes.fusion import Fusion, FusionParams
-from slipstack.nodes.grip_controller import GripController, GripControllerParams
+from slipstack.lib.errors import ConfigError
+from slipstack.launch.launch_file import SIM_ARG, LaunchFile, load_launch_file
+from slipstack.launch.plan import LaunchPlan, plan_launch, tapped_topics
+from slipstack.nodes.device_driver import DeviceDriver
+from slipstack.nodes.devices.sim_link import SIM_PREFIX, is_simulated
+from slipstack.nodes.recording.bag_io import RecordingWriter
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
-from slipstack.nodes.runtime.node import Node, Output
-from slipstack.nodes.rig import truth_message
-from slipstack.nodes.slip_detector import SlipDetector, SlipDetectorParams
-from slipstack.nodes.tactile_driver import TactileDriver, TactileDriverParams
+from slipstack.nodes.runtime.node import Node
 
-__all__ = ["StackConfig", "LockstepStack", "load_scene_by_name"]
+__all__ = ["LockstepRun", "check_lockstep", "run_launch_file", "STEP_NS", "DIAGNOSTICS_PERIOD_S"]
 
-_CPF = 1_000_000.0  # counts per N and per N·m of the emulated RDT stream
-
-
-def load_scene_by_name(name: str) -> Scene:
-    """A shipped scene (``fig10``) or a scene file path."""
-    return load_scene(resolve_path(name, Path.cwd(), "scenes"))
+STEP_NS = 10_000_000
+"""Simulated time advanced between checks for the end of the run and progress reports (10 ms)."""
+DIAGNOSTICS_PERIOD_S = 1.0
+"""Simulated seconds between each node's ``diagnostics`` (as in a real-time launch)."""
+PROGRESS_STEPS = 10
+"""Progress lines per run (one every 10 % of the simulated time)."""
 
 
-@dataclass
-class StackConfig:
-    """Which stack runs on the scene; parameters as the nodes' own."""
-
-    controller: bool = True
-    tactile: bool | None = None  # None: as the scene says
-    grip: dict[str, Any] = field(default_factory=dict)
-    slip: dict[str, Any] = field(default_factory=dict)
-    cor: dict[str, Any] = field(default_factory=dict)
-    fusion: dict[str, Any] = field(default_factory=dict)
-    tick_ms: float = 1.0
-
-
-class _TruthSource(Node):
-    """Publishes ``rig/truth`` for the lock-step loop (no timers, no I/O)."""
-
-    name = "rig"
-    outputs = {"truth": Output("rig/truth", RigTruth)}
+def check_lockstep(launch: LaunchFile) -> None:
+    """Raise ConfigError, saying what to do, if ``launch`` cannot run in lock-step."""
+    name = launch.path.name
+    for e in launch.nodes:
+        if issubclass(e.cls, DeviceDriver) and not is_simulated(str(e.params.get("url", ""))):
+            raise ConfigError(
+                f"{name}: --lockstep runs simulated devices only, and node {e.name} reads the device "
+                f"{e.params.get('url', '')!r}; give it the simulated twin (sim: before the URL, served by the "
+                "simulated rig in the same launch) or launch without --lockstep")
+        own_io = e.cls.io_sources is not Node.io_sources
+        if own_io and not issubclass(e.cls, DeviceDriver) and not getattr(e.cls, "taps_bus", False):
+            raise ConfigError(f"{name}: node {e.name} ({e.type}) does I/O of its own and cannot run in lock-step; "
+                              f"leave it out of this launch (its enabled argument) or launch without --lockstep")
+    if not any(e.required for e in launch.nodes) and launch.duration_s <= 0:
+        raise ConfigError(f"{name}: a lock-step run needs an end: a required node that finishes (the simulated rig) "
+                          "or a duration (duration_s:=SECONDS if the file declares it)")
 
 
-class _RdtWire:
-    """Simulated F/T sample → RDT record bytes → decoded driver-side sample."""
+class _Recording:
+    """The plan's recorder: every frame of its topics, written as it is published."""
 
-    def __init__(self) -> None:
-        self.seq = 0
+    def __init__(self, path: Path, topics: set[str]) -> None:
+        if os.path.lexists(path):  # never overwrite a recording (or write through a link)
+            raise ConfigError(f"recording {path} exists; pass recording:=NEW.mcap (or path:=NEW.mcap) or delete it")
+        self.topics = topics
+        self.writer = RecordingWriter(path, wall_minus_monotonic_ns=0)
 
-    def __call__(self, s: FtSample) -> FtSample:
-        self.seq += 1
-        counts = [round(v * _CPF) for v in (*s.force_n, *s.torque_nm)]
-        (record,) = ati_rdt.decode_records(ati_rdt.encode_record(self.seq, self.seq, 0, counts))
-        force, torque = ati_rdt.to_wrench(record, _CPF, _CPF)
-        return FtSample(stamp_ns=s.stamp_ns, force_n=force, torque_nm=torque, device_seq=record.rdt_sequence,
-                        device_time_s=None, status=record.status)
-
-
-class _DsaconWire:
-    """Simulated tactile frame → DSACON32 packet bytes → decoded driver-side sample."""
-
-    def __init__(self, rows: int, cols: int) -> None:
-        self.rows, self.cols = rows, cols
-        self.deframer = Deframer(dsacon32.PacketCodec(allow_empty=False))
-
-    def __call__(self, s: TactileSample) -> TactileSample | None:
-        wire = dsacon32.encode_packet(dsacon32.PacketId.FRAME, dsacon32.encode_frame_payload(s.stamp_ns // 1_000_000, s.counts))
-        packets = self.deframer.feed(wire)
-        frame = dsacon32.decode_frame_payload(packets[0].payload, self.rows * self.cols) if packets else None
-        if frame is None:
-            return None
-        return TactileSample(stamp_ns=s.stamp_ns, counts=frame.counts.reshape(self.rows, self.cols),
-                             device_time_s=frame.timestamp_ms / 1e3)
+    def __call__(self, t_ns: int, topic: str, payload: bytes) -> None:
+        if not self.topics or topic in self.topics:
+            self.writer.write(topic, payload, t_ns)
 
 
-class LockstepStack:
-    """Run ``scene`` through the stack of ``config``; results in :attr:`executor`.
+class LockstepRun:
+    """Run ``launch`` in lock-step in ``run_dir`` (for ``check.json`` and the device addresses).
 
-    After :meth:`run`, ``executor.published`` holds every topic (``ft/wrench``,
-    ``tactile/frame``, ``contact``, ``cor``, ``slip``, ``grip/command``,
-    ``rig/truth``).
+    ``echo`` receives every log line (``[node] text``); :meth:`run` returns the exit code.
+    With ``keep_published`` the executor keeps every message (``executor.published``;
+    memory grows with the run: for analysis of short scenes).
     """
 
-    def __init__(self, scene: Scene | str, config: StackConfig | None = None) -> None:
-        self.scene = load_scene_by_name(scene) if isinstance(scene, str) else scene
-        self.config = cfg = config or StackConfig()
-        sc = self.scene
-        self.sim = Simulator(sc)
-        self.tactile = sc.tactile.enabled if cfg.tactile is None else (cfg.tactile and sc.tactile.enabled)
-        self._tmp = tempfile.TemporaryDirectory(prefix="slipstack-lockstep-")
-        yaw_deg = math.degrees(sc.ft.yaw_rad)
-        self.ft_driver = FtDriver(FtDriverParams(url="rdt://127.0.0.1:1", pad_offset_m=tuple(sc.ft.origin_m),
-                                                 pad_rpy_deg=(0.0, 0.0, yaw_deg)))
-        nodes: list[Node] = [self.ft_driver, _TruthSource(), Fusion(FusionParams(**{"use_tactile": self.tactile, **cfg.fusion}))]
-        self.tactile_driver = None
-        if self.tactile:
-            cal_path = Path(self._tmp.name) / "calibration.toml"
-            pressure, counts = self.sim.tactile.calibration_table()
-            save_calibration(Calibration(counts=counts, pressure_pa=pressure,
-                                         saturation_counts=sc.tactile.full_scale_counts), cal_path)
-            self.tactile_driver = TactileDriver(TactileDriverParams(
-                url="dsacon32:///lockstep", calibration=str(cal_path), rows=sc.pad.rows, cols=sc.pad.cols,
-                pitch_m=sc.pad.pitch_m))
-            nodes += [self.tactile_driver, CorEstimator(CorParams(**cfg.cor))]
-        nodes.append(SlipDetector(SlipDetectorParams(**cfg.slip)))
-        if cfg.controller:
-            nodes.append(GripController(GripControllerParams(**cfg.grip)))
-        for driver in (self.ft_driver, self.tactile_driver):
-            if driver is not None:
-                driver.detach()
-        self.executor = InProcessExecutor(nodes)
-        self._hosts = {id(h.node): h for h in self.executor.hosts}
-        self._rdt = _RdtWire()
-        self._dsa = _DsaconWire(sc.pad.rows, sc.pad.cols)
-        self._commands_seen = 0
+    def __init__(self, launch: LaunchFile, run_dir: Path, *, echo: Callable[[str], None] = print,
+                 keep_published: bool = False) -> None:
+        check_lockstep(launch)
+        self.launch = launch
+        self.echo = echo
+        self.plan: LaunchPlan = plan_launch(launch, run_dir)
+        self.recordings: list[_Recording] = []
+        nodes: list[Node] = []
+        names: list[str] = []
+        for name in self.plan.node_order():
+            entry = self.plan.nodes[name].entry
+            node = entry.instance()
+            tapped = tapped_topics(node)
+            if tapped is not None:
+                self.recordings.append(_Recording(Path(node.params.path), tapped))
+                echo(f"[{name}] recording to {node.params.path}")
+                continue
+            nodes.append(node)
+            names.append(name)
+        self.executor = InProcessExecutor(
+            nodes, names=names, remaps={e.name: e.remap for e in launch.nodes},
+            diagnostics_period_s=DIAGNOSTICS_PERIOD_S, keep_published=keep_published, on_frame=self._on_frame, log=echo)
+        self.required = [e.name for e in launch.nodes if e.required and e.name in names]
+        self.end_ns = round(launch.duration_s * 1e9) if launch.duration_s > 0 else None
 
-    def _host(self, node: Node):
-        return self._hosts[id(node)]
+    def _on_frame(self, t_ns: int, topic: str, payload: bytes) -> None:
+        for recording in self.recordings:
+            recording(t_ns, topic, payload)
 
-    def run(self, progress: Callable[[float], None] | None = None) -> InProcessExecutor:
-        """Simulate the whole scene; ``progress(fraction)`` is called about every 1 %."""
-        ex, sim = self.executor, self.sim
-        tick = round(self.config.tick_ms * 1e6)
-        truth_host = next(h for h in ex.hosts if isinstance(h.node, _TruthSource))
-        commands = ex.published["grip/command"]
-        next_report = 0.0
-        t = 0
-        while not sim.done:
-            t = min(t + tick, sim.end_ns)
-            for s in sim.step_until(t):
-                ex.now = max(ex.now, s.stamp_ns)
-                if isinstance(s, FtSample):
-                    host = self._host(self.ft_driver)
-                    host.call("on_sample", self.ft_driver.on_sample, self._rdt(s), host)
-                elif isinstance(s, TactileSample):
-                    if self.tactile_driver is not None:
-                        sample = self._dsa(s)
-                        host = self._host(self.tactile_driver)
-                        if sample is None:
-                            host.count("lockstep.undecodable_frames")
-                        else:
-                            host.call("on_sample", self.tactile_driver.on_sample, sample, host)
-                else:
-                    truth_host.publish("truth", truth_message(s), stamp_ns=s.stamp_ns)
-                ex.run(until_ns=ex.now)
-            if len(commands) > self._commands_seen:
-                self._commands_seen = len(commands)
-                sim.command_normal_force(commands[-1].f_n_desired)
-            if progress is not None and t / sim.end_ns >= next_report:
-                progress(t / sim.end_ns)
-                next_report += 0.01
-        ex.stop()
-        return ex
+    def run(self, progress: Callable[[float], None] | None = None) -> int:
+        """Run to the end, stop every node (stop order of the plan), close the recordings.
 
-    def close(self) -> None:
-        self._tmp.cleanup()
+        ``progress(fraction)`` is called every 10 % of the expected simulated time (default: a
+        ``[lockstep] STATUS`` line)."""
+        ex = self.executor
+        wall0, cpu0 = time.monotonic(), time.process_time()
+        scene_ns = self._expected_end_ns()
+        next_report = 1
+        try:
+            while True:
+                until = ex.now_ns + STEP_NS if self.end_ns is None else min(ex.now_ns + STEP_NS, self.end_ns)
+                ex.advance(until, stop_at_shutdown_of=self.required)
+                finished = [n for n in ex.finished() if n in self.required]
+                if finished:
+                    self.echo(f"[lockstep] {finished[0]} finished at {ex.now_ns / 1e9:.3f} s simulated")
+                    break
+                if self.end_ns is not None and ex.now_ns >= self.end_ns:
+                    self.echo(f"[lockstep] duration {self.launch.duration_s:g} s reached")
+                    break
+                if scene_ns and next_report <= PROGRESS_STEPS and ex.now_ns * PROGRESS_STEPS >= next_report * scene_ns:
+                    if progress is not None:
+                        progress(min(ex.now_ns / scene_ns, 1.0))
+                    else:
+                        self.echo(f"[lockstep] STATUS {ex.now_ns / 1e9:.1f} of {scene_ns / 1e9:.1f} s simulated "
+                                  f"({100 * ex.now_ns // scene_ns}%), {time.monotonic() - wall0:.1f} s")
+                    next_report += 1
+        finally:
+            running = {h.name for h in ex.hosts}
+            ex.stop(n for n in self.plan.node_stop_order() if n in running)
+            for recording in self.recordings:
+                recording.writer.close()
+        wall, cpu = time.monotonic() - wall0, time.process_time() - cpu0
+        self.echo(f"[lockstep] {ex.now_ns / 1e9:.2f} s simulated in {wall:.2f} s ({cpu:.2f} s CPU), "
+                  f"{ex.now_ns / 1e9 / max(wall, 1e-9):.1f}x real time")
+        return 0
+
+    def _expected_end_ns(self) -> int | None:
+        """The simulated time the run is expected to end at, for progress (the rig's scene, or the duration)."""
+        ends = [self.end_ns] if self.end_ns is not None else []
+        for host in self.executor.hosts:
+            scene = getattr(host.node, "scene", None)
+            if host.name in self.required and scene is not None:
+                ends.append(round(scene.duration_s * 1e9))
+        return min(ends) if ends else None
+
+
+def run_launch_file(file: str | Path, args: dict[str, str] | None = None, *,
+                    progress: Callable[[float], None] | None = None,
+                    echo: Callable[[str], None] = lambda line: None) -> InProcessExecutor:
+    """Run the launch file ``file`` with ``args`` (name → value, as ``name:=value``) in lock-step, in a
+    temporary run directory; the executor after the run, every published message in ``published``.
+
+    For analysis, benchmarks and golden files: pass ``record``/``monitor`` arguments to
+    leave those nodes out when they are not wanted.
+    """
+    with tempfile.TemporaryDirectory(prefix="slipstack-lockstep-") as run_dir:
+        launch = load_launch_file(file, args, builtins={"run_dir": run_dir, SIM_ARG: SIM_PREFIX})
+        run = LockstepRun(launch, Path(run_dir), echo=echo, keep_published=True)
+        run.run(progress)
+        return run.executor

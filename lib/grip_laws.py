@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 from enum import Enum
 from typing import ClassVar, Literal, Mapping, Sequence
 
+from slipstack.lib.defaults import MU
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.status import SLIP_STATES, SlipCase, SlipState
 
@@ -257,7 +258,7 @@ class LinearLaw(GripLaw):
 
     name: ClassVar[str] = "linear"
     needs: ClassVar[tuple[str, ...]] = ("f_t",)
-    mu: float = 0.45
+    mu: float = MU
     sigma: float = 0.5
 
     def __post_init__(self) -> None:
@@ -280,7 +281,7 @@ class Ft13Law(GripLaw):
 
     name: ClassVar[str] = "ft13"
     needs: ClassVar[tuple[str, ...]] = ("f_t", "tau")
-    mu: float = 0.45
+    mu: float = MU
     beta_m: float
     k_n: float = 2.0
 
@@ -301,7 +302,7 @@ class Ft13SigmaLaw(GripLaw):
 
     name: ClassVar[str] = "ft13_sigma"
     needs: ClassVar[tuple[str, ...]] = ("f_t", "tau")
-    mu: float = 0.45
+    mu: float = MU
     beta_m: float
     sigma: float = 0.5
 
@@ -341,7 +342,7 @@ class Tactile14Law(GripLaw):
     name: ClassVar[str] = "tactile14"
     needs: ClassVar[tuple[str, ...]] = ("f_n", "n_c", "t_c", "sum_dist_m")
     rotation_cases: ClassVar[tuple[str, ...]] = (SlipCase.ROTATION, SlipCase.ON_TAXEL)
-    mu: float = 0.45
+    mu: float = MU
     sigma: float = 0.5
     increment: Literal["total", "per_taxel"] = "total"
     decay_n_per_s: float = 0.0

@@ -50,6 +50,7 @@ from typing import Callable, Protocol
 import numpy as np
 
 from slipstack.lib.cor import CorResult, paper_cor, robust_cor
+from slipstack.lib.defaults import MU
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.limit_set import load_factor, torsional_coefficient
 from slipstack.lib.status import CorSolver, SlipCase, SlipState, SolverStatus
@@ -100,7 +101,7 @@ class SlipParams:
         paper_gain: gain ``h`` of the paper's COR iteration (``tactile_cor``).
     """
 
-    mu: float = 0.45
+    mu: float = MU
     beta_m: float | None = None
     delta: float = 0.0
     paper_gain: float = 0.5

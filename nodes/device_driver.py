@@ -4,7 +4,9 @@ A :class:`DeviceDriver` owns one back-end chosen by URL
 (:func:`slipstack.nodes.devices.backends.backend_from_url`). It never blocks:
 
 - the back-end's descriptor is watched (:meth:`io_sources`, re-read every loop turn
-  because a reconnect changes it) and every readable event runs one ``poll``;
+  because a reconnect changes it) and every readable event runs one ``poll``; a
+  simulated device (``sim:`` URL, ``nodes/devices/sim_link.py``) has no descriptor
+  and makes its bytes due at once through the deadline instead;
 - the node's deadline (:meth:`next_deadline_ns`) is the back-end's own (stale
   limit, reconnect back-off, handshake timeout), the next status republish and the
   next counter sync, whichever comes first; the executor wakes the node exactly
@@ -79,7 +81,6 @@ class DeviceDriver(Node):
         self._seen: dict[str, int] = {}
         self._next_sync_ns = 0
         self._last_stamp_ns = -1
-        self._detached = False
 
     # -- to implement --------------------------------------------------------------------
     def on_sample(self, sample: Sample, ctx: Context) -> None:
@@ -95,15 +96,11 @@ class DeviceDriver(Node):
 
     # -- node interface --------------------------------------------------------------------
     def start(self, ctx: Context) -> None:
-        if self._detached:
-            self.status = LinkStatus.OK.value
-            return
         self.backend.open(ctx.now_ns())
         self._after_poll(ctx)
 
     def stop(self, ctx: Context) -> None:
-        if not self._detached:
-            self.backend.close()
+        self.backend.close()
         self._sync_counters(ctx)
 
     def io_sources(self) -> list[IoSource]:
@@ -117,14 +114,7 @@ class DeviceDriver(Node):
     def on_readable(self, source: IoSource, ctx: Context) -> None:
         self._poll(ctx)
 
-    def detach(self) -> None:
-        """Run without the device: samples arrive only through :meth:`on_sample` (the
-        lock-step stack feeds decoded bytes), so there is nothing to poll or watch."""
-        self._detached = True
-
     def next_deadline_ns(self) -> int | None:
-        if self._detached:
-            return None
         due = [self._next_sync_ns]
         backend_due = self.backend.next_deadline_ns()
         if backend_due is not None:

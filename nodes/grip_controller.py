@@ -21,6 +21,7 @@ import numpy as np
 
 from slipstack.lib.contact_view import pad_positions
 from slipstack.lib.errors import ConfigError
+from slipstack.lib.defaults import F_MAX_N
 from slipstack.lib.grip_laws import LAWS, GripDecision, GripGovernor, GripInput, GripReason, make_law
 from slipstack.lib.status import SlipCase, SlipState
 from slipstack.messages import Contact, Cor, GripCommand, Slip
@@ -37,7 +38,7 @@ INCREMENTS = ("total", "per_taxel")
 class GripControllerParams:
     law: str = field(default="exact", metadata={"help": f"grip law: one of {sorted(LAWS)}"})
     f_nom_n: float = field(default=2.0, metadata={"help": "lowest commanded normal force (N)"})
-    f_max_n: float = field(default=40.0, metadata={"help": "highest commanded normal force (N)"})
+    f_max_n: float = field(default=F_MAX_N, metadata={"help": "highest commanded normal force (N)"})
     material: str = field(default=DEFAULT_MATERIAL, metadata={
         "help": "material file (launch/materials/ name or path): mu, beta_m, delta, gamma_release unless given"})
     mu: float = field(default=math.nan, metadata={"help": "static friction coefficient used by the law; nan: mu_s"})

@@ -23,17 +23,18 @@ import numpy as np
 from slipstack.lib.calibration import Calibration, save_calibration
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.rig.actuator import CommandWatchdog
-from slipstack.lib.rig.scene import Scene, load_scene
+from slipstack.lib.rig.scene import Scene, load_scene, with_rig_material
 from slipstack.lib.samples import FtSample, TactileSample
 from slipstack.lib.rig.simulator import Simulator, Truth
 from slipstack.lib.toml_file import resolve_path
 from slipstack.messages import GripCommand, RigTruth
 from slipstack.nodes.devices.emulators import (
-    BotaEmulator, Dsacon32Emulator, M1616Emulator, RdtUdpServer, RobotiqEmulator,
+    BotaEmulator, Dsacon32Emulator, M1616Emulator, RdtSimServer, RdtUdpServer, RobotiqEmulator,
 )
+from slipstack.nodes.devices.sim_link import SIM_PREFIX, is_simulated
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
-__all__ = ["Rig", "RigParams", "truth_message", "with_rates"]
+__all__ = ["Rig", "RigParams", "load_scene_by_name", "truth_message", "with_rates"]
 
 FT_PROTOCOLS = ("rdt", "robotiq", "bota")
 TACTILE_PROTOCOLS = ("dsacon32", "m1616")
@@ -43,11 +44,17 @@ TACTILE_PROTOCOLS = ("dsacon32", "m1616")
 class RigParams:
     scene: str = field(default="default", metadata={"help": "scene file: a path or a shipped name (fig10, ...)"})
     ft_protocol: str = field(default="rdt", metadata={"help": f"F/T emulator: one of {FT_PROTOCOLS}"})
-    rdt_port: int = field(default=49152, metadata={"help": "UDP port of the RDT emulator on 127.0.0.1"})
-    ft_link: str = field(default="", metadata={"help": "pty symlink path for a serial F/T emulator"})
+    rdt_port: int = field(default=49152, metadata={"help": "UDP port of the RDT emulator"})
+    rdt_host: str = field(default="127.0.0.1", metadata={
+        "help": "address the RDT emulator binds; sim:HOST: the simulated device table instead (lock-step runs)"})
+    ft_link: str = field(default="", metadata={
+        "help": "pty symlink path for a serial F/T emulator; sim:PATH: the simulated device table (lock-step runs)"})
     tactile_protocol: str = field(default="dsacon32", metadata={"help": f"tactile emulator: one of {TACTILE_PROTOCOLS}"})
-    tactile_link: str = field(default="", metadata={"help": "pty symlink path for the tactile emulator"})
+    tactile_link: str = field(default="", metadata={
+        "help": "pty symlink path for the tactile emulator; sim:PATH: the simulated device table (lock-step runs)"})
     calibration_out: str = field(default="", metadata={"help": "write the tactile calibration TOML here"})
+    contact_material: str = field(default="", metadata={
+        "help": "make the scene's contact of this rig material (rubber, coulomb, weakening); empty: the scene's"})
     ft_rate_hz: float = field(default=0.0, metadata={"help": "F/T sample rate (Hz); 0: the scene's"})
     tactile_rate_hz: float = field(default=0.0, metadata={"help": "tactile frame rate (Hz); 0: the scene's"})
     truth_rate_hz: float = field(default=0.0, metadata={"help": "rig/truth rate (Hz); 0: the scene's"})
@@ -78,8 +85,10 @@ class Rig(Node):
             raise ConfigError(f"rig ft_protocol must be one of {FT_PROTOCOLS}, got {p.ft_protocol!r}")
         if p.tactile_protocol not in TACTILE_PROTOCOLS:
             raise ConfigError(f"rig tactile_protocol must be one of {TACTILE_PROTOCOLS}, got {p.tactile_protocol!r}")
-        self.scene = with_rates(load_scene(resolve_path(p.scene, Path.cwd(), "scenes")),
-                                p.ft_rate_hz, p.tactile_rate_hz, p.truth_rate_hz)
+        scene = load_scene_by_name(p.scene)
+        if p.contact_material:
+            scene = with_rig_material(scene, p.contact_material)
+        self.scene = with_rates(scene, p.ft_rate_hz, p.tactile_rate_hz, p.truth_rate_hz)
         self.timers = {"tick": p.tick_ms / 1e3}
         self.sim: Simulator | None = None
         self.ft_dev = None
@@ -97,7 +106,8 @@ class Rig(Node):
         self.sim = Simulator(scene)
         if scene.ft.enabled:
             self.ft_dev = {
-                "rdt": lambda: RdtUdpServer("127.0.0.1", p.rdt_port),
+                "rdt": lambda: (RdtSimServer(p.rdt_host[len(SIM_PREFIX):], p.rdt_port) if is_simulated(p.rdt_host)
+                                else RdtUdpServer(p.rdt_host, p.rdt_port)),
                 "robotiq": lambda: RobotiqEmulator(self._link(p.ft_link, "ft_link"), streaming=False),
                 "bota": lambda: BotaEmulator(self._link(p.ft_link, "ft_link"), streaming=False,
                                              rate_hz=scene.ft.rate_hz),
@@ -181,6 +191,11 @@ class Rig(Node):
         for dev in (self.ft_dev, self.tactile_dev):
             if dev is not None:
                 dev.close()
+
+
+def load_scene_by_name(name: str) -> Scene:
+    """A shipped scene (``fig10``) or a scene file path (relative to the current directory)."""
+    return load_scene(resolve_path(name, Path.cwd(), "scenes"))
 
 
 def with_rates(scene: Scene, ft_hz: float = 0.0, tactile_hz: float = 0.0, truth_hz: float = 0.0) -> Scene:

@@ -18,6 +18,9 @@ URL grammar (query parameters optional unless marked)::
             bota 200, dsacon32 = fps, m1616/framed 100)
             stale_ms=…  (default 2.5 sample periods) backoff_ms=50 backoff_max_ms=2000
 
+    sim:URL                   the simulated twin of the device URL names, on an in-process
+                              link (``sim_link.py``; lock-step runs)
+
 PATH is absolute (three slashes: ``robotiq:///dev/ttyUSB0``). An unknown scheme or
 key, or a bad value, raises ConfigError naming it.
 
@@ -59,6 +62,7 @@ from slipstack.lib.sequence import SeqTracker
 
 from . import Freshness, LinkStatus
 from .serial_link import SerialLink
+from .sim_link import SIM_PREFIX, SimLink, is_simulated, sim_twin
 from .udp_link import UdpLink
 
 __all__ = [
@@ -131,7 +135,7 @@ class Backend(ABC):
         return c
 
     # --- for subclasses ---------------------------------------------------------
-    _link: Union[SerialLink, UdpLink]
+    _link: Union[SerialLink, UdpLink, SimLink]
 
     @abstractmethod
     def _poll(self, now_ns: int) -> list[Sample]: ...
@@ -461,7 +465,15 @@ def _hex_bytes(params: ConfigTable, name: str) -> bytes:
 
 
 def backend_from_url(url: str) -> Backend:
-    """Construct (not open) the back-end a URL names; ConfigError if the URL is invalid."""
+    """Construct (not open) the back-end a URL names; ConfigError if the URL is invalid.
+
+    ``sim:`` before a URL names the device's simulated twin (``nodes/devices/sim_link.py``):
+    the same back-end, on an in-process link."""
+    if is_simulated(url):
+        backend = backend_from_url(url[len(SIM_PREFIX):])
+        backend.url = url
+        backend._link = sim_twin(backend._link)
+        return backend
     parts = urlsplit(url)
     scheme = parts.scheme.lower()
     query = {k: v[-1] for k, v in parse_qs(parts.query, keep_blank_values=True).items()}

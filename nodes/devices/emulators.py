@@ -20,7 +20,10 @@ Construction::
     FramedEmulator(fmt, link_path=None)
     RdtUdpServer(host="127.0.0.1", port=0, counts_per_force=1e6, counts_per_torque=1e6)
 
-``link_path=None`` makes a private temporary directory holding the link.
+``link_path=None`` makes a private temporary directory holding the link. A
+``sim:`` link path (``sim:/run/tactile.tty``) puts the device in this process's
+simulated device table instead (``sim_link.py``, lock-step runs), and
+:class:`RdtSimServer` is the RDT server there.
 """
 
 from __future__ import annotations
@@ -38,9 +41,11 @@ from slipstack.lib.protocols import ati_rdt, bota, dsacon32, m1616, robotiq
 from slipstack.lib.protocols.framed import FramedFormat, encode_frame as encode_framed
 from slipstack.lib.protocols.stream import Deframer
 
+from .sim_link import SimDevice, is_simulated, udp_address
+
 __all__ = [
     "PtyDevice", "SerialEmulator", "RobotiqEmulator", "BotaEmulator", "Dsacon32Emulator",
-    "FramedEmulator", "M1616Emulator", "RdtUdpServer",
+    "FramedEmulator", "M1616Emulator", "RdtUdpServer", "RdtSimServer",
 ]
 
 
@@ -123,7 +128,8 @@ class SerialEmulator:
     """Base of the serial emulators: a plugged :class:`PtyDevice` and command dispatch."""
 
     def __init__(self, link_path: str | os.PathLike | None = None) -> None:
-        self.device = PtyDevice(link_path)
+        simulated = link_path is not None and is_simulated(str(link_path))
+        self.device: PtyDevice | SimDevice = SimDevice(str(link_path)) if simulated else PtyDevice(link_path)
         self.replug()
 
     @property
@@ -320,12 +326,7 @@ class RdtUdpServer:
         """Bind (again) at the same address; power-up state (not streaming)."""
         if self._sock is not None:
             return
-        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        sock.bind((self.host, self.port))
-        sock.setblocking(False)
-        self.port = sock.getsockname()[1]
-        self._sock = sock
+        self._sock = self._bind()
         self.client: tuple[str, int] | None = None
         self.streaming = False
         self.remaining = 0
@@ -334,12 +335,35 @@ class RdtUdpServer:
         self.bias = np.zeros(6)
         self._last = np.zeros(6)
 
+    def _bind(self) -> socket.socket:
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind((self.host, self.port))
+        sock.setblocking(False)
+        self.port = sock.getsockname()[1]
+        return sock
+
+    def _receive(self) -> tuple[bytes, object] | None:
+        """The next request datagram and its sender, None if there is none."""
+        try:
+            return self._sock.recvfrom(64)
+        except (BlockingIOError, ConnectionRefusedError):
+            return None
+
+    def _send_to_client(self, record: bytes) -> bool:
+        try:
+            self._sock.sendto(record, self.client)
+        except (BlockingIOError, ConnectionRefusedError):
+            return False
+        return True
+
     def unplug(self) -> None:
         if self._sock is not None:
             self._sock.close()
             self._sock = None
 
-    close = unplug
+    def close(self) -> None:
+        self.unplug()
 
     def lose(self, n: int) -> None:
         self._to_lose += n
@@ -347,10 +371,10 @@ class RdtUdpServer:
     def service(self) -> None:
         """Handle every pending request."""
         while self._sock is not None:
-            try:
-                data, addr = self._sock.recvfrom(64)
-            except (BlockingIOError, ConnectionRefusedError):
+            received = self._receive()
+            if received is None:
                 return
+            data, addr = received
             req = ati_rdt.decode_request(data)
             if req is None:
                 continue
@@ -377,9 +401,38 @@ class RdtUdpServer:
             self._to_lose -= 1
             return False
         record = ati_rdt.encode_record(self.rdt_sequence, self.ft_sequence, status, self._last - self.bias)
-        try:
-            self._sock.sendto(record, self.client)
-        except (BlockingIOError, ConnectionRefusedError):
+        if not self._send_to_client(record):
             return False
         self.sent += 1
         return True
+
+
+class RdtSimServer(RdtUdpServer):
+    """:class:`RdtUdpServer` in the simulated device table, at ``udp_address(host, port)``
+    (``sim_link.py``): the driver's ``sim:rdt://HOST:PORT`` reaches it. One client, the host side of the port."""
+
+    def _bind(self) -> SimDevice:  # type: ignore[override]
+        device = SimDevice(udp_address(self.host, self.port))
+        device.plug()
+        return device
+
+    def _receive(self) -> tuple[bytes, object] | None:
+        if not self._pending:
+            self._pending.extend(self._sock.read_chunks())
+        return (self._pending.pop(0), "host") if self._pending else None
+
+    def _send_to_client(self, record: bytes) -> bool:
+        return self._sock.write(record)
+
+    def replug(self) -> None:
+        self._pending: list[bytes] = []
+        super().replug()
+
+    def unplug(self) -> None:
+        if self._sock is not None:
+            self._sock.unplug()
+            self._sock = None
+
+    @property
+    def url(self) -> str:
+        return f"sim:rdt://{self.host}:{self.port}"

@@ -1,10 +1,17 @@
 """The in-process executor: deterministic, no sockets, simulated clock.
 
 Nodes are fed from a list of ``(t_ns, topic, message_or_payload)`` events (a
-recording, or hand-made); frames still go through encode → decode so validation
-and counting behave exactly as on the bus. Events, timers and the messages nodes
-publish are processed in time order (ties: in the order they were scheduled), so a
-replay is bit-for-bit repeatable.
+recording, or hand-made: :meth:`InProcessExecutor.feed`, :meth:`~InProcessExecutor.inject`);
+frames still go through encode → decode so validation and counting behave exactly as
+on the bus. Events, timers, deadlines and the messages nodes publish are processed in
+time order (ties: in the order they were scheduled), so a run is bit-for-bit
+repeatable. :meth:`~InProcessExecutor.advance` moves the simulated clock; a whole
+launch file runs this way with ``slipstack launch --lockstep`` (``launch/lockstep.py``).
+
+A node's deadline (``next_deadline_ns``) is re-read after each of its events, and a
+node doing I/O of its own (``io_sources``) before the clock moves on: a driver whose
+simulated device, fed by the rig, has bytes waiting (``nodes/devices/sim_link.py``)
+runs at the same simulated instant.
 """
 
 from __future__ import annotations
@@ -12,7 +19,7 @@ from __future__ import annotations
 import heapq
 import itertools
 from collections import defaultdict
-from typing import Iterable
+from typing import Callable, Iterable
 
 from slipstack.messages import Message, decode, encode
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC, NodeHost
@@ -25,10 +32,18 @@ class InProcessExecutor:
     """Run nodes in one thread on a simulated clock.
 
     Args:
-        nodes: node objects; the same topic may connect several of them.
+        nodes: node objects; the same topic may connect several of them. Their
+            ``start`` runs in this order.
+        names: instance names, one per node (default: each node class's ``name``).
         remaps: per node instance name, default topic → topic.
         diagnostics_period_s: how often each node publishes ``diagnostics``
             (simulated seconds); ``None`` turns it off.
+        start_ns: the simulated clock's start (ns).
+        keep_published: keep every frame in :attr:`published` and :attr:`raw`
+            (off for long runs: they grow without bound; use ``on_frame``).
+        on_frame: called as ``on_frame(t_ns, topic, payload)`` with every frame a node
+            publishes, in publication order.
+        log: receives each node's log lines, ``[name] text`` (default: :attr:`logs`).
 
     After :meth:`run`, :attr:`published` maps topic → list of decoded messages in
     publication order.
@@ -38,9 +53,13 @@ class InProcessExecutor:
         self,
         nodes: Iterable[Node],
         *,
+        names: Iterable[str] | None = None,
         remaps: dict[str, dict[str, str]] | None = None,
         diagnostics_period_s: float | None = None,
         start_ns: int = 0,
+        keep_published: bool = True,
+        on_frame: Callable[[int, str, bytes], None] | None = None,
+        log: Callable[[str], None] | None = None,
     ) -> None:
         self.now = start_ns
         self._queue: list[tuple[int, int, str, object]] = []
@@ -50,11 +69,18 @@ class InProcessExecutor:
         self.hosts: list[NodeHost] = []
         self.logs: list[str] = []
         self._subs: dict[str, list[tuple[NodeHost, str]]] = defaultdict(list)
+        self._keep = keep_published
+        self._on_frame = on_frame
+        write_log = log or self.logs.append
         remaps = remaps or {}
-        for node in nodes:
+        nodes = list(nodes)
+        instance_names = [n.name for n in nodes] if names is None else list(names)
+        if len(instance_names) != len(nodes):
+            raise ValueError(f"{len(instance_names)} names for {len(nodes)} nodes")
+        for node, name in zip(nodes, instance_names):
             host = NodeHost(
-                node, lambda: self.now, self._send, remap=remaps.get(node.name), measure_handlers=False,
-                log=lambda text, n=node.name: self.logs.append(f"[{n}] {text}"),
+                node, lambda: self.now, self._send, name=name, remap=remaps.get(name), measure_handlers=False,
+                log=lambda text, n=name: write_log(f"[{n}] {text}"),
             )
             self.hosts.append(host)
             for input_name, topic in host.input_topics.items():
@@ -66,13 +92,47 @@ class InProcessExecutor:
                 self._schedule(start_ns + p, ("diag", host, p))
         self._started = False
         self._deadlines: dict[int, int] = {}
+        # nodes doing I/O of their own may become due from outside the bus (a simulated device written by another node)
+        self._io_hosts = [h for h in self.hosts if type(h.node).next_deadline_ns is not Node.next_deadline_ns
+                          and type(h.node).io_sources is not Node.io_sources]
+        self._by_name = {h.name: h for h in self.hosts}
+
+    # -- the public driving API ----------------------------------------------------------
+    @property
+    def now_ns(self) -> int:
+        """The simulated clock (ns)."""
+        return self.now
+
+    def host(self, name: str) -> NodeHost:
+        """The host of the node named ``name`` (its counters, status, diagnostics)."""
+        try:
+            return self._by_name[name]
+        except KeyError:
+            raise KeyError(f"no node {name!r}; nodes: {', '.join(self._by_name)}") from None
+
+    def inject(self, topic: str, item: Message | bytes, at_ns: int | None = None) -> None:
+        """Deliver one frame on ``topic`` to its subscribers at ``at_ns`` (default: now)."""
+        self.feed([(self.now if at_ns is None else at_ns, topic, item)])
+
+    def advance(self, until_ns: int, *, stop_at_shutdown_of: Iterable[str] = ()) -> None:
+        """Run every event, timer and deadline due up to ``until_ns``; the clock ends there, or
+        at once when a node named in ``stop_at_shutdown_of`` asks to shut down (its last event)."""
+        watched = {id(self.host(name)) for name in stop_at_shutdown_of}
+        self._run(until_ns, watched)
+
+    def finished(self) -> list[str]:
+        """Names of the nodes that asked to shut down (``ctx.shutdown()``), in node order."""
+        return [h.name for h in self.hosts if h.shutdown_requested]
 
     def _schedule(self, t_ns: int, item: object) -> None:
         heapq.heappush(self._queue, (t_ns, next(self._order), "", item))
 
     def _send(self, topic: str, payload: bytes) -> None:
-        self.raw.append((self.now, topic, payload))
-        self.published[topic].append(decode(payload))
+        if self._keep:
+            self.raw.append((self.now, topic, payload))
+            self.published[topic].append(decode(payload))
+        if self._on_frame is not None:
+            self._on_frame(self.now, topic, payload)
         for host, input_name in self._subs.get(topic, ()):
             self._schedule(self.now, ("frame", host, input_name, payload))
 
@@ -93,12 +153,20 @@ class InProcessExecutor:
         (timers and deadlines stop with the last frame); give ``until_ns`` to run
         timer-driven nodes.
         """
+        self._run(until_ns, frozenset())
+
+    def _run(self, until_ns: int | None, stop_hosts: frozenset[int] | set[int]) -> None:
         if not self._started:
             self._started = True
             for host in self.hosts:
                 host.call("start", host.node.start, host)
                 self._schedule_deadline(host)
-        while self._queue and (until_ns is None or self._queue[0][0] <= until_ns):
+        while True:
+            if self._io_hosts and (not self._queue or self._queue[0][0] > self.now):
+                for io_host in self._io_hosts:  # before the clock moves on: a device may have been given work
+                    self._schedule_deadline(io_host)
+            if not self._queue or (until_ns is not None and self._queue[0][0] > until_ns):
+                break
             t_ns, _, _, item = heapq.heappop(self._queue)
             self.now = max(self.now, t_ns)
             kind = item[0]
@@ -127,6 +195,8 @@ class InProcessExecutor:
                 if until_ns is not None or self._has_frames():
                     self._schedule(t_ns + period, item)
             self._schedule_deadline(host)
+            if host.shutdown_requested and id(host) in stop_hosts:
+                return
         if until_ns is not None:
             self.now = max(self.now, until_ns)
 
@@ -139,7 +209,8 @@ class InProcessExecutor:
     def _has_frames(self) -> bool:
         return any(entry[3][0] == "frame" for entry in self._queue)
 
-    def stop(self) -> None:
-        """Call every node's ``stop``."""
-        for host in self.hosts:
+    def stop(self, order: Iterable[str] | None = None) -> None:
+        """Call every node's ``stop``, in ``order`` (node names; default: node order)."""
+        hosts = self.hosts if order is None else [self.host(name) for name in order]
+        for host in hosts:
             host.call("stop", host.node.stop, host)

@@ -68,11 +68,9 @@ from slipstack.lib.material_fit import interval_half_width
 from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.scene import RIG_MATERIALS, Scene, with_rig_material
 from slipstack.launch.launch_file import load_launch_file
-from slipstack.messages import encode
-from slipstack.nodes.recording.bag_io import RecordingWriter
 from slipstack.analysis.identify_cli import identify_material
-from slipstack.launch.lockstep import LockstepStack, StackConfig, load_scene_by_name
-from slipstack.nodes.rig import with_rates
+from slipstack.launch.lockstep import run_launch_file
+from slipstack.nodes.rig import load_scene_by_name, with_rates
 
 DETECTION_SCENES = ["fig4a", "fig4b", "fig10", "fig11", "fig12", "fig13", "fig14", "fig15", "default"]
 NEGATIVE_SCENES = ["hold_force", "hold_torsion"]
@@ -88,12 +86,17 @@ def _say(msg: str) -> None:
     print(f"\r  {msg:<72}", end="", file=sys.stderr, flush=True)
 
 
-def _run(scene: Scene, slip: dict, tactile: bool) -> dict:
-    stack = LockstepStack(scene, StackConfig(controller=False, tactile=tactile, slip=slip))
+def _run(launch: str, scene_file: str, scene: Scene, material: str, args: dict[str, str],
+         rates: tuple[float, float]) -> dict:
+    """``launch`` in lock-step on the shipped scene ``scene_file`` (``scene``, for the progress lines)
+    made of the rig material ``material``, controller off, the slip detector at μ = RECORD_MU;
+    the published messages."""
+    args = {"scene": scene_file, "rig_material": material, "controller": "false",
+            "mu": str(RECORD_MU), "ft_rate_hz": str(rates[0]), "tactile_rate_hz": str(rates[1]),
+            "truth_rate_hz": "1000", "monitor": "false", **args}
     t0 = time.monotonic()
-    ex = stack.run(progress=lambda f: _say(f"{scene.name}: {100 * f:5.1f}%"))
+    ex = run_launch_file(launch, args, progress=lambda f: _say(f"{scene.name}: {100 * f:5.1f}%"))
     _say(f"{scene.name}: {time.monotonic() - t0:.0f} s for {scene.duration_s:g} s simulated\n")
-    stack.close()
     return ex.published
 
 
@@ -117,13 +120,9 @@ def identified_material(material: str, cache: Path, rates: tuple[float, float]) 
     for name in IDENT_SCENES:
         path = cache / f"{name}@{material}.mcap"
         if not path.exists():
-            scene = with_rig_material(with_rates(load_scene_by_name(name), *rates, 1000.0), material)
-            published = _run(scene, {"method": "exact", "also": [], "mu": RECORD_MU}, tactile=True)
-            writer = RecordingWriter(path)
-            for topic in RECORDED_TOPICS:
-                for m in published[topic]:
-                    writer.write(topic, encode(m), m.header.stamp_ns)
-            writer.close()
+            scene = with_rig_material(load_scene_by_name(name), material)
+            recording = {"recording": str(path), "record_topics": f"[{', '.join(RECORDED_TOPICS)}]"}
+            _run("stack", name, scene, material, {"method": "exact", "tactile": "true", **recording}, rates)
         paths.append(path)
     found, _lines = identify_material(paths, name=material, progress=_say,
                                       provenance=f"slipstack identify on the rig's {material} contact "
@@ -183,8 +182,7 @@ def recorded_scene(scene_name: str, material: str, cache: Path, rates: tuple[flo
     file_name = f"{scene_name}_{material}" if scene_name in NEGATIVE_SCENES else scene_name
     scene = with_rig_material(with_rates(load_scene_by_name(file_name), *rates, 1000.0), material)
     tactile = bool(args["tactile"]) and scene.tactile.enabled
-    slip = {"method": args["method"], "also": [], "mu": RECORD_MU, "beta_m": float(args["beta_m"])}
-    published = _run(scene, slip, tactile)
+    published = _run(base, file_name, scene, material, {"tactile": str(tactile).lower(), "record": "false"}, rates)
     slips, truth = published["slip"], published["rig/truth"]
     _say(f"{scene.name}: true load factors")
     data = {

@@ -1,10 +1,10 @@
 #!/usr/bin/env python3
 """Grip economy: how much normal force each grip law spends to hold a disturbance.
 
-For each scene and grip law the whole stack runs in lock-step with the simulated rig
-(:class:`slipstack.launch.lockstep.LockstepStack`, controller on, F/T 500 Hz, tactile
-250 Hz, truth 250 Hz). Laws (docs/math.md §5, parameters of launch/files/stack.toml:
-μ = 0.45, σ = 0.5, f_nom = 2 N, f_max = the scene's finger limit):
+For each scene and grip law the launch file ``stack`` runs in lock-step with the
+simulated rig (``slipstack launch stack --lockstep``, ``launch/lockstep.py``: controller
+on, its sensor rates, material and law parameters; f_max = the scene's finger limit).
+Laws (docs/math.md §5):
 
 * ``ft13`` — F/T only, paper (13) ``|f_t|/μ + |τ|/β + k`` (k = 2 N), no tactile
   driver; ``β`` = the contact's true ``β_s`` at the initial grip (what the paper's
@@ -12,13 +12,14 @@ For each scene and grip law the whole stack runs in lock-step with the simulated
   :func:`slipstack.lib.limit_set.torsional_coefficient`; slip test ``linear_ls``.
 * ``tactile14`` — both sensors, paper (14), at the grip controller's default onset
   band ``delta``; slip test ``exact``, exact COR solver.
-* ``tactile14:delta=0.25`` — (14) with the band set above ``1 − μ_d/μ_s = 0.2``:
+* ``tactile14:delta=0.25`` — (14) with the band set above ``1 − μ_d/μ_s``:
   once the contact slides it transmits only ``μ_d/μ_s = 0.8`` of the static
   capacity, so with a narrower band test (11) stops failing and (14) stops raising
   while the object keeps sliding.
 * ``exact`` — both sensors, ``γ f_n / σ``; slip test ``exact``.
   (``linear`` and ``ft13_sigma`` may be named too; they run F/T-only like ``ft13``;
-  ``law:param=value,...`` sets grip_controller parameters.)
+  ``law:arg=value,...`` sets launch arguments of ``stack.toml``. A law that needs the
+  tactile pad is skipped on a scene that simulates none, e.g. fig12.)
 
 Reported per run: time-mean and peak commanded ``f_n``, time-mean applied ``f_n``,
 whether the object held (from the rig's truth: slip distance < 0.5 mm and slip angle
@@ -43,7 +44,6 @@ Examples:
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import math
 import sys
@@ -56,31 +56,21 @@ from slipstack.lib.limit_set import torsional_coefficient
 from slipstack.lib.oracle import least_holding_force, oracle_normal_force
 from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.scene import Scene
-from slipstack.launch.lockstep import LockstepStack, StackConfig, load_scene_by_name
-from slipstack.nodes.rig import with_rates
+from slipstack.launch.launch_file import load_launch_file
+from slipstack.launch.lockstep import run_launch_file
+from slipstack.nodes.rig import load_scene_by_name
 
 DEFAULT_SCENES = ["fig12", "fig14", "fig15", "default"]
 DEFAULT_LAWS = ["ft13", "tactile14", "tactile14:delta=0.25", "exact"]
 FT_ONLY_LAWS = {"linear", "ft13", "ft13_sigma"}
-RATES_HZ = (500.0, 250.0, 250.0)  # F/T, tactile, truth: the default stack's
+STACK_ARGS = load_launch_file("stack", builtins={"run_dir": "/nonexistent"}).args
 HOLD_MM, HOLD_DEG = 0.5, 0.5
 WALL_PER_SIM_S = 1.5  # measured lock-step cost on the 2-core dev machine, plus the oracle
 
 
-@dataclasses.dataclass(frozen=True)
-class Setup:
-    """Fixed law parameters of the comparison (N, dimensionless)."""
-
-    mu: float = 0.45
-    sigma: float = 0.5
-    k_n: float = 2.0
-    f_nom_n: float = 2.0
-
-
 def prepare(name: str) -> tuple[Scene, float]:
-    """The scene at the stack's rates with its tactile sensor on, and its true ``β_s`` (m)."""
-    scene = with_rates(load_scene_by_name(name), *RATES_HZ)
-    scene = dataclasses.replace(scene, tactile=dataclasses.replace(scene.tactile, enabled=True))
+    """The scene and its contact's true ``β_s`` (m)."""
+    scene = load_scene_by_name(name)
     pm = PressureModel(scene.contact, scene.pad, scene.object.pose)
     x, y, th = scene.object.pose
     phi = pm.phi(scene.finger.f_initial_N, complex(x, y), th)
@@ -88,31 +78,35 @@ def prepare(name: str) -> tuple[Scene, float]:
     return scene, beta
 
 
-def parse_law(spec: str) -> tuple[str, dict[str, float]]:
-    """``"tactile14:delta=0.25,sigma=0.4"`` → ``("tactile14", {"delta": 0.25, "sigma": 0.4})``."""
+def parse_law(spec: str) -> tuple[str, dict[str, str]]:
+    """``"tactile14:delta=0.25"`` → ``("tactile14", {"delta": "0.25"})`` (launch arguments)."""
     law, _, rest = spec.partition(":")
     extra = {}
     for item in filter(None, rest.split(",")):
         key, _, value = item.partition("=")
-        extra[key.strip()] = float(value)
+        extra[key.strip()] = value.strip()
     return law, extra
 
 
-def stack_config(spec: str, scene: Scene, beta_m: float, s: Setup) -> StackConfig:
+def launch_args(spec: str, scene: Scene, beta_m: float, f_nom_n: float) -> dict[str, str]:
+    """The arguments of ``stack.toml`` for law ``spec`` on ``scene``."""
     law, extra = parse_law(spec)
-    grip = {"law": law, "mu": s.mu, "sigma": s.sigma, "f_nom_n": s.f_nom_n,
-            "f_max_n": scene.finger.f_max_N, **extra}
+    args = {"scene": scene.name, "law": law, "f_nom_n": str(f_nom_n), "f_max_n": str(scene.finger.f_max_N),
+            "record": "false", "monitor": "false"}
     if law in FT_ONLY_LAWS:
-        grip = {"beta_m": beta_m, "k_n": s.k_n, **grip}
-        return StackConfig(controller=True, tactile=False, grip=grip,
-                           slip={"method": "linear_ls", "mu": s.mu, "beta_m": beta_m})
-    return StackConfig(controller=True, tactile=True, grip=grip, slip={"method": "exact", "mu": s.mu},
-                       cor={"solver": "exact", "mu": s.mu, "per_tactile_frame": True})
+        args |= {"tactile": "false", "method": "linear_ls", "beta_m": str(beta_m)}
+    else:
+        args |= {"tactile": "true", "method": "exact", "cor_solver": "exact"}
+    return args | extra
 
 
-def run_one(scene: Scene, law: str, beta_m: float, s: Setup, label: str) -> dict[str, np.ndarray]:
+def runnable(spec: str, scene: Scene) -> bool:
+    """A law that needs the tactile pad runs only on a scene that simulates one."""
+    return parse_law(spec)[0] in FT_ONLY_LAWS or scene.tactile.enabled
+
+
+def run_one(scene: Scene, law: str, beta_m: float, f_nom_n: float, label: str) -> dict[str, np.ndarray]:
     """Run the stack; per-truth-sample series (SI) plus the oracle."""
-    stack = LockstepStack(scene, stack_config(law, scene, beta_m, s))
     marks = iter(np.arange(0.1, 1.01, 0.1))
     mark = next(marks)
     t0 = time.perf_counter()
@@ -123,10 +117,7 @@ def run_one(scene: Scene, law: str, beta_m: float, s: Setup, label: str) -> dict
             print(f"  {label}: {mark:4.0%} ({time.perf_counter() - t0:5.1f} s)", file=sys.stderr, flush=True)
             mark = next(marks, None)
 
-    try:
-        ex = stack.run(progress=progress)
-    finally:
-        stack.close()
+    ex = run_launch_file("stack", launch_args(law, scene, beta_m, f_nom_n), progress=progress)
     truths = ex.published["rig/truth"]
     commands = ex.published["grip/command"]
     P, mu_s = scene.pad.positions, scene.contact.mu_s
@@ -157,17 +148,17 @@ def run_one(scene: Scene, law: str, beta_m: float, s: Setup, label: str) -> dict
     }
 
 
-def cached_run(cache: Path | None, scene: Scene, law: str, beta_m: float, s: Setup, label: str) -> dict:
+def cached_run(cache: Path | None, scene: Scene, law: str, beta_m: float, f_nom_n: float, label: str) -> dict:
     if cache is None:
-        return run_one(scene, law, beta_m, s, label)
-    key = json.dumps({"scene": scene.name, "law": law, "beta": beta_m, **dataclasses.asdict(s)}, sort_keys=True)
+        return run_one(scene, law, beta_m, f_nom_n, label)
+    key = json.dumps({"scene": scene.name, "law": law, "beta": beta_m, "f_nom_n": f_nom_n}, sort_keys=True)
     path = cache / f"{scene.name}_{law.replace(':', '_').replace(',', '_').replace('=', '')}.npz"
     if path.exists():
         data = dict(np.load(path))
         if str(data.pop("key")) == key:
             print(f"  {label}: cached ({path})", file=sys.stderr, flush=True)
             return data
-    data = run_one(scene, law, beta_m, s, label)
+    data = run_one(scene, law, beta_m, f_nom_n, label)
     cache.mkdir(parents=True, exist_ok=True)
     np.savez(path, key=key, **data)
     return data
@@ -271,27 +262,31 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--laws", nargs="+", default=DEFAULT_LAWS,
                         help=f"grip laws (default: {' '.join(DEFAULT_LAWS)}); 'law:param=value,...' sets "
                              "grip_controller parameters, e.g. tactile14:delta=0.25")
-    parser.add_argument("--f-nom", type=float, default=Setup.f_nom_n, help="lowest commanded f_n, N (default 2)")
+    parser.add_argument("--f-nom", type=float, default=STACK_ARGS["f_nom_n"],
+                        help=f"lowest commanded f_n, N (default stack.toml's {STACK_ARGS['f_nom_n']:g})")
     parser.add_argument("--png", type=Path, help="write a figure of f_n(t) per law vs the oracle to this path")
     parser.add_argument("--png-scene", help="scene for --png (default: fig15 if run, else the first)")
     parser.add_argument("--cache", type=Path, help="directory to cache runs in (re-used when parameters match)")
     args = parser.parse_args(argv)
-    setup = Setup(f_nom_n=args.f_nom)
 
     prepared = {name: prepare(name) for name in args.scenes}
-    sim_s = sum(sc.duration_s for sc, _ in prepared.values()) * len(args.laws)
-    print(f"{len(prepared) * len(args.laws)} lock-step runs, {sim_s:.0f} simulated s: expect about "
+    runs = [(sc, beta, law) for sc, beta in prepared.values() for law in args.laws if runnable(law, sc)]
+    skipped = [f"{sc.name}/{law}" for sc, _ in prepared.values() for law in args.laws if not runnable(law, sc)]
+    sim_s = sum(sc.duration_s for sc, _, _ in runs)
+    print(f"{len(runs)} lock-step runs, {sim_s:.0f} simulated s: expect about "
           f"{sim_s * WALL_PER_SIM_S / 60:.0f} min (less with --cache hits)", file=sys.stderr, flush=True)
 
     rows, series = [], {}
-    for name, (scene, beta) in prepared.items():
-        for law in args.laws:
-            r = cached_run(args.cache, scene, law, beta, setup, f"{scene.name}/{law}")
-            series.setdefault(scene.name, {})[law] = r
-            rows.append((scene.name, beta, law, summarise(r, setup.f_nom_n)))
+    for scene, beta, law in runs:
+        r = cached_run(args.cache, scene, law, beta, args.f_nom, f"{scene.name}/{law}")
+        series.setdefault(scene.name, {})[law] = r
+        rows.append((scene.name, beta, law, summarise(r, args.f_nom)))
 
-    print(f"## Grip economy (μ = {setup.mu}, σ = {setup.sigma}, k = {setup.k_n} N, f_nom = {setup.f_nom_n} N; "
-          f"F/T {RATES_HZ[0]:g} Hz, tactile {RATES_HZ[1]:g} Hz; held iff slip < {HOLD_MM} mm and < {HOLD_DEG}°)\n")
+    print(f"## Grip economy (launch file stack.toml: material {STACK_ARGS['material']}, f_nom = {args.f_nom:g} N; "
+          f"F/T {STACK_ARGS['ft_rate_hz']:g} Hz, tactile {STACK_ARGS['tactile_rate_hz']:g} Hz; "
+          f"held iff slip < {HOLD_MM} mm and < {HOLD_DEG}°)\n")
+    if skipped:
+        print(f"skipped (the scene simulates no tactile pad): {', '.join(skipped)}\n")
     print(table(rows))
     bad = sum(m["o_bad"] for *_, m in rows)
     frozen = [f"{sc}/{law} {m['o_frozen']:.2f}" for sc, _, law, m in rows if abs(m["o_frozen"] - m["o_mean"]) > 0.005 * m["o_mean"]]
@@ -302,7 +297,7 @@ def main(argv: list[str] | None = None) -> int:
     print("\n" + verdict(rows))
     if args.png:
         target = args.png_scene or ("fig15" if "fig15" in series else next(iter(series)))
-        plot(args.png, target, series[target], setup.f_nom_n)
+        plot(args.png, target, series[target], args.f_nom)
         print(f"\nfigure: {args.png} (scene {target})")
     return 0
 

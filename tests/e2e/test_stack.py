@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from slipstack.launch.lockstep import load_scene_by_name
+from slipstack.nodes.rig import load_scene_by_name
 
 pytestmark = pytest.mark.e2e
 

@@ -5,11 +5,12 @@ Run from the repository root::
     .venv/bin/python tests/isolation/make_golden.py            # rewrite the golden files
     .venv/bin/python tests/isolation/make_golden.py --check    # exit 1 if they are stale
 
-Each recording (``golden_config.GOLDENS``) is the whole stack run in lock-step on a
-short simulated scene (``launch/lockstep.py``), every topic written as it was
-published: log_time = ``header.pub_ns`` (the in-process executor's clock, ns from
-the scene start) and ``wall_minus_monotonic_ns = 0``, so ``replay_into`` feeds each
-frame at the very time, and in the very order, the live node received it.
+Each recording (``golden_config.GOLDENS``) is a shipped launch file run in lock-step
+(``slipstack launch FILE --lockstep``, ``launch/lockstep.py``) on a short scene, every
+topic recorded as it was published: log_time = ``header.pub_ns`` (the in-process
+executor's clock, ns from the run's start) and ``wall_minus_monotonic_ns = 0``, so
+``replay_into`` feeds each frame at the very time, and in the very order, the live
+node received it.
 """
 
 from __future__ import annotations
@@ -21,25 +22,20 @@ from pathlib import Path
 
 from golden_config import GOLDEN_DIR, GOLDENS, Golden
 
-from slipstack.messages.frame import peek_header
-from slipstack.nodes.recording.bag_io import RecordingWriter, read_recording
-from slipstack.launch.lockstep import LockstepStack
+from slipstack.launch.lockstep import run_launch_file
+from slipstack.nodes.recording.bag_io import read_recording
 
 __all__ = ["write_golden", "compare_recordings", "main"]
 
 
 def write_golden(golden: Golden, path: Path) -> dict[str, int]:
-    """Run ``golden``'s scene through the stack and record every topic to ``path``; topic → frames."""
-    stack = LockstepStack(golden.scene(), golden.stack_config())
-    try:
-        ex = stack.run()
-    finally:
-        stack.close()
-    with RecordingWriter(path, wall_minus_monotonic_ns=0) as writer:
-        for now, topic, payload in ex.raw:
-            head = peek_header(payload)
-            writer.write(topic, payload, head.pub_ns if head is not None else now)
-        return dict(writer.counts)
+    """Run ``golden``'s launch file in lock-step, recording every topic to ``path``; topic → frames."""
+    path.unlink(missing_ok=True)
+    run_launch_file(golden.launch, golden.launch_args(recording=path))
+    counts: dict[str, int] = {}
+    for frame in read_recording(path):
+        counts[frame.topic] = counts.get(frame.topic, 0) + 1
+    return counts
 
 
 def compare_recordings(a: Path, b: Path) -> list[str]:

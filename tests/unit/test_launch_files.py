@@ -40,45 +40,6 @@ def test_a_list_argument_is_read_from_the_command_line():
         assert next(e for e in lf.nodes if e.type == "recorder").params["topics"] == want
 
 
-def test_a_container_hands_over_inside_and_subscribes_only_to_outside_publishers(tmp_path):
-    import json
-
-    from slipstack.launch.launcher import Launcher
-
-    lf = load_launch_file("stack", builtins={"run_dir": str(tmp_path)})
-    launcher = Launcher(lf, tmp_path, echo=lambda line: None)
-    try:
-        doc = json.loads((tmp_path / "control.spec.json").read_text())
-        members = {m["name"]: m for m in doc["members"]}
-        assert set(members) == {"fusion", "cor_estimator", "slip_detector", "grip_controller"}
-        slip, grip, fusion = members["slip_detector"], members["grip_controller"], members["fusion"]
-        assert slip["local"] == {"contact": ["fusion"]} and slip["subs"]["contact"] == []
-        assert grip["local"] == {"slip": ["slip_detector"]}
-        # fusion reads the drivers over the bus, and waits only for subscribers outside its process
-        assert fusion["subs"]["ft/wrench"] == [launcher.children["ft_driver"].endpoint]
-        assert fusion["local"] == {}
-        # every subscriber of `contact` is in its process (the recorder does not record it by default)
-        assert "contact" not in fusion["expected_subscribers"]
-        # the container starts after the processes that subscribe to it, before its drivers
-        order = launcher.order
-        assert order.index("monitor") < order.index("control") < order.index("ft_driver")
-    finally:
-        launcher.control.close(linger=0)
-
-
-def test_on_shutdown_the_simulated_world_stops_before_its_controller(tmp_path):
-    from slipstack.launch.launcher import Launcher
-
-    lf = load_launch_file("stack", builtins={"run_dir": str(tmp_path)})
-    launcher = Launcher(lf, tmp_path, echo=lambda line: None)
-    try:
-        stop = [p.name for p in launcher._stop_order(launcher.order)]
-        assert stop[0] == "rig"
-        assert stop[1:] == [n for n in reversed(launcher.order) if n != "rig"]
-    finally:
-        launcher.control.close(linger=0)
-
-
 def test_the_default_recording_has_the_cor_so_tau_c_and_tau_t_can_be_drawn_afterwards():
     for name in ("stack", "fig13", "fig14", "fig15"):
         lf = load_launch_file(name, builtins={"run_dir": "/tmp/x"})

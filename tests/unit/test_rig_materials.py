@@ -6,7 +6,7 @@ import pytest
 
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.rig.scene import RIG_MATERIALS, parse_scene, with_rig_material
-from slipstack.launch.lockstep import load_scene_by_name
+from slipstack.nodes.rig import load_scene_by_name
 
 BASE = {"object": {}, "dof": {"free": ["x"]}, "disturbance": {}}
 
