@@ -122,3 +122,40 @@ def test_exported_schemas_refuse_what_decoding_refuses(short_run):
     for schema, body in bad:
         assert list(jsonschema.Draft202012Validator(schema).iter_errors(body)), body
     assert "unit: N" in grip_schema["properties"]["f_n_desired"]["description"]
+
+
+# -- item 11: counts with denominators; no truth lines without a rig ---------------------------
+def test_the_simulated_run_summary_gives_counts_with_their_denominators(short_run):
+    _, output, _ = short_run
+    summary = output[output.index("==== slipstack run summary ===="):]
+    assert re.search(r"slip episodes: \d+ detected of \d+ true", summary), summary
+    assert re.search(r"false-slip rate [\d.]+% of \d+ sticking frames", summary), summary
+    assert re.search(r"fail-safe while running [\d.-]+%? \(\d+ of \d+\)", summary), summary
+    assert not re.search(r"-\d+ of -\d+", summary), summary  # no negative counts
+    for line in summary.splitlines():
+        if "frames lost at" in line:  # on a loaded machine: each count with what it is out of
+            assert re.search(r"\d+ of \d+ \(", line), line
+            assert "=" not in line, line  # no bare counter names (in.ft/wrench.lost=497)
+
+
+def test_hardware_without_its_device_shows_disconnected_live_and_no_truth_in_the_summary(launch):
+    """``slipstack launch hardware.toml ft_url:=robotiq:///dev/ttyNOPE tactile:=false record:=false``,
+    then Ctrl-C: the live line names the disconnected driver; the summary prints no episode
+    counts or false-slip rate (there is no rig/truth) and says why the grip was held."""
+    import signal
+    import time
+
+    g = launch("hardware.toml", "ft_url:=robotiq:///dev/ttyNOPE", "tactile:=false", "record:=false")
+    g.wait_ready()
+    deadline = time.monotonic() + 60
+    while "DISCONNECTED ft_driver" not in g.log() and time.monotonic() < deadline:
+        time.sleep(0.2)
+    g.stop(signal.SIGINT, timeout=60)
+    log = g.log_path.read_text(errors="replace")
+    status = [ln for ln in log.splitlines() if ln.startswith("[monitor] STATUS")]
+    assert any("DISCONNECTED ft_driver" in ln for ln in status), "\n".join(status[-5:])
+    summary = log[log.index("==== slipstack run summary ===="):]
+    assert "no ground truth on this run" in summary, summary
+    assert "detected of" not in summary and "% of sticking frames" not in summary, summary
+    assert "HEALTH: ft_driver ended disconnected: robotiq:///dev/ttyNOPE" in summary, summary
+    assert re.search(r"HEALTH: all \d+ grip commands were fail-safe", summary), summary
