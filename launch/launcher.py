@@ -46,9 +46,13 @@ import zmq
 
 from slipstack.lib.errors import ConfigError, SlipstackError
 from slipstack.launch.launch_file import LaunchFile, NodeEntry, arg_comments, free_port, load_launch_file
+from slipstack.launch.quiet_shutdown import WorldEndFilter
+from slipstack.launch.run_log import RunLog, log_path_for
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.messages import Diagnostics
+from slipstack.nodes.device_driver import DeviceDriver
 from slipstack.nodes.runtime.curve import INSECURE_ENV, KEYS_ENV
+from slipstack.nodes.runtime.logs import LOG_LEVEL_ENV, parse_log_levels
 from slipstack.nodes.runtime.graph_info import process_start_ticks, write_graph
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.run_dir import finish_run_dir, make_run_dir, remove_run_dir, write_private_file
@@ -107,6 +111,11 @@ class _Process:
         return self.members[0].entry
 
     @property
+    def runs_device_driver(self) -> bool:
+        """A member is a device driver (its device may vanish when the simulated world stops)."""
+        return any(issubclass(m.entry.cls, DeviceDriver) for m in self.members)
+
+    @property
     def is_container(self) -> bool:
         return bool(self.entry.container)
 
@@ -152,9 +161,10 @@ class Console:
 class Launcher:
     """Run the graph of ``launch``; ``echo`` receives every log line."""
 
-    def __init__(self, launch: LaunchFile, run_dir: Path, *, echo: Callable[[str], None] | None = None) -> None:
+    def __init__(self, launch: LaunchFile, run_dir: Path, *, echo: Callable[[str], None] | None = None,
+                 log_file: Path | None = None) -> None:
         self.launch = launch
-        self.echo = echo or Console()
+        self.echo = RunLog(echo or Console(), log_file)
         self.run_dir = run_dir
         self.zctx = zmq.Context.instance()
         self.control_ep = f"ipc://{self.run_dir}/launcher.ctl"
@@ -169,6 +179,8 @@ class Launcher:
         self.exit_code = 0
         self.start_ticks = process_start_ticks(os.getpid())
         self._wire()
+        self._world_end = WorldEndFilter({n for n, p in self.processes.items() if p.entry.stop_first},
+                                         {n for n, p in self.processes.items() if p.runs_device_driver})
 
     # -- wiring ---------------------------------------------------------------------------
     def _wire(self) -> None:
@@ -322,7 +334,8 @@ class Launcher:
         return proc
 
     def _forward_logs(self, timeout: float) -> None:
-        for key, _ in self.selector.select(timeout):
+        ready = sorted(self.selector.select(timeout), key=lambda k: not k[0].data.entry.stop_first)  # the world first
+        for key, _ in ready:
             c: _Process = key.data
             try:
                 chunk = key.fileobj.read()
@@ -337,7 +350,11 @@ class Launcher:
             c.buffer += chunk
             *lines, c.buffer = c.buffer.split(b"\n")
             for line in lines:
-                self.echo(f"[{c.name}] {line.decode(errors='replace')}")
+                text = line.decode(errors="replace")
+                if self._world_end.keep(c.name, text):
+                    self.echo(f"[{c.name}] {text}")
+                else:
+                    self.echo.held(f"[{c.name}] {text}")
 
     def _wait_ready(self, process: _Process, timeout: float) -> None:
         """Until every node of ``process`` has reported ready."""
@@ -410,6 +427,7 @@ class Launcher:
         if self.launch.check:
             self._report_check()
         finish_run_dir(self.run_dir, keep=(EVENTS_FILE, CHECK_FILE))
+        self.echo.close()
         return self.exit_code
 
     def _supervise(self) -> None:
@@ -534,6 +552,7 @@ class Launcher:
         return [p for p in procs if p.entry.stop_first] + [p for p in procs if not p.entry.stop_first]
 
     def _shutdown(self, started: list[str]) -> None:
+        self._world_end.world_ending()
         for c in self.processes.values():
             self._dismiss_standby(c)
         t0 = time.monotonic()
@@ -555,6 +574,9 @@ class Launcher:
         for c in live:
             c.proc.wait()
         self._forward_logs(0.0)
+        closing = self._world_end.closing_line()
+        if closing:
+            self.echo(closing)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -566,10 +588,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("assignments", nargs="*", metavar="name:=value", help="launch argument overrides")
     p.add_argument("--show-args", action="store_true",
                    help="print the launch arguments with their values and comments, and exit")
+    p.add_argument("--log-level", metavar="LEVEL[,NODE=LEVEL]", default="",
+                   help="least level of the node log lines shown and kept: debug, info (default), warning, "
+                        "error; for every node, then per node, e.g. warning,ft_driver=debug")
+    p.add_argument("--log-file", metavar="PATH",
+                   help="keep every line printed here (default: beside the recording, runs/<stamp>.log; "
+                        "none when nothing is recorded)")
     p.set_defaults(func=main_launch)
 
 
 def main_launch(args: argparse.Namespace) -> int:
+    parse_log_levels(args.log_level)  # a bad level fails before anything starts
+    if args.log_level:
+        os.environ[LOG_LEVEL_ENV] = args.log_level  # the node processes inherit it
     positional = list(args.assignments)
     file = args.file
     if file is not None and ":=" in file:  # `slipstack launch name:=value` with the default file
@@ -587,7 +618,7 @@ def main_launch(args: argparse.Namespace) -> int:
                     print(f"{name} := {value!r}{note}")
             remove_run_dir(run_dir)
             return 0
-        launcher = Launcher(launch, run_dir)
+        launcher = Launcher(launch, run_dir, log_file=Path(args.log_file) if args.log_file else log_path_for(launch))
     except BaseException:  # a bad launch file leaves no run directory behind
         remove_run_dir(run_dir)
         raise

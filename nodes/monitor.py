@@ -145,6 +145,8 @@ class NodeWatch:
 
     counters: dict = field(default_factory=dict)
     status: str = "ok"
+    disconnected_since_ns: int | None = None
+    """Stamp of the first report of the current ``disconnected`` status (``None``: connected)."""
     last_seen_ns: int = 0
     last_stamp_ns: int | None = None
     silences: int = 0
@@ -158,6 +160,10 @@ class NodeWatch:
             self.silences += gap > silent_after_ns
         self.counters = msg.counters
         self.status = msg.status
+        if not msg.status.startswith(DISCONNECTED):
+            self.disconnected_since_ns = None
+        elif self.disconnected_since_ns is None:
+            self.disconnected_since_ns = stamp
         self.last_seen_ns = now_ns
         self.last_stamp_ns = stamp
 
@@ -215,9 +221,11 @@ class Monitor(Node):
         return {name: (now_ns - w.last_seen_ns) / 1e9 for name, w in self.nodes.items()
                 if now_ns - w.last_seen_ns > self._silent_after_ns}
 
-    def disconnected_nodes(self) -> dict[str, str]:
-        """Nodes whose latest diagnostics say ``disconnected``: name → that status."""
-        return {name: w.status for name, w in self.nodes.items() if w.status.startswith(DISCONNECTED)}
+    def disconnected_nodes(self, since_before_ns: int | None = None) -> dict[str, str]:
+        """Nodes whose latest diagnostics say ``disconnected``: name → that status; with
+        ``since_before_ns``, only those disconnected since before that stamp."""
+        return {name: w.status for name, w in self.nodes.items() if w.disconnected_since_ns is not None
+                and (since_before_ns is None or w.disconnected_since_ns <= since_before_ns)}
 
     def on_timer_status(self, ctx: Context) -> None:
         now = ctx.now_ns()
@@ -338,7 +346,8 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "skipped_for_newer": {n: v for n, v in skipped.items() if v},
         "behind_real_time": {n: v for n, v in behind.items() if v},
         "silent_nodes": silent_now,
-        "disconnected_nodes": m.disconnected_nodes(),
+        # with a simulated rig, the devices close when its scene ends: only earlier losses count
+        "disconnected_nodes": m.disconnected_nodes(truth.header.stamp_ns if truth else None),
         "nodes_that_went_silent": went_silent,
         "recording": m.params.recording if m.params.recording and os.path.exists(m.params.recording) else "",
     }
@@ -382,12 +391,15 @@ def check_problems(s: dict, p: MonitorParams) -> list[str]:
     for node, seconds in sorted(s["nodes_that_went_silent"].items()):
         if node not in s["silent_nodes"]:
             problems.append(f"node {node} went silent for {seconds:.1f} s and came back (restarted?)")
-    for node, status in sorted(s["disconnected_nodes"].items()):
-        problems.append(f"{node} ended {status} (see docs/drivers.md)")
     if s["grip_commands"] and s["fail_safe_while_starting"] == s["grip_commands"]:
         problems.append(f"all {s['grip_commands']} grip commands were fail-safe: the controller never had valid "
                         "sensor data (are the sensors connected and streaming?)")
     return problems
+
+
+def device_problems(s: dict) -> list[str]:
+    """Drivers whose device was disconnected at the end (with a rig: already before its scene ended)."""
+    return [f"{node} ended {status} (see docs/drivers.md)" for node, status in sorted(s["disconnected_nodes"].items())]
 
 
 def behind_problems(s: dict) -> list[str]:
@@ -442,7 +454,7 @@ def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
         + f"; {pct(s['late_share'])} ({s['late_commands']}) later than {s['command_deadline_ms']:g} ms after their"
         " sample",
     ]
-    problems = check_problems(s, p or MonitorParams()) + behind_problems(s)
+    problems = check_problems(s, p or MonitorParams()) + device_problems(s) + behind_problems(s)
     lines.extend(f"HEALTH: {problem}" for problem in problems or ["ok"])
     if s["losses"]:
         for node, counts in sorted(s["losses"].items()):

@@ -34,10 +34,14 @@ def slipstack(*args: str, env: dict | None = None, timeout: float = 120.0) -> su
                           timeout=timeout, env=env or dict(os.environ))
 
 
+LOG_LEVELS = "warning,monitor=info,rig=info"  # the recorder's "wrote …" (info) is not shown
+
+
 @pytest.fixture(scope="module")
 def short_run(tmp_path_factory):
-    """``slipstack launch scene:=SHORT recording:=R record_topics:= summary:=S check:=false``
-    on the default scene cut to 3 s: (folder, its output, the recording)."""
+    """``slipstack launch scene:=SHORT recording:=R record_topics:= summary:=S check:=false
+    --log-level warning,monitor=info,rig=info`` on the default scene cut to 3 s: (folder,
+    its output, the recording)."""
     folder = tmp_path_factory.mktemp("run")
     text = (launch_files_dir().parent / "scenes" / "default.toml").read_text()
     scene = folder / "short.toml"
@@ -45,7 +49,7 @@ def short_run(tmp_path_factory):
     recording = folder / "r.mcap"
     env = dict(os.environ, SLIPSTACK_RUN_ROOT=str(folder / "root"), PYTHONUNBUFFERED="1")
     out = slipstack("launch", f"scene:={scene}", f"recording:={recording}", "record_topics:=",
-                    f"summary:={folder / 'summary.json'}", "check:=false", env=env)
+                    f"summary:={folder / 'summary.json'}", "check:=false", "--log-level", LOG_LEVELS, env=env)
     assert out.returncode == 0, out.stdout + out.stderr
     return folder, out.stdout + out.stderr, recording
 
@@ -159,3 +163,32 @@ def test_hardware_without_its_device_shows_disconnected_live_and_no_truth_in_the
     assert "detected of" not in summary and "% of sticking frames" not in summary, summary
     assert "HEALTH: ft_driver ended disconnected: robotiq:///dev/ttyNOPE" in summary, summary
     assert re.search(r"HEALTH: all \d+ grip commands were fail-safe", summary), summary
+
+
+# -- item 6: a normal end is quiet; item 3: levels, and the log kept beside the recording -------
+def test_a_normal_end_is_quiet_and_its_log_outlives_the_run_directory(short_run):
+    folder, output, recording = short_run
+    lines = output.splitlines()
+    device_errors = [ln for ln in lines if re.match(r"\[(ft|tactile)_driver\] error:", ln)]
+    assert not device_errors, device_errors  # the rig closed them at the end of its scene
+    log_file = recording.with_suffix(".log")
+    log = log_file.read_text()
+    held = [ln for ln in log.splitlines() if ln.endswith("(not shown)")]
+    closing = [ln for ln in lines if "devices closed as the simulated world stopped" in ln]
+    if held:  # said in one line, and kept in full in the log file
+        assert len(closing) == 1 and f"{len(held)} retry line(s)" in closing[0], closing
+        assert all(re.search(r"\[(ft|tactile)_driver\] error: ", ln) for ln in held), held
+    # the log file has what the terminal had, with times; the run directory is gone
+    assert "==== slipstack run summary ====" in log and "[launch]" in log
+    assert re.match(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3} \[", log)
+    assert not any((folder / "root").glob("run-*/graph.json"))
+    # levels: monitor and rig at info, the others at warning
+    assert any(ln.startswith("[monitor] STATUS") for ln in lines)
+    assert "[rig] scene default finished" in lines, output[-3000:]
+    assert not any(ln.startswith("[recorder] wrote") for ln in lines), output[-3000:]
+
+
+def test_an_unknown_log_level_is_refused_with_the_levels():
+    out = slipstack("launch", "demo", "--log-level", "loud")
+    assert out.returncode == 2, out
+    assert "unknown level 'loud'" in out.stderr and "debug, info, warning, error" in out.stderr, out.stderr
