@@ -5,6 +5,7 @@
     slipstack topic echo TOPIC [--once] [--count N] [--field a.b] [--csv] [--no-arr] ...
     slipstack topic hz TOPIC [--window N] [--use-stamps]
     slipstack topic delay TOPIC [--window N]
+    slipstack topic bw TOPIC [--window N]
     slipstack topic pub TOPIC [TYPE] [VALUES] [--once | --times N] [--rate HZ]
 
 Every verb reads the graph from ``<run_dir>/graph.json`` (``--run-dir``, else
@@ -181,7 +182,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     _run_dir_option(p)
     p.set_defaults(func=main_info)
 
-    for add in (_add_echo, _add_hz, _add_delay, _add_pub):
+    for add in (_add_echo, _add_hz, _add_delay, _add_bw, _add_pub):
         _run_dir_option(add(verbs))
 
 
@@ -242,6 +243,17 @@ def _add_delay(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
     )
     _window_options(p)
     p.set_defaults(func=_lazy("slipstack.nodes.tools.topic_hz", "main_delay"))
+    return p
+
+
+def _add_bw(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    p = verbs.add_parser(
+        "bw", help="print a topic's bandwidth",
+        description="Print the bytes per second of TOPIC's payloads (MessagePack, as on the wire) and their "
+                    "mean, min and max size over the last --window messages, once per second.",
+    )
+    _window_options(p)
+    p.set_defaults(func=_lazy("slipstack.nodes.tools.topic_hz", "main_bw"))
     return p
 
 
