@@ -584,7 +584,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "launch", help="run a graph (default: the simulated rig and the full stack)",
         description="Run a graph of nodes from a TOML launch file; name:=value sets launch arguments.",
     )
-    p.add_argument("file", nargs="?", help="launch file (path or shipped name); default: the default graph")
+    p.add_argument("file", nargs="?", help="launch file (path or shipped name); default: the default graph"
+                   ).completer = _shipped_launch_files  # type: ignore[attr-defined]
     p.add_argument("assignments", nargs="*", metavar="name:=value", help="launch argument overrides")
     p.add_argument("--show-args", action="store_true",
                    help="print the launch arguments with their values and comments, and exit")
@@ -595,6 +596,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="keep every line printed here (default: beside the recording, runs/<stamp>.log; "
                         "none when nothing is recorded)")
     p.set_defaults(func=main_launch)
+
+
+def _shipped_launch_files(**_: object) -> list[str]:
+    """Shell completion of the launch file: the shipped ones, by name (``fig15``)."""
+    from slipstack.launch.launch_file import launch_files_dir
+
+    return sorted(p.stem for p in launch_files_dir().glob("*.toml"))
 
 
 def main_launch(args: argparse.Namespace) -> int:

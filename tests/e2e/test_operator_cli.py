@@ -163,3 +163,23 @@ def test_hardware_launch_with_a_wrong_device_path_says_so(launch):
     assert "No such file or directory" in out.stdout
     errors = [ln for ln in g.log().splitlines() if ln.startswith("[ft_driver] error:") and "ttyNOPE" in ln]
     assert len(errors) == 1, g.log()
+
+
+# -- item 10: shell completion -----------------------------------------------------------------------
+def _completions(line: str, tmp_path: Path) -> list[str]:
+    """What the shell gets for ``line<TAB>`` (argcomplete's protocol, answers in a file)."""
+    answers = tmp_path / "completions"
+    env = dict(os.environ, _ARGCOMPLETE="1", COMP_LINE=line, COMP_POINT=str(len(line)),
+               _ARGCOMPLETE_STDOUT_FILENAME=str(answers), SLIPSTACK_RUN_ROOT=str(tmp_path))
+    out = slipstack(env=env)
+    assert out.returncode == 0, out.stderr
+    return [w.strip() for w in answers.read_text().split("\x0b")]
+
+
+def test_the_shell_completes_commands_verbs_and_launch_files(tmp_path):
+    assert "export" in _completions("slipstack bag ex", tmp_path)
+    assert {"topic", "completion"} <= set(_completions("slipstack ", tmp_path))
+    assert {"bw", "hz", "delay", "echo"} <= set(_completions("slipstack topic ", tmp_path))
+    assert {"fig15", "fig10", "fig11"} <= set(_completions("slipstack launch fig1", tmp_path))
+    script = slipstack("completion", "bash")
+    assert script.returncode == 0 and "complete" in script.stdout and "slipstack" in script.stdout, script
