@@ -123,9 +123,12 @@ def format_info(info) -> str:  # noqa: ANN001 — a bag_io.RecordingInfo
 
 
 def _main_info(args: argparse.Namespace) -> int:
+    from slipstack.lib.progress import file_progress
     from slipstack.nodes.recording.bag_io import recording_info
 
-    print(format_info(recording_info(args.path)))
+    with file_progress(args.path, "bag info") as progress:
+        info = recording_info(args.path, progress=progress)
+    print(format_info(info))
     return 0
 
 
@@ -136,6 +139,9 @@ def _main_export(args: argparse.Namespace) -> int:
     if fmt is None:
         raise ConfigError(f"cannot tell the export format from {args.output!r}: name it OUT.mcap (MCAP with JSON, "
                           "for Foxglove) or OUT.jsonl (JSON lines), or give --format; CSV is not an export format")
-    n = export_recording(args.path, args.output, fmt)
+    from slipstack.lib.progress import file_progress
+
+    with file_progress(args.path, "bag export") as progress:
+        n = export_recording(args.path, args.output, fmt, progress=progress)
     print(f"wrote {args.output}: {n} messages ({fmt})")
     return 0
