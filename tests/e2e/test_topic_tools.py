@@ -321,3 +321,21 @@ def test_bw_reports_bytes_per_second_and_sizes(demo):
     for rate, unit, mean, low, high, window in found:
         assert smallest <= int(low) <= float(mean) <= int(high) <= smallest + 64, out
         assert float(rate) * {"B": 1, "KB": 1e3, "MB": 1e6}[unit] > 0 and int(window) <= 500, out
+
+
+@pytest.mark.parametrize("values, said", [
+    ("{force: [1, 2, 3], force: [4, 5, 6]}", "key 'force' given twice"),  # was: the last one, silently
+    ("{force: [1, 2, 3O]}", "Wrench.force"),  # a mistyped number is a string the field refuses
+    ("{force: &f [1, 2, 3], torque: *f}", "aliases"),
+    ("{force: [1, 2, 3]} extra", "cannot read"),
+])
+def test_pub_refuses_what_is_not_meant(demo, values, said):
+    """Issue 13 (PyYAML for ``topic pub``): a typo is an error that says where, not a value."""
+    out = demo.cli("topic", "pub", "ft/wrench", values, "--once")
+    assert out.returncode == 2 and said in out.stderr, out
+
+
+def test_pub_reads_yaml_block_style_and_comments(demo):
+    out = demo.cli("topic", "pub", "ft/wrench", "force: [7.25, 0, 1e0]  # a test force\ntorque: [0, 0, 0]",
+                   "--once")
+    assert out.returncode == 0, out.stderr
