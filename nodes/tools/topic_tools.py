@@ -234,40 +234,36 @@ def _add_echo(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
     return p
 
 
-def _add_hz(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = verbs.add_parser(
-        "hz", help="print a topic's rate",
-        description="Print the average rate and period min/max/std of TOPIC over the last --window "
-                    "messages, once per second, from receive times (or header stamps).",
-    )
+def _window_verb(verbs: argparse._SubParsersAction, name: str, help_text: str, description: str,
+                 function: str) -> argparse.ArgumentParser:
+    """A verb of :mod:`.topic_hz` (TOPIC, --window, --duration), running ``function`` there."""
+    p = verbs.add_parser(name, help=help_text, description=description)
     _window_options(p)
+    p.set_defaults(func=_lazy("slipstack.nodes.tools.topic_hz", function))
+    return p
+
+
+def _add_hz(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    p = _window_verb(verbs, "hz", "print a topic's rate",
+                     "Print the average rate and period min/max/std of TOPIC over the last --window "
+                     "messages, once per second, from receive times (or header stamps).", "main_hz")
     p.add_argument("--use-stamps", action="store_true",
                    help="use the messages' header.stamp_ns instead of receive times")
-    p.set_defaults(func=_lazy("slipstack.nodes.tools.topic_hz", "main_hz"))
     return p
 
 
 def _add_delay(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = verbs.add_parser(
-        "delay", help="print a topic's sample-to-here latency",
-        description="Print the average, min, max and std of (receive time - header.stamp_ns) of TOPIC over "
-                    "the last --window messages, once per second. The stamp is the time of the sensor "
-                    "sample a message derives from, so this is the latency from the sample to this tool.",
-    )
-    _window_options(p)
-    p.set_defaults(func=_lazy("slipstack.nodes.tools.topic_hz", "main_delay"))
-    return p
+    return _window_verb(verbs, "delay", "print a topic's sample-to-here latency",
+                        "Print the average, min, max and std of (receive time - header.stamp_ns) of TOPIC over "
+                        "the last --window messages, once per second. The stamp is the time of the sensor "
+                        "sample a message derives from, so this is the latency from the sample to this tool.",
+                        "main_delay")
 
 
 def _add_bw(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = verbs.add_parser(
-        "bw", help="print a topic's bandwidth",
-        description="Print the bytes per second of TOPIC's payloads (MessagePack, as on the wire) and their "
-                    "mean, min and max size over the last --window messages, once per second.",
-    )
-    _window_options(p)
-    p.set_defaults(func=_lazy("slipstack.nodes.tools.topic_hz", "main_bw"))
-    return p
+    return _window_verb(verbs, "bw", "print a topic's bandwidth",
+                        "Print the bytes per second of TOPIC's payloads (MessagePack, as on the wire) and their "
+                        "mean, min and max size over the last --window messages, once per second.", "main_bw")
 
 
 def _window_options(p: argparse.ArgumentParser) -> None:
