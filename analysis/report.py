@@ -45,6 +45,7 @@ from slipstack.lib.identify import (
     identify_beta,
     identify_mu,
 )
+from slipstack.lib.progress import file_progress
 from slipstack.messages import STATUS_OK, Message, decode
 from slipstack.nodes.recording.bag_io import RecordingError, read_recording
 
@@ -137,15 +138,16 @@ class RecordingSeries:
         return RecordingSeries(self.path, self.t0_ns, topics, self.undecodable)
 
 
-def load_series(path: str | Path) -> RecordingSeries:
-    """Read and decode the report's topics of a recording (tactile frames are not read).
+def load_series(path: str | Path, progress: Callable[[int], None] | None = None) -> RecordingSeries:
+    """Read and decode the report's topics of a recording (tactile frames are not read);
+    ``progress(bytes read)`` after each chunk.
 
     Raises:
         RecordingError: the file cannot be opened or is not MCAP.
     """
     rows: dict[str, list[Message]] = {topic: [] for topic in _COLUMNS}
     undecodable = 0
-    for frame in read_recording(path, _COLUMNS):
+    for frame in read_recording(path, _COLUMNS, progress=progress):
         try:
             rows[frame.topic].append(decode(frame.payload))
         except DecodeError:
@@ -498,7 +500,8 @@ def main_report(args: argparse.Namespace) -> int:
         except ImportError:
             print(f"slipstack report: {MATPLOTLIB_HINT}", file=sys.stderr)
             return 2
-    series = load_series(path)
+    with file_progress(path, "report") as progress:
+        series = load_series(path, progress)
     if args.identify:
         print(format_identification(identify_recording(series)))
         return 0

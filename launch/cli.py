@@ -24,6 +24,7 @@ COMMANDS = {
     "identify": ("slipstack.analysis.identify_cli", "a material file (friction and thresholds) from friction ramps"),
     "reproduce": ("slipstack.analysis.reproduce", "run the paper's experiments in lock-step and draw its figures"),
     "keys": ("slipstack.launch.keys_cli", "make the key pair a graph's tcp links need"),
+    "completion": ("slipstack.launch.completion", "print the shell completion script (bash, zsh, fish)"),
 }
 
 
@@ -46,6 +47,9 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from slipstack.launch.completion import complete
+
+    complete(build_parser)  # the shell asking for completions: answered, then exits
     argv = sys.argv[1:] if argv is None else argv
     parser = build_parser(argv)
     args, extra = parser.parse_known_args(argv)

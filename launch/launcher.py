@@ -49,7 +49,10 @@ from slipstack.launch.launch_file import SIM_ARG, LaunchFile, arg_comments, load
 from slipstack.launch.plan import NodePlan, ProcessPlan, plan_launch
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.nodes.devices.sim_link import SIM_PREFIX
+from slipstack.launch.quiet_shutdown import WorldEndFilter
+from slipstack.launch.run_log import RunLog, log_path_for
 from slipstack.nodes.runtime.curve import INSECURE_ENV, KEYS_ENV
+from slipstack.nodes.runtime.logs import LOG_LEVEL_ENV, parse_log_levels
 from slipstack.nodes.runtime.graph_info import process_start_ticks, write_graph
 from slipstack.nodes.runtime.run_dir import finish_run_dir, make_run_dir, remove_run_dir, write_private_file
 
@@ -110,9 +113,10 @@ class Console:
 class Launcher:
     """Run the graph of ``launch``; ``echo`` receives every log line."""
 
-    def __init__(self, launch: LaunchFile, run_dir: Path, *, echo: Callable[[str], None] | None = None) -> None:
+    def __init__(self, launch: LaunchFile, run_dir: Path, *, echo: Callable[[str], None] | None = None,
+                 log_file: Path | None = None) -> None:
         self.launch = launch
-        self.echo = echo or Console()
+        self.echo = RunLog(echo or Console(), log_file)
         self.run_dir = run_dir
         self.plan = plan_launch(launch, run_dir)
         self.zctx = zmq.Context.instance()
@@ -128,6 +132,8 @@ class Launcher:
         self._stop_requested = False
         self.exit_code = 0
         self.start_ticks = process_start_ticks(os.getpid())
+        self._world_end = WorldEndFilter({n for n, p in self.processes.items() if p.entry.stop_first},
+                                         {n for n, p in self.processes.items() if p.runs_device_driver})
         for proc in self.processes.values():
             write_private_file(self.run_dir, proc.spec_path.name, json.dumps(proc.spec, indent=1))
 
@@ -191,7 +197,8 @@ class Launcher:
         return proc
 
     def _forward_logs(self, timeout: float) -> None:
-        for key, _ in self.selector.select(timeout):
+        ready = sorted(self.selector.select(timeout), key=lambda k: not k[0].data.entry.stop_first)  # the world first
+        for key, _ in ready:
             c: _Process = key.data
             try:
                 chunk = key.fileobj.read()
@@ -206,7 +213,11 @@ class Launcher:
             c.buffer += chunk
             *lines, c.buffer = c.buffer.split(b"\n")
             for line in lines:
-                self.echo(f"[{c.name}] {line.decode(errors='replace')}")
+                text = line.decode(errors="replace")
+                if self._world_end.keep(c.name, text):
+                    self.echo(f"[{c.name}] {text}")
+                else:
+                    self.echo.held(f"[{c.name}] {text}")
 
     def _wait_ready(self, process: _Process, timeout: float) -> None:
         """Until every node of ``process`` has reported ready."""
@@ -279,6 +290,7 @@ class Launcher:
         if self.launch.check:
             self._report_check()
         finish_run_dir(self.run_dir, keep=(EVENTS_FILE, CHECK_FILE))
+        self.echo.close()
         return self.exit_code
 
     def _supervise(self) -> None:
@@ -393,6 +405,7 @@ class Launcher:
         return [self.processes[n] for n in self.plan.stop_order(started)]
 
     def _shutdown(self, started: list[str]) -> None:
+        self._world_end.world_ending()
         for c in self.processes.values():
             self._dismiss_standby(c)
         t0 = time.monotonic()
@@ -414,6 +427,9 @@ class Launcher:
         for c in live:
             c.proc.wait()
         self._forward_logs(0.0)
+        closing = self._world_end.closing_line()
+        if closing:
+            self.echo(closing)
 
 
 def monitor_check_problems(launch: LaunchFile, run_dir: Path) -> list[str]:
@@ -436,17 +452,34 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "launch", help="run a graph (default: the simulated rig and the full stack)",
         description="Run a graph of nodes from a TOML launch file; name:=value sets launch arguments.",
     )
-    p.add_argument("file", nargs="?", help="launch file (path or shipped name); default: the default graph")
+    p.add_argument("file", nargs="?", help="launch file (path or shipped name); default: the default graph"
+                   ).completer = _shipped_launch_files  # type: ignore[attr-defined]
     p.add_argument("assignments", nargs="*", metavar="name:=value", help="launch argument overrides")
     p.add_argument("--show-args", action="store_true",
                    help="print the launch arguments with their values and comments, and exit")
     p.add_argument("--lockstep", action="store_true",
                    help="run every node in this process on the simulated clock, the rig in lock-step with the "
                         "stack: faster than real time and repeatable bit for bit (simulated devices only)")
+    p.add_argument("--log-level", metavar="LEVEL[,NODE=LEVEL]", default="",
+                   help="least level of the node log lines shown and kept: debug, info (default), warning, "
+                        "error; for every node, then per node, e.g. warning,ft_driver=debug")
+    p.add_argument("--log-file", metavar="PATH",
+                   help="keep every line printed here (default: beside the recording, runs/<stamp>.log; "
+                        "none when nothing is recorded)")
     p.set_defaults(func=main_launch)
 
 
+def _shipped_launch_files(**_: object) -> list[str]:
+    """Shell completion of the launch file: the shipped ones, by name (``fig15``)."""
+    from slipstack.launch.launch_file import launch_files_dir
+
+    return sorted(p.stem for p in launch_files_dir().glob("*.toml"))
+
+
 def main_launch(args: argparse.Namespace) -> int:
+    parse_log_levels(args.log_level)  # a bad level fails before anything starts
+    if args.log_level:
+        os.environ[LOG_LEVEL_ENV] = args.log_level  # the node processes inherit it
     positional = list(args.assignments)
     file = args.file
     if file is not None and ":=" in file:  # `slipstack launch name:=value` with the default file
@@ -466,7 +499,7 @@ def main_launch(args: argparse.Namespace) -> int:
             return 0
         if args.lockstep:
             return run_lockstep(launch, run_dir)
-        launcher = Launcher(launch, run_dir)
+        launcher = Launcher(launch, run_dir, log_file=Path(args.log_file) if args.log_file else log_path_for(launch))
     except BaseException:  # a bad launch file leaves no run directory behind
         remove_run_dir(run_dir)
         raise

@@ -21,6 +21,7 @@ from pathlib import Path
 from slipstack.lib.errors import ConfigError
 from slipstack.launch.launch_file import LaunchFile, NodeEntry, free_port
 from slipstack.messages import Diagnostics
+from slipstack.nodes.device_driver import DeviceDriver
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.transport import ipc_endpoint
 
@@ -55,6 +56,11 @@ class ProcessPlan:
     def entry(self) -> NodeEntry:
         """Process settings (respawn, required, nice): the members share them."""
         return self.members[0].entry
+
+    @property
+    def runs_device_driver(self) -> bool:
+        """A member is a device driver (its device may vanish when the simulated world stops)."""
+        return any(issubclass(m.entry.cls, DeviceDriver) for m in self.members)
 
     @property
     def is_container(self) -> bool:

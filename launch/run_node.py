@@ -75,6 +75,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--spec", help="JSON run spec written by the launcher")
     p.add_argument("--pub", help="endpoint to bind for publishing, e.g. ipc:///tmp/x.pub or tcp://*:5555")
     p.add_argument("--sub", action="append", default=[], metavar="TOPIC=ENDPOINT", help="where to find a topic (repeatable)")
+    p.add_argument("--log-level", metavar="LEVEL", default=None,
+                   help="least level of the log lines shown: debug, info (default), warning, error")
     p.set_defaults(func=main_run)
 
 
@@ -102,6 +104,9 @@ def _executor(members: list[tuple[Node, RunSpec]]) -> ProcessExecutor:
 
 
 def main_run(args: argparse.Namespace) -> int:
+    from slipstack.nodes.runtime.logs import configure_logging
+
+    configure_logging(getattr(args, "log_level", None))  # None: the launcher's, from the environment
     if args.node == "container":
         if not args.spec or args.assignments:
             raise ConfigError("run container needs --spec FILE (written by the launcher) and no name:=value")

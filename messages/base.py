@@ -7,7 +7,9 @@ are annotated ``float``, ``int``, ``bool``, ``str`` or ``dict``; array fields us
 published; :mod:`slipstack.messages.frame` holds the frame layout around the body.
 
 Scalar fields may declare :class:`Bounds` with :func:`bounded` (numeric range,
-an enumeration or pattern of strings, a length or entry limit); every ``str`` and
+an enumeration or pattern of strings, a length or entry limit); a ``dict`` field may
+declare its values in its metadata (``"values": float``, or a tuple of types for a
+fixed-length list, ``(bool, float)``); every ``str`` and
 ``dict`` field has a length limit even without one (:data:`MAX_STR_LEN`,
 :data:`MAX_DICT_ITEMS`). An array's free dimension may be tied to other fields
 (``array("<f4", ("rows*cols",))``: its length must equal the product).
@@ -209,18 +211,35 @@ def _str_check(name: str, b: Bounds):
     return check
 
 
-def _dict_check(name: str, b: Bounds):
+def _is_value(v: Any, kind: Any) -> bool:
+    """``v`` is of the declared dict value ``kind`` (a type, or a tuple of types for a list)."""
+    if isinstance(kind, tuple):
+        return isinstance(v, (list, tuple)) and len(v) == len(kind) and all(map(_is_value, v, kind))
+    if kind is bool or isinstance(v, bool):
+        return kind is bool and isinstance(v, bool)
+    return isinstance(v, _SCALARS[kind])
+
+
+def _dict_check(name: str, b: Bounds, values: Any = None):
     max_items = b.max_len if b.max_len is not None else MAX_DICT_ITEMS
 
     def check(v: dict) -> None:
         if len(v) > max_items:
             raise DecodeError(f"{name}: at most {max_items} entries, got {len(v)}")
-        for k in v:
+        for k, x in v.items():
             if not isinstance(k, str) or len(k) > MAX_KEY_LEN:
                 shown = _shown(k) if isinstance(k, str) else type(k).__name__
                 raise DecodeError(f"{name}: keys are strings of at most {MAX_KEY_LEN} characters, got {shown}")
+            if values is not None and not _is_value(x, values):
+                raise DecodeError(f"{name}.{k}: expected {_type_name(values)}, got {x!r:.40}")
 
     return check
+
+
+def _type_name(kind: Any) -> str:
+    if isinstance(kind, tuple):
+        return "[" + ", ".join(_type_name(k) for k in kind) + "]"
+    return kind.__name__
 
 
 def _validator(owner: str, f: dataclasses.Field, hint: Any):
@@ -234,9 +253,10 @@ def _validator(owner: str, f: dataclasses.Field, hint: Any):
         raise TypeError(f"{name}: unsupported field type {hint!r}")
     b: Bounds = f.metadata.get("bounds") or Bounds()
     allow_inf = b.allow_inf
-    extra = {float: _number_check, int: _number_check, str: _str_check, dict: _dict_check}.get(origin, lambda *_: None)(
-        name, b
-    )
+    if origin is dict:
+        extra = _dict_check(name, b, f.metadata.get("values"))
+    else:
+        extra = {float: _number_check, int: _number_check, str: _str_check}.get(origin, lambda *_: None)(name, b)
 
     def check_scalar(v: Any) -> Any:
         if isinstance(v, bool) and origin is not bool:

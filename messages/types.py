@@ -169,7 +169,8 @@ class Slip(Message):
     state: str = bounded(SlipState.NO_CONTACT.value, choices=tuple(s.value for s in SlipState))
     margin: float = bounded(0.0, allow_inf=True)
     method: str = bounded("", **_NAME)
-    verdicts: dict = field(default_factory=dict, metadata={"bounds": Bounds(max_len=MAX_VERDICTS)})
+    verdicts: dict = field(default_factory=dict, metadata={"bounds": Bounds(max_len=MAX_VERDICTS),
+                                                           "values": (bool, float)})
     gamma: float = bounded(0.0, allow_inf=True)
     status: str = bounded(STATUS_OK, **_STATUS)
     f_n: float = bounded(0.0, doc="N")
@@ -230,5 +231,5 @@ class Diagnostics(Message):
 
     node: str = bounded("", max_len=128)
     status: str = bounded(STATUS_OK, max_len=MAX_TEXT_LEN)
-    counters: dict = field(default_factory=dict, metadata={"bounds": Bounds(max_len=MAX_COUNTERS)})
+    counters: dict = field(default_factory=dict, metadata={"bounds": Bounds(max_len=MAX_COUNTERS), "values": float})
     last_error: str = bounded("", max_len=MAX_TEXT_LEN)

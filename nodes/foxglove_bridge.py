@@ -85,7 +85,7 @@ class FoxgloveBridge(Node):
             from foxglove.channels import RawImageChannel, SceneUpdateChannel
         except ImportError:
             raise ConfigError(INSTALL_HINT) from None
-        from slipstack.nodes.recording.bag_io import json_schema
+        from slipstack.messages.json_schema import json_schema
 
         self._wall_offset_ns = time.time_ns() - time.monotonic_ns()
         self._server = foxglove.start_server(name="slipstack", host=self.params.host, port=self.params.port)
@@ -138,9 +138,9 @@ class FoxgloveBridge(Node):
         return Timestamp(sec=sec, nsec=nsec)
 
     def _log_json(self, name: str, msg: Message) -> None:
-        from slipstack.nodes.recording.bag_io import to_json
+        from slipstack.messages.json_schema import to_json
 
-        self._json[name].log(to_json(msg), log_time=self._wall_ns(msg))
+        self._json[name].log(to_json(msg, self._wall_offset_ns), log_time=self._wall_ns(msg))
 
     def _log_scene(self, msg: Message) -> None:
         from foxglove.messages import (

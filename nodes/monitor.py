@@ -24,7 +24,14 @@ silent nodes also on the live line):
 - *behind real time*: ``timer.<name>.skipped`` ticks of a timer-paced node (the rig
   skips simulator ticks it could not make up);
 - *silent nodes*: a node whose ``diagnostics`` (every 1 s) stopped for longer than
-  ``silent_after_s`` — dead, stopped or starved — whether it came back or not.
+  ``silent_after_s`` — dead, stopped or starved — whether it came back or not;
+- *disconnected devices*: a driver whose ``diagnostics`` status is ``disconnected: …``
+  (also on the live line, while it lasts); and a run whose every grip command was
+  fail-safe (the sensors never streamed).
+
+Counts are given with their denominators (``frames lost at fusion: ft/wrench 497 of
+30004 sent (sequence gaps)``). Without ``rig/truth`` (real hardware) there is no ground
+truth: the summary says so instead of printing episode counts and a false-slip rate.
 
 Memory is bounded: running sums and counts per message, the detection quality streamed
 by :class:`~slipstack.lib.episodes.EpisodeTracker`, one counter map per node.
@@ -48,6 +55,7 @@ __all__ = ["Monitor", "MonitorParams", "summarise", "check_problems", "format_su
 
 _LOSS_KEYS = (".rejected", ".lost", ".dropped_hwm")  # ".dropped" is drain-to-latest, on purpose
 FAIL_SAFE = "fail-safe"
+DISCONNECTED = "disconnected"
 SKIP_WARN_SHARE = 0.25
 """A node that skipped more than this share of the sensor samples (:data:`SENSOR_TOPICS`)
 of a latest-value input is reported on the HEALTH line (at the paper rates fusion skips
@@ -123,8 +131,9 @@ class CommandStats:
 
     def judged(self, with_rig: bool) -> tuple[int, int]:
         """(commands, fail-safe commands) while the stack ran: without the starting and,
-        with a rig, the after-the-scene stretches."""
+        with a rig, the after-the-scene stretches (a command in both counts once)."""
         tail, tail_held = (self.after_truth, self.fail_safe_after_truth) if with_rig else (0, 0)
+        tail, tail_held = min(tail, self.count - self.starting), min(tail_held, self.fail_safe - self.starting)
         return self.count - self.starting - tail, self.fail_safe - self.starting - tail_held
 
 
@@ -136,6 +145,9 @@ class NodeWatch:
     and how many exceeded the limit."""
 
     counters: dict = field(default_factory=dict)
+    status: str = "ok"
+    disconnected_since_ns: int | None = None
+    """Stamp of the first report of the current ``disconnected`` status (``None``: connected)."""
     last_seen_ns: int = 0
     last_stamp_ns: int | None = None
     silences: int = 0
@@ -148,6 +160,11 @@ class NodeWatch:
             self.longest_silence_ns = max(self.longest_silence_ns, gap)
             self.silences += gap > silent_after_ns
         self.counters = msg.counters
+        self.status = msg.status
+        if not msg.status.startswith(DISCONNECTED):
+            self.disconnected_since_ns = None
+        elif self.disconnected_since_ns is None:
+            self.disconnected_since_ns = stamp
         self.last_seen_ns = now_ns
         self.last_stamp_ns = stamp
 
@@ -170,6 +187,7 @@ class Monitor(Node):
         self.episodes = EpisodeTracker()
         self.commands = CommandStats()
         self.slip_frames = 0
+        self.slip_verdicts = 0  # slip frames whose state is a slip
         self.truth_frames = 0
         self.applied_f_n_sum = 0.0
         self.last: dict[str, object] = {}
@@ -180,7 +198,9 @@ class Monitor(Node):
 
     def on_slip(self, msg: Slip, ctx: Context) -> None:
         self.slip_frames += 1
-        self.episodes.add_verdict(msg.header.stamp_ns, msg.state in SLIP_STATES)
+        slipping = msg.state in SLIP_STATES
+        self.slip_verdicts += slipping
+        self.episodes.add_verdict(msg.header.stamp_ns, slipping)
         self.last["slip"] = msg
 
     def on_grip(self, msg: GripCommand, ctx: Context) -> None:
@@ -202,6 +222,12 @@ class Monitor(Node):
         return {name: (now_ns - w.last_seen_ns) / 1e9 for name, w in self.nodes.items()
                 if now_ns - w.last_seen_ns > self._silent_after_ns}
 
+    def disconnected_nodes(self, since_before_ns: int | None = None) -> dict[str, str]:
+        """Nodes whose latest diagnostics say ``disconnected``: name → that status; with
+        ``since_before_ns``, only those disconnected since before that stamp."""
+        return {name: w.status for name, w in self.nodes.items() if w.disconnected_since_ns is not None
+                and (since_before_ns is None or w.disconnected_since_ns <= since_before_ns)}
+
     def on_timer_status(self, ctx: Context) -> None:
         now = ctx.now_ns()
         t0, slips0, cmds0, fs0 = self._at_status
@@ -209,8 +235,8 @@ class Monitor(Node):
         rate = (self.slip_frames - slips0) / dt if dt > 0 else 0.0
         cmds, fail_safe = self.commands.count - cmds0, self.commands.fail_safe - fs0
         self._at_status = (now, self.slip_frames, self.commands.count, self.commands.fail_safe)
-        share = fail_safe / cmds if cmds else None
-        ctx.log("STATUS " + status_line(self.last, rate, share, sorted(self.silent_nodes(now))))
+        ctx.log("STATUS " + status_line(self.last, rate, (fail_safe, cmds), sorted(self.silent_nodes(now)),
+                                        sorted(self.disconnected_nodes())))
 
     def stop(self, ctx: Context) -> None:
         self.episodes.finish()
@@ -242,10 +268,11 @@ def write_json_atomically(path: str, content: dict) -> None:
         raise
 
 
-def status_line(last: dict[str, object], rate_hz: float, fail_safe_share: float | None = None,
-                silent: list[str] | None = None) -> str:
-    """One line: state, f_n, command, margin, COR, detector rate; then the fail-safe share
-    of the commands since the last line and the silent nodes, when there are any."""
+def status_line(last: dict[str, object], rate_hz: float, fail_safe: tuple[int, int] = (0, 0),
+                silent: list[str] | None = None, disconnected: list[str] | None = None) -> str:
+    """One line: state, f_n, command, margin, COR, detector rate; then, when there are
+    any, the fail-safe commands ``fail_safe = (held, of commands)`` since the last line,
+    the silent nodes and the nodes whose device is disconnected."""
     slip = last.get("slip")
     grip = last.get("grip")
     parts = [f"state={slip.state if slip else '-':<11}"]
@@ -258,10 +285,13 @@ def status_line(last: dict[str, object], rate_hz: float, fail_safe_share: float 
     else:
         parts.append("cor=-")
     parts.append(f"rate={rate_hz:5.0f} Hz")
-    if fail_safe_share:
-        parts.append(f"FAIL-SAFE {fail_safe_share * 100:.0f}%")
+    held, commands = fail_safe
+    if held:
+        parts.append(f"FAIL-SAFE {held / commands * 100:.0f}% ({held} of {commands} commands)")
     if silent:
         parts.append("SILENT " + ",".join(silent))
+    if disconnected:
+        parts.append("DISCONNECTED " + ",".join(disconnected))
     return "  ".join(parts)
 
 
@@ -273,10 +303,7 @@ def summarise(m: Monitor, now_ns: int) -> dict:
     """The run's numbers as a JSON-able dict (``now_ns``: executor time of the end)."""
     q = m.episodes.quality()
     cmd = m.commands
-    losses = {
-        node: {k: v for k, v in w.counters.items() if k.endswith(_LOSS_KEYS) and v}
-        for node, w in m.nodes.items()
-    }
+    losses = {node: _losses(w.counters) for node, w in m.nodes.items()}
     skipped = {
         node: {k[3:-8]: {"skipped": v, "received": w.counters.get(k[:-8] + ".received", 0)}
                for k, v in w.counters.items() if k.startswith("in.") and k.endswith(".dropped") and v}
@@ -291,14 +318,16 @@ def summarise(m: Monitor, now_ns: int) -> dict:
     truth = m.last.get("truth")
     judged, judged_fail_safe = cmd.judged(with_rig=truth is not None)
     return {
+        "has_truth": truth is not None,
         "slip_frames": m.slip_frames,
-        "true_episodes": m.episodes.episode_count,
-        "detected_episodes": m.episodes.detected,
-        "missed_episodes": m.episodes.missed,
-        "detection_delay_ms_p50": q.delay_percentile_ms(50) if q.detected else None,
-        "detection_delay_ms_p95": q.delay_percentile_ms(95) if q.detected else None,
-        "stick_frames": q.stick_frames,
-        "false_slip_rate": q.false_slip_rate,
+        "true_episodes": m.episodes.episode_count if truth else None,
+        "detected_episodes": m.episodes.detected if truth else None,
+        "missed_episodes": m.episodes.missed if truth else None,
+        "detection_delay_ms_p50": q.delay_percentile_ms(50) if q.detected and truth else None,
+        "detection_delay_ms_p95": q.delay_percentile_ms(95) if q.detected and truth else None,
+        "stick_frames": q.stick_frames if truth else None,
+        "false_slip_rate": q.false_slip_rate if truth else None,
+        "slip_verdicts": m.slip_verdicts,
         "grip_commands": cmd.count,
         "grip_command_mean_n": cmd.f_n_sum / cmd.count if cmd.count else None,
         "grip_command_peak_n": cmd.f_n_peak if cmd.count else None,
@@ -318,9 +347,29 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "skipped_for_newer": {n: v for n, v in skipped.items() if v},
         "behind_real_time": {n: v for n, v in behind.items() if v},
         "silent_nodes": silent_now,
+        # with a simulated rig, the devices close when its scene ends: only earlier losses count
+        "disconnected_nodes": m.disconnected_nodes(truth.header.stamp_ns if truth else None),
         "nodes_that_went_silent": went_silent,
         "recording": m.params.recording if m.params.recording and os.path.exists(m.params.recording) else "",
     }
+
+
+def _losses(counters: dict) -> dict[str, dict[str, float]]:
+    """Frames a node lost, each with its denominator: ``{what: {"lost": n, "of": total,
+    "topic": t, "how": ...}}`` for rejected frames (of those received), sequence gaps (of
+    those sent: received + lost) and send-queue drops (of those published)."""
+    out = {}
+    for key, n in counters.items():
+        if not n or not key.endswith(_LOSS_KEYS):
+            continue
+        stem, kind = key.rsplit(".", 1)
+        topic = stem.split(".", 1)[1] if "." in stem else stem
+        received = counters.get(f"{stem}.received", 0)
+        of, how = {"rejected": (received, "rejected as malformed, of those received"),
+                   "lost": (received + n, "sequence gaps, of those sent"),
+                   "dropped_hwm": (counters.get(f"{stem}.published", 0) + n, "send queue full, of those sent")}[kind]
+        out[key] = {"topic": topic, "lost": n, "of": of, "how": how}
+    return out
 
 
 def check_problems(s: dict, p: MonitorParams) -> list[str]:
@@ -343,7 +392,15 @@ def check_problems(s: dict, p: MonitorParams) -> list[str]:
     for node, seconds in sorted(s["nodes_that_went_silent"].items()):
         if node not in s["silent_nodes"]:
             problems.append(f"node {node} went silent for {seconds:.1f} s and came back (restarted?)")
+    if s["grip_commands"] and s["fail_safe_while_starting"] == s["grip_commands"]:
+        problems.append(f"all {s['grip_commands']} grip commands were fail-safe: the controller never had valid "
+                        "sensor data (are the sensors connected and streaming?)")
     return problems
+
+
+def device_problems(s: dict) -> list[str]:
+    """Drivers whose device was disconnected at the end (with a rig: already before its scene ended)."""
+    return [f"{node} ended {status} (see docs/drivers.md)" for node, status in sorted(s["disconnected_nodes"].items())]
 
 
 def behind_problems(s: dict) -> list[str]:
@@ -373,23 +430,37 @@ def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
     def pct(v: float | None) -> str:
         return "-" if v is None else f"{v * 100:.1f}%"
 
-    lines = [
-        "==== slipstack run summary ====",
-        f"slip episodes: {s['detected_episodes']} detected of {s['true_episodes']} true, {s['missed_episodes']} missed",
-        f"detection delay: p50 {num(s['detection_delay_ms_p50'], '.1f')} ms, p95 {num(s['detection_delay_ms_p95'], '.1f')} ms;"
-        f" false-slip rate {s['false_slip_rate'] * 100:.2f}% of sticking frames",
-        f"grip force commanded: mean {num(s['grip_command_mean_n'], '.2f')} N, peak {num(s['grip_command_peak_n'], '.2f')} N;"
-        f" applied mean {num(s['applied_f_n_mean_n'], '.2f')} N",
-        f"object slid {num(s['slip_distance_mm'], '.2f')} mm and turned {num(s['slip_angle_deg'], '.2f')} deg in all",
-        f"control path: {s['grip_commands']} grip commands, {pct(s['fail_safe_share'])} fail-safe while running"
-        f" ({s['fail_safe_while_starting']} more while the sensors started, {s['fail_safe_after_scene']} after the"
-        f" scene ended), {pct(s['late_share'])} later than {s['command_deadline_ms']:g} ms after their sample",
+    lines = ["==== slipstack run summary ===="]
+    if s["has_truth"]:
+        lines += [
+            f"slip episodes: {s['detected_episodes']} detected of {s['true_episodes']} true, {s['missed_episodes']} missed",
+            f"detection delay: p50 {num(s['detection_delay_ms_p50'], '.1f')} ms, p95 "
+            f"{num(s['detection_delay_ms_p95'], '.1f')} ms; false-slip rate {s['false_slip_rate'] * 100:.2f}% of "
+            f"{s['stick_frames']} sticking frames",
+            f"grip force commanded: mean {num(s['grip_command_mean_n'], '.2f')} N, peak "
+            f"{num(s['grip_command_peak_n'], '.2f')} N; applied mean {num(s['applied_f_n_mean_n'], '.2f')} N",
+            f"object slid {num(s['slip_distance_mm'], '.2f')} mm and turned {num(s['slip_angle_deg'], '.2f')} deg in all",
+        ]
+    else:
+        lines += [
+            "slip: no ground truth on this run (no rig/truth topic: real hardware), so no true episodes, missed "
+            f"slips or false-slip rate; the detector said slip in {s['slip_verdicts']} of {s['slip_frames']} verdicts",
+            f"grip force commanded: mean {num(s['grip_command_mean_n'], '.2f')} N, peak "
+            f"{num(s['grip_command_peak_n'], '.2f')} N",
+        ]
+    lines += [
+        f"control path: {s['grip_commands']} grip commands; fail-safe while running {pct(s['fail_safe_share'])}"
+        f" ({s['fail_safe_commands']} of {s['commands_while_running']}), {s['fail_safe_while_starting']} more while"
+        f" the sensors started" + (f", {s['fail_safe_after_scene']} after the scene ended" if s["has_truth"] else "")
+        + f"; {pct(s['late_share'])} ({s['late_commands']}) later than {s['command_deadline_ms']:g} ms after their"
+        " sample",
     ]
-    problems = check_problems(s, p or MonitorParams()) + behind_problems(s)
+    problems = check_problems(s, p or MonitorParams()) + device_problems(s) + behind_problems(s)
     lines.extend(f"HEALTH: {problem}" for problem in problems or ["ok"])
     if s["losses"]:
         for node, counts in sorted(s["losses"].items()):
-            lines.append(f"frames lost at {node}: " + ", ".join(f"{k}={v:g}" for k, v in sorted(counts.items())))
+            lines.append(f"frames lost at {node}: " + "; ".join(
+                f"{c['topic']} {c['lost']:g} of {c['of']:g} ({c['how']})" for _, c in sorted(counts.items())))
     elif problems:
         lines.append("frames lost on the bus: none reported (no rejected frames, sequence gaps or send-queue drops);"
                      " see HEALTH for what did go wrong")

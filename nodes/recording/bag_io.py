@@ -26,7 +26,6 @@ File layout (one MCAP file per recording, https://mcap.dev/spec):
 from __future__ import annotations
 
 import dataclasses
-import itertools
 import json
 import math
 import os
@@ -34,7 +33,7 @@ import typing
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Iterator, NamedTuple
+from typing import Any, Callable, Iterable, Iterator, NamedTuple
 
 import numpy as np
 from mcap.records import Channel, Chunk, Footer, Message as McapMessage, Metadata, Schema
@@ -53,7 +52,7 @@ from slipstack.nodes.runtime.node import Node
 __all__ = [
     "SCHEMA_ENCODING", "MESSAGE_ENCODING", "CLOCK_METADATA", "RecordingError", "RecordedFrame",
     "RecordingWriter", "read_recording", "TopicInfo", "RecordingInfo", "recording_info",
-    "message_schema", "json_schema", "to_json", "export_recording", "clock_offset_ns",
+    "message_schema", "clock_offset_ns", "recorded_clock_offset_ns",
     "replay_into", "same_output", "match_outputs",
 ]
 
@@ -121,56 +120,6 @@ def message_schema(cls: type[Message]) -> dict[str, Any]:
     }
 
 
-_JSON_TYPES = {"float": {"type": ["number", "string"]}, "int": {"type": "integer"}, "bool": {"type": "boolean"},
-               "str": {"type": "string"}, "dict": {"type": "object"}}
-
-
-def json_schema(cls: type[Message]) -> dict[str, Any]:
-    """A JSON Schema (draft 2020-12) for :func:`to_json` of ``cls`` (used by the Foxglove export)."""
-    props: dict[str, Any] = {
-        "header": {
-            "type": "object",
-            "properties": {
-                "stamp_ns": {"type": "integer"}, "seq": {"type": "integer"}, "pub_ns": {"type": "integer"},
-                "sources": {"type": "object", "additionalProperties": {"type": "integer"}},
-            },
-        }
-    }
-    for row in _field_rows(cls):
-        if row["type"] == "array":
-            kind = np.dtype(row["dtype"]).kind
-            item = {"b": {"type": "boolean"}, "f": {"type": ["number", "string"]}}.get(kind, {"type": "integer"})
-            entry: dict[str, Any] = {"type": "array", "items": item}
-        else:
-            entry = dict(_JSON_TYPES[row["type"]])
-            entry.update(row.get("bounds", {}))
-        if row["units"]:
-            entry["description"] = row["units"]
-        props[row["name"]] = entry
-    return {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": cls.TYPE, "type": "object",
-            "properties": props}
-
-
-def _jsonable(v: Any) -> Any:
-    if isinstance(v, np.ndarray):
-        return [_jsonable(x) for x in v.tolist()] if v.dtype.kind == "f" else v.tolist()
-    if isinstance(v, float) and not math.isfinite(v):
-        return "nan" if math.isnan(v) else ("inf" if v > 0 else "-inf")
-    if isinstance(v, dict):
-        return {k: _jsonable(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_jsonable(x) for x in v]
-    return v
-
-
-def to_json(msg: Message) -> dict[str, Any]:
-    """A message as JSON-ready builtins: arrays become lists; ±inf/NaN become strings."""
-    h = msg.header
-    out: dict[str, Any] = {"header": {"stamp_ns": h.stamp_ns, "seq": h.seq, "pub_ns": h.pub_ns,
-                                      "sources": dict(h.sources)}}
-    for name in msg._body_fields:  # type: ignore[attr-defined]
-        out[name] = _jsonable(getattr(msg, name))
-    return out
 
 
 # -- writing ------------------------------------------------------------------------------
@@ -289,8 +238,9 @@ def _check_magic(path: str | os.PathLike, fh: Any) -> None:
                              "give a file written by `slipstack bag record` or the recorder node")
 
 
-def _scan(path: str | os.PathLike, state: _ScanState, tolerant: bool) -> Iterator[McapMessage]:
-    """Messages in file order; fills ``state``.
+def _scan(path: str | os.PathLike, state: _ScanState, tolerant: bool,
+          progress: Callable[[int], None] | None = None) -> Iterator[McapMessage]:
+    """Messages in file order; fills ``state``; ``progress(bytes read)`` after each chunk.
 
     Tolerant: a damaged record ends the sequential read; if the file is finished, its
     chunk index then leads past the damage to the intact chunks after it (a damaged
@@ -317,6 +267,8 @@ def _scan(path: str | os.PathLike, state: _ScanState, tolerant: bool) -> Iterato
                     inner = [rec]
                 yield from _take(inner, state)
                 good_until = fh.tell()
+                if progress is not None:
+                    progress(good_until)
         except Exception as exc:  # noqa: BLE001 — any damage ends the sequential read
             # A file cut by kill -9 ends inside a record: mcap raises EndOfFile (an
             # McapError); a torn or corrupt chunk gives a CRC, struct or zstd error.
@@ -372,7 +324,8 @@ def _chunks_after(fh: Any, offset: int, state: _ScanState) -> Iterator[McapMessa
 
 
 def read_recording(
-    path: str | os.PathLike, topics: Iterable[str] | None = None, *, tolerant: bool = True
+    path: str | os.PathLike, topics: Iterable[str] | None = None, *, tolerant: bool = True,
+    progress: Callable[[int], None] | None = None,
 ) -> Iterator[RecordedFrame]:
     """Iterate the recorded frames in file (= receive) order.
 
@@ -381,10 +334,11 @@ def read_recording(
         topics: keep only these topics (``None``: all).
         tolerant: read an unfinished file (no summary, e.g. after ``kill -9``) up to
             its last intact chunk; ``False`` raises :class:`RecordingError` instead.
+        progress: called with the bytes of the file read so far, after each chunk.
     """
     wanted = None if topics is None else set(topics)
     state = _ScanState()
-    for m in _scan(path, state, tolerant):
+    for m in _scan(path, state, tolerant, progress):
         topic = state.channels[m.channel_id].topic
         if wanted is None or topic in wanted:
             yield RecordedFrame(m.log_time, topic, m.data, m.publish_time, m.sequence)
@@ -427,8 +381,9 @@ class RecordingInfo:
         return (self.end_ns - self.start_ns) / 1e9 if self.message_count else 0.0
 
 
-def recording_info(path: str | os.PathLike) -> RecordingInfo:
-    """Scan a recording (finished or not) and count what it holds."""
+def recording_info(path: str | os.PathLike, progress: Callable[[int], None] | None = None) -> RecordingInfo:
+    """Scan a recording (finished or not) and count what it holds; ``progress`` as for
+    :func:`read_recording`."""
     state = _ScanState()
     counts: dict[str, int] = defaultdict(int)
     first: dict[str, int] = {}
@@ -438,7 +393,7 @@ def recording_info(path: str | os.PathLike) -> RecordingInfo:
     seq_last: dict[str, int] = {}
     gaps: dict[str, int] = defaultdict(int)
     seq_tracker = SeqTracker()
-    for m in _scan(path, state, tolerant=True):
+    for m in _scan(path, state, tolerant=True, progress=progress):
         ch = state.channels[m.channel_id]
         topic = ch.topic
         counts[topic] += 1
@@ -471,64 +426,22 @@ def clock_offset_ns(path: str | os.PathLike, frames: list[RecordedFrame] | None 
     From the :data:`CLOCK_METADATA` record; without one, estimated from ``frames`` as
     min(log time − publish time) (i.e. assuming the fastest frame took no time).
     """
-    state = _ScanState()
-    for _ in _scan(path, state, tolerant=True):
-        break  # the metadata record precedes the first chunk
-    meta = state.metadata.get(CLOCK_METADATA)
-    if meta:
-        return int(meta["wall_minus_monotonic_ns"])
+    recorded = recorded_clock_offset_ns(path)
+    if recorded is not None:
+        return recorded
     frames = frames if frames is not None else list(read_recording(path))
     return min((f.log_time_ns - f.publish_time_ns for f in frames), default=0)
 
 
-# -- export -------------------------------------------------------------------------------
+def recorded_clock_offset_ns(path: str | os.PathLike) -> int | None:
+    """The :data:`CLOCK_METADATA` offset (wall − monotonic, ns) of a recording; ``None`` if it has none."""
+    state = _ScanState()
+    for _ in _scan(path, state, tolerant=True):
+        break  # the metadata record precedes the first chunk
+    meta = state.metadata.get(CLOCK_METADATA)
+    return int(meta["wall_minus_monotonic_ns"]) if meta else None
 
-def export_recording(path: str | os.PathLike, out: str | os.PathLike, fmt: str = "mcap-json") -> int:
-    """Export a recording to JSON; returns the number of messages written.
 
-    fmt ``mcap-json``: an MCAP file with message_encoding ``json`` and ``jsonschema``
-    schemas (opens in Foxglove). ``jsonl``: one line per message,
-    ``{"log_time_ns", "topic", "type", "message"}``. Arrays become lists; ±inf and
-    NaN become the strings ``"inf"``, ``"-inf"``, ``"nan"``. Frames that do not decode
-    are skipped (and not counted).
-    """
-    if fmt not in ("mcap-json", "jsonl"):
-        raise RecordingError(f"unknown export format {fmt!r}; use mcap-json or jsonl")
-    if Path(out).resolve() == Path(path).resolve():
-        raise RecordingError(f"export output {out} is the recording itself; choose another path")
-    n = 0
-    frames = read_recording(path)
-    first = next(frames, None)  # an unreadable input raises here, before the output exists
-    Path(out).parent.mkdir(parents=True, exist_ok=True)
-    with open(out, "wb") as fh:
-        writer = None
-        channels: dict[tuple[str, str], int] = {}
-        schemas: dict[str, int] = {}
-        if fmt == "mcap-json":
-            writer = Writer(fh, chunk_size=DEFAULT_CHUNK_SIZE, compression=CompressionType.ZSTD)
-            writer.start(profile="", library="slipstack")
-        for frame in itertools.chain([first] if first is not None else [], frames):
-            try:
-                msg = decode(frame.payload)
-            except DecodeError:
-                continue
-            body = to_json(msg)
-            if writer is None:
-                line = {"log_time_ns": frame.log_time_ns, "topic": frame.topic, "type": msg.TYPE, "message": body}
-                fh.write(json.dumps(line).encode() + b"\n")
-            else:
-                key = (frame.topic, msg.TYPE)
-                if key not in channels:
-                    if msg.TYPE not in schemas:
-                        schemas[msg.TYPE] = writer.register_schema(
-                            msg.TYPE, "jsonschema", json.dumps(json_schema(type(msg))).encode())
-                    channels[key] = writer.register_channel(frame.topic, "json", schemas[msg.TYPE])
-                writer.add_message(channels[key], frame.log_time_ns, json.dumps(body).encode(),
-                                   publish_time=frame.publish_time_ns, sequence=frame.sequence)
-            n += 1
-        if writer is not None:
-            writer.finish()
-    return n
 
 
 # -- replay into a node -------------------------------------------------------------------

@@ -45,6 +45,7 @@ import zmq
 
 from slipstack.messages import Header, Message
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC, NodeHost
+from slipstack.nodes.runtime.logs import node_log
 from slipstack.nodes.runtime.node import Node
 from slipstack.nodes.runtime.rate_limit import TokenBucket
 from slipstack.nodes.runtime.curve import secure_bind
@@ -111,7 +112,7 @@ class _Member:
         self.spec = spec
         self.zctx = zctx
         self.pub = make_pub(zctx, spec.pub) if spec.pub else None
-        log = (lambda text: _log(f"{spec.name}: {text}")) if name_logs else _log  # a container's members
+        log = node_log(spec.name, f"{spec.name}: " if name_logs else "")  # a container's members name themselves
         self.host = NodeHost(node, time.monotonic_ns, self.send, name=spec.name, remap=spec.remap, log=log)
         # One SUB socket per (input, publisher endpoint): sequence gaps are then tracked
         # per publisher, so several publishers on one topic (``diagnostics``) never look

@@ -20,7 +20,7 @@ from slipstack.nodes.runtime.graph_info import RUN_DIR_HELP
 __all__ = ["add_parser", "format_info", "EXPORT_FORMATS"]
 
 EXPORT_SUFFIXES = {".mcap": "mcap-json", ".jsonl": "jsonl"}
-EXPORT_FORMATS = tuple(EXPORT_SUFFIXES.values())
+EXPORT_FORMATS = tuple(EXPORT_SUFFIXES.values())  # nodes/recording/export.py's, without importing mcap for --help
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -61,7 +61,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
     ex = verbs.add_parser("export", help="export to JSON (Foxglove-readable MCAP or JSON lines)",
                           description="Export a recording as MCAP with JSON messages and JSON Schemas (opens in "
-                                      "Foxglove) or as JSON lines. The format follows the output's suffix; "
+                                      "Foxglove: the pad as the image /pad/pressure, times on the wall clock, "
+                                      "header.stamp_ns kept on the monotonic clock) or as JSON lines. The format "
+                                      "follows the output's suffix; "
                                       "other suffixes (.csv ...) are refused: for CSV use "
                                       "`slipstack topic echo TOPIC --csv` on a played recording.")
     ex.add_argument("path", help="recording (.mcap)")
@@ -121,19 +123,25 @@ def format_info(info) -> str:  # noqa: ANN001 — a bag_io.RecordingInfo
 
 
 def _main_info(args: argparse.Namespace) -> int:
+    from slipstack.lib.progress import file_progress
     from slipstack.nodes.recording.bag_io import recording_info
 
-    print(format_info(recording_info(args.path)))
+    with file_progress(args.path, "bag info") as progress:
+        info = recording_info(args.path, progress=progress)
+    print(format_info(info))
     return 0
 
 
 def _main_export(args: argparse.Namespace) -> int:
-    from slipstack.nodes.recording.bag_io import export_recording
+    from slipstack.nodes.recording.export import export_recording
 
     fmt = args.format or EXPORT_SUFFIXES.get(Path(args.output).suffix.lower())
     if fmt is None:
         raise ConfigError(f"cannot tell the export format from {args.output!r}: name it OUT.mcap (MCAP with JSON, "
                           "for Foxglove) or OUT.jsonl (JSON lines), or give --format; CSV is not an export format")
-    n = export_recording(args.path, args.output, fmt)
+    from slipstack.lib.progress import file_progress
+
+    with file_progress(args.path, "bag export") as progress:
+        n = export_recording(args.path, args.output, fmt, progress=progress)
     print(f"wrote {args.output}: {n} messages ({fmt})")
     return 0

@@ -1,4 +1,4 @@
-"""``slipstack topic hz`` and ``topic delay``: a topic's rate, or its latency, over a window.
+"""``slipstack topic hz``, ``topic delay`` and ``topic bw``: a topic's rate, latency or bandwidth, over a window.
 
 Cheap by design (a 1 kHz topic must cost a few percent of a core, ros2cli#795):
 payloads are never decoded. The loop blocks in ``poll`` until frames arrive, then
@@ -14,6 +14,12 @@ Statistics over the last ``window`` times (ros2's ``topic hz`` output)::
 ``topic delay`` prints receive time minus ``stamp_ns`` the same way (``average
 delay: ...``): the stamp is the time of the sensor sample a message derives from, so
 this is the sample-to-here latency on the same host (both CLOCK_MONOTONIC).
+
+``topic bw`` prints the bytes per second of the frames' payloads (MessagePack, as on
+the wire, without the topic frame) and their sizes (ros2's ``topic bw`` output)::
+
+    average: 92.17 KB/s
+        mean: 92.16 B min: 92 B max: 93 B window: 1000
 """
 
 from __future__ import annotations
@@ -33,7 +39,7 @@ from slipstack.messages.frame import peek_header
 from slipstack.nodes.tools.topic_tools import load_graph, resolve_topic
 from slipstack.nodes.runtime.transport import make_sub
 
-__all__ = ["RateStats", "rate_stats", "format_delay", "main_hz", "main_delay"]
+__all__ = ["RateStats", "rate_stats", "format_delay", "format_bandwidth", "main_hz", "main_delay", "main_bw"]
 
 _BATCH = 5000
 
@@ -79,24 +85,52 @@ def format_delay(delays_ns: np.ndarray) -> str:
             f"std dev: {d.std():.6f}s window: {d.size}\n")
 
 
+def _size(n: float) -> str:
+    """Bytes with the unit ros2 uses (B, KB, MB: powers of 1000)."""
+    for unit, scale in (("MB", 1e6), ("KB", 1e3)):
+        if n >= scale:
+            return f"{n / scale:.2f} {unit}"
+    return f"{n:.2f} B" if n != int(n) else f"{int(n)} B"
+
+
+def format_bandwidth(frames: np.ndarray) -> str:
+    """ros2's ``topic bw`` lines for rows ``(receive time ns, payload bytes)``: bytes per
+    second over the window (the bytes after the first frame over the time since it) and
+    the payload sizes."""
+    if frames.shape[0] < 2:
+        return ""
+    span_s = (frames[-1, 0] - frames[0, 0]) * 1e-9
+    if span_s <= 0:
+        return ""
+    sizes = frames[:, 1]
+    return (f"average: {_size(sizes[1:].sum() / span_s)}/s\n\tmean: {_size(float(sizes.mean()))} "
+            f"min: {_size(int(sizes.min()))} max: {_size(int(sizes.max()))} window: {frames.shape[0]}\n")
+
+
 def main_hz(args: argparse.Namespace) -> int:
     """Print rate statistics once per second until Ctrl-C (or ``--duration``)."""
     use_stamps = args.use_stamps
-    return _watch(args, lambda now, stamp: stamp if use_stamps else now, use_stamps,
+    return _watch(args, lambda now, stamp, size: stamp if use_stamps else now, use_stamps,
                   lambda series: _format_rate(series, use_stamps))
 
 
 def main_delay(args: argparse.Namespace) -> int:
     """``topic delay``: receive time minus the header's ``stamp_ns`` (the sensor sample the
     message derives from: sample-to-here latency), once per second."""
-    return _watch(args, lambda now, stamp: now - stamp, True, format_delay)
+    return _watch(args, lambda now, stamp, size: now - stamp, True, format_delay)
 
 
-def _watch(args: argparse.Namespace, value: Callable[[int, int], int], needs_stamp: bool,
+def main_bw(args: argparse.Namespace) -> int:
+    """``topic bw``: payload bytes per second and payload sizes, once per second."""
+    return _watch(args, lambda now, stamp, size: (now, size), False, format_bandwidth)
+
+
+def _watch(args: argparse.Namespace, value: Callable[[int, int, int], object], needs_stamp: bool,
            report: Callable[[np.ndarray], str]) -> int:
-    """Collect ``value(receive_ns, stamp_ns)`` per frame of ``args.topic`` over the last
-    ``args.window`` frames; print ``report(values)`` once per second until Ctrl-C or
-    ``args.duration``. Receive times and stamps are CLOCK_MONOTONIC ns (one host)."""
+    """Collect ``value(receive_ns, stamp_ns, payload bytes)`` (a number or a tuple of
+    them) per frame of ``args.topic`` over the last ``args.window`` frames; print
+    ``report(values as an int64 array, one row per frame)`` once per second until Ctrl-C
+    or ``args.duration``. Receive times and stamps are CLOCK_MONOTONIC ns (one host)."""
     _, graph = load_graph(args.run_dir)
     info = resolve_topic(graph, args.topic)
     endpoints = [e.address for e in info.publishers if e.address]
@@ -138,14 +172,14 @@ def _watch(args: argparse.Namespace, value: Callable[[int, int], int], needs_sta
                             unparsed += 1
                             continue
                         stamp = head.stamp_ns
-                    append(value(clock(), stamp))
+                    append(value(clock(), stamp, len(payload)))
             now = clock()
             if now >= next_print:
                 next_print += 1_000_000_000 * (1 + (now - next_print) // 1_000_000_000)
                 if not new:
                     out.write("no new messages\n")
                 else:
-                    out.write(report(np.fromiter(values, dtype=np.int64, count=len(values))))
+                    out.write(report(np.array(values, dtype=np.int64)))
                     if unparsed:
                         out.write(f"\t{unparsed} frame(s) without a readable header stamp\n")
                 new = 0

@@ -5,6 +5,7 @@
     slipstack topic echo TOPIC [--once] [--count N] [--field a.b] [--csv] [--no-arr] ...
     slipstack topic hz TOPIC [--window N] [--use-stamps]
     slipstack topic delay TOPIC [--window N]
+    slipstack topic bw TOPIC [--window N]
     slipstack topic pub TOPIC [TYPE] [VALUES] [--once | --times N] [--rate HZ]
 
 Every verb reads the graph from ``<run_dir>/graph.json`` (``--run-dir``, else
@@ -176,13 +177,26 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
     p = verbs.add_parser("info", help="type, publishers and subscribers of a topic",
                          description="Print a topic's type and its publisher and subscription counts.")
-    p.add_argument("topic", help="topic name, e.g. ft/wrench")
+    _topic_argument(p)
     p.add_argument("-v", "--verbose", action="store_true", help="list the nodes and their endpoints")
     _run_dir_option(p)
     p.set_defaults(func=main_info)
 
-    for add in (_add_echo, _add_hz, _add_delay, _add_pub):
+    for add in (_add_echo, _add_hz, _add_delay, _add_bw, _add_pub):
         _run_dir_option(add(verbs))
+
+
+def _topic_argument(p: argparse.ArgumentParser, example: str = "ft/wrench") -> None:
+    """The TOPIC positional, completed in the shell with the running graph's topics."""
+    p.add_argument("topic", help=f"topic name, e.g. {example}").completer = _running_topics  # type: ignore[attr-defined]
+
+
+def _running_topics(**_: object) -> list[str]:
+    """Shell completion of a topic: the running graph's topics (none if no graph runs)."""
+    try:
+        return sorted(graph_topics(load_graph(None)[1]))
+    except (ConfigError, OSError, ValueError):
+        return []
 
 
 def _lazy(module: str, function: str) -> Callable[[argparse.Namespace], int]:
@@ -201,7 +215,7 @@ def _add_echo(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
                     "separated by '---'), or as CSV. Lost messages (sequence gaps, per publisher) "
                     "and rejected frames are reported on stderr.",
     )
-    p.add_argument("topic", help="topic name, e.g. ft/wrench")
+    _topic_argument(p)
     p.add_argument("--once", action="store_true", help="print one message and exit")
     p.add_argument("--count", type=int, metavar="N", help="print N messages and exit")
     p.add_argument("--field", metavar="a.b", help="print only this field, e.g. force or header.stamp_ns")
@@ -220,33 +234,40 @@ def _add_echo(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
     return p
 
 
-def _add_hz(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = verbs.add_parser(
-        "hz", help="print a topic's rate",
-        description="Print the average rate and period min/max/std of TOPIC over the last --window "
-                    "messages, once per second, from receive times (or header stamps).",
-    )
+def _window_verb(verbs: argparse._SubParsersAction, name: str, help_text: str, description: str,
+                 function: str) -> argparse.ArgumentParser:
+    """A verb of :mod:`.topic_hz` (TOPIC, --window, --duration), running ``function`` there."""
+    p = verbs.add_parser(name, help=help_text, description=description)
     _window_options(p)
+    p.set_defaults(func=_lazy("slipstack.nodes.tools.topic_hz", function))
+    return p
+
+
+def _add_hz(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    p = _window_verb(verbs, "hz", "print a topic's rate",
+                     "Print the average rate and period min/max/std of TOPIC over the last --window "
+                     "messages, once per second, from receive times (or header stamps).", "main_hz")
     p.add_argument("--use-stamps", action="store_true",
                    help="use the messages' header.stamp_ns instead of receive times")
-    p.set_defaults(func=_lazy("slipstack.nodes.tools.topic_hz", "main_hz"))
     return p
 
 
 def _add_delay(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = verbs.add_parser(
-        "delay", help="print a topic's sample-to-here latency",
-        description="Print the average, min, max and std of (receive time - header.stamp_ns) of TOPIC over "
-                    "the last --window messages, once per second. The stamp is the time of the sensor "
-                    "sample a message derives from, so this is the latency from the sample to this tool.",
-    )
-    _window_options(p)
-    p.set_defaults(func=_lazy("slipstack.nodes.tools.topic_hz", "main_delay"))
-    return p
+    return _window_verb(verbs, "delay", "print a topic's sample-to-here latency",
+                        "Print the average, min, max and std of (receive time - header.stamp_ns) of TOPIC over "
+                        "the last --window messages, once per second. The stamp is the time of the sensor "
+                        "sample a message derives from, so this is the latency from the sample to this tool.",
+                        "main_delay")
+
+
+def _add_bw(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    return _window_verb(verbs, "bw", "print a topic's bandwidth",
+                        "Print the bytes per second of TOPIC's payloads (MessagePack, as on the wire) and their "
+                        "mean, min and max size over the last --window messages, once per second.", "main_bw")
 
 
 def _window_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("topic", help="topic name, e.g. ft/wrench")
+    _topic_argument(p)
     p.add_argument("-w", "--window", type=int, default=10000, metavar="N",
                    help="messages the statistics cover (default 10000)")
     p.add_argument("--duration", type=float, metavar="S", help="exit after S seconds (default: until Ctrl-C)")
@@ -260,7 +281,7 @@ def _add_pub(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
                     "VALUES are YAML flow text; unset fields keep defaults. "
                     "Example: slipstack topic pub grip/command '{f_n_desired: 12.0, law: manual}' --rate 10",
     )
-    p.add_argument("topic", help="topic name, e.g. grip/command")
+    _topic_argument(p, "grip/command")
     p.add_argument("values", nargs="*", metavar="[TYPE] VALUES",
                    help="optional message type (checked against the graph), then the field values")
     p.add_argument("-r", "--rate", type=float, default=1.0, metavar="HZ", help="publishing rate (default 1 Hz)")

@@ -1,156 +1,93 @@
-"""Read the YAML flow values a user types on the command line (``topic pub``).
+"""Read the YAML values a user types on the command line (``topic pub``), with PyYAML.
 
-A small, strict subset of YAML 1.2 flow style, enough for message fields::
+Flow or block style, as ``ros2 topic pub`` takes them::
 
     {f_n_desired: 12.0, law: manual}
     force: [1.5, 0, -2e-3], status: "ok, really"      # outer braces may be left out
 
-Scalars: integers, floats (``1.5``, ``-2e-3``, ``.inf``, ``-.inf``, ``.nan``),
-``true``/``false``, ``null``/``~``, quoted strings (``"…"`` with JSON escapes or
-``'…'`` with ``''`` for a quote) and plain strings. Nested ``{}`` and ``[]`` are
-allowed. Anything else raises :class:`~slipstack.lib.errors.ConfigError` saying
-where. (PyYAML is not a dependency; this covers what ``ros2 topic pub`` users type.)
+Read strictly, with the scalars of YAML 1.2's core schema rather than PyYAML's YAML 1.1
+defaults: integers (``12``, ``0x1f``, ``0o17``), floats (``1.5``, ``-2e-3``, ``1e3``,
+``.inf``, ``-.inf``, ``.nan``), ``true``/``false``, ``null``/``~``; anything else is a
+string. So ``-2e-3`` is a number (YAML 1.1 made it a string) and ``yes``/``on`` are
+strings (YAML 1.1 made them booleans), and a mistyped number (``12.O``) is a string that
+the message's type check then refuses, naming the field. Refused here, with where:
+malformed text, a duplicated key, a key that is not a name, aliases (``*a``: no
+exponential expansion), more than one document, and tags other than the standard ones.
 """
 
 from __future__ import annotations
 
-import json
 import re
 from typing import Any
+
+import yaml
 
 from slipstack.lib.errors import ConfigError
 
 __all__ = ["parse_flow"]
 
-_INT = re.compile(r"[-+]?(0|[1-9][0-9_]*)")
-_FLOAT = re.compile(r"[-+]?(\.[0-9]+|[0-9][0-9_]*(\.[0-9]*)?)([eE][-+]?[0-9]+)?")
-_SPECIAL = {
-    "true": True, "True": True, "false": False, "False": False, "null": None, "~": None,
-    ".inf": float("inf"), "+.inf": float("inf"), "-.inf": float("-inf"), ".nan": float("nan"),
-}
-_DELIMS = ",:[]{}"
+_BOOL = re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$")
+_NULL = re.compile(r"^(?:~|null|Null|NULL|)$")
+_INT = re.compile(r"^(?:[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+)$")
+_FLOAT = re.compile(r"^(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?"
+                    r"|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$")
 
 
-class _Reader:
-    def __init__(self, text: str) -> None:
-        self.text = text
-        self.pos = 0
+_BARE_MAPPING = re.compile(r"^[^,\[\]{}]*?:(\s|$)")
 
-    def fail(self, what: str) -> ConfigError:
-        return ConfigError(f"cannot read {self.text!r} at character {self.pos + 1}: {what}")
 
-    def skip_space(self) -> None:
-        while self.pos < len(self.text) and self.text[self.pos].isspace():
-            self.pos += 1
+class _CoreLoader(yaml.SafeLoader):
+    """SafeLoader with YAML 1.2 core-schema scalars, unique string keys and no aliases."""
 
-    def peek(self) -> str:
-        self.skip_space()
-        return self.text[self.pos] if self.pos < len(self.text) else ""
+    yaml_implicit_resolvers: dict = {}
 
-    def expect(self, ch: str) -> None:
-        if self.peek() != ch:
-            raise self.fail(f"expected {ch!r}")
-        self.pos += 1
+    def compose_node(self, parent: Any, index: Any) -> Any:
+        if self.check_event(yaml.AliasEvent):
+            mark = self.peek_event().start_mark
+            raise yaml.MarkedYAMLError(None, None, "aliases (*name) are not allowed", mark)
+        return super().compose_node(parent, index)
 
-    def value(self) -> Any:
-        ch = self.peek()
-        if ch == "{":
-            return self.mapping()
-        if ch == "[":
-            return self.sequence()
-        if ch in "\"'":
-            return self.quoted()
-        return self.plain()
-
-    def mapping(self) -> dict[str, Any]:
-        self.expect("{")
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[str, Any]:
         out: dict[str, Any] = {}
-        while self.peek() != "}":
-            key = self.quoted() if self.peek() in "\"'" else self.plain(raw=True)
-            if not key:
-                raise self.fail("expected a key")
-            self.expect(":")
-            out[str(key)] = self.value()
-            if self.peek() != ",":
-                break
-            self.pos += 1
-        self.expect("}")
+        for key_node, value_node in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            if not isinstance(key, str) or not key:
+                raise yaml.MarkedYAMLError(None, None, f"a key must be a field name, got {key!r}",
+                                           key_node.start_mark)
+            if key in out:
+                raise yaml.MarkedYAMLError(None, None, f"key {key!r} given twice", key_node.start_mark)
+            out[key] = self.construct_object(value_node, deep=deep)
         return out
 
-    def sequence(self) -> list[Any]:
-        self.expect("[")
-        out: list[Any] = []
-        while self.peek() != "]":
-            out.append(self.value())
-            if self.peek() != ",":
-                break
-            self.pos += 1
-        self.expect("]")
-        return out
+    def construct_yaml_int(self, node: yaml.ScalarNode) -> int:
+        value = self.construct_scalar(node)
+        return int(value, 0) if value[:2] in ("0x", "0o") else int(value)
 
-    def quoted(self) -> str:
-        self.skip_space()
-        quote = self.text[self.pos]
-        if quote == '"':
-            decoder = json.JSONDecoder()
-            try:
-                s, end = decoder.raw_decode(self.text, self.pos)
-            except json.JSONDecodeError:
-                raise self.fail("unterminated or invalid double-quoted string") from None
-            self.pos = end
-            return s
-        end = self.pos + 1
-        parts = []
-        while True:
-            nxt = self.text.find("'", end)
-            if nxt < 0:
-                raise self.fail("unterminated single-quoted string")
-            parts.append(self.text[end:nxt])
-            if self.text.startswith("''", nxt):
-                parts.append("'")
-                end = nxt + 2
-                continue
-            self.pos = nxt + 1
-            return "".join(parts)
 
-    def plain(self, raw: bool = False) -> Any:
-        self.skip_space()
-        start = self.pos
-        while self.pos < len(self.text):
-            ch = self.text[self.pos]
-            # ':' ends a plain scalar only before a space or a delimiter (as in YAML).
-            if ch in ",[]{}" or (ch == ":" and (self.pos + 1 == len(self.text) or self.text[self.pos + 1] in " \t" + _DELIMS)):
-                break
-            if ch == "#" and self.pos > start and self.text[self.pos - 1].isspace():
-                raise self.fail("comments are not allowed")
-            self.pos += 1
-        token = self.text[start:self.pos].strip()
-        if raw:
-            return token
-        if not token:
-            raise self.fail("expected a value")
-        if token in _SPECIAL:
-            return _SPECIAL[token]
-        if _INT.fullmatch(token):
-            return int(token.replace("_", ""))
-        if _FLOAT.fullmatch(token):
-            return float(token.replace("_", ""))
-        return token
+_CoreLoader.add_constructor("tag:yaml.org,2002:map", _CoreLoader.construct_mapping)
+_CoreLoader.add_constructor("tag:yaml.org,2002:int", _CoreLoader.construct_yaml_int)
+for _tag, _pattern, _first in (("bool", _BOOL, "tTfF"), ("null", _NULL, "~nN"), ("int", _INT, "-+0123456789"),
+                               ("float", _FLOAT, "-+0123456789.")):
+    _CoreLoader.add_implicit_resolver(f"tag:yaml.org,2002:{_tag}", _pattern, list(_first) + ([""] if _tag == "null" else []))
 
 
 def parse_flow(text: str) -> Any:
-    """Parse one flow value; a bare ``key: value, …`` list is read as a mapping.
+    """Parse the values typed on the command line (module docstring); empty text is ``{}``;
+    one line of ``key: value, …`` is read as a mapping.
 
     Raises:
-        ConfigError: the text is not in the supported subset (says where).
+        ConfigError: the text is not YAML as read here (says where and what).
     """
     stripped = text.strip()
     if not stripped:
         return {}
-    if stripped[0] not in "{[\"'" and re.match(r"^[^,\[\]{}]*?:(\s|$)", stripped):
-        stripped = "{" + stripped + "}"
-    reader = _Reader(stripped)
-    value = reader.value()
-    if reader.peek():
-        raise reader.fail("unexpected text after the value")
-    return value
+    if "\n" not in stripped and stripped[0] not in "{[\"'" and _BARE_MAPPING.match(stripped):
+        text = "{" + stripped + "}"  # `a: 1, b: [2]` on one line: a flow mapping without its braces
+    try:
+        return yaml.load(text, Loader=_CoreLoader)  # noqa: S506 — a SafeLoader subclass
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        where = f" at character {mark.index + 1}" if mark is not None else ""
+        raise ConfigError(f"cannot read {text!r}{where}: {exc.problem or exc.context}") from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"cannot read {text!r}: {exc}") from None

@@ -163,3 +163,82 @@ def test_hardware_launch_with_a_wrong_device_path_says_so(launch):
     assert "No such file or directory" in out.stdout
     errors = [ln for ln in g.log().splitlines() if ln.startswith("[ft_driver] error:") and "ttyNOPE" in ln]
     assert len(errors) == 1, g.log()
+
+
+# -- item 10: shell completion -----------------------------------------------------------------------
+def _completions(line: str, tmp_path: Path) -> list[str]:
+    """What the shell gets for ``line<TAB>`` (argcomplete's protocol, answers in a file)."""
+    answers = tmp_path / "completions"
+    env = dict(os.environ, _ARGCOMPLETE="1", COMP_LINE=line, COMP_POINT=str(len(line)),
+               _ARGCOMPLETE_STDOUT_FILENAME=str(answers), SLIPSTACK_RUN_ROOT=str(tmp_path))
+    out = slipstack(env=env)
+    assert out.returncode == 0, out.stderr
+    return [w.strip() for w in answers.read_text().split("\x0b")]
+
+
+def test_the_shell_completes_commands_verbs_and_launch_files(tmp_path):
+    assert "export" in _completions("slipstack bag ex", tmp_path)
+    assert {"topic", "completion"} <= set(_completions("slipstack ", tmp_path))
+    assert {"bw", "hz", "delay", "echo"} <= set(_completions("slipstack topic ", tmp_path))
+    assert {"fig15", "fig10", "fig11"} <= set(_completions("slipstack launch fig1", tmp_path))
+    script = slipstack("completion", "bash")
+    assert script.returncode == 0 and "complete" in script.stdout and "slipstack" in script.stdout, script
+
+
+# -- item 10: progress on large files --------------------------------------------------------------
+@pytest.fixture
+def large_recording(tmp_path):
+    """A 5 MB recording: tactile frames of random pressures (zstd cannot shrink them)."""
+    import numpy as np
+
+    from slipstack.lib.progress import PROGRESS_MIN_BYTES
+    from slipstack.messages import Header, TactileFrame, encode
+    from slipstack.nodes.recording.bag_io import RecordingWriter
+
+    rng = np.random.default_rng(1)
+    path = tmp_path / "large.mcap"
+    with RecordingWriter(path, wall_minus_monotonic_ns=0) as w:
+        for k in range(5000):
+            frame = TactileFrame(pressure_pa=rng.random(256, dtype=np.float32), saturated=np.zeros(256, bool),
+                                 dead=np.zeros(256, bool), header=Header(k * 4_000_000, k, k * 4_000_000, {}))
+            w.write("tactile/frame", encode(frame), 10**18 + k * 4_000_000)
+    assert path.stat().st_size > PROGRESS_MIN_BYTES
+    return path
+
+
+def _on_a_terminal(*args: str) -> tuple[subprocess.CompletedProcess, str]:
+    """``slipstack ARGS`` with stderr on a pseudo-terminal (as a user at a shell sees it)."""
+    import fcntl
+    import pty
+    import struct
+    import termios
+
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))  # a 100-column terminal
+    try:
+        proc = subprocess.run([PY, "-m", "slipstack.launch.cli", *args], stdout=subprocess.PIPE, stderr=slave,
+                              text=True, timeout=120)
+        os.close(slave)
+        chunks = []
+        while True:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:  # the terminal's other end is closed: all read
+                break
+            if not chunk:
+                break
+            chunks.append(chunk)
+    finally:
+        os.close(master)
+    return proc, b"".join(chunks).decode(errors="replace")
+
+
+@pytest.mark.parametrize("verb", ["info", "export"])
+def test_bag_info_and_export_of_a_large_file_show_progress_on_a_terminal(verb, large_recording, tmp_path):
+    extra = ["-o", str(tmp_path / "out.mcap")] if verb == "export" else []
+    proc, terminal = _on_a_terminal("bag", verb, str(large_recording), *extra)
+    assert proc.returncode == 0, terminal
+    assert f"bag {verb}:" in terminal and "%" in terminal, terminal  # the bar, with its label
+    assert "5000" in proc.stdout, proc.stdout  # the result, unchanged, on stdout
+    quiet = slipstack("bag", verb, str(large_recording), *extra)  # not a terminal: no bar
+    assert quiet.returncode == 0 and "%|" not in quiet.stderr, quiet.stderr

@@ -304,3 +304,35 @@ def test_node_list_and_info_show_processes_parameters_and_counters(demo):
     assert "status: ok" in info and re.search(r"out\.ft/wrench\.published: \d+", info)
     out = demo.cli("node", "info", "nosuch")
     assert out.returncode == 2 and "relay" in out.stderr
+
+
+def test_bw_reports_bytes_per_second_and_sizes(demo):
+    """Issue 13 item 10: ``topic bw``, ros2's output form: bytes per second and payload sizes."""
+    from slipstack.messages import Header, Wrench, encode
+
+    out = _ok(demo.cli("topic", "bw", "ft/wrench", "--duration", "2.5", "--window", "500"))
+    found = re.findall(r"average: ([0-9.]+) (B|KB|MB)/s\n\tmean: ([0-9.]+) B min: (\d+) B max: (\d+) B window: (\d+)",
+                       out)
+    assert found, out
+    smallest = len(encode(Wrench(), Header(0, 0, 0, {})))  # the demo's stamps and seq only make it longer
+    for rate, unit, mean, low, high, window in found:
+        assert smallest <= int(low) <= float(mean) <= int(high) <= smallest + 64, out
+        assert float(rate) * {"B": 1, "KB": 1e3, "MB": 1e6}[unit] > 0 and int(window) <= 500, out
+
+
+@pytest.mark.parametrize("values, said", [
+    ("{force: [1, 2, 3], force: [4, 5, 6]}", "key 'force' given twice"),  # was: the last one, silently
+    ("{force: [1, 2, 3O]}", "Wrench.force"),  # a mistyped number is a string the field refuses
+    ("{force: &f [1, 2, 3], torque: *f}", "aliases"),
+    ("{force: [1, 2, 3]} extra", "cannot read"),
+])
+def test_pub_refuses_what_is_not_meant(demo, values, said):
+    """Issue 13 (PyYAML for ``topic pub``): a typo is an error that says where, not a value."""
+    out = demo.cli("topic", "pub", "ft/wrench", values, "--once")
+    assert out.returncode == 2 and said in out.stderr, out
+
+
+def test_pub_reads_yaml_block_style_and_comments(demo):
+    out = demo.cli("topic", "pub", "ft/wrench", "force: [7.25, 0, 1e0]  # a test force\ntorque: [0, 0, 0]",
+                   "--once")
+    assert out.returncode == 0, out.stderr

@@ -58,6 +58,15 @@ def _text(b: Bounds) -> st.SearchStrategy:
     return st.one_of(options) if options else st.text(max_size=min(max_len, 20))
 
 
+def _dict_value(kind: object) -> st.SearchStrategy:
+    """A value of a dict field as declared (``"values"``: a type, or a tuple of them for a list)."""
+    if isinstance(kind, tuple):
+        return st.tuples(*(_dict_value(k) for k in kind)).map(list)
+    if kind is bool:
+        return st.booleans()
+    return st.integers(-1000, 1000) | finite
+
+
 @st.composite
 def valid_message(draw, cls: type[Message]) -> Message:
     """One valid ``cls`` with a random header."""
@@ -79,7 +88,7 @@ def valid_message(draw, cls: type[Message]) -> Message:
             int: lambda: _number(int, b, f.name in tied),
             bool: st.booleans,
             str: lambda: _text(b),
-            dict: lambda: st.dictionaries(st.text(max_size=8), st.integers(-1000, 1000) | finite, max_size=4),
+            dict: lambda: st.dictionaries(st.text(max_size=8), _dict_value(f.metadata.get("values")), max_size=4),
         }[kind]())
     header = Header(draw(stamps), draw(st.integers(0, 2**40)), draw(stamps),
                     draw(st.dictionaries(st.text(max_size=6), stamps, max_size=3)))

@@ -14,7 +14,8 @@ from slipstack.lib.status import SolverStatus
 from slipstack.messages import Contact, Cor, Diagnostics, GripCommand, Slip, TactileFrame, Wrench, decode, encode
 from slipstack.messages.codec import MAX_PAYLOAD_BYTES, packb
 from slipstack.messages.types import MAX_COUNTERS, MAX_TEXT_LEN
-from slipstack.nodes.recording.bag_io import json_schema, message_schema
+from slipstack.messages.json_schema import json_schema
+from slipstack.nodes.recording.bag_io import message_schema
 from slipstack.nodes.devices import LinkStatus
 from slipstack.nodes.runtime.host import NodeHost
 from slipstack.nodes.runtime.node import Node, Output

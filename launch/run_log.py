@@ -1,0 +1,66 @@
+"""The run's log file: every line the launcher prints, kept beside the recording.
+
+``runs/<stamp>.mcap`` gets ``runs/<stamp>.log`` (the recorder's path with ``.log``), so
+the log outlives the run directory, which is removed at the end. Each line is written
+with its wall-clock time; lines held back from the terminal (a quiet normal shutdown,
+``launch/quiet_shutdown.py``) are written too, marked ``(not shown)``. The file is
+bounded: past :data:`MAX_LOG_BYTES` it says so once and takes no more lines.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Callable
+
+from slipstack.launch.launch_file import LaunchFile
+
+__all__ = ["RunLog", "log_path_for", "MAX_LOG_BYTES"]
+
+MAX_LOG_BYTES = 64 * 1024 * 1024
+
+
+def log_path_for(launch: LaunchFile) -> Path | None:
+    """Where the run's log goes: beside the recording of the launch's recorder node, with
+    the suffix ``.log``; ``None`` when the launch records nothing."""
+    for entry in launch.nodes:
+        if entry.type == "recorder" and entry.params.get("path"):
+            return Path(str(entry.params["path"])).with_suffix(".log")
+    return None
+
+
+class RunLog:
+    """``echo`` that also appends each line to ``path`` (``None``: the terminal only)."""
+
+    def __init__(self, echo: Callable[[str], None], path: Path | None) -> None:
+        self.echo = echo
+        self.path = path
+        self._fh = None
+        self._written = 0
+        if path is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self._fh = open(path, "a", encoding="utf-8", errors="replace")
+
+    def __call__(self, line: str) -> None:
+        self.echo(line)
+        self._write(line)
+
+    def held(self, line: str) -> None:
+        """A line kept from the terminal: into the file only."""
+        self._write(f"{line} (not shown)")
+
+    def _write(self, line: str) -> None:
+        if self._fh is None or self._written > MAX_LOG_BYTES:
+            return
+        now = time.time()
+        text = f"{time.strftime('%Y-%m-%dT%H:%M:%S', time.localtime(now))}.{int(now % 1 * 1000):03d} {line}\n"
+        self._written += len(text)
+        if self._written > MAX_LOG_BYTES:
+            text = f"[launch] log file full ({MAX_LOG_BYTES} bytes): later lines are on the terminal only\n"
+        self._fh.write(text)
+        self._fh.flush()
+
+    def close(self) -> None:
+        if self._fh is not None:
+            self._fh.close()
+            self._fh = None

@@ -1,0 +1,152 @@
+"""``bag export``: a recording as JSON that Foxglove opens, or as JSON lines.
+
+The MCAP export (``mcap-json``) holds:
+
+* one channel per (topic, message type), message encoding ``json``, schema encoding
+  ``jsonschema``: the schema of :mod:`slipstack.messages.json_schema` (every field
+  required, types, units, declared bounds and enumerations);
+* ``/pad/pressure``: every tactile frame again as a ``foxglove.RawImage`` (encoding
+  ``32FC1``: one float32 pixel per taxel in Pa, row 0 first, frame ``pad``), which
+  Foxglove's Image panel shows as a heat map;
+* one clock: ``log_time`` is the recorder's receive time and ``publish_time`` the
+  publisher's ``pub_ns``, both on the wall clock (ns since the Unix epoch); inside
+  each message ``header.stamp`` is the sample time on the wall clock and
+  ``header.stamp_ns`` etc. stay on the recording host's CLOCK_MONOTONIC, as on the bus;
+* the recording's clock metadata (``wall_minus_monotonic_ns``, the offset used) as
+  recorded, and ``slipstack.export`` naming the source and how the offset was found.
+
+Frames that do not decode are skipped and not counted.
+"""
+
+from __future__ import annotations
+
+import base64
+import itertools
+import json
+import os
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+from mcap.writer import CompressionType, Writer
+
+from slipstack.lib.errors import DecodeError
+from slipstack.messages import TactileFrame, decode
+from slipstack.messages.json_schema import TIME_SCHEMA, json_schema, to_json, wall_time
+from slipstack.nodes.recording.bag_io import (
+    CLOCK_METADATA, DEFAULT_CHUNK_SIZE, RecordingError, clock_offset_ns, read_recording, recorded_clock_offset_ns,
+)
+
+__all__ = ["export_recording", "pad_image", "RAW_IMAGE_SCHEMA", "PAD_IMAGE_TOPIC", "EXPORT_FORMATS"]
+
+EXPORT_FORMATS = ("mcap-json", "jsonl")
+PAD_IMAGE_TOPIC = "/pad/pressure"
+PAD_FRAME = "pad"
+
+RAW_IMAGE_SCHEMA: dict[str, Any] = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "title": "foxglove.RawImage",
+    "description": "A raw image (Foxglove's well-known schema)",
+    "type": "object",
+    "properties": {
+        "timestamp": {**TIME_SCHEMA, "description": "Timestamp of image"},
+        "frame_id": {"type": "string", "description": "Frame of reference for the image"},
+        "width": {"type": "integer", "minimum": 0, "description": "Image width"},
+        "height": {"type": "integer", "minimum": 0, "description": "Image height"},
+        "encoding": {"type": "string", "description": "Encoding of the raw image data"},
+        "step": {"type": "integer", "minimum": 0, "description": "Byte length of a single row"},
+        "data": {"type": "string", "contentEncoding": "base64", "description": "Raw image data"},
+    },
+    "required": ["timestamp", "frame_id", "width", "height", "encoding", "step", "data"],
+    "additionalProperties": False,
+}
+"""Foxglove's ``foxglove.RawImage`` in its JSON Schema form (bytes as base64)."""
+
+
+def pad_image(frame: TactileFrame, wall_minus_monotonic_ns: int) -> dict[str, Any]:
+    """A tactile frame as a ``foxglove.RawImage`` (:data:`RAW_IMAGE_SCHEMA`): ``32FC1``,
+    ``cols`` × ``rows`` pixels in Pa, row 0 first, stamped with the sample's wall time."""
+    pixels = np.ascontiguousarray(frame.pressure_pa, dtype="<f4")
+    return {"timestamp": wall_time(frame.header.stamp_ns + wall_minus_monotonic_ns), "frame_id": PAD_FRAME,
+            "width": frame.cols, "height": frame.rows, "encoding": "32FC1", "step": 4 * frame.cols,
+            "data": base64.b64encode(pixels.tobytes()).decode("ascii")}
+
+
+class _McapJson:
+    """The ``mcap-json`` output: channels and schemas registered on first use."""
+
+    def __init__(self, fh: Any, source: str | os.PathLike, offset_ns: int, recorded: bool) -> None:
+        self._writer = Writer(fh, chunk_size=DEFAULT_CHUNK_SIZE, compression=CompressionType.ZSTD)
+        self._writer.start(profile="", library="slipstack")
+        self._writer.add_metadata(CLOCK_METADATA, {"wall_minus_monotonic_ns": str(offset_ns)})
+        self._writer.add_metadata("slipstack.export", {
+            "source": str(source),
+            "clock_offset": "recorded" if recorded else "estimated as min(log_time - pub_ns): the recording has none",
+            "clocks": "log_time, publish_time, header.stamp: wall clock; header.stamp_ns, pub_ns, sources: "
+                      "CLOCK_MONOTONIC of the recording host",
+        })
+        self._offset_ns = offset_ns
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[tuple[str, str], int] = {}
+
+    def _channel(self, topic: str, name: str, schema: Callable[[], dict[str, Any]]) -> int:
+        key = (topic, name)
+        if key not in self._channels:
+            if name not in self._schemas:
+                self._schemas[name] = self._writer.register_schema(name, "jsonschema", json.dumps(schema()).encode())
+            self._channels[key] = self._writer.register_channel(topic, "json", self._schemas[name])
+        return self._channels[key]
+
+    def write(self, topic: str, msg: Any, log_time_ns: int) -> None:
+        body = json.dumps(to_json(msg, self._offset_ns)).encode()
+        publish = msg.header.pub_ns + self._offset_ns
+        seq = msg.header.seq & 0xFFFFFFFF
+        self._writer.add_message(self._channel(topic, msg.TYPE, lambda: json_schema(type(msg))), log_time_ns, body,
+                                 publish_time=publish, sequence=seq)
+        if isinstance(msg, TactileFrame):
+            image = json.dumps(pad_image(msg, self._offset_ns)).encode()
+            self._writer.add_message(self._channel(PAD_IMAGE_TOPIC, RAW_IMAGE_SCHEMA["title"], lambda: RAW_IMAGE_SCHEMA),
+                                     log_time_ns, image, publish_time=publish, sequence=seq)
+
+    def finish(self) -> None:
+        self._writer.finish()
+
+
+def export_recording(path: str | os.PathLike, out: str | os.PathLike, fmt: str = "mcap-json",
+                     progress: Callable[[int], None] | None = None) -> int:
+    """Export a recording (see the module docstring); returns the number of messages exported.
+
+    fmt ``mcap-json``: MCAP for Foxglove. ``jsonl``: one line per message,
+    ``{"log_time_ns", "topic", "type", "message"}`` (the message as in the MCAP export).
+    progress: called with the source file's bytes read so far, now and then.
+
+    Raises:
+        RecordingError: unknown format, the output is the input, the input is no recording.
+    """
+    if fmt not in EXPORT_FORMATS:
+        raise RecordingError(f"unknown export format {fmt!r}; use mcap-json or jsonl")
+    if Path(out).resolve() == Path(path).resolve():
+        raise RecordingError(f"export output {out} is the recording itself; choose another path")
+    frames = read_recording(path, progress=progress)
+    first = next(frames, None)  # an unreadable input raises here, before the output exists
+    recorded = recorded_clock_offset_ns(path)
+    offset = recorded if recorded is not None else clock_offset_ns(path)
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    n = 0
+    with open(out, "wb") as fh:
+        mcap = _McapJson(fh, path, offset, recorded is not None) if fmt == "mcap-json" else None
+        for frame in itertools.chain([first] if first is not None else [], frames):
+            try:
+                msg = decode(frame.payload)
+            except DecodeError:
+                continue
+            if mcap is not None:
+                mcap.write(frame.topic, msg, frame.log_time_ns)
+            else:
+                line = {"log_time_ns": frame.log_time_ns, "topic": frame.topic, "type": msg.TYPE,
+                        "message": to_json(msg, offset)}
+                fh.write(json.dumps(line).encode() + b"\n")
+            n += 1
+        if mcap is not None:
+            mcap.finish()
+    return n
