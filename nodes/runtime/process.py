@@ -47,6 +47,7 @@ from slipstack.messages import Header, Message
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC, NodeHost
 from slipstack.nodes.runtime.node import Node
 from slipstack.nodes.runtime.rate_limit import TokenBucket
+from slipstack.nodes.runtime.stage_cpu import StageCpu, stage_cpu_from_env
 from slipstack.nodes.runtime.curve import secure_bind
 from slipstack.nodes.runtime.transport import MAX_ORIGIN_BYTES, bound_socket, make_pub, make_sub
 
@@ -106,13 +107,15 @@ def _log(text: str) -> None:
 class _Member:
     """One node of a :class:`ProcessExecutor`: its host, sockets, timers and deadlines."""
 
-    def __init__(self, node: Node, spec: RunSpec, zctx: zmq.Context, *, name_logs: bool = False) -> None:
+    def __init__(self, node: Node, spec: RunSpec, zctx: zmq.Context, *, name_logs: bool = False,
+                 stage_cpu: StageCpu | None = None) -> None:
         self.node = node
         self.spec = spec
         self.zctx = zctx
         self.pub = make_pub(zctx, spec.pub) if spec.pub else None
         log = (lambda text: _log(f"{spec.name}: {text}")) if name_logs else _log  # a container's members
-        self.host = NodeHost(node, time.monotonic_ns, self.send, name=spec.name, remap=spec.remap, log=log)
+        self.host = NodeHost(node, time.monotonic_ns, self.send, name=spec.name, remap=spec.remap, log=log,
+                             stage_cpu=stage_cpu)
         # One SUB socket per (input, publisher endpoint): sequence gaps are then tracked
         # per publisher, so several publishers on one topic (``diagnostics``) never look
         # like loss. One more SUB, bound, takes frames injected by tools.
@@ -200,6 +203,9 @@ class _Member:
         host = self.host
         topic = host.input_topics[input_name]
         payloads: list[bytes] = []
+        stage = host.stage_cpu
+        if stage is not None:
+            resume = stage.enter(host.stage_keys["receive"])
         for _ in range(_DRAIN_LIMIT):
             if not sock.getsockopt(zmq.EVENTS) & zmq.POLLIN:  # cheaper than a zmq.Again exception
                 break
@@ -209,6 +215,8 @@ class _Member:
             elif len(parts) != 2:
                 host.count(f"in.{topic}.rejected")
                 host.last_error = f"{topic}: expected [topic, payload], got {len(parts)} parts"
+        if stage is not None:
+            stage.enter(resume)
         queue = self.queues.get(input_name)
         if queue is None:
             self._dispatch_newest(input_name, payloads, origin)
@@ -339,7 +347,9 @@ class ProcessExecutor:
         if not members:
             raise ValueError("ProcessExecutor needs at least one node")
         self.zctx = zmq.Context.instance()
-        self.members = [_Member(node, spec, self.zctx, name_logs=len(members) > 1) for node, spec in members]
+        self.stage_cpu = stage_cpu_from_env(members[0][1].name)
+        self.members = [_Member(node, spec, self.zctx, name_logs=len(members) > 1, stage_cpu=self.stage_cpu)
+                        for node, spec in members]
         by_name = {m.spec.name: m for m in self.members}
         # (publisher name, topic) → the members' inputs it feeds in-process
         self._routes: dict[tuple[str, str], list[tuple[_Member, str]]] = {}
@@ -451,12 +461,16 @@ class ProcessExecutor:
         for m in members:
             m.start_clock(now)
         hosts = [m.host for m in members]
+        stage = self.stage_cpu
+        poll_key = (members[0].spec.name, "poll")
         while not (self._stopping or any(h.shutdown_requested for h in hosts)):
             for h in hosts:
                 h.counters["loop.wakeups"] += 1
             for m in watching:
                 m.watch_io(poller, handlers)
             wait_ns = min(m.next_due() for m in members) - time.monotonic_ns()
+            if stage is not None:
+                resume = stage.enter(poll_key)
             if wait_ns <= 0:
                 events = poller.poll(0)
             elif precise and wait_ns < 1_000_000:
@@ -468,6 +482,8 @@ class ProcessExecutor:
                 time.sleep(min(wait_ns, 50_000_000) / 1e9)
             else:
                 events = poller.poll(min(-(-wait_ns // 1_000_000), 50))
+            if stage is not None:
+                stage.enter(resume)
             for item, _ in events:
                 kind, m, arg = handlers[item]
                 if kind == "input":
