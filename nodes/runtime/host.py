@@ -49,6 +49,9 @@ class NodeHost:
         log: writes one line.
         stage_cpu: charges this node's decode, handler, encode and send to their
             stages (benchmarks: :mod:`slipstack.nodes.runtime.stage_cpu`); ``None``: off.
+        listened: ``listened(topic)`` is true while a subscriber outside this process
+            wants ``topic``; when false, a publication is neither encoded nor sent (it
+            is still counted, numbered and handed over in-process). ``None``: always send.
     """
 
     def __init__(
@@ -62,6 +65,7 @@ class NodeHost:
         measure_handlers: bool = True,
         log: Callable[[str], None] | None = None,
         stage_cpu: StageCpu | None = None,
+        listened: Callable[[str], bool] | None = None,
     ) -> None:
         self.node = node
         self.name = name or node.name
@@ -94,6 +98,7 @@ class NodeHost:
         """Called with every published message and its header (a container's in-process hand-over)."""
         self._timer_handlers = {n: getattr(node, f"on_timer_{n}") for n in node.timers}
         self.stage_cpu = stage_cpu
+        self._listened = listened
         self.stage_keys = {stage: (self.name, stage) for stage in ("receive", "decode", "handler", "encode", "send")}
 
     # -- the Context a handler sees -------------------------------------------------
@@ -108,6 +113,13 @@ class NodeHost:
         self._seq[output] = seq + 1
         topic = self.output_topics[output]
         header = Header(int(stamp_ns), seq, self.clock(), sources or {})
+        if self._listened is not None and not self._listened(topic):  # nobody on the bus: no payload
+            self.counters[self._published_key[output]] += 1
+            if self.on_publish is not None:
+                self.on_publish(topic, msg, header)
+            if stage is not None:
+                stage.enter(resume)
+            return
         payload = encode(msg, header)
         if len(payload) > MAX_PAYLOAD_BYTES:  # every receiver would cut the link: never send it
             self.counters[f"out.{topic}.oversized"] += 1

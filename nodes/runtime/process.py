@@ -112,10 +112,12 @@ class _Member:
         self.node = node
         self.spec = spec
         self.zctx = zctx
-        self.pub = make_pub(zctx, spec.pub) if spec.pub else None
+        self.pub = make_pub(zctx, spec.pub, unsubscriptions=True) if spec.pub else None
         log = (lambda text: _log(f"{spec.name}: {text}")) if name_logs else _log  # a container's members
+        self.subscriptions: dict[bytes, int] = {}
+        self.listened_topics: dict[str, bool] = {}  # topic → someone subscribes (cleared when subscriptions change)
         self.host = NodeHost(node, time.monotonic_ns, self.send, name=spec.name, remap=spec.remap, log=log,
-                             stage_cpu=stage_cpu)
+                             stage_cpu=stage_cpu, listened=self.listened if self.pub is not None else None)
         # One SUB socket per (input, publisher endpoint): sequence gaps are then tracked
         # per publisher, so several publishers on one topic (``diagnostics``) never look
         # like loss. One more SUB, bound, takes frames injected by tools.
@@ -140,7 +142,6 @@ class _Member:
                 secure_bind(self.inject_sock, endpoint)
                 self.inject_sock.bind(endpoint)
         self.queues = {n: deque(maxlen=i.depth) for n, i in node.inputs.items() if i.policy == "queue"}
-        self.subscriptions: dict[bytes, int] = {}
         self.watches_io = type(node).io_sources is not Node.io_sources
         self.has_deadline = type(node).next_deadline_ns is not Node.next_deadline_ns
         self.precise = bool(node.timers) and getattr(node, "precise_timers", False)
@@ -168,6 +169,15 @@ class _Member:
             if frame:
                 delta = 1 if frame[0] == 1 else -1
                 self.subscriptions[frame[1:]] = self.subscriptions.get(frame[1:], 0) + delta
+                self.listened_topics.clear()
+
+    def listened(self, topic: str) -> bool:
+        """True while a subscriber (outside this process: a container's members hand over
+        in-process) wants ``topic``; subscriptions are read as they arrive (the XPUB is polled)."""
+        hit = self.listened_topics.get(topic)
+        if hit is None:
+            hit = self.listened_topics[topic] = self.subscribers_of(topic) > 0
+        return hit
 
     def subscribers_of(self, topic: str) -> int:
         """Subscriptions matching ``topic`` (ZeroMQ filters are prefixes; b"" taps all)."""
@@ -452,6 +462,9 @@ class ProcessExecutor:
             if m.inject_sock is not None:
                 poller.register(m.inject_sock, zmq.POLLIN)
                 handlers[m.inject_sock] = ("inject", m, None)
+            if m.pub is not None:  # (un)subscriptions: what is sent at all follows them at once
+                poller.register(m.pub, zmq.POLLIN)
+                handlers[m.pub] = ("subscriptions", m, None)
         watching = [m for m in members if m.watches_io]
         # A timer-paced node (the rig, a source) may sleep to the exact tick; any other
         # node waits in poll, rounding its wake-up up to the next millisecond, so it
@@ -490,6 +503,8 @@ class ProcessExecutor:
                     m.drain(arg, item)
                 elif kind == "io":
                     m.host.call("on_readable", m.node.on_readable, arg, m.host)
+                elif kind == "subscriptions":
+                    m.read_subscriptions()
                 else:
                     m.drain_injected(time.monotonic_ns())
                     if m.inject_resume_ns is not None:
