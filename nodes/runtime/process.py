@@ -372,6 +372,10 @@ class ProcessExecutor:
                         if t == topic:
                             self._routes.setdefault((pub, topic), []).append((m, input_name))
         self._handover: deque[tuple[_Member, str, Message]] = deque()
+        # (member, input) of a ``latest`` input → its messages in the hand-over queue
+        self._latest_queued: dict[tuple[_Member, str], int] = {
+            (m, n): 0 for m in self.members for n, i in m.node.inputs.items() if i.policy == "latest"
+        }
         for m in self.members:
             if any(pub == m.spec.name for pub, _ in self._routes):
                 m.host.on_publish = self._hand_over_from(m.spec.name)
@@ -380,6 +384,7 @@ class ProcessExecutor:
     def _hand_over_from(self, publisher: str):
         routes = self._routes
         handover = self._handover
+        latest_queued = self._latest_queued
 
         def hand_over(topic: str, msg: Message, header: Header) -> None:
             targets = routes.get((publisher, topic))
@@ -388,14 +393,27 @@ class ProcessExecutor:
                 object.__setattr__(delivered, "header", header)
                 for member, input_name in targets:
                     handover.append((member, input_name, delivered))
+                    key = (member, input_name)
+                    if key in latest_queued:
+                        latest_queued[key] += 1
 
         return hand_over
 
     def _run_handovers(self) -> None:
-        """Messages published to members of this process, in order (new ones appended while running)."""
+        """Messages published to members of this process, in order (new ones appended while
+        running); a ``latest`` input with a newer message waiting skips the older one, as
+        its bus socket would (a driver in the container publishes a device read's batch)."""
         handover = self._handover
+        latest_queued = self._latest_queued
         while handover:
             member, input_name, msg = handover.popleft()
+            key = (member, input_name)
+            waiting = latest_queued.get(key)
+            if waiting is not None:
+                latest_queued[key] = waiting - 1
+                if waiting > 1:
+                    member.host.skip(input_name, 1)
+                    continue
             member.host.receive_local(input_name, msg)
 
     def _on_signal(self, signum: int, frame: Any) -> None:
