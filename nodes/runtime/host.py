@@ -22,6 +22,7 @@ from slipstack.messages.codec import MAX_PAYLOAD_BYTES
 from slipstack.messages.frame import SeqTracker
 from slipstack.messages.types import MAX_COUNTERS, MAX_TEXT_LEN
 from slipstack.nodes.runtime.node import Node
+from slipstack.nodes.runtime.stage_cpu import StageCpu
 
 __all__ = ["NodeHost", "DIAGNOSTICS_TOPIC"]
 
@@ -47,6 +48,11 @@ class NodeHost:
         measure_handlers: time handlers with the wall clock for diagnostics (off in
             the deterministic in-process executor).
         log: writes one line.
+        stage_cpu: charges this node's decode, handler, encode and send to their
+            stages (benchmarks: :mod:`slipstack.nodes.runtime.stage_cpu`); ``None``: off.
+        listened: ``listened(topic)`` is true while a subscriber outside this process
+            wants ``topic``; when false, a publication is neither encoded nor sent (it
+            is still counted, numbered and handed over in-process). ``None``: always send.
     """
 
     def __init__(
@@ -59,6 +65,8 @@ class NodeHost:
         remap: dict[str, str] | None = None,
         measure_handlers: bool = True,
         log: Callable[[str], None] | None = None,
+        stage_cpu: StageCpu | None = None,
+        listened: Callable[[str], bool] | None = None,
     ) -> None:
         self.node = node
         self.name = name or node.name
@@ -90,25 +98,42 @@ class NodeHost:
         self.on_publish: Callable[[str, Message, Header], None] | None = None
         """Called with every published message and its header (a container's in-process hand-over)."""
         self._timer_handlers = {n: getattr(node, f"on_timer_{n}") for n in node.timers}
+        self.stage_cpu = stage_cpu
+        self._listened = listened
+        self.stage_keys = {stage: (self.name, stage) for stage in ("receive", "decode", "handler", "encode", "send")}
 
     # -- the Context a handler sees -------------------------------------------------
     def now_ns(self) -> int:
         return self.clock()
 
     def publish(self, output: str, msg: Message, *, stamp_ns: int, sources: dict[str, int] | None = None) -> None:
+        stage = self.stage_cpu
+        if stage is not None:
+            resume = stage.enter(self.stage_keys["encode"])
         seq = self._seq[output]
         self._seq[output] = seq + 1
         topic = self.output_topics[output]
         header = Header(int(stamp_ns), seq, self.clock(), sources or {})
+        if self._listened is not None and not self._listened(topic):  # nobody on the bus: no payload
+            self.counters[self._published_key[output]] += 1
+            if self.on_publish is not None:
+                self.on_publish(topic, msg, header)
+            if stage is not None:
+                stage.enter(resume)
+            return
         payload = encode(msg, header)
         if len(payload) > MAX_PAYLOAD_BYTES:  # every receiver would cut the link: never send it
             self.counters[f"out.{topic}.oversized"] += 1
             self.last_error = f"{topic}: a frame of {len(payload)} bytes exceeds {MAX_PAYLOAD_BYTES}; not sent"
-            return
-        self._send(topic, payload)
-        self.counters[self._published_key[output]] += 1
-        if self.on_publish is not None:
-            self.on_publish(topic, msg, header)
+        else:
+            if stage is not None:
+                stage.enter(self.stage_keys["send"])
+            self._send(topic, payload)
+            self.counters[self._published_key[output]] += 1
+            if self.on_publish is not None:
+                self.on_publish(topic, msg, header)
+        if stage is not None:
+            stage.enter(resume)
 
     def publish_raw(self, topic: str, payload: bytes) -> None:
         """Put an already-encoded frame on the bus unchanged (recording playback)."""
@@ -144,6 +169,9 @@ class NodeHost:
         ``skipped``: frames of the same origin received before this one but not decoded
         (:meth:`skip`); they fill as much of a sequence gap.
         """
+        stage = self.stage_cpu
+        if stage is not None:
+            resume = stage.enter(self.stage_keys["decode"])
         received, rejected, lost, _ = self._in_keys[input_name]
         counters = self.counters
         counters[received] += 1
@@ -152,6 +180,10 @@ class NodeHost:
         except DecodeError as exc:
             counters[rejected] += 1
             self.last_error = f"{self.input_topics[input_name]}: {exc}"
+            msg = None
+        if stage is not None:
+            stage.enter(resume)
+        if msg is None:
             return None
         gap = self._seq_tracker.update(msg.header.seq, (input_name, origin), skipped)
         if gap:
@@ -177,6 +209,9 @@ class NodeHost:
             self.counters[self._in_keys[input_name][3]] += n
 
     def _guarded(self, label: str, fn: Callable[..., None], *args: Any) -> None:
+        stage = self.stage_cpu
+        if stage is not None:
+            resume = stage.enter(self.stage_keys["handler"])
         t0 = time.perf_counter_ns() if self._measure else 0
         try:
             fn(*args)
@@ -193,6 +228,8 @@ class NodeHost:
                           f"{traceback.format_exc().rstrip()}")
         if self._measure:
             self._durations.append(time.perf_counter_ns() - t0)
+        if stage is not None:
+            stage.enter(resume)
 
     def dispatch(self, input_name: str, msg: Message) -> None:
         """Run the input's handler; exceptions are counted and logged, never raised."""
@@ -213,6 +250,8 @@ class NodeHost:
             d = np.fromiter(self._durations, dtype=np.int64)
             counters["handler.p50_us"] = float(np.percentile(d, 50)) / 1e3
             counters["handler.p99_us"] = float(np.percentile(d, 99)) / 1e3
+        if self.stage_cpu is not None:
+            counters.update(self.stage_cpu.counters(self.name))
         now = self.clock()
         status = self.status if not self.detail else f"{self.status}: {self.detail}"
         msg = Diagnostics(

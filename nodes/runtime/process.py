@@ -48,6 +48,7 @@ from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC, NodeHost
 from slipstack.nodes.runtime.logs import node_log
 from slipstack.nodes.runtime.node import Node
 from slipstack.nodes.runtime.rate_limit import TokenBucket
+from slipstack.nodes.runtime.stage_cpu import StageCpu, stage_cpu_from_env
 from slipstack.nodes.runtime.curve import secure_bind
 from slipstack.nodes.runtime.transport import MAX_ORIGIN_BYTES, bound_socket, make_pub, make_sub
 
@@ -107,13 +108,17 @@ def _log(text: str) -> None:
 class _Member:
     """One node of a :class:`ProcessExecutor`: its host, sockets, timers and deadlines."""
 
-    def __init__(self, node: Node, spec: RunSpec, zctx: zmq.Context, *, name_logs: bool = False) -> None:
+    def __init__(self, node: Node, spec: RunSpec, zctx: zmq.Context, *, name_logs: bool = False,
+                 stage_cpu: StageCpu | None = None) -> None:
         self.node = node
         self.spec = spec
         self.zctx = zctx
-        self.pub = make_pub(zctx, spec.pub) if spec.pub else None
+        self.pub = make_pub(zctx, spec.pub, unsubscriptions=True) if spec.pub else None
         log = node_log(spec.name, f"{spec.name}: " if name_logs else "")  # a container's members name themselves
-        self.host = NodeHost(node, time.monotonic_ns, self.send, name=spec.name, remap=spec.remap, log=log)
+        self.subscriptions: dict[bytes, int] = {}
+        self.listened_topics: dict[str, bool] = {}  # topic → someone subscribes (cleared when subscriptions change)
+        self.host = NodeHost(node, time.monotonic_ns, self.send, name=spec.name, remap=spec.remap, log=log,
+                             stage_cpu=stage_cpu, listened=self.listened if self.pub is not None else None)
         # One SUB socket per (input, publisher endpoint): sequence gaps are then tracked
         # per publisher, so several publishers on one topic (``diagnostics``) never look
         # like loss. One more SUB, bound, takes frames injected by tools.
@@ -138,7 +143,6 @@ class _Member:
                 secure_bind(self.inject_sock, endpoint)
                 self.inject_sock.bind(endpoint)
         self.queues = {n: deque(maxlen=i.depth) for n, i in node.inputs.items() if i.policy == "queue"}
-        self.subscriptions: dict[bytes, int] = {}
         self.watches_io = type(node).io_sources is not Node.io_sources
         self.has_deadline = type(node).next_deadline_ns is not Node.next_deadline_ns
         self.precise = bool(node.timers) and getattr(node, "precise_timers", False)
@@ -166,6 +170,15 @@ class _Member:
             if frame:
                 delta = 1 if frame[0] == 1 else -1
                 self.subscriptions[frame[1:]] = self.subscriptions.get(frame[1:], 0) + delta
+                self.listened_topics.clear()
+
+    def listened(self, topic: str) -> bool:
+        """True while a subscriber (outside this process: a container's members hand over
+        in-process) wants ``topic``; subscriptions are read as they arrive (the XPUB is polled)."""
+        hit = self.listened_topics.get(topic)
+        if hit is None:
+            hit = self.listened_topics[topic] = self.subscribers_of(topic) > 0
+        return hit
 
     def subscribers_of(self, topic: str) -> int:
         """Subscriptions matching ``topic`` (ZeroMQ filters are prefixes; b"" taps all)."""
@@ -201,6 +214,9 @@ class _Member:
         host = self.host
         topic = host.input_topics[input_name]
         payloads: list[bytes] = []
+        stage = host.stage_cpu
+        if stage is not None:
+            resume = stage.enter(host.stage_keys["receive"])
         for _ in range(_DRAIN_LIMIT):
             if not sock.getsockopt(zmq.EVENTS) & zmq.POLLIN:  # cheaper than a zmq.Again exception
                 break
@@ -210,6 +226,8 @@ class _Member:
             elif len(parts) != 2:
                 host.count(f"in.{topic}.rejected")
                 host.last_error = f"{topic}: expected [topic, payload], got {len(parts)} parts"
+        if stage is not None:
+            stage.enter(resume)
         queue = self.queues.get(input_name)
         if queue is None:
             self._dispatch_newest(input_name, payloads, origin)
@@ -340,7 +358,9 @@ class ProcessExecutor:
         if not members:
             raise ValueError("ProcessExecutor needs at least one node")
         self.zctx = zmq.Context.instance()
-        self.members = [_Member(node, spec, self.zctx, name_logs=len(members) > 1) for node, spec in members]
+        self.stage_cpu = stage_cpu_from_env(members[0][1].name)
+        self.members = [_Member(node, spec, self.zctx, name_logs=len(members) > 1, stage_cpu=self.stage_cpu)
+                        for node, spec in members]
         by_name = {m.spec.name: m for m in self.members}
         # (publisher name, topic) → the members' inputs it feeds in-process
         self._routes: dict[tuple[str, str], list[tuple[_Member, str]]] = {}
@@ -353,6 +373,10 @@ class ProcessExecutor:
                         if t == topic:
                             self._routes.setdefault((pub, topic), []).append((m, input_name))
         self._handover: deque[tuple[_Member, str, Message]] = deque()
+        # (member, input) of a ``latest`` input → its messages in the hand-over queue
+        self._latest_queued: dict[tuple[_Member, str], int] = {
+            (m, n): 0 for m in self.members for n, i in m.node.inputs.items() if i.policy == "latest"
+        }
         for m in self.members:
             if any(pub == m.spec.name for pub, _ in self._routes):
                 m.host.on_publish = self._hand_over_from(m.spec.name)
@@ -361,6 +385,7 @@ class ProcessExecutor:
     def _hand_over_from(self, publisher: str):
         routes = self._routes
         handover = self._handover
+        latest_queued = self._latest_queued
 
         def hand_over(topic: str, msg: Message, header: Header) -> None:
             targets = routes.get((publisher, topic))
@@ -369,14 +394,27 @@ class ProcessExecutor:
                 object.__setattr__(delivered, "header", header)
                 for member, input_name in targets:
                     handover.append((member, input_name, delivered))
+                    key = (member, input_name)
+                    if key in latest_queued:
+                        latest_queued[key] += 1
 
         return hand_over
 
     def _run_handovers(self) -> None:
-        """Messages published to members of this process, in order (new ones appended while running)."""
+        """Messages published to members of this process, in order (new ones appended while
+        running); a ``latest`` input with a newer message waiting skips the older one, as
+        its bus socket would (a driver in the container publishes a device read's batch)."""
         handover = self._handover
+        latest_queued = self._latest_queued
         while handover:
             member, input_name, msg = handover.popleft()
+            key = (member, input_name)
+            waiting = latest_queued.get(key)
+            if waiting is not None:
+                latest_queued[key] = waiting - 1
+                if waiting > 1:
+                    member.host.skip(input_name, 1)
+                    continue
             member.host.receive_local(input_name, msg)
 
     def _on_signal(self, signum: int, frame: Any) -> None:
@@ -443,6 +481,9 @@ class ProcessExecutor:
             if m.inject_sock is not None:
                 poller.register(m.inject_sock, zmq.POLLIN)
                 handlers[m.inject_sock] = ("inject", m, None)
+            if m.pub is not None:  # (un)subscriptions: what is sent at all follows them at once
+                poller.register(m.pub, zmq.POLLIN)
+                handlers[m.pub] = ("subscriptions", m, None)
         watching = [m for m in members if m.watches_io]
         # A timer-paced node (the rig, a source) may sleep to the exact tick; any other
         # node waits in poll, rounding its wake-up up to the next millisecond, so it
@@ -452,12 +493,16 @@ class ProcessExecutor:
         for m in members:
             m.start_clock(now)
         hosts = [m.host for m in members]
+        stage = self.stage_cpu
+        poll_key = (members[0].spec.name, "poll")
         while not (self._stopping or any(h.shutdown_requested for h in hosts)):
             for h in hosts:
                 h.counters["loop.wakeups"] += 1
             for m in watching:
                 m.watch_io(poller, handlers)
             wait_ns = min(m.next_due() for m in members) - time.monotonic_ns()
+            if stage is not None:
+                resume = stage.enter(poll_key)
             if wait_ns <= 0:
                 events = poller.poll(0)
             elif precise and wait_ns < 1_000_000:
@@ -469,12 +514,16 @@ class ProcessExecutor:
                 time.sleep(min(wait_ns, 50_000_000) / 1e9)
             else:
                 events = poller.poll(min(-(-wait_ns // 1_000_000), 50))
+            if stage is not None:
+                stage.enter(resume)
             for item, _ in events:
                 kind, m, arg = handlers[item]
                 if kind == "input":
                     m.drain(arg, item)
                 elif kind == "io":
                     m.host.call("on_readable", m.node.on_readable, arg, m.host)
+                elif kind == "subscriptions":
+                    m.read_subscriptions()
                 else:
                     m.drain_injected(time.monotonic_ns())
                     if m.inject_resume_ns is not None:

@@ -66,10 +66,14 @@ def bound_socket(ctx: zmq.Context, kind: int, *, sndhwm: int, rcvhwm: int, max_m
     return sock
 
 
-def make_pub(ctx: zmq.Context, endpoint: str, *, sndhwm: int = 1000) -> zmq.Socket:
-    """Bind a verbose XPUB socket (subscriptions are visible for the handshake); CURVE on tcp."""
+def make_pub(ctx: zmq.Context, endpoint: str, *, sndhwm: int = 1000, unsubscriptions: bool = False) -> zmq.Socket:
+    """Bind a verbose XPUB socket (subscriptions are visible for the handshake); CURVE on tcp.
+
+    ``unsubscriptions``: also pass on every unsubscription, a departing subscriber's
+    included (XPUB_VERBOSER), so counting them gives the subscribers present now.
+    """
     sock = bound_socket(ctx, zmq.XPUB, sndhwm=sndhwm, rcvhwm=SUBSCRIPTION_HWM, max_msg_bytes=MAX_SUBSCRIPTION_BYTES)
-    sock.setsockopt(zmq.XPUB_VERBOSE, 1)
+    sock.setsockopt(zmq.XPUB_VERBOSER if unsubscriptions else zmq.XPUB_VERBOSE, 1)
     secure_bind(sock, endpoint)
     sock.bind(endpoint)
     return sock

@@ -20,7 +20,13 @@ headers are decoded), and reports over ``--duration`` seconds after ``--warmup``
   ``in.<topic>.dropped``: drain-to-latest, by design) and *lost*
   (``.lost``, ``.rejected``, ``.dropped_hwm``) from the nodes' diagnostics;
 - CPU per process (``/proc/<pid>/stat``), involuntary context switches, the
-  machine's busy cores and other processes' load.
+  machine's busy cores and other processes' load;
+- CPU per handled message per process (process CPU over the window / the messages
+  it took in from the bus or its device), split into the stages of
+  :mod:`slipstack.nodes.runtime.stage_cpu` (the nodes run with
+  ``SLIPSTACK_STAGE_CPU=1`` unless ``--no-stages``), beside a raw pyzmq + msgpack
+  subscriber to ``ft/wrench`` measured in the same run (its own process: poll,
+  ``recv_multipart``, ``msgpack.unpackb``, nothing else).
 
 Commands the grip controller's watchdog republishes for an unchanged slip verdict
 are counted, not timed (their age is the watchdog's timeout, not a latency).
@@ -49,11 +55,13 @@ import numpy as np
 import zmq
 
 from _stack import ProcSampler, StackRun, free_udp_port, long_scene
+from slipstack.nodes.runtime.stage_cpu import STAGE_CPU_ENV
 
 TOPICS = ("ft/wrench", "contact", "slip", "grip/command", "rig/truth", "diagnostics")
 TRUTH_SAMPLES = 500  # rig/truth frames kept: enough to pin the rig's t0, then the tap unsubscribes
 LIGHT_TOPICS = ("grip/command", "diagnostics")  # --light: end-to-end only, the tap's own load is minimal
 TARGET_P50_MS, TARGET_P99_MS = 1.0, 3.0
+STAGES = ("poll", "receive", "decode", "handler", "encode", "send", "loop")  # nodes/runtime/stage_cpu.py
 LOSS_SUFFIXES = (".lost", ".rejected", ".dropped_hwm")
 
 
@@ -146,6 +154,55 @@ class Tap:
                     sock.setsockopt(zmq.UNSUBSCRIBE, b"rig/truth")
             else:
                 rows[topic].append((recv, body[0], body[2]))
+
+
+# -- the raw pyzmq + msgpack reference ----------------------------------------------------------
+RAW_SUBSCRIBER = r"""
+import sys, time, msgpack, zmq
+endpoint, topic = sys.argv[1], sys.argv[2]
+sock = zmq.Context().socket(zmq.SUB)
+sock.setsockopt(zmq.LINGER, 0)
+sock.setsockopt(zmq.RCVHWM, 100)
+sock.setsockopt(zmq.SUBSCRIBE, topic.encode())
+sock.connect(endpoint)
+poller = zmq.Poller()
+poller.register(sock, zmq.POLLIN)
+poller.register(sys.stdin.fileno(), zmq.POLLIN)
+n = 0
+while True:
+    for item, _ in poller.poll(50):
+        if item is sock:
+            while sock.getsockopt(zmq.EVENTS) & zmq.POLLIN:
+                _, payload = sock.recv_multipart(zmq.NOBLOCK)
+                msgpack.unpackb(payload, raw=False)
+                n += 1
+        elif not sys.stdin.readline():
+            sys.exit(0)
+        else:
+            print(n, time.process_time_ns(), flush=True)
+"""
+
+
+class RawSubscriber:
+    """The raw pyzmq + msgpack subscriber (:data:`RAW_SUBSCRIBER`) in a process of its own;
+    :meth:`mark` returns (messages received, process CPU ns) at that moment."""
+
+    def __init__(self, endpoint: str, topic: str) -> None:
+        self.proc = subprocess.Popen([sys.executable, "-c", RAW_SUBSCRIBER, endpoint, topic],
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+
+    def mark(self) -> tuple[int, int]:
+        self.proc.stdin.write("mark\n")
+        self.proc.stdin.flush()
+        n, cpu_ns = self.proc.stdout.readline().split()
+        return int(n), int(cpu_ns)
+
+    def close(self) -> None:
+        self.proc.stdin.close()
+        try:
+            self.proc.wait(5)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
 
 
 # -- statistics ------------------------------------------------------------------------------
@@ -365,6 +422,68 @@ def cpu_section(sampler: ProcSampler, report: Report) -> None:
     report.add("CPU over the window", body)
 
 
+def _processes(graph: dict[str, Any]) -> dict[int, list[str]]:
+    """pid → names of the nodes it runs (a container's members share one)."""
+    out: dict[int, list[str]] = defaultdict(list)
+    for name, node in graph["nodes"].items():
+        if node.get("pid"):
+            out[node["pid"]].append(name)
+    return out
+
+
+def handled_messages(graph: dict[str, Any], names: list[str], deltas: dict[str, dict[str, float]]) -> tuple[float, str]:
+    """(messages the process of ``names`` took in over the counter window, what they are):
+    frames its nodes handled from the bus (received − dropped − rejected; not ``diagnostics``,
+    not topics a member of the same process hands over), or, for a driver (no bus input)
+    and the rig, the samples it published (the rig: ``rig/truth``, one per simulated sample)."""
+    local = {t for n in names for t in graph["nodes"][n]["outputs"]}
+    n_in, topics = 0.0, set()
+    for n in names:
+        d = deltas.get(n, {})
+        for topic in graph["nodes"][n]["inputs"]:
+            if topic in local or topic == "diagnostics":
+                continue
+            n_in += d.get(f"in.{topic}.received", 0) - d.get(f"in.{topic}.dropped", 0) - d.get(f"in.{topic}.rejected", 0)
+            topics.add(topic)
+    if n_in and not any(graph["nodes"][n]["type"] == "rig" for n in names):  # the rig: per sample it simulates
+        return n_in, "in " + ", ".join(sorted(topics))
+    out = [t for n in names for t in graph["nodes"][n]["outputs"] if t not in ("diagnostics", "grip/state")]
+    return sum(deltas.get(n, {}).get(f"out.{t}.published", 0) for n in names for t in out), "out " + ", ".join(out)
+
+
+def cpu_per_message_section(graph: dict[str, Any], tap: Tap, w0: int, w1: int, sampler: ProcSampler,
+                            raw: tuple[float, float] | None, report: Report) -> None:
+    """Per process: cores, messages taken in per second, CPU µs per message, split by stage."""
+    window = _counter_window(tap.rows["diagnostics"], w0, w1)
+    deltas = {node: d for node, (_, d, _) in window.items()}
+    cores = {s.pid: s.cpu for s in sampler.shares}
+    rows, product = [], 0.0
+    for pid, names in sorted(_processes(graph).items(), key=lambda kv: kv[1]):
+        span = max((window[n][0] for n in names if n in window), default=0.0)
+        n_msgs, what = handled_messages(graph, names, deltas)
+        c = cores.get(pid, math.nan)
+        if not names[0].startswith("rig"):
+            product += c
+        rate = n_msgs / span if span > 0 else math.nan
+        per_msg = c * 1e6 / rate if rate else math.nan
+        stage_us = [sum(deltas.get(n, {}).get(f"cpu.{st}_us", 0.0) for n in names) / n_msgs if n_msgs else math.nan
+                    for st in STAGES]
+        traced = any(deltas.get(n, {}).get("cpu.loop_us") for n in names)
+        other = per_msg - sum(stage_us) if traced else math.nan
+        rows.append([", ".join(names), f"{c:.3f}", f"{rate:.0f} ({what})", f"**{per_msg:.0f}**",
+                     *(f"{v:.1f}" if traced else "–" for v in stage_us), f"{other:.1f}" if traced else "–"])
+    if raw is not None:
+        raw_cores, raw_rate = raw
+        rows.append(["raw pyzmq + msgpack SUB (ft/wrench), same run", f"{raw_cores:.3f}", f"{raw_rate:.0f}",
+                     f"**{raw_cores * 1e6 / raw_rate:.0f}**" if raw_rate else "–", *("" for _ in STAGES), ""])
+    body = _table(["process", "cores", "messages/s taken in", "CPU µs / message", *STAGES,
+                   "other threads (ZeroMQ I/O)"], rows)
+    body += (f"\n\nDrivers and control path together (every process but the rig): **{product:.3f} cores**. "
+             "Stages are main-thread CPU per message (nodes/runtime/stage_cpu.py); a driver's device read "
+             "and protocol decode are in its handler; other threads = process CPU − their sum.")
+    report.add("CPU per handled message", body)
+
+
 # -- profiling -------------------------------------------------------------------------------
 def start_profilers(pids: dict[str, int], seconds: float, out_dir: Path, rate_hz: int) -> list[tuple[str, Path, subprocess.Popen]]:
     """One ``py-spy record --format raw --nonblocking`` per node process for ``seconds`` (s)."""
@@ -434,6 +553,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--profile", metavar="DIR", type=Path, default=None,
                    help="also run py-spy on every node over the window (raw stacks in DIR) and print top functions")
     p.add_argument("--profile-rate", type=int, default=200, help="py-spy samples per second")
+    p.add_argument("--no-stages", action="store_true",
+                   help="run the nodes without per-stage CPU accounting (SLIPSTACK_STAGE_CPU; it costs ~1 µs a stage)")
     return p.parse_args(argv)
 
 
@@ -449,8 +570,9 @@ def main(argv: list[str] | None = None) -> int:
                        *([] if any(a.startswith("rdt_port:=") for a in args.set) else [f"rdt_port:={free_udp_port()}"]),
                        *args.set]
         print(f"launching: slipstack launch {' '.join(launch_args)}", file=sys.stderr)
+        os.environ[STAGE_CPU_ENV] = "0" if args.no_stages else "1"  # StackRun passes our environment on
         run = StackRun(launch_args)
-        tap, profiles = None, []
+        tap, profiles, raw_sub, raw = None, [], None, None
         try:
             graph = run.wait_running()
             tap = Tap(graph, LIGHT_TOPICS if args.light else TOPICS)
@@ -459,21 +581,32 @@ def main(argv: list[str] | None = None) -> int:
             if not tap.rows["grip/command"]:
                 raise RuntimeError(f"the stack is not commanding the grip:\n{run.log()}")
             tap.run_until(time.monotonic() + args.warmup, stop_when=lambda: not run.running())
-            pids = {**run.node_pids, "launcher": run.proc.pid, "bench tap (this process)": os.getpid()}
+            ft_pub = next((n["pub"] for n in graph["nodes"].values() if "ft/wrench" in n["outputs"]), None)
+            raw_sub = RawSubscriber(ft_pub, "ft/wrench") if ft_pub else None
+            tap.run_until(time.monotonic() + 1.0)  # the raw subscriber connects
+            pids = {**run.node_pids, "launcher": run.proc.pid, "bench tap (this process)": os.getpid(),
+                    **({"raw pyzmq + msgpack SUB": raw_sub.proc.pid} if raw_sub else {})}
             sampler = ProcSampler(pids)
             profiles = (start_profilers(run.node_pids, args.duration, args.profile, args.profile_rate)
                         if args.profile else [])
+            raw0 = raw_sub.mark() if raw_sub else None
             w0 = time.monotonic_ns()
             sampler.start()
             tap.run_until(w0 / 1e9 + args.duration, stop_when=lambda: not run.running())
             sampler.stop()
             w1 = time.monotonic_ns()
+            if raw_sub:
+                raw1 = raw_sub.mark()
+                seconds = (w1 - w0) / 1e9
+                raw = ((raw1[1] - raw0[1]) / 1e9 / seconds, (raw1[0] - raw0[0]) / seconds)
             if not run.running():
                 raise RuntimeError(f"the launch ended during the measurement:\n{run.log()[-3000:]}")
         finally:
             for _, _, prof in profiles:
                 if prof.poll() is None and not run.running():
                     prof.kill()
+            if raw_sub is not None:
+                raw_sub.close()
             if tap is not None:
                 tap.close()
             left = run.stop()
@@ -487,6 +620,7 @@ def main(argv: list[str] | None = None) -> int:
     report.sections.append(head)
     analyse(tap, w0, w1, args, report)
     cpu_section(sampler, report)
+    cpu_per_message_section(graph, tap, w0, w1, sampler, raw, report)
     if profiles:
         profile_section(profiles, report)
     verdict = ", ".join(f"{k}: {'PASS' if ok else 'FAIL'}" for k, ok in report.passed.items())
