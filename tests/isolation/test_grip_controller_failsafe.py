@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from slipstack.lib.defaults import F_MAX_N
 from slipstack.messages import Header, Slip
 from slipstack.nodes.grip_controller import GripController, GripControllerParams
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
@@ -57,10 +58,11 @@ DEFAULTS = GripControllerParams(mu=0.45)  # law exact, sigma 0.5; the documented
 
 
 def test_the_default_command_stays_within_f_nom_and_f_max():
-    # gamma 10 asks for 10 * 4 / 0.5 = 80 N: from the measured 4 N up at 200 N/s to f_max, 40 N
+    # gamma 10 asks for 10 * 4 / 0.5 = 80 N: from the measured 4 N up at 200 N/s to f_max
+    # (lib/defaults.py F_MAX_N, 20 N: the launch files' value)
     cmds = _run([(k * MS, "slip", _slip(k, 18.0)) for k in range(1, 300)], until_ms=300, params=DEFAULTS)
     assert cmds[0].f_n_desired == 4.0
-    assert max(c.f_n_desired for c in cmds) == 40.0 and cmds[-1].f_n_desired == 40.0
+    assert max(c.f_n_desired for c in cmds) == F_MAX_N == 20.0 and cmds[-1].f_n_desired == F_MAX_N
     # no load on a light touch (1 N measured): the law asks for f_nom, 2 N, and gets it
     cmds = _run([(k * MS, "slip", _slip(k, 0.0, f_n=1.0)) for k in range(1, 100)], until_ms=100, params=DEFAULTS)
     assert cmds[0].f_n_desired == 2.0 and cmds[-1].f_n_desired == 2.0

@@ -21,8 +21,9 @@ def two_by_two(tau_nm: float, f_x_n: float = 1.0, phi=(1.0, 1.0, 1.0, 1.0)) -> P
 
 
 def detector(delta: float = 0.1) -> Detector:
+    """One frame in the band raises the flag (``onset_frames`` 1), so each step is judged alone."""
     return Detector(DetectorSettings(mu=0.5, delta=delta, gamma_release=0.76, method=KNOWN_COR_METHOD,
-                                     also=(), known_cor_m=PIVOT_M))
+                                     also=(), known_cor_m=PIVOT_M, onset_frames=1))
 
 
 def test_the_load_factor_about_the_pivot_is_the_hand_computed_one():
