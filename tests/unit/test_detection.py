@@ -204,3 +204,28 @@ def test_two_frames_in_a_row_in_the_band_raise_the_flag_by_default():
     assert latch.update(16 * MS, 1.0 - 0.975) is False
     with pytest.raises(ConfigError, match="onset_frames"):
         DetectorConfig(onset_frames=0)
+
+
+def test_exact_levels_with_a_resume_margin():
+    # Release 0.625, resume 0.75 (exact in binary). A frame exactly at the release level
+    # does not start the dwell; one exactly at the resume level restarts it.
+    cfg = DetectorConfig(delta=0.125, gamma_release=0.625, release_ns=10 * MS, gamma_resume=0.75, onset_frames=1)
+    latch = SlipLatch(cfg)
+    assert latch.update(0, 0.0) is True
+    assert all(latch.update(t * MS, 1.0 - 0.625) for t in range(1, 40, 3))   # at the level: held
+    latch = SlipLatch(cfg)
+    latch.update(0, 0.0)
+    assert latch.update(1 * MS, 1.0 - 0.5) is True       # below: dwell starts at 1 ms
+    assert latch.update(10 * MS, 1.0 - 0.75) is True     # exactly at resume: dwell restarts
+    assert latch.update(11 * MS, 1.0 - 0.5) is True      # starts again at 11 ms
+    assert latch.update(20 * MS, 1.0 - 0.5) is True      # 9 ms
+    assert latch.update(21 * MS, 1.0 - 0.5) is False     # 10 ms: released
+
+
+def test_a_fresh_latch_needs_two_frames_in_the_band_and_resume_bounds():
+    latch = SlipLatch(DetectorConfig(delta=0.05))
+    assert latch.update(0, 0.01) is False                # the very first frame, in the band
+    assert latch.update(1 * MS, 0.01) is True
+    assert DetectorConfig(gamma_resume=1.0).resume_level == 1.0
+    with pytest.raises(ConfigError, match="gamma_resume"):
+        DetectorConfig(gamma_resume=0.0)
