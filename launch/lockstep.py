@@ -155,9 +155,9 @@ class LockstepRun:
     def _expected_end_ns(self) -> int | None:
         """The simulated time the run is expected to end at, for progress (the rig's scene, or the duration)."""
         ends = [self.end_ns] if self.end_ns is not None else []
-        for host in self.executor.hosts:
-            scene = getattr(host.node, "scene", None)
-            if host.name in self.required and scene is not None:
+        for name in self.required:
+            scene = getattr(self.executor.host(name).node, "scene", None)
+            if scene is not None:
                 ends.append(round(scene.duration_s * 1e9))
         return min(ends) if ends else None
 
