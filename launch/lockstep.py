@@ -16,7 +16,8 @@ A launch ends when a ``required`` node finishes (the rig, at the end of its scen
 at ``[launch] duration_s`` of simulated time, whichever comes first.
 
 Refused, with what to do instead: a driver on a real device (a URL without ``sim:``),
-and a node with I/O of its own (the Foxglove bridge).
+a node that waits on descriptors of its own (``io_sources``; the executor has no
+descriptors to wait on), and a run with no end (no ``required`` node, no duration).
 """
 
 from __future__ import annotations
