@@ -7,7 +7,7 @@ import numpy as np
 from slipstack.messages import Header, Wrench, encode
 from slipstack.nodes.demo import Relay, SourceParams, WrenchSource
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
-from slipstack.nodes.runtime.node import Context, Input, Node, Output
+from slipstack.nodes.runtime.node import Context, Input, Node
 
 
 def _wrench(seq: int, t: int) -> Wrench:
@@ -60,15 +60,11 @@ def test_a_handler_that_raises_is_counted_and_the_node_goes_on():
     assert host.status == "error" and any("ZeroDivisionError" in line for line in ex.logs)
 
 
-class _Finisher(Node):
+class _Finisher(Relay):
     """Relays one frame, then asks to shut down."""
 
-    name = "finisher"
-    inputs = {"wrench": Input("ft/wrench", Wrench)}
-    outputs = {"out": Output("ft/relayed", Wrench)}
-
     def on_wrench(self, msg: Wrench, ctx: Context) -> None:
-        ctx.publish("out", msg, stamp_ns=msg.header.stamp_ns)
+        super().on_wrench(msg, ctx)
         ctx.shutdown()
 
 
