@@ -119,8 +119,9 @@ class LockstepRun:
     def run(self, progress: Callable[[float], None] | None = None) -> int:
         """Run to the end, stop every node (stop order of the plan), close the recordings.
 
-        ``progress(fraction)`` is called every 10 % of the expected simulated time (default: a
-        ``[lockstep] STATUS`` line)."""
+        ``progress(fraction)`` is called every 10 % of the expected simulated time and once at the
+        end with 1.0 (default: a ``[lockstep] STATUS`` line every 10 %). Interrupted (Ctrl-C), the
+        nodes are stopped and the recordings closed all the same."""
         ex = self.executor
         wall0, cpu0 = time.monotonic(), time.process_time()
         scene_ns = self._expected_end_ns()
@@ -148,6 +149,8 @@ class LockstepRun:
             ex.stop(n for n in self.plan.node_stop_order() if n in running)
             for recording in self.recordings:
                 recording.writer.close()
+        if progress is not None:
+            progress(1.0)
         wall, cpu = time.monotonic() - wall0, time.process_time() - cpu0
         self.echo(f"[lockstep] {ex.now_ns / 1e9:.2f} s simulated in {wall:.2f} s ({cpu:.2f} s CPU), "
                   f"{ex.now_ns / 1e9 / max(wall, 1e-9):.1f}x real time")
