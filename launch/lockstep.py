@@ -16,7 +16,8 @@ A launch ends when a ``required`` node finishes (the rig, at the end of its scen
 at ``[launch] duration_s`` of simulated time, whichever comes first.
 
 Refused, with what to do instead: a driver on a real device (a URL without ``sim:``),
-and a node with I/O of its own (the Foxglove bridge).
+a node that waits on descriptors of its own (``io_sources``; the executor has no
+descriptors to wait on), and a run with no end (no ``required`` node, no duration).
 """
 
 from __future__ import annotations
@@ -118,8 +119,9 @@ class LockstepRun:
     def run(self, progress: Callable[[float], None] | None = None) -> int:
         """Run to the end, stop every node (stop order of the plan), close the recordings.
 
-        ``progress(fraction)`` is called every 10 % of the expected simulated time (default: a
-        ``[lockstep] STATUS`` line)."""
+        ``progress(fraction)`` is called every 10 % of the expected simulated time and once at the
+        end with 1.0 (default: a ``[lockstep] STATUS`` line every 10 %). Interrupted (Ctrl-C), the
+        nodes are stopped and the recordings closed all the same."""
         ex = self.executor
         wall0, cpu0 = time.monotonic(), time.process_time()
         scene_ns = self._expected_end_ns()
@@ -147,6 +149,8 @@ class LockstepRun:
             ex.stop(n for n in self.plan.node_stop_order() if n in running)
             for recording in self.recordings:
                 recording.writer.close()
+        if progress is not None:
+            progress(1.0)
         wall, cpu = time.monotonic() - wall0, time.process_time() - cpu0
         self.echo(f"[lockstep] {ex.now_ns / 1e9:.2f} s simulated in {wall:.2f} s ({cpu:.2f} s CPU), "
                   f"{ex.now_ns / 1e9 / max(wall, 1e-9):.1f}x real time")
@@ -155,9 +159,9 @@ class LockstepRun:
     def _expected_end_ns(self) -> int | None:
         """The simulated time the run is expected to end at, for progress (the rig's scene, or the duration)."""
         ends = [self.end_ns] if self.end_ns is not None else []
-        for host in self.executor.hosts:
-            scene = getattr(host.node, "scene", None)
-            if host.name in self.required and scene is not None:
+        for name in self.required:
+            scene = getattr(self.executor.host(name).node, "scene", None)
+            if scene is not None:
                 ends.append(round(scene.duration_s * 1e9))
         return min(ends) if ends else None
 

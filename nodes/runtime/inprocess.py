@@ -116,7 +116,8 @@ class InProcessExecutor:
 
     def advance(self, until_ns: int, *, stop_at_shutdown_of: Iterable[str] = ()) -> None:
         """Run every event, timer and deadline due up to ``until_ns``; the clock ends there, or
-        at once when a node named in ``stop_at_shutdown_of`` asks to shut down (its last event)."""
+        once a node named in ``stop_at_shutdown_of`` has asked to shut down and every event of
+        that instant has run (its last messages reach their subscribers)."""
         watched = {id(self.host(name)) for name in stop_at_shutdown_of}
         self._run(until_ns, watched)
 
@@ -161,12 +162,15 @@ class InProcessExecutor:
             for host in self.hosts:
                 host.call("start", host.node.start, host)
                 self._schedule_deadline(host)
+        ending = False
         while True:
             if self._io_hosts and (not self._queue or self._queue[0][0] > self.now):
                 for io_host in self._io_hosts:  # before the clock moves on: a device may have been given work
                     self._schedule_deadline(io_host)
             if not self._queue or (until_ns is not None and self._queue[0][0] > until_ns):
                 break
+            if ending and self._queue[0][0] > self.now:
+                return
             t_ns, _, _, item = heapq.heappop(self._queue)
             self.now = max(self.now, t_ns)
             kind = item[0]
@@ -196,7 +200,7 @@ class InProcessExecutor:
                     self._schedule(t_ns + period, item)
             self._schedule_deadline(host)
             if host.shutdown_requested and id(host) in stop_hosts:
-                return
+                ending = True
         if until_ns is not None:
             self.now = max(self.now, until_ns)
 

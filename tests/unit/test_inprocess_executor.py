@@ -58,3 +58,40 @@ def test_a_handler_that_raises_is_counted_and_the_node_goes_on():
     host = ex.hosts[0]
     assert host.counters["handler_errors"] == 1 and host.counters["handled"] == 2
     assert host.status == "error" and any("ZeroDivisionError" in line for line in ex.logs)
+
+
+class _Finisher(Relay):
+    """Relays one frame, then asks to shut down."""
+
+    def on_wrench(self, msg: Wrench, ctx: Context) -> None:
+        super().on_wrench(msg, ctx)
+        ctx.shutdown()
+
+
+def test_advance_and_inject_drive_named_nodes_and_hand_every_frame_to_on_frame():
+    frames: list[tuple[int, str, int]] = []
+    ex = InProcessExecutor([Relay(), Relay()], names=["first", "second"], remaps={"second": {"ft/relayed": "x"}},
+                           keep_published=False, on_frame=lambda t, topic, payload: frames.append((t, topic, len(payload))))
+    ex.inject("ft/wrench", _wrench(0, 5), at_ns=7)
+    ex.advance(10)
+    assert ex.now_ns == 10
+    ex.inject("ft/wrench", encode(_wrench(1, 12)))  # now
+    ex.advance(20)
+    assert [(t, topic) for t, topic, _ in frames] == [(7, "ft/relayed"), (7, "x"), (10, "ft/relayed"), (10, "x")]
+    assert ex.host("second").counters["out.x.published"] == 2 and ex.published == {} and ex.raw == []
+    assert ex.finished() == []
+
+
+def test_advance_stops_at_the_shutdown_of_a_watched_node():
+    ex = InProcessExecutor([_Finisher(), Relay()], names=["finisher", "relay"])
+    ex.feed([(3, "ft/wrench", _wrench(0, 3)), (8, "ft/wrench", _wrench(1, 8))])
+    ex.advance(100, stop_at_shutdown_of=["finisher"])
+    assert ex.finished() == ["finisher"] and ex.now_ns == 3  # the instant ran out; the frame at 8 ns did not run
+    # the relay still got the finisher's instant, not the next
+    assert [m.header.stamp_ns for m in ex.published["ft/relayed"]] == [3, 3]
+    assert ex.host("relay").counters["in.ft/wrench.received"] == 1
+    stopped: list[str] = []
+    for host in ex.hosts:
+        host.node.stop = lambda ctx, n=host.name: stopped.append(n)
+    ex.stop(["relay", "finisher"])
+    assert stopped == ["relay", "finisher"]
