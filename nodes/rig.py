@@ -53,6 +53,8 @@ class RigParams:
     tactile_link: str = field(default="", metadata={
         "help": "pty symlink path for the tactile emulator; sim:PATH: the simulated device table (lock-step runs)"})
     calibration_out: str = field(default="", metadata={"help": "write the tactile calibration TOML here"})
+    tactile: bool = field(default=True, metadata={
+        "help": "serve the scene's tactile sensor; false: no tactile device (an F/T-only run of a scene with a pad)"})
     contact_material: str = field(default="", metadata={
         "help": "make the scene's contact of this rig material (rubber, coulomb, weakening); empty: the scene's"})
     ft_rate_hz: float = field(default=0.0, metadata={"help": "F/T sample rate (Hz); 0: the scene's"})
@@ -112,7 +114,7 @@ class Rig(Node):
                 "bota": lambda: BotaEmulator(self._link(p.ft_link, "ft_link"), streaming=False,
                                              rate_hz=scene.ft.rate_hz),
             }[p.ft_protocol]()
-        if scene.tactile.enabled:
+        if scene.tactile.enabled and p.tactile:
             link = self._link(p.tactile_link, "tactile_link")
             self.tactile_dev = (
                 Dsacon32Emulator(link, rows=scene.pad.rows, cols=scene.pad.cols, texel_size_m=scene.pad.pitch_m)

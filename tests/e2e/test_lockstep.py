@@ -44,6 +44,16 @@ def test_every_shipped_launch_file_runs_in_lockstep(name: str, tmp_path: Path, c
     assert "[monitor] ==== slipstack run summary ====" in out
 
 
+def test_a_scene_with_a_pad_runs_on_the_f_t_sensor_alone(tmp_path: Path, capsys) -> None:
+    # tactile:=false on fig15 (a scene with a pad): the rig serves no tactile device, so it
+    # must not wait for a tactile driver that the launch does not start
+    recording = tmp_path / "ft_only.mcap"
+    assert _launch("fig15", "tactile:=false", "duration_s:=0.3", "check:=false", f"recording:={recording}") == 0
+    topics = [f.topic for f in read_recording(recording)]
+    assert topics.count("ft/wrench") > 100 and topics.count("rig/truth") > 50, sorted(set(topics))
+    assert "tactile/frame" not in topics
+
+
 def test_fig15_lockstep_writes_the_same_recording_twice(tmp_path: Path, capsys) -> None:
     runs = []
     for k in range(2):
