@@ -512,8 +512,8 @@ def cor_median(run: Run, out: Path) -> FigureText:
     ax0.plot(*est_median * 1e3, "o", mfc="none", mec="C3", ms=11, mew=2, label="our COR estimate (cor topic)")
     ax0.plot(*cop * 1e3, "x", color="C0", ms=11, mew=2.5, label="centre of pressure")
     ax0.set(xlabel="x (mm)", ylabel="y (mm)", xlim=(-half, half), ylim=(-half / 2, half / 2), aspect="equal",
-            title="the pad: pressure and the three points")
-    ax0.legend(fontsize=8, loc="lower left", markerscale=1)
+            title="Correction 1: pure torque on a wedge-shaped pressure")
+    ax0.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=2)
     x_mm = positions[:, 0] * 1e3
     columns = np.unique(np.round(x_mm, 6))
     profile = np.array([phi[np.isclose(x_mm, c)].sum() for c in columns]) * 1e3
