@@ -66,9 +66,11 @@ def _flag_strip(ax, t: np.ndarray, flag: np.ndarray, lo: float, color: str, labe
                     label=label, step="post")
 
 
-def _torque_panel(ax, cor: dict[str, np.ndarray]) -> None:
-    """τ_t and τ_c about the COR of impending slip, where the estimator found a rotation."""
-    ok = cor["case"] == "rotation"
+def _torque_panel(ax, cor: dict[str, np.ndarray], reach_m: float) -> None:
+    """τ_t and τ_c about the COR of impending slip, where the estimator found a rotation
+    about a point within ``reach_m`` (m) of the pad centre."""
+    # a COR far off the pad is a near-translation: both torques about it grow with the distance
+    ok = (cor["case"] == "rotation") & (np.hypot(*cor["p_c"].astype(float).T) <= reach_m)
     ax.plot(cor["t"][ok], np.abs(cor["load"][ok]) * 1e3, ".", ms=1.5, color="C3", label="τ_t = |τ + f_t × p_c| (load)")
     ax.plot(cor["t"][ok], cor["capacity"][ok] * 1e3, ".", ms=1.5, color="C0",
             label="τ_c = μ Σ φ_i |p_i − p_c| (capacity)")
@@ -255,7 +257,7 @@ def _cone_plot(run: Run, out: Path, key: str, x_label: str, x_of, law_line, law_
     ax1b.set(ylabel=unit, ylim=(0, max(1.0, 1.2 * float(np.max(slip)))))
     ax1.set(xlabel="time (s)", ylabel="f_n (N)", title="set point, applied force and slip")
     lines = ax1.get_legend_handles_labels()[0] + ax1b.get_legend_handles_labels()[0]
-    ax1.legend(lines, [h.get_label() for h in lines], fontsize=8, loc="upper left")
+    ax1.legend(lines, [h.get_label() for h in lines], fontsize=8, loc="lower center")
     return _save(fig, out, key)
 
 
@@ -265,8 +267,13 @@ def _slid(run: Run) -> tuple[float, float]:
 
 
 def _friction_note(run: Run) -> str:
+    """Where the law's μ and β came from, and how often the law wanted more than f_max."""
     mu, beta = run.experiment.law_friction
-    return run.experiment.friction or f"μ = {mu:g}, β = {beta * 1e3:.2f} mm as declared"
+    note = run.experiment.friction or f"μ = {mu:g}, β = {beta * 1e3:.2f} mm as declared"
+    f_max = run.experiment.config.get("grip", {}).get("f_max_n", math.inf)
+    capped = float(np.mean(run["grip/command"]["f_n"] >= f_max - 1e-9))
+    return note + (f"; the set point sat at its ceiling f_max = {f_max:g} N in {capped * 100:.0f} % of the commands"
+                   if capped else "")
 
 
 def fig10(run: Run, out: Path) -> FigureText:
@@ -332,8 +339,9 @@ def fig12(run: Run, out: Path) -> FigureText:
                       "f_t/μ + τ/β they lie on the law's line, with margin 1/σ = 2.",
                       f"Friction used: {_friction_note(run)}. Least f_n/(|f_t|/μ + |τ|/β) over the loaded samples "
                       f"{margin:.2f}; slid {slid:.3f} mm, turned {turned:.3f}°.",
-                      "The ratio dips below 2 while the rate-limited actuator catches up with a rising load. β is "
-                      "Fig. 4b's fingertip's (see Fig. 11).")
+                      "The ratio dips below 2 while the rate-limited actuator catches up with a rising load, and "
+                      "wherever the law asks for more than f_max. β is Fig. 4b's fingertip's, smaller than this "
+                      "contact's (see Fig. 11), so the law asks for more than it needs.")
 
 
 def _detector_delta(run: Run) -> float:
@@ -351,7 +359,7 @@ def fig13(run: Run, out: Path) -> FigureText:
     _flag_strip(ax0, s["t"], s["state"] != "stick", 0.93, "C3", "slip flagged (γ ≥ 1 − δ, latched)")
     _flag_strip(ax0, tr["t"], tr["gross_slip"].astype(bool), 0.86, "C1", "true gross slip (rig)")
     ax0.set(xlabel="time (s)", ylabel="angle (deg)", title="Fig. 13: rotation about a known COR")
-    ax0.legend(fontsize=8, loc="center left")
+    ax0.legend(fontsize=8, loc="lower right")
     # the detector's own verdict: its load (f_t, τ), the pivot it judged about, and γ = τ_t/τ_c
     judged = (s["status"] == "ok") & s["p_c_valid"].astype(bool) & (s["gamma"] > 0)
     p_c = np.stack(s["p_c"][judged]).astype(float)
@@ -403,7 +411,7 @@ def fig14(run: Run, out: Path) -> FigureText:
     _flag_strip(ax, tr["t"], tr["gross_slip"].astype(bool), 0.86, "C1", "true gross slip (rig)")
     ax.set(xlabel="time (s)", ylabel="mm", title="Fig. 14: displacement and the alert")
     ax.legend(fontsize=8, loc="center left")
-    _torque_panel(axes[0, 1], cor)
+    _torque_panel(axes[0, 1], cor, reach_m=run.scene.pad.pitch_m * run.scene.pad.cols)
     ax = axes[0, 2]
     ax.plot(s["t"], s["f_t"][:, 0], lw=1, label="f_tx")
     ax.plot(s["t"], s["f_t"][:, 1], lw=1, label="f_ty")
@@ -412,14 +420,14 @@ def fig14(run: Run, out: Path) -> FigureText:
     ax = axes[1, 0]
     tip = ax.scatter(s["f_t"][:, 0], s["f_t"][:, 1], s=1, c=s["t"], cmap="viridis")
     fig.colorbar(tip, ax=ax, label="time (s)")
-    ax.set(aspect="equal", xlabel="f_tx (N)", ylabel="f_ty (N)", title="the f_t vector's tip over time")
+    ax.set(aspect="equal", adjustable="datalim", xlabel="f_tx (N)", ylabel="f_ty (N)", title="the f_t vector's tip over time")
     ax = axes[1, 1]
     half = run.scene.pad.pitch_m * run.scene.pad.cols / 2 * 1e3
     gross = np.interp(cor["t"], tr["t"], tr["gross_slip"].astype(float)) > 0.5
     ok = (cor["case"] == "rotation") & gross
     tv = tr["cor_valid"].astype(bool) & tr["gross_slip"].astype(bool)
-    ax.plot(tr["cor"][tv, 0] * 1e3, tr["cor"][tv, 1] * 1e3, ".", ms=2, color="k", label="true COR (rig)")
-    ax.plot(cor["p_c"][ok, 0] * 1e3, cor["p_c"][ok, 1] * 1e3, ".", ms=2, color="C3", alpha=0.6,
+    ax.plot(tr["cor"][tv, 0] * 1e3, tr["cor"][tv, 1] * 1e3, ".", ms=1.5, color="k", zorder=3, label="true COR (rig)")
+    ax.plot(cor["p_c"][ok, 0] * 1e3, cor["p_c"][ok, 1] * 1e3, ".", ms=3, color="C3", alpha=0.5,
             label="estimated COR of impending slip")
     ax.add_patch(plt.Rectangle((-half, -half), 2 * half, 2 * half, fill=False, ls=":", color="0.5"))
     ax.set(xlim=(-half * 1.1, half * 1.1), ylim=(-half * 1.1, half * 1.1), aspect="equal", xlabel="x (mm)",
@@ -457,7 +465,8 @@ def fig15(run: Run, out: Path) -> FigureText:
              label="disturbance |f_t| (N)")
     axb = ax0.twinx()
     axb.plot(tr["t"], np.degrees(tr["slip_angle_rad"]), color="C4", lw=1, label="slip angle (deg)")
-    axb.set_ylabel("deg")
+    axb.set(ylabel="deg", ylim=(min(0.0, float(np.min(np.degrees(tr["slip_angle_rad"])))) * 1.2,
+                               max(1.0, 1.2 * float(np.max(np.degrees(tr["slip_angle_rad"]))))))
     lines = ax0.get_legend_handles_labels()[0] + axb.get_legend_handles_labels()[0]
     ax0.legend(lines, [h.get_label() for h in lines], fontsize=8, loc="center right")
     ax0.set(xlabel="time (s)", ylabel="N", title="Fig. 15a: set point, real force, disturbance, angle")
@@ -502,8 +511,8 @@ def cor_median(run: Run, out: Path) -> FigureText:
     ax0.plot(*est_median * 1e3, "o", mfc="none", mec="C3", ms=11, mew=2, label="our COR estimate (cor topic)")
     ax0.plot(*cop * 1e3, "x", color="C0", ms=11, mew=2.5, label="centre of pressure")
     ax0.set(xlabel="x (mm)", ylabel="y (mm)", xlim=(-half, half), ylim=(-half / 2, half / 2), aspect="equal",
-            title="the pad: pressure and the three points")
-    ax0.legend(fontsize=8, loc="lower left", markerscale=1)
+            title="Correction 1: pure torque on a wedge-shaped pressure")
+    ax0.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=2)
     x_mm = positions[:, 0] * 1e3
     columns = np.unique(np.round(x_mm, 6))
     profile = np.array([phi[np.isclose(x_mm, c)].sum() for c in columns]) * 1e3
@@ -557,7 +566,7 @@ def increment(total: Run, per_taxel: Run, ft13: Run, out: Path) -> FigureText:
     axt.set_ylabel("N·mm")
     lines = axd.get_legend_handles_labels()[0] + axt.get_legend_handles_labels()[0]
     axd.legend(lines, [h.get_label() for h in lines], fontsize=8, loc="upper left")
-    axd.set(xlabel="time (s)", ylabel="N", title="the disturbance (the same in all three runs)")
+    axd.set(xlabel="time (s)", ylabel="N", title="the disturbance (the motor, in the total-increment run)")
     ax0.set(xlabel="time (s)", ylabel="set point f_n (N)", title="fig15: grip force commanded")
     ax1.set(xlabel="time (s)", ylabel="mm", title="object slid (rig)")
     ax2.set(xlabel="time (s)", ylabel="deg", title="object turned (rig)")
