@@ -130,7 +130,11 @@ class TaxelState:
 
 
 class _Clock:
-    """Sample times ``k·period`` (ns), taken at the first internal step at or after them."""
+    """Sample times ``k·period`` (ns), taken at the first internal step at or after them.
+
+    ``seq`` counts the samples emitted; :meth:`due` returns how many sample times have
+    passed since the last call (more than one when the rate exceeds the step rate).
+    """
 
     __slots__ = ("period_ns", "next_ns", "seq")
 
@@ -139,12 +143,12 @@ class _Clock:
         self.next_ns = 0
         self.seq = 0
 
-    def due(self, t_ns: int) -> bool:
+    def due(self, t_ns: int) -> int:
         if t_ns < self.next_ns:
-            return False
-        self.seq += 1
-        self.next_ns += self.period_ns * ((t_ns - self.next_ns) // self.period_ns + 1)
-        return True
+            return 0
+        n = (t_ns - self.next_ns) // self.period_ns + 1
+        self.next_ns += self.period_ns * n
+        return n
 
 
 class Simulator:
@@ -321,13 +325,18 @@ class Simulator:
     def _emit(self, out: list[Sample]) -> None:
         t = self._t_ns
         for kind, clock in self._clocks:
-            if not clock.due(t):
+            n = clock.due(t)
+            if not n:
                 continue
-            seq = clock.seq - 1
-            if kind == "ft":
-                out.append(self.ft.measure(t, seq, self._bristles.phi, self._f_phi,
-                                           *self._contact_load()))
-            elif kind == "tactile":
+            if kind == "ft":  # a sensor faster than the step samples the held state n times
+                for k in range(n - 1, -1, -1):
+                    out.append(self.ft.measure(t - k * clock.period_ns, clock.seq, self._bristles.phi, self._f_phi,
+                                               *self._contact_load()))
+                    clock.seq += 1
+                continue
+            seq = clock.seq
+            clock.seq += 1
+            if kind == "tactile":
                 out.append(self.tactile.measure(t, seq, self._bristles.phi))
             else:
                 out.append(self.truth())

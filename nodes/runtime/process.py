@@ -25,7 +25,10 @@ one loop. Each member keeps its own publish endpoint, so every tool and recorder
 sees the same graph; a message one member publishes to another is also handed over
 in-process — the same object with its header, no encode/decode, no socket hop, no
 wake-up of another process — right after the publishing handler returns (the
-launcher leaves those publishers out of the member's SUB sockets: ``RunSpec.local``).
+launcher leaves those publishers out of the member's SUB sockets: ``RunSpec.local``);
+a ``latest`` input handed several at once handles the newest. A publication no
+subscriber outside the process wants is not encoded nor sent (the XPUB is polled for
+(un)subscriptions, so a tool that subscribes gets the next one).
 """
 
 from __future__ import annotations

@@ -11,8 +11,9 @@ process's poll and loop). The stages:
 - ``receive``: reading frames from a socket or a device descriptor's bytes;
 - ``decode``: MessagePack decode and validation of a frame;
 - ``handler``: the node's own code (handlers, timers, deadlines, device decoding);
-- ``encode``: building the header and the MessagePack payload of a publication;
-- ``send``: handing the payload to ZeroMQ;
+- ``encode``: building the header and the MessagePack payload of a publication (and
+  queueing it for a container's members when nobody on the bus wants it);
+- ``send``: handing the payload to ZeroMQ (and queueing it for a container's members);
 - ``loop``: everything else: the executor's loop, counters, hand-over, diagnostics.
 
 Thread CPU time is not the process's: ZeroMQ's I/O thread (which writes to the

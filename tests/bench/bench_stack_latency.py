@@ -513,7 +513,7 @@ def profile_section(profiles: list[tuple[str, Path, subprocess.Popen]], report: 
         except subprocess.TimeoutExpired:
             proc.kill()
         if not path.exists():
-            lines.append(f"**{name}**: no profile (py-spy failed)")
+            lines.append(f"**{name}**: no profile (py-spy failed; is it installed? pip install py-spy)")
             continue
         own, incl, total = Counter(), Counter(), 0
         for line in path.read_text().splitlines():
@@ -551,7 +551,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--light", action="store_true",
                    help="tap only grip/command and diagnostics (end-to-end row and loss counters only; least load)")
     p.add_argument("--profile", metavar="DIR", type=Path, default=None,
-                   help="also run py-spy on every node over the window (raw stacks in DIR) and print top functions")
+                   help="also run py-spy on every node over the window (raw stacks in DIR) and print top functions "
+                        "(needs py-spy in this Python's bin directory: pip install py-spy)")
     p.add_argument("--profile-rate", type=int, default=200, help="py-spy samples per second")
     p.add_argument("--no-stages", action="store_true",
                    help="run the nodes without per-stage CPU accounting (SLIPSTACK_STAGE_CPU; it costs ~1 µs a stage)")

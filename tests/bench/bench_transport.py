@@ -12,7 +12,10 @@ forked (no ZeroMQ context exists before the fork), endpoints are ``ipc://``.
 - slipstack: ``ProcessExecutor`` nodes (the source is a timer node, relays are
   ``queue`` inputs republishing the decoded message with its stamp, as the demo relay).
 
-Loss = messages the source sent that the sink never received.
+Loss = messages the source sent that the sink never received. CPU per message =
+process CPU time (``time.process_time_ns``: every thread, ZeroMQ's I/O thread
+included) from the source's first send / the sink's first receive to the end,
+divided by the messages sent / received after that one.
 
     python tests/bench/bench_transport.py                 # 10 s per case
     python tests/bench/bench_transport.py --duration 60   # the real claim
@@ -48,6 +51,22 @@ def make_message(size: str) -> Message:
                         saturated=np.zeros(n, bool), dead=np.zeros(n, bool))
 
 
+class CpuPerMessage:
+    """Process CPU time per message (µs), counted from the first message on."""
+
+    def __init__(self) -> None:
+        self.n = 0
+        self.cpu0_ns = 0
+
+    def count(self) -> None:
+        if self.n == 0:
+            self.cpu0_ns = time.process_time_ns()
+        self.n += 1
+
+    def us_per_message(self) -> float:
+        return (time.process_time_ns() - self.cpu0_ns) / 1e3 / (self.n - 1) if self.n > 1 else float("nan")
+
+
 # -- raw pyzmq + msgpack ---------------------------------------------------------------------
 def _raw_process(role: str, ep_in: str | None, ep_out: str | None, size: int, rate: float,
                  ready: Any, results: Any) -> None:
@@ -80,14 +99,17 @@ def _raw_process(role: str, ep_in: str | None, ep_out: str | None, size: int, ra
         period = round(1e9 / rate)
         due = time.monotonic_ns() + period
         seq = 0
+        cpu = CpuPerMessage()
         while not stop["now"]:
             now = time.monotonic_ns()
             if due > now:
                 time.sleep((due - now) / 1e9)
             pub.send_multipart((b"t", msgpack.packb([time.monotonic_ns(), seq, blob])))
+            cpu.count()
             seq += 1
             due += period
         results.put(("sent", seq))
+        results.put(("cpu_source", cpu.us_per_message()))
     elif role == "relay":
         while not stop["now"]:
             if sub.poll(100):
@@ -95,13 +117,16 @@ def _raw_process(role: str, ep_in: str | None, ep_out: str | None, size: int, ra
                 pub.send_multipart((b"t", msgpack.packb(msgpack.unpackb(payload))))
     else:
         lat: list[int] = []
+        cpu = CpuPerMessage()
         while not stop["now"]:
             if sub.poll(100):
                 _, payload = sub.recv_multipart()
                 now = time.monotonic_ns()
                 stamp, seq, _ = msgpack.unpackb(payload)
                 lat.append(now - stamp)
+                cpu.count()
         results.put(("lat", np.array(lat, dtype=np.int64)))
+        results.put(("cpu_sink", cpu.us_per_message()))
     ctx.destroy(linger=0)
 
 
@@ -115,13 +140,16 @@ class BenchSource(Node):
         self.outputs = {"out": Output("t0", type(msg))}
         self.timers = {"tick": 1.0 / rate}
         self.sent = 0
+        self.cpu = CpuPerMessage()
 
     def on_timer_tick(self, ctx: Any) -> None:
         ctx.publish("out", self.msg, stamp_ns=ctx.now_ns())
+        self.cpu.count()
         self.sent += 1
 
     def stop(self, ctx: Any) -> None:
         self.results.put(("sent", self.sent))
+        self.results.put(("cpu_source", self.cpu.us_per_message()))
 
 
 class BenchRelay(Node):
@@ -144,12 +172,15 @@ class BenchSink(Node):
         self.inputs = {"x": Input(f"t{k}", msg_type, policy="queue")}
         self.results = results
         self.lat: list[int] = []
+        self.cpu = CpuPerMessage()
 
     def on_x(self, msg: Message, ctx: Any) -> None:
         self.lat.append(ctx.now_ns() - msg.header.stamp_ns)
+        self.cpu.count()
 
     def stop(self, ctx: Any) -> None:
         self.results.put(("lat", np.array(self.lat, dtype=np.int64)))
+        self.results.put(("cpu_sink", self.cpu.us_per_message()))
 
 
 def _slip_process(node_factory: Any, spec_kwargs: dict, ready: Any) -> None:
@@ -196,7 +227,7 @@ def _run_case(impl: str, size: str, hops: int, rate: float, duration: float) -> 
             os.kill(p.pid, signal.SIGINT)
             time.sleep(0.3 if role == "source" else 0.05)
         got: dict[str, Any] = {}
-        for _ in range(2):
+        for _ in range(4):
             key, value = results.get(timeout=20)
             got[key] = value
         for _, p in procs:
@@ -204,7 +235,7 @@ def _run_case(impl: str, size: str, hops: int, rate: float, duration: float) -> 
     lat = got["lat"][WARMUP:] / 1e3
     return {"impl": impl, "size": nbytes, "hops": hops, "n": len(got["lat"]), "sent": got["sent"],
             "p50": np.percentile(lat, 50), "p99": np.percentile(lat, 99), "p999": np.percentile(lat, 99.9),
-            "loss": got["sent"] - len(got["lat"])}
+            "loss": got["sent"] - len(got["lat"]), "cpu_source": got["cpu_source"], "cpu_sink": got["cpu_sink"]}
 
 
 # -- codec profile ---------------------------------------------------------------------------
@@ -311,8 +342,11 @@ def main() -> None:
     if args.profile:
         profile()
         return
-    print("| size B | hops | impl | received | p50 µs | p99 µs | p99.9 µs | loss | p50 vs raw |")
-    print("| ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: |")
+    with open("/proc/loadavg") as fh:
+        print(f"load average at start: {' '.join(fh.read().split()[:3])}\n")
+    print("| size B | hops | impl | received | p50 µs | p99 µs | p99.9 µs | loss | p50 vs raw "
+          "| CPU µs/msg source | CPU µs/msg sink | sink CPU vs raw |")
+    print("| ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     for size in args.sizes:
         for hops in args.hops:
             raw = _run_case("raw", size, hops, args.rate, args.duration)
@@ -320,7 +354,8 @@ def main() -> None:
             for r in (raw, slip):
                 ratio = r["p50"] / raw["p50"]
                 print(f"| {r['size']} | {r['hops']} | {r['impl']} | {r['n']} | {r['p50']:.0f} | {r['p99']:.0f} | "
-                      f"{r['p999']:.0f} | {r['loss']} | {ratio:.2f}× |", flush=True)
+                      f"{r['p999']:.0f} | {r['loss']} | {ratio:.2f}× | {r['cpu_source']:.0f} | {r['cpu_sink']:.0f} | "
+                      f"{r['cpu_sink'] / raw['cpu_sink']:.2f}× |", flush=True)
 
 
 if __name__ == "__main__":
