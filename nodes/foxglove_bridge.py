@@ -27,12 +27,12 @@ import numpy as np
 
 from slipstack.lib.errors import ConfigError
 from slipstack.messages import Cor, GripCommand, Message, Slip, TactileFrame, Wrench
+from slipstack.nodes.recording.export import PAD_FRAME, PAD_IMAGE_TOPIC, foxglove_topic
 from slipstack.nodes.runtime.node import Context, Input, Node
 
 __all__ = ["FoxgloveBridge", "FoxgloveParams", "arrow_orientation"]
 
 FORCE_ARROW_M_PER_N = 0.01
-PAD_FRAME = "pad"
 INSTALL_HINT = "the foxglove node needs the Foxglove SDK: pip install 'slipstack[foxglove]'"
 
 
@@ -89,8 +89,8 @@ class FoxgloveBridge(Node):
         self._wall_offset_ns = time.time_ns() - time.monotonic_ns()
         self._server = foxglove.start_server(name="slipstack", host=self.params.host, port=self.params.port)
         for name, spec in self.inputs.items():
-            self._json[name] = foxglove.Channel(f"/slipstack/{spec.topic}", schema=json_schema(spec.type))
-        self._image = RawImageChannel("/pad/pressure")
+            self._json[name] = foxglove.Channel(foxglove_topic(spec.topic), schema=json_schema(spec.type))
+        self._image = RawImageChannel(PAD_IMAGE_TOPIC)
         self._scene = SceneUpdateChannel("/pad/scene")
         ctx.log(f"serving Foxglove on ws://{self.params.host}:{self._server.port}")
 

@@ -2,8 +2,9 @@
 
 The MCAP export (``mcap-json``) holds:
 
-* one channel per (topic, message type), message encoding ``json``, schema encoding
-  ``jsonschema``: the schema of :mod:`slipstack.messages.json_schema` (every field
+* one channel per (topic, message type), named ``/slipstack/<topic>`` as the live
+  ``foxglove`` node names them (so ``docs/foxglove_layout.json`` fits both), message
+  encoding ``json``, schema encoding ``jsonschema``: the schema of :mod:`slipstack.messages.json_schema` (every field
   required, types, units, declared bounds and enumerations);
 * ``/pad/pressure``: every tactile frame again as a ``foxglove.RawImage`` (encoding
   ``32FC1``: one float32 pixel per taxel in Pa, row 0 first, frame ``pad``), which
@@ -37,11 +38,19 @@ from slipstack.nodes.recording.bag_io import (
     CLOCK_METADATA, DEFAULT_CHUNK_SIZE, RecordingError, clock_offset_ns, read_recording, recorded_clock_offset_ns,
 )
 
-__all__ = ["export_recording", "pad_image", "RAW_IMAGE_SCHEMA", "PAD_IMAGE_TOPIC", "EXPORT_FORMATS"]
+__all__ = ["export_recording", "pad_image", "foxglove_topic", "RAW_IMAGE_SCHEMA", "PAD_IMAGE_TOPIC", "EXPORT_FORMATS"]
 
 EXPORT_FORMATS = ("mcap-json", "jsonl")
 PAD_IMAGE_TOPIC = "/pad/pressure"
+"""The Foxglove topic of the pad image (live and exported)."""
+
+
+def foxglove_topic(topic: str) -> str:
+    """The Foxglove topic of a bus topic, live and exported: ``slip`` → ``/slipstack/slip``."""
+    return f"/slipstack/{topic}"
+
 PAD_FRAME = "pad"
+"""Foxglove frame id of the pad frame F (docs/math.md §1)."""
 
 RAW_IMAGE_SCHEMA: dict[str, Any] = {
     "$schema": "https://json-schema.org/draft/2020-12/schema",
@@ -141,7 +150,7 @@ def export_recording(path: str | os.PathLike, out: str | os.PathLike, fmt: str =
             except DecodeError:
                 continue
             if mcap is not None:
-                mcap.write(frame.topic, msg, frame.log_time_ns)
+                mcap.write(foxglove_topic(frame.topic), msg, frame.log_time_ns)
             else:
                 line = {"log_time_ns": frame.log_time_ns, "topic": frame.topic, "type": msg.TYPE,
                         "message": to_json(msg, offset)}

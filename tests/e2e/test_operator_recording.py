@@ -80,6 +80,7 @@ def test_exported_recording_meets_its_own_schemas_and_shows_the_pad(short_run):
                 violations[schema.name] += 1
                 first_violation.setdefault(schema.name, f"{list(error.path)}: {error.message[:200]}")
             if schema.name.startswith("slipstack/"):
+                assert channel.topic.startswith("/slipstack/"), channel.topic  # as live: one layout fits both
                 # tight: every declared field is required, nothing else is allowed
                 assert set(doc["required"]) == set(doc["properties"]) == set(body), schema.name
                 assert doc["additionalProperties"] is False
@@ -101,7 +102,7 @@ def test_exported_recording_meets_its_own_schemas_and_shows_the_pad(short_run):
     assert len(images) == counts["slipstack/TactileFrame"] > 0
     frames = [decode(f.payload) for f in read_recording(recording, ["tactile/frame"])]
     topic, image = images[-1]
-    assert topic == "/pad/pressure" and image["encoding"] == "32FC1"
+    assert topic == "/pad/pressure" and image["encoding"] == "32FC1" and image["frame_id"] == "pad"
     pixels = np.frombuffer(base64.b64decode(image["data"]), dtype="<f4").reshape(image["height"], image["width"])
     last: TactileFrame = frames[-1]
     np.testing.assert_array_equal(pixels, last.pressure_pa.reshape(last.rows, last.cols))
