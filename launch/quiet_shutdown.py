@@ -11,7 +11,9 @@ When the world has ended is known without a race: the rig logs ``scene NAME fini
 (:data:`SCENE_FINISHED`) before it closes its devices, the launcher reads each batch of
 output with the world's lines first, and a shutdown begun by the launcher (Ctrl-C, the
 duration) marks the end before the world is stopped. Device errors before that moment,
-and any line of a launch without a simulated world (hardware), pass unchanged.
+and any line of a launch without a simulated world (hardware), pass unchanged. The rig's
+line is at level info: with ``--log-level warning`` for the rig too, the end of its
+scene is not seen and the drivers' lines after it are shown as they come.
 """
 
 from __future__ import annotations

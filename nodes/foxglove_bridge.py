@@ -7,9 +7,10 @@ and, per received message (latest value per input; a viewer never slows the grap
   (``/slipstack/<topic>``: slip state, γ, margin, grip force ... plottable by field);
 * ``/pad/pressure``: the tactile frame as a ``foxglove.RawImage``, encoding ``32FC1``,
   one pixel per taxel, row 0 first, values in Pa (a heat map in the Image panel);
-* ``/pad/scene``: a ``foxglove.SceneUpdate`` in frame ``pad`` (the pad frame F, m): the
-  force of ``ft/wrench`` as an arrow from the pad origin (length 1 cm per N) and the
-  centre of rotation from ``cor`` as a sphere.
+* ``/pad/scene``: a ``foxglove.SceneUpdate`` (JSON) in frame ``pad`` (the pad frame F,
+  m): the force of ``ft/wrench`` as an arrow from the pad origin (length 1 cm per N)
+  and the centre of rotation from ``cor`` as a sphere
+  (:mod:`slipstack.nodes.recording.foxglove_scene`, which ``bag export`` writes too).
 
 Log times are wall-clock ns: each message's ``stamp_ns`` (CLOCK_MONOTONIC) plus the
 host's wall − monotonic offset read at start. ``docs/foxglove_layout.json`` is a
@@ -18,7 +19,7 @@ layout with these panels.
 
 from __future__ import annotations
 
-import math
+import json
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -26,14 +27,13 @@ from typing import Any
 import numpy as np
 
 from slipstack.lib.errors import ConfigError
-from slipstack.lib.status import SlipCase
 from slipstack.messages import Cor, GripCommand, Message, Slip, TactileFrame, Wrench
+from slipstack.nodes.recording.export import PAD_IMAGE_TOPIC, foxglove_topic
+from slipstack.nodes.recording.foxglove_scene import PAD_FRAME, SCENE_TOPIC, SCENE_UPDATE_SCHEMA, ContactScene
 from slipstack.nodes.runtime.node import Context, Input, Node
 
-__all__ = ["FoxgloveBridge", "FoxgloveParams", "arrow_orientation"]
+__all__ = ["FoxgloveBridge", "FoxgloveParams"]
 
-FORCE_ARROW_M_PER_N = 0.01
-PAD_FRAME = "pad"
 INSTALL_HINT = "the foxglove node needs the Foxglove SDK: pip install 'slipstack[foxglove]'"
 
 
@@ -41,19 +41,6 @@ INSTALL_HINT = "the foxglove node needs the Foxglove SDK: pip install 'slipstack
 class FoxgloveParams:
     host: str = field(default="127.0.0.1", metadata={"help": "address the WebSocket server binds (0.0.0.0: all)"})
     port: int = field(default=8765, metadata={"help": "WebSocket port (Foxglove: Open connection, ws://HOST:PORT)"})
-
-
-def arrow_orientation(direction: np.ndarray) -> tuple[float, float, float, float]:
-    """Quaternion ``(x, y, z, w)`` turning +x onto ``direction`` (a Foxglove arrow points along +x)."""
-    n = float(np.linalg.norm(direction))
-    if n == 0.0:
-        return 0.0, 0.0, 0.0, 1.0
-    ux, uy, uz = (float(c) / n for c in direction)
-    if ux < -1.0 + 1e-9:  # opposite to +x: half a turn about z
-        return 0.0, 0.0, 1.0, 0.0
-    x, y, z, w = 0.0, -uz, uy, 1.0 + ux  # rotation axis x̂ × û, half angle from w
-    norm = math.sqrt(x * x + y * y + z * z + w * w)
-    return x / norm, y / norm, z / norm, w / norm
 
 
 class FoxgloveBridge(Node):
@@ -76,13 +63,12 @@ class FoxgloveBridge(Node):
         self._server: Any = None
         self._json: dict[str, Any] = {}
         self._wall_offset_ns = 0
-        self._force = np.zeros(3)
-        self._cor: np.ndarray | None = None
+        self._contact = ContactScene()
 
     def start(self, ctx: Context) -> None:
         try:
             import foxglove
-            from foxglove.channels import RawImageChannel, SceneUpdateChannel
+            from foxglove.channels import RawImageChannel
         except ImportError:
             raise ConfigError(INSTALL_HINT) from None
         from slipstack.messages.json_schema import json_schema
@@ -90,9 +76,11 @@ class FoxgloveBridge(Node):
         self._wall_offset_ns = time.time_ns() - time.monotonic_ns()
         self._server = foxglove.start_server(name="slipstack", host=self.params.host, port=self.params.port)
         for name, spec in self.inputs.items():
-            self._json[name] = foxglove.Channel(f"/slipstack/{spec.topic}", schema=json_schema(spec.type))
-        self._image = RawImageChannel("/pad/pressure")
-        self._scene = SceneUpdateChannel("/pad/scene")
+            self._json[name] = foxglove.Channel(foxglove_topic(spec.topic), schema=json_schema(spec.type))
+        self._image = RawImageChannel(PAD_IMAGE_TOPIC)
+        scene_schema = foxglove.Schema(name=SCENE_UPDATE_SCHEMA["title"], encoding="jsonschema",
+                                       data=json.dumps(SCENE_UPDATE_SCHEMA).encode())
+        self._scene = foxglove.Channel(SCENE_TOPIC, schema=scene_schema, message_encoding="json")
         ctx.log(f"serving Foxglove on ws://{self.params.host}:{self._server.port}")
 
     def stop(self, ctx: Context) -> None:
@@ -103,8 +91,7 @@ class FoxgloveBridge(Node):
     # -- inputs --------------------------------------------------------------------------
     def on_wrench(self, msg: Wrench, ctx: Context) -> None:
         self._log_json("wrench", msg)
-        if msg.frame == PAD_FRAME:
-            self._force = np.asarray(msg.force, dtype=float)
+        if self._contact.on_wrench(msg):
             self._log_scene(msg)
 
     def on_tactile(self, msg: TactileFrame, ctx: Context) -> None:
@@ -118,8 +105,8 @@ class FoxgloveBridge(Node):
 
     def on_cor(self, msg: Cor, ctx: Context) -> None:
         self._log_json("cor", msg)
-        self._cor = np.asarray(msg.p_c, dtype=float) if msg.case in (SlipCase.ROTATION, SlipCase.ON_TAXEL) else None
-        self._log_scene(msg)
+        if self._contact.on_cor(msg):
+            self._log_scene(msg)
 
     def on_slip(self, msg: Slip, ctx: Context) -> None:
         self._log_json("slip", msg)
@@ -143,20 +130,4 @@ class FoxgloveBridge(Node):
         self._json[name].log(to_json(msg, self._wall_offset_ns), log_time=self._wall_ns(msg))
 
     def _log_scene(self, msg: Message) -> None:
-        from foxglove.messages import (
-            ArrowPrimitive, Color, Pose, Quaternion, SceneEntity, SceneUpdate, SpherePrimitive, Vector3,
-        )
-
-        length = float(np.linalg.norm(self._force)) * FORCE_ARROW_M_PER_N
-        qx, qy, qz, qw = arrow_orientation(self._force)
-        arrows = [ArrowPrimitive(pose=Pose(position=Vector3(x=0.0, y=0.0, z=0.0),
-                                           orientation=Quaternion(x=qx, y=qy, z=qz, w=qw)),
-                                 shaft_length=0.8 * length, shaft_diameter=0.001, head_length=0.2 * length,
-                                 head_diameter=0.003, color=Color(r=1.0, g=0.3, b=0.1, a=1.0))] if length else []
-        spheres = [] if self._cor is None else [
-            SpherePrimitive(pose=Pose(position=Vector3(x=float(self._cor[0]), y=float(self._cor[1]), z=0.0),
-                                      orientation=Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)),
-                            size=Vector3(x=0.002, y=0.002, z=0.002), color=Color(r=0.1, g=0.5, b=1.0, a=1.0))]
-        entity = SceneEntity(timestamp=self._timestamp(msg), frame_id=PAD_FRAME, id="contact",
-                             arrows=arrows, spheres=spheres)
-        self._scene.log(SceneUpdate(entities=[entity]), log_time=self._wall_ns(msg))
+        self._scene.log(self._contact.update(self._wall_ns(msg)), log_time=self._wall_ns(msg))

@@ -30,7 +30,7 @@ silent nodes also on the live line):
   fail-safe (the sensors never streamed).
 
 Counts are given with their denominators (``frames lost at fusion: ft/wrench 497 of
-30004 sent (sequence gaps)``). Without ``rig/truth`` (real hardware) there is no ground
+30004 (sequence gaps, of those sent)``). Without ``rig/truth`` (real hardware) there is no ground
 truth: the summary says so instead of printing episode counts and a false-slip rate.
 
 Memory is bounded: running sums and counts per message, the detection quality streamed

@@ -2,12 +2,15 @@
 
 The MCAP export (``mcap-json``) holds:
 
-* one channel per (topic, message type), message encoding ``json``, schema encoding
-  ``jsonschema``: the schema of :mod:`slipstack.messages.json_schema` (every field
+* one channel per (topic, message type), named ``/slipstack/<topic>`` as the live
+  ``foxglove`` node names them (so ``docs/foxglove_layout.json`` fits both), message
+  encoding ``json``, schema encoding ``jsonschema``: the schema of :mod:`slipstack.messages.json_schema` (every field
   required, types, units, declared bounds and enumerations);
 * ``/pad/pressure``: every tactile frame again as a ``foxglove.RawImage`` (encoding
   ``32FC1``: one float32 pixel per taxel in Pa, row 0 first, frame ``pad``), which
   Foxglove's Image panel shows as a heat map;
+* ``/pad/scene``: at every pad-frame wrench and every COR, a ``foxglove.SceneUpdate``
+  with the force arrow and the COR in the pad frame (:mod:`.foxglove_scene`, as live);
 * one clock: ``log_time`` is the recorder's receive time and ``publish_time`` the
   publisher's ``pub_ns``, both on the wall clock (ns since the Unix epoch); inside
   each message ``header.stamp`` is the sample time on the wall clock and
@@ -31,17 +34,24 @@ import numpy as np
 from mcap.writer import CompressionType, Writer
 
 from slipstack.lib.errors import DecodeError
-from slipstack.messages import TactileFrame, decode
+from slipstack.messages import Cor, TactileFrame, Wrench, decode
 from slipstack.messages.json_schema import TIME_SCHEMA, json_schema, to_json, wall_time
+from slipstack.nodes.recording.foxglove_scene import PAD_FRAME, SCENE_TOPIC, SCENE_UPDATE_SCHEMA, ContactScene
 from slipstack.nodes.recording.bag_io import (
     CLOCK_METADATA, DEFAULT_CHUNK_SIZE, RecordingError, clock_offset_ns, read_recording, recorded_clock_offset_ns,
 )
 
-__all__ = ["export_recording", "pad_image", "RAW_IMAGE_SCHEMA", "PAD_IMAGE_TOPIC", "EXPORT_FORMATS"]
+__all__ = ["export_recording", "pad_image", "foxglove_topic", "RAW_IMAGE_SCHEMA", "PAD_IMAGE_TOPIC", "EXPORT_FORMATS"]
 
 EXPORT_FORMATS = ("mcap-json", "jsonl")
 PAD_IMAGE_TOPIC = "/pad/pressure"
-PAD_FRAME = "pad"
+"""The Foxglove topic of the pad image (live and exported)."""
+
+
+def foxglove_topic(topic: str) -> str:
+    """The Foxglove topic of a bus topic, live and exported: ``slip`` → ``/slipstack/slip``."""
+    return f"/slipstack/{topic}"
+
 
 RAW_IMAGE_SCHEMA: dict[str, Any] = {
     "$schema": "https://json-schema.org/draft/2020-12/schema",
@@ -88,6 +98,7 @@ class _McapJson:
         self._offset_ns = offset_ns
         self._schemas: dict[str, int] = {}
         self._channels: dict[tuple[str, str], int] = {}
+        self._scene = ContactScene()
 
     def _channel(self, topic: str, name: str, schema: Callable[[], dict[str, Any]]) -> int:
         key = (topic, name)
@@ -107,6 +118,10 @@ class _McapJson:
             image = json.dumps(pad_image(msg, self._offset_ns)).encode()
             self._writer.add_message(self._channel(PAD_IMAGE_TOPIC, RAW_IMAGE_SCHEMA["title"], lambda: RAW_IMAGE_SCHEMA),
                                      log_time_ns, image, publish_time=publish, sequence=seq)
+        elif (isinstance(msg, Wrench) and self._scene.on_wrench(msg)) or (isinstance(msg, Cor) and self._scene.on_cor(msg)):
+            scene = json.dumps(self._scene.update(msg.header.stamp_ns + self._offset_ns)).encode()
+            self._writer.add_message(self._channel(SCENE_TOPIC, SCENE_UPDATE_SCHEMA["title"], lambda: SCENE_UPDATE_SCHEMA),
+                                     log_time_ns, scene, publish_time=publish, sequence=seq)
 
     def finish(self) -> None:
         self._writer.finish()
@@ -141,7 +156,7 @@ def export_recording(path: str | os.PathLike, out: str | os.PathLike, fmt: str =
             except DecodeError:
                 continue
             if mcap is not None:
-                mcap.write(frame.topic, msg, frame.log_time_ns)
+                mcap.write(foxglove_topic(frame.topic), msg, frame.log_time_ns)
             else:
                 line = {"log_time_ns": frame.log_time_ns, "topic": frame.topic, "type": msg.TYPE,
                         "message": to_json(msg, offset)}

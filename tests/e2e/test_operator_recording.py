@@ -63,7 +63,7 @@ def test_exported_recording_meets_its_own_schemas_and_shows_the_pad(short_run):
     assert out.returncode == 0, out.stderr
 
     counts, violations, first_violation = Counter(), Counter(), {}
-    publish_minus_log, images = [], []
+    publish_minus_log, images, scenes = [], [], []
     with open(exported, "rb") as fh:
         reader = make_reader(fh)
         metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
@@ -80,6 +80,7 @@ def test_exported_recording_meets_its_own_schemas_and_shows_the_pad(short_run):
                 violations[schema.name] += 1
                 first_violation.setdefault(schema.name, f"{list(error.path)}: {error.message[:200]}")
             if schema.name.startswith("slipstack/"):
+                assert channel.topic.startswith("/slipstack/"), channel.topic  # as live: one layout fits both
                 # tight: every declared field is required, nothing else is allowed
                 assert set(doc["required"]) == set(doc["properties"]) == set(body), schema.name
                 assert doc["additionalProperties"] is False
@@ -88,6 +89,8 @@ def test_exported_recording_meets_its_own_schemas_and_shows_the_pad(short_run):
             publish_minus_log.append(msg.publish_time - msg.log_time)
             if schema.name == "foxglove.RawImage":
                 images.append((channel.topic, body))
+            if schema.name == "foxglove.SceneUpdate":
+                scenes.append((channel.topic, body))
     assert not violations, first_violation
     assert {"slipstack/TactileFrame", "slipstack/Slip", "slipstack/Diagnostics", "slipstack/RigTruth",
             "slipstack/Wrench", "slipstack/GripCommand"} <= set(counts), counts
@@ -101,11 +104,19 @@ def test_exported_recording_meets_its_own_schemas_and_shows_the_pad(short_run):
     assert len(images) == counts["slipstack/TactileFrame"] > 0
     frames = [decode(f.payload) for f in read_recording(recording, ["tactile/frame"])]
     topic, image = images[-1]
-    assert topic == "/pad/pressure" and image["encoding"] == "32FC1"
+    assert topic == "/pad/pressure" and image["encoding"] == "32FC1" and image["frame_id"] == "pad"
     pixels = np.frombuffer(base64.b64decode(image["data"]), dtype="<f4").reshape(image["height"], image["width"])
     last: TactileFrame = frames[-1]
     np.testing.assert_array_equal(pixels, last.pressure_pa.reshape(last.rows, last.cols))
     assert pixels.max() > 0  # the pad is pressed
+
+    # the contact in 3-D: the force arrow of the last pad-frame wrench, in the pad frame
+    wrenches = [w for w in (decode(f.payload) for f in read_recording(recording, ["ft/wrench"])) if w.frame == "pad"]
+    assert wrenches and scenes and all(topic == "/pad/scene" for topic, _ in scenes)
+    (entity,) = scenes[-1][1]["entities"]
+    (arrow,) = entity["arrows"]
+    assert entity["frame_id"] == "pad"
+    assert arrow["shaft_length"] + arrow["head_length"] == pytest.approx(0.01 * np.linalg.norm(wrenches[-1].force))
 
 
 def test_exported_schemas_refuse_what_decoding_refuses(short_run):
