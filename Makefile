@@ -22,7 +22,7 @@ bench: $(VENV)/.installed
 	$(PY) -m pip install -q -e '.[test,bench]'
 	@echo "benchmarks are scripts: ls tests/bench/; run e.g. $(PY) tests/bench/bench_math.py --help"
 
-# Mutation testing of the numerical core (long: not in CI). MUTATE_ARGS narrows it, e.g.
-# MUTATE_ARGS="lib/weber.py --line 203"; see tests/mutation/mutate.py --help.
+# Mutation testing of lib/ and the control-path nodes (long: not in CI). MUTATE_ARGS narrows it,
+# e.g. MUTATE_ARGS="lib/weber.py --line 203"; see tests/mutation/README.md.
 mutation: $(VENV)/.installed
 	$(PY) tests/mutation/mutate.py --interpreted $(MUTATE_ARGS)

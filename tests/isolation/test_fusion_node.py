@@ -77,6 +77,13 @@ def test_a_pad_pressed_far_harder_than_the_ft_sensor_says_is_implausible(pad_n, 
     assert counters.get("fusion.implausible_ft", 0) == int(implausible)
 
 
+def test_a_plausibility_ratio_of_0_turns_the_check_off():
+    # docs/safety.md: ft_plausibility_ratio:=0 for an uncalibrated pad
+    contacts, counters = fuse_events([tactile(0, 4.0), wrench(1, 0.2, 0.0)], FusionParams(ft_plausibility_ratio=0.0))
+    assert contacts[0].has_tactile and contacts[0].status == "ok"
+    assert "fusion.implausible_ft" not in counters
+
+
 def test_a_taxel_is_in_contact_just_above_the_noise_floor():
     assert DEFAULTS.noise_floor_pa == 2000.0
     pressure = pressure_for(4.0)

@@ -127,3 +127,13 @@ def test_diagnostics_say_fail_safe_and_why_while_the_grip_is_held_and_ok_once_va
     assert held.counters["grip.fail_safe_steps"] == 5
     recovered = reports[20 * MS]
     assert recovered.status == "ok" and recovered.counters["grip.fail_safe_steps"] == 5
+
+
+def test_a_controller_that_never_had_a_valid_verdict_counts_the_contact_as_loaded_when_blind():
+    # started into stale data (e.g. restarted while the F/T driver hangs): it cannot know the
+    # finger is empty, so after the 50 ms grace the held grip rises at 10 N/s
+    events = [(k * MS, "slip", _slip(k, 0.9, stamp_ns=(k - 30) * MS)) for k in range(31, 131)]
+    cmds = _run(events, until_ms=131, params=DEFAULTS)
+    assert all(c.reason == "fail-safe" for c in cmds)
+    assert cmds[0].f_n_desired == 4.0  # started from the measured force
+    assert cmds[-1].f_n_desired == pytest.approx(4.0 + 10.0 * 0.050, rel=1e-9)  # 50 rising 1 ms steps, 81-130 ms

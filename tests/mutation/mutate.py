@@ -1,5 +1,6 @@
-"""Mutation testing of slipstack's numerical core: plant one small bug at a time, run
-the tests that should notice, report the bugs nobody noticed (the *survivors*).
+"""Mutation testing of slipstack's numerical core and control-path nodes: plant one small
+bug at a time, run the tests that should notice, report the bugs nobody noticed (the
+*survivors*). Figures and commands: ``tests/mutation/README.md``.
 
 Usage (from the worktree root; ``make mutation`` runs every configured module)::
 
