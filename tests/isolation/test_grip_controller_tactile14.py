@@ -10,11 +10,12 @@ import math
 import numpy as np
 import pytest
 
+from sensor_frames import MS
+
 from slipstack.messages import Contact, Cor, Header, Slip
 from slipstack.nodes.grip_controller import GripController, GripControllerParams
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 
-MS = 1_000_000
 PITCH_M = 1.25e-3
 ROWS = COLS = 4
 IN_CONTACT = (5, 6, 9, 10)  # the four central taxels of the 4 x 4 pad, row-major
