@@ -176,7 +176,8 @@ def pareto(*runs_and_out) -> FigureText:
                       "they cost or how well they detect a real slip.",
                       f"Each setting replays the {sum(len(r.contacts) for r in runs)} contact messages of {scenes} "
                       f"through the slip detector node's Detector, timed per frame in this run (load average "
-                      f"{load[0]:.1f} / {load[1]:.1f} over 1 / 5 min on {len(os.sched_getaffinity(0))} cores), and is scored "
+                      f"{load[0]:.1f} / {load[1]:.1f} over 1 / 5 min on {len(os.sched_getaffinity(0))} cores), and "
+                      f"is scored "
                       f"against the rig's truth as the monitor scores it (episode window −{LEAD_NS / 1e6:g} ms / "
                       f"+{GRACE_NS / 1e6:g} ms; a false alarm is a flag on a truly sticking frame outside every "
                       f"window, partial slip with at least {INCIPIENT_SHARE:.0%} of the capacity sliding counting as "
@@ -226,14 +227,16 @@ def grip_economy(*runs_and_out, max_samples: int = 400) -> FigureText:
     axr.legend(lines, [h.get_label() for h in lines], fontsize=8, loc="upper left")
     axr.set(xlabel="time (s)", ylabel="N", title=f"the true load ({runs[0].experiment.key} run)")
     png = save_png(fig, out, "grip_economy")
-    numbers = "; ".join(f"{key}: mean {mean:.2f} N ({mean / om:.2f}× its oracle's mean {om:.2f} N), peak {peak:.2f} N "
-                        f"(oracle peak {op:.2f} N), below the oracle in {below:.0f} % of the samples, slid {slid:.2f} mm"
+    numbers = "; ".join(f"{key}: mean {mean:.2f} N ({mean / om:.2f}× its oracle's mean {om:.2f} N), peak "
+                        f"{peak:.2f} N (oracle peak {op:.2f} N), below the oracle in {below:.0f} % of the samples, "
+                        f"slid {slid:.2f} mm"
                         for key, mean, peak, om, op, slid, below in rows)
     return FigureText("grip_economy", "Beyond the paper — grip force of each law against the oracle", png,
                       "The paper compares the laws with each other (less force with both sensors), not with the "
                       "least force the contact needs.",
                       f"The oracle is the least f_n with which the true pressure holds the true load (μ = μ_s, "
-                      f"the rig's truth, {len(tr['t'][::max(1, len(tr['t']) // max_samples)])} truth samples per run; the code of "
+                      f"the rig's truth, {len(tr['t'][::max(1, len(tr['t']) // max_samples)])} truth samples per "
+                      f"run; the code of "
                       f"tests/bench/bench_grip_economy.py). {numbers}.",
                       "A run that slides transmits only sliding friction, so its oracle is lower than the load it "
                       "resists: compare the ratios of runs that held. The oracle knows the true pressure and load; "
@@ -307,8 +310,8 @@ def limit_errors(out: Path) -> FigureText:
         e = limit_error(phi, pad.positions, mu)
         a = np.linspace(-np.pi / 2, np.pi / 2, 200)
         ax.plot(e.exact * np.cos(e.angles), e.exact * np.sin(e.angles), "k", lw=2, label="exact (worst f_t direction)")
-        ax.plot(np.cos(a) / (np.abs(np.cos(a)) + np.abs(np.sin(a))), np.sin(a) / (np.abs(np.cos(a)) + np.abs(np.sin(a))),
-                color="C0", label="(5) linear")
+        diamond = np.abs(np.cos(a)) + np.abs(np.sin(a))  # |u| + |v| = 1 in the direction a
+        ax.plot(np.cos(a) / diamond, np.sin(a) / diamond, color="C0", label="(5) linear")
         ax.plot(np.cos(a), np.sin(a), color="C1", label="(6) elliptic")
         inset = ax.inset_axes([0.02, 0.36, 0.28, 0.28])
         inset.imshow(phi.reshape(pad.rows, pad.cols), origin="lower", cmap="Greys", vmin=0,
@@ -319,7 +322,8 @@ def limit_errors(out: Path) -> FigureText:
         ell_lo, ell_hi = float(e.elliptic.min()), float(e.elliptic.max())
         worst.append((name, e.beta_m, lin_lo, lin_hi, ell_lo, ell_hi))
         ax.set(xlim=(0, 1.15), ylim=(-1.15, 1.15), aspect="equal", xlabel="|f_t| / (μ f_n)", ylabel="τ / (β_s f_n)",
-               title=f"{name}\nβ_s = {e.beta_m * 1e3:.2f} mm; γ error (5): {lin_lo * 100:+.0f}…{lin_hi * 100:+.0f} %, "
+               title=f"{name}\nβ_s = {e.beta_m * 1e3:.2f} mm; γ error (5): {lin_lo * 100:+.0f}…"
+                     f"{lin_hi * 100:+.0f} %, "
                      f"(6): {ell_lo * 100:+.0f}…{ell_hi * 100:+.0f} %")
         ax.title.set_fontsize(9)
         ax.grid(alpha=0.3)

@@ -19,7 +19,8 @@ FIGURES = {"fig4a": figures.fig4a, "fig4b": figures.fig4b, "fig5a": figures.fig5
 """Figure key → function(*runs, out_dir), in the report's order; the runs are :func:`figure_runs`."""
 
 _RUNS = {"fig5a": (), "fig5b": (), "limit_errors": (), "increment": ("fig15", "fig15_per_taxel", "fig15_ft13"),
-         "pareto": ("fig14", "fig15_open"), "grip_economy": ("fig15", "fig15_per_taxel", "fig15_ft13", "fig15_exact_law")}
+         "pareto": ("fig14", "fig15_open"),
+         "grip_economy": ("fig15", "fig15_per_taxel", "fig15_ft13", "fig15_exact_law")}
 
 
 def figure_runs(key: str) -> tuple[str, ...]:

@@ -112,7 +112,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default="reproduce", help="output folder (PNG per figure, index.html, report.md)")
     p.add_argument("--quick", action="store_true", help=f"cut every scene to {QUICK_DURATION_S:g} s (CI)")
     p.add_argument("--only", nargs="+", metavar="FIG",
-                   help="only these figures (fig4a fig5a fig10 ... cor_median increment pareto grip_economy limit_errors)")
+                   help="only these figures (fig4a fig5a fig10 ... cor_median increment pareto grip_economy "
+                        "limit_errors)")
     p.set_defaults(func=main_reproduce)
 
 
