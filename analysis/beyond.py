@@ -185,7 +185,8 @@ def pareto(*runs_and_out) -> FigureText:
                       f"{rows}.{check} "
                       f"Not dominated: {front}.",
                       "Costs are wall time on a shared machine (the load above): compare the settings with each "
-                      "other, not with another machine. The F/T tests here get β_s of each pressure frame, so they "
+                      "other, not with another machine; the F/T tests cost about the same, so which of them is on "
+                      "the front changes from run to run. The F/T tests here get β_s of each pressure frame, so they "
                       "are better than without a tactile pad.")
 
 
