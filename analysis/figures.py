@@ -1,6 +1,7 @@
 """The paper's figures, drawn as the paper draws them, from lock-step runs.
 
-Each ``fig*`` function takes the experiment's :class:`~slipstack.analysis.runs.Run`
+The catalogue of every figure ``slipstack reproduce`` draws, and the runs each needs, is
+:mod:`slipstack.analysis.catalogue`. Each ``fig*`` function takes the experiment's :class:`~slipstack.analysis.runs.Run`
 (Fig. 5 takes none: it is the limit sets themselves), writes one PNG and returns a
 :class:`FigureText`: what the paper shows, what this run shows (the numbers, computed
 here from the run's own messages), and where the two differ and why. Units: N, N·m,
@@ -24,7 +25,7 @@ from slipstack.lib.defaults import MU  # noqa: E402
 from slipstack.lib.limit_set import load_factor, torsional_coefficient  # noqa: E402
 from slipstack.lib.pad import PadGeometry  # noqa: E402
 
-__all__ = ["FigureText", "FIGURES"]
+__all__ = ["FigureText", "save_png", "exact_boundary"]
 
 SIGMA_PAPER = 0.5
 K_PAPER_N = 2.0
@@ -43,7 +44,8 @@ class FigureText:
     differences: str
 
 
-def _save(fig, out_dir: Path, key: str) -> str:
+def save_png(fig, out_dir: Path, key: str) -> str:
+    """Write ``fig`` to ``out_dir/<key>.png`` (110 dpi) and close it; returns the file name."""
     path = out_dir / f"{key}.png"
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -110,7 +112,7 @@ def fig4a(run: Run, out: Path) -> FigureText:
     ax.set(xlabel="time (s)", ylabel="μ = |f_t| / f_n", title="Fig. 4a: friction identification, tangential load",
            ylim=(0, max(0.6, np.nanmax(mu) * 1.1)))
     ax.legend(fontsize=8, loc="lower right")
-    return FigureText("fig4a", "Fig. 4a — μ(t) under a rising tangential load", _save(fig, out, "fig4a"),
+    return FigureText("fig4a", "Fig. 4a — μ(t) under a rising tangential load", save_png(fig, out, "fig4a"),
                       f"At constant f_n the ratio |f_t|/f_n rises to the static coefficient and drops to a "
                       f"lower sliding value with stick–slip; the paper measured μ_s = {MU}.",
                       f"Peak {peak:.3f} at {onset:.2f} s (true gross-slip onset), median while sliding "
@@ -132,7 +134,7 @@ def fig4b(run: Run, out: Path) -> FigureText:
     _slip_spans(ax, t, sliding_core, "C1", "> 90 % of the capacity sliding (rig)")
     ax.set(xlabel="time (s)", ylabel="β = |τ| / f_n (mm)", title="Fig. 4b: friction identification, torsion")
     ax.legend(fontsize=8, loc="lower right")
-    return FigureText("fig4b", "Fig. 4b — β(t) under a rising torque", _save(fig, out, "fig4b"),
+    return FigureText("fig4b", "Fig. 4b — β(t) under a rising torque", save_png(fig, out, "fig4b"),
                       "At constant f_n the ratio τ/f_n rises to the static torsional coefficient β_s and settles "
                       "to β_d while the object turns with stick–slip.",
                       f"Peak β_s ≈ {peak:.3f} mm at {onset:.2f} s, median while sliding β_d ≈ {plateau:.3f} mm "
@@ -141,7 +143,7 @@ def fig4b(run: Run, out: Path) -> FigureText:
                       "shape of the curve (rise, peak, drop to a sliding plateau) is comparable.")
 
 
-def _exact_boundary(phi: np.ndarray, pad: PadGeometry, mu: float, f_n: float, n: int = 181):
+def exact_boundary(phi: np.ndarray, pad: PadGeometry, mu: float, f_n: float, n: int = 181):
     """Points (|f_t|, τ) on the exact limit curve of pressure ``phi`` in the (f_x, τ) plane."""
     pts = []
     for a in np.linspace(0, np.pi, n):
@@ -172,7 +174,7 @@ def fig5a(out: Path) -> FigureText:
     ax.axvline(mu * f_n, color="C4", ls=":", label="(7) Coulomb: |f_t| ≤ μ f_n (τ ignored)")
     worst = {}
     for label, phi, color in (("uniform pad", uniform, "k"), ("Hertzian, a = 8 mm", hertz, "C3")):
-        b = _exact_boundary(phi, pad, mu, f_n)
+        b = exact_boundary(phi, pad, mu, f_n)
         ax.plot(b[:, 0], np.abs(b[:, 1]) * 1e3, color=color, lw=2 if color == "k" else 1.5,
                 label=f"exact limit set, {label}")
         beta_p = torsional_coefficient(phi, pad.positions, mu).beta_m
@@ -182,7 +184,7 @@ def fig5a(out: Path) -> FigureText:
            title=f"Fig. 5a: limit curves at f_n = {f_n:g} N, μ = {mu:g} (β = β_s of the uniform pad)")
     fig.set_size_inches(6.4, 6.2)
     ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2)
-    return FigureText("fig5a", "Fig. 5a — limit curves in the (|f_t|, τ) plane", _save(fig, out, "fig5a"),
+    return FigureText("fig5a", "Fig. 5a — limit curves in the (|f_t|, τ) plane", save_png(fig, out, "fig5a"),
                       "The paper compares approximate limit curves for μ = 0.5, β = 0.065, f_n = 10 N: the "
                       "linear surface (5), the ellipse (6), and the decoupled and Coulomb tests.",
                       f"The exact limit set (§4 of docs) of a uniform 16×16 pad (β_s = {beta_u * 1e3:.2f} mm) and "
@@ -198,7 +200,7 @@ def fig5b(out: Path) -> FigureText:
     pad = PadGeometry()
     unit = np.full(pad.n_taxels, 1.0 / pad.n_taxels)  # 1 N spread evenly: the set scales with f_n
     beta = torsional_coefficient(unit, pad.positions, mu).beta_m
-    edge = _exact_boundary(unit, pad, mu, 1.0)  # (|f_t|, τ) per newton of f_n
+    edge = exact_boundary(unit, pad, mu, 1.0)  # (|f_t|, τ) per newton of f_n
     edge = edge[(edge[:, 0] >= 0) & (edge[:, 1] >= 0)]
     f_n = np.linspace(0, 10, 11)
     fig = plt.figure(figsize=(12, 5))
@@ -223,7 +225,7 @@ def fig5b(out: Path) -> FigureText:
             title="sections at constant f_n: the set grows in proportion")
     ax1.legend(fontsize=8, ncol=2)
     bulge = float(np.max(edge[:, 0] / mu + edge[:, 1] / beta))
-    return FigureText("fig5b", "Fig. 5b — the friction plane in {f_t, τ, f_n}", _save(fig, out, "fig5b"),
+    return FigureText("fig5b", "Fig. 5b — the friction plane in {f_t, τ, f_n}", save_png(fig, out, "fig5b"),
                       "The linear limit surface (5) is a plane through the origin of the {|f_t|, |τ|, f_n} space: "
                       "the contact sticks while the load lies above it, and every section at constant f_n is "
                       "the straight line of Fig. 5a, scaled by f_n.",
@@ -258,7 +260,7 @@ def _cone_plot(run: Run, out: Path, key: str, x_label: str, x_of, law_line, law_
     ax1.set(xlabel="time (s)", ylabel="f_n (N)", title="set point, applied force and slip")
     lines = ax1.get_legend_handles_labels()[0] + ax1b.get_legend_handles_labels()[0]
     ax1.legend(lines, [h.get_label() for h in lines], fontsize=8, loc="lower center")
-    return _save(fig, out, key)
+    return save_png(fig, out, key)
 
 
 def _slid(run: Run) -> tuple[float, float]:
@@ -331,7 +333,7 @@ def fig12(run: Run, out: Path) -> FigureText:
     ax1.set(xlabel=f"|f_t|/μ + |τ|/β (N), μ = {mu:.3f}, β = {beta * 1e3:.2f} mm", ylabel="f_n (N)",
             title="projection")
     ax1.legend(fontsize=8)
-    png = _save(fig, out, "fig12")
+    png = save_png(fig, out, "fig12")
     slid, turned = _slid(run)
     margin = float(np.min(s["f_n"][x > 0.5] / x[x > 0.5])) if (x > 0.5).any() else float("nan")
     return FigureText("fig12", "Fig. 12 — force and torque, F/T only", png,
@@ -378,7 +380,7 @@ def fig13(run: Run, out: Path) -> FigureText:
     _flag_strip(ax2, tr["t"], tr["gross_slip"].astype(bool), 0.86, "C1", None)
     ax2.set(xlabel="time (s)", ylabel="γ", ylim=(0, 1.3), title="load factor about the shaft")
     ax2.legend(fontsize=8, loc="lower right")
-    png = _save(fig, out, "fig13")
+    png = save_png(fig, out, "fig13")
     flagged = s["state"] != "stick"
     gross = np.interp(s["t"], tr["t"], tr["gross_slip"].astype(float)) > 0.5
     about_pivot = bool(judged.any()) and bool(np.allclose(p_c, pivot))
@@ -434,7 +436,7 @@ def fig14(run: Run, out: Path) -> FigureText:
            ylabel="y (mm)", title="COR path on the pad, during gross slip")
     ax.legend(fontsize=8, loc="lower left", markerscale=4)
     axes[1, 2].axis("off")
-    png = _save(fig, out, "fig14")
+    png = save_png(fig, out, "fig14")
     ok = cor["case"] == "rotation"
     both = np.flatnonzero(tv)
     err = float("nan")
@@ -480,7 +482,7 @@ def fig15(run: Run, out: Path) -> FigureText:
     ax1.set(xlabel=f"|f_t|/μ + |τ|/β (N), β = β_s = {beta * 1e3:.2f} mm of this contact", ylabel="f_n (N)",
             title="Fig. 15b: projection")
     ax1.legend(fontsize=8)
-    png = _save(fig, out, "fig15")
+    png = save_png(fig, out, "fig15")
     slid, turned = _slid(run)
     return FigureText("fig15", "Fig. 15 — slip control with both sensors, law (14)", png,
                       "Law (14) raises f_n only when the tactile test (11) fails, by the increment that makes it "
@@ -523,7 +525,7 @@ def cor_median(run: Run, out: Path) -> FigureText:
     ax1.axvline(true[0] * 1e3, color="C2", lw=2, ls=":", label=f"true COR (rig) x = {true[0] * 1e3:.2f} mm")
     ax1.set(xlabel="x (mm)", ylabel="mN", title="along the wedge: where the object turns")
     ax1.legend(fontsize=8, loc="upper left")
-    png = _save(fig, out, "cor_median")
+    png = save_png(fig, out, "cor_median")
     err_est = float(np.hypot(*(est_median - true)) * 1e3)
     err_cop = float(np.hypot(*(cop - true)) * 1e3)
     if not sliding.any():
@@ -572,7 +574,7 @@ def increment(total: Run, per_taxel: Run, ft13: Run, out: Path) -> FigureText:
     ax2.set(xlabel="time (s)", ylabel="deg", title="object turned (rig)")
     for ax in (ax0, ax1, ax2):
         ax.legend(fontsize=8, loc="upper left")
-    png = _save(fig, out, "increment")
+    png = save_png(fig, out, "increment")
     numbers = "; ".join(f"{label}: peak {peak:.2f} N, mean {mean:.2f} N, slid {slid:.2f} mm, turned {turned:.2f}°"
                         for label, peak, mean, slid, turned in rows)
     (_, peak14, mean14, *_), _, (_, peak13, mean13, *_) = rows
@@ -587,16 +589,3 @@ def increment(total: Run, per_taxel: Run, ft13: Run, out: Path) -> FigureText:
                       f"{'and' if mean14 < mean13 else 'but not'} for the mean ({mean14:.2f} against "
                       f"{mean13:.2f} N): law (14) never releases, so it keeps its peak, and (13) is given this "
                       "contact's exact β_s here.")
-
-
-FIGURES = {"fig4a": fig4a, "fig4b": fig4b, "fig5a": fig5a, "fig5b": fig5b, "fig10": fig10, "fig11": fig11,
-           "fig12": fig12, "fig13": fig13, "fig14": fig14, "cor_median": cor_median, "fig15": fig15,
-           "increment": increment}
-"""Figure key → function(*runs, out_dir), in the report's order; the runs are :func:`figure_runs`."""
-
-_RUNS = {"fig5a": (), "fig5b": (), "increment": ("fig15", "fig15_per_taxel", "fig15_ft13")}
-
-
-def figure_runs(key: str) -> tuple[str, ...]:
-    """The experiments (``analysis/runs.py`` keys) a figure is drawn from, in argument order."""
-    return _RUNS.get(key, (key,))

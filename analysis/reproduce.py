@@ -2,7 +2,8 @@
 
 Runs every experiment of :data:`~slipstack.analysis.runs.EXPERIMENTS` in lock-step
 (deterministic: the same output every time), draws each of the paper's figures
-(:mod:`slipstack.analysis.figures`) as a PNG, and writes ``index.html`` and
+(:mod:`slipstack.analysis.figures`) and the figures beyond the paper
+(:mod:`slipstack.analysis.beyond`) as a PNG, and writes ``index.html`` and
 ``report.md`` beside them: each figure with what the paper shows, what slipstack
 shows (its numbers) and where they differ and why. The HTML is self-contained
 (relative image links): open it from disk.
@@ -42,13 +43,13 @@ def reproduce(out_dir: Path, *, quick: bool = False, only: list[str] | None = No
     (:mod:`slipstack.analysis.friction`), which therefore run first whenever one of
     them is asked for; their recordings and the material file stay in ``out_dir``.
     """
-    from slipstack.analysis import figures
+    from slipstack.analysis import catalogue
     from slipstack.analysis.friction import identify_friction, with_friction
     from slipstack.analysis.runs import EXPERIMENTS, run_experiment
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    keys = [k for k in figures.FIGURES if not only or k in only]
-    runs_needed = list(dict.fromkeys(k for key in keys for k in figures.figure_runs(key)))
+    keys = [k for k in catalogue.FIGURES if not only or k in only]
+    runs_needed = list(dict.fromkeys(k for key in keys for k in catalogue.figure_runs(key)))
     if any(k in USES_IDENTIFIED_FRICTION for k in runs_needed):
         runs_needed = [*IDENTIFICATION, *[k for k in runs_needed if k not in IDENTIFICATION]]
     duration = QUICK_DURATION_S if quick else None
@@ -67,7 +68,7 @@ def reproduce(out_dir: Path, *, quick: bool = False, only: list[str] | None = No
         runs[key] = run_experiment(exp, duration_s=duration, progress=step, record=record)
     if progress:
         progress("done", 1.0)
-    texts = [figures.FIGURES[key](*[runs[k] for k in figures.figure_runs(key)], out_dir) for key in keys]
+    texts = [catalogue.FIGURES[key](*[runs[k] for k in catalogue.figure_runs(key)], out_dir) for key in keys]
     if friction is not None:
         (out_dir / "identification.txt").write_text("\n".join(friction.log) + "\n")
     digests = {key: run.digest for key, run in runs.items()}
@@ -111,7 +112,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default="reproduce", help="output folder (PNG per figure, index.html, report.md)")
     p.add_argument("--quick", action="store_true", help=f"cut every scene to {QUICK_DURATION_S:g} s (CI)")
     p.add_argument("--only", nargs="+", metavar="FIG",
-                   help="only these figures (fig4a fig5a fig10 ... cor_median increment)")
+                   help="only these figures (fig4a fig5a fig10 ... cor_median increment pareto grip_economy "
+                        "limit_errors)")
     p.set_defaults(func=main_reproduce)
 
 
@@ -121,7 +123,7 @@ def main_reproduce(args: argparse.Namespace) -> int:
     except ImportError:
         print("slipstack reproduce needs matplotlib: pip install 'slipstack[report]'", file=sys.stderr)
         return 2
-    from slipstack.analysis.figures import FIGURES
+    from slipstack.analysis.catalogue import FIGURES
 
     known = set(FIGURES)
     unknown = sorted(set(args.only or []) - known)

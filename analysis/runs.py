@@ -2,12 +2,13 @@
 
 Each :class:`Experiment` is a shipped launch file (``launch/files/<launch>.toml``, the
 graph ``slipstack launch <launch>`` starts) and the launch arguments the paper's run
-differs in: detection-only experiments (Figs. 4, 13, 14) run with the controller off,
-at the scene's constant normal force; control experiments (Figs. 10–12, 15) with the
-launch file's law. :func:`run_experiment` runs it like ``slipstack launch <launch>
---lockstep`` (``launch/lockstep.py``: the same nodes, device codecs and parameters,
-deterministic) and returns a :class:`Run`: each topic as numpy arrays, time in seconds
-from the start of the run (the scene starts once the drivers' devices stream).
+differs in: detection-only experiments (Figs. 4, 13, 14) run with the controller off
+(the default of the fig13 and fig14 launch files), at the scene's constant normal force;
+control experiments (Figs. 10–12, 15) with the launch file's law. :func:`run_experiment`
+runs it like ``slipstack launch <launch> --lockstep`` (``launch/lockstep.py``: the same
+nodes, device codecs and parameters, deterministic) and returns a :class:`Run`: each
+topic as numpy arrays, time in seconds from the start of the run (the scene starts once
+the drivers' devices stream), and the ``contact`` messages as published.
 """
 
 from __future__ import annotations
@@ -80,16 +81,19 @@ EXPERIMENTS: dict[str, Experiment] = {e.key: e for e in (
     Experiment("fig11", "fig11", "F/T only: pure torque, law (13) with k = 2 N"),
     Experiment("fig12", "fig12", "F/T only: force and torque, the σ-variant of law (13)"),
     Experiment("fig13", "fig13", "rotation about a known COR (the motor shaft) at constant f_n = 2 N; "
-               "no controller: detection only, test (11) about the shaft", {"controller": False}),
-    Experiment("fig14", "fig14", "free object, unknown COR, at constant f_n = 3 N; no controller: detection only",
-               {"controller": False, "method": "exact"}),
+               "no controller: detection only, test (11) about the shaft"),
+    Experiment("fig14", "fig14", "free object, unknown COR, at constant f_n = 3 N; no controller: detection only"),
     Experiment("cor_median", "fig14", "pure torque on a wedge-shaped pressure at constant f_n = 3 N; "
-               "no controller: detection only", {"scene": "pure_torque_wedge", "controller": False, "method": "exact"}),
+               "no controller: detection only", {"scene": "pure_torque_wedge"}),
     Experiment("fig15", "fig15", "both sensors: exact test, law (14) with the total increment N_A·δφ"),
     Experiment("fig15_per_taxel", "fig15", "both sensors: exact test, law (14) with the per-taxel δφ as printed",
                {"increment": "per_taxel"}),
     Experiment("fig15_ft13", "fig15", "F/T only: linear test (5), law (13) with k = 2 N and the contact's exact β_s",
                {"tactile": False, "method": "linear_ls", "law": "ft13", "mu": MU}, beta_from_contact=True),
+    Experiment("fig15_exact_law", "fig15", "both sensors: exact test, law γ·f_n/σ (the stack's default law)",
+               {"law": "exact"}),
+    Experiment("fig15_open", "fig15", "fig15's disturbance at the constant initial f_n; no controller: detection only",
+               {"controller": False}),
 )}
 
 
@@ -106,6 +110,7 @@ class Run:
     phi_sample: np.ndarray | None = None  # one tactile contact's φ (N,), N, for β_s of the contact
     digest: str = ""  # :func:`payload_digest` of everything the run published
     detector: Any = None  # the slip detector's parameters as the run resolved them (SlipDetectorParams)
+    contacts: list = field(default_factory=list)  # the ``contact`` messages as published, for replays
 
     def __getitem__(self, topic: str) -> dict[str, np.ndarray]:
         return self.topics.get(topic, {})
@@ -184,4 +189,4 @@ def run_experiment(exp: Experiment, *, duration_s: float | None = None,
     tactile = [c for c in ex.published.get("contact", []) if c.has_tactile and c.phi.size]
     detector = ex.host("slip_detector").node.params
     return Run(exp, scene, topics, tactile[len(tactile) // 2].phi if tactile else None,
-               payload_digest(ex.published), detector)
+               payload_digest(ex.published), detector, list(ex.published.get("contact", [])))

@@ -27,7 +27,7 @@ whether the object held (from the rig's truth: slip distance < 0.5 mm and slip a
 normal force that holds the *true* load (``load_f_t``, ``load_tau``) with ``μ = μ_s``
 and the *true* pressure (the simulator's pressure model at the true pose) —
 ``f* = γ_true·f_n`` for a shape that scales with the force, the fixed point
-``γ(φ(f*)) = 1`` for a force-dependent (Hertzian) one (:mod:`slipstack.lib.oracle`).
+``γ(φ(f*)) = 1`` for a force-dependent (Hertzian) one (:mod:`slipstack.analysis.grip_oracle`).
 A law's economy is its mean force over the oracle's mean on the same run.
 
 The oracle is not floored at ``f_nom`` (it is 0 with no load), so even a perfect law
@@ -53,11 +53,11 @@ from pathlib import Path
 import numpy as np
 
 from slipstack.lib.limit_set import torsional_coefficient
-from slipstack.lib.oracle import least_holding_force, oracle_normal_force
 from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.scene import Scene
 from slipstack.launch.launch_file import load_launch_file
 from slipstack.launch.lockstep import run_launch_file
+from slipstack.analysis.grip_oracle import oracle_series
 from slipstack.nodes.rig import load_scene_by_name
 
 DEFAULT_SCENES = ["fig12", "fig14", "fig15", "default"]
@@ -120,19 +120,9 @@ def run_one(scene: Scene, law: str, beta_m: float, f_nom_n: float, label: str) -
     ex = run_launch_file("stack", launch_args(law, scene, beta_m, f_nom_n), progress=progress)
     truths = ex.published["rig/truth"]
     commands = ex.published["grip/command"]
-    P, mu_s = scene.pad.positions, scene.contact.mu_s
-    oracle, frozen = np.empty(len(truths)), np.empty(len(truths))
-    pressure = PressureModel(scene.contact, scene.pad, scene.object.pose)
-    for i, tr in enumerate(truths):
-        origin, theta = complex(tr.x, tr.y), tr.theta
-
-        def phi_of_f(f: float, origin: complex = origin, theta: float = theta) -> np.ndarray:
-            return pressure.phi_uncached(f, origin, theta)
-
-        first = oracle_normal_force(phi_of_f(tr.f_n_applied), P, tr.load_f_t, tr.load_tau, mu_s)
-        frozen[i] = first.f_n_min if first.usable else math.nan
-        fixed = least_holding_force(phi_of_f, P, tr.load_f_t, tr.load_tau, mu_s, tr.f_n_applied)
-        oracle[i] = fixed.f_n_min if fixed.usable else math.nan
+    oracle = oracle_series(scene, np.array([tr.x for tr in truths]), np.array([tr.y for tr in truths]),
+                           np.array([tr.theta for tr in truths]), np.array([tr.f_n_applied for tr in truths]),
+                           np.array([tr.load_f_t for tr in truths]), np.array([tr.load_tau for tr in truths]))
     print(f"  {label}: done in {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
     return {
         "t": np.array([tr.header.stamp_ns for tr in truths]) * 1e-9,
@@ -142,8 +132,8 @@ def run_one(scene: Scene, law: str, beta_m: float, f_nom_n: float, label: str) -
         "slip_deg": np.degrees(np.abs([tr.slip_angle_rad for tr in truths])),
         "f_t": np.array([np.hypot(*tr.load_f_t) for tr in truths]),
         "tau": np.array([tr.load_tau for tr in truths]),
-        "oracle": oracle,
-        "oracle_frozen": frozen,
+        "oracle": oracle.least,
+        "oracle_frozen": oracle.frozen,
         "peak_cmd": np.array([max((c.f_n_desired for c in commands), default=math.nan)]),
     }
 

@@ -55,3 +55,12 @@ def test_law_14_increment_is_a_launch_argument_and_a_typo_is_refused():
     assert GripControllerParams(**params).increment == "per_taxel"
     with pytest.raises(ConfigError, match="increment must be one of total, per_taxel"):
         GripControllerParams(law="linear", increment="per-taxel")
+
+
+def test_the_detection_experiments_run_at_constant_force_by_default_as_in_the_paper():
+    for name in ("fig13", "fig14"):
+        lf = load_launch_file(name, builtins={"run_dir": "/tmp/x"})
+        assert lf.args["controller"] is False and lf.args["check"] is False, name
+        assert not any(e.type == "grip_controller" for e in lf.nodes), name  # no node to raise the grip
+        controlled = load_launch_file(name, {"controller": "true"}, builtins={"run_dir": "/tmp/x"})
+        assert controlled.args["check"] is True, name  # with the controller, a slide fails the run
