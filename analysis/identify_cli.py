@@ -250,9 +250,10 @@ def _median(values: list[float]) -> float:
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("identify", help="a material file (friction, thresholds) from friction-ramp recordings",
-                       description=__doc__.split("\n\n")[0] + " Pass one tangential-force ramp (fig4a, "
-                       "ident_force) and, for beta, one torque ramp (fig4b, ident_torsion); then run the stack "
-                       "with material:=FILE.")
+                       description="Write a material file (friction coefficients, load-factor noise and onset "
+                       "levels, from which the detector's thresholds follow) from friction-ramp recordings at "
+                       "constant grip. Pass one tangential-force ramp (fig4a, ident_force) and, for beta, one "
+                       "torque ramp (fig4b, ident_torsion); then run the stack with material:=FILE.")
     p.add_argument("recordings", nargs="+", metavar="RECORDING", help=".mcap recordings of friction ramps")
     p.add_argument("-o", "--output", metavar="MATERIAL.toml", required=True, help="the material file to write")
     p.add_argument("--name", help="material name (default: the output file's stem)")
