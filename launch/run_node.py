@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import ctypes
 import json
+import re
 import signal
 import sys
 
@@ -49,13 +50,23 @@ def parse_assignments(items: list[str]) -> dict[str, str]:
     return out
 
 
+_RST_ROLE = re.compile(r":[a-z]+:`~?([^`]*)`")
+
+
+def _plain_summary(doc: str | None) -> str:
+    """A docstring's first paragraph on one line, without reStructuredText markup
+    (``x`` → x, :class:`~a.b.C` → C)."""
+    text = " ".join((doc or "").strip().split("\n\n")[0].split())
+    text = _RST_ROLE.sub(lambda m: m.group(1).rpartition(".")[2], text)
+    return text.replace("``", "")
+
+
 def _node_epilog() -> str:
     lines = ["container: the nodes of a launch-file container in one process (needs --spec from the launcher)",
              "", "node types and their parameters:"]
     for type_name in sorted(NODE_TYPES):
         cls = node_class(type_name)
-        doc = (cls.__doc__ or "").strip().splitlines()[0] if cls.__doc__ else ""
-        lines.append(f"  {type_name}: {doc}")
+        lines.append(f"  {type_name}: {_plain_summary(cls.__doc__)}")
         for name, typ, default, help_text in param_help(cls.Params):
             lines.append(f"      {name} ({typ}, default {default}) {help_text}")
     return "\n".join(lines)
