@@ -55,3 +55,17 @@ def test_law_14_increment_is_a_launch_argument_and_a_typo_is_refused():
     assert GripControllerParams(**params).increment == "per_taxel"
     with pytest.raises(ConfigError, match="increment must be one of total, per_taxel"):
         GripControllerParams(law="linear", increment="per-taxel")
+
+
+@pytest.mark.parametrize("name", ["default", "hardware"])
+def test_an_ft13_law_on_the_command_line_takes_beta_from_the_material(name):
+    """``slipstack launch law:=ft13``: the launch argument ``beta_m`` keeps its default 0 ("from
+    data"), which the F/T-only laws read as the material's β_s (was: refused, "beta_m must be > 0")."""
+    from slipstack.nodes.grip_controller import GripControllerParams
+    from slipstack.nodes.material_param import resolve_material
+
+    for law in ("ft13", "ft13_sigma"):
+        lf = load_launch_file(name, {"law": law}, builtins={"run_dir": "/tmp/x"})
+        params = next(e for e in lf.nodes if e.type == "grip_controller").params
+        assert params["beta_m"] == 0.0
+        assert GripControllerParams(**params).beta_m == resolve_material(params["material"]).beta_s_m > 0
