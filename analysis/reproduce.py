@@ -147,6 +147,6 @@ def main_reproduce(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     texts = reproduce(out, quick=args.quick, only=args.only, progress=progress)
-    print(f"\nwrote {len(texts)} figures, {out / 'index.html'} and {out / 'report.md'} "
+    print(f"\nwrote {len(texts)} figure{'s' if len(texts) != 1 else ''}, {out / 'index.html'} and {out / 'report.md'} "
           f"in {time.monotonic() - t0:.0f} s", file=sys.stderr)
     return 0
