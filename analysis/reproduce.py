@@ -147,6 +147,7 @@ def main_reproduce(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     texts = reproduce(out, quick=args.quick, only=args.only, progress=progress)
-    print(f"\nwrote {len(texts)} figure{'s' if len(texts) != 1 else ''}, {out / 'index.html'} and {out / 'report.md'} "
-          f"in {time.monotonic() - t0:.0f} s", file=sys.stderr)
+    figures = f"{len(texts)} figure{'s' if len(texts) != 1 else ''}"
+    print(f"\nwrote {figures}, {out / 'index.html'} and {out / 'report.md'} in {time.monotonic() - t0:.0f} s",
+          file=sys.stderr)
     return 0
