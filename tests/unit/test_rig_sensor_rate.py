@@ -4,10 +4,9 @@ order, stamped at or before the step that takes it; slower sensors are unchanged
 
 from __future__ import annotations
 
-from slipstack.launch.lockstep import load_scene_by_name
 from slipstack.lib.rig.sensors import FtSample, TactileSample
 from slipstack.lib.rig.simulator import Simulator
-from slipstack.nodes.rig import with_rates
+from slipstack.nodes.rig import load_scene_by_name, with_rates
 
 
 def _samples(ft_hz: float, seconds: float = 0.2):
