@@ -18,12 +18,12 @@ def _samples(ft_hz: float, seconds: float = 0.2):
 def test_seven_kilohertz_against_a_one_millisecond_step():
     ft, tactile = _samples(7000.0)
     assert len(ft) == 7 * 200 + 1  # t = 0 … 200 ms at 1/7 ms
-    assert [s.seq for s in ft] == list(range(len(ft)))
-    times = [s.t_ns for s in ft]
+    assert [s.device_seq for s in ft] == list(range(len(ft)))
+    times = [s.stamp_ns for s in ft]
     assert all(b > a for a, b in zip(times, times[1:]))
     assert len(tactile) == 101
 
 
 def test_one_kilohertz_is_one_sample_per_step():
     ft, _ = _samples(1000.0)
-    assert len(ft) == 201 and [s.t_ns for s in ft] == [k * 1_000_000 for k in range(201)]
+    assert len(ft) == 201 and [s.stamp_ns for s in ft] == [k * 1_000_000 for k in range(201)]
