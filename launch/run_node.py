@@ -61,10 +61,11 @@ def _plain_summary(doc: str | None) -> str:
     return text.replace("``", "")
 
 
-def _node_epilog() -> str:
+def _node_epilog(types: list[str] | None = None) -> str:
+    """The node types (default: all) with their parameters, for ``--help``."""
     lines = ["container: the nodes of a launch-file container in one process (needs --spec from the launcher)",
              "", "node types and their parameters:"]
-    for type_name in sorted(NODE_TYPES):
+    for type_name in types or sorted(NODE_TYPES):
         cls = node_class(type_name)
         lines.append(f"  {type_name}: {_plain_summary(cls.__doc__)}")
         for name, typ, default, help_text in param_help(cls.Params):
@@ -72,14 +73,30 @@ def _node_epilog() -> str:
     return "\n".join(lines)
 
 
+class _NodeHelp(argparse.Action):
+    """``--help``: the parameters of the node type given before it (``run rig --help``), else of every type."""
+
+    def __init__(self, option_strings: list[str], dest: str = argparse.SUPPRESS, help: str | None = None) -> None:
+        super().__init__(option_strings, dest=dest, default=argparse.SUPPRESS, nargs=0, help=help)
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: object,
+                 option_string: str | None = None) -> None:
+        node = getattr(namespace, "node", None)
+        parser.epilog = _node_epilog([node] if node in NODE_TYPES else None)
+        parser.print_help()
+        parser.exit()
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "run",
         help="run one node as a process",
         description="Run one node as a process. Parameters are given as name:=value.",
-        epilog=_node_epilog(),
         formatter_class=argparse.RawDescriptionHelpFormatter,
+        add_help=False,
     )
+    p.add_argument("-h", "--help", action=_NodeHelp,
+                   help="show this help (with NODE before it: that node's parameters only) and exit")
     p.add_argument("node", help="node type (see the list below), or 'container'")
     p.add_argument("assignments", nargs="*", metavar="name:=value", help="parameter overrides")
     p.add_argument("--name", help="instance name (default: the node type)")
