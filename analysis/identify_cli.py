@@ -176,8 +176,9 @@ def identify_material(paths: list[Path], *, name: str, provenance: str = "",
     """The material of the recordings and the report lines (one block per recording).
 
     Raises:
-        RecordingError: a recording cannot be read, has no usable ``ft/wrench``, or
-            none of the recordings is a force ramp (``μ_s`` is needed for the rest).
+        RecordingError: a recording cannot be read, has no usable ``ft/wrench``,
+            none of the recordings is a force ramp (``μ_s`` is needed for the rest), or
+            none of the force ramps slides (no onset: no ``μ_s``, ``μ_d``).
     """
     say = progress or (lambda _msg: None)
     recs = []
@@ -190,6 +191,11 @@ def identify_material(paths: list[Path], *, name: str, provenance: str = "",
     if not forces:
         raise RecordingError(f"no tangential-force ramp among {', '.join(p.name for p in paths)}: μ_s is needed "
                              "(record `slipstack launch fig4a` or the ident_force scene and pass it too)")
+    if not any(math.isfinite(r.ident.mu.static) and math.isfinite(r.ident.mu.dynamic) for r in forces):
+        found = "; ".join(f"{r.path.name}: {r.ident.mu.status.value} ({r.ident.mu.message})" for r in forces)
+        raise RecordingError(f"no slip onset in the tangential-force ramps ({found}): μ_s and μ_d need a ramp "
+                             "that slides; record one with `slipstack launch scene:=ident_force controller:=false "
+                             "recording:=force.mcap` (or fig4a; on hardware pull until the object slides)")
     mu_s, mu_d = _pool(forces, "mu")
     beta_s, beta_d = _pool(torsions, "beta") if torsions else (_Pooled(math.nan, math.nan),) * 2
     stick, slide, onset_gamma, lines = [], [], [], []
@@ -244,9 +250,10 @@ def _median(values: list[float]) -> float:
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("identify", help="a material file (friction, thresholds) from friction-ramp recordings",
-                       description=__doc__.split("\n\n")[0] + " Pass one tangential-force ramp (fig4a, "
-                       "ident_force) and, for beta, one torque ramp (fig4b, ident_torsion); then run the stack "
-                       "with material:=FILE.")
+                       description="Write a material file (friction coefficients, load-factor noise and onset "
+                       "levels, from which the detector's thresholds follow) from friction-ramp recordings at "
+                       "constant grip. Pass one tangential-force ramp (fig4a, ident_force) and, for beta, one "
+                       "torque ramp (fig4b, ident_torsion); then run the stack with material:=FILE.")
     p.add_argument("recordings", nargs="+", metavar="RECORDING", help=".mcap recordings of friction ramps")
     p.add_argument("-o", "--output", metavar="MATERIAL.toml", required=True, help="the material file to write")
     p.add_argument("--name", help="material name (default: the output file's stem)")

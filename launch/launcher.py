@@ -49,7 +49,7 @@ from slipstack.launch.launch_file import SIM_ARG, LaunchFile, arg_comments, load
 from slipstack.launch.plan import NodePlan, ProcessPlan, plan_launch
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.nodes.devices.sim_link import SIM_PREFIX
-from slipstack.launch.quiet_shutdown import WorldEndFilter
+from slipstack.launch.quiet_shutdown import WorldEndFilter, WorldLogLevels
 from slipstack.launch.run_log import RunLog, log_path_for
 from slipstack.nodes.runtime.curve import INSECURE_ENV, KEYS_ENV
 from slipstack.nodes.runtime.logs import LOG_LEVEL_ENV, parse_log_levels
@@ -132,7 +132,9 @@ class Launcher:
         self._stop_requested = False
         self.exit_code = 0
         self.start_ticks = process_start_ticks(os.getpid())
-        self._world_end = WorldEndFilter({n for n, p in self.processes.items() if p.entry.stop_first},
+        world = {n: tuple(p.node_names) for n, p in self.processes.items() if p.entry.stop_first}
+        self._world_levels = WorldLogLevels(os.environ.get(LOG_LEVEL_ENV, ""), world)
+        self._world_end = WorldEndFilter(set(world),
                                          {n for n, p in self.processes.items() if p.runs_device_driver})
         for proc in self.processes.values():
             write_private_file(self.run_dir, proc.spec_path.name, json.dumps(proc.spec, indent=1))
@@ -172,7 +174,8 @@ class Launcher:
         node_type = "container" if c.is_container else c.entry.type
         cmd = [sys.executable, "-m", "slipstack.launch.run_node", node_type, "--spec", str(c.spec_path),
                *(["--standby"] if standby else [])]
-        env = dict(os.environ, PYTHONUNBUFFERED="1", SLIPSTACK_RUN_DIR=str(self.run_dir))
+        env = dict(os.environ, PYTHONUNBUFFERED="1", SLIPSTACK_RUN_DIR=str(self.run_dir),
+                   **{LOG_LEVEL_ENV: self._world_levels.spec_for(c.name)})
         if self.launch.keys is not None:
             env[KEYS_ENV] = str(self.launch.keys)
         if self.launch.insecure:
@@ -214,10 +217,10 @@ class Launcher:
             *lines, c.buffer = c.buffer.split(b"\n")
             for line in lines:
                 text = line.decode(errors="replace")
-                if self._world_end.keep(c.name, text):
-                    self.echo(f"[{c.name}] {text}")
-                else:
+                if not self._world_end.keep(c.name, text):
                     self.echo.held(f"[{c.name}] {text}")
+                elif self._world_levels.shown(c.name, text):
+                    self.echo(f"[{c.name}] {text}")
 
     def _wait_ready(self, process: _Process, timeout: float) -> None:
         """Until every node of ``process`` has reported ready."""

@@ -12,15 +12,19 @@ When the world has ended is known without a race: the rig logs ``scene NAME fini
 output with the world's lines first, and a shutdown begun by the launcher (Ctrl-C, the
 duration) marks the end before the world is stopped. Device errors before that moment,
 and any line of a launch without a simulated world (hardware), pass unchanged. The rig's
-line is at level info: with ``--log-level warning`` for the rig too, the end of its
-scene is not seen and the drivers' lines after it are shown as they come.
+line is at level info; so that ``--log-level warning`` does not hide it from the launcher,
+the world's processes always log at info (:class:`WorldLogLevels`) and the launcher drops
+their lines below the level asked for.
 """
 
 from __future__ import annotations
 
+import logging
 import re
 
-__all__ = ["SCENE_FINISHED", "WorldEndFilter"]
+from slipstack.nodes.runtime.logs import level_of, parse_log_levels
+
+__all__ = ["SCENE_FINISHED", "WorldEndFilter", "WorldLogLevels"]
 
 SCENE_FINISHED = re.compile(r"^scene \S+ finished$")
 """The rig's line at the end of its scene (``nodes/rig.py``), written before it closes the devices."""
@@ -61,3 +65,31 @@ class WorldEndFilter:
         names = ", ".join(sorted(self.held))
         return (f"[launch] {names}: devices closed as the simulated world stopped (normal at the end of a run; "
                 f"{sum(self.held.values())} retry line(s) in the run's log file)")
+
+
+class WorldLogLevels:
+    """``--log-level`` for the simulated world's processes: they log at info at least, so
+    the launcher sees :data:`SCENE_FINISHED`, and the launcher shows only their lines at
+    the level asked for.
+
+    Args:
+        spec: the ``--log-level`` text (``"warning,monitor=info"``; empty: info).
+        world: the world's process names with the names of the nodes each runs.
+    """
+
+    def __init__(self, spec: str, world: dict[str, tuple[str, ...]]) -> None:
+        default, per_node = parse_log_levels(spec)
+        self.spec = spec
+        self._raised = {process: tuple(n for n in nodes if per_node.get(n, default) > logging.INFO)
+                        for process, nodes in world.items()}
+        self._least = {process: min((per_node.get(n, default) for n in nodes), default=logging.INFO)
+                       for process, nodes in world.items()}
+
+    def spec_for(self, process: str) -> str:
+        """The level spec ``process`` runs with: the one asked for, its world nodes at info at most."""
+        raised = self._raised.get(process, ())
+        return ",".join([self.spec, *(f"{node}=info" for node in raised)]) if raised else self.spec
+
+    def shown(self, process: str, line: str) -> bool:
+        """Whether ``line`` of ``process`` is at the level asked for (always, for a process not of the world)."""
+        return level_of(line) >= self._least.get(process, logging.NOTSET)

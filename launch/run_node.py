@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import ctypes
 import json
+import re
 import signal
 import sys
 
@@ -49,16 +50,41 @@ def parse_assignments(items: list[str]) -> dict[str, str]:
     return out
 
 
-def _node_epilog() -> str:
+_RST_ROLE = re.compile(r":[a-z]+:`~?([^`]*)`")
+
+
+def _plain_summary(doc: str | None) -> str:
+    """A docstring's first paragraph on one line, without reStructuredText markup
+    (``x`` → x, :class:`~a.b.C` → C)."""
+    text = " ".join((doc or "").strip().split("\n\n")[0].split())
+    text = _RST_ROLE.sub(lambda m: m.group(1).rpartition(".")[2], text)
+    return text.replace("``", "")
+
+
+def _node_epilog(types: list[str] | None = None) -> str:
+    """The node types (default: all) with their parameters, for ``--help``."""
     lines = ["container: the nodes of a launch-file container in one process (needs --spec from the launcher)",
              "", "node types and their parameters:"]
-    for type_name in sorted(NODE_TYPES):
+    for type_name in types or sorted(NODE_TYPES):
         cls = node_class(type_name)
-        doc = (cls.__doc__ or "").strip().splitlines()[0] if cls.__doc__ else ""
-        lines.append(f"  {type_name}: {doc}")
+        lines.append(f"  {type_name}: {_plain_summary(cls.__doc__)}")
         for name, typ, default, help_text in param_help(cls.Params):
             lines.append(f"      {name} ({typ}, default {default}) {help_text}")
     return "\n".join(lines)
+
+
+class _NodeHelp(argparse.Action):
+    """``--help``: the parameters of the node type given before it (``run rig --help``), else of every type."""
+
+    def __init__(self, option_strings: list[str], dest: str = argparse.SUPPRESS, help: str | None = None) -> None:
+        super().__init__(option_strings, dest=dest, default=argparse.SUPPRESS, nargs=0, help=help)
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: object,
+                 option_string: str | None = None) -> None:
+        node = getattr(namespace, "node", None)
+        parser.epilog = _node_epilog([node] if node in NODE_TYPES else None)
+        parser.print_help()
+        parser.exit()
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -66,9 +92,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "run",
         help="run one node as a process",
         description="Run one node as a process. Parameters are given as name:=value.",
-        epilog=_node_epilog(),
         formatter_class=argparse.RawDescriptionHelpFormatter,
+        add_help=False,
     )
+    p.add_argument("-h", "--help", action=_NodeHelp,
+                   help="show this help (with NODE before it: that node's parameters only) and exit")
     p.add_argument("node", help="node type (see the list below), or 'container'")
     p.add_argument("assignments", nargs="*", metavar="name:=value", help="parameter overrides")
     p.add_argument("--name", help="instance name (default: the node type)")

@@ -44,7 +44,8 @@ class GripControllerParams:
     mu: float = field(default=math.nan, metadata={"help": "static friction coefficient used by the law; nan: mu_s"})
     sigma: float = field(default=0.5, metadata={"help": "safety factor sigma <= 1"})
     beta_m: float = field(default=math.nan, metadata={
-        "help": "torsional coefficient beta (m) for ft13 laws; nan: the material's beta_s"})
+        "help": "torsional coefficient beta (m) for ft13 laws; nan or 0 (the launch files' 'from data'): "
+                "the material's beta_s"})
     k_n: float = field(default=2.0, metadata={"help": "offset k (N) of law (13)"})
     increment: str = field(default="total", metadata={
         "help": "(14): 'total' N_A*dphi, or 'per_taxel' dphi as the paper prints it (under-raises)"})
@@ -63,6 +64,8 @@ class GripControllerParams:
         if self.increment not in INCREMENTS:  # checked for every law: a typo must not pass silently
             raise ConfigError(f"grip_controller increment must be one of {', '.join(INCREMENTS)}, "
                               f"got {self.increment!r}")
+        if self.beta_m == 0.0:  # no law can use a zero β: the launch argument's "from data" default
+            object.__setattr__(self, "beta_m", math.nan)
         fill_from_material(self, mu="mu_s", beta_m="beta_s_m", delta="delta", gamma_release="gamma_release")
 
 

@@ -72,6 +72,10 @@ class SlipDetectorParams:
                            gamma_resume="gamma_resume")
 
 
+_WITHOUT_TACTILE = "tactile_off"
+"""A tactile test's verdict on a contact of a stack run without tactile (fusion ``use_tactile = false``)."""
+
+
 class SlipDetector(Node):
     """Publishes ``slip`` for every contact: :class:`~slipstack.lib.detector.Detector`'s verdict."""
 
@@ -87,6 +91,7 @@ class SlipDetector(Node):
             mu=p.mu, delta=p.delta, gamma_release=p.gamma_release, method=p.method, also=tuple(p.also),
             beta_m=p.beta_m, release_ns=round(p.release_ms * 1e6), pool=p.pool, gamma_resume=p.gamma_resume,
             onset_frames=p.onset_frames, known_cor_m=self._known_cor(p)))
+        self._said_without_tactile = False
 
     @staticmethod
     def _known_cor(p: SlipDetectorParams) -> tuple[float, float] | None:
@@ -101,6 +106,11 @@ class SlipDetector(Node):
         v = self.detector.step(msg, msg.header.stamp_ns, tactile_frame=msg.header.sources.get("tactile"))
         if not v.solver_status.usable:
             ctx.count(f"slip.{v.solver_status.value}")
+        if v.status == _WITHOUT_TACTILE and not self._said_without_tactile:
+            self._said_without_tactile = True
+            ctx.report_error(f"method {self.params.method} needs the tactile pad, but fusion runs F/T-only "
+                             "(tactile:=false): every verdict holds the grip (fail-safe). Pick an F/T test, e.g. "
+                             f"method:=coulomb law:=linear as `slipstack launch fig10` does ({', '.join(FT_TESTS)})")
         ctx.publish("slip", Slip(state=v.state, margin=v.margin, method=v.method,
                                  verdicts={name: list(pair) for name, pair in v.verdicts.items()},
                                  gamma=v.gamma, status=v.status, f_n=msg.f_n, f_t=msg.f_t, tau=msg.tau,

@@ -87,6 +87,7 @@ class Backend(ABC):
         self.backoff_min_s = params.real("backoff_ms", 50.0) / 1e3
         self.backoff_max_s = params.real("backoff_max_ms", 2000.0) / 1e3
         self.status = LinkStatus.DISCONNECTED
+        self._silent_since_closed = False  # the link was closed and no data came since
         self._samples = Freshness(self.stale_after_s)
         self._own = dict(frames=0, crc_errors=0, rejected_bytes=0, gaps=0, flushed_bytes=0,
                          handshake_failures=0, ignored_packets=0, bad_frames=0)
@@ -147,11 +148,16 @@ class Backend(ABC):
         """Last words to the device before close (e.g. stop streaming)."""
 
     def _update_status(self, now_ns: int) -> None:
+        """``disconnected`` while the link is closed and, once it was, until data comes again
+        (a UDP socket reopens at once, and stays silent at a wrong address); ``stale``: open
+        and silent otherwise; ``ok``."""
         if not self._link.is_open:
             self.status = LinkStatus.DISCONNECTED
+            self._silent_since_closed = True
         elif self._samples.is_stale(now_ns):
-            self.status = LinkStatus.STALE
+            self.status = LinkStatus.DISCONNECTED if self._silent_since_closed else LinkStatus.STALE
         else:
+            self._silent_since_closed = False
             self.status = LinkStatus.OK
 
 

@@ -35,7 +35,7 @@ from slipstack.nodes.tools.topic_tools import TopicInfo, load_graph, resolve_top
 from slipstack.nodes.runtime.tool_pub import BusPublisher, InjectionSender, tool_name
 from slipstack.nodes.tools.topic_yaml import parse_flow
 
-__all__ = ["build_message", "Injector", "main_pub"]
+__all__ = ["build_message", "split_type_and_values", "Injector", "main_pub"]
 
 
 def build_message(cls: type[Message], values: Any) -> Message:
@@ -101,20 +101,36 @@ class Injector:
         self.sender.close(self._linger_s)
 
 
-def _split_positionals(info: TopicInfo, items: list[str]) -> tuple[type[Message], str]:
+def split_type_and_values(info: TopicInfo, items: list[str]) -> tuple[type[Message], str]:
+    """The topic's message class and the values text of ``topic pub``'s positionals.
+
+    A first item naming a message type (``slipstack/GripCommand`` as ``topic list -t``
+    prints it, or ``GripCommand``) is checked against the topic's and taken off.
+
+    Raises:
+        ConfigError: the named type is not the topic's.
+    """
     cls = info.message_type()
-    if items and items[0] in registry:
-        if items[0] != cls.TYPE:
-            raise ConfigError(f"topic {info.name} carries {cls.TYPE}, not {items[0]}")
+    named = _message_type_named(items[0]) if items else None
+    if named is not None:
+        if named != cls.TYPE:
+            raise ConfigError(f"topic {info.name} carries {cls.TYPE}, not {named}")
         items = items[1:]
     return cls, " ".join(items)
+
+
+def _message_type_named(word: str) -> str | None:
+    """The registered type ``word`` names, in full or by its short name; ``None`` if none."""
+    if word in registry:
+        return word
+    return next((name for name in registry if name.rpartition("/")[2] == word), None)
 
 
 def main_pub(args: argparse.Namespace) -> int:
     """Publish ``--once``, ``--times N`` or at ``--rate`` until Ctrl-C."""
     run_dir, graph = load_graph(args.run_dir)
     info = resolve_topic(graph, args.topic)
-    cls, text = _split_positionals(info, args.values)
+    cls, text = split_type_and_values(info, args.values)
     body = build_message(cls, parse_flow(text))
     if args.rate <= 0:
         raise ConfigError("--rate must be positive")

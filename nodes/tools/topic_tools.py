@@ -283,7 +283,8 @@ def _add_pub(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
     )
     _topic_argument(p, "grip/command")
     p.add_argument("values", nargs="*", metavar="[TYPE] VALUES",
-                   help="optional message type (checked against the graph), then the field values")
+                   help="optional message type (slipstack/Wrench or Wrench; checked against the graph), then the field "
+                        "values")
     p.add_argument("-r", "--rate", type=float, default=1.0, metavar="HZ", help="publishing rate (default 1 Hz)")
     once = p.add_mutually_exclusive_group()
     once.add_argument("-1", "--once", action="store_true", help="publish one message and exit")

@@ -128,6 +128,31 @@ def test_every_bag_verb_has_help_text():
         assert len(line.split()) > 1, line
 
 
+def test_run_help_describes_every_node_in_plain_whole_sentences():
+    """``slipstack run --help``: one line per node type, its docstring's first paragraph
+    without reStructuredText (was: ``slip``, :class:`~slipstack…` and a recorder line cut mid-sentence)."""
+    from slipstack.nodes.catalog import NODE_TYPES
+
+    out = slipstack("run", "--help")
+    assert out.returncode == 0, out.stderr
+    described = {ln.split(":", 1)[0].strip(): ln.split(":", 1)[1].strip()
+                 for ln in out.stdout.split("node types and their parameters:")[1].splitlines()
+                 if ln.startswith("  ") and not ln.startswith("      ")}
+    assert set(described) == set(NODE_TYPES)
+    for node, text in described.items():
+        assert "``" not in text and ":class:" not in text and text.endswith("."), (node, text)
+    assert described["recorder"].endswith("the one slipstack bag record attaches to).")
+
+
+def test_run_node_help_shows_that_nodes_parameters_only():
+    """``slipstack run rig --help`` as a ROS user types it: the rig's parameters, not all 14 nodes'."""
+    out = slipstack("run", "rig", "--help")
+    assert out.returncode == 0, out.stderr
+    described = [ln.split(":", 1)[0].strip() for ln in out.stdout.split("node types and their parameters:")[1]
+                 .splitlines() if ln.startswith("  ") and not ln.startswith("      ")]
+    assert described == ["rig"] and "watchdog_grip_n (float" in out.stdout, out.stdout
+
+
 def test_run_dir_help_names_both_variables_like_the_readme():
     readme = (Path(__file__).parents[2] / "README.md").read_text()
     for args in (["topic", "list", "--help"], ["bag", "record", "--help"]):

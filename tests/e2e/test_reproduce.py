@@ -70,3 +70,18 @@ def test_an_unknown_figure_is_refused_with_the_list(tmp_path):
     done = subprocess.run([sys.executable, "-m", "slipstack.launch.cli", "reproduce", "--only", "fig99",
                            "--out", str(tmp_path)], capture_output=True, text=True, timeout=60)
     assert done.returncode == 2 and "fig99" in done.stderr and "fig15" in done.stderr
+
+
+def test_the_help_lists_every_figure_in_plain_text():
+    """``--only`` offers exactly the figures drawn; the help has no Sphinx markup (was: the
+    module docstring with ``:data:`~slipstack…``` and an elided, partial figure list)."""
+    from slipstack.analysis.figures import FIGURES
+    from slipstack.analysis.reproduce import FIGURE_KEYS
+
+    assert FIGURE_KEYS == tuple(FIGURES)
+    done = subprocess.run([sys.executable, "-m", "slipstack.launch.cli", "reproduce", "--help"],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0
+    text = " ".join(done.stdout.split())
+    assert ":data:" not in text and ":mod:" not in text and "``" not in text, text
+    assert " ".join(FIGURE_KEYS) in text, text

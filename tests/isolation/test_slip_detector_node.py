@@ -29,3 +29,20 @@ def test_a_verdict_the_solver_could_not_compute_is_counted_by_its_status_and_not
     assert failed[1].status == failed[0].status  # never "ok": the controller holds
     counters = [d for d in ex.published["diagnostics"] if d.node == "slip_detector"][-1].counters
     assert {k: v for k, v in counters.items() if k.startswith("slip.")} == {f"slip.{failed[0].status}": 2}
+
+
+def test_a_tactile_test_on_a_stack_without_tactile_says_which_test_to_use():
+    """``slipstack launch tactile:=false`` keeps the default ``method = exact``: every verdict
+    is ``tactile_off`` and the grip holds (safe), and the detector says once, on
+    ``diagnostics`` and in the log, that the test needs the pad and which F/T test to pick."""
+    from slipstack.nodes.fusion import FusionParams
+
+    detector = SlipDetector(SlipDetectorParams(method="exact", mu=0.5))
+    ex = InProcessExecutor([Fusion(FusionParams(use_tactile=False)), detector], diagnostics_period_s=0.001)
+    ex.feed([wrench(k, 4.0, 0.2) for k in range(1, 6)])
+    ex.run(until_ns=10 * MS)
+    assert {s.status for s in ex.published["slip"]} == {"tactile_off"}
+    last = [d for d in ex.published["diagnostics"] if d.node == "slip_detector"][-1]
+    assert "needs the tactile pad" in last.last_error and "method:=coulomb" in last.last_error, last.last_error
+    said = [line for line in ex.logs if "needs the tactile pad" in line]
+    assert len(said) == 1, said  # once, not per contact

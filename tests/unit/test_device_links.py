@@ -8,6 +8,7 @@ kernel, so each tick waits (select, ≤ 20 ms) for the back-end's descriptor.
 from __future__ import annotations
 
 import select
+import socket
 from typing import Callable
 
 import numpy as np
@@ -247,4 +248,33 @@ def test_rdt_unplug_replug() -> None:
         assert rig.samples[n].device_seq == 1  # a new request restarts rdt_sequence
         assert rig.backend.status is LinkStatus.OK
     finally:
+        rig.close()
+
+
+def test_rdt_that_was_refused_and_then_never_answers_stays_disconnected() -> None:
+    """The hardware launch with a wrong RDT address: requests meet a port-unreachable now
+    and then, and silence otherwise. A socket reopened after a refusal that stays silent is
+    not a device that went quiet: the status stays ``disconnected`` until data comes (was:
+    ``stale`` between refusals, so the monitor, which samples the status once a second,
+    rarely saw the driver down and did not name it in the summary)."""
+    rig = make_rdt_rig()
+    silent = None
+    try:
+        rig.emulator.unplug()
+        rig.run_until(lambda: rig.backend.status is LinkStatus.DISCONNECTED, max_ticks=100, wait_s=0.002)
+        silent = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # takes the requests, never answers
+        silent.bind(rig.emulator.address)
+        requests = rig.backend.counters["requests"]
+        seen = set()
+        for _ in range(300):  # past the back-off: the link reopens and asks again
+            rig.tick(wait_s=0.002)
+            seen.add(rig.backend.status)
+        assert rig.backend.counters["requests"] > requests and seen == {LinkStatus.DISCONNECTED}, seen
+        silent.close()
+        silent = None
+        rig.emulator.replug()
+        rig.run_until(lambda: rig.backend.status is LinkStatus.OK, max_ticks=400, wait_s=0.002)
+    finally:
+        if silent is not None:
+            silent.close()
         rig.close()

@@ -73,3 +73,15 @@ def test_identify_names_what_is_missing(tmp_path: Path, capsys) -> None:
     assert main(["identify", str(torsion), "-o", str(tmp_path / "x.toml"), "-q"]) == 2
     assert "no tangential-force ramp" in capsys.readouterr().err
     assert not (tmp_path / "x.toml").exists()
+
+
+def test_identify_refuses_a_force_recording_that_never_slips(tmp_path: Path, capsys) -> None:
+    """A held object (the default launch's recording) has no onset: the error names the
+    recording and what to record instead, and no material file is written."""
+    held = tmp_path / "held.mcap"
+    write_ramp(held, torsion=False, static=0.2, dynamic=0.2, t_on=10.0)  # rises, never slips
+    out = tmp_path / "x.toml"
+    assert main(["identify", str(held), "-o", str(out), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "held.mcap" in err and "no-onset" in err and "ident_force" in err
+    assert not out.exists()

@@ -64,3 +64,17 @@ def test_the_detection_experiments_run_at_constant_force_by_default_as_in_the_pa
         assert not any(e.type == "grip_controller" for e in lf.nodes), name  # no node to raise the grip
         controlled = load_launch_file(name, {"controller": "true"}, builtins={"run_dir": "/tmp/x"})
         assert controlled.args["check"] is True, name  # with the controller, a slide fails the run
+
+
+@pytest.mark.parametrize("name", ["default", "hardware"])
+def test_an_ft13_law_on_the_command_line_takes_beta_from_the_material(name):
+    """``slipstack launch law:=ft13``: the launch argument ``beta_m`` keeps its default 0 ("from
+    data"), which the F/T-only laws read as the material's β_s (was: refused, "beta_m must be > 0")."""
+    from slipstack.nodes.grip_controller import GripControllerParams
+    from slipstack.nodes.material_param import resolve_material
+
+    for law in ("ft13", "ft13_sigma"):
+        lf = load_launch_file(name, {"law": law}, builtins={"run_dir": "/tmp/x"})
+        params = next(e for e in lf.nodes if e.type == "grip_controller").params
+        assert params["beta_m"] == 0.0
+        assert GripControllerParams(**params).beta_m == resolve_material(params["material"]).beta_s_m > 0
