@@ -1,37 +1,26 @@
-"""SIGINT and SIGTERM as a flag: a bus tool finishes its file or socket, then stops."""
+"""Ctrl-C and SIGTERM stop a bus tool, whatever signal handling it inherited.
+
+A process started in the background by a non-interactive shell (a script's ``cmd &``,
+a CI job) inherits SIGINT *ignored*, and Python then never raises KeyboardInterrupt:
+``kill -INT`` of such a ``topic pub`` was ignored until it had sent all its messages.
+The tools that run until stopped take both signals over at start, so they always end
+through their ``except KeyboardInterrupt`` and ``finally`` (closing sockets, removing
+their registration from the run directory).
+"""
 
 from __future__ import annotations
 
 import signal
-from types import FrameType, TracebackType
+from types import FrameType
 
-__all__ = ["StopSignal"]
+__all__ = ["stop_on_signals"]
 
 
-class StopSignal:
-    """While entered, SIGINT/SIGTERM set :attr:`requested` instead of interrupting;
-    the previous handlers come back on exit."""
+def _interrupt(signum: int, frame: FrameType | None) -> None:
+    raise KeyboardInterrupt(signal.Signals(signum).name)
 
-    def __init__(self) -> None:
-        self.requested = False
-        self._old: dict[int, object] = {}
 
-    def _set(self, signum: int, frame: FrameType | None) -> None:
-        self.requested = True
-
-    def install(self) -> "StopSignal":
-        """Take over SIGINT and SIGTERM; returns self."""
-        self._old = {s: signal.signal(s, self._set) for s in (signal.SIGINT, signal.SIGTERM)}
-        return self
-
-    def restore(self) -> None:
-        """Give SIGINT and SIGTERM back to their previous handlers."""
-        for s, handler in self._old.items():
-            signal.signal(s, handler)
-        self._old = {}
-
-    def __enter__(self) -> "StopSignal":
-        return self.install()
-
-    def __exit__(self, exc_type: type | None, exc: BaseException | None, tb: TracebackType | None) -> None:
-        self.restore()
+def stop_on_signals() -> None:
+    """SIGINT and SIGTERM raise KeyboardInterrupt in the main thread from now on."""
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, _interrupt)

@@ -30,6 +30,7 @@ from slipstack.messages import Message, decode
 from slipstack.messages.frame import SeqTracker
 from slipstack.nodes.tools.topic_format import as_tree, check_field, csv_cell, flatten, pick, render_yaml
 from slipstack.nodes.runtime.graph_info import read_graph
+from slipstack.nodes.runtime.stop_signal import stop_on_signals
 from slipstack.nodes.tools.topic_tools import TopicInfo, load_graph, resolve_topic
 from slipstack.nodes.runtime.transport import make_sub
 
@@ -142,6 +143,7 @@ def main_echo(args: argparse.Namespace) -> int:
     out, err = sys.stdout, sys.stderr
     printed = rejected = 0
     deadline = None if args.timeout is None else time.monotonic() + args.timeout
+    stop_on_signals()
     try:
         while limit is None or printed < limit:
             if deadline is not None and time.monotonic() >= deadline:

@@ -37,6 +37,7 @@ import zmq
 from slipstack.lib.errors import ConfigError
 from slipstack.messages.frame import peek_header
 from slipstack.nodes.tools.topic_tools import load_graph, resolve_topic
+from slipstack.nodes.runtime.stop_signal import stop_on_signals
 from slipstack.nodes.runtime.transport import make_sub
 
 __all__ = ["RateStats", "rate_stats", "format_delay", "format_bandwidth", "main_hz", "main_delay", "main_bw"]
@@ -151,6 +152,7 @@ def _watch(args: argparse.Namespace, value: Callable[[int, int, int], object], n
     next_print = start + 1_000_000_000
     end = start + round(args.duration * 1e9) if args.duration else None
     out = sys.stdout
+    stop_on_signals()
     try:
         while end is None or clock() < end:
             wait_ms = max(0, (next_print - clock()) // 1_000_000)

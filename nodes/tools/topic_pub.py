@@ -32,6 +32,7 @@ import numpy as np
 from slipstack.lib.errors import ConfigError, DecodeError
 from slipstack.messages import Header, Message, encode, registry, validate
 from slipstack.nodes.tools.topic_tools import TopicInfo, load_graph, resolve_topic
+from slipstack.nodes.runtime.stop_signal import stop_on_signals
 from slipstack.nodes.runtime.tool_pub import BusPublisher, InjectionSender, tool_name
 from slipstack.nodes.tools.topic_yaml import parse_flow
 
@@ -135,6 +136,7 @@ def main_pub(args: argparse.Namespace) -> int:
     if args.rate <= 0:
         raise ConfigError("--rate must be positive")
     times = 1 if args.once else args.times
+    stop_on_signals()
     name = tool_name("topic_pub")
     injector = Injector(info, origin=name) if any(e.address for e in info.subscribers) else None
     bus = BusPublisher(run_dir, name, {info.name: cls.TYPE})

@@ -141,6 +141,26 @@ def test_pub_reaches_the_subscriber_through_its_injection_endpoint(demo):
     assert len(published) >= 3 and published == [f"publishing #{k} on ft/wrench" for k in range(1, len(published) + 1)]
 
 
+@pytest.mark.parametrize("verb", [["topic", "pub", "ft/wrench", "{force: [7.25, 0, 1]}", "--rate", "10"],
+                                  ["topic", "echo", "ft/relayed", "--field", "force"],
+                                  ["topic", "hz", "ft/relayed"]])
+def test_a_tool_started_with_ctrl_c_ignored_still_stops_on_it(demo, verb):
+    # a job a script starts with `cmd &` inherits SIGINT ignored: the tool must stop on it anyway
+    # and leave nothing registered in the run directory
+    tool = subprocess.Popen([sys.executable, "-m", "slipstack.launch.cli", *verb], env=demo.env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    try:
+        out = tool.stdout.readline()  # it runs: its first line of output
+        assert out, tool.stderr.read()
+        tool.send_signal(signal.SIGINT)
+        tool.communicate(timeout=30)
+    finally:
+        tool.kill()
+    assert tool.returncode == 0
+    assert not list(demo.run_root.glob(f"*/tool-*-{tool.pid}.json"))
+
+
 def test_malformed_injected_frames_are_rejected_and_counted_by_the_node(demo):
     graph = demo.graph()
     injector = Injector(resolve_topic(graph, "ft/wrench"))
