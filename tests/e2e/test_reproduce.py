@@ -75,7 +75,7 @@ def test_an_unknown_figure_is_refused_with_the_list(tmp_path):
 def test_the_help_lists_every_figure_in_plain_text():
     """``--only`` offers exactly the figures drawn; the help has no Sphinx markup (was: the
     module docstring with ``:data:`~slipstack…``` and an elided, partial figure list)."""
-    from slipstack.analysis.figures import FIGURES
+    from slipstack.analysis.catalogue import FIGURES
     from slipstack.analysis.reproduce import FIGURE_KEYS
 
     assert FIGURE_KEYS == tuple(FIGURES)

@@ -61,10 +61,3 @@ def test_a_setting_is_dominated_only_by_one_at_least_as_good_in_every_respect():
     scores = [cheap_noisy, dear_clean, worse, blind]
     assert [_dominated(s, scores) for s in scores] == [False, False, True, False]
     assert _dominated(_score("tactile_cor_robust", 60, 1, 0.05), scores)
-
-
-def test_reproduce_offers_every_figure_of_the_catalogue_in_its_order():
-    from slipstack.analysis.catalogue import FIGURES
-    from slipstack.analysis.reproduce import FIGURE_KEYS
-
-    assert FIGURE_KEYS == tuple(FIGURES)
