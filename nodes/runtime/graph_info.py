@@ -6,10 +6,19 @@
      /proc/PID/stat: with the pid, names the launcher process even if the pid is reused),
      "started_ns": int, "launch_file": str,
      "state": "starting" (endpoints known, nodes coming up) | "running" (all ready),
+     "keys": key directory of the tcp links ("" if none),
      "nodes": {name: {"type": str, "pid": int | null, "pub": endpoint,
                       "inputs": {topic: message type}, "outputs": {topic: message type},
                       "inject": {topic: endpoint the node's SUB binds, for `topic pub`},
-                      "restarts": int}}}
+                      "restarts": int,
+                      "machine": str, "pub_remote": tcp endpoint (with machines only)}},
+     "machine": {"name": this machine, "hosts": {address: machine}, "clock_offset_ns": int
+                 (added to this machine's clock by its nodes), "peers": {machine: {"state",
+                 "quiet", "ready", "offset_ns", "uncertainty_ns", "exchanges"}}}  (with machines only)}
+
+With machines, the graph of each machine's launcher lists the nodes of every machine:
+those of other machines with their tcp endpoint (``pub``) and no pid, so a tool on any
+machine of the graph attaches to all of it, with that machine's keys.
 
 A tool that publishes on the bus (``topic pub``, ``bag play``) registers its own
 publish endpoint beside it, in ``<run_dir>/tool-<name>.json`` (:func:`register_tool`:
@@ -101,7 +110,8 @@ def read_graph(run_dir: Path) -> dict[str, Any]:
     if graph.get("keys"):
         from slipstack.nodes.runtime.curve import use_keys  # zmq: only for a graph with keys
 
-        use_keys(graph["keys"])
+        machine = graph.get("machine") or {}
+        use_keys(graph["keys"], machine.get("name"), machine.get("hosts"))
     for name, tool in _live_tools(run_dir):
         graph["nodes"].setdefault(name, tool)
     return graph
