@@ -527,6 +527,17 @@ class Launcher:
                       "much; keep the machines' clocks disciplined (NTP/PTP) and restart the launch")
         self._drift_warned = error > timeout / 2
 
+    def _required_peer_stopped(self) -> bool:
+        """True (and said) if another machine's launcher stopped while running a ``required`` node:
+        the launch ends on every machine, as it would on one."""
+        for name, peer in (self.peers.peers.items() if self.peers else ()):
+            required = sorted(e.name for e in self.launch.nodes if e.machine == name and e.required)
+            if peer.state == "stopped" and required:
+                self.echo(f"[launch] {peer.label} stopped, and it ran required node(s) {', '.join(required)}; "
+                          "stopping this machine's share too")
+                return True
+        return False
+
     def _wait_for_peers(self, process: _Process) -> None:
         """Until the nodes on other machines that ``process``'s members start ``after`` are ready."""
         remote = {a for c in process.members for a in c.entry.after if not self._is_local(self.children[a].entry)}
@@ -598,6 +609,8 @@ class Launcher:
                 return
             self._forward_logs(0.05)
             self._service_peers()
+            if self._required_peer_stopped():
+                return
             self._note_ready_reports()
             now = time.monotonic()
             for c in self.processes.values():
