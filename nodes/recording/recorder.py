@@ -32,7 +32,8 @@ from slipstack.lib.errors import ConfigError
 from slipstack.nodes.recording.bag_io import RecordingWriter, peek_header, publisher_key
 from slipstack.nodes.runtime.curve import secure_connect
 from slipstack.nodes.runtime.stop_signal import StopSignal
-from slipstack.nodes.runtime.graph_info import GRAPH_FILE, RUN_DIR_ENV, find_run_dir, read_graph, topic_endpoints
+from slipstack.nodes.runtime.graph_info import (GRAPH_FILE, RUN_DIR_ENV, clock_offset_ns, find_run_dir, read_graph,
+                                                topic_endpoints)
 from slipstack.nodes.runtime.node import Context, Node
 from slipstack.nodes.runtime.transport import make_sub, run_root
 
@@ -173,7 +174,7 @@ class Recorder(Node):
         path = Path(self.params.path) if self.params.path else default_output_path()
         if os.path.lexists(path):  # never overwrite a recording (or write through a link)
             raise ConfigError(f"recording {path} exists; pass recording:=NEW.mcap (or path:=NEW.mcap) or delete it")
-        writer = RecordingWriter(path, wall_minus_monotonic_ns=time.time_ns() - time.monotonic_ns())
+        writer = RecordingWriter(path, wall_minus_monotonic_ns=time.time_ns() - ctx.now_ns())  # the graph's time base
         # Launched: the launcher names our graph in $SLIPSTACK_RUN_DIR and counts us in
         # every publisher's readiness handshake (``taps_bus``), so no first sample is missed.
         env_dir = os.environ.get(RUN_DIR_ENV)
@@ -217,12 +218,13 @@ def record(
             the graph publishes (names the ones it does); nothing is written then.
     """
     rd = find_run_dir(run_dir)
-    published = topic_endpoints(read_graph(rd))
+    graph = read_graph(rd)
+    published = topic_endpoints(graph)
     unknown = sorted(set(topics or []) - set(published))
     if unknown:
         raise ConfigError(f"no node of the running graph publishes {', '.join(unknown)}; "
                           f"its topics: {', '.join(sorted(published)) or 'none'} (or -a for all)")
-    writer = RecordingWriter(out, wall_minus_monotonic_ns=time.time_ns() - time.monotonic_ns())
+    writer = RecordingWriter(out, wall_minus_monotonic_ns=time.time_ns() - time.monotonic_ns() - clock_offset_ns(graph))
     bus = BusRecorder(writer, topics, run_dir=rd)
     stop = StopSignal().install()
     try:
