@@ -11,13 +11,16 @@ does not know must get nothing and get no answer.
 from __future__ import annotations
 
 import json
+import os
 import random
+import signal
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
+import msgpack
 import pytest
 import zmq
 import zmq.auth
@@ -140,3 +143,52 @@ def test_a_machine_whose_launcher_dies_takes_its_nodes_and_is_reported(two_hosts
         time.sleep(0.1)
     assert not any(pid_alive(p) for p in pids), "the robot's nodes outlived their launcher"
     assert "machine robot (127.0.0.1) went quiet" in workstation.log(), workstation.log()
+
+
+def test_a_machine_gone_quiet_is_named_the_grip_holds_and_the_loop_resumes(two_hosts, tmp_path):
+    scene = tmp_path / "fig15_long.toml"  # a scene that outlasts the test
+    scene.write_text((tmp_path / "fig15_short.toml").read_text().replace(f"duration_s = {SCENE_S}",
+                                                                         "duration_s = 120.0", 1))
+    robot, workstation = two_hosts(f"scene:={scene}", "monitor:=false")
+    nodes = workstation.wait_ready(timeout=90)["nodes"]
+    robot_pids = [robot.proc.pid, *(v["pid"] for v in robot.wait_ready(timeout=90)["nodes"].values()
+                                    if v.get("machine") == "robot")]
+    ctx = zmq.Context()
+    commands = ctx.socket(zmq.SUB)  # on the workstation, where the controller runs: its ipc endpoint
+    commands.setsockopt(zmq.SUBSCRIBE, b"grip/command")
+    commands.connect(nodes["grip_controller"]["pub"])
+
+    def read(seconds: float, until: str | None = None) -> list[tuple[float, str]]:
+        """(f_n desired, reason) of the commands over ``seconds``, or until ``until`` is in the log."""
+        got, end = [], time.monotonic() + seconds
+        while time.monotonic() < end and not (until and until in workstation.log()):
+            if commands.poll(50):
+                _, payload = commands.recv_multipart()
+                body = msgpack.unpackb(payload, raw=False, strict_map_key=False)[3]
+                got.append((float(body[0]), str(body[2])))
+        return got
+
+    try:
+        before = read(2.0)
+        assert before, "no grip command before the freeze"
+        for pid in robot_pids:
+            os.kill(pid, signal.SIGSTOP)  # the robot's computer vanishes from the network
+        read(30, until="machine robot (127.0.0.1) went quiet")
+        assert "machine robot (127.0.0.1) went quiet" in workstation.log(), workstation.log()
+        held = read(1.0)
+        assert held and all(reason == "fail-safe" for _, reason in held), held
+        assert min(f for f, _ in held) >= before[-1][0] - 1e-9, (before, held)  # never lowered on stale data
+        for pid in robot_pids:
+            os.kill(pid, signal.SIGCONT)
+        read(30, until="machine robot (127.0.0.1) is back")
+        assert "machine robot (127.0.0.1) is back" in workstation.log(), workstation.log()
+        deadline = time.monotonic() + 30
+        resumed: list[tuple[float, str]] = []
+        while time.monotonic() < deadline and not any(reason != "fail-safe" for _, reason in resumed):
+            resumed = read(0.5)
+        assert any(reason != "fail-safe" for _, reason in resumed), resumed
+    finally:
+        for pid in robot_pids:
+            if pid_alive(pid):
+                os.kill(pid, signal.SIGCONT)
+        ctx.destroy(linger=0)
