@@ -48,8 +48,12 @@ def _alive(entry: dict[str, Any]) -> str:
 
 def main_list(args: argparse.Namespace) -> int:
     graph = read_graph(find_run_dir(args.run_dir))
+    here = (graph.get("machine") or {}).get("name")
     for name, entry in sorted(graph["nodes"].items()):
         kind = "tool" if entry.get("tool") else entry.get("type", "?")
+        if entry.get("machine", here) != here:  # run by another machine's launcher: no pid here
+            print(f"{name}  [{kind}] on machine {entry['machine']} ({entry['pub']})")
+            continue
         print(f"{name}  [{kind}] pid {entry.get('pid')} {_alive(entry)}, restarts {entry.get('restarts', 0)}")
     return 0
 

@@ -27,7 +27,7 @@ import zmq.auth
 
 from slipstack.lib.toml_file import resolve_path
 
-from .conftest import LaunchedGraph, pid_alive
+from .conftest import LaunchedGraph, count_frames, pid_alive
 
 pytestmark = pytest.mark.e2e
 
@@ -64,15 +64,6 @@ def two_hosts(tmp_path):
         g.stop(9 if g.proc.poll() is None else 2)
     for r in roots:
         r.cleanup()
-
-
-def _frames(sock: zmq.Socket, seconds: float) -> int:
-    n, end = 0, time.monotonic() + seconds
-    while time.monotonic() < end:
-        if sock.poll(50):
-            sock.recv_multipart()
-            n += 1
-    return n
 
 
 def _curve_client(ctx: zmq.Context, kind: int, secret_file: Path, server_public_file: Path) -> zmq.Socket:
@@ -115,8 +106,8 @@ def test_closed_loop_over_two_machines_holds_and_strangers_get_nothing(two_hosts
             n for n, v in nodes.items() if v["machine"] == "robot").index("rig")
         pinger.connect(f"tcp://{WORKSTATION}:{first_port}")
         pinger.send_multipart([b"ping", (0).to_bytes(8, "big"), b"robot"])
-        assert _frames(legit, 1.0) > 10
-        assert _frames(wrong, 1.0) == 0
+        assert count_frames(legit, 1.0) > 10
+        assert count_frames(wrong, 1.0) == 0
         assert not pinger.poll(1000)
     finally:
         ctx.destroy(linger=0)

@@ -123,15 +123,6 @@ def test_the_machine_to_run_must_be_named_and_known(tmp_path, keys):
             Launcher(lf, tmp_path, machine=machine, echo=lambda line: None)
 
 
-def _frames(sock: zmq.Socket, seconds: float) -> int:
-    n, end = 0, time.monotonic() + seconds
-    while time.monotonic() < end:
-        if sock.poll(20):
-            sock.recv_multipart()
-            n += 1
-    return n
-
-
 def test_a_machine_admits_the_graphs_machines_and_no_stranger_while_ipc_stays_plain(tmp_path, keys):
     stranger = curve.make_machine_keys(tmp_path / "stranger", ["b"])[0]  # a key pair named b, not the graph's
     (stranger / "a.key").write_bytes((keys[0] / "a.key").read_bytes())  # a's public key is no secret
