@@ -58,7 +58,7 @@ from slipstack.launch.launch_file import LaunchFile, NodeEntry, arg_comments, fr
 from slipstack.launch.peers import PeerLinks, launcher_endpoint
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.messages import Diagnostics
-from slipstack.nodes.runtime.curve import INSECURE_ENV, KEYS_ENV, MACHINE_ENV, GraphKeys, machine_env
+from slipstack.nodes.runtime.curve import INSECURE_ENV, KEYS_ENV, MACHINE_ENV, GraphKeys, machine_env, use_keys
 from slipstack.nodes.runtime.graph_info import process_start_ticks, write_graph
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.run_dir import finish_run_dir, make_run_dir, remove_run_dir, write_private_file
@@ -479,7 +479,7 @@ class Launcher:
     def _join_peers(self) -> None:
         """Link to the other machines' launchers; on a machine other than the first, wait for the
         first one's launcher and take its clock as this machine's nodes' time base."""
-        os.environ.update(self._security_env())  # this process's own tcp links: the same keys as its nodes'
+        use_keys(self._keys_dir(), self.machine, self._machine_hosts(), insecure=self.launch.insecure)
         self.peers = PeerLinks(self.zctx, self.launch.machines, self.machine, self.echo)
         reference = self._reference()
         if reference == self.machine:

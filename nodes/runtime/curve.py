@@ -140,14 +140,18 @@ def endpoint_host(endpoint: str) -> str:
 
 
 _keys: GraphKeys | None = None
+_insecure = False
 _authenticators: dict[int, ThreadAuthenticator] = {}
 
 
-def use_keys(directory: str | Path | None, machine: str | None = None, hosts: dict[str, str] | None = None) -> None:
+def use_keys(directory: str | Path | None, machine: str | None = None, hosts: dict[str, str] | None = None, *,
+             insecure: bool = False) -> None:
     """Use the keys in ``directory`` for this process's tcp sockets (None: from the environment);
-    ``machine`` and ``hosts`` for a graph over several machines (:meth:`GraphKeys.load`)."""
-    global _keys
+    ``machine`` and ``hosts`` for a graph over several machines (:meth:`GraphKeys.load`);
+    ``insecure``: tcp without keys allowed (the launch file's ``insecure = true``)."""
+    global _keys, _insecure
     _keys = GraphKeys.load(directory, machine, hosts) if directory else None
+    _insecure = insecure
 
 
 def _active() -> GraphKeys | None:
@@ -163,7 +167,7 @@ def _tcp_keys(endpoint: str) -> GraphKeys | None:
     if not endpoint.startswith("tcp://"):
         return None
     keys = _active()
-    if keys is None and os.environ.get(INSECURE_ENV) != "1":
+    if keys is None and not _insecure and os.environ.get(INSECURE_ENV) != "1":
         raise ConfigError(f"{endpoint}: tcp needs the graph's keys: make them with `slipstack keys DIR` and set "
                           "[launch] keys = \"DIR\" (or insecure = true to allow anyone on the network)")
     return keys

@@ -15,6 +15,7 @@ import pytest
 import zmq
 
 from slipstack.launch.launch_file import load_launch_file
+from slipstack.launch import launcher as launcher_module
 from slipstack.launch.launcher import Launcher
 from slipstack.lib.clock_offset import ClockOffset
 from slipstack.lib.errors import ConfigError
@@ -40,6 +41,7 @@ ports = [46200, 46299]
 [[node]]
 name = "source"
 type = "wrench_source"
+{source}
 
 [[node]]
 name = "relay"
@@ -55,9 +57,10 @@ machine = "b"
 
 
 def _load(tmp_path: Path, *, launch: str = "", a: str = "127.0.0.1", a_keys: str = 'keys = "keys/a"',
-          b_keys: str = 'keys = "keys/b"', relay: str = "", extra: str = ""):
+          b_keys: str = 'keys = "keys/b"', source: str = "", relay: str = "", extra: str = ""):
     path = tmp_path / "two.toml"
-    path.write_text(GRAPH.format(launch=launch, a=a, a_keys=a_keys, b_keys=b_keys, relay=relay) + extra)
+    path.write_text(GRAPH.format(launch=launch, a=a, a_keys=a_keys, b_keys=b_keys, source=source, relay=relay)
+                    + extra)
     return load_launch_file(str(path), builtins=BUILTINS)
 
 
@@ -108,6 +111,20 @@ def test_both_launchers_compute_the_same_endpoints_ipc_inside_a_machine_tcp_betw
 def test_bad_machine_tables_are_refused_with_what_to_do(tmp_path, change, message):
     with pytest.raises(ConfigError, match=message):
         _load(tmp_path, **change)
+
+
+def test_after_a_node_of_a_machine_that_is_not_up_names_the_machine(tmp_path, keys, monkeypatch):
+    monkeypatch.setattr(launcher_module, "READY_TIMEOUT_S", 1.0)
+    lines: list[str] = []
+    run_dir = tmp_path / "run"
+    run_dir.mkdir(mode=0o700)
+    launcher = Launcher(_load(tmp_path, source='after = ["relay"]'), run_dir, machine="a", echo=lines.append)
+    try:
+        assert launcher.run() == 1
+    finally:
+        curve.use_keys(None)  # the launcher took machine a's keys for its own links
+    assert any("node source (wrench_source) starts after relay on machine b (127.0.0.2), not ready after 1 s: is "
+               "`slipstack launch two.toml --machine b` running there?" in line for line in lines), lines
 
 
 def test_insecure_is_an_explicit_opt_in_for_a_network_address(tmp_path):
