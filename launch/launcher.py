@@ -470,7 +470,6 @@ class Launcher:
     def _service_peers(self) -> None:
         if self.peers is not None:
             self.peers.service()
-            self._check_drift()
 
     def _reference(self) -> str:
         """The first machine: its clock is the graph's time base."""
@@ -510,11 +509,15 @@ class Launcher:
         return round(min(timeouts) * 1e6) if timeouts else None
 
     def _check_drift(self) -> None:
-        """Warn when this machine's nodes' clock drifted from the first machine's by more than half
-        the grip controller's input timeout (ages would be misjudged by that much)."""
-        if self.machine == self._reference() or time.monotonic() < self._next_drift_check:
+        """Every ``DRIFT_CHECK_S``: refresh the peers' state and clock offsets in ``graph.json``, and
+        warn when this machine's nodes' clock drifted from the first machine's by more than half the
+        grip controller's input timeout (ages would be misjudged by that much)."""
+        if self.peers is None or time.monotonic() < self._next_drift_check:
             return
         self._next_drift_check = time.monotonic() + DRIFT_CHECK_S
+        self._write_graph()
+        if self.machine == self._reference():
+            return
         est = self.peers.peers[self._reference()].offset()
         timeout = self._controller_timeout_ns()
         if est is None or timeout is None:
@@ -609,6 +612,7 @@ class Launcher:
                 return
             self._forward_logs(0.05)
             self._service_peers()
+            self._check_drift()
             if self._required_peer_stopped():
                 return
             self._note_ready_reports()
