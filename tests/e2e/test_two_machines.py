@@ -4,8 +4,10 @@
 and the control path and the monitor on ``workstation`` (127.0.0.2), each launched by
 its own ``slipstack launch two_hosts --machine NAME`` with its own run root and key
 directory. The closed loop must hold Fig. 15's object (a 6 s cut of the scene), tools
-on the workstation must see the robot's topics, and a peer holding a key pair the graph
-does not know must get nothing and get no answer.
+on the workstation must see and record the robot's topics, and a peer holding a key pair the graph
+does not know must get nothing and get no answer. A second test freezes the robot
+(its launcher and nodes stopped, as a dropped link looks from the workstation) and
+lets it go again; a third kills the robot's launcher.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from __future__ import annotations
 import json
 import os
 import random
+import re
 import signal
 import subprocess
 import sys
@@ -86,6 +89,10 @@ def test_closed_loop_over_two_machines_holds_and_strangers_get_nothing(two_hosts
     echo = subprocess.Popen([sys.executable, "-m", "slipstack.launch.cli", "topic", "echo", "rig/truth", "--once",
                              "--no-arr", "--timeout", "30"], env=workstation.env, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
+    recording = tmp_path / "wrench.mcap"  # and records them
+    record = subprocess.Popen([sys.executable, "-m", "slipstack.launch.cli", "bag", "record", "ft/wrench", "-o",
+                               str(recording), "--duration", "1.5"], env=workstation.env, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True)
 
     # a peer with a key pair the graph does not know: no frames, no answer from a launcher
     stranger_keys = tmp_path / "stranger"
@@ -113,6 +120,10 @@ def test_closed_loop_over_two_machines_holds_and_strangers_get_nothing(two_hosts
         ctx.destroy(linger=0)
     out, err = echo.communicate(timeout=60)
     assert echo.returncode == 0 and "slip_distance" in out, err
+    out, err = record.communicate(timeout=60)
+    assert record.returncode == 0, err
+    frames = int(re.search(r"wrote .*: (\d+) frames", out + err).group(1))
+    assert frames > 0, out
 
     # the scene ends: the rig (required) exits, its launcher stops, the workstation follows
     assert robot.proc.wait(90) == 0, robot.log()
