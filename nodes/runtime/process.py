@@ -48,6 +48,7 @@ from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC, NodeHost
 from slipstack.nodes.runtime.node import Node
 from slipstack.nodes.runtime.rate_limit import TokenBucket
 from slipstack.nodes.runtime.curve import secure_bind
+from slipstack.nodes.runtime.time_base import graph_clock
 from slipstack.nodes.runtime.transport import MAX_ORIGIN_BYTES, bound_socket, make_pub, make_sub
 
 __all__ = ["ProcessExecutor", "RunSpec"]
@@ -59,6 +60,7 @@ _INJECT_HWM = 200  # injected frames queued in the node's injection socket: the 
 _OVER_RATE_READS = 64  # frames over the injection rate read (and dropped) per wake-up before a pause
 _INJECT_PAUSE_NS = 10_000_000  # how long a node over its injection rate leaves the injection socket unread
 _TIMER_CATCH_UP = 20  # late ticks of one timer fired per loop turn before ticks are skipped
+_now_ns = graph_clock()  # monotonic ns, on the reference machine's time base (nodes/runtime/time_base.py)
 
 
 @dataclass
@@ -66,6 +68,8 @@ class RunSpec:
     """How one node process is wired (written by the launcher, or built by hand).
 
     pub: endpoint to bind (``ipc://…`` or ``tcp://…``); ``None`` for a pure sink.
+    pub_remote: a tcp endpoint the publisher binds as well, for subscribers and tools on
+        other machines of the graph (``None``: all on this one).
     subs: topic → endpoints publishing it.
     inject: topic → endpoint that one extra SUB socket of this node *binds* (frames
         ``[topic, payload]`` or ``[topic, payload, origin]``, sequence gaps tracked per
@@ -83,6 +87,7 @@ class RunSpec:
 
     name: str
     pub: str | None = None
+    pub_remote: str | None = None
     subs: dict[str, list[str]] = field(default_factory=dict)
     remap: dict[str, str] = field(default_factory=dict)
     inject: dict[str, str] = field(default_factory=dict)
@@ -110,9 +115,9 @@ class _Member:
         self.node = node
         self.spec = spec
         self.zctx = zctx
-        self.pub = make_pub(zctx, spec.pub) if spec.pub else None
+        self.pub = make_pub(zctx, spec.pub, remote=spec.pub_remote) if spec.pub else None
         log = (lambda text: _log(f"{spec.name}: {text}")) if name_logs else _log  # a container's members
-        self.host = NodeHost(node, time.monotonic_ns, self.send, name=spec.name, remap=spec.remap, log=log)
+        self.host = NodeHost(node, _now_ns, self.send, name=spec.name, remap=spec.remap, log=log)
         # One SUB socket per (input, publisher endpoint): sequence gaps are then tracked
         # per publisher, so several publishers on one topic (``diagnostics``) never look
         # like loss. One more SUB, bound, takes frames injected by tools.
@@ -447,7 +452,7 @@ class ProcessExecutor:
         # node waits in poll, rounding its wake-up up to the next millisecond, so it
         # never sleeps deaf to input.
         precise = any(m.precise for m in members)
-        now = time.monotonic_ns()
+        now = _now_ns()
         for m in members:
             m.start_clock(now)
         hosts = [m.host for m in members]
@@ -456,7 +461,7 @@ class ProcessExecutor:
                 h.counters["loop.wakeups"] += 1
             for m in watching:
                 m.watch_io(poller, handlers)
-            wait_ns = min(m.next_due() for m in members) - time.monotonic_ns()
+            wait_ns = min(m.next_due() for m in members) - _now_ns()
             if wait_ns <= 0:
                 events = poller.poll(0)
             elif precise and wait_ns < 1_000_000:
@@ -475,11 +480,11 @@ class ProcessExecutor:
                 elif kind == "io":
                     m.host.call("on_readable", m.node.on_readable, arg, m.host)
                 else:
-                    m.drain_injected(time.monotonic_ns())
+                    m.drain_injected(_now_ns())
                     if m.inject_resume_ns is not None:
                         poller.unregister(item)  # over the rate: unread until the pause ends
                 self._run_handovers()
-            now = time.monotonic_ns()
+            now = _now_ns()
             for m in members:
                 if m.inject_resume_ns is not None and now >= m.inject_resume_ns:
                     m.inject_resume_ns = None
