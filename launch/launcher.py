@@ -585,8 +585,11 @@ class Launcher:
             ready = [f"{n} ({', '.join(c.entry.name for c in self.processes[n].members)})"
                      if self.processes[n].is_container else n for n in started]
             where = f" on machine {self.machine}" if self.machine is not None else ""
-            self.echo(f"[launch] {sum(len(self.processes[n].members) for n in started)} nodes ready{where} in "
-                      f"{len(started)} processes: {', '.join(ready)}; run dir {self.run_dir}")
+            if started:
+                self.echo(f"[launch] {sum(len(self.processes[n].members) for n in started)} nodes ready{where} in "
+                          f"{len(started)} processes: {', '.join(ready)}; run dir {self.run_dir}")
+            else:  # an operator's machine: tools attach to the graph through this launcher's run directory
+                self.echo(f"[launch] no nodes{where}; the graph's tools attach here, run dir {self.run_dir}")
             self._supervise()
         except SlipstackError as exc:
             self.echo(f"[launch] error: {exc}")
