@@ -502,6 +502,12 @@ class Launcher:
         self.echo(f"[launch] clock of machine {reference} is {est.offset_ns / 1e6:+.3f} ms from ours "
                   f"(± {est.uncertainty_ns / 1e3:.0f} µs, {est.samples} exchanges); this machine's nodes run on it")
         self._next_drift_check = time.monotonic() + DRIFT_CHECK_S
+        timeout = self._controller_timeout_ns()
+        if timeout is not None and est.uncertainty_ns > timeout / 2:
+            self.echo(f"[launch] WARNING: the clock offset to machine {reference} is uncertain by "
+                      f"{est.uncertainty_ns / 1e6:.1f} ms, more than half the grip controller's {timeout / 1e6:g} ms "
+                      "timeout: ages of messages between the machines may be misjudged by that much (a slow or "
+                      "busy link); check the link's round trip")
 
     def _controller_timeout_ns(self) -> int | None:
         """The shortest input timeout of the graph's grip controllers (ns); None without one."""
