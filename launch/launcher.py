@@ -246,6 +246,8 @@ class Launcher:
             local = {t: [p for p in publishers.get(t, []) if p != name and self.children[p].process == c.process]
                      for t in c.inputs}
             specs[name] = {
+                # subscribers on another machine may take as long as its launcher does to come up
+                **({"handshake_timeout_s": PEER_WAIT_S} if self._feeds_another_machine(c, taps) else {}),
                 "name": name,
                 "pub": c.endpoint,
                 "pub_remote": c.remote_endpoint if c.remote_endpoint != c.endpoint else None,
@@ -266,6 +268,13 @@ class Launcher:
                 doc = specs[proc.members[0].entry.name]
             write_private_file(self.run_dir, proc.spec_path.name, json.dumps(doc, indent=1))
         self.order = self._start_order()
+
+    def _feeds_another_machine(self, c: _Child, taps: dict[str, set[str]]) -> bool:
+        """True if a node or bus tap on another machine subscribes to an output of ``c``."""
+        remote = [o for o in self.children.values() if not self._is_local(o.entry)]
+        tapped = [taps[o.entry.name] for o in remote if o.entry.name in taps]
+        return any(topic in o.inputs for topic in c.outputs for o in remote) or any(
+            not t or t & set(c.outputs) for t in tapped)
 
     @staticmethod
     def _tapped_topics(node: object) -> set[str] | None:
