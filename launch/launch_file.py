@@ -90,8 +90,8 @@ DEFAULT_PORTS = (47000, 47099)
 """tcp ports of a machine without ``ports``: the first for its launcher, then one per node."""
 _LAUNCH_KEYS = {"description", "duration_s", "extends", "check", "keys", "insecure"}
 _NODE_KEYS = {"name", "type", "params", "remap", "respawn", "respawn_delay_s", "respawn_max_retries",
-              "respawn_reset_s", "respawn_standby", "required", "transport", "enabled", "after", "nice", "container", "stop_first",
-              "machine"}
+              "respawn_reset_s", "respawn_standby", "required", "transport", "enabled", "after", "nice", "container",
+              "stop_first", "machine"}
 SUBST_MAX_CHARS = 65536
 """Longest value an argument substitution may produce (a guard against self-doubling arguments)."""
 SUBST_MAX_DEPTH = 32

@@ -57,7 +57,7 @@ import zmq
 from slipstack.lib.errors import ConfigError, SlipstackError
 from slipstack.launch.launch_file import SIM_ARG, LaunchFile, arg_comments, load_launch_file
 from slipstack.launch.peers import PeerLinks, launcher_endpoint
-from slipstack.launch.plan import NodePlan, ProcessPlan, plan_launch, runs_on
+from slipstack.launch.plan import PEER_WAIT_S, NodePlan, ProcessPlan, plan_launch, runs_on
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.nodes.devices.sim_link import SIM_PREFIX
 from slipstack.nodes.runtime.curve import INSECURE_ENV, KEYS_ENV, MACHINE_ENV, GraphKeys, machine_env, use_keys
@@ -71,7 +71,6 @@ READY_TIMEOUT_S = 20.0
 STOP_GRACE_S = 0.4       # per node, after SIGINT, before the next node is told to stop
 TERM_AFTER_S = 1.5       # from the start of shutdown: SIGTERM whoever is left
 KILL_AFTER_S = 2.5       # from the start of shutdown: SIGKILL whoever is left
-PEER_WAIT_S = 60.0       # for the first machine's launcher to answer before this one starts its nodes
 CLOCK_EXCHANGES = 10     # ping exchanges with the first machine before its clock offset is used
 DRIFT_CHECK_S = 5.0      # how often the clock offset in use is compared with a fresh estimate
 EVENTS_FILE = "launch_events.json"
@@ -345,6 +344,12 @@ class Launcher:
         self.echo(f"[launch] clock of machine {reference} is {est.offset_ns / 1e6:+.3f} ms from ours "
                   f"(± {est.uncertainty_ns / 1e3:.0f} µs, {est.samples} exchanges); this machine's nodes run on it")
         self._next_drift_check = time.monotonic() + DRIFT_CHECK_S
+        timeout = self._controller_timeout_ns()
+        if timeout is not None and est.uncertainty_ns > timeout / 2:
+            self.echo(f"[launch] WARNING: the clock offset to machine {reference} is uncertain by "
+                      f"{est.uncertainty_ns / 1e6:.1f} ms, more than half the grip controller's {timeout / 1e6:g} ms "
+                      "timeout: ages of messages between the machines may be misjudged by that much (a slow or "
+                      "busy link); check the link's round trip")
 
     def _controller_timeout_ns(self) -> int | None:
         """The shortest input timeout of the graph's grip controllers (ns); None without one."""
@@ -428,8 +433,11 @@ class Launcher:
             ready = [f"{n} ({', '.join(c.entry.name for c in self.processes[n].members)})"
                      if self.processes[n].is_container else n for n in started]
             where = f" on machine {self.machine}" if self.machine is not None else ""
-            self.echo(f"[launch] {sum(len(self.processes[n].members) for n in started)} nodes ready{where} in "
-                      f"{len(started)} processes: {', '.join(ready)}; run dir {self.run_dir}")
+            if started:
+                self.echo(f"[launch] {sum(len(self.processes[n].members) for n in started)} nodes ready{where} in "
+                          f"{len(started)} processes: {', '.join(ready)}; run dir {self.run_dir}")
+            else:  # an operator's machine: tools attach to the graph through this launcher's run directory
+                self.echo(f"[launch] no nodes{where}; the graph's tools attach here, run dir {self.run_dir}")
             self._supervise()
         except SlipstackError as exc:
             self.echo(f"[launch] error: {exc}")

@@ -34,7 +34,12 @@ from slipstack.messages import Diagnostics
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.transport import ipc_endpoint, machine_ports, tcp_endpoint
 
-__all__ = ["NodePlan", "ProcessPlan", "LaunchPlan", "plan_launch", "tapped_topics", "machine_endpoints"]
+__all__ = ["NodePlan", "ProcessPlan", "LaunchPlan", "plan_launch", "tapped_topics", "machine_endpoints", "runs_on",
+           "PEER_WAIT_S"]
+
+PEER_WAIT_S = 60.0
+"""How long (s) a machine's launcher waits for the first machine's to answer, and so how long
+a publisher with subscribers on another machine waits for them in its readiness handshake."""
 
 
 @dataclass
@@ -196,6 +201,8 @@ def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -
         local = {t: [p for p in publishers.get(t, []) if p != name and children[p].process == c.process]
                  for t in c.inputs}
         specs[name] = {
+            # subscribers on another machine may take as long as its launcher does to come up
+            **({"handshake_timeout_s": PEER_WAIT_S} if _feeds_elsewhere(c, children, taps, here) else {}),
             "name": name,
             "pub": c.endpoint,
             "pub_remote": c.remote_endpoint if c.remote_endpoint != c.endpoint else None,
@@ -215,6 +222,14 @@ def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -
         else:
             proc.spec = specs[proc.members[0].entry.name]
     return LaunchPlan(launch, run_dir, control_ep, children, processes, _start_order(children, processes, here), machine)
+
+
+def _feeds_elsewhere(c: NodePlan, children: dict[str, NodePlan], taps: dict[str, set[str]], here: set[str]) -> bool:
+    """True if a node or bus tap that does not run ``here`` (on another machine) subscribes to an output of ``c``."""
+    remote = [o for name, o in children.items() if name not in here]
+    tapped = [taps[o.entry.name] for o in remote if o.entry.name in taps]
+    return any(topic in o.inputs for topic in c.outputs for o in remote) or any(
+        not t or t & set(c.outputs) for t in tapped)
 
 
 def _start_order(children: dict[str, NodePlan], procs: dict[str, ProcessPlan], here: set[str]) -> list[str]:

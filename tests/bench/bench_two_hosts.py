@@ -167,12 +167,13 @@ def main(argv: list[str] | None = None) -> int:
                 _one_hop("one hop, tcp + CURVE", f"tcp://127.0.0.1:{port + 1}", keys / "robot", args.hops)]
     ipc, tcp, secure = hops
     print(f"one hop: tcp / ipc p50 {tcp['p50_ms'] / ipc['p50_ms']:.2f}x, CURVE / tcp p50 "
-          f"{secure['p50_ms'] / tcp['p50_ms']:.2f}x, p99 {secure['p99_ms'] / tcp['p99_ms']:.2f}x; cores {os.cpu_count()}")
+          f"{secure['p50_ms'] / tcp['p50_ms']:.2f}x, p99 {secure['p99_ms'] / tcp['p99_ms']:.2f}x; "
+          f"cores {os.cpu_count()}")
     if rows:
         one, split, plain = rows
         print(f"stack: split / one host p50 {split['p50_ms'] / one['p50_ms']:.2f}x, p99 "
-              f"{split['p99_ms'] / one['p99_ms']:.2f}x; CURVE / plain tcp p50 {split['p50_ms'] / plain['p50_ms']:.2f}x, "
-              f"p99 {split['p99_ms'] / plain['p99_ms']:.2f}x")
+              f"{split['p99_ms'] / one['p99_ms']:.2f}x; CURVE / plain tcp p50 "
+              f"{split['p50_ms'] / plain['p50_ms']:.2f}x, p99 {split['p99_ms'] / plain['p99_ms']:.2f}x")
     if args.json:
         Path(args.json).write_text(json.dumps(rows + hops, indent=1))
     return 0

@@ -3,7 +3,7 @@
 ``launch/files/two_hosts.toml`` puts the rig and the drivers on ``robot`` (127.0.0.1)
 and the control path and the monitor on ``workstation`` (127.0.0.2), each launched by
 its own ``slipstack launch two_hosts --machine NAME`` with its own run root and key
-directory. The closed loop must hold Fig. 15's object (a 6 s cut of the scene), tools
+directory. The closed loop must hold Fig. 15's object (a 10 s cut of the scene), tools
 on the workstation must see and record the robot's topics, and a peer holding a key pair the graph
 does not know must get nothing and get no answer. A second test freezes the robot
 (its launcher and nodes stopped, as a dropped link looks from the workstation) and
@@ -35,13 +35,13 @@ from .conftest import LaunchedGraph, count_frames, pid_alive
 pytestmark = pytest.mark.e2e
 
 ROBOT, WORKSTATION = "127.0.0.1", "127.0.0.2"
-SCENE_S = 6.0
+SCENE_S = 10.0
 
 
 @pytest.fixture
 def two_hosts(tmp_path):
     """``start(*args)`` → (robot, workstation) launchers of two_hosts.toml with fresh keys,
-    a random port range and a 6 s cut of the fig15 scene; both killed at teardown."""
+    a random port range and a 10 s cut of the fig15 scene; both killed at teardown."""
     keys = tmp_path / "keys"
     made = subprocess.run([sys.executable, "-m", "slipstack.launch.cli", "keys", str(keys), "--machine", "robot",
                            "--machine", "workstation"], capture_output=True, text=True, timeout=60)
@@ -171,15 +171,21 @@ def test_a_machine_gone_quiet_is_named_the_grip_holds_and_the_loop_resumes(two_h
         return got
 
     try:
-        before = read(2.0)
+        before: list[tuple[float, str]] = []
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and not any(reason != "fail-safe" for _, reason in before):
+            before += read(0.5)
         assert before, "no grip command before the freeze"
         for pid in robot_pids:
             os.kill(pid, signal.SIGSTOP)  # the robot's computer vanishes from the network
-        read(30, until="machine robot (127.0.0.1) went quiet")
+        frozen = read(30, until="machine robot (127.0.0.1) went quiet")
         assert "machine robot (127.0.0.1) went quiet" in workstation.log(), workstation.log()
         held = read(1.0)
         assert held and all(reason == "fail-safe" for _, reason in held), held
-        assert min(f for f, _ in held) >= before[-1][0] - 1e-9, (before, held)  # never lowered on stale data
+        trail = before + frozen + held  # from the last command judged on fresh data on, never lower
+        last_ok = max(k for k, (_, reason) in enumerate(trail) if reason != "fail-safe")
+        forces = [f for f, _ in trail[last_ok:]]
+        assert all(b >= a - 1e-9 for a, b in zip(forces, forces[1:])), forces
         for pid in robot_pids:
             os.kill(pid, signal.SIGCONT)
         read(30, until="machine robot (127.0.0.1) is back")

@@ -95,7 +95,9 @@ def test_both_launchers_compute_the_same_endpoints_ipc_inside_a_machine_tcp_betw
     assert relay["pub_remote"] == "tcp://127.0.0.2:46201" and sink["pub_remote"] == "tcp://127.0.0.2:46202"
     assert relay["subs"]["ft/wrench"] == ["tcp://127.0.0.1:46201"]  # from the other machine: tcp
     assert sink["subs"]["ft/relayed"] == [relay["pub"]] and relay["pub"].startswith("ipc://")  # same machine: ipc
-    assert source["expected_subscribers"] == {"ft/wrench": 1}  # the relay on b is waited for
+    assert source["expected_subscribers"] == {"ft/wrench": 1}  # the relay on b is waited for,
+    assert source["handshake_timeout_s"] == launcher_module.PEER_WAIT_S  # as long as b's launcher may take
+    assert "handshake_timeout_s" not in relay  # its subscriber is on its own machine
 
 
 @pytest.mark.parametrize("change, message", [
