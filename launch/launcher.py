@@ -639,7 +639,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="print the launch arguments with their values and comments, and exit")
     p.add_argument("--lockstep", action="store_true",
                    help="run every node in this process on the simulated clock, the rig in lock-step with the "
-                        "stack: faster than real time and repeatable bit for bit (simulated devices only)")
+                        "stack: faster than real time and repeatable bit for bit (simulated devices only; "
+                        "a graph over machines runs every machine's nodes here)")
     p.add_argument("--machine", metavar="NAME",
                    help="run the share of machine NAME of a graph with [machines.NAME] tables (run the "
                         "same file and arguments on every machine, each with its own NAME)")
