@@ -202,7 +202,7 @@ class Launcher:
         """Node name → the tcp endpoint it binds on its machine (empty without machines)."""
         out: dict[str, str] = {}
         for m in self.launch.machines.values():
-            _, ports = machine_ports(m.ports[0], [e.name for e in self.launch.nodes if e.machine == m.name])
+            ports = machine_ports(m.ports[0], [e.name for e in self.launch.nodes if e.machine == m.name])
             out.update({name: tcp_endpoint(m.address, port) for name, port in ports.items()})
         return out
 
@@ -445,7 +445,7 @@ class Launcher:
             "keys": str(keys) if keys else "",
             "state": state,
             "started_ns": time.time_ns(),
-            "nodes": {name: self._node_entry(c) for name, c in self.children.items()},
+            "nodes": {name: self._graph_node(c) for name, c in self.children.items()},
         }
         if self.machine is not None:
             graph["machine"] = {"name": self.machine, "hosts": self._machine_hosts(),
@@ -454,7 +454,7 @@ class Launcher:
             self.peers.state = state
         write_graph(self.run_dir, graph)
 
-    def _node_entry(self, c: _Child) -> dict:
+    def _graph_node(self, c: _Child) -> dict:
         """One node of ``graph.json`` (a node of another machine: its tcp endpoint, no pid)."""
         proc = self.processes.get(c.process) if self._is_local(c.entry) else None
         entry = {"type": c.entry.type, "pid": proc.proc.pid if proc and proc.proc else None, "pub": c.endpoint,
