@@ -109,8 +109,12 @@ def test_closed_loop_over_two_machines_holds_and_strangers_get_nothing(two_hosts
             sock.connect(nodes["rig"]["pub"])
         pinger = _curve_client(ctx, zmq.DEALER, stranger_keys / "robot" / "robot.key_secret",
                                two_hosts.keys / "workstation" / "workstation.key")
-        pinger.connect(f"tcp://{WORKSTATION}:{two_hosts.first_port}")  # the workstation's launcher
-        pinger.send_multipart([b"ping", (0).to_bytes(8, "big"), b"robot"])
+        member = _curve_client(ctx, zmq.DEALER, two_hosts.keys / "robot" / "robot.key_secret",
+                               two_hosts.keys / "robot" / "workstation.key")
+        for sock in (pinger, member):
+            sock.connect(f"tcp://{WORKSTATION}:{two_hosts.first_port}")  # the workstation's launcher
+            sock.send_multipart([b"ping", (0).to_bytes(8, "big"), b"robot"])
+        assert member.poll(10_000)  # the robot's key pair is answered
         assert count_frames(legit, 1.0) > 10
         assert count_frames(wrong, 1.0) == 0
         assert not pinger.poll(1000)
