@@ -740,7 +740,9 @@ class Launcher:
             self.echo(f"[launch] CHECK FAILED: {'; '.join(problems)}")
             self.exit_code = 1
         else:
-            self.echo("[launch] check passed")
+            elsewhere = sorted({e.machine for e in self.launch.nodes if e.type == "monitor" and not self._is_local(e)})
+            self.echo("[launch] check passed" + (f" on this machine; the run's own check is on machine "
+                                                 f"{', '.join(elsewhere)}, where the monitor runs" if elsewhere else ""))
 
     def _stop_order(self, started: list[str]) -> list[_Process]:
         """Processes marked ``stop_first`` (the simulated world), then the rest in reverse start order."""
