@@ -42,8 +42,8 @@ Format::
     address = "10.0.0.2"      # its IP address (or host name); its tcp endpoints bind there
     ports = [47000, 47099]    # tcp ports its launcher (the first) and its nodes use, in order of
                               # node name: both launchers compute every endpoint from the file
-    keys = "keys/robot"       # its key directory (`slipstack keys DIR --machine robot ...`);
-                              # default: [launch] keys
+    keys = "keys/robot"       # its key directory (DIR/robot after `slipstack keys DIR --machine
+                              # robot ...`); default: DIR/robot for [launch] keys = "DIR"
     nodes = ["rig"]           # nodes of a file this one extends that run here (a node's own
                               # `machine` key says the same for a node of this file)
 
@@ -517,7 +517,7 @@ def _machines(p: Path, tables: dict[str, Any], meta: dict[str, Any], entries: li
         if not isinstance(address, str) or not address.strip() or any(c in address for c in "/:[] "):
             raise ConfigError(f"{where}.address must be the machine's IP address or host name, e.g. \"10.0.0.2\"; "
                               f"got {address!r}")
-        keys = t.get("keys", default_keys)
+        keys = t.get("keys", f"{default_keys}/{name}" if default_keys else "")
         if not isinstance(keys, str):
             raise ConfigError(f"{where}.keys must be a directory path; got {keys!r}")
         machines[name] = Machine(name, address, _port_range(t.get("ports", list(DEFAULT_PORTS)), f"{where}.ports"),

@@ -278,7 +278,7 @@ class Launcher:
             "keys": str(keys) if keys else "",
             "state": state,
             "started_ns": time.time_ns(),
-            "nodes": {name: self._node_entry(c) for name, c in self.children.items()},
+            "nodes": {name: self._graph_node(c) for name, c in self.children.items()},
         }
         if self.machine is not None:
             graph["machine"] = {"name": self.machine, "hosts": self._machine_hosts(),
@@ -287,7 +287,7 @@ class Launcher:
             self.peers.state = state
         write_graph(self.run_dir, graph)
 
-    def _node_entry(self, c: NodePlan) -> dict:
+    def _graph_node(self, c: NodePlan) -> dict:
         """One node of ``graph.json`` (a node of another machine: its tcp endpoint, no pid)."""
         proc = self.processes.get(c.process) if self.plan.is_local(c.entry) else None
         entry = {"type": c.entry.type, "pid": proc.proc.pid if proc and proc.proc else None, "pub": c.endpoint,
@@ -564,7 +564,9 @@ class Launcher:
             self.echo(f"[launch] CHECK FAILED: {'; '.join(problems)}")
             self.exit_code = 1
         else:
-            self.echo("[launch] check passed")
+            elsewhere = sorted({e.machine for e in self.launch.nodes if e.type == "monitor" and not self.plan.is_local(e)})
+            self.echo("[launch] check passed" + (f" on this machine; the run's own check is on machine "
+                                                 f"{', '.join(elsewhere)}, where the monitor runs" if elsewhere else ""))
 
     def _stop_order(self, started: list[str]) -> list[_Process]:
         """Processes marked ``stop_first`` (the simulated world), then the rest in reverse start order."""

@@ -145,7 +145,7 @@ def machine_endpoints(launch: LaunchFile) -> dict[str, str]:
     """Node name → the tcp endpoint it binds on its machine (empty without machines)."""
     out: dict[str, str] = {}
     for m in launch.machines.values():
-        _, ports = machine_ports(m.ports[0], [e.name for e in launch.nodes if e.machine == m.name])
+        ports = machine_ports(m.ports[0], [e.name for e in launch.nodes if e.machine == m.name])
         out.update({name: tcp_endpoint(m.address, port) for name, port in ports.items()})
     return out
 

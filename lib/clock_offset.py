@@ -50,13 +50,14 @@ class ClockOffset:
 
     def estimate(self) -> OffsetEstimate | None:
         """The offset from the exchanges so far; None before the first."""
-        if not self._samples:
+        samples = tuple(self._samples)  # one C call: a snapshot even while another thread adds
+        if not samples:
             return None
-        trips = sorted(rt for rt, _ in self._samples)
+        trips = sorted(rt for rt, _ in samples)
         cut = trips[(len(trips) - 1) // 2]
-        kept = [(rt, off) for rt, off in self._samples if rt <= cut]
+        kept = [(rt, off) for rt, off in samples if rt <= cut]
         offsets = [off for _, off in kept]
         median = statistics.median(offsets)
         spread = 1.4826 * statistics.median(abs(o - median) for o in offsets)
         half_trip = min(rt for rt, _ in kept) / 2
-        return OffsetEstimate(round(median), round(max(half_trip, spread)), len(self._samples))
+        return OffsetEstimate(round(median), round(max(half_trip, spread)), len(samples))

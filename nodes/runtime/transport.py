@@ -55,11 +55,11 @@ def tcp_endpoint(address: str, port: int) -> str:
     return f"tcp://[{address}]:{port}" if ":" in address else f"tcp://{address}:{port}"
 
 
-def machine_ports(first: int, node_names: list[str]) -> tuple[int, dict[str, int]]:
-    """The tcp ports of one machine of a graph: ``first`` for its launcher, then one per
-    node in order of name. Every launcher of the graph computes the same ports from the
-    same launch file, so none has to ask another where a node listens."""
-    return first, {name: first + 1 + k for k, name in enumerate(sorted(node_names))}
+def machine_ports(first: int, node_names: list[str]) -> dict[str, int]:
+    """The tcp port of each node of one machine of a graph: ``first`` is its launcher's,
+    then one per node in order of name. Every launcher of the graph computes the same
+    ports from the same launch file, so none has to ask another where a node listens."""
+    return {name: first + 1 + k for k, name in enumerate(sorted(node_names))}
 
 
 MAX_SUBSCRIPTION_BYTES = 1024

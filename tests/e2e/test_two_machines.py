@@ -61,7 +61,7 @@ def two_hosts(tmp_path):
             graphs.append(LaunchedGraph([*common, "--machine", machine], Path(roots[-1].name)))
         return graphs[-2], graphs[-1]
 
-    start.keys = keys
+    start.keys, start.first_port = keys, first
     yield start
     for g in graphs:
         g.stop(9 if g.proc.poll() is None else 2)
@@ -109,10 +109,12 @@ def test_closed_loop_over_two_machines_holds_and_strangers_get_nothing(two_hosts
             sock.connect(nodes["rig"]["pub"])
         pinger = _curve_client(ctx, zmq.DEALER, stranger_keys / "robot" / "robot.key_secret",
                                two_hosts.keys / "workstation" / "workstation.key")
-        first_port = int(nodes["rig"]["pub"].rsplit(":", 1)[1]) - 1 - sorted(
-            n for n, v in nodes.items() if v["machine"] == "robot").index("rig")
-        pinger.connect(f"tcp://{WORKSTATION}:{first_port}")
-        pinger.send_multipart([b"ping", (0).to_bytes(8, "big"), b"robot"])
+        member = _curve_client(ctx, zmq.DEALER, two_hosts.keys / "robot" / "robot.key_secret",
+                               two_hosts.keys / "robot" / "workstation.key")
+        for sock in (pinger, member):
+            sock.connect(f"tcp://{WORKSTATION}:{two_hosts.first_port}")  # the workstation's launcher
+            sock.send_multipart([b"ping", (0).to_bytes(8, "big"), b"robot"])
+        assert member.poll(10_000)  # the robot's key pair is answered
         assert count_frames(legit, 1.0) > 10
         assert count_frames(wrong, 1.0) == 0
         assert not pinger.poll(1000)

@@ -129,6 +129,11 @@ def test_after_a_node_of_a_machine_that_is_not_up_names_the_machine(tmp_path, ke
                "`slipstack launch two.toml --machine b` running there?" in line for line in lines), lines
 
 
+def test_launch_keys_name_the_directory_of_every_machines_key_directory(tmp_path, keys):
+    lf = _load(tmp_path, launch='keys = "keys"', a_keys="", b_keys="")
+    assert lf.machines["a"].keys == keys[0].resolve() and lf.machines["b"].keys == keys[1].resolve()
+
+
 def test_insecure_is_an_explicit_opt_in_for_a_network_address(tmp_path):
     lf = _load(tmp_path, launch="insecure = true", a="10.0.0.2", a_keys="", b_keys="")
     assert lf.insecure and lf.machines["a"].keys is None
