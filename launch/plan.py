@@ -158,7 +158,8 @@ def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -
         ConfigError: ``after`` constraints that form a cycle; a machine the file does not declare.
     """
     if machine is not None and machine not in launch.machines:
-        raise ConfigError(f"{launch.path.name}: no machine {machine!r}; machines: {', '.join(launch.machines) or 'none'}")
+        raise ConfigError(f"{launch.path.name}: no machine {machine!r}; "
+                          f"machines: {', '.join(launch.machines) or 'none'}")
     control_ep = f"ipc://{run_dir}/launcher.ctl"
     children: dict[str, NodePlan] = {}
     processes: dict[str, ProcessPlan] = {}
@@ -221,7 +222,8 @@ def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -
                          "members": [{"type": c.entry.type, **specs[c.entry.name]} for c in proc.members]}
         else:
             proc.spec = specs[proc.members[0].entry.name]
-    return LaunchPlan(launch, run_dir, control_ep, children, processes, _start_order(children, processes, here), machine)
+    order = _start_order(children, processes, here)
+    return LaunchPlan(launch, run_dir, control_ep, children, processes, order, machine)
 
 
 def _feeds_elsewhere(c: NodePlan, children: dict[str, NodePlan], taps: dict[str, set[str]], here: set[str]) -> bool:
