@@ -166,8 +166,8 @@ def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -
     nodes = {e.name: e.instance() for e in launch.nodes}
     remote = machine_endpoints(launch) if machine is not None else {}
     for e in launch.nodes:
-        local = runs_on(e, machine)
-        if not local or (remote and e.transport == "tcp"):
+        runs_here = runs_on(e, machine)
+        if not runs_here or (remote and e.transport == "tcp"):
             ep = remote[e.name]  # a node elsewhere, or one only on tcp: its machine's port
         elif e.transport == "tcp":
             ep = f"tcp://127.0.0.1:{free_port()}"
@@ -178,7 +178,7 @@ def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -
         child.outputs[DIAGNOSTICS_TOPIC] = Diagnostics.TYPE  # every node publishes it
         child.inputs = {t: nodes[e.name].inputs[n].type.TYPE for n, t in e.input_topics(nodes[e.name]).items()}
         children[e.name] = child
-        if not local:
+        if not runs_here:
             continue  # another machine's launcher runs it
         child.inject = {t: ipc_endpoint(run_dir, f"{e.name}.in") for t in child.inputs}
         proc = processes.setdefault(child.process, ProcessPlan(child.process, [], run_dir / f"{child.process}.spec.json"))
