@@ -40,7 +40,7 @@ Format::
 
     [machines.robot]          # a graph over several computers: one table per machine
     address = "10.0.0.2"      # its IP address (or host name); its tcp endpoints bind there
-    ports = [47000, 47099]    # tcp ports its launcher (the first) and its nodes use, in order of
+    ports = [24700, 24799]    # tcp ports its launcher (the first) and its nodes use, in order of
                               # node name: both launchers compute every endpoint from the file
     keys = "keys/robot"       # its key directory (DIR/robot after `slipstack keys DIR --machine
                               # robot ...`); default: DIR/robot for [launch] keys = "DIR"
@@ -86,8 +86,9 @@ _SUBST = re.compile(r"\$\((\w+)\)")
 _IDENTIFIER = re.compile(r"[A-Za-z0-9_-]+")
 _TOP_KEYS = {"launch", "args", "node", "machines"}
 _MACHINE_KEYS = {"address", "ports", "keys", "nodes"}
-DEFAULT_PORTS = (47000, 47099)
-"""tcp ports of a machine without ``ports``: the first for its launcher, then one per node."""
+DEFAULT_PORTS = (24700, 24799)
+"""tcp ports of a machine without ``ports``: the first for its launcher, then one per node
+(below Linux's ephemeral ports, 32768-60999, which outgoing connections may hold)."""
 _LAUNCH_KEYS = {"description", "duration_s", "extends", "check", "keys", "insecure"}
 _NODE_KEYS = {"name", "type", "params", "remap", "respawn", "respawn_delay_s", "respawn_max_retries",
               "respawn_reset_s", "respawn_standby", "required", "transport", "enabled", "after", "nice", "container",

@@ -133,7 +133,7 @@ def _one_host(common: list[str], args: argparse.Namespace) -> dict:
 
 
 def _two_hosts(name: str, file: str, common: list[str], args: argparse.Namespace) -> dict:
-    first = random.randrange(20000, 40000, 100)
+    first = random.randrange(20000, 32000, 100)  # below the ephemeral ports (32768-60999)
     both = [file, *common, f"first_port:={first}", f"last_port:={first + 99}"]
     load0 = os.getloadavg()[0]
     with StackRun([*both, "--machine", "robot"]) as robot, StackRun([*both, "--machine", "workstation"]) as ws:
@@ -161,7 +161,7 @@ def main(argv: list[str] | None = None) -> int:
         subprocess.run([sys.executable, "-m", "slipstack.launch.cli", "keys", str(keys), "--machine", "robot",
                         "--machine", "workstation"], check=True, capture_output=True)
         rows = [] if args.only_hops else _stack_rows(tmp, keys, args)
-        port = random.randrange(40000, 50000)
+        port = random.randrange(20000, 32000)  # below the ephemeral ports (32768-60999)
         hops = [_one_hop("one hop, ipc", f"ipc://{tmp}/hop.pub", None, args.hops),
                 _one_hop("one hop, plain tcp", f"tcp://127.0.0.1:{port}", None, args.hops),
                 _one_hop("one hop, tcp + CURVE", f"tcp://127.0.0.1:{port + 1}", keys / "robot", args.hops)]

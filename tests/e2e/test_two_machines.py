@@ -49,7 +49,7 @@ def two_hosts(tmp_path):
     scene = tmp_path / "fig15_short.toml"
     text = resolve_path("fig15", Path.cwd(), "scenes").read_text()
     scene.write_text(text.replace("duration_s = 12.0", f"duration_s = {SCENE_S}", 1))
-    first = random.randrange(20000, 40000, 100)
+    first = random.randrange(20000, 32000, 100)  # below the ephemeral ports (32768-60999)
     graphs: list[LaunchedGraph] = []
     roots: list[tempfile.TemporaryDirectory] = []
 

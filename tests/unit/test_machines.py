@@ -30,12 +30,12 @@ GRAPH = """
 
 [machines.a]
 address = "{a}"
-ports = [46200, 46202]
+ports = [31200, 31202]
 {a_keys}
 
 [machines.b]
 address = "127.0.0.2"
-ports = [46200, 46299]
+ports = [31200, 31299]
 {b_keys}
 
 [[node]]
@@ -91,9 +91,9 @@ def test_both_launchers_compute_the_same_endpoints_ipc_inside_a_machine_tcp_betw
     source = specs["a"]["source.spec.json"]
     relay, sink = specs["b"]["relay.spec.json"], specs["b"]["sink.spec.json"]
     # the port of a node: its machine's first port (the launcher's) + 1 + its rank by name
-    assert source["pub"].startswith("ipc://") and source["pub_remote"] == "tcp://127.0.0.1:46201"
-    assert relay["pub_remote"] == "tcp://127.0.0.2:46201" and sink["pub_remote"] == "tcp://127.0.0.2:46202"
-    assert relay["subs"]["ft/wrench"] == ["tcp://127.0.0.1:46201"]  # from the other machine: tcp
+    assert source["pub"].startswith("ipc://") and source["pub_remote"] == "tcp://127.0.0.1:31201"
+    assert relay["pub_remote"] == "tcp://127.0.0.2:31201" and sink["pub_remote"] == "tcp://127.0.0.2:31202"
+    assert relay["subs"]["ft/wrench"] == ["tcp://127.0.0.1:31201"]  # from the other machine: tcp
     assert sink["subs"]["ft/relayed"] == [relay["pub"]] and relay["pub"].startswith("ipc://")  # same machine: ipc
     assert source["expected_subscribers"] == {"ft/wrench": 1}  # the relay on b is waited for,
     assert source["handshake_timeout_s"] == launcher_module.PEER_WAIT_S  # as long as b's launcher may take
@@ -106,7 +106,7 @@ def test_both_launchers_compute_the_same_endpoints_ipc_inside_a_machine_tcp_betw
     ({"a_keys": "", "b_keys": ""}, r"link over tcp without keys.*or insecure = true"),
     ({"extra": '[[node]]\nname = "x"\ntype = "sink"\nmachine = "c"\n'}, r"node x: no \[machines.c\]; machines: a, b"),
     ({"extra": '[[node]]\nname = "x"\ntype = "sink"\n[[node]]\nname = "y"\ntype = "sink"\n'},
-     r"\[machines.a\].ports \[46200, 46202\] holds 3 ports; it needs 4"),
+     r"\[machines.a\].ports \[31200, 31202\] holds 3 ports; it needs 4"),
     ({"relay": 'container = "box"', "extra": '[[node]]\nname = "z"\ntype = "sink"\ncontainer = "box"\n'},
      r"share container 'box' but differ in .*machine"),
 ])
@@ -154,12 +154,12 @@ def test_a_machine_admits_the_graphs_machines_and_no_stranger_while_ipc_stays_pl
     ctx = zmq.Context()
     try:
         curve.use_keys(keys[0], "a", hosts)
-        pub = make_pub(ctx, f"ipc://{tmp_path}/a.pub", remote="tcp://127.0.0.1:46290")
+        pub = make_pub(ctx, f"ipc://{tmp_path}/a.pub", remote="tcp://127.0.0.1:31290")
         plain_ipc = make_sub(ctx, [f"ipc://{tmp_path}/a.pub"], None)  # ipc: no CURVE on that endpoint
         curve.use_keys(keys[1], "b", hosts)
-        member = make_sub(ctx, ["tcp://127.0.0.1:46290"], None)
+        member = make_sub(ctx, ["tcp://127.0.0.1:31290"], None)
         curve.use_keys(stranger, "b", hosts)
-        outsider = make_sub(ctx, ["tcp://127.0.0.1:46290"], None)
+        outsider = make_sub(ctx, ["tcp://127.0.0.1:31290"], None)
         time.sleep(0.3)
         end = time.monotonic() + 1.5
         counts = {"ipc": 0, "member": 0, "outsider": 0}
