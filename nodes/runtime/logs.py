@@ -75,7 +75,11 @@ def level_of(text: str) -> int:
 
 def node_log(name: str, prefix: str = "") -> Callable[[str], None]:
     """The log function of node ``name``: each line at :func:`level_of` its text, with
-    ``prefix`` in front (a container's members name themselves)."""
+    ``prefix`` in front (a container's members name themselves). In a process that has
+    not configured logging (a tool running a node: ``bag record``, ``bag play``) the
+    levels come from :data:`LOG_LEVEL_ENV`, so its info lines are not lost."""
+    if not logging.getLogger(_ROOT).handlers:
+        configure_logging()
     logger = logging.getLogger(f"{_ROOT}.{name}")
 
     def log(text: str) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import select
 import signal
 import subprocess
@@ -65,6 +66,7 @@ def test_record_survives_kill_and_replays_relay_exactly(launch, run_root):
         procs[1].send_signal(signal.SIGKILL)
         _, err = procs[0].communicate(timeout=60)
         assert procs[0].returncode == 0, err
+        assert re.search(rf"wrote {re.escape(str(clean))}: [1-9]\d* frames", err), err  # says what it wrote
     finally:
         for p in procs:
             if p.poll() is None:
