@@ -36,6 +36,20 @@ Format::
                               # topic order: subscribers before publishers)
     nice = -5                 # scheduling priority (needs the privilege to raise it;
                               # without it the node runs at normal priority)
+    machine = "robot"         # the [machines] entry whose launcher runs it (default: the first)
+
+    [machines.robot]          # a graph over several computers: one table per machine
+    address = "10.0.0.2"      # its IP address (or host name); its tcp endpoints bind there
+    ports = [24700, 24799]    # tcp ports its launcher (the first) and its nodes use, in order of
+                              # node name: both launchers compute every endpoint from the file
+    keys = "keys/robot"       # its key directory (DIR/robot after `slipstack keys DIR --machine
+                              # robot ...`); default: DIR/robot for [launch] keys = "DIR"
+    nodes = ["rig"]           # nodes of a file this one extends that run here (a node's own
+                              # `machine` key says the same for a node of this file)
+
+With machines, each computer runs ``slipstack launch FILE --machine NAME``: it starts
+the nodes placed on NAME; links to nodes of other machines are tcp with CURVE on
+their machine's address, links on one machine stay ipc (or in-process).
 
 A value that is exactly ``"$(name)"`` takes the argument's type; inside a longer
 string it is substituted as text. Flags (``enabled``, ``respawn``, ``required``,
@@ -70,10 +84,15 @@ __all__ = ["NodeEntry", "LaunchFile", "load_launch_file", "default_launch_file",
 
 _SUBST = re.compile(r"\$\((\w+)\)")
 _IDENTIFIER = re.compile(r"[A-Za-z0-9_-]+")
-_TOP_KEYS = {"launch", "args", "node"}
+_TOP_KEYS = {"launch", "args", "node", "machines"}
+_MACHINE_KEYS = {"address", "ports", "keys", "nodes"}
+DEFAULT_PORTS = (24700, 24799)
+"""tcp ports of a machine without ``ports``: the first for its launcher, then one per node
+(below Linux's ephemeral ports, 32768-60999, which outgoing connections may hold)."""
 _LAUNCH_KEYS = {"description", "duration_s", "extends", "check", "keys", "insecure"}
 _NODE_KEYS = {"name", "type", "params", "remap", "respawn", "respawn_delay_s", "respawn_max_retries",
-              "respawn_reset_s", "respawn_standby", "required", "transport", "enabled", "after", "nice", "container", "stop_first"}
+              "respawn_reset_s", "respawn_standby", "required", "transport", "enabled", "after", "nice", "container",
+              "stop_first", "machine"}
 SUBST_MAX_CHARS = 65536
 """Longest value an argument substitution may produce (a guard against self-doubling arguments)."""
 SUBST_MAX_DEPTH = 32
@@ -111,11 +130,13 @@ class NodeEntry:
     stop_first: bool = False
     """Stopped before every other node on Ctrl-C/SIGTERM (the simulated world, which must
     not run on without the controller)."""
+    machine: str = ""
+    """The ``[machines]`` entry that runs it ("" in a graph without machines)."""
 
     def process_policy(self) -> tuple:
         """The settings that belong to the process, which a container's members must share."""
         return (self.respawn, self.respawn_delay_s, self.respawn_max_retries, self.respawn_reset_s,
-                self.respawn_standby, self.required, self.transport, self.nice, self.stop_first)
+                self.respawn_standby, self.required, self.transport, self.nice, self.stop_first, self.machine)
 
     def instance(self) -> Node:
         """Build the node object (validates the parameters)."""
@@ -126,6 +147,24 @@ class NodeEntry:
 
     def input_topics(self, node: Node) -> dict[str, str]:
         return {n: self.remap.get(i.topic, i.topic) for n, i in node.inputs.items()}
+
+
+@dataclass(frozen=True)
+class Machine:
+    """One computer of a graph spread over several (``[machines.NAME]``)."""
+
+    name: str
+    address: str
+    """IP address or host name its tcp endpoints bind and its peers connect to."""
+    ports: tuple[int, int]
+    """First and last tcp port it uses: the first for its launcher, then one per node (by name)."""
+    keys: Path | None
+    """Its key directory: its key pair ``NAME.key_secret`` and the public keys it admits."""
+
+    @property
+    def is_loopback(self) -> bool:
+        """True if the address is this computer's loopback (127.0.0.0/8, ::1, localhost)."""
+        return self.address == "localhost" or self.address == "::1" or self.address.startswith("127.")
 
 
 @dataclass
@@ -141,6 +180,8 @@ class LaunchFile:
     """Key directory of the graph's tcp links (``slipstack keys DIR``; nodes/runtime/curve.py)."""
     insecure: bool = False
     """tcp links without CURVE, explicitly allowed."""
+    machines: dict[str, Machine] = field(default_factory=dict)
+    """The computers the graph spans (empty: all on this one), in file order."""
 
 
 def launch_files_dir() -> Path:
@@ -308,12 +349,18 @@ def _read_with_base(p: Path, seen: tuple[Path, ...]) -> dict[str, Any]:
     data = _parse_toml(p)
     unknown = set(data) - _TOP_KEYS
     if unknown:
-        raise ConfigError(f"{p}: unknown section(s) {sorted(unknown)}; allowed: [launch], [args], [[node]]")
+        raise ConfigError(f"{p}: unknown section(s) {sorted(unknown)}; allowed: [launch], [args], [[node]], "
+                          "[machines.NAME]")
     meta = dict(_table(data.get("launch", {}), f"{p}: [launch]"))
     unknown = set(meta) - _LAUNCH_KEYS
     if unknown:
         raise ConfigError(f"{p}: [launch]: unknown key(s) {sorted(unknown)}; allowed: {sorted(_LAUNCH_KEYS)}")
     _table(data.get("args", {}), f"{p}: [args]")
+    for name, machine in _table(data.get("machines", {}), f"{p}: [machines]").items():
+        unknown = set(_table(machine, f"{p}: [machines.{name}]")) - _MACHINE_KEYS
+        if unknown:
+            raise ConfigError(f"{p}: [machines.{name}]: unknown key(s) {sorted(unknown)}; "
+                              f"allowed: {sorted(_MACHINE_KEYS)}")
     nodes = data.get("node", [])
     if not isinstance(nodes, list) or not all(isinstance(n, dict) for n in nodes):
         raise ConfigError(f"{p}: 'node' must be an array of tables ([[node]] sections)")
@@ -327,6 +374,7 @@ def _read_with_base(p: Path, seen: tuple[Path, ...]) -> dict[str, Any]:
         "launch": {**base.get("launch", {}), **meta},
         "args": {**base.get("args", {}), **data.get("args", {})},
         "node": [*base.get("node", []), *nodes],
+        "machines": {**base.get("machines", {}), **data.get("machines", {})},
     }
 
 
@@ -344,7 +392,7 @@ def _check_containers(file: str, entries: list[NodeEntry]) -> None:
             raise ConfigError(
                 f"{file}: nodes {lead.name} and {e.name} share container {e.container!r} but differ in "
                 "respawn, respawn_delay_s, respawn_max_retries, respawn_reset_s, respawn_standby, required, "
-                "transport, nice or stop_first; make them equal"
+                "transport, nice, stop_first or machine; make them equal"
             )
 
 
@@ -378,6 +426,7 @@ def _node_entry(raw: dict[str, Any], where: str) -> NodeEntry | None:
         nice=read_number(raw.get("nice", 0), f"{where}.nice", int, lo=-20),
         container=_identifier(container, f"{where}.container") if container else "",
         stop_first=read_flag(raw.get("stop_first", False), f"{where}.stop_first"),
+        machine=_identifier(raw["machine"], f"{where}.machine") if raw.get("machine") else "",
     )
 
 
@@ -433,22 +482,95 @@ def load_launch_file(
         missing = [a for a in e.after if a not in names]
         if missing:
             raise ConfigError(f"{p.name}: node {e.name} starts after {missing}, which this launch does not run")
+    machines = _machines(p, _substitute(data.get("machines", {}), lookup, f"{p.name}: [machines]"), meta, entries)
     _check_containers(p.name, entries)
     check = meta.get("check", False) if check_override is None else _typed_override(False, check_override, CHECK_ARG)
-    keys, insecure = _tcp_security(p, meta, entries)
+    keys, insecure = _tcp_security(p, meta, entries, machines)
     duration_s = read_number(meta.get("duration_s", 0), f"{p.name}: duration_s", lo=0)
     return LaunchFile(p, str(meta.get("description", "")), duration_s,
-                      args, entries, read_flag(check, f"{p.name}: [launch] check"), keys, insecure)
+                      args, entries, read_flag(check, f"{p.name}: [launch] check"), keys, insecure, machines)
 
 
-def _tcp_security(p: Path, meta: dict[str, Any], entries: list[NodeEntry]) -> tuple[Path | None, bool]:
+def _port_range(value: Any, where: str) -> tuple[int, int]:
+    """``[first, last]`` tcp ports, 1024 < first <= last < 65536."""
+    if (not isinstance(value, list) or len(value) != 2
+            or not all(isinstance(v, int) and not isinstance(v, bool) for v in value)
+            or not 1024 < value[0] <= value[1] < 65536):
+        raise ConfigError(f"{where} must be [first, last] tcp ports with 1024 < first <= last < 65536; got {value!r}")
+    return value[0], value[1]
+
+
+def _machines(p: Path, tables: dict[str, Any], meta: dict[str, Any], entries: list[NodeEntry]) -> dict[str, Machine]:
+    """The ``[machines.NAME]`` tables, with every node placed on one of them (its ``machine`` key,
+    else the machine whose ``nodes`` lists it, else the first machine)."""
+    if not tables:
+        placed = [e.name for e in entries if e.machine]
+        if placed:
+            raise ConfigError(f"{p.name}: nodes {placed} name a machine, but the file declares no [machines.NAME]")
+        return {}
+    default_keys = meta.get("keys", "")
+    machines: dict[str, Machine] = {}
+    listed: dict[str, str] = {}
+    names = {e.name for e in entries}
+    for name, t in tables.items():
+        where = f"{p.name}: [machines.{_identifier(name, f'{p.name}: [machines] name')}]"
+        address = t.get("address")
+        if not isinstance(address, str) or not address.strip() or any(c in address for c in "/:[] "):
+            raise ConfigError(f"{where}.address must be the machine's IP address or host name, e.g. \"10.0.0.2\"; "
+                              f"got {address!r}")
+        keys = t.get("keys", f"{default_keys}/{name}" if default_keys else "")
+        if not isinstance(keys, str):
+            raise ConfigError(f"{where}.keys must be a directory path; got {keys!r}")
+        machines[name] = Machine(name, address, _port_range(t.get("ports", list(DEFAULT_PORTS)), f"{where}.ports"),
+                                 (p.parent / Path(keys).expanduser()).resolve() if keys else None)
+        for node in _names(t.get("nodes", []), f"{where}.nodes"):
+            if node not in names:
+                continue  # a node the file leaves out of this run (enabled = false)
+            if node in listed:
+                raise ConfigError(f"{where}.nodes: {node} is also listed by [machines.{listed[node]}]")
+            listed[node] = name
+    first = next(iter(machines))
+    for e in entries:
+        if e.machine and e.name in listed and listed[e.name] != e.machine:
+            raise ConfigError(f"{p.name}: node {e.name} says machine = {e.machine!r}, "
+                              f"[machines.{listed[e.name]}] lists it too; keep one")
+        e.machine = e.machine or listed.get(e.name, first)
+        if e.machine not in machines:
+            raise ConfigError(f"{p.name}: node {e.name}: no [machines.{e.machine}]; machines: {', '.join(machines)}")
+    ordered = sorted(machines.values(), key=lambda m: (m.address, m.ports))
+    for a, b in zip(ordered, ordered[1:]):
+        if a.address == b.address and b.ports[0] <= a.ports[1]:
+            raise ConfigError(f"{p.name}: machines {a.name} and {b.name} share address {a.address} and overlap in "
+                              "ports; give them disjoint ports = [first, last]")
+    for m in machines.values():
+        needed = 1 + sum(1 for e in entries if e.machine == m.name)
+        if m.ports[1] - m.ports[0] + 1 < needed:
+            raise ConfigError(f"{p.name}: [machines.{m.name}].ports {list(m.ports)} holds "
+                              f"{m.ports[1] - m.ports[0] + 1} ports; it needs {needed} (its launcher and one per node)")
+    return machines
+
+
+def _tcp_security(p: Path, meta: dict[str, Any], entries: list[NodeEntry],
+                  machines: dict[str, Machine]) -> tuple[Path | None, bool]:
     """``[launch] keys`` (a key directory, relative to the launch file) and ``insecure``;
-    a graph with tcp links needs one of them (nodes/runtime/curve.py)."""
+    a graph with tcp links (``transport = "tcp"`` or machines) needs one of them, and a
+    machine on a non-loopback address needs keys or ``insecure`` (nodes/runtime/curve.py)."""
     insecure = read_flag(meta.get("insecure", False), f"{p.name}: [launch] insecure")
     raw = meta.get("keys", "")
     if not isinstance(raw, str):
         raise ConfigError(f"{p.name}: [launch] keys must be a directory path; got {raw!r}")
     keys = (p.parent / Path(raw).expanduser()).resolve() if raw else None
+    if machines:
+        unkeyed = [m for m in machines.values() if m.keys is None]
+        if unkeyed and not insecure:
+            remote = [m.name for m in unkeyed if not m.is_loopback]
+            what = (f"machines {remote} are on the network" if remote
+                    else f"machines {[m.name for m in unkeyed]} link over tcp")
+            names = " ".join(f"--machine {m}" for m in machines)
+            raise ConfigError(f"{p.name}: {what} without keys: run `slipstack keys DIR {names}` and set "
+                              "[machines.NAME] keys = \"DIR/NAME\" (copy each machine its directory), "
+                              "or insecure = true to let anyone who reaches those ports connect")
+        return keys, insecure
     if keys is not None:
         GraphKeys.load(keys)  # fail now with how to make them
     tcp = [e.name for e in entries if e.transport == "tcp"]

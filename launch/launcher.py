@@ -25,6 +25,16 @@ keeps that file and ``check.json`` after the launch; the newest ``KEEP_FINISHED_
 finished ones are kept). With ``check = true`` the launch ends with ``[launch] check
 passed`` or ``[launch] CHECK FAILED: ...`` (exit 1) from the monitor's ``check.json``
 and the processes that died and stayed down.
+
+Machines: a launch file with ``[machines.NAME]`` tables is run by one launcher per
+machine, ``slipstack launch FILE --machine NAME``; each starts the nodes placed on its
+machine (the plan of its share, ``launch/plan.py``, where every endpoint is computed
+from the file alike on every machine) and talks to the other launchers
+(``launch/peers.py``): ``after`` waits for nodes on other machines, a machine that goes
+quiet or stops is reported, and the launchers of machines other than the first start
+their nodes on the first machine's clock (``nodes/runtime/time_base.py``).
+``--lockstep`` runs the nodes of every machine in one process (placement does not
+matter on the simulated clock); it refuses ``--machine``.
 """
 
 from __future__ import annotations
@@ -46,15 +56,17 @@ import zmq
 
 from slipstack.lib.errors import ConfigError, SlipstackError
 from slipstack.launch.launch_file import SIM_ARG, LaunchFile, arg_comments, load_launch_file
-from slipstack.launch.plan import NodePlan, ProcessPlan, plan_launch
+from slipstack.launch.peers import PeerLinks, launcher_endpoint
+from slipstack.launch.plan import PEER_WAIT_S, NodePlan, ProcessPlan, plan_launch, runs_on
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.nodes.devices.sim_link import SIM_PREFIX
 from slipstack.launch.quiet_shutdown import WorldEndFilter, WorldLogLevels
 from slipstack.launch.run_log import RunLog, log_path_for
-from slipstack.nodes.runtime.curve import INSECURE_ENV, KEYS_ENV
 from slipstack.nodes.runtime.logs import LOG_LEVEL_ENV, parse_log_levels
+from slipstack.nodes.runtime.curve import INSECURE_ENV, KEYS_ENV, MACHINE_ENV, GraphKeys, machine_env, use_keys
 from slipstack.nodes.runtime.graph_info import process_start_ticks, write_graph
 from slipstack.nodes.runtime.run_dir import finish_run_dir, make_run_dir, remove_run_dir, write_private_file
+from slipstack.nodes.runtime.time_base import CLOCK_OFFSET_ENV
 
 __all__ = ["Launcher", "add_parser", "main_launch"]
 
@@ -62,6 +74,8 @@ READY_TIMEOUT_S = 20.0
 STOP_GRACE_S = 0.4       # per node, after SIGINT, before the next node is told to stop
 TERM_AFTER_S = 1.5       # from the start of shutdown: SIGTERM whoever is left
 KILL_AFTER_S = 2.5       # from the start of shutdown: SIGKILL whoever is left
+CLOCK_EXCHANGES = 10     # ping exchanges with the first machine before its clock offset is used
+DRIFT_CHECK_S = 5.0      # how often the clock offset in use is compared with a fresh estimate
 EVENTS_FILE = "launch_events.json"
 CHECK_FILE = "check.json"  # written by the monitor (its ``check_path``) when it stops
 CHECK_FILE_MAX_BYTES = 1 << 20
@@ -114,11 +128,17 @@ class Launcher:
     """Run the graph of ``launch``; ``echo`` receives every log line."""
 
     def __init__(self, launch: LaunchFile, run_dir: Path, *, echo: Callable[[str], None] | None = None,
-                 log_file: Path | None = None) -> None:
+                 log_file: Path | None = None, machine: str | None = None) -> None:
         self.launch = launch
         self.echo = RunLog(echo or Console(), log_file)
         self.run_dir = run_dir
-        self.plan = plan_launch(launch, run_dir)
+        self.machine = _check_machine(launch, machine)
+        self.plan = plan_launch(launch, run_dir, self.machine)
+        self.peers: PeerLinks | None = None
+        self.clock_offset_ns = 0
+        """Added to this machine's monotonic clock by its nodes: the first machine's time base."""
+        self._next_drift_check = 0.0
+        self._drift_warned = False
         self.zctx = zmq.Context.instance()
         self.control_ep = self.plan.control_endpoint
         self.control = self.zctx.socket(zmq.PULL)
@@ -176,10 +196,9 @@ class Launcher:
                *(["--standby"] if standby else [])]
         env = dict(os.environ, PYTHONUNBUFFERED="1", SLIPSTACK_RUN_DIR=str(self.run_dir),
                    **{LOG_LEVEL_ENV: self._world_levels.spec_for(c.name)})
-        if self.launch.keys is not None:
-            env[KEYS_ENV] = str(self.launch.keys)
-        if self.launch.insecure:
-            env[INSECURE_ENV] = "1"
+        env.update(self._security_env())
+        if self.clock_offset_ns:
+            env[CLOCK_OFFSET_ENV] = str(self.clock_offset_ns)
         nice = c.entry.nice
 
         def in_child() -> None:
@@ -198,6 +217,25 @@ class Launcher:
         os.set_blocking(proc.stdout.fileno(), False)
         self.selector.register(proc.stdout, selectors.EVENT_READ, c)
         return proc
+
+    def _security_env(self) -> dict[str, str]:
+        """The environment that gives a node process the graph's (or this machine's) keys."""
+        env: dict[str, str] = {}
+        keys = self._keys_dir()
+        if keys is not None:
+            env[KEYS_ENV] = str(keys)
+            if self.machine is not None:
+                env[MACHINE_ENV] = machine_env(self.machine, self._machine_hosts())
+        if self.launch.insecure:
+            env[INSECURE_ENV] = "1"
+        return env
+
+    def _keys_dir(self) -> Path | None:
+        return self.launch.machines[self.machine].keys if self.machine is not None else self.launch.keys
+
+    def _machine_hosts(self) -> dict[str, str]:
+        """Address → machine name, for the server key a tcp connection checks."""
+        return {m.address: m.name for m in self.launch.machines.values()}
 
     def _forward_logs(self, timeout: float) -> None:
         ready = sorted(self.selector.select(timeout), key=lambda k: not k[0].data.entry.stop_first)  # the world first
@@ -241,24 +279,147 @@ class Launcher:
             if time.monotonic() > deadline:
                 raise SlipstackError(f"node(s) {', '.join(sorted(pending))} not ready after {timeout:.0f} s")
             self._forward_logs(0.01)
+            self._service_peers()
 
     def _write_graph(self, state: str = "running") -> None:
-        write_graph(self.run_dir, {
+        keys = self._keys_dir()
+        graph = {
             "run_dir": str(self.run_dir),
             "launcher_pid": os.getpid(),
             "launcher_start_ticks": self.start_ticks,
             "launch_file": str(self.launch.path),
-            "keys": str(self.launch.keys) if self.launch.keys else "",
+            "keys": str(keys) if keys else "",
             "state": state,
             "started_ns": time.time_ns(),
-            "nodes": {
-                name: {"type": c.entry.type, "pid": proc.proc.pid if proc.proc else None, "pub": c.endpoint,
-                       "inputs": c.inputs, "outputs": c.outputs, "inject": c.inject, "restarts": proc.restarts,
-                       "process": c.process}
-                for name, c in self.children.items()
-                for proc in (self.processes[c.process],)
-            },
-        })
+            "nodes": {name: self._graph_node(c) for name, c in self.children.items()},
+        }
+        if self.machine is not None:
+            graph["machine"] = {"name": self.machine, "hosts": self._machine_hosts(),
+                                "clock_offset_ns": self.clock_offset_ns, "peers": self._peer_report()}
+        if self.peers is not None:
+            self.peers.state = state
+        write_graph(self.run_dir, graph)
+
+    def _graph_node(self, c: NodePlan) -> dict:
+        """One node of ``graph.json`` (a node of another machine: its tcp endpoint, no pid)."""
+        proc = self.processes.get(c.process) if self.plan.is_local(c.entry) else None
+        entry = {"type": c.entry.type, "pid": proc.proc.pid if proc and proc.proc else None, "pub": c.endpoint,
+                 "inputs": c.inputs, "outputs": c.outputs, "inject": c.inject,
+                 "restarts": proc.restarts if proc else 0, "process": c.process}
+        if self.machine is not None:
+            entry.update(machine=c.entry.machine, pub_remote=c.remote_endpoint)
+        return entry
+
+    def _peer_report(self) -> dict[str, dict]:
+        """Each other machine's state and clock offset (its clock minus ours, ns) as this launcher sees them."""
+        report: dict[str, dict] = {}
+        for name, peer in (self.peers.peers.items() if self.peers else ()):
+            est = peer.offset()
+            report[name] = {"state": peer.state or "unreachable", "quiet": peer.quiet,
+                            "ready": sorted(peer.ready),
+                            **({"offset_ns": est.offset_ns, "uncertainty_ns": est.uncertainty_ns,
+                                "exchanges": est.samples} if est else {})}
+        return report
+
+    # -- other machines ----------------------------------------------------------------------
+    def _service_peers(self) -> None:
+        if self.peers is not None:
+            self.peers.service()
+
+    def _reference(self) -> str:
+        """The first machine: its clock is the graph's time base."""
+        return next(iter(self.launch.machines))
+
+    def _join_peers(self) -> None:
+        """Link to the other machines' launchers; on a machine other than the first, wait for the
+        first one's launcher and take its clock as this machine's nodes' time base."""
+        use_keys(self._keys_dir(), self.machine, self._machine_hosts(), insecure=self.launch.insecure)
+        self.peers = PeerLinks(self.zctx, self.launch.machines, self.machine, self.echo)
+        reference = self._reference()
+        if reference == self.machine:
+            return
+        peer = self.peers.peers[reference]
+        self.echo(f"[launch] machine {self.machine}: waiting for {peer.label} at {launcher_endpoint(peer.machine)} "
+                  "(its time base is the graph's)")
+        deadline = time.monotonic() + PEER_WAIT_S
+        while (peer.offset() is None or peer.offset().samples < CLOCK_EXCHANGES) and not self._stop_requested:
+            if time.monotonic() > deadline:
+                raise SlipstackError(
+                    f"{peer.label} did not answer within {PEER_WAIT_S:.0f} s: start `slipstack launch "
+                    f"{self.launch.path.name} --machine {reference}` there, and check that this machine reaches "
+                    f"{launcher_endpoint(peer.machine)} and that both hold the right keys")
+            self._forward_logs(0.02)
+            self.peers.service()
+        est = peer.offset()
+        if est is None:
+            raise SlipstackError("interrupted while waiting for the other machines")
+        self.clock_offset_ns = est.offset_ns
+        self.echo(f"[launch] clock of machine {reference} is {est.offset_ns / 1e6:+.3f} ms from ours "
+                  f"(± {est.uncertainty_ns / 1e3:.0f} µs, {est.samples} exchanges); this machine's nodes run on it")
+        self._next_drift_check = time.monotonic() + DRIFT_CHECK_S
+        timeout = self._controller_timeout_ns()
+        if timeout is not None and est.uncertainty_ns > timeout / 2:
+            self.echo(f"[launch] WARNING: the clock offset to machine {reference} is uncertain by "
+                      f"{est.uncertainty_ns / 1e6:.1f} ms, more than half the grip controller's {timeout / 1e6:g} ms "
+                      "timeout: ages of messages between the machines may be misjudged by that much (a slow or "
+                      "busy link); check the link's round trip")
+
+    def _controller_timeout_ns(self) -> int | None:
+        """The shortest input timeout of the graph's grip controllers (ns); None without one."""
+        timeouts = [float(e.instance().params.timeout_ms) for e in self.launch.nodes if e.type == "grip_controller"]
+        return round(min(timeouts) * 1e6) if timeouts else None
+
+    def _check_drift(self) -> None:
+        """Every ``DRIFT_CHECK_S``: refresh the peers' state and clock offsets in ``graph.json``, and
+        warn when this machine's nodes' clock drifted from the first machine's by more than half the
+        grip controller's input timeout (ages would be misjudged by that much)."""
+        if self.peers is None or time.monotonic() < self._next_drift_check:
+            return
+        self._next_drift_check = time.monotonic() + DRIFT_CHECK_S
+        self._write_graph()
+        if self.machine == self._reference():
+            return
+        est = self.peers.peers[self._reference()].offset()
+        timeout = self._controller_timeout_ns()
+        if est is None or timeout is None:
+            return
+        error = abs(est.offset_ns - self.clock_offset_ns) + est.uncertainty_ns
+        if error > timeout / 2 and not self._drift_warned:
+            self.echo(f"[launch] WARNING: this machine's clock drifted {error / 1e6:.1f} ms from machine "
+                      f"{self._reference()}'s since the launch, more than half the grip controller's "
+                      f"{timeout / 1e6:g} ms timeout: ages of messages between the machines are misjudged by that "
+                      "much; keep the machines' clocks disciplined (NTP/PTP) and restart the launch")
+        self._drift_warned = error > timeout / 2
+
+    def _required_peer_stopped(self) -> bool:
+        """True (and said) if another machine's launcher stopped while running a ``required`` node:
+        the launch ends on every machine, as it would on one."""
+        for name, peer in (self.peers.peers.items() if self.peers else ()):
+            required = sorted(e.name for e in self.launch.nodes if e.machine == name and e.required)
+            if peer.state == "stopped" and required:
+                self.echo(f"[launch] {peer.label} stopped, and it ran required node(s) {', '.join(required)}; "
+                          "stopping this machine's share too")
+                return True
+        return False
+
+    def _wait_for_peers(self, process: _Process) -> None:
+        """Until the nodes on other machines that ``process``'s members start ``after`` are ready."""
+        remote = {a for c in process.members for a in c.entry.after if not self.plan.is_local(self.children[a].entry)}
+        deadline = time.monotonic() + READY_TIMEOUT_S
+        while remote:
+            missing = {a for a in remote if a not in self.peers.peers[self.children[a].entry.machine].ready}
+            if not missing:
+                return
+            if self._stop_requested:
+                raise SlipstackError("interrupted while starting")
+            if time.monotonic() > deadline:
+                where = {self.peers.peers[self.children[a].entry.machine].label for a in missing}
+                raise SlipstackError(
+                    f"{process.label} starts after {', '.join(sorted(missing))} on {', '.join(sorted(where))}, not "
+                    f"ready after {READY_TIMEOUT_S:.0f} s: is `slipstack launch {self.launch.path.name} --machine "
+                    f"{self.children[sorted(missing)[0]].entry.machine}` running there?")
+            self._forward_logs(0.02)
+            self._service_peers()
 
     def _on_signal(self, signum: int, frame: object) -> None:
         self._stop_requested = True
@@ -269,17 +430,27 @@ class Launcher:
         old = {s: signal.signal(s, self._on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
         started: list[str] = []
         try:
+            if self.machine is not None:
+                self._join_peers()
             self._write_graph("starting")  # endpoints are known now; tools may attach early
             for name in self.order:
+                if self.peers is not None:
+                    self._wait_for_peers(self.processes[name])
                 self._spawn(self.processes[name])
                 started.append(name)
                 self._wait_ready(self.processes[name], READY_TIMEOUT_S)
                 self._prepare_standby(self.processes[name])
+                if self.peers is not None:
+                    self.peers.ready = sorted(n for p in started for n in self.processes[p].node_names)
             self._write_graph()
             ready = [f"{n} ({', '.join(c.entry.name for c in self.processes[n].members)})"
                      if self.processes[n].is_container else n for n in started]
-            self.echo(f"[launch] {len(self.children)} nodes ready in {len(started)} processes: {', '.join(ready)}; "
-                      f"run dir {self.run_dir}")
+            where = f" on machine {self.machine}" if self.machine is not None else ""
+            if started:
+                self.echo(f"[launch] {sum(len(self.processes[n].members) for n in started)} nodes ready{where} in "
+                          f"{len(started)} processes: {', '.join(ready)}; run dir {self.run_dir}")
+            else:  # an operator's machine: tools attach to the graph through this launcher's run directory
+                self.echo(f"[launch] no nodes{where}; the graph's tools attach here, run dir {self.run_dir}")
             self._supervise()
         except SlipstackError as exc:
             self.echo(f"[launch] error: {exc}")
@@ -289,6 +460,8 @@ class Launcher:
             for s, h in old.items():
                 signal.signal(s, h)
             self.control.close(linger=0)
+            if self.peers is not None:
+                self.peers.close()
         self._report_events()
         if self.launch.check:
             self._report_check()
@@ -303,6 +476,10 @@ class Launcher:
                 self.echo(f"[launch] duration {self.launch.duration_s:g} s reached")
                 return
             self._forward_logs(0.05)
+            self._service_peers()
+            self._check_drift()
+            if self._required_peer_stopped():
+                return
             self._note_ready_reports()
             now = time.monotonic()
             for c in self.processes.values():
@@ -387,7 +564,7 @@ class Launcher:
     def _check_problems(self) -> list[str]:
         """What failed the run: the monitor's ``check.json`` problems (none expected without a monitor in
         the launch), processes that died and stayed down."""
-        problems = monitor_check_problems(self.launch, self.run_dir)
+        problems = monitor_check_problems(self.launch, self.run_dir, self.machine)
         for c in self.processes.values():
             if c.abandoned:
                 problems.append(f"{c.name} abandoned after {c.restarts} restarts")
@@ -401,7 +578,9 @@ class Launcher:
             self.echo(f"[launch] CHECK FAILED: {'; '.join(problems)}")
             self.exit_code = 1
         else:
-            self.echo("[launch] check passed")
+            elsewhere = sorted({e.machine for e in self.launch.nodes if e.type == "monitor" and not self.plan.is_local(e)})
+            self.echo("[launch] check passed" + (f" on this machine; the run's own check is on machine "
+                                                 f"{', '.join(elsewhere)}, where the monitor runs" if elsewhere else ""))
 
     def _stop_order(self, started: list[str]) -> list[_Process]:
         """Processes marked ``stop_first`` (the simulated world), then the rest in reverse start order."""
@@ -435,19 +614,38 @@ class Launcher:
             self.echo(closing)
 
 
-def monitor_check_problems(launch: LaunchFile, run_dir: Path) -> list[str]:
-    """The problems in the monitor's ``check.json`` in ``run_dir`` (none expected without a monitor in the launch)."""
+def monitor_check_problems(launch: LaunchFile, run_dir: Path, machine: str | None = None) -> list[str]:
+    """The problems in the monitor's ``check.json`` in ``run_dir`` (none expected without a monitor in the
+    launch, or on ``machine``'s share of it)."""
     try:
         fd = os.open(run_dir / CHECK_FILE, os.O_RDONLY | os.O_NOFOLLOW)
         with os.fdopen(fd, "rb") as fh:
             doc = json.loads(fh.read(CHECK_FILE_MAX_BYTES))
         problems = [] if doc["passed"] is True else [str(p) for p in doc.get("problems") or ["not passed"]]
     except FileNotFoundError:
-        monitored = any(e.type == "monitor" for e in launch.nodes)
+        monitored = any(e.type == "monitor" for e in launch.nodes if runs_on(e, machine))
         problems = [f"no {CHECK_FILE} from the monitor (did it not stop cleanly?)"] if monitored else []
     except (OSError, ValueError, TypeError, KeyError) as exc:
         problems = [f"{CHECK_FILE} is unreadable ({exc})"]
     return problems
+
+
+def _check_machine(launch: LaunchFile, machine: str | None) -> str | None:
+    """``--machine``: required by a graph with machines, one of them; refused by a graph without.
+    With keys, this machine's key pair must be in its key directory."""
+    names = list(launch.machines)
+    if not names:
+        if machine is not None:
+            raise ConfigError(f"{launch.path.name} declares no [machines.NAME]: run it without --machine")
+        return None
+    if machine is None or machine not in launch.machines:
+        got = f"no machine {machine!r}" if machine is not None else "it spans several machines"
+        raise ConfigError(f"{launch.path.name}: {got}; run `slipstack launch {launch.path.name} --machine NAME` on "
+                          f"each of them, NAME one of: {', '.join(names)}")
+    keys = launch.machines[machine].keys
+    if keys is not None:  # fail now, with how to make them
+        GraphKeys.load(keys, machine, {m.address: m.name for m in launch.machines.values()})
+    return machine
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -462,7 +660,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="print the launch arguments with their values and comments, and exit")
     p.add_argument("--lockstep", action="store_true",
                    help="run every node in this process on the simulated clock, the rig in lock-step with the "
-                        "stack: faster than real time and repeatable bit for bit (simulated devices only)")
+                        "stack: faster than real time and repeatable bit for bit (simulated devices only; "
+                        "a graph over machines runs every machine's nodes here)")
+    p.add_argument("--machine", metavar="NAME",
+                   help="run the share of machine NAME of a graph with [machines.NAME] tables (run the "
+                        "same file and arguments on every machine, each with its own NAME)")
     p.add_argument("--log-level", metavar="LEVEL[,NODE=LEVEL]", default="",
                    help="least level of the node log lines shown and kept: debug, info (default), warning, "
                         "error; for every node, then per node, e.g. warning,ft_driver=debug")
@@ -501,8 +703,12 @@ def main_launch(args: argparse.Namespace) -> int:
             remove_run_dir(run_dir)
             return 0
         if args.lockstep:
+            if args.machine is not None:
+                raise ConfigError("--lockstep runs every machine's nodes in this one process; "
+                                  "drop --machine (or drop --lockstep to run one machine's share)")
             return run_lockstep(launch, run_dir)
-        launcher = Launcher(launch, run_dir, log_file=Path(args.log_file) if args.log_file else log_path_for(launch))
+        launcher = Launcher(launch, run_dir, log_file=Path(args.log_file) if args.log_file else log_path_for(launch),
+                            machine=args.machine)
     except BaseException:  # a bad launch file leaves no run directory behind
         remove_run_dir(run_dir)
         raise

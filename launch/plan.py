@@ -11,6 +11,16 @@ Start order: subscribers before publishers (reverse topological order of the top
 graph, so a publisher's subscribers exist before its data flows), then every node's
 ``after`` list. Stop order: nodes marked ``stop_first`` (the simulated rig), then the
 others in reverse start order.
+
+Machines (``[machines.NAME]``): the plan of one machine's share lists every node of
+the graph, but only that machine's nodes get processes, injection endpoints and run
+specs. Every machine's launcher computes the same endpoints from the same file: a node
+binds ipc for the nodes of its machine and also its machine's tcp port
+(``transport.py: machine_ports``) for subscribers and tools elsewhere
+(:attr:`NodePlan.remote_endpoint`, ``pub_remote`` of its run spec); a subscriber
+connects to a publisher of another machine on that tcp endpoint. ``after`` a node of
+another machine is the launcher's to wait for, not part of this start order. A plan
+with no machine named runs every node on this computer (the lock-step run).
 """
 
 from __future__ import annotations
@@ -23,9 +33,14 @@ from slipstack.launch.launch_file import LaunchFile, NodeEntry, free_port
 from slipstack.messages import Diagnostics
 from slipstack.nodes.device_driver import DeviceDriver
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
-from slipstack.nodes.runtime.transport import ipc_endpoint
+from slipstack.nodes.runtime.transport import ipc_endpoint, machine_ports, tcp_endpoint
 
-__all__ = ["NodePlan", "ProcessPlan", "LaunchPlan", "plan_launch", "tapped_topics"]
+__all__ = ["NodePlan", "ProcessPlan", "LaunchPlan", "plan_launch", "tapped_topics", "machine_endpoints", "runs_on",
+           "PEER_WAIT_S"]
+
+PEER_WAIT_S = 60.0
+"""How long (s) a machine's launcher waits for the first machine's to answer, and so how long
+a publisher with subscribers on another machine waits for them in its readiness handshake."""
 
 
 @dataclass
@@ -38,6 +53,8 @@ class NodePlan:
     outputs: dict[str, str] = field(default_factory=dict)
     inputs: dict[str, str] = field(default_factory=dict)
     inject: dict[str, str] = field(default_factory=dict)
+    remote_endpoint: str | None = None
+    """The tcp endpoint it binds as well, for subscribers and tools on other machines (None: one machine)."""
 
 
 @dataclass
@@ -86,7 +103,10 @@ class ProcessPlan:
 
 @dataclass
 class LaunchPlan:
-    """What a launch runs: nodes, processes, endpoints, start order (process names)."""
+    """What a launch runs: nodes, processes, endpoints, start order (process names).
+
+    ``nodes`` holds every node of the graph; ``processes`` and ``order`` only those that
+    run here (the share of ``machine``; every node if None)."""
 
     launch: LaunchFile
     run_dir: Path
@@ -94,6 +114,11 @@ class LaunchPlan:
     nodes: dict[str, NodePlan]
     processes: dict[str, ProcessPlan]
     order: list[str]
+    machine: str | None = None
+
+    def is_local(self, entry: NodeEntry) -> bool:
+        """True if this plan runs ``entry`` (every node, without a machine)."""
+        return runs_on(entry, self.machine)
 
     def node_order(self) -> list[str]:
         """Node names in start order (a container's members in launch-file order)."""
@@ -117,24 +142,51 @@ def tapped_topics(node: object) -> set[str] | None:
     return set(node.params.topics)
 
 
-def plan_launch(launch: LaunchFile, run_dir: Path) -> LaunchPlan:
-    """The plan of ``launch`` in ``run_dir``; nothing is bound or written.
+def runs_on(entry: NodeEntry, machine: str | None) -> bool:
+    """True if the launcher of ``machine`` runs ``entry`` (None: the one launcher of every node)."""
+    return machine is None or entry.machine == machine
+
+
+def machine_endpoints(launch: LaunchFile) -> dict[str, str]:
+    """Node name → the tcp endpoint it binds on its machine (empty without machines)."""
+    out: dict[str, str] = {}
+    for m in launch.machines.values():
+        ports = machine_ports(m.ports[0], [e.name for e in launch.nodes if e.machine == m.name])
+        out.update({name: tcp_endpoint(m.address, port) for name, port in ports.items()})
+    return out
+
+
+def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -> LaunchPlan:
+    """The plan of ``launch`` in ``run_dir`` (the share of ``machine`` of a graph with
+    machines; None: every node here); nothing is bound or written.
 
     Raises:
-        ConfigError: ``after`` constraints that form a cycle.
+        ConfigError: ``after`` constraints that form a cycle; a machine the file does not declare.
     """
+    if machine is not None and machine not in launch.machines:
+        raise ConfigError(f"{launch.path.name}: no machine {machine!r}; "
+                          f"machines: {', '.join(launch.machines) or 'none'}")
     control_ep = f"ipc://{run_dir}/launcher.ctl"
     children: dict[str, NodePlan] = {}
     processes: dict[str, ProcessPlan] = {}
     nodes = {e.name: e.instance() for e in launch.nodes}
+    remote = machine_endpoints(launch) if machine is not None else {}
     for e in launch.nodes:
-        ep = f"tcp://127.0.0.1:{free_port()}" if e.transport == "tcp" else ipc_endpoint(run_dir, e.name)
-        child = NodePlan(e, ep, e.container or e.name)
+        runs_here = runs_on(e, machine)
+        if not runs_here or (remote and e.transport == "tcp"):
+            ep = remote[e.name]  # a node elsewhere, or one only on tcp: its machine's port
+        elif e.transport == "tcp":
+            ep = f"tcp://127.0.0.1:{free_port()}"
+        else:
+            ep = ipc_endpoint(run_dir, e.name)
+        child = NodePlan(e, ep, e.container or e.name, remote_endpoint=remote.get(e.name))
         child.outputs = {t: nodes[e.name].outputs[n].type.TYPE for n, t in e.output_topics(nodes[e.name]).items()}
         child.outputs[DIAGNOSTICS_TOPIC] = Diagnostics.TYPE  # every node publishes it
         child.inputs = {t: nodes[e.name].inputs[n].type.TYPE for n, t in e.input_topics(nodes[e.name]).items()}
-        child.inject = {t: ipc_endpoint(run_dir, f"{e.name}.in") for t in child.inputs}
         children[e.name] = child
+        if not runs_here:
+            continue  # another machine's launcher runs it
+        child.inject = {t: ipc_endpoint(run_dir, f"{e.name}.in") for t in child.inputs}
         proc = processes.setdefault(child.process, ProcessPlan(child.process, [], run_dir / f"{child.process}.spec.json"))
         proc.members.append(child)
     publishers: dict[str, list[str]] = {}
@@ -142,8 +194,11 @@ def plan_launch(launch: LaunchFile, run_dir: Path) -> LaunchPlan:
         for topic in c.outputs:
             publishers.setdefault(topic, []).append(name)
     taps = {n: tapped for n in children if (tapped := tapped_topics(nodes[n])) is not None}
+    here = {c.entry.name for p in processes.values() for c in p.members}
     specs: dict[str, dict] = {}
     for name, c in children.items():
+        if name not in here:
+            continue
         # a subscriber in the publisher's own process gets its messages handed over there
         expected = {
             topic: sum(1 for other in children.values() if topic in other.inputs and other.process != c.process)
@@ -153,8 +208,11 @@ def plan_launch(launch: LaunchFile, run_dir: Path) -> LaunchPlan:
         local = {t: [p for p in publishers.get(t, []) if p != name and children[p].process == c.process]
                  for t in c.inputs}
         specs[name] = {
+            # subscribers on another machine may take as long as its launcher does to come up
+            **({"handshake_timeout_s": PEER_WAIT_S} if _feeds_elsewhere(c, children, taps, here) else {}),
             "name": name,
             "pub": c.endpoint,
+            "pub_remote": c.remote_endpoint if c.remote_endpoint != c.endpoint else None,
             "subs": {t: [children[p].endpoint for p in publishers.get(t, [])
                          if children[p].process != c.process] for t in c.inputs},
             "remap": c.entry.remap,
@@ -170,16 +228,27 @@ def plan_launch(launch: LaunchFile, run_dir: Path) -> LaunchPlan:
                          "members": [{"type": c.entry.type, **specs[c.entry.name]} for c in proc.members]}
         else:
             proc.spec = specs[proc.members[0].entry.name]
-    return LaunchPlan(launch, run_dir, control_ep, children, processes, _start_order(children, processes))
+    order = _start_order(children, processes, here)
+    return LaunchPlan(launch, run_dir, control_ep, children, processes, order, machine)
 
 
-def _start_order(children: dict[str, NodePlan], procs: dict[str, ProcessPlan]) -> list[str]:
-    """Processes, subscribers before publishers: reverse topological order, back edges ignored."""
+def _feeds_elsewhere(c: NodePlan, children: dict[str, NodePlan], taps: dict[str, set[str]], here: set[str]) -> bool:
+    """True if a node or bus tap that does not run ``here`` (on another machine) subscribes to an output of ``c``."""
+    remote = [o for name, o in children.items() if name not in here]
+    tapped = [taps[o.entry.name] for o in remote if o.entry.name in taps]
+    return any(topic in o.inputs for topic in c.outputs for o in remote) or any(
+        not t or t & set(c.outputs) for t in tapped)
+
+
+def _start_order(children: dict[str, NodePlan], procs: dict[str, ProcessPlan], here: set[str]) -> list[str]:
+    """Processes, subscribers before publishers: reverse topological order, back edges ignored;
+    ``after`` a node not ``here`` (on another machine) is left to the launcher."""
     downstream = {
         name: [o for o, op in procs.items() if o != name and op.inputs & p.outputs] for name, p in procs.items()
     }
-    after = {
-        name: {children[a].process for c in p.members for a in c.entry.after} - {name}
+    after = {  # a node on another machine: the launcher waits for it before the spawn
+        name: {children[a].process for c in p.members for a in c.entry.after
+               if a in here} - {name}
         for name, p in procs.items()
     }
     seen: set[str] = set()

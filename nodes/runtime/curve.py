@@ -9,15 +9,26 @@ that *connects* to one is a CURVE client that checks the server's key, so a proc
 that grabs a freed port cannot pass itself off as a node. ipc endpoints are guarded by
 the run directory's permissions (owner only, 0700) and stay as they are.
 
-The launcher passes the directory to its processes in ``$SLIPSTACK_KEYS``; tools that
-attach to a graph read it from ``graph.json``. ``insecure = true`` in the launch file
-(``$SLIPSTACK_INSECURE=1`` for the processes) allows tcp without keys, explicitly.
+A graph over several machines (``[machines.NAME]``) gives each machine a key pair of
+its own: ``slipstack keys DIR --machine robot --machine workstation`` makes
+``DIR/robot/`` with ``robot.key_secret`` and the public keys ``robot.key`` and
+``workstation.key``, and ``DIR/workstation/`` alike; each machine keeps only its own
+directory. Its sockets serve with its own pair and admit the public keys in that
+directory; a socket connecting to a machine's address checks that machine's public key.
+
+The launcher passes the directory to its processes in ``$SLIPSTACK_KEYS`` (and, with
+machines, ``$SLIPSTACK_MACHINE``: this machine's name and every machine's address);
+tools that attach to a graph read both from ``graph.json``. ``insecure = true`` in the
+launch file (``$SLIPSTACK_INSECURE=1`` for the processes) allows tcp without keys,
+explicitly.
 """
 
 from __future__ import annotations
 
+import json
 import os
-from dataclasses import dataclass
+import shutil
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import zmq
@@ -26,33 +37,51 @@ from zmq.auth.thread import ThreadAuthenticator
 
 from slipstack.lib.errors import ConfigError
 
-__all__ = ["KEYS_ENV", "INSECURE_ENV", "GraphKeys", "make_keys", "use_keys", "secure_bind", "secure_connect"]
+__all__ = ["KEYS_ENV", "INSECURE_ENV", "MACHINE_ENV", "GraphKeys", "make_keys", "make_machine_keys", "use_keys",
+           "machine_env", "endpoint_host", "secure_bind", "secure_connect"]
 
 KEYS_ENV = "SLIPSTACK_KEYS"
 INSECURE_ENV = "SLIPSTACK_INSECURE"
+MACHINE_ENV = "SLIPSTACK_MACHINE"
 KEY_NAME = "graph"
 
 
 @dataclass(frozen=True)
 class GraphKeys:
-    """A graph's CURVE key pair (z85 bytes) and the directory of allowed public keys."""
+    """A graph's (or one machine's) CURVE key pair (z85 bytes) and the directory of allowed public keys."""
 
     directory: Path
     public: bytes
     secret: bytes
+    servers: dict[str, bytes] = field(default_factory=dict)
+    """Address → public key of the machine serving there; other addresses serve with ``public``."""
 
     @classmethod
-    def load(cls, directory: str | Path) -> GraphKeys:
-        """Read ``DIR/graph.key_secret``; a clear error says how to make it."""
+    def load(cls, directory: str | Path, machine: str | None = None, hosts: dict[str, str] | None = None) -> GraphKeys:
+        """Read ``DIR/graph.key_secret``, or ``DIR/MACHINE.key_secret`` and the public key of
+        every machine in ``hosts`` (address → machine name); a clear error says how to make them."""
         d = Path(directory).expanduser().resolve()
-        secret_file = d / f"{KEY_NAME}.key_secret"
+        name = machine or KEY_NAME
+        how = f"slipstack keys DIR --machine {machine} ..." if machine else f"slipstack keys {d}"
+        secret_file = d / f"{name}.key_secret"
         try:
             public, secret = zmq.auth.load_certificate(secret_file)
         except (OSError, ValueError) as exc:
-            raise ConfigError(f"no usable key pair in {d} ({exc}); make one with `slipstack keys {d}`") from None
+            raise ConfigError(f"no usable key pair in {d} ({exc}); make one with `{how}`") from None
         if secret is None:
-            raise ConfigError(f"{secret_file} holds no secret key; make a key pair with `slipstack keys {d}`")
-        return cls(d, public, secret)
+            raise ConfigError(f"{secret_file} holds no secret key; make a key pair with `{how}`")
+        servers: dict[str, bytes] = {}
+        for host, peer in (hosts or {}).items():
+            try:
+                servers[host] = zmq.auth.load_certificate(d / f"{peer}.key")[0]
+            except (OSError, ValueError):
+                raise ConfigError(f"{d} has no public key of machine {peer} ({peer}.key): copy it there from "
+                                  f"that machine's key directory") from None
+        return cls(d, public, secret, servers)
+
+    def server_key(self, endpoint: str) -> bytes:
+        """The public key the socket serving ``endpoint`` must prove it holds."""
+        return self.servers.get(endpoint_host(endpoint), self.public)
 
 
 def make_keys(directory: str | Path) -> tuple[Path, Path]:
@@ -71,20 +100,65 @@ def make_keys(directory: str | Path) -> tuple[Path, Path]:
     return Path(public), Path(secret)
 
 
+def make_machine_keys(directory: str | Path, machines: list[str]) -> list[Path]:
+    """``DIR/NAME/`` (mode 0700) for each machine: its key pair and every machine's public key.
+
+    Raises:
+        ConfigError: one of the directories holds a key pair already (never overwritten).
+    """
+    bad = [n for n in machines if not n or not all(c.isalnum() or c in "_-" for c in n)]
+    if bad or len(set(machines)) != len(machines):
+        raise ConfigError(f"machine names must be distinct letters, digits, _ and - (as in [machines.NAME]); "
+                          f"got {machines}")
+    d = Path(directory).expanduser()
+    dirs = [d / name for name in machines]
+    for sub, name in zip(dirs, machines):
+        if (sub / f"{name}.key_secret").exists():
+            raise ConfigError(f"{sub} already holds a key pair; remove it first to make new ones")
+    for sub, name in zip(dirs, machines):
+        sub.mkdir(mode=0o700, parents=True, exist_ok=True)
+        os.chmod(sub, 0o700)
+        _, secret = zmq.auth.create_certificates(str(sub), name)
+        os.chmod(secret, 0o600)
+    for sub in dirs:
+        for other, name in zip(dirs, machines):
+            if other != sub:
+                shutil.copyfile(other / f"{name}.key", sub / f"{name}.key")
+    return dirs
+
+
+def machine_env(name: str, hosts: dict[str, str]) -> str:
+    """The value of ``$SLIPSTACK_MACHINE``: this machine's name and address → machine name."""
+    return json.dumps({"name": name, "hosts": hosts})
+
+
+def endpoint_host(endpoint: str) -> str:
+    """The address part of a ``tcp://`` endpoint ("" for another transport)."""
+    if not endpoint.startswith("tcp://"):
+        return ""
+    return endpoint[len("tcp://"):].rsplit(":", 1)[0].strip("[]")
+
+
 _keys: GraphKeys | None = None
+_insecure = False
 _authenticators: dict[int, ThreadAuthenticator] = {}
 
 
-def use_keys(directory: str | Path | None) -> None:
-    """Use the keys in ``directory`` for this process's tcp sockets (None: from the environment)."""
-    global _keys
-    _keys = GraphKeys.load(directory) if directory else None
+def use_keys(directory: str | Path | None, machine: str | None = None, hosts: dict[str, str] | None = None, *,
+             insecure: bool = False) -> None:
+    """Use the keys in ``directory`` for this process's tcp sockets (None: from the environment);
+    ``machine`` and ``hosts`` for a graph over several machines (:meth:`GraphKeys.load`);
+    ``insecure``: tcp without keys allowed (the launch file's ``insecure = true``)."""
+    global _keys, _insecure
+    _keys = GraphKeys.load(directory, machine, hosts) if directory else None
+    _insecure = insecure
 
 
 def _active() -> GraphKeys | None:
     global _keys
     if _keys is None and os.environ.get(KEYS_ENV):
-        _keys = GraphKeys.load(os.environ[KEYS_ENV])
+        machine = json.loads(os.environ.get(MACHINE_ENV) or "{}")
+        _keys = GraphKeys.load(os.environ[KEYS_ENV], machine.get("name"), machine.get("hosts"))
     return _keys
 
 
@@ -93,7 +167,7 @@ def _tcp_keys(endpoint: str) -> GraphKeys | None:
     if not endpoint.startswith("tcp://"):
         return None
     keys = _active()
-    if keys is None and os.environ.get(INSECURE_ENV) != "1":
+    if keys is None and not _insecure and os.environ.get(INSECURE_ENV) != "1":
         raise ConfigError(f"{endpoint}: tcp needs the graph's keys: make them with `slipstack keys DIR` and set "
                           "[launch] keys = \"DIR\" (or insecure = true to allow anyone on the network)")
     return keys
@@ -122,4 +196,4 @@ def secure_connect(sock: zmq.Socket, endpoint: str) -> None:
         return
     sock.curve_secretkey = keys.secret
     sock.curve_publickey = keys.public
-    sock.curve_serverkey = keys.public
+    sock.curve_serverkey = keys.server_key(endpoint)

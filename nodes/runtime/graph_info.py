@@ -6,10 +6,19 @@
      /proc/PID/stat: with the pid, names the launcher process even if the pid is reused),
      "started_ns": int, "launch_file": str,
      "state": "starting" (endpoints known, nodes coming up) | "running" (all ready),
+     "keys": key directory of the tcp links ("" if none),
      "nodes": {name: {"type": str, "pid": int | null, "pub": endpoint,
                       "inputs": {topic: message type}, "outputs": {topic: message type},
                       "inject": {topic: endpoint the node's SUB binds, for `topic pub`},
-                      "restarts": int}}}
+                      "restarts": int,
+                      "machine": str, "pub_remote": tcp endpoint (with machines only)}},
+     "machine": {"name": this machine, "hosts": {address: machine}, "clock_offset_ns": int
+                 (added to this machine's clock by its nodes), "peers": {machine: {"state",
+                 "quiet", "ready", "offset_ns", "uncertainty_ns", "exchanges"}}}  (with machines only)}
+
+With machines, the graph of each machine's launcher lists the nodes of every machine:
+those of other machines with their tcp endpoint (``pub``) and no pid, so a tool on any
+machine of the graph attaches to all of it, with that machine's keys.
 
 A tool that publishes on the bus (``topic pub``, ``bag play``) registers its own
 publish endpoint beside it, in ``<run_dir>/tool-<name>.json`` (:func:`register_tool`:
@@ -33,7 +42,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.nodes.runtime.run_dir import CURRENT_LINK, point_current, run_root, write_private_file
 
 __all__ = ["GRAPH_FILE", "RUN_DIR_HELP", "write_graph", "read_graph", "find_run_dir", "topic_endpoints", "process_start_ticks",
-           "register_tool"]
+           "register_tool", "clock_offset_ns"]
 
 GRAPH_FILE = "graph.json"
 _TOOL_GLOB = "tool-*.json"
@@ -101,7 +110,8 @@ def read_graph(run_dir: Path) -> dict[str, Any]:
     if graph.get("keys"):
         from slipstack.nodes.runtime.curve import use_keys  # zmq: only for a graph with keys
 
-        use_keys(graph["keys"])
+        machine = graph.get("machine") or {}
+        use_keys(graph["keys"], machine.get("name"), machine.get("hosts"))
     for name, tool in _live_tools(run_dir):
         graph["nodes"].setdefault(name, tool)
     return graph
@@ -145,3 +155,10 @@ def topic_endpoints(graph: dict[str, Any]) -> dict[str, list[str]]:
         for topic in node["outputs"]:  # includes "diagnostics": every node publishes it
             out.setdefault(topic, []).append(node["pub"])
     return out
+
+
+def clock_offset_ns(graph: dict[str, Any]) -> int:
+    """What the graph's nodes on this machine add to its monotonic clock (ns): 0 on one
+    machine, else the offset to the first machine's clock (nodes/runtime/time_base.py).
+    A tool comparing stamps with its own clock adds it too."""
+    return int((graph.get("machine") or {}).get("clock_offset_ns", 0))

@@ -53,6 +53,7 @@ from slipstack.nodes.runtime.node import Node
 from slipstack.nodes.runtime.rate_limit import TokenBucket
 from slipstack.nodes.runtime.stage_cpu import StageCpu, stage_cpu_from_env
 from slipstack.nodes.runtime.curve import secure_bind
+from slipstack.nodes.runtime.time_base import graph_clock
 from slipstack.nodes.runtime.transport import MAX_ORIGIN_BYTES, bound_socket, make_pub, make_sub
 
 __all__ = ["ProcessExecutor", "RunSpec"]
@@ -64,6 +65,7 @@ _INJECT_HWM = 200  # injected frames queued in the node's injection socket: the 
 _OVER_RATE_READS = 64  # frames over the injection rate read (and dropped) per wake-up before a pause
 _INJECT_PAUSE_NS = 10_000_000  # how long a node over its injection rate leaves the injection socket unread
 _TIMER_CATCH_UP = 20  # late ticks of one timer fired per loop turn before ticks are skipped
+_now_ns = graph_clock()  # monotonic ns, on the reference machine's time base (nodes/runtime/time_base.py)
 
 
 @dataclass
@@ -71,6 +73,8 @@ class RunSpec:
     """How one node process is wired (written by the launcher, or built by hand).
 
     pub: endpoint to bind (``ipc://…`` or ``tcp://…``); ``None`` for a pure sink.
+    pub_remote: a tcp endpoint the publisher binds as well, for subscribers and tools on
+        other machines of the graph (``None``: all on this one).
     subs: topic → endpoints publishing it.
     inject: topic → endpoint that one extra SUB socket of this node *binds* (frames
         ``[topic, payload]`` or ``[topic, payload, origin]``, sequence gaps tracked per
@@ -88,6 +92,7 @@ class RunSpec:
 
     name: str
     pub: str | None = None
+    pub_remote: str | None = None
     subs: dict[str, list[str]] = field(default_factory=dict)
     remap: dict[str, str] = field(default_factory=dict)
     inject: dict[str, str] = field(default_factory=dict)
@@ -116,11 +121,11 @@ class _Member:
         self.node = node
         self.spec = spec
         self.zctx = zctx
-        self.pub = make_pub(zctx, spec.pub, unsubscriptions=True) if spec.pub else None
+        self.pub = make_pub(zctx, spec.pub, unsubscriptions=True, remote=spec.pub_remote) if spec.pub else None
         log = node_log(spec.name, f"{spec.name}: " if name_logs else "")  # a container's members name themselves
         self.subscriptions: dict[bytes, int] = {}
         self.listened_topics: dict[str, bool] = {}  # topic → someone subscribes (cleared when subscriptions change)
-        self.host = NodeHost(node, time.monotonic_ns, self.send, name=spec.name, remap=spec.remap, log=log,
+        self.host = NodeHost(node, _now_ns, self.send, name=spec.name, remap=spec.remap, log=log,
                              stage_cpu=stage_cpu, listened=self.listened if self.pub is not None else None)
         # One SUB socket per (input, publisher endpoint): sequence gaps are then tracked
         # per publisher, so several publishers on one topic (``diagnostics``) never look
@@ -492,7 +497,7 @@ class ProcessExecutor:
         # node waits in poll, rounding its wake-up up to the next millisecond, so it
         # never sleeps deaf to input.
         precise = any(m.precise for m in members)
-        now = time.monotonic_ns()
+        now = _now_ns()
         for m in members:
             m.start_clock(now)
         hosts = [m.host for m in members]
@@ -503,7 +508,7 @@ class ProcessExecutor:
                 h.counters["loop.wakeups"] += 1
             for m in watching:
                 m.watch_io(poller, handlers)
-            wait_ns = min(m.next_due() for m in members) - time.monotonic_ns()
+            wait_ns = min(m.next_due() for m in members) - _now_ns()
             if stage is not None:
                 resume = stage.enter(poll_key)
             if wait_ns <= 0:
@@ -528,11 +533,11 @@ class ProcessExecutor:
                 elif kind == "subscriptions":
                     m.read_subscriptions()
                 else:
-                    m.drain_injected(time.monotonic_ns())
+                    m.drain_injected(_now_ns())
                     if m.inject_resume_ns is not None:
                         poller.unregister(item)  # over the rate: unread until the pause ends
                 self._run_handovers()
-            now = time.monotonic_ns()
+            now = _now_ns()
             for m in members:
                 if m.inject_resume_ns is not None and now >= m.inject_resume_ns:
                     m.inject_resume_ns = None

@@ -24,7 +24,8 @@ from slipstack.nodes.runtime.run_dir import RUN_ROOT_ENV, make_run_dir, run_root
 
 __all__ = [
     "make_run_dir", "ipc_endpoint", "make_pub", "make_sub", "bound_socket", "RUN_ROOT_ENV", "run_root",
-    "MAX_SUBSCRIPTION_BYTES", "SUBSCRIPTION_HWM", "MAX_ORIGIN_BYTES",
+    "MAX_SUBSCRIPTION_BYTES", "SUBSCRIPTION_HWM", "MAX_ORIGIN_BYTES", "tcp_endpoint",
+    "machine_ports",
 ]
 
 IPC_PATH_MAX = 107  # Linux sun_path limit (libzmq zmq_ipc)
@@ -49,6 +50,18 @@ def ipc_endpoint(run_dir: Path, name: str) -> str:
     return f"ipc://{path}"
 
 
+def tcp_endpoint(address: str, port: int) -> str:
+    """``tcp://ADDRESS:PORT`` (an IPv6 address in brackets)."""
+    return f"tcp://[{address}]:{port}" if ":" in address else f"tcp://{address}:{port}"
+
+
+def machine_ports(first: int, node_names: list[str]) -> dict[str, int]:
+    """The tcp port of each node of one machine of a graph: ``first`` is its launcher's,
+    then one per node in order of name. Every launcher of the graph computes the same
+    ports from the same launch file, so none has to ask another where a node listens."""
+    return {name: first + 1 + k for k, name in enumerate(sorted(node_names))}
+
+
 MAX_SUBSCRIPTION_BYTES = 1024
 """Longest frame an XPUB accepts from a peer: a subscription (one byte and a topic prefix)."""
 SUBSCRIPTION_HWM = 1000
@@ -66,16 +79,21 @@ def bound_socket(ctx: zmq.Context, kind: int, *, sndhwm: int, rcvhwm: int, max_m
     return sock
 
 
-def make_pub(ctx: zmq.Context, endpoint: str, *, sndhwm: int = 1000, unsubscriptions: bool = False) -> zmq.Socket:
+def make_pub(ctx: zmq.Context, endpoint: str, *, sndhwm: int = 1000, unsubscriptions: bool = False,
+             remote: str | None = None) -> zmq.Socket:
     """Bind a verbose XPUB socket (subscriptions are visible for the handshake); CURVE on tcp.
 
     ``unsubscriptions``: also pass on every unsubscription, a departing subscriber's
     included (XPUB_VERBOSER), so counting them gives the subscribers present now.
+    ``remote``: a tcp endpoint bound as well, for subscribers on other machines; ``endpoint``
+    is bound first, so an ipc endpoint stays without CURVE (ZeroMQ takes the security
+    options of a socket at each bind).
     """
     sock = bound_socket(ctx, zmq.XPUB, sndhwm=sndhwm, rcvhwm=SUBSCRIPTION_HWM, max_msg_bytes=MAX_SUBSCRIPTION_BYTES)
     sock.setsockopt(zmq.XPUB_VERBOSER if unsubscriptions else zmq.XPUB_VERBOSE, 1)
-    secure_bind(sock, endpoint)
-    sock.bind(endpoint)
+    for ep in (endpoint, remote) if remote else (endpoint,):
+        secure_bind(sock, ep)
+        sock.bind(ep)
     return sock
 
 

@@ -48,8 +48,20 @@ def _alive(entry: dict[str, Any]) -> str:
 
 def main_list(args: argparse.Namespace) -> int:
     graph = read_graph(find_run_dir(args.run_dir))
+    machine = graph.get("machine") or {}
+    here = machine.get("name")
+    if here:
+        print(f"machine {here}; its nodes' clock is {machine.get('clock_offset_ns', 0) / 1e6:+.3f} ms from this "
+              "machine's monotonic clock (the first machine's time base)")
+        for name, peer in machine.get("peers", {}).items():
+            clock = (f", clock {peer['offset_ns'] / 1e6:+.3f} ms ± {peer['uncertainty_ns'] / 1e6:.3f} ms from ours"
+                     if "offset_ns" in peer else "")
+            print(f"machine {name}: {peer['state']}{' (quiet)' if peer.get('quiet') else ''}{clock}")
     for name, entry in sorted(graph["nodes"].items()):
         kind = "tool" if entry.get("tool") else entry.get("type", "?")
+        if entry.get("machine", here) != here:  # run by another machine's launcher: no pid here
+            print(f"{name}  [{kind}] on machine {entry['machine']} ({entry['pub']})")
+            continue
         print(f"{name}  [{kind}] pid {entry.get('pid')} {_alive(entry)}, restarts {entry.get('restarts', 0)}")
     return 0
 

@@ -36,6 +36,7 @@ import zmq
 
 from slipstack.lib.errors import ConfigError
 from slipstack.messages.frame import peek_header
+from slipstack.nodes.runtime.graph_info import clock_offset_ns
 from slipstack.nodes.tools.topic_tools import load_graph, resolve_topic
 from slipstack.nodes.runtime.stop_signal import stop_on_signals
 from slipstack.nodes.runtime.transport import make_sub
@@ -131,7 +132,8 @@ def _watch(args: argparse.Namespace, value: Callable[[int, int, int], object], n
     """Collect ``value(receive_ns, stamp_ns, payload bytes)`` (a number or a tuple of
     them) per frame of ``args.topic`` over the last ``args.window`` frames; print
     ``report(values as an int64 array, one row per frame)`` once per second until Ctrl-C
-    or ``args.duration``. Receive times and stamps are CLOCK_MONOTONIC ns (one host)."""
+    or ``args.duration``. Receive times and stamps are CLOCK_MONOTONIC ns on the graph's
+    time base (with machines: this machine's clock plus its offset to the first machine's)."""
     _, graph = load_graph(args.run_dir)
     info = resolve_topic(graph, args.topic)
     endpoints = [e.address for e in info.publishers if e.address]
@@ -144,7 +146,8 @@ def _watch(args: argparse.Namespace, value: Callable[[int, int, int], object], n
     sock = make_sub(ctx, endpoints, info.name, rcvhwm=max(1000, args.window))
     values: deque[int] = deque(maxlen=args.window)
     append = values.append
-    clock = time.monotonic_ns
+    offset = clock_offset_ns(graph)
+    clock = (lambda: time.monotonic_ns() + offset) if offset else time.monotonic_ns
     recv = sock.recv_multipart
     unparsed = 0
     new = 0

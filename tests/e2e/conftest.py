@@ -97,3 +97,13 @@ def pid_alive(pid: int) -> bool:
             return fh.read().split(")")[-1].split()[0] != "Z"
     except FileNotFoundError:
         return False
+
+
+def count_frames(sock, seconds: float) -> int:
+    """Frames ``sock`` (a zmq socket) receives within ``seconds``."""
+    n, end = 0, time.monotonic() + seconds
+    while time.monotonic() < end:
+        if sock.poll(50):
+            sock.recv_multipart()
+            n += 1
+    return n

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import subprocess
 import sys
-import time
 
 import pytest
 import zmq
 
 from slipstack.nodes.runtime import curve
 from slipstack.nodes.runtime.transport import make_sub
+
+from .conftest import count_frames
 
 pytestmark = pytest.mark.e2e
 
@@ -41,15 +42,6 @@ type = "sink"
 """
 
 
-def _frames(sock: zmq.Socket, seconds: float) -> int:
-    n, end = 0, time.monotonic() + seconds
-    while time.monotonic() < end:
-        if sock.poll(50):
-            sock.recv_multipart()
-            n += 1
-    return n
-
-
 def _launch_file(tmp_path, security: str):
     path = tmp_path / "tcp.toml"
     path.write_text(GRAPH.format(security=security))
@@ -62,7 +54,7 @@ def test_tcp_without_keys_is_refused_with_what_to_do(launch, tmp_path):
     assert "slipstack keys" in g.log() and "insecure = true" in g.log()
 
 
-def test_only_holders_of_the_keys_receive_frames(launch, tmp_path):
+def test_only_holders_of_the_keys_receivecount_frames(launch, tmp_path):
     keys = tmp_path / "keys"
     made = subprocess.run([sys.executable, "-m", "slipstack.launch.cli", "keys", str(keys)],
                           capture_output=True, text=True, timeout=60)
@@ -84,8 +76,8 @@ def test_only_holders_of_the_keys_receive_frames(launch, tmp_path):
             member = make_sub(ctx, [endpoint], None)
         finally:
             curve.use_keys(None)
-        assert _frames(member, 2.0) > 100  # 500 Hz: the authorised subscriber is served
-        assert _frames(stranger, 1.0) == 0
+        assert count_frames(member, 2.0) > 100  # 500 Hz: the authorised subscriber is served
+        assert count_frames(stranger, 1.0) == 0
         member.close()
         stranger.close()
     finally:
@@ -103,7 +95,7 @@ def test_insecure_is_an_explicit_opt_in(launch, tmp_path):
         plain.setsockopt(zmq.SUBSCRIBE, b"")
         plain.setsockopt(zmq.LINGER, 0)
         plain.connect(graph["nodes"]["source"]["pub"])
-        assert _frames(plain, 2.0) > 100
+        assert count_frames(plain, 2.0) > 100
         plain.close()
     finally:
         ctx.term()

@@ -79,3 +79,23 @@ def test_a_lockstep_launch_needs_an_end(capsys) -> None:
     """Simulated devices but no rig to finish the run and no duration: refused, saying how to end it."""
     assert _launch("hardware", "ft_url:=sim:rdt://127.0.0.1:49152", "tactile:=false", "record:=false") != 0
     assert "a lock-step run needs an end" in capsys.readouterr().err
+
+
+def test_a_graph_over_two_machines_runs_in_lockstep_as_on_one(tmp_path: Path, capsys) -> None:
+    """two_hosts.toml places fig15's nodes on two machines; in lock-step every machine's nodes
+    run in this one process, and placement changes nothing: the same recording as fig15's."""
+    runs = []
+    for name in ("fig15", "two_hosts"):
+        path = tmp_path / f"{name}.mcap"
+        assert _launch(name, "duration_s:=0.3", f"recording:={path}", "check:=false") == 0
+        runs.append([(f.topic, f.log_time_ns, f.payload) for f in read_recording(path)])
+    assert {"ft/wrench", "slip", "grip/command"} <= {topic for topic, _, _ in runs[0]}
+    assert runs[0] == runs[1]
+
+
+def test_lockstep_refuses_a_machine_with_what_to_do(tmp_path: Path, capsys) -> None:
+    assert _launch("two_hosts", "--machine", "robot", "recording:=x.mcap") != 0
+    err = capsys.readouterr().err
+    assert "--lockstep runs every machine's nodes in this one process; drop --machine" in err
+    assert not Path("x.mcap").exists()
+    assert not any((tmp_path / "runs").glob("*/*.json"))  # no run directory left behind

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -13,6 +14,7 @@ import zmq
 from slipstack.lib.errors import ConfigError
 from slipstack.messages import Header, Wrench, decode, encode
 from slipstack.nodes.recording.bag_io import RecordingWriter, read_recording
+from slipstack.nodes.recording.bag_io import clock_offset_ns as recording_clock_offset_ns
 from slipstack.nodes.recording.player import play
 from slipstack.nodes.recording.recorder import record
 
@@ -86,3 +88,18 @@ def test_bag_play_runs_the_player_node_and_stops_after_the_last_frame(tmp_path):
         sub.close(linger=0)
     assert sent == 50 and lines[-1] == "played 50 frames (0 loops)"
     assert got == list(range(50))
+
+
+def test_bag_record_on_another_machine_puts_its_recording_on_the_graphs_time_base(tmp_path):
+    """A graph whose nodes on this machine run an hour ahead of its clock (the first
+    machine's time base): the recording's clock record maps log times onto that base."""
+    endpoint = f"ipc://{tmp_path}/src.pub"
+    _graph(tmp_path, endpoint)
+    graph = json.loads((tmp_path / "graph.json").read_text())
+    offset = 3_600 * 10**9
+    graph["machine"] = {"name": "workstation", "hosts": {}, "clock_offset_ns": offset, "peers": {}}
+    (tmp_path / "graph.json").write_text(json.dumps(graph))
+    out = tmp_path / "take.mcap"
+    record(out, ["ft/wrench"], str(tmp_path), duration_s=0.1)
+    expected = time.time_ns() - time.monotonic_ns() - offset  # wall time minus the graph's clock
+    assert abs(recording_clock_offset_ns(out) - expected) < 10**9  # an hour off without the offset

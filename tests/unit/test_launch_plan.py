@@ -61,3 +61,30 @@ def test_after_constraints_that_form_a_cycle_are_named(tmp_path: Path) -> None:
     by_name["source"].after, by_name["sink"].after = ["sink"], ["source"]
     with pytest.raises(ConfigError, match="'after' constraints form a cycle"):
         plan_launch(launch, tmp_path)
+
+
+def test_a_machines_share_runs_its_nodes_and_reaches_the_others_over_tcp(tmp_path: Path) -> None:
+    launch = load_launch_file("two_hosts", builtins={"run_dir": str(tmp_path / "run")})
+    robot, workstation = (plan_launch(launch, tmp_path / "run", m) for m in ("robot", "workstation"))
+    assert list(tmp_path.iterdir()) == []  # nothing bound or written
+    assert set(robot.processes) == {"rig", "ft_driver", "tactile_driver"}
+    assert "rig" not in workstation.processes and "control" in workstation.processes
+    assert set(robot.nodes) == set(workstation.nodes) == {e.name for e in launch.nodes}
+    driver = robot.processes["ft_driver"].spec
+    assert driver["pub"].startswith("ipc://") and driver["pub_remote"].startswith("tcp://127.0.0.1:")
+    # both shares compute the driver's tcp endpoint alike; the workstation connects to it there
+    assert workstation.nodes["ft_driver"].endpoint == driver["pub_remote"]
+    fusion = {m["name"]: m for m in workstation.processes["control"].spec["members"]}["fusion"]
+    assert fusion["subs"]["ft/wrench"] == [driver["pub_remote"]]
+    assert driver["expected_subscribers"]["ft/wrench"] >= 1  # fusion on the workstation is waited for
+    assert workstation.order and set(workstation.order) == set(workstation.processes)
+
+
+def test_without_a_machine_every_machines_nodes_are_planned_here(tmp_path: Path) -> None:
+    """The lock-step run: every node of a graph over machines, in one place, on ipc."""
+    launch = load_launch_file("two_hosts", builtins={"run_dir": str(tmp_path)})
+    plan = plan_launch(launch, tmp_path)
+    assert plan.node_order() and sorted(plan.node_order()) == sorted(plan.nodes)
+    assert all(n.endpoint.startswith("ipc://") and n.remote_endpoint is None for n in plan.nodes.values())
+    with pytest.raises(ConfigError, match=r"no machine 'lab'; machines: robot, workstation"):
+        plan_launch(launch, tmp_path, "lab")

@@ -1,0 +1,204 @@
+"""One graph over two machines: two launchers on two loopback addresses, CURVE on.
+
+``launch/files/two_hosts.toml`` puts the rig and the drivers on ``robot`` (127.0.0.1)
+and the control path and the monitor on ``workstation`` (127.0.0.2), each launched by
+its own ``slipstack launch two_hosts --machine NAME`` with its own run root and key
+directory. The closed loop must hold Fig. 15's object (a 10 s cut of the scene), tools
+on the workstation must see and record the robot's topics, and a peer holding a key pair the graph
+does not know must get nothing and get no answer. A second test freezes the robot
+(its launcher and nodes stopped, as a dropped link looks from the workstation) and
+lets it go again; a third kills the robot's launcher.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import msgpack
+import pytest
+import zmq
+import zmq.auth
+
+from slipstack.lib.toml_file import resolve_path
+
+from .conftest import LaunchedGraph, count_frames, pid_alive
+
+pytestmark = pytest.mark.e2e
+
+ROBOT, WORKSTATION = "127.0.0.1", "127.0.0.2"
+SCENE_S = 10.0
+
+
+@pytest.fixture
+def two_hosts(tmp_path):
+    """``start(*args)`` → (robot, workstation) launchers of two_hosts.toml with fresh keys,
+    a random port range and a 10 s cut of the fig15 scene; both killed at teardown."""
+    keys = tmp_path / "keys"
+    made = subprocess.run([sys.executable, "-m", "slipstack.launch.cli", "keys", str(keys), "--machine", "robot",
+                           "--machine", "workstation"], capture_output=True, text=True, timeout=60)
+    assert made.returncode == 0, made.stderr
+    scene = tmp_path / "fig15_short.toml"
+    text = resolve_path("fig15", Path.cwd(), "scenes").read_text()
+    scene.write_text(text.replace("duration_s = 12.0", f"duration_s = {SCENE_S}", 1))
+    first = random.randrange(20000, 32000, 100)  # below the ephemeral ports (32768-60999)
+    graphs: list[LaunchedGraph] = []
+    roots: list[tempfile.TemporaryDirectory] = []
+
+    def start(*extra: str) -> tuple[LaunchedGraph, LaunchedGraph]:
+        common = ["two_hosts", f"keys:={keys}", f"first_port:={first}", f"last_port:={first + 99}",
+                  f"scene:={scene}", "record:=false", "check:=false", *extra]
+        for machine in ("robot", "workstation"):
+            roots.append(tempfile.TemporaryDirectory(prefix="ss-", dir="/tmp"))
+            graphs.append(LaunchedGraph([*common, "--machine", machine], Path(roots[-1].name)))
+        return graphs[-2], graphs[-1]
+
+    start.keys, start.first_port = keys, first
+    yield start
+    for g in graphs:
+        g.stop(9 if g.proc.poll() is None else 2)
+    for r in roots:
+        r.cleanup()
+
+
+def _curve_client(ctx: zmq.Context, kind: int, secret_file: Path, server_public_file: Path) -> zmq.Socket:
+    sock = ctx.socket(kind)
+    sock.setsockopt(zmq.LINGER, 0)
+    sock.curve_publickey, sock.curve_secretkey = zmq.auth.load_certificate(secret_file)
+    sock.curve_serverkey = zmq.auth.load_certificate(server_public_file)[0]
+    return sock
+
+
+def test_closed_loop_over_two_machines_holds_and_strangers_get_nothing(two_hosts, tmp_path):
+    summary = tmp_path / "summary.json"
+    robot, workstation = two_hosts(f"summary:={summary}")
+    graph = workstation.wait_ready(timeout=90)
+    robot.wait_ready(timeout=90)
+    nodes = graph["nodes"]
+    assert nodes["rig"]["machine"] == "robot" and nodes["rig"]["pub"].startswith(f"tcp://{ROBOT}:")
+    assert nodes["fusion"]["pub"].startswith("ipc://")  # on one machine the link stays ipc
+    # a tool on the workstation sees the robot's topics (over tcp, with the workstation's keys)
+    echo = subprocess.Popen([sys.executable, "-m", "slipstack.launch.cli", "topic", "echo", "rig/truth", "--once",
+                             "--no-arr", "--timeout", "30"], env=workstation.env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    recording = tmp_path / "wrench.mcap"  # and records them
+    record = subprocess.Popen([sys.executable, "-m", "slipstack.launch.cli", "bag", "record", "ft/wrench", "-o",
+                               str(recording), "--duration", "1.5"], env=workstation.env, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True)
+
+    # a peer with a key pair the graph does not know: no frames, no answer from a launcher
+    stranger_keys = tmp_path / "stranger"
+    subprocess.run([sys.executable, "-m", "slipstack.launch.cli", "keys", str(stranger_keys), "--machine", "robot"],
+                   check=True, capture_output=True, timeout=60)
+    ctx = zmq.Context()
+    try:
+        legit = _curve_client(ctx, zmq.SUB, two_hosts.keys / "workstation" / "workstation.key_secret",
+                              two_hosts.keys / "workstation" / "robot.key")
+        wrong = _curve_client(ctx, zmq.SUB, stranger_keys / "robot" / "robot.key_secret",
+                              two_hosts.keys / "workstation" / "robot.key")
+        for sock in (legit, wrong):
+            sock.setsockopt(zmq.SUBSCRIBE, b"")
+            sock.connect(nodes["rig"]["pub"])
+        pinger = _curve_client(ctx, zmq.DEALER, stranger_keys / "robot" / "robot.key_secret",
+                               two_hosts.keys / "workstation" / "workstation.key")
+        member = _curve_client(ctx, zmq.DEALER, two_hosts.keys / "robot" / "robot.key_secret",
+                               two_hosts.keys / "robot" / "workstation.key")
+        for sock in (pinger, member):
+            sock.connect(f"tcp://{WORKSTATION}:{two_hosts.first_port}")  # the workstation's launcher
+            sock.send_multipart([b"ping", (0).to_bytes(8, "big"), b"robot"])
+        assert member.poll(10_000)  # the robot's key pair is answered
+        assert count_frames(legit, 1.0) > 10
+        assert count_frames(wrong, 1.0) == 0
+        assert not pinger.poll(1000)
+    finally:
+        ctx.destroy(linger=0)
+    out, err = echo.communicate(timeout=60)
+    assert echo.returncode == 0 and "slip_distance" in out, err
+    out, err = record.communicate(timeout=60)
+    assert record.returncode == 0, err
+    frames = int(re.search(r"wrote .*: (\d+) frames", out + err).group(1))
+    assert frames > 0, out
+
+    # the scene ends: the rig (required) exits, its launcher stops, the workstation follows
+    assert robot.proc.wait(90) == 0, robot.log()
+    assert workstation.proc.wait(60) == 0, workstation.log()
+    assert "machine robot (127.0.0.1) stopped" in workstation.log()
+    s = json.loads(summary.read_text())
+    assert s["slip_distance_mm"] < 0.5, json.dumps(s, indent=1)
+
+
+def test_a_machine_whose_launcher_dies_takes_its_nodes_and_is_reported(two_hosts):
+    robot, workstation = two_hosts()
+    workstation.wait_ready(timeout=90)
+    robot_nodes = robot.wait_ready(timeout=90)["nodes"]
+    pids = [v["pid"] for v in robot_nodes.values() if v.get("machine") == "robot"]
+    assert pids and all(pid_alive(p) for p in pids)
+    robot.proc.kill()  # no goodbye: the workstation must notice the silence
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and ("went quiet" not in workstation.log() or any(map(pid_alive, pids))):
+        time.sleep(0.1)
+    assert not any(pid_alive(p) for p in pids), "the robot's nodes outlived their launcher"
+    assert "machine robot (127.0.0.1) went quiet" in workstation.log(), workstation.log()
+
+
+def test_a_machine_gone_quiet_is_named_the_grip_holds_and_the_loop_resumes(two_hosts, tmp_path):
+    scene = tmp_path / "fig15_long.toml"  # a scene that outlasts the test
+    scene.write_text((tmp_path / "fig15_short.toml").read_text().replace(f"duration_s = {SCENE_S}",
+                                                                         "duration_s = 120.0", 1))
+    robot, workstation = two_hosts(f"scene:={scene}", "monitor:=false")
+    nodes = workstation.wait_ready(timeout=90)["nodes"]
+    robot_pids = [robot.proc.pid, *(v["pid"] for v in robot.wait_ready(timeout=90)["nodes"].values()
+                                    if v.get("machine") == "robot")]
+    ctx = zmq.Context()
+    commands = ctx.socket(zmq.SUB)  # on the workstation, where the controller runs: its ipc endpoint
+    commands.setsockopt(zmq.SUBSCRIBE, b"grip/command")
+    commands.connect(nodes["grip_controller"]["pub"])
+
+    def read(seconds: float, until: str | None = None) -> list[tuple[float, str]]:
+        """(f_n desired, reason) of the commands over ``seconds``, or until ``until`` is in the log."""
+        got, end = [], time.monotonic() + seconds
+        while time.monotonic() < end and not (until and until in workstation.log()):
+            if commands.poll(50):
+                _, payload = commands.recv_multipart()
+                body = msgpack.unpackb(payload, raw=False, strict_map_key=False)[3]
+                got.append((float(body[0]), str(body[2])))
+        return got
+
+    try:
+        before: list[tuple[float, str]] = []
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and not any(reason != "fail-safe" for _, reason in before):
+            before += read(0.5)
+        assert before, "no grip command before the freeze"
+        for pid in robot_pids:
+            os.kill(pid, signal.SIGSTOP)  # the robot's computer vanishes from the network
+        frozen = read(30, until="machine robot (127.0.0.1) went quiet")
+        assert "machine robot (127.0.0.1) went quiet" in workstation.log(), workstation.log()
+        held = read(1.0)
+        assert held and all(reason == "fail-safe" for _, reason in held), held
+        trail = before + frozen + held  # from the last command judged on fresh data on, never lower
+        last_ok = max(k for k, (_, reason) in enumerate(trail) if reason != "fail-safe")
+        forces = [f for f, _ in trail[last_ok:]]
+        assert all(b >= a - 1e-9 for a, b in zip(forces, forces[1:])), forces
+        for pid in robot_pids:
+            os.kill(pid, signal.SIGCONT)
+        read(30, until="machine robot (127.0.0.1) is back")
+        assert "machine robot (127.0.0.1) is back" in workstation.log(), workstation.log()
+        deadline = time.monotonic() + 30
+        resumed: list[tuple[float, str]] = []
+        while time.monotonic() < deadline and not any(reason != "fail-safe" for _, reason in resumed):
+            resumed = read(0.5)
+        assert any(reason != "fail-safe" for _, reason in resumed), resumed
+    finally:
+        for pid in robot_pids:
+            if pid_alive(pid):
+                os.kill(pid, signal.SIGCONT)
+        ctx.destroy(linger=0)

@@ -1,0 +1,208 @@
+"""A graph over several machines: placement, endpoints every launcher computes alike,
+per-machine CURVE keys, refusals with what to do, the clock offset and time base.
+
+The sockets here are real (tcp on 127.0.0.1, ipc in a temporary directory); the
+launchers of tests/e2e/test_two_machines.py run the whole graph over two addresses.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import pytest
+import zmq
+
+from slipstack.launch.launch_file import load_launch_file
+from slipstack.launch import launcher as launcher_module
+from slipstack.launch.launcher import Launcher
+from slipstack.lib.clock_offset import ClockOffset
+from slipstack.lib.errors import ConfigError
+from slipstack.nodes.runtime import curve
+from slipstack.nodes.runtime.time_base import CLOCK_OFFSET_ENV, graph_clock
+from slipstack.nodes.runtime.transport import make_pub, make_sub
+
+BUILTINS = {"run_dir": "/tmp/slipstack-test"}
+GRAPH = """
+[launch]
+{launch}
+
+[machines.a]
+address = "{a}"
+ports = [31200, 31202]
+{a_keys}
+
+[machines.b]
+address = "127.0.0.2"
+ports = [31200, 31299]
+{b_keys}
+
+[[node]]
+name = "source"
+type = "wrench_source"
+{source}
+
+[[node]]
+name = "relay"
+type = "relay"
+machine = "b"
+{relay}
+
+[[node]]
+name = "sink"
+type = "sink"
+machine = "b"
+"""
+
+
+def _load(tmp_path: Path, *, launch: str = "", a: str = "127.0.0.1", a_keys: str = 'keys = "keys/a"',
+          b_keys: str = 'keys = "keys/b"', source: str = "", relay: str = "", extra: str = ""):
+    path = tmp_path / "two.toml"
+    path.write_text(GRAPH.format(launch=launch, a=a, a_keys=a_keys, b_keys=b_keys, source=source, relay=relay)
+                    + extra)
+    return load_launch_file(str(path), builtins=BUILTINS)
+
+
+@pytest.fixture
+def keys(tmp_path):
+    return curve.make_machine_keys(tmp_path / "keys", ["a", "b"])
+
+
+def test_nodes_are_placed_by_their_key_by_the_machines_nodes_list_or_on_the_first(tmp_path, keys):
+    lf = _load(tmp_path)
+    assert {e.name: e.machine for e in lf.nodes} == {"source": "a", "relay": "b", "sink": "b"}
+    shipped = load_launch_file("two_hosts", builtins=BUILTINS)
+    placed = {e.name: e.machine for e in shipped.nodes}
+    assert placed["rig"] == placed["ft_driver"] == placed["tactile_driver"] == "robot"
+    assert placed["grip_controller"] == placed["fusion"] == placed["monitor"] == "workstation"
+
+
+def test_both_launchers_compute_the_same_endpoints_ipc_inside_a_machine_tcp_between(tmp_path, keys):
+    lf = _load(tmp_path)
+    specs = {}
+    for machine in ("a", "b"):
+        run_dir = tmp_path / machine
+        run_dir.mkdir(mode=0o700)
+        launcher = Launcher(lf, run_dir, machine=machine, echo=lambda line: None)
+        launcher.control.close(linger=0)
+        specs[machine] = {p.name: json.loads(p.read_text()) for p in run_dir.glob("*.spec.json")}
+    assert set(specs["a"]) == {"source.spec.json"} and set(specs["b"]) == {"relay.spec.json", "sink.spec.json"}
+    source = specs["a"]["source.spec.json"]
+    relay, sink = specs["b"]["relay.spec.json"], specs["b"]["sink.spec.json"]
+    # the port of a node: its machine's first port (the launcher's) + 1 + its rank by name
+    assert source["pub"].startswith("ipc://") and source["pub_remote"] == "tcp://127.0.0.1:31201"
+    assert relay["pub_remote"] == "tcp://127.0.0.2:31201" and sink["pub_remote"] == "tcp://127.0.0.2:31202"
+    assert relay["subs"]["ft/wrench"] == ["tcp://127.0.0.1:31201"]  # from the other machine: tcp
+    assert sink["subs"]["ft/relayed"] == [relay["pub"]] and relay["pub"].startswith("ipc://")  # same machine: ipc
+    assert source["expected_subscribers"] == {"ft/wrench": 1}  # the relay on b is waited for,
+    assert source["handshake_timeout_s"] == launcher_module.PEER_WAIT_S  # as long as b's launcher may take
+    assert "handshake_timeout_s" not in relay  # its subscriber is on its own machine
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"a": "10.0.0.2", "a_keys": "", "b_keys": ""}, r"machines \['a'\] are on the network without keys: run "
+                                                    r"`slipstack keys DIR --machine a --machine b`"),
+    ({"a_keys": "", "b_keys": ""}, r"link over tcp without keys.*or insecure = true"),
+    ({"extra": '[[node]]\nname = "x"\ntype = "sink"\nmachine = "c"\n'}, r"node x: no \[machines.c\]; machines: a, b"),
+    ({"extra": '[[node]]\nname = "x"\ntype = "sink"\n[[node]]\nname = "y"\ntype = "sink"\n'},
+     r"\[machines.a\].ports \[31200, 31202\] holds 3 ports; it needs 4"),
+    ({"relay": 'container = "box"', "extra": '[[node]]\nname = "z"\ntype = "sink"\ncontainer = "box"\n'},
+     r"share container 'box' but differ in .*machine"),
+])
+def test_bad_machine_tables_are_refused_with_what_to_do(tmp_path, change, message):
+    with pytest.raises(ConfigError, match=message):
+        _load(tmp_path, **change)
+
+
+def test_after_a_node_of_a_machine_that_is_not_up_names_the_machine(tmp_path, keys, monkeypatch):
+    monkeypatch.setattr(launcher_module, "READY_TIMEOUT_S", 1.0)
+    lines: list[str] = []
+    run_dir = tmp_path / "run"
+    run_dir.mkdir(mode=0o700)
+    launcher = Launcher(_load(tmp_path, source='after = ["relay"]'), run_dir, machine="a", echo=lines.append)
+    try:
+        assert launcher.run() == 1
+    finally:
+        curve.use_keys(None)  # the launcher took machine a's keys for its own links
+    assert any("node source (wrench_source) starts after relay on machine b (127.0.0.2), not ready after 1 s: is "
+               "`slipstack launch two.toml --machine b` running there?" in line for line in lines), lines
+
+
+def test_launch_keys_name_the_directory_of_every_machines_key_directory(tmp_path, keys):
+    lf = _load(tmp_path, launch='keys = "keys"', a_keys="", b_keys="")
+    assert lf.machines["a"].keys == keys[0].resolve() and lf.machines["b"].keys == keys[1].resolve()
+
+
+def test_insecure_is_an_explicit_opt_in_for_a_network_address(tmp_path):
+    lf = _load(tmp_path, launch="insecure = true", a="10.0.0.2", a_keys="", b_keys="")
+    assert lf.insecure and lf.machines["a"].keys is None
+
+
+def test_the_machine_to_run_must_be_named_and_known(tmp_path, keys):
+    lf = _load(tmp_path)
+    for machine, message in ((None, r"run `slipstack launch two.toml --machine NAME` on each of them, NAME one of: "
+                                    r"a, b"), ("c", r"no machine 'c'")):
+        with pytest.raises(ConfigError, match=message):
+            Launcher(lf, tmp_path, machine=machine, echo=lambda line: None)
+
+
+def test_a_machine_admits_the_graphs_machines_and_no_stranger_while_ipc_stays_plain(tmp_path, keys):
+    stranger = curve.make_machine_keys(tmp_path / "stranger", ["b"])[0]  # a key pair named b, not the graph's
+    (stranger / "a.key").write_bytes((keys[0] / "a.key").read_bytes())  # a's public key is no secret
+    hosts = {"127.0.0.1": "a"}
+    ctx = zmq.Context()
+    try:
+        curve.use_keys(keys[0], "a", hosts)
+        pub = make_pub(ctx, f"ipc://{tmp_path}/a.pub", remote="tcp://127.0.0.1:31290")
+        plain_ipc = make_sub(ctx, [f"ipc://{tmp_path}/a.pub"], None)  # ipc: no CURVE on that endpoint
+        curve.use_keys(keys[1], "b", hosts)
+        member = make_sub(ctx, ["tcp://127.0.0.1:31290"], None)
+        curve.use_keys(stranger, "b", hosts)
+        outsider = make_sub(ctx, ["tcp://127.0.0.1:31290"], None)
+        time.sleep(0.3)
+        end = time.monotonic() + 1.5
+        counts = {"ipc": 0, "member": 0, "outsider": 0}
+        while time.monotonic() < end:
+            pub.send_multipart([b"t", b"x"])
+            for name, sock in (("ipc", plain_ipc), ("member", member), ("outsider", outsider)):
+                while sock.poll(0):
+                    sock.recv_multipart()
+                    counts[name] += 1
+            time.sleep(0.005)
+        assert counts["ipc"] > 20 and counts["member"] > 20 and counts["outsider"] == 0, counts
+    finally:
+        curve.use_keys(None)
+        ctx.destroy(linger=0)
+
+
+def test_a_machine_without_the_peers_public_key_says_where_to_copy_it(tmp_path, keys):
+    (keys[0] / "b.key").unlink()
+    with pytest.raises(ConfigError, match=r"no public key of machine b \(b.key\): copy it there"):
+        curve.GraphKeys.load(keys[0], "a", {"127.0.0.2": "b"})
+
+
+def test_clock_offset_recovers_a_known_offset_through_asymmetric_delays():
+    est = ClockOffset(window=64)
+    offset = 5_000_000_000  # their clock is 5 s ahead
+    for k in range(64):
+        t1 = k * 10_000_000
+        out, back = 100_000 + (k % 7) * 300_000, 100_000 + (k % 5) * 200_000  # loaded scheduler: uneven
+        t2 = t1 + out + offset
+        t3 = t2 + 20_000
+        t4 = t3 - offset + back
+        assert est.add(t1, t2, t3, t4)
+    e = est.estimate()
+    assert abs(e.offset_ns - offset) <= e.uncertainty_ns <= 2_000_000 and e.samples == 64
+    assert not est.add(100, 50, 60, 90)  # a reply from before the ping: impossible, ignored
+    assert ClockOffset().estimate() is None
+
+
+def test_graph_clock_is_shifted_by_the_launchers_offset(monkeypatch):
+    monkeypatch.delenv(CLOCK_OFFSET_ENV, raising=False)
+    assert graph_clock() is time.monotonic_ns
+    monkeypatch.setenv(CLOCK_OFFSET_ENV, str(3_600 * 10**9))
+    assert abs(graph_clock()() - time.monotonic_ns() - 3_600 * 10**9) < 10**8
+    monkeypatch.setenv(CLOCK_OFFSET_ENV, "soon")
+    with pytest.raises(ConfigError, match="must be an integer number of nanoseconds"):
+        graph_clock()
