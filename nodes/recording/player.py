@@ -33,7 +33,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.messages import registry
 from slipstack.messages.frame import peek_header, publisher_key, restamp
 from slipstack.nodes.recording.bag_io import RecordedFrame, clock_offset_ns, read_recording
-from slipstack.nodes.runtime.graph_info import find_run_dir, read_graph
+from slipstack.nodes.runtime.graph_info import find_run_dir, read_graph, time_base_offset_ns
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.node import Context, Node, Output
 from slipstack.nodes.runtime.process import ProcessExecutor, RunSpec
@@ -146,10 +146,12 @@ class Player(Node):
     Params = PlayerParams
 
     def __init__(self, params: PlayerParams | None = None, *,
-                 send: Callable[[str, bytes], None] | None = None) -> None:
+                 send: Callable[[str, bytes], None] | None = None, graph_offset_ns: int = 0) -> None:
         """``send(topic, payload)``, if given, takes every due frame in place of the
         node's outputs, and the node stops after the last one (``bag play`` sends on its
-        own endpoint and into the running nodes)."""
+        own endpoint and into the running nodes). ``graph_offset_ns``: the graph's time
+        base minus this process's clock, for a player started outside the launch on
+        another machine; restamped frames land on the graph's clock."""
         super().__init__(params)
         p = self.params
         if not p.path:
@@ -162,7 +164,7 @@ class Player(Node):
                 head = peek_header(f.payload)
                 self.types[f.topic] = head.type_name if head else ""
         self.outputs = {t: Output(t, registry[name]) for t, name in self.types.items() if name in registry}
-        offset = clock_offset_ns(p.path, frames) if p.restamp else None
+        offset = clock_offset_ns(p.path, frames) + graph_offset_ns if p.restamp else None
         self.playback = Playback(frames, p.rate, p.loop, offset)
         self._send = send
 
@@ -206,19 +208,19 @@ def play(
         bus.send(topic, payload)
         injector.send(topic, payload, publisher_key(topic, payload, peek_header(payload)))
 
-    player = Player(PlayerParams(path=path, topics=list(topics or []), rate=rate, loop=loop, restamp=restamp_stamps,
-                                 start_offset_s=start_offset_s), send=send)
-    played = set(player.types)
-    injects: list[tuple[str, str]] = []
-    graph_nodes: dict = {}
     rd = None
     try:
         rd = find_run_dir(run_dir)
     except ConfigError:
         if endpoint is None:
             raise
+    graph = read_graph(rd) if rd is not None else {"nodes": {}}
+    graph_nodes: dict = graph["nodes"]
+    player = Player(PlayerParams(path=path, topics=list(topics or []), rate=rate, loop=loop, restamp=restamp_stamps,
+                                 start_offset_s=start_offset_s), send=send, graph_offset_ns=time_base_offset_ns(graph))
+    played = set(player.types)
+    injects: list[tuple[str, str]] = []
     if rd is not None:
-        graph_nodes = read_graph(rd)["nodes"]
         for node in graph_nodes.values():
             injects += [(t, ep) for t, ep in node.get("inject", {}).items() if t in played]
     name = tool_name("bag_play")  # one endpoint per player: ipc binds steal

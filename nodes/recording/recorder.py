@@ -31,7 +31,8 @@ from slipstack.lib.errors import ConfigError
 from slipstack.messages.frame import SeqTracker, peek_header, publisher_key
 from slipstack.nodes.recording.bag_io import RecordingWriter
 from slipstack.nodes.runtime.curve import secure_connect
-from slipstack.nodes.runtime.graph_info import RUN_DIR_ENV, clock_offset_ns, find_run_dir, read_graph, topic_endpoints
+from slipstack.nodes.runtime.graph_info import (RUN_DIR_ENV, find_run_dir, read_graph, time_base_offset_ns,
+                                                topic_endpoints)
 from slipstack.nodes.runtime.node import Context, Node
 from slipstack.nodes.runtime.process import ProcessExecutor, RunSpec
 from slipstack.nodes.runtime.tool_pub import tool_name
@@ -259,7 +260,7 @@ def record(
         raise ConfigError(f"{out} exists; choose another -o path or delete it")
     node = Recorder(RecorderParams(topics=list(topics or []), path=str(out), run_dir=str(rd),
                                    duration_s=duration_s or 0.0),
-                    on_recording=lambda path: print(path, flush=True), graph_offset_ns=clock_offset_ns(graph))
+                    on_recording=lambda path: print(path, flush=True), graph_offset_ns=time_base_offset_ns(graph))
     if ProcessExecutor([(node, RunSpec(name=tool_name("bag_record")))]).run() != 0:
         raise ConfigError(f"bag record could not start (said above); nothing was recorded to {out}")
     return node.bus.received if node.bus is not None else 0

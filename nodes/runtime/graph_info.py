@@ -42,7 +42,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.nodes.runtime.run_dir import CURRENT_LINK, point_current, run_root, write_private_file
 
 __all__ = ["GRAPH_FILE", "RUN_DIR_HELP", "write_graph", "read_graph", "find_run_dir", "topic_endpoints", "process_start_ticks",
-           "register_tool", "clock_offset_ns"]
+           "register_tool", "time_base_offset_ns"]
 
 GRAPH_FILE = "graph.json"
 _TOOL_GLOB = "tool-*.json"
@@ -157,7 +157,7 @@ def topic_endpoints(graph: dict[str, Any]) -> dict[str, list[str]]:
     return out
 
 
-def clock_offset_ns(graph: dict[str, Any]) -> int:
+def time_base_offset_ns(graph: dict[str, Any]) -> int:
     """What the graph's nodes on this machine add to its monotonic clock (ns): 0 on one
     machine, else the offset to the first machine's clock (nodes/runtime/time_base.py).
     A tool comparing stamps with its own clock adds it too."""

@@ -32,6 +32,7 @@ import numpy as np
 from slipstack.lib.errors import ConfigError, DecodeError
 from slipstack.messages import Header, Message, encode, registry, validate
 from slipstack.nodes.tools.topic_tools import TopicInfo, load_graph, resolve_topic
+from slipstack.nodes.runtime.graph_info import time_base_offset_ns
 from slipstack.nodes.runtime.stop_signal import stop_on_signals
 from slipstack.nodes.runtime.tool_pub import BusPublisher, InjectionSender, tool_name
 from slipstack.nodes.tools.topic_yaml import parse_flow
@@ -148,6 +149,7 @@ def main_pub(args: argparse.Namespace) -> int:
             print(f"topic pub: only {joined} of {len(injector.targets)} subscribers joined; publishing anyway",
                   file=sys.stderr)
         period = round(1e9 / args.rate)
+        time_base = time_base_offset_ns(graph)  # stamps on the graph's clock (another machine's, with machines)
         due = time.monotonic_ns()
         seq = 0
         while times is None or seq < times:
@@ -155,7 +157,8 @@ def main_pub(args: argparse.Namespace) -> int:
             if now < due:
                 time.sleep((due - now) / 1e9)
                 now = time.monotonic_ns()
-            payload = encode(dataclasses.replace(body, header=Header(now, seq, now, {})))
+            stamp = now + time_base
+            payload = encode(dataclasses.replace(body, header=Header(stamp, seq, stamp, {})))
             bus.send(info.name, payload)
             if injector is not None:
                 injector.send(payload)
