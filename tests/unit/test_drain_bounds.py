@@ -132,13 +132,23 @@ def test_one_wake_up_reads_a_bounded_number_of_injected_frames(ctx, tmp_path, mo
         for k in range(300):
             tool.send_multipart([b"ft/wrench", _wrench(k, stamp_ns=5)])  # stale-stamped flood
         _settle()
-        member.drain_injected(10**12)
         c = member.host.counters
-        assert c["in.ft/wrench.received"] + c["inject.dropped_rate"] == 100
-        member.drain_injected(10**12)
-        member.drain_injected(10**12)
-        assert c["in.ft/wrench.received"] + c["inject.dropped_rate"] == 300
-        assert len(node.handled["latest"]) == 3  # one handler call per wake-up, whatever the backlog
+
+        def taken() -> int:
+            return c["in.ft/wrench.received"] + c["inject.dropped_rate"]
+
+        # wake up until all 300 are taken (on a loaded machine ZeroMQ may still be moving
+        # some into the queue): never more than the limit per wake-up
+        reads, deadline = [], time.monotonic() + 30.0
+        while taken() < 300 and time.monotonic() < deadline:
+            before = taken()
+            member.drain_injected(10**12)
+            reads.append(taken() - before)
+            if not reads[-1]:
+                time.sleep(0.05)
+        assert taken() == 300 and all(r <= 100 for r in reads), reads
+        woke = [r for r in reads if r]
+        assert len(woke) >= 3 and len(node.handled["latest"]) == len(woke)  # one handler call per wake-up
 
 
 def test_a_flood_over_the_rate_pauses_reading_after_a_bounded_number_of_frames(ctx, tmp_path):
