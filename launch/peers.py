@@ -81,6 +81,12 @@ class Peer:
         return self.clock.estimate()
 
 
+BYE_LINGER_MS = 2000
+"""How long a closing launcher lets ZeroMQ deliver its goodbye (ms): a loaded machine's I/O
+thread can need well over the 200 ms this was, and a lost goodbye leaves the peers
+running, holding in fail-safe, instead of stopping with it."""
+
+
 class PeerLinks:
     """This launcher's links to the other machines' launchers, run by a thread; :meth:`service`
     prints what it reports. ``state`` and ``ready`` are what this launcher answers with."""
@@ -187,5 +193,5 @@ class PeerLinks:
         self.service()
         for peer in self.peers.values():
             self._send(peer.sock, [b"bye", self.me.name.encode()])
-            peer.sock.close(linger=200)
+            peer.sock.close(linger=BYE_LINGER_MS)
         self.server.close(linger=0)
