@@ -108,9 +108,16 @@ class LockstepRun:
             names.append(name)
         self.executor = InProcessExecutor(
             nodes, names=names, remaps={e.name: e.remap for e in launch.nodes},
-            diagnostics_period_s=DIAGNOSTICS_PERIOD_S, keep_published=keep_published, on_frame=self._on_frame, log=echo)
+            diagnostics_period_s=DIAGNOSTICS_PERIOD_S, keep_published=keep_published, on_frame=self._on_frame,
+            on_frame_topics=self._recorded_topics(), log=echo)
         self.required = [e.name for e in launch.nodes if e.required and e.name in names]
         self.end_ns = round(launch.duration_s * 1e9) if launch.duration_s > 0 else None
+
+    def _recorded_topics(self) -> set[str] | None:
+        """The topics some recording writes (``None``: every topic)."""
+        if any(not recording.topics for recording in self.recordings):
+            return None
+        return set().union(*(recording.topics for recording in self.recordings))
 
     def _on_frame(self, t_ns: int, topic: str, payload: bytes) -> None:
         for recording in self.recordings:

@@ -36,6 +36,7 @@ from slipstack.messages.frame import (
 
 __all__ = [
     "Header", "Message", "ArraySpec", "Bounds", "array", "bounded", "declared_bounds", "message", "encode", "decode", "validate",
+    "with_header",
     "registry", "MAX_STR_LEN", "MAX_DICT_ITEMS", "MAX_KEY_LEN", "MAX_HEADER_SOURCES", "INT64_MAX",
 ]
 
@@ -362,6 +363,16 @@ def decode(payload: bytes, expected: type[M] | None = None) -> M:
         _check_tied_lengths(msg, fields)
     fields["header"] = header
     return msg
+
+
+def with_header(msg: M, header: Header) -> M:
+    """A shallow copy of ``msg`` carrying ``header`` (an in-process hand-over: the publisher
+    may publish the same object again; the fields, arrays included, are shared, not copied)."""
+    copied = object.__new__(type(msg))
+    fields = copied.__dict__
+    fields.update(msg.__dict__)
+    fields["header"] = header
+    return copied
 
 
 def validate(msg: Message) -> Message:

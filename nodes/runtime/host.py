@@ -53,6 +53,9 @@ class NodeHost:
         listened: ``listened(topic)`` is true while a subscriber outside this process
             wants ``topic``; when false, a publication is neither encoded nor sent (it
             is still counted, numbered and handed over in-process). ``None``: always send.
+        send_raw: ``send_raw(topic, payload)`` for :meth:`publish_raw` (default: ``send``);
+            an executor whose ``send`` reaches only outside subscribers delivers raw
+            frames in-process with it.
     """
 
     def __init__(
@@ -67,11 +70,13 @@ class NodeHost:
         log: Callable[[str], None] | None = None,
         stage_cpu: StageCpu | None = None,
         listened: Callable[[str], bool] | None = None,
+        send_raw: Callable[[str, bytes], None] | None = None,
     ) -> None:
         self.node = node
         self.name = name or node.name
         self.clock = clock
         self._send = send
+        self._send_raw = send_raw or send
         remap = remap or {}
         self.input_topics = {n: remap.get(i.topic, i.topic) for n, i in node.inputs.items()}
         self.output_topics = {n: remap.get(o.topic, o.topic) for n, o in node.outputs.items()}
@@ -137,7 +142,7 @@ class NodeHost:
 
     def publish_raw(self, topic: str, payload: bytes) -> None:
         """Put an already-encoded frame on the bus unchanged (recording playback)."""
-        self._send(topic, payload)
+        self._send_raw(topic, payload)
         self.counters[f"out.{topic}.published"] += 1
 
     def count(self, name: str, increment: int = 1) -> None:

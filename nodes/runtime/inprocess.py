@@ -2,8 +2,10 @@
 
 Nodes are fed from a list of ``(t_ns, topic, message_or_payload)`` events (a
 recording, or hand-made: :meth:`InProcessExecutor.feed`, :meth:`~InProcessExecutor.inject`);
-frames still go through encode → decode so validation and counting behave exactly as
-on the bus. Events, timers, deadlines and the messages nodes publish are processed in
+fed frames go through decode, so validation and counting behave exactly as on the bus.
+A message a node publishes reaches its subscribers as one shared object with its new
+header, as inside a container (``NodeHost.receive_local``): nothing is decoded again,
+and it is encoded only for :attr:`~InProcessExecutor.published` and ``on_frame``. Events, timers, deadlines and the messages nodes publish are processed in
 time order (ties: in the order they were scheduled), so a run is bit-for-bit
 repeatable. :meth:`~InProcessExecutor.advance` moves the simulated clock; a whole
 launch file runs this way with ``slipstack launch --lockstep`` (``launch/lockstep.py``).
@@ -19,9 +21,9 @@ from __future__ import annotations
 import heapq
 import itertools
 from collections import defaultdict
-from typing import Callable, Iterable
+from typing import Callable, Collection, Iterable
 
-from slipstack.messages import Message, decode, encode
+from slipstack.messages import Header, Message, decode, encode, with_header
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC, NodeHost
 from slipstack.nodes.runtime.node import Node
 
@@ -43,6 +45,8 @@ class InProcessExecutor:
             (off for long runs: they grow without bound; use ``on_frame``).
         on_frame: called as ``on_frame(t_ns, topic, payload)`` with every frame a node
             publishes, in publication order.
+        on_frame_topics: the topics ``on_frame`` wants (``None``: all); the others are
+            not encoded unless ``keep_published``.
         log: receives each node's log lines, ``[name] text`` (default: :attr:`logs`).
 
     After :meth:`run`, :attr:`published` maps topic → list of decoded messages in
@@ -59,6 +63,7 @@ class InProcessExecutor:
         start_ns: int = 0,
         keep_published: bool = True,
         on_frame: Callable[[int, str, bytes], None] | None = None,
+        on_frame_topics: Collection[str] | None = None,
         log: Callable[[str], None] | None = None,
     ) -> None:
         self.now = start_ns
@@ -71,6 +76,7 @@ class InProcessExecutor:
         self._subs: dict[str, list[tuple[NodeHost, str]]] = defaultdict(list)
         self._keep = keep_published
         self._on_frame = on_frame
+        self._on_frame_topics = None if on_frame_topics is None else frozenset(on_frame_topics)
         write_log = log or self.logs.append
         remaps = remaps or {}
         nodes = list(nodes)
@@ -79,9 +85,10 @@ class InProcessExecutor:
             raise ValueError(f"{len(instance_names)} names for {len(nodes)} nodes")
         for node, name in zip(nodes, instance_names):
             host = NodeHost(
-                node, lambda: self.now, self._send, name=name, remap=remaps.get(name), measure_handlers=False,
-                log=lambda text, n=name: write_log(f"[{n}] {text}"),
+                node, lambda: self.now, self._record, name=name, remap=remaps.get(name), measure_handlers=False,
+                log=lambda text, n=name: write_log(f"[{n}] {text}"), listened=self._encoded, send_raw=self._send,
             )
+            host.on_publish = self._hand_over
             self.hosts.append(host)
             for input_name, topic in host.input_topics.items():
                 self._subs[topic].append((host, input_name))
@@ -128,14 +135,33 @@ class InProcessExecutor:
     def _schedule(self, t_ns: int, item: object) -> None:
         heapq.heappush(self._queue, (t_ns, next(self._order), "", item))
 
-    def _send(self, topic: str, payload: bytes) -> None:
+    def _encoded(self, topic: str) -> bool:
+        """Whether a publication on ``topic`` is encoded (kept, or wanted by ``on_frame``)."""
+        if self._keep:
+            return True
+        return self._on_frame is not None and (self._on_frame_topics is None or topic in self._on_frame_topics)
+
+    def _record(self, topic: str, payload: bytes) -> None:
+        """Keep and pass on an encoded frame (its in-process subscribers are served apart)."""
         if self._keep:
             self.raw.append((self.now, topic, payload))
             self.published[topic].append(decode(payload))
         if self._on_frame is not None:
             self._on_frame(self.now, topic, payload)
+
+    def _send(self, topic: str, payload: bytes) -> None:
+        """An encoded frame (diagnostics, a raw frame) to the record and to its subscribers."""
+        self._record(topic, payload)
         for host, input_name in self._subs.get(topic, ()):
             self._schedule(self.now, ("frame", host, input_name, payload))
+
+    def _hand_over(self, topic: str, msg: Message, header: Header) -> None:
+        """A published message to its subscribers, one object shared by all of them."""
+        subscribers = self._subs.get(topic)
+        if subscribers:
+            delivered = with_header(msg, header)
+            for host, input_name in subscribers:
+                self._schedule(self.now, ("message", host, input_name, delivered))
 
     def feed(self, events: Iterable[tuple[int, str, Message | bytes]]) -> None:
         """Schedule external frames: ``(t_ns, topic, message or encoded payload)``.
@@ -177,7 +203,10 @@ class InProcessExecutor:
             host = item[1]
             if host.shutdown_requested:
                 continue
-            if kind == "frame":
+            if kind == "message":
+                _, host, input_name, msg = item
+                host.receive_local(input_name, msg)
+            elif kind == "frame":
                 _, host, input_name, payload = item
                 msg = host.receive(input_name, payload)
                 if msg is not None:
@@ -211,7 +240,7 @@ class InProcessExecutor:
             self._schedule(max(due, self.now), ("deadline", host, due))
 
     def _has_frames(self) -> bool:
-        return any(entry[3][0] == "frame" for entry in self._queue)
+        return any(entry[3][0] in ("frame", "message") for entry in self._queue)
 
     def stop(self, order: Iterable[str] | None = None) -> None:
         """Call every node's ``stop``, in ``order`` (node names; default: node order)."""

@@ -33,7 +33,6 @@ subscriber outside the process wants is not encoded nor sent (the XPUB is polled
 
 from __future__ import annotations
 
-import copy
 import os
 import signal
 import sys
@@ -46,7 +45,7 @@ from typing import Any
 import msgpack
 import zmq
 
-from slipstack.messages import Header, Message
+from slipstack.messages import Header, Message, with_header
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC, NodeHost
 from slipstack.nodes.runtime.logs import node_log
 from slipstack.nodes.runtime.node import Node
@@ -398,8 +397,7 @@ class ProcessExecutor:
         def hand_over(topic: str, msg: Message, header: Header) -> None:
             targets = routes.get((publisher, topic))
             if targets:
-                delivered = copy.copy(msg)  # the publisher may publish the same object again
-                object.__setattr__(delivered, "header", header)
+                delivered = with_header(msg, header)
                 for member, input_name in targets:
                     handover.append((member, input_name, delivered))
                     key = (member, input_name)
