@@ -45,6 +45,7 @@ MAX_STR_LEN = 256
 MAX_DICT_ITEMS = 256
 """Entries a ``dict`` field may hold unless it declares its own ``max_len``."""
 _SHOWN_CHARS = 40  # a rejected string is quoted up to this many characters in the error
+_ZERO_VECTORS_KEPT = 8  # array sizes per field whose zero vector for the finiteness test is kept
 
 
 @dataclass(frozen=True)
@@ -161,6 +162,7 @@ def _array_validator(name: str, spec: ArraySpec):
     shape = tuple(None if isinstance(n, str) else n for n in spec.shape)  # a tied length is checked later
     fixed_shape = shape if None not in shape else None
     check_finite = spec.finite and want_dtype.kind == "f"
+    zeros: dict[int, np.ndarray] = {}  # size → a zero vector for the finiteness test (few sizes per field)
 
     def check_array(v: Any) -> Any:
         if type(v) is not np.ndarray:
@@ -172,8 +174,14 @@ def _array_validator(name: str, spec: ArraySpec):
         )):
             raise DecodeError(f"{name}: expected shape {spec.shape}, got {v.shape}")
         # NaN/Inf make the dot product with zeros NaN: one pass, no temporary array
-        if check_finite and v.size and v.reshape(-1).dot(np.zeros(v.size, v.dtype)) != 0:
-            raise DecodeError(f"{name}: contains NaN or Inf")
+        if check_finite and v.size:
+            zero = zeros.get(v.size)
+            if zero is None:
+                zero = np.zeros(v.size, v.dtype)
+                if len(zeros) < _ZERO_VECTORS_KEPT:
+                    zeros[v.size] = zero
+            if (v if v.ndim == 1 else v.reshape(-1)).dot(zero) != 0:
+                raise DecodeError(f"{name}: contains NaN or Inf")
         return v
 
     return check_array
@@ -259,15 +267,18 @@ def _validator(owner: str, f: dataclasses.Field, hint: Any):
     else:
         extra = {float: _number_check, int: _number_check, str: _str_check}.get(origin, lambda *_: None)(name, b)
 
+    is_float = origin is float
+
     def check_scalar(v: Any) -> Any:
-        if isinstance(v, bool) and origin is not bool:
-            raise DecodeError(f"{name}: expected {origin.__name__}, got bool")
-        if not isinstance(v, allowed):
-            raise DecodeError(f"{name}: expected {origin.__name__}, got {type(v).__name__}")
-        if origin is float:
-            v = float(v)
-            if math.isnan(v) or (math.isinf(v) and not allow_inf):
-                raise DecodeError(f"{name}: must be finite, got {v}")
+        if type(v) is not origin:  # exactly the declared type (what the wire carries) needs no conversion
+            if isinstance(v, bool) and origin is not bool:
+                raise DecodeError(f"{name}: expected {origin.__name__}, got bool")
+            if not isinstance(v, allowed):
+                raise DecodeError(f"{name}: expected {origin.__name__}, got {type(v).__name__}")
+            if is_float:
+                v = float(v)
+        if is_float and not math.isfinite(v) and (math.isnan(v) or not allow_inf):
+            raise DecodeError(f"{name}: must be finite, got {v}")
         if extra is not None:
             extra(v)
         return v
