@@ -57,6 +57,7 @@ import zmq
 from slipstack.lib.errors import ConfigError, SlipstackError
 from slipstack.launch.launch_file import SIM_ARG, LaunchFile, arg_comments, load_launch_file
 from slipstack.launch.peers import PeerLinks, launcher_endpoint
+from slipstack.launch.priority import set_autogroup_nice
 from slipstack.launch.plan import PEER_WAIT_S, NodePlan, ProcessPlan, plan_launch, runs_on
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.nodes.devices.sim_link import SIM_PREFIX
@@ -208,6 +209,7 @@ class Launcher:
                     os.nice(nice)
                 except OSError:  # raising priority needs the privilege: run at normal priority
                     pass
+                set_autogroup_nice(nice)
 
         proc = subprocess.Popen(
             cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
