@@ -12,6 +12,12 @@ command takes effect at the rig's next tick, as in a real-time launch.
 The monitor prints the same summary and writes the same ``check.json``; the recorder
 entry of the plan writes the frames of its topics to its ``path`` as they are
 published, with the simulated publication time as log time (ns from the run's start).
+With ``SLIPSTACK_STAGE_CPU=1`` the run ends with each node's CPU (its handlers, encoding
+and the recording of its frames; ``lockstep``: the executor's own loop), and every
+``diagnostics`` carries the ``cpu.<stage>_us`` counters (``nodes/runtime/stage_cpu.py``).
+A message a node publishes reaches its in-process subscribers as one shared object and
+is encoded only for the recording (``nodes/runtime/inprocess.py``).
+
 A launch ends when a ``required`` node finishes (the rig, at the end of its scene) or
 at ``[launch] duration_s`` of simulated time, whichever comes first.
 
@@ -36,6 +42,7 @@ from slipstack.nodes.devices.sim_link import SIM_PREFIX, is_simulated
 from slipstack.nodes.recording.bag_io import RecordingWriter
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.nodes.runtime.node import Node
+from slipstack.nodes.runtime.stage_cpu import STAGE_CPU_ENV, stage_cpu_from_env
 
 __all__ = ["LockstepRun", "check_lockstep", "run_launch_file", "STEP_NS", "DIAGNOSTICS_PERIOD_S"]
 
@@ -94,6 +101,7 @@ class LockstepRun:
         self.echo = echo
         self.plan: LaunchPlan = plan_launch(launch, run_dir)
         self.recordings: list[_Recording] = []
+        self.stage_cpu = stage_cpu_from_env("lockstep")
         nodes: list[Node] = []
         names: list[str] = []
         for name in self.plan.node_order():
@@ -109,7 +117,7 @@ class LockstepRun:
         self.executor = InProcessExecutor(
             nodes, names=names, remaps={e.name: e.remap for e in launch.nodes},
             diagnostics_period_s=DIAGNOSTICS_PERIOD_S, keep_published=keep_published, on_frame=self._on_frame,
-            on_frame_topics=self._recorded_topics(), log=echo)
+            on_frame_topics=self._recorded_topics(), log=echo, stage_cpu=self.stage_cpu)
         self.required = [e.name for e in launch.nodes if e.required and e.name in names]
         self.end_ns = round(launch.duration_s * 1e9) if launch.duration_s > 0 else None
 
@@ -161,7 +169,16 @@ class LockstepRun:
         wall, cpu = time.monotonic() - wall0, time.process_time() - cpu0
         self.echo(f"[lockstep] {ex.now_ns / 1e9:.2f} s simulated in {wall:.2f} s ({cpu:.2f} s CPU), "
                   f"{ex.now_ns / 1e9 / max(wall, 1e-9):.1f}x real time")
+        if self.stage_cpu is not None:
+            self.echo(f"[lockstep] CPU by node ({STAGE_CPU_ENV}=1; s): {self._cpu_by_node()}")
         return 0
+
+    def _cpu_by_node(self) -> str:
+        """Each node's and the executor's CPU (s) over the run, largest first."""
+        totals: dict[str, int] = {}
+        for (owner, _), ns in self.stage_cpu.ns.items():
+            totals[owner] = totals.get(owner, 0) + ns
+        return ", ".join(f"{owner} {ns / 1e9:.2f}" for owner, ns in sorted(totals.items(), key=lambda kv: -kv[1]))
 
     def _expected_end_ns(self) -> int | None:
         """The simulated time the run is expected to end at, for progress (the rig's scene, or the duration)."""

@@ -26,6 +26,7 @@ from typing import Callable, Collection, Iterable
 from slipstack.messages import Header, Message, decode, encode, with_header
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC, NodeHost
 from slipstack.nodes.runtime.node import Node
+from slipstack.nodes.runtime.stage_cpu import StageCpu
 
 __all__ = ["InProcessExecutor"]
 
@@ -48,6 +49,8 @@ class InProcessExecutor:
         on_frame_topics: the topics ``on_frame`` wants (``None``: all); the others are
             not encoded unless ``keep_published``.
         log: receives each node's log lines, ``[name] text`` (default: :attr:`logs`).
+        stage_cpu: charges each node's decode, handler, encode and send to their stages
+            (:mod:`slipstack.nodes.runtime.stage_cpu`; the rest is the executor's ``loop``).
 
     After :meth:`run`, :attr:`published` maps topic → list of decoded messages in
     publication order.
@@ -65,6 +68,7 @@ class InProcessExecutor:
         on_frame: Callable[[int, str, bytes], None] | None = None,
         on_frame_topics: Collection[str] | None = None,
         log: Callable[[str], None] | None = None,
+        stage_cpu: StageCpu | None = None,
     ) -> None:
         self.now = start_ns
         self._queue: list[tuple[int, int, str, object]] = []
@@ -87,6 +91,7 @@ class InProcessExecutor:
             host = NodeHost(
                 node, lambda: self.now, self._record, name=name, remap=remaps.get(name), measure_handlers=False,
                 log=lambda text, n=name: write_log(f"[{n}] {text}"), listened=self._encoded, send_raw=self._send,
+                stage_cpu=stage_cpu,
             )
             host.on_publish = self._hand_over
             self.hosts.append(host)

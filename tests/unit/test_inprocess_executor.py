@@ -95,3 +95,31 @@ def test_advance_stops_at_the_shutdown_of_a_watched_node():
         host.node.stop = lambda ctx, n=host.name: stopped.append(n)
     ex.stop(["relay", "finisher"])
     assert stopped == ["relay", "finisher"]
+
+
+class _Keeper(Node):
+    """Keeps every relayed wrench it is handed."""
+
+    name = "keeper"
+    inputs = {"wrench": Input("ft/relayed", Wrench)}
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.got: list[Wrench] = []
+
+    def on_wrench(self, msg: Wrench, ctx: Context) -> None:
+        self.got.append(msg)
+
+
+def test_a_published_message_reaches_every_subscriber_as_one_object_with_its_header_and_is_encoded_only_if_wanted():
+    frames: list[str] = []
+    first, second = _Keeper(), _Keeper()
+    ex = InProcessExecutor([Relay(), first, second], names=["relay", "first", "second"], keep_published=False,
+                           on_frame=lambda t, topic, payload: frames.append(topic), on_frame_topics={"elsewhere"})
+    ex.feed([(5, "ft/wrench", _wrench(0, 5)), (9, "ft/wrench", _wrench(1, 9))])
+    ex.run()
+    assert len(first.got) == 2 and all(a is b for a, b in zip(first.got, second.got))  # decoded once: shared
+    assert [m.header.seq for m in first.got] == [0, 1] and [m.header.pub_ns for m in first.got] == [5, 9]
+    assert [m.force[0] for m in first.got] == [0.0, 1.0]
+    assert ex.host("first").counters["in.ft/relayed.received"] == 2
+    assert frames == []  # nobody wants ft/relayed's bytes: not encoded
