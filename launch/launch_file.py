@@ -34,8 +34,9 @@ Format::
     enabled = true            # may be "$(arg)": leave a node out of this run
     after = ["rig"]           # start only once these nodes are ready (besides the
                               # topic order: subscribers before publishers)
-    nice = -5                 # scheduling priority (needs the privilege to raise it;
-                              # without it the node runs at normal priority)
+    nice = -5                 # scheduling priority, also of the node's autogroup (needs
+                              # the privilege to raise it; without it the node runs at
+                              # normal priority)
     machine = "robot"         # the [machines] entry whose launcher runs it (default: the first)
 
     [machines.robot]          # a graph over several computers: one table per machine
