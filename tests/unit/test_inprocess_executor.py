@@ -123,3 +123,20 @@ def test_a_published_message_reaches_every_subscriber_as_one_object_with_its_hea
     assert [m.force[0] for m in first.got] == [0.0, 1.0]
     assert ex.host("first").counters["in.ft/relayed.received"] == 2
     assert frames == []  # nobody wants ft/relayed's bytes: not encoded
+
+
+class _NanRelay(Relay):
+    """Relays a wrench with a NaN force: a bug the subscriber must reject, not handle."""
+
+    def on_wrench(self, msg: Wrench, ctx: Context) -> None:
+        ctx.publish("out", Wrench(force=np.array([np.nan, 0.0, 0.0]), torque=np.zeros(3)), stamp_ns=msg.header.stamp_ns)
+
+
+def test_an_invalid_published_message_is_rejected_by_its_subscriber_as_on_the_bus():
+    keeper = _Keeper()
+    ex = InProcessExecutor([_NanRelay(), keeper], names=["relay", "keeper"], keep_published=False)
+    ex.feed([(5, "ft/wrench", _wrench(0, 5))])
+    ex.run()
+    host = ex.host("keeper")
+    assert keeper.got == [] and host.counters["in.ft/relayed.rejected"] == 1
+    assert "NaN" in host.last_error
