@@ -7,8 +7,8 @@ A message a node publishes is validated once and reaches its subscribers as one 
 object with its new header, as inside a container (``NodeHost.receive_local``); it is
 encoded only for :attr:`~InProcessExecutor.published` and ``on_frame``, or when it fails
 validation, so that each subscriber rejects and counts it as it would on the bus.
-Events, timers, deadlines and the messages nodes publish are processed in time order (ties: in the order they were scheduled), so a run is bit-for-bit
-repeatable. :meth:`~InProcessExecutor.advance` moves the simulated clock; a whole
+Events, timers, deadlines and the messages nodes publish are processed in time order
+(ties: in the order they were scheduled), so a run is bit-for-bit repeatable. :meth:`~InProcessExecutor.advance` moves the simulated clock; a whole
 launch file runs this way with ``slipstack launch --lockstep`` (``launch/lockstep.py``).
 
 A node's deadline (``next_deadline_ns``) is re-read after each of its events, and a
