@@ -218,7 +218,7 @@ def test_rate_stats_match_hand_values():
     assert s.std_s == pytest.approx(np.std([1e-3, 1e-3, 2e-3]))
 
 
-# -- issue 13 item 3: echo exits on what can never print, and --timeout is a total deadline ----
+# -- echo exits on what can never print, and --timeout is a total deadline ----
 @pytest.mark.parametrize("field,words", [("force.5", "force is an array of 3 value(s)"),
                                          ("status.0", "status is a single value")])
 def test_echo_a_field_no_message_can_have_is_a_clear_error(demo, field, words):
@@ -246,7 +246,7 @@ def test_echo_a_filter_that_never_matches_ends_at_the_timeout(demo):
     assert "none passed --filter" in out.stderr
 
 
-# -- issue 13 item 6: what topic pub sends is on the bus, and injectors do not fake losses ------
+# -- what topic pub sends is on the bus, and injectors do not fake losses ------
 def _relay_counters(demo) -> dict[str, float]:
     out = _ok(demo.cli("topic", "echo", "diagnostics", "--field", "counters", "--once",
                        "--timeout", "8", "--filter", "m.node == 'relay'"))
