@@ -34,6 +34,23 @@ def test_delay_missed_and_false_slip_by_hand():
     assert q.delay_percentile_ms(50) == 2.0
 
 
+def test_a_flag_already_up_when_the_window_opens_is_no_delay():
+    """Episode A at 300 ms with the flag up since 100 ms (before A's window opens at 200 ms):
+    detected, but no delay (it would read -100 ms, the window's cut-off). Episode B at
+    700 ms with the flag raised at 650 ms: a delay of -50 ms, measured."""
+    t = np.arange(1000) * MS
+    s = np.zeros(1000, bool)
+    s[300:320] = True
+    s[700:720] = True
+    vs = np.zeros(1000, bool)
+    vs[100:330] = True
+    vs[650:730] = True
+    for q in (detection_quality(t, s, t, vs),
+              _streamed(t, s, t, vs, np.zeros(1000, bool), [True, False] * 1000).quality()):
+        assert q.already_flagged == 1 and q.delays_ns == (-50 * MS,) and q.missed == 0
+        assert q.detected == 2
+
+
 def test_incipient_frames_are_not_counted_as_sticking():
     t = np.arange(100) * MS
     s = np.zeros(100, bool)
@@ -88,6 +105,7 @@ def test_streamed_tracker_equals_detection_quality(data, windows_ms):
     tracker = _streamed(t, s, vt, vs, inc, order, lead_ns=lead, grace_ns=grace, min_gap_ns=gap)
     assert tracker.quality() == ref
     assert (tracker.episode_count, tracker.detected, tracker.missed) == (len(ref.episodes), ref.detected, ref.missed)
+    assert tracker.already_flagged == ref.already_flagged
 
 
 def test_tracker_memory_stays_bounded_over_a_long_stream():
