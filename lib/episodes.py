@@ -13,10 +13,14 @@ Definitions:
 - an episode is *already flagged* if the first verdict of its window is a slip verdict:
   the flag was up before the window opened, so no delay is measured (it would only be
   the window's cut-off, −lead); it counts as detected, apart from the delays;
-- a *false slip* is a slip verdict on a frame whose nearest truth sample says stick and
-  that lies in no episode's window. Frames the truth marks *incipient* (partial slip:
-  most of the contact's friction capacity already sliding, not yet gross slip) are
-  neither sticking nor slipping: a verdict there is an early warning, not an error.
+- a *flag without true slip* is a slip verdict on a frame whose nearest truth sample
+  says stick and that lies in no episode's window; their share of the sticking frames is
+  judged so. With the controller off these are false alarms; with it on they are mostly
+  the early warnings it acts on (it grips harder, so the slip they announced never
+  comes). Frames the truth marks *incipient* (partial slip: a large share of the
+  contact's friction capacity, :data:`INCIPIENT_SHARE` as the callers use it, already
+  sliding, not yet gross slip) are neither sticking nor slipping: a verdict there is an
+  early warning and is not counted.
 """
 
 from __future__ import annotations
@@ -56,15 +60,15 @@ class DetectionQuality:
     already_flagged: episodes whose flag was up on the first verdict of their window
     (detected, no delay measured).
     missed: episodes with no slip verdict in their window.
-    false_slip_frames / stick_frames: verdict frames outside every window / all frames
-    judged while truly sticking.
+    flag_without_slip_frames / stick_frames: slip verdicts on truly sticking frames outside
+    every window / all frames judged while truly sticking.
     """
 
     episodes: tuple[Episode, ...]
     delays_ns: tuple[int, ...]
     already_flagged: int
     missed: int
-    false_slip_frames: int
+    flag_without_slip_frames: int
     stick_frames: int
 
     @property
@@ -72,8 +76,9 @@ class DetectionQuality:
         return len(self.delays_ns) + self.already_flagged
 
     @property
-    def false_slip_rate(self) -> float:
-        return self.false_slip_frames / self.stick_frames if self.stick_frames else 0.0
+    def flag_without_slip_share(self) -> float:
+        """Flags without true slip over the frames judged while truly sticking (0 if none)."""
+        return self.flag_without_slip_frames / self.stick_frames if self.stick_frames else 0.0
 
     def delay_percentile_ms(self, q: float) -> float:
         """``q``-th percentile of the detection delay in ms (NaN if nothing was detected)."""
@@ -146,7 +151,7 @@ def detection_quality(
             stick &= ~np.asarray(incipient, dtype=bool)[idx]
     return DetectionQuality(
         episodes=tuple(episodes), delays_ns=tuple(delays), already_flagged=already_flagged, missed=missed,
-        false_slip_frames=int(np.count_nonzero(stick & vs)), stick_frames=int(np.count_nonzero(stick)),
+        flag_without_slip_frames=int(np.count_nonzero(stick & vs)), stick_frames=int(np.count_nonzero(stick)),
     )
 
 
@@ -203,7 +208,7 @@ class EpisodeTracker:
         self.already_flagged = 0
         self.missed = 0
         self.stick_frames = 0
-        self.false_slip_frames = 0
+        self.flag_without_slip_frames = 0
 
     def add_truth(self, stamp_ns: int, gross_slip: bool, incipient: bool = False) -> None:
         """One truth sample (stamps increasing)."""
@@ -244,7 +249,7 @@ class EpisodeTracker:
         """The numbers so far (the kept episodes and delays: the latest ``max_kept``)."""
         return DetectionQuality(episodes=tuple(self.finished), delays_ns=tuple(self.delays_ns),
                                 already_flagged=self.already_flagged, missed=self.missed,
-                                false_slip_frames=self.false_slip_frames, stick_frames=self.stick_frames)
+                                flag_without_slip_frames=self.flag_without_slip_frames, stick_frames=self.stick_frames)
 
     def _judge_ready(self) -> None:
         pending = self._pending
@@ -269,7 +274,7 @@ class EpisodeTracker:
             sticking = not truth or not (truth[0][1] or truth[0][2])
             if sticking:
                 self.stick_frames += 1
-                self.false_slip_frames += slip
+                self.flag_without_slip_frames += slip
         self._last_judged_ns = t if self._last_judged_ns is None else max(self._last_judged_ns, t)
 
     def _close_episodes(self, *, final: bool) -> None:

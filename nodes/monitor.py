@@ -31,7 +31,7 @@ silent nodes also on the live line):
 
 Counts are given with their denominators (``frames lost at fusion: ft/wrench 497 of
 30004 (sequence gaps, of those sent)``). Without ``rig/truth`` (real hardware) there is no ground
-truth: the summary says so instead of printing episode counts and a false-slip rate.
+truth: the summary says so instead of printing episode counts and flags without true slip.
 
 Memory is bounded: running sums and counts per message, the detection quality streamed
 by :class:`~slipstack.lib.episodes.EpisodeTracker`, one counter map per node.
@@ -328,7 +328,7 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "detection_delay_ms_p50": q.delay_percentile_ms(50) if q.delays_ns and truth else None,
         "detection_delay_ms_p95": q.delay_percentile_ms(95) if q.delays_ns and truth else None,
         "stick_frames": q.stick_frames if truth else None,
-        "false_slip_rate": q.false_slip_rate if truth else None,
+        "flag_without_slip_share": q.flag_without_slip_share if truth else None,
         "slip_verdicts": m.slip_verdicts,
         "grip_commands": cmd.count,
         "grip_command_mean_n": cmd.f_n_sum / cmd.count if cmd.count else None,
@@ -431,12 +431,24 @@ def _delay_line(s: dict) -> str:
     if measured:
         line = (f"detection delay: p50 {s['detection_delay_ms_p50']:.1f} ms, p95 {s['detection_delay_ms_p95']:.1f} ms"
                 f" over {measured} episode{'s' if measured != 1 else ''}")
+    elif s["true_episodes"]:
+        line = "detection delay: - (no flag rose in an episode's window)"
     else:
-        line = "detection delay: - (no flag raised in an episode's window)"
+        line = "detection delay: - (no true slip episode)"
     if s["already_flagged_episodes"]:
         line += (f"; {s['already_flagged_episodes']} more with the flag already up {s['detection_lead_ms']:g} ms "
                  "before the onset (early warning, no delay measured)")
     return line
+
+
+def _flag_without_slip_line(s: dict) -> str:
+    """The share of truly sticking frames the detector flagged as slip, read for what it is:
+    with the controller on, mostly the early warnings it acted on (so no gross slip
+    followed); with no grip commands, false alarms."""
+    reading = ("controller on: mostly early warnings it acted on, so no gross slip followed" if s["grip_commands"]
+               else "no grip commands: false alarms")
+    return (f"slip flag without true slip: {s['flag_without_slip_share'] * 100:.2f}% of {s['stick_frames']} "
+            f"sticking frames ({reading})")
 
 
 def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
@@ -451,8 +463,8 @@ def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
     if s["has_truth"]:
         lines += [
             f"slip episodes: {s['detected_episodes']} detected of {s['true_episodes']} true, {s['missed_episodes']} missed",
-            _delay_line(s) + "; false-slip rate {s['false_slip_rate'] * 100:.2f}% of "
-            f"{s['stick_frames']} sticking frames",
+            _delay_line(s),
+            _flag_without_slip_line(s),
             f"grip force commanded: mean {num(s['grip_command_mean_n'], '.2f')} N, peak "
             f"{num(s['grip_command_peak_n'], '.2f')} N; applied mean {num(s['applied_f_n_mean_n'], '.2f')} N",
             f"object slid {num(s['slip_distance_mm'], '.2f')} mm and turned {num(s['slip_angle_deg'], '.2f')} deg in all",
@@ -460,7 +472,7 @@ def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
     else:
         lines += [
             "slip: no ground truth on this run (no rig/truth topic: real hardware), so no true episodes, missed "
-            f"slips or false-slip rate; the detector said slip in {s['slip_verdicts']} of {s['slip_frames']} verdicts",
+            f"slips or flags without true slip; the detector said slip in {s['slip_verdicts']} of {s['slip_frames']} verdicts",
             f"grip force commanded: mean {num(s['grip_command_mean_n'], '.2f')} N, peak "
             f"{num(s['grip_command_peak_n'], '.2f')} N",
         ]

@@ -144,7 +144,7 @@ def test_the_simulated_run_summary_gives_counts_with_their_denominators(short_ru
     _, output, _ = short_run
     summary = output[output.index("==== slipstack run summary ===="):]
     assert re.search(r"slip episodes: \d+ detected of \d+ true", summary), summary
-    assert re.search(r"false-slip rate [\d.]+% of \d+ sticking frames", summary), summary
+    assert re.search(r"slip flag without true slip: [\d.]+% of \d+ sticking frames", summary), summary
     assert re.search(r"fail-safe while running [\d.-]+%? \(\d+ of \d+\)", summary), summary
     assert not re.search(r"-\d+ of -\d+", summary), summary  # no negative counts
     for line in summary.splitlines():
@@ -156,7 +156,7 @@ def test_the_simulated_run_summary_gives_counts_with_their_denominators(short_ru
 def test_hardware_without_its_device_shows_disconnected_live_and_no_truth_in_the_summary(launch):
     """``slipstack launch hardware.toml ft_url:=robotiq:///dev/ttyNOPE tactile:=false record:=false``,
     then Ctrl-C: the live line names the disconnected driver; the summary prints no episode
-    counts or false-slip rate (there is no rig/truth) and says why the grip was held."""
+    counts or flags without true slip (there is no rig/truth) and says why the grip was held."""
     import signal
     import time
 

@@ -17,7 +17,7 @@ def test_episodes_are_maximal_runs_and_close_ones_merge():
     assert find_episodes(t, s, min_gap_ns=3 * MS) == [Episode(1 * MS, 4 * MS), Episode(8 * MS, 9 * MS)]
 
 
-def test_delay_missed_and_false_slip_by_hand():
+def test_delay_missed_and_flag_without_slip_by_hand():
     t = np.arange(200) * MS
     s = np.zeros(200, bool)
     s[50:60] = True   # episode A at 50 ms
@@ -25,12 +25,12 @@ def test_delay_missed_and_false_slip_by_hand():
     vt = t.copy()
     vs = np.zeros(200, bool)
     vs[52] = True      # A detected 2 ms late
-    vs[100] = True     # a false slip, far from both episodes
+    vs[100] = True     # a flag without true slip, far from both episodes
     q = detection_quality(t, s, vt, vs, lead_ns=5 * MS, grace_ns=5 * MS)
     assert q.delays_ns == (2 * MS,) and q.missed == 1
     # windows: A covers 45..64 (20 frames), B covers 145..164 (20 frames) -> 160 stick frames
-    assert q.stick_frames == 160 and q.false_slip_frames == 1
-    assert q.false_slip_rate == 1 / 160
+    assert q.stick_frames == 160 and q.flag_without_slip_frames == 1
+    assert q.flag_without_slip_share == 1 / 160
     assert q.delay_percentile_ms(50) == 2.0
 
 
@@ -59,7 +59,7 @@ def test_incipient_frames_are_not_counted_as_sticking():
     vs = np.zeros(100, bool)
     vs[15] = True      # an early warning during partial slip
     q = detection_quality(t, s, t, vs, incipient=inc)
-    assert q.stick_frames == 90 and q.false_slip_frames == 0 and q.episodes == ()
+    assert q.stick_frames == 90 and q.flag_without_slip_frames == 0 and q.episodes == ()
 
 
 # -- the streamed tracker against the whole-recording function ------------------------------
@@ -123,5 +123,5 @@ def test_tracker_memory_stays_bounded_over_a_long_stream():
     q = tracker.quality()
     assert tracker.episode_count == tracker.detected == 200 and tracker.missed == 0
     assert len(q.episodes) == len(q.delays_ns) == 50 and set(q.delays_ns) == {-5 * MS}
-    assert q.false_slip_frames == 0 and q.stick_frames == 200 * (1000 - 170)  # 170 ms window per episode
+    assert q.flag_without_slip_frames == 0 and q.stick_frames == 200 * (1000 - 170)  # 170 ms window per episode
     assert most < 300, most
