@@ -447,8 +447,9 @@ def _flag_without_slip_line(s: dict) -> str:
     followed); with no grip commands, false alarms."""
     reading = ("controller on: mostly early warnings it acted on, so no gross slip followed" if s["grip_commands"]
                else "no grip commands: false alarms")
-    return (f"slip flag without true slip: {s['flag_without_slip_share'] * 100:.2f}% of {s['stick_frames']} "
-            f"sticking frames ({reading})")
+    share = s["flag_without_slip_share"]
+    return (f"slip flag without true slip: {share * 100:.2f}% of {s['stick_frames']} sticking frames"
+            + (f" ({reading})" if share else ""))
 
 
 def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
