@@ -93,24 +93,40 @@ class MonitorParams:
 
 @dataclass
 class CommandStats:
-    """Running numbers of ``grip/command``: count, sum and peak of f_n (N), fail-safe and
-    late counts, and the largest age at publish (ns).
+    """Running numbers of ``grip/command``: count, sum and peak of f_n (N), fail-safe
+    counts, and how late the commands computed from a new sample left.
 
     Two stretches of fail-safe commands are expected and kept apart from the share that
     judges the run: *starting* (every command before the first one on valid data: the
     sensors were not streaming yet) and, with a simulated rig, *after the scene* (the
     commands since the rig's last truth message: the world stopped before its controller).
+
+    A command's age at publish (``pub_ns − stamp_ns``, ns) is its latency only when it was
+    computed from a new sample. A *watchdog repeat* (the controller's watchdog repeating
+    the last grip because no new verdict came: the same ``slip`` source stamp as the
+    previous command, or the same stamp without one) carries the age of the last data,
+    which grows while the data stays away: it is counted as a repeat and as fail-safe,
+    not as late. Late commands are kept per stretch like the
+    fail-safe ones: ``late`` and ``age_max_ns`` are those while running (the stretch
+    after the scene still open until the next truth message: ``late_after_truth``);
+    ``late_starting`` and ``age_max_starting_ns`` those while the sensors started.
     """
 
     count: int = 0
     f_n_sum: float = 0.0
     f_n_peak: float = -math.inf
     fail_safe: int = 0
+    watchdog_repeats: int = 0
     late: int = 0
     age_max_ns: int = 0
+    late_starting: int = 0
+    age_max_starting_ns: int = 0
     starting: int = 0
     after_truth: int = 0
     fail_safe_after_truth: int = 0
+    late_after_truth: int = 0
+    age_max_after_truth_ns: int = 0
+    last_verdict_ns: int | None = None
 
     def add(self, msg: GripCommand, deadline_ns: int) -> None:
         self.count += 1
@@ -118,16 +134,40 @@ class CommandStats:
         self.f_n_peak = max(self.f_n_peak, msg.f_n_desired)
         held = msg.reason == FAIL_SAFE
         self.fail_safe += held
-        self.starting += held and self.starting == self.count - 1
+        starting = held and self.starting == self.count - 1
+        self.starting += starting
         self.after_truth += 1
         self.fail_safe_after_truth += held
+        verdict_ns = msg.header.sources.get("slip", msg.header.stamp_ns)
+        repeat = verdict_ns == self.last_verdict_ns
+        self.last_verdict_ns = verdict_ns
+        self.watchdog_repeats += repeat
+        if repeat:
+            return
         age = msg.header.pub_ns - msg.header.stamp_ns
-        self.late += age > deadline_ns
-        self.age_max_ns = max(self.age_max_ns, age)
+        if starting:
+            self.late_starting += age > deadline_ns
+            self.age_max_starting_ns = max(self.age_max_starting_ns, age)
+        else:
+            self.late_after_truth += age > deadline_ns
+            self.age_max_after_truth_ns = max(self.age_max_after_truth_ns, age)
 
     def truth_seen(self) -> None:
         """The scene is still running: the commands so far were during it."""
         self.after_truth = self.fail_safe_after_truth = 0
+        self._commit_late()
+
+    def late_while_running(self, with_rig: bool) -> tuple[int, int]:
+        """(late commands, largest age in ns) while the stack ran: without a rig the
+        stretch after the last truth message is part of the run too."""
+        if with_rig:
+            return self.late, self.age_max_ns
+        return self.late + self.late_after_truth, max(self.age_max_ns, self.age_max_after_truth_ns)
+
+    def _commit_late(self) -> None:
+        self.late += self.late_after_truth
+        self.age_max_ns = max(self.age_max_ns, self.age_max_after_truth_ns)
+        self.late_after_truth = self.age_max_after_truth_ns = 0
 
     def judged(self, with_rig: bool) -> tuple[int, int]:
         """(commands, fail-safe commands) while the stack ran: without the starting and,
@@ -317,6 +357,7 @@ def summarise(m: Monitor, now_ns: int) -> dict:
     went_silent = {name: w.longest_silence_ns / 1e9 for name, w in m.nodes.items() if w.silences}
     truth = m.last.get("truth")
     judged, judged_fail_safe = cmd.judged(with_rig=truth is not None)
+    late, age_max_ns = cmd.late_while_running(with_rig=truth is not None)
     return {
         "has_truth": truth is not None,
         "slip_frames": m.slip_frames,
@@ -339,9 +380,13 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "fail_safe_while_starting": cmd.starting,
         "fail_safe_after_scene": cmd.fail_safe_after_truth if truth else 0,
         "command_deadline_ms": m.params.command_deadline_ms,
-        "late_commands": cmd.late,
-        "late_share": _share(cmd.late, cmd.count),
-        "command_age_ms_max": cmd.age_max_ns / 1e6 if cmd.count else None,
+        "late_commands": late,
+        "late_share": _share(late, judged),
+        "command_age_ms_max": age_max_ns / 1e6 if judged else None,
+        "late_while_starting": cmd.late_starting,
+        "command_age_ms_max_while_starting": cmd.age_max_starting_ns / 1e6 if cmd.starting else None,
+        "late_after_scene": cmd.late_after_truth if truth else 0,
+        "watchdog_repeats": cmd.watchdog_repeats,
         "applied_f_n_mean_n": m.applied_f_n_sum / m.truth_frames if m.truth_frames else None,
         "slip_distance_mm": truth.slip_distance_m * 1e3 if truth else None,
         "slip_angle_deg": math.degrees(truth.slip_angle_rad) if truth else None,
@@ -410,9 +455,10 @@ def behind_problems(s: dict) -> list[str]:
     than :data:`SKIP_WARN_SHARE` of a sensor topic's samples skipped for newer ones."""
     problems = []
     if s["late_commands"]:
-        problems.append(f"{s['late_commands']} of {s['grip_commands']} grip commands ({s['late_share'] * 100:.2g}%) left "
-                        f"later than {s['command_deadline_ms']:g} ms after their sample "
-                        f"(worst {s['command_age_ms_max']:.1f} ms)")
+        problems.append(f"{s['late_commands']} of {s['commands_while_running']} grip commands while running "
+                        f"({s['late_share'] * 100:.2g}%) left later than {s['command_deadline_ms']:g} ms after their "
+                        f"sample (worst {s['command_age_ms_max']:.1f} ms): the control path waited for a CPU core; "
+                        "free a core or raise the stack's priority (the launch file's `nice`)")
     for node, timers in sorted(s["behind_real_time"].items()):
         ticks = ", ".join(f"{k.split('.')[1]} {v:g}" for k, v in sorted(timers.items()))
         problems.append(f"{node} fell behind real time (timer ticks skipped: {ticks})")
@@ -452,6 +498,22 @@ def _flag_without_slip_line(s: dict) -> str:
             + (f" ({reading})" if share else ""))
 
 
+def _late_text(s: dict) -> str:
+    """Late commands (computed from a new sample, more than the deadline after it) per
+    stretch, and the watchdog repeats, whose age is the data's and not the control path's."""
+    pct = "-" if s["late_share"] is None else f"{s['late_share'] * 100:.1f}%"
+    text = f"late (over {s['command_deadline_ms']:g} ms from sample to command) while running {pct} ({s['late_commands']})"
+    if s["late_while_starting"]:
+        text += (f", {s['late_while_starting']} more while the sensors started (worst "
+                 f"{s['command_age_ms_max_while_starting']:.0f} ms: a stall before the stack ran, the grip held)")
+    if s["late_after_scene"]:
+        text += f", {s['late_after_scene']} after the scene ended"
+    if s["watchdog_repeats"]:
+        text += (f"; {s['watchdog_repeats']} watchdog repeat{'s' if s['watchdog_repeats'] != 1 else ''} of the last "
+                 "grip while no new verdict came (counted as fail-safe, not late)")
+    return text
+
+
 def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
     """The summary as readable lines, a HEALTH line for whatever went wrong."""
     def num(v: object, fmt: str) -> str:
@@ -481,8 +543,7 @@ def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
         f"control path: {s['grip_commands']} grip commands; fail-safe while running {pct(s['fail_safe_share'])}"
         f" ({s['fail_safe_commands']} of {s['commands_while_running']}), {s['fail_safe_while_starting']} more while"
         f" the sensors started" + (f", {s['fail_safe_after_scene']} after the scene ended" if s["has_truth"] else "")
-        + f"; {pct(s['late_share'])} ({s['late_commands']}) later than {s['command_deadline_ms']:g} ms after their"
-        " sample",
+        + "; " + _late_text(s),
     ]
     problems = check_problems(s, p or MonitorParams()) + device_problems(s) + behind_problems(s)
     lines.extend(f"HEALTH: {problem}" for problem in problems or ["ok"])

@@ -119,7 +119,10 @@ def test_summary_of_a_controlled_run_counts_force_fail_safe_and_late_commands(fi
     truth_at = [k for k, (_, topic, _) in enumerate(events) if topic == "rig/truth"]
     judged_commands = by_topic(events[truth_at[0]:truth_at[-1]], "grip/command")
     fail_safe = sum(c.reason == "fail-safe" for c in judged_commands)
-    late = sum(c.header.pub_ns - c.header.stamp_ns > 20 * MS for c in commands)
+    # late: computed from a new sample (a stamp other than the previous command's) while the scene ran
+    judged_seqs = {c.header.seq for c in judged_commands}
+    late = sum(c.header.pub_ns - c.header.stamp_ns > 20 * MS for prev, c in zip([None, *commands], commands)
+               if c.header.seq in judged_seqs and (prev is None or c.header.stamp_ns != prev.header.stamp_ns))
     assert fail_safe > 0 and late > 0
 
     s, logs, _ = monitor_over(events, tmp_path)
@@ -188,6 +191,44 @@ def test_flags_without_true_slip_are_read_for_what_they_are(fig10_runs, tmp_path
         share = f"{s['flag_without_slip_share'] * 100:.2f}% of {s['stick_frames']} sticking frames"
         assert line.endswith(f"slip flag without true slip: {share}{reading}"), line
         assert not any("false-slip" in line for line in logs), logs
+
+
+def test_late_counts_commands_from_new_samples_while_running_and_not_the_watchdog_repeats(tmp_path):
+    """1 s of scene at 1 kHz. Late for the 20 ms deadline: one command while the sensors
+    started (a 500 ms stall, fail-safe), one while running (30 ms) and one after the scene
+    ended. Three watchdog repeats of the last grip (the same stamp, ages 25-65 ms): the
+    data's age, not the control path's. Only the running one is a HEALTH problem; the
+    summary used to call all six late."""
+    events = []
+
+    def command(t_ns: int, k: int, stamp_ns: int, reason: str = "nominal") -> None:
+        events.append((t_ns, "grip/command", GripCommand(f_n_desired=2.0, reason=reason,
+                                                         header=Header(stamp_ns, k, t_ns, {}))))
+
+    command(0, 0, 0, "fail-safe")
+    command(500 * MS, 1, 0 + 1, "fail-safe")  # starting: its sample 500 ms old
+    for k in range(1000):
+        t = (600 + k) * MS
+        events.append((t, "rig/truth", _truth(t)))
+        events.append((t, "slip", Slip(state="stick", header=Header(t, k, t, {}))))
+        if k == 300:
+            command(t + 30 * MS, 2 + k, t)  # late while running
+        elif 400 <= k < 470:  # no new verdict for 70 ms: the watchdog repeats three times
+            if k < 403:
+                command((999 + 25 + 20 * (k - 400)) * MS, 2 + k, 999 * MS, "fail-safe")  # the same stamp
+        else:
+            command(t + MS, 2 + k, t)
+    end = 1600 * MS
+    command(end + 30 * MS, 2000, end)  # after the scene, from a new sample
+    s, logs, _ = monitor_over([(t, topic, encode(m)) for t, topic, m in events], tmp_path)
+    assert (s["late_commands"], s["late_while_starting"], s["late_after_scene"], s["watchdog_repeats"]) == (1, 1, 1, 3)
+    assert s["command_age_ms_max"] == pytest.approx(30.0)
+    assert s["command_age_ms_max_while_starting"] == pytest.approx(500.0, abs=0.01)
+    assert "HEALTH: 1 of " in health(logs) and "grip commands while running" in health(logs), health(logs)
+    line = next(line for line in logs if "control path:" in line)
+    assert "late (over 20 ms from sample to command) while running" in line, line
+    assert "1 more while the sensors started (worst 500 ms: a stall before the stack ran, the grip held)" in line
+    assert "1 after the scene ended; 3 watchdog repeats of the last grip while no new verdict came" in line, line
 
 
 def test_a_clean_run_says_health_ok_and_passes_its_check(fig10_runs, tmp_path):
