@@ -106,10 +106,10 @@ class CommandStats:
     the last grip because no new verdict came: the same ``slip`` source stamp as the
     previous command, or the same stamp without one) carries the age of the last data,
     which grows while the data stays away: it is counted as a repeat and as fail-safe,
-    not as late. Late commands are kept per stretch like the
-    fail-safe ones: ``late`` and ``age_max_ns`` are those while running (the stretch
-    after the scene still open until the next truth message: ``late_after_truth``);
-    ``late_starting`` and ``age_max_starting_ns`` those while the sensors started.
+    not as late. Late commands are kept per stretch like the fail-safe ones: ``late``
+    and ``age_max_ns`` are those while running (the stretch since the last truth message
+    stays open, ``late_after_truth``, until the next one comes); ``late_starting`` and
+    ``age_max_starting_ns`` those while the sensors started.
     """
 
     count: int = 0
