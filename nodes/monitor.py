@@ -473,17 +473,21 @@ def behind_problems(s: dict) -> list[str]:
 def _delay_line(s: dict) -> str:
     """Detection delay over the episodes whose flag rose in their window; those whose flag
     was already up when the window opened are counted apart (no delay is measured)."""
-    measured = s["detected_episodes"] - s["already_flagged_episodes"]
-    if measured:
-        line = (f"detection delay: p50 {s['detection_delay_ms_p50']:.1f} ms, p95 {s['detection_delay_ms_p95']:.1f} ms"
-                f" over {measured} episode{'s' if measured != 1 else ''}")
-    elif s["true_episodes"]:
-        line = "detection delay: - (no flag rose in an episode's window)"
-    else:
-        line = "detection delay: - (no true slip episode)"
-    if s["already_flagged_episodes"]:
-        line += (f"; {s['already_flagged_episodes']} more with the flag already up {s['detection_lead_ms']:g} ms "
-                 "before the onset (early warning, no delay measured)")
+    early = s["already_flagged_episodes"]
+    measured = s["detected_episodes"] - early
+    if not s["true_episodes"]:
+        return "detection delay: - (no true slip episode)"
+    if not s["detected_episodes"]:
+        return "detection delay: - (no episode detected)"
+    if not measured:
+        return (f"detection delay: none to measure: on {'all ' if early > 1 else ''}{early} detected episode"
+                f"{'s' if early != 1 else ''} the flag was already up {s['detection_lead_ms']:g} ms before the onset "
+                "(early warning)")
+    line = (f"detection delay: p50 {s['detection_delay_ms_p50']:.1f} ms, p95 {s['detection_delay_ms_p95']:.1f} ms"
+            f" over {measured} episode{'s' if measured != 1 else ''}")
+    if early:
+        line += (f"; {early} more with the flag already up {s['detection_lead_ms']:g} ms before the onset "
+                 "(early warning, no delay measured)")
     return line
 
 
@@ -539,12 +543,14 @@ def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
             f"grip force commanded: mean {num(s['grip_command_mean_n'], '.2f')} N, peak "
             f"{num(s['grip_command_peak_n'], '.2f')} N",
         ]
-    lines += [
-        f"control path: {s['grip_commands']} grip commands; fail-safe while running {pct(s['fail_safe_share'])}"
-        f" ({s['fail_safe_commands']} of {s['commands_while_running']}), {s['fail_safe_while_starting']} more while"
-        f" the sensors started" + (f", {s['fail_safe_after_scene']} after the scene ended" if s["has_truth"] else "")
-        + "; " + _late_text(s),
-    ]
+    if not s["grip_commands"]:
+        lines.append("control path: no grip commands (a detection-only graph, or the controller never ran)")
+    else:
+        lines.append(
+            f"control path: {s['grip_commands']} grip commands; fail-safe while running {pct(s['fail_safe_share'])}"
+            f" ({s['fail_safe_commands']} of {s['commands_while_running']}), {s['fail_safe_while_starting']} more while"
+            f" the sensors started" + (f", {s['fail_safe_after_scene']} after the scene ended" if s["has_truth"] else "")
+            + "; " + _late_text(s))
     problems = check_problems(s, p or MonitorParams()) + device_problems(s) + behind_problems(s)
     lines.extend(f"HEALTH: {problem}" for problem in problems or ["ok"])
     if s["losses"]:

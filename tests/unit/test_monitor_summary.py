@@ -173,6 +173,22 @@ def test_a_flag_up_before_the_episode_is_an_early_warning_not_a_delay(tmp_path):
     assert "-100.0" not in line, line
 
 
+def test_a_detection_only_run_with_every_flag_early_says_so(tmp_path):
+    """Gross slip at 300 ms, the flag up since 100 ms, no controller: no delay to measure
+    (it used to print "p50 - ms" or -100 ms) and no grip command (it used to print a
+    control path line of dashes and zeros)."""
+    events = []
+    for k in range(600):
+        t = k * MS
+        events.append((t, "rig/truth", _truth(t, gross=300 <= k < 320)))
+        events.append((t, "slip", Slip(state="translation" if 100 <= k < 330 else "stick", header=Header(t, k, t, {}))))
+    _, logs, _ = monitor_over([(t, topic, encode(m)) for t, topic, m in events], tmp_path)
+    lines = [line.split("] ", 1)[-1] for line in logs]
+    assert ("detection delay: none to measure: on 1 detected episode the flag was already up 100 ms before the "
+            "onset (early warning)") in lines, lines
+    assert "control path: no grip commands (a detection-only graph, or the controller never ran)" in lines, lines
+
+
 def test_flags_without_true_slip_are_read_for_what_they_are(fig10_runs, tmp_path):
     """With the controller on, the detector's flags on sticking frames are the early warnings
     it acts on; the summary used to call them a "false-slip rate" either way. (Each run's
