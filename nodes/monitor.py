@@ -182,7 +182,8 @@ class NodeWatch:
     """One node's diagnostics: its latest counters, when the last report arrived
     (executor time, ns) and the silences between its reports, by the reports' own stamps
     (the sender's clock: a monitor that waited for a core sees no silence), the longest
-    and how many exceeded the limit."""
+    and how many exceeded the limit, and whether it came back after one as a new process
+    (its diagnostics' sequence number started again) or as the same one (it stalled)."""
 
     counters: dict = field(default_factory=dict)
     status: str = "ok"
@@ -192,6 +193,8 @@ class NodeWatch:
     last_stamp_ns: int | None = None
     silences: int = 0
     longest_silence_ns: int = 0
+    last_seq: int | None = None
+    restarted: bool = False
 
     def report(self, msg: Diagnostics, now_ns: int, silent_after_ns: int) -> None:
         stamp = msg.header.stamp_ns
@@ -199,6 +202,8 @@ class NodeWatch:
             gap = stamp - self.last_stamp_ns
             self.longest_silence_ns = max(self.longest_silence_ns, gap)
             self.silences += gap > silent_after_ns
+            self.restarted |= gap > silent_after_ns and self.last_seq is not None and msg.header.seq <= self.last_seq
+        self.last_seq = msg.header.seq
         self.counters = msg.counters
         self.status = msg.status
         if not msg.status.startswith(DISCONNECTED):
@@ -397,6 +402,7 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         # with a simulated rig, the devices close when its scene ends: only earlier losses count
         "disconnected_nodes": m.disconnected_nodes(truth.header.stamp_ns if truth else None),
         "nodes_that_went_silent": went_silent,
+        "nodes_restarted_after_silence": sorted(name for name, w in m.nodes.items() if w.restarted),
         "recording": m.params.recording if m.params.recording and os.path.exists(m.params.recording) else "",
     }
 
@@ -438,7 +444,9 @@ def check_problems(s: dict, p: MonitorParams) -> list[str]:
         problems.append(f"node {node} went silent: no diagnostics for the last {seconds:.1f} s (dead or stopped?)")
     for node, seconds in sorted(s["nodes_that_went_silent"].items()):
         if node not in s["silent_nodes"]:
-            problems.append(f"node {node} went silent for {seconds:.1f} s and came back (restarted?)")
+            how = ("as a new process (restarted)" if node in s["nodes_restarted_after_silence"] else
+                   "as the same process (it stalled: a machine too busy, or stopped and continued)")
+            problems.append(f"node {node} went silent for {seconds:.1f} s and came back {how}")
     if s["grip_commands"] and s["fail_safe_while_starting"] == s["grip_commands"]:
         problems.append(f"all {s['grip_commands']} grip commands were fail-safe: the controller never had valid "
                         "sensor data (are the sensors connected and streaming?)")

@@ -301,6 +301,25 @@ def test_check_names_every_problem(tmp_path):
     assert health_lines.splitlines() == [f"[monitor] HEALTH: {p}" for p in verdict["problems"]]
 
 
+def test_a_node_back_after_a_silence_is_told_restarted_or_stalled(tmp_path):
+    """Diagnostics every second, both nodes silent from 2 s to 6 s: fusion comes back with
+    its sequence going on (the same process: it stalled), slip_detector with it started
+    again (a new process). The summary used to ask "(restarted?)" of both."""
+    events = []
+    for k in range(10):
+        if 2 < k < 6:
+            continue
+        t = k * 1_000_000_000
+        events.append((t, "diagnostics", Diagnostics(node="fusion", counters={}, header=Header(t, k, t, {}))))
+        seq = k if k <= 2 else k - 6
+        events.append((t, "diagnostics", Diagnostics(node="slip_detector", counters={}, header=Header(t, seq, t, {}))))
+    s, logs, _ = monitor_over([(t, topic, encode(m)) for t, topic, m in events], tmp_path)
+    assert s["nodes_restarted_after_silence"] == ["slip_detector"]
+    assert ("node fusion went silent for 4.0 s and came back as the same process (it stalled: a machine too busy, "
+            "or stopped and continued)") in health(logs), health(logs)
+    assert "node slip_detector went silent for 4.0 s and came back as a new process (restarted)" in health(logs)
+
+
 def test_a_monitor_that_waited_for_a_core_sees_no_silence(tmp_path):
     """Reports stamped every second by their node; the monitor handled those of 3–6 s in
     one burst at 6 s after a stall: the node was not silent, the monitor was late."""
