@@ -4,7 +4,8 @@ Listens to ``slip`` (which carries the load it judged and its COR), ``grip/comma
 ``rig/truth`` and every node's ``diagnostics`` — not to the 1 kHz ``contact``/``cor``
 streams, to keep its share of the CPU small. Every ``status_period_s`` it logs one
 ``STATUS`` line (the launcher redraws it in place on a terminal). On stop it logs the
-summary: slip episodes detected versus true, detection delay, grip force used, the
+summary: slip episodes detected versus true, detection delay, flags without true slip
+(README.md, "Quick start", says how to read them), grip force used, the
 control path's health, dropped frames and the recording's path; with ``summary_path``
 it also writes them as JSON, and with ``check_path`` a pass/fail verdict (see
 :func:`check_problems`).
@@ -14,9 +15,11 @@ silent nodes also on the live line):
 
 - *fail-safe share*: grip commands whose reason is ``fail-safe`` (the controller held
   the grip because its inputs were missing, stale or invalid);
-- *late commands*: commands whose age at publish, ``pub_ns − stamp_ns`` of their header
-  (the sensor sample they derive from to the moment they left), exceeded
-  ``command_deadline_ms``;
+- *late commands*: commands computed from a new sample while the stack ran whose age at
+  publish, ``pub_ns − stamp_ns`` of their header (the sensor sample they derive from to
+  the moment they left), exceeded ``command_deadline_ms`` (those while the sensors
+  started and after the scene, and the watchdog's repeats, are counted apart: see
+  :class:`CommandStats`);
 - *samples skipped for newer ones*: ``in.<topic>.dropped`` over ``in.<topic>.received``
   of each node's latest-value inputs (fusion acting on the newest F/T sample when its
   process waited for a core), on the HEALTH line for sensor topics above
