@@ -1,7 +1,7 @@
 """The paper's figures, drawn as the paper draws them, from lock-step runs.
 
-The catalogue of every figure ``slipstack reproduce`` draws, and the runs each needs, is
-:mod:`slipstack.analysis.catalogue`. Each ``fig*`` function takes the experiment's :class:`~slipstack.analysis.runs.Run`
+The figures ``slipstack reproduce`` draws and the runs each needs are
+:mod:`slipstack.analysis.figure_keys`. Each ``fig*`` function takes the experiment's :class:`~slipstack.analysis.runs.Run`
 (Fig. 5 takes none: it is the limit sets themselves), writes one PNG and returns a
 :class:`FigureText`: what the paper shows, what this run shows (the numbers, computed
 here from the run's own messages), and where the two differ and why. Units: N, N·m,

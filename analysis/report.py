@@ -313,8 +313,9 @@ def summarize(series: RecordingSeries) -> str:
         slipping = np.isin(s["state"], list(SLIP_STATES))
         spans = _spans(series, "slip", slipping)
         first = f", first at {spans[0][0]:.2f} s" if spans else ""
-        lines.append(f"  slip ({s['method'][-1]}): slip verdicts on {slipping.mean():.0%} of {slipping.size} frames, "
-                     f"{len(spans)} episodes{first}")
+        # flag stretches, not episodes: an episode is true gross slip (the truth line below)
+        lines.append(f"  slip ({s['method'][-1]}): flag up on {slipping.mean():.0%} of {slipping.size} frames, "
+                     f"in {len(spans)} stretch{'es' if len(spans) != 1 else ''}{first}")
     if series.has("rig/truth"):
         r = series["rig/truth"]
         spans = _spans(series, "rig/truth", r["gross_slip"].astype(bool))

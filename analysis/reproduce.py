@@ -25,14 +25,11 @@ import sys
 import time
 from pathlib import Path
 
+from slipstack.analysis.figure_keys import FIGURE_KEYS, figure_runs
+
 __all__ = ["add_parser", "main_reproduce", "reproduce"]
 
 QUICK_DURATION_S = 3.0
-FIGURE_KEYS = ("fig4a", "fig4b", "fig5a", "fig5b", "fig10", "fig11", "fig12", "fig13", "fig14", "cor_median", "fig15",
-               "increment", "pareto", "grip_economy", "limit_errors")
-"""The figures ``--only`` picks from, in the report's order: the keys of ``analysis/catalogue.py``'s
-FIGURES, written out so that ``--help`` needs no matplotlib (a unit test keeps the two equal)."""
-
 
 DIGESTS_FILE = "digests.json"  # experiment → SHA-256 of every payload it published: equal across runs
 IDENTIFICATION = ("fig4a", "fig4b")  # the ramps the friction of the control experiments comes from
@@ -53,7 +50,7 @@ def reproduce(out_dir: Path, *, quick: bool = False, only: list[str] | None = No
 
     out_dir.mkdir(parents=True, exist_ok=True)
     keys = [k for k in catalogue.FIGURES if not only or k in only]
-    runs_needed = list(dict.fromkeys(k for key in keys for k in catalogue.figure_runs(key)))
+    runs_needed = list(dict.fromkeys(k for key in keys for k in figure_runs(key)))
     if any(k in USES_IDENTIFIED_FRICTION for k in runs_needed):
         runs_needed = [*IDENTIFICATION, *[k for k in runs_needed if k not in IDENTIFICATION]]
     duration = QUICK_DURATION_S if quick else None
@@ -72,7 +69,7 @@ def reproduce(out_dir: Path, *, quick: bool = False, only: list[str] | None = No
         runs[key] = run_experiment(exp, duration_s=duration, progress=step, record=record)
     if progress:
         progress("done", 1.0)
-    texts = [catalogue.FIGURES[key](*[runs[k] for k in catalogue.figure_runs(key)], out_dir) for key in keys]
+    texts = [catalogue.FIGURES[key](*[runs[k] for k in figure_runs(key)], out_dir) for key in keys]
     if friction is not None:
         (out_dir / "identification.txt").write_text("\n".join(friction.log) + "\n")
     digests = {key: run.digest for key, run in runs.items()}

@@ -7,12 +7,20 @@ are integer nanoseconds on one clock (the sensor sample stamps).
 Definitions:
 - an *episode* is a maximal run of samples with ``gross_slip`` true; onset = its first stamp;
 - an episode is *detected* if a slip verdict occurs in ``[onset − lead, end + grace]``;
-  the *delay* is the first such verdict's stamp minus the onset (negative: the detector
-  warned before gross slip, which incipient-slip detection may do);
-- a *false slip* is a slip verdict on a frame whose nearest truth sample says stick and
-  that lies in no episode's window. Frames the truth marks *incipient* (partial slip:
-  most of the contact's friction capacity already sliding, not yet gross slip) are
-  neither sticking nor slipping: a verdict there is an early warning, not an error.
+  the *delay* is the stamp of the verdict that raised the flag in that window minus the
+  onset (negative: the detector warned before gross slip, which incipient-slip
+  detection may do);
+- an episode is *already flagged* if the first verdict of its window is a slip verdict:
+  the flag was up before the window opened, so no delay is measured (it would only be
+  the window's cut-off, −lead); it counts as detected, apart from the delays;
+- a *flag without true slip* is a slip verdict on a frame whose nearest truth sample
+  says stick and that lies in no episode's window; their share of the sticking frames is
+  judged so. With the controller off these are false alarms; with it on they are mostly
+  the early warnings it acts on (it grips harder, so the slip they announced never
+  comes). Frames the truth marks *incipient* (partial slip: a large share of the
+  contact's friction capacity, :data:`INCIPIENT_SHARE` as the callers use it, already
+  sliding, not yet gross slip) are neither sticking nor slipping: a verdict there is an
+  early warning and is not counted.
 """
 
 from __future__ import annotations
@@ -48,25 +56,29 @@ class Episode:
 class DetectionQuality:
     """How verdicts match true episodes.
 
-    delays_ns: one entry per detected episode (verdict stamp − onset).
-    missed: episodes with no verdict in their window.
-    false_slip_frames / stick_frames: verdict frames outside every window / all frames
-    judged while truly sticking.
+    delays_ns: one entry per episode whose flag rose in its window (verdict stamp − onset).
+    already_flagged: episodes whose flag was up on the first verdict of their window
+    (detected, no delay measured).
+    missed: episodes with no slip verdict in their window.
+    flag_without_slip_frames / stick_frames: slip verdicts on truly sticking frames outside
+    every window / all frames judged while truly sticking.
     """
 
     episodes: tuple[Episode, ...]
     delays_ns: tuple[int, ...]
+    already_flagged: int
     missed: int
-    false_slip_frames: int
+    flag_without_slip_frames: int
     stick_frames: int
 
     @property
     def detected(self) -> int:
-        return len(self.delays_ns)
+        return len(self.delays_ns) + self.already_flagged
 
     @property
-    def false_slip_rate(self) -> float:
-        return self.false_slip_frames / self.stick_frames if self.stick_frames else 0.0
+    def flag_without_slip_share(self) -> float:
+        """Flags without true slip over the frames judged while truly sticking (0 if none)."""
+        return self.flag_without_slip_frames / self.stick_frames if self.stick_frames else 0.0
 
     def delay_percentile_ms(self, q: float) -> float:
         """``q``-th percentile of the detection delay in ms (NaN if nothing was detected)."""
@@ -119,15 +131,17 @@ def detection_quality(
     vs = np.asarray(verdict_slip, dtype=bool)
     in_window = np.zeros(vt.shape, dtype=bool)
     delays: list[int] = []
-    missed = 0
+    missed = already_flagged = 0
     for ep in episodes:
         win = (vt >= ep.start_ns - lead_ns) & (vt <= ep.end_ns + grace_ns)
         in_window |= win
         hits = np.flatnonzero(win & vs)
-        if hits.size:
-            delays.append(int(vt[hits[0]] - ep.start_ns))
-        else:
+        if not hits.size:
             missed += 1
+        elif hits[0] == np.argmax(win):
+            already_flagged += 1  # the window's first verdict: the flag rose before the window
+        else:
+            delays.append(int(vt[hits[0]] - ep.start_ns))
     stick = ~in_window
     if len(truth_ns):
         tt = np.asarray(truth_ns, dtype=np.int64)
@@ -136,8 +150,8 @@ def detection_quality(
         if incipient is not None:
             stick &= ~np.asarray(incipient, dtype=bool)[idx]
     return DetectionQuality(
-        episodes=tuple(episodes), delays_ns=tuple(delays), missed=missed,
-        false_slip_frames=int(np.count_nonzero(stick & vs)), stick_frames=int(np.count_nonzero(stick)),
+        episodes=tuple(episodes), delays_ns=tuple(delays), already_flagged=already_flagged, missed=missed,
+        flag_without_slip_frames=int(np.count_nonzero(stick & vs)), stick_frames=int(np.count_nonzero(stick)),
     )
 
 
@@ -149,13 +163,15 @@ _MAX_OPEN = 1000
 class _OpenEpisode:
     """An episode whose window may still gain a verdict or whose end may still move."""
 
-    __slots__ = ("start_ns", "end_ns", "ongoing", "delay_ns")
+    __slots__ = ("start_ns", "end_ns", "ongoing", "delay_ns", "verdicts_seen", "already_flagged")
 
     def __init__(self, start_ns: int) -> None:
         self.start_ns = start_ns
         self.end_ns = start_ns
         self.ongoing = True
         self.delay_ns: int | None = None
+        self.verdicts_seen = False
+        self.already_flagged = False
 
 
 class EpisodeTracker:
@@ -172,7 +188,7 @@ class EpisodeTracker:
     judged on the truth seen so far), truth samples from the oldest pending verdict on
     (at most ``horizon_ns`` of them), the episodes whose window is still open (at most
     1000), and the latest ``max_kept`` finished episodes and delays (the counts
-    ``episode_count``, ``detected``, ``missed`` cover all of them).
+    ``episode_count``, ``detected``, ``already_flagged``, ``missed`` cover all of them).
     """
 
     def __init__(self, *, lead_ns: int = LEAD_NS, grace_ns: int = GRACE_NS, min_gap_ns: int = MIN_GAP_NS,
@@ -189,9 +205,10 @@ class EpisodeTracker:
         self.delays_ns: deque[int] = deque(maxlen=max_kept)
         self.episode_count = 0
         self.detected = 0
+        self.already_flagged = 0
         self.missed = 0
         self.stick_frames = 0
-        self.false_slip_frames = 0
+        self.flag_without_slip_frames = 0
 
     def add_truth(self, stamp_ns: int, gross_slip: bool, incipient: bool = False) -> None:
         """One truth sample (stamps increasing)."""
@@ -230,8 +247,9 @@ class EpisodeTracker:
 
     def quality(self) -> DetectionQuality:
         """The numbers so far (the kept episodes and delays: the latest ``max_kept``)."""
-        return DetectionQuality(episodes=tuple(self.finished), delays_ns=tuple(self.delays_ns), missed=self.missed,
-                                false_slip_frames=self.false_slip_frames, stick_frames=self.stick_frames)
+        return DetectionQuality(episodes=tuple(self.finished), delays_ns=tuple(self.delays_ns),
+                                already_flagged=self.already_flagged, missed=self.missed,
+                                flag_without_slip_frames=self.flag_without_slip_frames, stick_frames=self.stick_frames)
 
     def _judge_ready(self) -> None:
         pending = self._pending
@@ -244,7 +262,10 @@ class EpisodeTracker:
         for ep in self._open:
             if ep.start_ns - self.lead_ns <= t and (ep.ongoing or t <= ep.end_ns + self.grace_ns):
                 in_window = True
-                if slip and ep.delay_ns is None:
+                if not ep.verdicts_seen:
+                    ep.verdicts_seen = True
+                    ep.already_flagged = slip  # up on the window's first verdict: raised before it
+                elif slip and ep.delay_ns is None and not ep.already_flagged:
                     ep.delay_ns = t - ep.start_ns
         truth = self._truth
         while len(truth) > 1 and truth[0][0] < t:
@@ -253,7 +274,7 @@ class EpisodeTracker:
             sticking = not truth or not (truth[0][1] or truth[0][2])
             if sticking:
                 self.stick_frames += 1
-                self.false_slip_frames += slip
+                self.flag_without_slip_frames += slip
         self._last_judged_ns = t if self._last_judged_ns is None else max(self._last_judged_ns, t)
 
     def _close_episodes(self, *, final: bool) -> None:
@@ -267,7 +288,10 @@ class EpisodeTracker:
             self._open.popleft()
             self.episode_count += 1
             self.finished.append(Episode(ep.start_ns, ep.end_ns))
-            if ep.delay_ns is None:
+            if ep.already_flagged:
+                self.detected += 1
+                self.already_flagged += 1
+            elif ep.delay_ns is None:
                 self.missed += 1
             else:
                 self.detected += 1

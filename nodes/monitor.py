@@ -4,7 +4,8 @@ Listens to ``slip`` (which carries the load it judged and its COR), ``grip/comma
 ``rig/truth`` and every node's ``diagnostics`` — not to the 1 kHz ``contact``/``cor``
 streams, to keep its share of the CPU small. Every ``status_period_s`` it logs one
 ``STATUS`` line (the launcher redraws it in place on a terminal). On stop it logs the
-summary: slip episodes detected versus true, detection delay, grip force used, the
+summary: slip episodes detected versus true, detection delay, flags without true slip
+(README.md, "Quick start", says how to read them), grip force used, the
 control path's health, dropped frames and the recording's path; with ``summary_path``
 it also writes them as JSON, and with ``check_path`` a pass/fail verdict (see
 :func:`check_problems`).
@@ -14,9 +15,11 @@ silent nodes also on the live line):
 
 - *fail-safe share*: grip commands whose reason is ``fail-safe`` (the controller held
   the grip because its inputs were missing, stale or invalid);
-- *late commands*: commands whose age at publish, ``pub_ns − stamp_ns`` of their header
-  (the sensor sample they derive from to the moment they left), exceeded
-  ``command_deadline_ms``;
+- *late commands*: commands computed from a new sample while the stack ran whose age at
+  publish, ``pub_ns − stamp_ns`` of their header (the sensor sample they derive from to
+  the moment they left), exceeded ``command_deadline_ms`` (those while the sensors
+  started and after the scene, and the watchdog's repeats, are counted apart: see
+  :class:`CommandStats`);
 - *samples skipped for newer ones*: ``in.<topic>.dropped`` over ``in.<topic>.received``
   of each node's latest-value inputs (fusion acting on the newest F/T sample when its
   process waited for a core), on the HEALTH line for sensor topics above
@@ -31,7 +34,7 @@ silent nodes also on the live line):
 
 Counts are given with their denominators (``frames lost at fusion: ft/wrench 497 of
 30004 (sequence gaps, of those sent)``). Without ``rig/truth`` (real hardware) there is no ground
-truth: the summary says so instead of printing episode counts and a false-slip rate.
+truth: the summary says so instead of printing episode counts and flags without true slip.
 
 Memory is bounded: running sums and counts per message, the detection quality streamed
 by :class:`~slipstack.lib.episodes.EpisodeTracker`, one counter map per node.
@@ -93,24 +96,40 @@ class MonitorParams:
 
 @dataclass
 class CommandStats:
-    """Running numbers of ``grip/command``: count, sum and peak of f_n (N), fail-safe and
-    late counts, and the largest age at publish (ns).
+    """Running numbers of ``grip/command``: count, sum and peak of f_n (N), fail-safe
+    counts, and how late the commands computed from a new sample left.
 
     Two stretches of fail-safe commands are expected and kept apart from the share that
     judges the run: *starting* (every command before the first one on valid data: the
     sensors were not streaming yet) and, with a simulated rig, *after the scene* (the
     commands since the rig's last truth message: the world stopped before its controller).
+
+    A command's age at publish (``pub_ns − stamp_ns``, ns) is its latency only when it was
+    computed from a new sample. A *watchdog repeat* (the controller's watchdog repeating
+    the last grip because no new verdict came: the same ``slip`` source stamp as the
+    previous command, or the same stamp without one) carries the age of the last data,
+    which grows while the data stays away: it is counted as a repeat and as fail-safe,
+    not as late. Late commands are kept per stretch like the fail-safe ones: ``late``
+    and ``age_max_ns`` are those while running (the stretch since the last truth message
+    stays open, ``late_after_truth``, until the next one comes); ``late_starting`` and
+    ``age_max_starting_ns`` those while the sensors started.
     """
 
     count: int = 0
     f_n_sum: float = 0.0
     f_n_peak: float = -math.inf
     fail_safe: int = 0
+    watchdog_repeats: int = 0
     late: int = 0
     age_max_ns: int = 0
+    late_starting: int = 0
+    age_max_starting_ns: int = 0
     starting: int = 0
     after_truth: int = 0
     fail_safe_after_truth: int = 0
+    late_after_truth: int = 0
+    age_max_after_truth_ns: int = 0
+    last_verdict_ns: int | None = None
 
     def add(self, msg: GripCommand, deadline_ns: int) -> None:
         self.count += 1
@@ -118,16 +137,40 @@ class CommandStats:
         self.f_n_peak = max(self.f_n_peak, msg.f_n_desired)
         held = msg.reason == FAIL_SAFE
         self.fail_safe += held
-        self.starting += held and self.starting == self.count - 1
+        starting = held and self.starting == self.count - 1
+        self.starting += starting
         self.after_truth += 1
         self.fail_safe_after_truth += held
+        verdict_ns = msg.header.sources.get("slip", msg.header.stamp_ns)
+        repeat = verdict_ns == self.last_verdict_ns
+        self.last_verdict_ns = verdict_ns
+        self.watchdog_repeats += repeat
+        if repeat:
+            return
         age = msg.header.pub_ns - msg.header.stamp_ns
-        self.late += age > deadline_ns
-        self.age_max_ns = max(self.age_max_ns, age)
+        if starting:
+            self.late_starting += age > deadline_ns
+            self.age_max_starting_ns = max(self.age_max_starting_ns, age)
+        else:
+            self.late_after_truth += age > deadline_ns
+            self.age_max_after_truth_ns = max(self.age_max_after_truth_ns, age)
 
     def truth_seen(self) -> None:
         """The scene is still running: the commands so far were during it."""
         self.after_truth = self.fail_safe_after_truth = 0
+        self._commit_late()
+
+    def late_while_running(self, with_rig: bool) -> tuple[int, int]:
+        """(late commands, largest age in ns) while the stack ran: without a rig the
+        stretch after the last truth message is part of the run too."""
+        if with_rig:
+            return self.late, self.age_max_ns
+        return self.late + self.late_after_truth, max(self.age_max_ns, self.age_max_after_truth_ns)
+
+    def _commit_late(self) -> None:
+        self.late += self.late_after_truth
+        self.age_max_ns = max(self.age_max_ns, self.age_max_after_truth_ns)
+        self.late_after_truth = self.age_max_after_truth_ns = 0
 
     def judged(self, with_rig: bool) -> tuple[int, int]:
         """(commands, fail-safe commands) while the stack ran: without the starting and,
@@ -142,7 +185,8 @@ class NodeWatch:
     """One node's diagnostics: its latest counters, when the last report arrived
     (executor time, ns) and the silences between its reports, by the reports' own stamps
     (the sender's clock: a monitor that waited for a core sees no silence), the longest
-    and how many exceeded the limit."""
+    and how many exceeded the limit, and whether it came back after one as a new process
+    (its diagnostics' sequence number started again) or as the same one (it stalled)."""
 
     counters: dict = field(default_factory=dict)
     status: str = "ok"
@@ -152,6 +196,8 @@ class NodeWatch:
     last_stamp_ns: int | None = None
     silences: int = 0
     longest_silence_ns: int = 0
+    last_seq: int | None = None
+    restarted: bool = False
 
     def report(self, msg: Diagnostics, now_ns: int, silent_after_ns: int) -> None:
         stamp = msg.header.stamp_ns
@@ -159,6 +205,8 @@ class NodeWatch:
             gap = stamp - self.last_stamp_ns
             self.longest_silence_ns = max(self.longest_silence_ns, gap)
             self.silences += gap > silent_after_ns
+            self.restarted |= gap > silent_after_ns and self.last_seq is not None and msg.header.seq <= self.last_seq
+        self.last_seq = msg.header.seq
         self.counters = msg.counters
         self.status = msg.status
         if not msg.status.startswith(DISCONNECTED):
@@ -317,16 +365,19 @@ def summarise(m: Monitor, now_ns: int) -> dict:
     went_silent = {name: w.longest_silence_ns / 1e9 for name, w in m.nodes.items() if w.silences}
     truth = m.last.get("truth")
     judged, judged_fail_safe = cmd.judged(with_rig=truth is not None)
+    late, age_max_ns = cmd.late_while_running(with_rig=truth is not None)
     return {
         "has_truth": truth is not None,
         "slip_frames": m.slip_frames,
         "true_episodes": m.episodes.episode_count if truth else None,
         "detected_episodes": m.episodes.detected if truth else None,
+        "already_flagged_episodes": m.episodes.already_flagged if truth else None,
         "missed_episodes": m.episodes.missed if truth else None,
-        "detection_delay_ms_p50": q.delay_percentile_ms(50) if q.detected and truth else None,
-        "detection_delay_ms_p95": q.delay_percentile_ms(95) if q.detected and truth else None,
+        "detection_lead_ms": m.episodes.lead_ns / 1e6,
+        "detection_delay_ms_p50": q.delay_percentile_ms(50) if q.delays_ns and truth else None,
+        "detection_delay_ms_p95": q.delay_percentile_ms(95) if q.delays_ns and truth else None,
         "stick_frames": q.stick_frames if truth else None,
-        "false_slip_rate": q.false_slip_rate if truth else None,
+        "flag_without_slip_share": q.flag_without_slip_share if truth else None,
         "slip_verdicts": m.slip_verdicts,
         "grip_commands": cmd.count,
         "grip_command_mean_n": cmd.f_n_sum / cmd.count if cmd.count else None,
@@ -337,9 +388,13 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "fail_safe_while_starting": cmd.starting,
         "fail_safe_after_scene": cmd.fail_safe_after_truth if truth else 0,
         "command_deadline_ms": m.params.command_deadline_ms,
-        "late_commands": cmd.late,
-        "late_share": _share(cmd.late, cmd.count),
-        "command_age_ms_max": cmd.age_max_ns / 1e6 if cmd.count else None,
+        "late_commands": late,
+        "late_share": _share(late, judged),
+        "command_age_ms_max": age_max_ns / 1e6 if judged else None,
+        "late_while_starting": cmd.late_starting,
+        "command_age_ms_max_while_starting": cmd.age_max_starting_ns / 1e6 if cmd.starting else None,
+        "late_after_scene": cmd.late_after_truth if truth else 0,
+        "watchdog_repeats": cmd.watchdog_repeats,
         "applied_f_n_mean_n": m.applied_f_n_sum / m.truth_frames if m.truth_frames else None,
         "slip_distance_mm": truth.slip_distance_m * 1e3 if truth else None,
         "slip_angle_deg": math.degrees(truth.slip_angle_rad) if truth else None,
@@ -350,6 +405,7 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         # with a simulated rig, the devices close when its scene ends: only earlier losses count
         "disconnected_nodes": m.disconnected_nodes(truth.header.stamp_ns if truth else None),
         "nodes_that_went_silent": went_silent,
+        "nodes_restarted_after_silence": sorted(name for name, w in m.nodes.items() if w.restarted),
         "recording": m.params.recording if m.params.recording and os.path.exists(m.params.recording) else "",
     }
 
@@ -391,7 +447,9 @@ def check_problems(s: dict, p: MonitorParams) -> list[str]:
         problems.append(f"node {node} went silent: no diagnostics for the last {seconds:.1f} s (dead or stopped?)")
     for node, seconds in sorted(s["nodes_that_went_silent"].items()):
         if node not in s["silent_nodes"]:
-            problems.append(f"node {node} went silent for {seconds:.1f} s and came back (restarted?)")
+            how = ("as a new process (restarted)" if node in s["nodes_restarted_after_silence"] else
+                   "as the same process (it stalled: a machine too busy, or stopped and continued)")
+            problems.append(f"node {node} went silent for {seconds:.1f} s and came back {how}")
     if s["grip_commands"] and s["fail_safe_while_starting"] == s["grip_commands"]:
         problems.append(f"all {s['grip_commands']} grip commands were fail-safe: the controller never had valid "
                         "sensor data (are the sensors connected and streaming?)")
@@ -408,9 +466,10 @@ def behind_problems(s: dict) -> list[str]:
     than :data:`SKIP_WARN_SHARE` of a sensor topic's samples skipped for newer ones."""
     problems = []
     if s["late_commands"]:
-        problems.append(f"{s['late_commands']} of {s['grip_commands']} grip commands ({s['late_share'] * 100:.2g}%) left "
-                        f"later than {s['command_deadline_ms']:g} ms after their sample "
-                        f"(worst {s['command_age_ms_max']:.1f} ms)")
+        problems.append(f"{s['late_commands']} of {s['commands_while_running']} grip commands while running "
+                        f"({s['late_share'] * 100:.2g}%) left later than {s['command_deadline_ms']:g} ms after their "
+                        f"sample (worst {s['command_age_ms_max']:.1f} ms): the control path waited for a CPU core; "
+                        "free a core or raise the stack's priority (the launch file's `nice`)")
     for node, timers in sorted(s["behind_real_time"].items()):
         ticks = ", ".join(f"{k.split('.')[1]} {v:g}" for k, v in sorted(timers.items()))
         problems.append(f"{node} fell behind real time (timer ticks skipped: {ticks})")
@@ -420,6 +479,54 @@ def behind_problems(s: dict) -> list[str]:
             if topic in SENSOR_TOPICS and share > SKIP_WARN_SHARE:
                 problems.append(f"{node} skipped {share * 100:.0f}% of {topic} for newer samples")
     return problems
+
+
+def _delay_line(s: dict) -> str:
+    """Detection delay over the episodes whose flag rose in their window; those whose flag
+    was already up when the window opened are counted apart (no delay is measured)."""
+    early = s["already_flagged_episodes"]
+    measured = s["detected_episodes"] - early
+    if not s["true_episodes"]:
+        return "detection delay: - (no true slip episode)"
+    if not s["detected_episodes"]:
+        return "detection delay: - (no episode detected)"
+    if not measured:
+        return (f"detection delay: none to measure: on {'all ' if early > 1 else ''}{early} detected episode"
+                f"{'s' if early != 1 else ''} the flag was already up {s['detection_lead_ms']:g} ms before the onset "
+                "(early warning)")
+    line = (f"detection delay: p50 {s['detection_delay_ms_p50']:.1f} ms, p95 {s['detection_delay_ms_p95']:.1f} ms"
+            f" over {measured} episode{'s' if measured != 1 else ''}")
+    if early:
+        line += (f"; {early} more with the flag already up {s['detection_lead_ms']:g} ms before the onset "
+                 "(early warning, no delay measured)")
+    return line
+
+
+def _flag_without_slip_line(s: dict) -> str:
+    """The share of truly sticking frames the detector flagged as slip, read for what it is:
+    with the controller on, mostly the early warnings it acted on (so no gross slip
+    followed); with no grip commands, false alarms."""
+    reading = ("controller on: mostly early warnings it acted on, so no gross slip followed" if s["grip_commands"]
+               else "no grip commands: false alarms")
+    share = s["flag_without_slip_share"]
+    return (f"slip flag without true slip: {share * 100:.2f}% of {s['stick_frames']} sticking frames"
+            + (f" ({reading})" if share else ""))
+
+
+def _late_text(s: dict) -> str:
+    """Late commands (computed from a new sample, more than the deadline after it) per
+    stretch, and the watchdog repeats, whose age is the data's and not the control path's."""
+    pct = "-" if s["late_share"] is None else f"{s['late_share'] * 100:.1f}%"
+    text = f"late (over {s['command_deadline_ms']:g} ms from sample to command) while running {pct} ({s['late_commands']})"
+    if s["late_while_starting"]:
+        text += (f", {s['late_while_starting']} more while the sensors started (worst "
+                 f"{s['command_age_ms_max_while_starting']:.0f} ms: a stall before the stack ran, the grip held)")
+    if s["late_after_scene"]:
+        text += f", {s['late_after_scene']} after the scene ended"
+    if s["watchdog_repeats"]:
+        text += (f"; {s['watchdog_repeats']} watchdog repeat{'s' if s['watchdog_repeats'] != 1 else ''} of the last "
+                 "grip while no new verdict came (counted as fail-safe, not late)")
+    return text
 
 
 def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
@@ -434,9 +541,8 @@ def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
     if s["has_truth"]:
         lines += [
             f"slip episodes: {s['detected_episodes']} detected of {s['true_episodes']} true, {s['missed_episodes']} missed",
-            f"detection delay: p50 {num(s['detection_delay_ms_p50'], '.1f')} ms, p95 "
-            f"{num(s['detection_delay_ms_p95'], '.1f')} ms; false-slip rate {s['false_slip_rate'] * 100:.2f}% of "
-            f"{s['stick_frames']} sticking frames",
+            _delay_line(s),
+            _flag_without_slip_line(s),
             f"grip force commanded: mean {num(s['grip_command_mean_n'], '.2f')} N, peak "
             f"{num(s['grip_command_peak_n'], '.2f')} N; applied mean {num(s['applied_f_n_mean_n'], '.2f')} N",
             f"object slid {num(s['slip_distance_mm'], '.2f')} mm and turned {num(s['slip_angle_deg'], '.2f')} deg in all",
@@ -444,17 +550,18 @@ def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
     else:
         lines += [
             "slip: no ground truth on this run (no rig/truth topic: real hardware), so no true episodes, missed "
-            f"slips or false-slip rate; the detector said slip in {s['slip_verdicts']} of {s['slip_frames']} verdicts",
+            f"slips or flags without true slip; the detector said slip in {s['slip_verdicts']} of {s['slip_frames']} verdicts",
             f"grip force commanded: mean {num(s['grip_command_mean_n'], '.2f')} N, peak "
             f"{num(s['grip_command_peak_n'], '.2f')} N",
         ]
-    lines += [
-        f"control path: {s['grip_commands']} grip commands; fail-safe while running {pct(s['fail_safe_share'])}"
-        f" ({s['fail_safe_commands']} of {s['commands_while_running']}), {s['fail_safe_while_starting']} more while"
-        f" the sensors started" + (f", {s['fail_safe_after_scene']} after the scene ended" if s["has_truth"] else "")
-        + f"; {pct(s['late_share'])} ({s['late_commands']}) later than {s['command_deadline_ms']:g} ms after their"
-        " sample",
-    ]
+    if not s["grip_commands"]:
+        lines.append("control path: no grip commands (a detection-only graph, or the controller never ran)")
+    else:
+        lines.append(
+            f"control path: {s['grip_commands']} grip commands; fail-safe while running {pct(s['fail_safe_share'])}"
+            f" ({s['fail_safe_commands']} of {s['commands_while_running']}), {s['fail_safe_while_starting']} more while"
+            f" the sensors started" + (f", {s['fail_safe_after_scene']} after the scene ended" if s["has_truth"] else "")
+            + "; " + _late_text(s))
     problems = check_problems(s, p or MonitorParams()) + device_problems(s) + behind_problems(s)
     lines.extend(f"HEALTH: {problem}" for problem in problems or ["ok"])
     if s["losses"]:

@@ -17,8 +17,9 @@ One player, the ``player`` node (:class:`Player`, on :class:`Playback`), two way
   after the recorded publisher it came from, so the nodes track sequence gaps per
   recorded publisher (:mod:`slipstack.nodes.runtime.tool_pub`);
 * the ``player`` node type in a launch file: outputs are the recording's topics, so
-  the launcher wires subscribers to it (needs the launcher to read a node's outputs
-  from the instance; see the report on issue 6).
+  the launcher wires subscribers to it. Those outputs are known only once the node is
+  built with its ``path`` (they are not a property of the node type), which is why the
+  launch plan builds every node and reads the outputs off the instance.
 """
 
 from __future__ import annotations

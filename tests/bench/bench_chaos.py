@@ -8,7 +8,7 @@ stamps, the same clock as this script):
 
 - *respawn*: kill → the new process is alive (the launcher's restart);
 - *recovery*: the new process is alive → the first grip command on valid data
-  (reason other than ``fail-safe``) — the issue's target is ≤ 500 ms;
+  (reason other than ``fail-safe``) — the target is ≤ 500 ms;
 - the grip before the kill and the lowest grip commanded until the recovery (the
   contract: never lower, docs/safety.md), and the slip added over that window.
 

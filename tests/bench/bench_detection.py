@@ -1,4 +1,4 @@
-"""Detection measured against the truth, per contact material (issue 12).
+"""Detection measured against the truth, per contact material.
 
 The workflow a user follows, on each of the rig's materials (``lib/rig/scene.py``
 RIG_MATERIALS: the rubber, a Coulomb contact with μ_d = μ_s, a strongly weakening one):

@@ -227,7 +227,7 @@ def test_garbage_unplug_and_replug(backend, run_dir):
 @pytest.mark.parametrize("node,url", [("ft_driver", "robotiq:///dev/ttyNOPE"),
                                       ("tactile_driver", "dsacon32:///dev/ttyNOPE?fps=100")])
 def test_wrong_device_path_is_said_and_retried_without_spinning(node, url, run_dir):
-    """Issue 13 item 1: ``slipstack run ft_driver url:=robotiq:///dev/ttyNOPE``: an error line
+    """``slipstack run ft_driver url:=robotiq:///dev/ttyNOPE``: an error line
     on the terminal, ``disconnected`` with the open error on diagnostics, and a back-off that
     sleeps (loop wake-ups per second of diagnostics stamps stay far below a busy loop's)."""
     driver = Driver(node, url, run_dir)

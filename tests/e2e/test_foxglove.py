@@ -1,4 +1,4 @@
-"""The live ``foxglove`` node against a real WebSocket client (issue 13, Foxglove).
+"""The live ``foxglove`` node against a real WebSocket client.
 
 The test process publishes a wrench and a 16x16 tactile frame on its own XPUB; the node
 runs as ``slipstack run foxglove`` subscribed to it; a ``websockets`` client speaks the

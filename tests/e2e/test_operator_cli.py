@@ -1,6 +1,6 @@
-"""Issue 13 ("the operator's day"): the exact commands a new user types, as subprocesses.
+"""The operator's day: the exact commands a new user types, as subprocesses.
 
-Each test is one item of the issue: the command, its exit code and the words it prints.
+Each test is one thing a new user does: the command, its exit code and the words it prints.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ def slipstack(*args: str, timeout: float = 60.0, env: dict | None = None) -> sub
                           timeout=timeout, env=env or dict(os.environ))
 
 
-# -- item 2: slipstack run NODE ----------------------------------------------------------------
+# -- slipstack run NODE ----------------------------------------------------------------
 def test_run_without_pub_says_what_to_do_in_one_line():
     out = slipstack("run", "wrench_source")
     assert out.returncode == 2, out
@@ -39,7 +39,7 @@ def test_run_driver_without_url_names_the_missing_parameter():
     assert "__init__" not in out.stderr and "positional argument" not in out.stderr
 
 
-# -- item 8: bag and report error paths ----------------------------------------------------------
+# -- bag and report error paths ----------------------------------------------------------
 @pytest.fixture
 def text_file(tmp_path):
     path = tmp_path / "notes.txt"
@@ -98,7 +98,7 @@ def test_report_to_an_unknown_figure_format_lists_the_formats(recording, tmp_pat
     assert "Traceback" not in out.stderr
 
 
-# -- item 9: discoverability ------------------------------------------------------------------------
+# -- discoverability ------------------------------------------------------------------------
 def test_show_args_prints_each_arguments_comment():
     out = slipstack("launch", "hardware", "--show-args")
     assert out.returncode == 0, out.stderr
@@ -176,7 +176,7 @@ def test_help_and_topic_list_start_without_the_numeric_stack(args, tmp_path):
     assert "HEAVY []" in out.stderr, out.stderr
 
 
-# -- item 1, as the issue typed it -------------------------------------------------------------------
+# -- a wrong device path, as a user types it -------------------------------------------------------------------
 def test_hardware_launch_with_a_wrong_device_path_says_so(launch):
     """``slipstack launch hardware.toml ft_url:=robotiq:///dev/ttyNOPE tactile:=false record:=false``:
     an error line from ft_driver on the terminal and ``disconnected`` with the error on diagnostics."""
@@ -190,7 +190,7 @@ def test_hardware_launch_with_a_wrong_device_path_says_so(launch):
     assert len(errors) == 1, g.log()
 
 
-# -- item 10: shell completion -----------------------------------------------------------------------
+# -- shell completion -----------------------------------------------------------------------
 def _completions(line: str, tmp_path: Path) -> list[str]:
     """What the shell gets for ``line<TAB>`` (argcomplete's protocol, answers in a file)."""
     answers = tmp_path / "completions"
@@ -210,7 +210,7 @@ def test_the_shell_completes_commands_verbs_and_launch_files(tmp_path):
     assert script.returncode == 0 and "complete" in script.stdout and "slipstack" in script.stdout, script
 
 
-# -- item 10: progress on large files --------------------------------------------------------------
+# -- progress on large files --------------------------------------------------------------
 @pytest.fixture
 def large_recording(tmp_path):
     """A 5 MB recording: tactile frames of random pressures (zstd cannot shrink them)."""

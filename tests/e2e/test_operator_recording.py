@@ -1,4 +1,4 @@
-"""Issue 13, the operator's day with a real run: what a short simulated run and a hardware
+"""The operator's day with a real run: what a short simulated run and a hardware
 launch without its device print, record and export (each test the exact commands a user types).
 
 One short run of the default stack (3 s scene, every topic recorded) is shared by the tests
@@ -139,12 +139,12 @@ def test_exported_schemas_refuse_what_decoding_refuses(short_run):
     assert "unit: N" in grip_schema["properties"]["f_n_desired"]["description"]
 
 
-# -- item 11: counts with denominators; no truth lines without a rig ---------------------------
+# -- counts with denominators; no truth lines without a rig ---------------------------
 def test_the_simulated_run_summary_gives_counts_with_their_denominators(short_run):
     _, output, _ = short_run
     summary = output[output.index("==== slipstack run summary ===="):]
     assert re.search(r"slip episodes: \d+ detected of \d+ true", summary), summary
-    assert re.search(r"false-slip rate [\d.]+% of \d+ sticking frames", summary), summary
+    assert re.search(r"slip flag without true slip: [\d.]+% of \d+ sticking frames", summary), summary
     assert re.search(r"fail-safe while running [\d.-]+%? \(\d+ of \d+\)", summary), summary
     assert not re.search(r"-\d+ of -\d+", summary), summary  # no negative counts
     for line in summary.splitlines():
@@ -156,7 +156,7 @@ def test_the_simulated_run_summary_gives_counts_with_their_denominators(short_ru
 def test_hardware_without_its_device_shows_disconnected_live_and_no_truth_in_the_summary(launch):
     """``slipstack launch hardware.toml ft_url:=robotiq:///dev/ttyNOPE tactile:=false record:=false``,
     then Ctrl-C: the live line names the disconnected driver; the summary prints no episode
-    counts or false-slip rate (there is no rig/truth) and says why the grip was held."""
+    counts or flags without true slip (there is no rig/truth) and says why the grip was held."""
     import signal
     import time
 
@@ -176,7 +176,7 @@ def test_hardware_without_its_device_shows_disconnected_live_and_no_truth_in_the
     assert re.search(r"HEALTH: all \d+ grip commands were fail-safe", summary), summary
 
 
-# -- item 6: a normal end is quiet; item 3: levels, and the log kept beside the recording -------
+# -- a normal end is quiet; levels, and the log kept beside the recording -------
 def test_a_normal_end_is_quiet_and_its_log_outlives_the_run_directory(short_run):
     folder, output, recording = short_run
     lines = output.splitlines()

@@ -218,7 +218,7 @@ def test_rate_stats_match_hand_values():
     assert s.std_s == pytest.approx(np.std([1e-3, 1e-3, 2e-3]))
 
 
-# -- issue 13 item 3: echo exits on what can never print, and --timeout is a total deadline ----
+# -- echo exits on what can never print, and --timeout is a total deadline ----
 @pytest.mark.parametrize("field,words", [("force.5", "force is an array of 3 value(s)"),
                                          ("status.0", "status is a single value")])
 def test_echo_a_field_no_message_can_have_is_a_clear_error(demo, field, words):
@@ -246,7 +246,7 @@ def test_echo_a_filter_that_never_matches_ends_at_the_timeout(demo):
     assert "none passed --filter" in out.stderr
 
 
-# -- issue 13 item 6: what topic pub sends is on the bus, and injectors do not fake losses ------
+# -- what topic pub sends is on the bus, and injectors do not fake losses ------
 def _relay_counters(demo) -> dict[str, float]:
     out = _ok(demo.cli("topic", "echo", "diagnostics", "--field", "counters", "--once",
                        "--timeout", "8", "--filter", "m.node == 'relay'"))
@@ -296,7 +296,7 @@ def test_two_tools_injecting_at_once_are_no_loss(demo):
 
 
 def test_bag_record_of_an_unknown_topic_names_the_known_ones(demo, tmp_path):
-    """Issue 13 item 8: ``bag record nosuch/topic`` wrote an empty file and exited 0."""
+    """``bag record nosuch/topic`` wrote an empty file and exited 0."""
     out = demo.cli("bag", "record", "nosuch/topic", "-o", str(tmp_path / "x.mcap"), "--duration", "1")
     assert out.returncode == 2, out
     assert "nosuch/topic" in out.stderr and "ft/wrench" in out.stderr
@@ -304,7 +304,7 @@ def test_bag_record_of_an_unknown_topic_names_the_known_ones(demo, tmp_path):
 
 
 def test_delay_reports_sample_to_here_latency(demo):
-    """Issue 13 item 10: ``topic delay`` (receive time - header stamp), ros2's output form."""
+    """``topic delay`` (receive time - header stamp), ros2's output form."""
     out = _ok(demo.cli("topic", "delay", "ft/wrench", "--duration", "2.5", "--window", "500"))
     delays = [float(m) for m in re.findall(r"average delay: ([0-9.e-]+)s", out)]
     assert delays, out
@@ -313,7 +313,7 @@ def test_delay_reports_sample_to_here_latency(demo):
 
 
 def test_node_list_and_info_show_processes_parameters_and_counters(demo):
-    """Issue 13 item 10: ``node list`` / ``node info`` (pid, rates, counters, parameters)."""
+    """``node list`` / ``node info`` (pid, rates, counters, parameters)."""
     listing = _ok(demo.cli("node", "list"))
     pids = {n: e["pid"] for n, e in demo.graph()["nodes"].items()}
     for name in ("source", "relay", "sink"):
@@ -327,7 +327,7 @@ def test_node_list_and_info_show_processes_parameters_and_counters(demo):
 
 
 def test_bw_reports_bytes_per_second_and_sizes(demo):
-    """Issue 13 item 10: ``topic bw``, ros2's output form: bytes per second and payload sizes."""
+    """``topic bw``, ros2's output form: bytes per second and payload sizes."""
     from slipstack.messages import Header, Wrench, encode
 
     out = _ok(demo.cli("topic", "bw", "ft/wrench", "--duration", "2.5", "--window", "500"))
@@ -347,7 +347,7 @@ def test_bw_reports_bytes_per_second_and_sizes(demo):
     ("{force: [1, 2, 3]} extra", "cannot read"),
 ])
 def test_pub_refuses_what_is_not_meant(demo, values, said):
-    """Issue 13 (PyYAML for ``topic pub``): a typo is an error that says where, not a value."""
+    """PyYAML for ``topic pub``: a typo is an error that says where, not a value."""
     out = demo.cli("topic", "pub", "ft/wrench", values, "--once")
     assert out.returncode == 2 and said in out.stderr, out
 

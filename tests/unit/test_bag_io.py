@@ -211,7 +211,7 @@ def test_player_node_feeds_a_relay_in_process(tmp_path):
 
 
 def test_a_corrupt_chunk_costs_only_its_own_messages(tmp_path):
-    """Issue 13 item 8: a finished file with one damaged chunk is read past it through its index."""
+    """A finished file with one damaged chunk is read past it through its index."""
     path = tmp_path / "e.mcap"
     write_wrenches(path, 1000)  # 10 chunks: 9 of 101 messages, then 91
     with open(path, "rb") as fh:

@@ -49,7 +49,7 @@ def test_a_frame_whose_arrays_disagree_with_rows_times_cols_is_rejected_naming_t
 
 
 def test_the_issue_s_resource_bomb_is_rejected_by_its_declared_size():
-    """102 bytes declaring 5000 × 5000 taxels with empty arrays (issue 10, item 6)."""
+    """102 bytes declaring 5000 × 5000 taxels with empty arrays."""
     with pytest.raises(DecodeError, match=r"TactileFrame\.rows: must be >= 1 and <= 256, got 5000"):
         decode(_frame(5000, 5000, 0))
     with pytest.raises(DecodeError, match=r"TactileFrame\.rows: must be >= 1"):

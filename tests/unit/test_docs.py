@@ -27,7 +27,8 @@ _TEST_ID = re.compile(r"`(tests/[\w/]+\.py)::(\w+)`")
 _EQUATION = re.compile(r"^\| \((\d+)\) \|", re.M)
 _CITATION = re.compile(r"docs/(\w+)\.md §(\d+(?:\.\d+)*)")
 _SECTION = re.compile(r"^#{2,6} (\d+(?:\.\d+)*)\.? ", re.M)
-_OUTSIDE_NOTES = re.compile(r"\b(?:MATH|ARCHITECTURE|PROTOCOLS|STYLE)\.md\b")
+_OUTSIDE_NOTES = re.compile(r"\b(?:MATH|ARCHITECTURE|PROTOCOLS|STYLE|CONVENTIONS)\.md\b|\bthe design notes\b"
+                            r"|\bthe report on issue\b")
 
 
 def _equation_table() -> str:

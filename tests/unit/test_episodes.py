@@ -17,7 +17,7 @@ def test_episodes_are_maximal_runs_and_close_ones_merge():
     assert find_episodes(t, s, min_gap_ns=3 * MS) == [Episode(1 * MS, 4 * MS), Episode(8 * MS, 9 * MS)]
 
 
-def test_delay_missed_and_false_slip_by_hand():
+def test_delay_missed_and_flag_without_slip_by_hand():
     t = np.arange(200) * MS
     s = np.zeros(200, bool)
     s[50:60] = True   # episode A at 50 ms
@@ -25,13 +25,30 @@ def test_delay_missed_and_false_slip_by_hand():
     vt = t.copy()
     vs = np.zeros(200, bool)
     vs[52] = True      # A detected 2 ms late
-    vs[100] = True     # a false slip, far from both episodes
+    vs[100] = True     # a flag without true slip, far from both episodes
     q = detection_quality(t, s, vt, vs, lead_ns=5 * MS, grace_ns=5 * MS)
     assert q.delays_ns == (2 * MS,) and q.missed == 1
     # windows: A covers 45..64 (20 frames), B covers 145..164 (20 frames) -> 160 stick frames
-    assert q.stick_frames == 160 and q.false_slip_frames == 1
-    assert q.false_slip_rate == 1 / 160
+    assert q.stick_frames == 160 and q.flag_without_slip_frames == 1
+    assert q.flag_without_slip_share == 1 / 160
     assert q.delay_percentile_ms(50) == 2.0
+
+
+def test_a_flag_already_up_when_the_window_opens_is_no_delay():
+    """Episode A at 300 ms with the flag up since 100 ms (before A's window opens at 200 ms):
+    detected, but no delay (it would read -100 ms, the window's cut-off). Episode B at
+    700 ms with the flag raised at 650 ms: a delay of -50 ms, measured."""
+    t = np.arange(1000) * MS
+    s = np.zeros(1000, bool)
+    s[300:320] = True
+    s[700:720] = True
+    vs = np.zeros(1000, bool)
+    vs[100:330] = True
+    vs[650:730] = True
+    for q in (detection_quality(t, s, t, vs),
+              _streamed(t, s, t, vs, np.zeros(1000, bool), [True, False] * 1000).quality()):
+        assert q.already_flagged == 1 and q.delays_ns == (-50 * MS,) and q.missed == 0
+        assert q.detected == 2
 
 
 def test_incipient_frames_are_not_counted_as_sticking():
@@ -42,7 +59,7 @@ def test_incipient_frames_are_not_counted_as_sticking():
     vs = np.zeros(100, bool)
     vs[15] = True      # an early warning during partial slip
     q = detection_quality(t, s, t, vs, incipient=inc)
-    assert q.stick_frames == 90 and q.false_slip_frames == 0 and q.episodes == ()
+    assert q.stick_frames == 90 and q.flag_without_slip_frames == 0 and q.episodes == ()
 
 
 # -- the streamed tracker against the whole-recording function ------------------------------
@@ -88,6 +105,7 @@ def test_streamed_tracker_equals_detection_quality(data, windows_ms):
     tracker = _streamed(t, s, vt, vs, inc, order, lead_ns=lead, grace_ns=grace, min_gap_ns=gap)
     assert tracker.quality() == ref
     assert (tracker.episode_count, tracker.detected, tracker.missed) == (len(ref.episodes), ref.detected, ref.missed)
+    assert tracker.already_flagged == ref.already_flagged
 
 
 def test_tracker_memory_stays_bounded_over_a_long_stream():
@@ -105,5 +123,5 @@ def test_tracker_memory_stays_bounded_over_a_long_stream():
     q = tracker.quality()
     assert tracker.episode_count == tracker.detected == 200 and tracker.missed == 0
     assert len(q.episodes) == len(q.delays_ns) == 50 and set(q.delays_ns) == {-5 * MS}
-    assert q.false_slip_frames == 0 and q.stick_frames == 200 * (1000 - 170)  # 170 ms window per episode
+    assert q.flag_without_slip_frames == 0 and q.stick_frames == 200 * (1000 - 170)  # 170 ms window per episode
     assert most < 300, most

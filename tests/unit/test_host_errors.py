@@ -1,4 +1,4 @@
-"""A handler that raises on every call is logged once and counted every time (issue 13 item 2)."""
+"""A handler that raises on every call is logged once and counted every time."""
 
 from __future__ import annotations
 

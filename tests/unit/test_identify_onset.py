@@ -1,5 +1,5 @@
 """Slip onset from motion after the elastic pre-slip, and the static value without
-extrapolation (issue 12: fig4a reported mu_s = 0.465 +- 0.0003 for 0.45, fig4b took the
+extrapolation (an earlier version reported for fig4a mu_s = 0.465 +- 0.0003 for 0.45, fig4b took the
 elastic twist for slip). Synthetic Fig. 4 records with the rig's kind of motion truth."""
 
 from __future__ import annotations

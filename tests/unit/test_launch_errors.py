@@ -1,7 +1,7 @@
 """Every error path of the launch-file loader and the launcher's wiring says what is wrong.
 
-Each test writes a small launch file and asserts the ConfigError's message (issue 17),
-or the safe outcome for inputs that used to be read wrongly (issue 10, item 9).
+Each test writes a small launch file and asserts the ConfigError's message,
+or the safe outcome for inputs that used to be read wrongly.
 """
 
 from __future__ import annotations

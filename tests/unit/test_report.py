@@ -179,6 +179,8 @@ def test_figure_is_a_png_with_the_panels_that_have_data(tmp_path, capsys):
     assert text.splitlines()[0] == str(out)
     assert "panels: normal force, tangential load, slip verdict, object motion" in text
     assert "truth: 1 gross-slip episodes, first at 0.56 s" in text
+    # the flag's stretches are not called episodes (an episode is true gross slip)
+    assert re.search(r"slip \(\w+\): flag up on \d+% of \d+ frames, in \d+ stretch(es)?", text), text
     data = out.read_bytes()
     width, height = _png_size(data)
     assert (width, height) == (1100, 1100) and 30_000 < len(data) < 2_000_000

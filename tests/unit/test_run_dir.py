@@ -1,4 +1,4 @@
-"""The run root is the user's alone, and nothing is written through a planted symlink (issue 10, item 5)."""
+"""The run root is the user's alone, and nothing is written through a planted symlink."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Field paths of ``topic echo --field`` (issue 13 item 3): a bad index is an error, not silence."""
+"""Field paths of ``topic echo --field``: a bad index is an error, not silence."""
 
 from __future__ import annotations
 
