@@ -406,6 +406,7 @@ class RdtBackend(Backend):
         super().__init__(url, params)
         self.counts_per_force = params.real("cpf", 1e6, lo=0.0, lo_open=True)
         self.counts_per_torque = params.real("cpt", 1e6, lo=0.0, lo_open=True)
+        self._counts_per_unit = np.array([self.counts_per_force] * 3 + [self.counts_per_torque] * 3)
         self._link = UdpLink(host, port, stale_after_s=self.stale_after_s, backoff_min_s=self.backoff_min_s,
                              backoff_max_s=self.backoff_max_s, on_open=self._request)
         self._own["requests"] = 0
@@ -429,7 +430,7 @@ class RdtBackend(Backend):
 
     def _poll(self, now_ns: int) -> list[Sample]:
         out: list[Sample] = []
-        cpf, cpt = self.counts_per_force, self.counts_per_torque
+        per_unit = self._counts_per_unit
         for datagram in self._link.recv(now_ns):
             records = ati_rdt.decode_records(datagram)
             if records is None:
@@ -441,7 +442,8 @@ class RdtBackend(Backend):
                     continue
                 self._own["gaps"] += self._rdt_sequence.update(r.rdt_sequence)
                 self._last = r
-                out.append(FtSample(now_ns, r.counts[:3] / cpf, r.counts[3:] / cpt, r.rdt_sequence, None, r.status))
+                wrench = r.counts / per_unit  # N, N·m: force and torque are views of it
+                out.append(FtSample(now_ns, wrench[:3], wrench[3:], r.rdt_sequence, None, r.status))
         self._own["frames"] += len(out)
         if not out and self._link.is_open and now_ns >= self._rerequest_at():
             self._request(now_ns)  # silent for backoff_ms: the sensor may have rebooted
