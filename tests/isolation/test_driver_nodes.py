@@ -88,6 +88,27 @@ def _ft(emu, **params) -> Harness:
     return h
 
 
+def test_samples_of_one_read_are_stamped_back_by_the_period_and_strictly_increase(bota):
+    """Samples decoded by one read carry the read's time; the driver steps the earlier ones
+    back by the nominal period (Bota: 200 Hz, 5 ms), never to or before the last stamp."""
+    h = _ft(bota)
+    t_prev = h.send(bota.send_ft, [0.0, 0.0, -1.0], [0.0, 0.0, 0.0], dt_ns=5 * MS).header.stamp_ns
+
+    def one_read(n_samples: int) -> list[int]:
+        n = len(h.out)
+        for k in range(n_samples):
+            bota.send_ft([0.0, 0.0, -1.0 - k], [0.0, 0.0, 0.0])
+        h.wait_for(lambda: len(h.out) >= n + n_samples)
+        assert [m.status for m in h.out[n:]] == ["ok"] * n_samples
+        return [m.header.stamp_ns for m in h.out[n:]]
+
+    h.advance(12 * MS)  # within the 12.5 ms stale limit
+    assert one_read(3) == [t_prev + 2 * MS, t_prev + 7 * MS, t_prev + 12 * MS] == [h.now - 10 * MS, h.now - 5 * MS, h.now]
+    assert one_read(2) == [h.now + 1, h.now + 2]  # the same instant again: 1 ns apart, after the last
+    h.advance(4 * MS)
+    assert one_read(3) == [h.now - 4 * MS + 3, h.now - 4 * MS + 4, h.now]
+
+
 def test_bias_from_tare_then_sensor_to_pad_transform(bota):
     h = _ft(bota, tare_on_start=True, tare_samples=4, pad_offset_m=(0.01, 0.0, 0.02), pad_rpy_deg=(0.0, 0.0, 90.0))
     bias_f, bias_t = [0.5, -0.25, 0.125], [0.0, 0.0, 0.0]
