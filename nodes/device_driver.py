@@ -11,9 +11,9 @@ A :class:`DeviceDriver` owns one back-end chosen by URL
   limit, reconnect back-off, handshake timeout), the next status republish and the
   next counter sync, whichever comes first; the executor wakes the node exactly
   then, so staleness and reconnects happen without input and without a periodic
-  timer (with the default stale limit of 2.5 sample periods, the first status
-  message follows the last sample within 3 sample periods, up to the executor's
-  wake-up jitter);
+  timer (with the default stale limit of 2.5 sample periods, at least 2.5 ms, the
+  first status message follows the last sample within 3 sample periods or 3 ms,
+  up to the executor's wake-up jitter);
 - while the back-end is not ``ok`` the driver publishes a *status message* (the
   subclass's last good values with status ``stale`` / ``disconnected``) at once on
   the change and then every ``stale_status_period_ms``, so consumers can hold;

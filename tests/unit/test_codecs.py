@@ -236,7 +236,8 @@ def test_calibration_check_size() -> None:
 def test_backend_urls() -> None:
     b = backend_from_url("rdt://10.0.0.2?cpf=1000000&cpt=1000")
     assert isinstance(b, RdtBackend) and b.counts_per_torque == 1000 and b.kind == "ft"
-    assert b.stale_after_s == pytest.approx(2.5 / 7000)
+    assert b.stale_after_s == pytest.approx(2.5e-3)  # 2.5 periods at 7 kHz (0.36 ms) is below the floor
+    assert backend_from_url("bota:///dev/ttyUSB1").stale_after_s == pytest.approx(2.5 / 200)  # 2.5 periods
     r = backend_from_url("robotiq:///dev/ttyUSB0?stop_ms=20&stale_ms=40")
     assert isinstance(r, RobotiqBackend) and r.stale_after_s == pytest.approx(0.04)
     assert isinstance(backend_from_url("bota:///dev/ttyUSB1"), BotaBackend)
