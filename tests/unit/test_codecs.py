@@ -64,6 +64,11 @@ def test_rdt_request_and_records() -> None:
     np.testing.assert_allclose(t, [5e-4, -5e-4, (2**31 - 1) / 1e6])
     assert [x.rdt_sequence for x in ati_rdt.decode_records(rec + rec)] == [1, 1]
     assert ati_rdt.decode_records(rec[:35]) is None and ati_rdt.decode_records(b"") is None
+    # counts round half to even and saturate at the int32 range; a NaN is refused
+    rounded = ati_rdt.encode_record(2, 1, 0, np.array([0.5, 1.5, -2.5, 1234.4999, 3e12, -np.inf]))
+    assert ati_rdt.decode_records(rounded)[0].counts.tolist() == [0, 2, -2, 1234, 2**31 - 1, -(2**31)]
+    with pytest.raises(ValueError):
+        ati_rdt.encode_record(3, 1, 0, [0.0, 0.0, float("nan"), 0.0, 0.0, 0.0])
 
 
 # ---------------------------------------------------------------- Bota
