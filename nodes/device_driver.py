@@ -11,9 +11,9 @@ A :class:`DeviceDriver` owns one back-end chosen by URL
   limit, reconnect back-off, handshake timeout), the next status republish and the
   next counter sync, whichever comes first; the executor wakes the node exactly
   then, so staleness and reconnects happen without input and without a periodic
-  timer (with the default stale limit of 2.5 sample periods, the first status
-  message follows the last sample within 3 sample periods, up to the executor's
-  wake-up jitter);
+  timer (with the default stale limit of 2.5 sample periods, at least 2.5 ms, the
+  first status message follows the last sample within 3 sample periods or 3 ms,
+  up to the executor's wake-up jitter);
 - while the back-end is not ``ok`` the driver publishes a *status message* (the
   subclass's last good values with status ``stale`` / ``disconnected``) at once on
   the change and then every ``stale_status_period_ms``, so consumers can hold;
@@ -83,8 +83,9 @@ class DeviceDriver(Node):
         self._last_stamp_ns = -1
 
     # -- to implement --------------------------------------------------------------------
-    def on_sample(self, sample: Sample, ctx: Context) -> None:
-        """Publish one decoded sample."""
+    def on_sample(self, sample: Sample, stamp_ns: int, ctx: Context) -> None:
+        """Publish one decoded sample with ``stamp_ns`` (executor clock, ns) as its stamp
+        (``sample.stamp_ns`` is the time of the read that decoded it)."""
         raise NotImplementedError
 
     def publish_status(self, status: str, ctx: Context) -> None:
@@ -138,23 +139,28 @@ class DeviceDriver(Node):
     def _poll(self, ctx: Context) -> None:
         samples = self.backend.poll(ctx.now_ns())
         self._after_poll(ctx)  # link status first, so a sample's own status (size mismatch) wins
-        for sample in self._spread_stamps(samples):
-            self.on_sample(sample, ctx)
+        if samples:
+            for sample, stamp_ns in zip(samples, self._spread_stamps(samples)):
+                self.on_sample(sample, stamp_ns, ctx)
 
-    def _spread_stamps(self, samples: list[Sample]) -> list[Sample]:
-        """Samples read together all carry the read's time; the earlier ones were sent
-        earlier. Step them back by the nominal period (never before the previous stamp),
-        so stamps strictly increase and say roughly when each sample arrived."""
-        if not samples:
-            return samples
-        period = round(1e9 / self.backend.rate_hz)
+    def _spread_stamps(self, samples: list[Sample]) -> list[int]:
+        """The stamps (ns) of samples read together. They all carry the read's time; the
+        earlier ones were sent earlier. Step them back by the nominal period (never before
+        the previous stamp), so stamps strictly increase and say roughly when each sample
+        arrived."""
         last = samples[-1].stamp_ns
-        out = []
-        for k, sample in enumerate(samples):
-            stamp = max(last - (len(samples) - 1 - k) * period, self._last_stamp_ns + 1)
-            self._last_stamp_ns = stamp
-            out.append(dataclasses.replace(sample, stamp_ns=stamp) if stamp != sample.stamp_ns else sample)
-        return out
+        n = len(samples)
+        if n == 1:
+            stamps = [max(last, self._last_stamp_ns + 1)]
+        else:
+            period = round(1e9 / self.backend.rate_hz)
+            floor = self._last_stamp_ns
+            stamps = []
+            for k in range(n):
+                floor = max(last - (n - 1 - k) * period, floor + 1)
+                stamps.append(floor)
+        self._last_stamp_ns = stamps[-1]
+        return stamps
 
     def _after_poll(self, ctx: Context) -> None:
         status = self.backend.status.value

@@ -99,7 +99,7 @@ class FtDriver(DeviceDriver):
         self._tare_sum = np.zeros(6)
         self._tare_n = 0
 
-    def on_sample(self, sample: FtSample, ctx: Context) -> None:
+    def on_sample(self, sample: FtSample, stamp_ns: int, ctx: Context) -> None:
         raw = np.concatenate([sample.force_n, sample.torque_nm])
         status = "ok" if not sample.status else f"device-status 0x{sample.status:04x}"
         if self._tare_sum is not None:
@@ -117,7 +117,7 @@ class FtDriver(DeviceDriver):
                          else (w[:3], w[3:]))
         self._force, self._torque = force, torque
         seq = -1 if sample.device_seq is None else sample.device_seq
-        self._publish(status, seq, sample.stamp_ns, ctx)
+        self._publish(status, seq, stamp_ns, ctx)
 
     def publish_status(self, status: str, ctx: Context) -> None:
         self._publish(status, -1, ctx.now_ns(), ctx)

@@ -133,7 +133,7 @@ class TactileDriver(DeviceDriver):
             return _FULL_SCALE[self.backend.format.dtype]
         return 65535
 
-    def on_sample(self, sample: TactileSample, ctx: Context) -> None:
+    def on_sample(self, sample: TactileSample, stamp_ns: int, ctx: Context) -> None:
         p = self.params
         if sample.counts.shape != (p.rows, p.cols):
             ctx.count("tactile.size_mismatch")
@@ -145,7 +145,7 @@ class TactileDriver(DeviceDriver):
         self._last = dataclasses.replace(self._last, pressure_pa=self._to_pad(cal.pressure_pa.astype(np.float32)),
                                          saturated=self._to_pad(cal.saturated), dead=self._to_pad(cal.dead),
                                          device_stamp=device_stamp)
-        ctx.publish("frame", self._last, stamp_ns=sample.stamp_ns)
+        ctx.publish("frame", self._last, stamp_ns=stamp_ns)
 
     def _to_pad(self, taxels: np.ndarray) -> np.ndarray:
         """Device-ordered taxel values (rows × cols, row-major) in the pad's row-major order."""

@@ -49,6 +49,7 @@ FIRST_RECORDS = 64
 FT_WINDOW = 1 << 24
 """Largest ft_sequence step accepted between two records: 40 min at 7 kHz."""
 _WRAP = 1 << 32
+_INT32_MIN, _INT32_MAX = float(-(2**31)), float(2**31 - 1)
 
 _REQUEST = struct.Struct(">HHI")
 _RECORD = struct.Struct(">III6i")
@@ -88,9 +89,14 @@ def decode_request(data: bytes) -> tuple[int, int] | None:
     return (command, count) if header == HEADER else None
 
 
-def encode_record(rdt_sequence: int, ft_sequence: int, status: int, counts: Sequence[int]) -> bytes:
-    """36-byte record; counts are clipped to int32; sequences wrap at 2**32."""
-    c = np.clip(np.rint(np.asarray(counts, float)), -(2**31), 2**31 - 1).astype(int)
+def encode_record(rdt_sequence: int, ft_sequence: int, status: int, counts: Sequence[float]) -> bytes:
+    """36-byte record; counts are clipped to int32 and rounded half to even; sequences wrap at
+    2**32. A NaN count raises ValueError.
+
+    Six values in plain Python: numpy's per-call overhead made this 8 µs a record, paid by
+    the simulated sensor 7 000 times a second at the RDT rate."""
+    values = counts.tolist() if isinstance(counts, np.ndarray) else counts
+    c = [round(min(max(float(v), _INT32_MIN), _INT32_MAX)) for v in values]
     return _RECORD.pack(rdt_sequence & 0xFFFFFFFF, ft_sequence & 0xFFFFFFFF, status & 0xFFFFFFFF, *c)
 
 

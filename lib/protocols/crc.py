@@ -23,7 +23,8 @@ MSB-first CCITT table with the reflected update; that is not any catalogued CRC 
 reproduces both the check value 0x6EB4 and the packet CRCs printed in docs/protocols.md §6
 (``AA AA AA 0B 01 00 00 CB FB``).
 
-The loop is pure Python (about 60 ns per byte); MSB-first 0x1021 CRCs
+The table loop is a numba kernel (about 1 µs for a 520-byte DSACON32 frame; the
+pure-Python loop it replaced took 60 ns per byte); MSB-first 0x1021 CRCs
 (CCITT-FALSE) use ``binascii.crc_hqx``, which is C.
 """
 
@@ -31,6 +32,11 @@ from __future__ import annotations
 
 import binascii
 from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from slipstack.lib.weber import JIT
 
 __all__ = [
     "Crc16",
@@ -63,6 +69,18 @@ def _make_table(poly: int, reflected_table: bool) -> tuple[int, ...]:
     return tuple(table)
 
 
+@njit(**JIT)
+def _table_crc(data: np.ndarray, table: np.ndarray, crc: int, reflected_update: bool) -> int:
+    """The register after *data* (uint8) from *crc*, one table step per byte (module docstring)."""
+    if reflected_update:
+        for b in data:
+            crc = (crc >> 8) ^ table[(crc ^ b) & 0xFF]
+    else:
+        for b in data:
+            crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ b) & 0xFF]
+    return crc
+
+
 @dataclass(frozen=True)
 class Crc16:
     """A CRC-16 algorithm; call it on bytes to get the CRC as an int in [0, 0xFFFF].
@@ -86,12 +104,12 @@ class Crc16:
     xorout: int
     check: int
     reflected_table: bool | None = None
-    _table: tuple[int, ...] = field(init=False, repr=False, compare=False)
+    _table: np.ndarray = field(init=False, repr=False, compare=False)
     _hqx: bool = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         refl = self.refin if self.reflected_table is None else self.reflected_table
-        object.__setattr__(self, "_table", _make_table(self.poly, refl))
+        object.__setattr__(self, "_table", np.array(_make_table(self.poly, refl), dtype=np.int64))
         # binascii.crc_hqx is the MSB-first 0x1021 CRC in C: use it where it applies
         object.__setattr__(self, "_hqx", self.poly == 0x1021 and not self.refin and not refl)
         got = self(b"123456789")
@@ -100,17 +118,10 @@ class Crc16:
 
     def __call__(self, data: bytes | bytearray | memoryview, init: int | None = None) -> int:
         """CRC of *data*; *init* overrides the initial register (for chaining)."""
-        t = self._table
         c = self.init if init is None else init
         if self._hqx:
             return binascii.crc_hqx(data, c) ^ self.xorout
-        if self.refin:
-            for b in data:
-                c = (c >> 8) ^ t[(c ^ b) & 0xFF]
-        else:
-            for b in data:
-                c = ((c << 8) & 0xFFFF) ^ t[((c >> 8) ^ b) & 0xFF]
-        return c ^ self.xorout
+        return int(_table_crc(np.frombuffer(data, dtype=np.uint8), self._table, c, self.refin)) ^ self.xorout
 
 
 #: Modbus RTU (Robotiq FT 300); transmitted little-endian.

@@ -16,7 +16,7 @@ URL grammar (query parameters optional unless marked)::
 
     common: baud=…  rate_hz=…  (nominal sample rate; defaults: rdt 7000, robotiq 100,
             bota 200, dsacon32 = fps, m1616/framed 100)
-            stale_ms=…  (default 2.5 sample periods) backoff_ms=50 backoff_max_ms=2000
+            stale_ms=…  (default 2.5 sample periods, at least 2.5 ms) backoff_ms=50 backoff_max_ms=2000
 
     sim:URL                   the simulated twin of the device URL names, on an in-process
                               link (``sim_link.py``; lock-step runs)
@@ -73,6 +73,14 @@ __all__ = [
 
 Sample = Union[FtSample, TactileSample]
 
+DEFAULT_STALE_PERIODS = 2.5
+"""Default stale limit (``stale_ms`` not given), in nominal sample periods, but at least
+:data:`MIN_DEFAULT_STALE_MS`."""
+MIN_DEFAULT_STALE_MS = 2.5
+"""Floor of the default stale limit (ms): a device faster than 1 kHz is read in bursts by
+a host that wakes up about once a millisecond (and the rig sends its samples so); 2.5
+periods of a 7 kHz sensor (0.36 ms) flagged every gap between two bursts as stale."""
+
 
 class Backend(ABC):
     """Common state machine: link, staleness, counters (module docstring)."""
@@ -83,7 +91,8 @@ class Backend(ABC):
     def __init__(self, url: str, params: ConfigTable) -> None:
         self.url = url
         self.rate_hz = params.real("rate_hz", float(self.default_rate_hz), lo=0.0, lo_open=True)
-        self.stale_after_s = params.real("stale_ms", 2500.0 / self.rate_hz) / 1e3
+        default_stale_ms = max(DEFAULT_STALE_PERIODS * 1e3 / self.rate_hz, MIN_DEFAULT_STALE_MS)
+        self.stale_after_s = params.real("stale_ms", default_stale_ms) / 1e3
         self.backoff_min_s = params.real("backoff_ms", 50.0) / 1e3
         self.backoff_max_s = params.real("backoff_max_ms", 2000.0) / 1e3
         self.status = LinkStatus.DISCONNECTED
@@ -406,6 +415,7 @@ class RdtBackend(Backend):
         super().__init__(url, params)
         self.counts_per_force = params.real("cpf", 1e6, lo=0.0, lo_open=True)
         self.counts_per_torque = params.real("cpt", 1e6, lo=0.0, lo_open=True)
+        self._counts_per_unit = np.array([self.counts_per_force] * 3 + [self.counts_per_torque] * 3)
         self._link = UdpLink(host, port, stale_after_s=self.stale_after_s, backoff_min_s=self.backoff_min_s,
                              backoff_max_s=self.backoff_max_s, on_open=self._request)
         self._own["requests"] = 0
@@ -429,7 +439,7 @@ class RdtBackend(Backend):
 
     def _poll(self, now_ns: int) -> list[Sample]:
         out: list[Sample] = []
-        cpf, cpt = self.counts_per_force, self.counts_per_torque
+        per_unit = self._counts_per_unit
         for datagram in self._link.recv(now_ns):
             records = ati_rdt.decode_records(datagram)
             if records is None:
@@ -441,7 +451,8 @@ class RdtBackend(Backend):
                     continue
                 self._own["gaps"] += self._rdt_sequence.update(r.rdt_sequence)
                 self._last = r
-                out.append(FtSample(now_ns, r.counts[:3] / cpf, r.counts[3:] / cpt, r.rdt_sequence, None, r.status))
+                wrench = r.counts / per_unit  # N, N·m: force and torque are views of it
+                out.append(FtSample(now_ns, wrench[:3], wrench[3:], r.rdt_sequence, None, r.status))
         self._own["frames"] += len(out)
         if not out and self._link.is_open and now_ns >= self._rerequest_at():
             self._request(now_ns)  # silent for backoff_ms: the sensor may have rebooted

@@ -18,7 +18,7 @@ import pytest
 from slipstack.lib.calibration import Calibration, save_calibration
 from slipstack.lib.errors import ConfigError
 from slipstack.messages import decode
-from slipstack.nodes.devices.emulators import BotaEmulator, Dsacon32Emulator, M1616Emulator
+from slipstack.nodes.devices.emulators import BotaEmulator, Dsacon32Emulator, M1616Emulator, RdtUdpServer
 from slipstack.nodes.ft_driver import FtDriver, FtDriverParams
 from slipstack.nodes.runtime.host import NodeHost
 from slipstack.nodes.tactile_driver import TactileDriver, TactileDriverParams
@@ -86,6 +86,52 @@ def _ft(emu, **params) -> Harness:
     h = Harness(FtDriver(FtDriverParams(url=f"bota://{emu.path}", **params)), emu)
     h.start()
     return h
+
+
+def test_samples_of_one_read_are_stamped_back_by_the_period_and_strictly_increase(bota):
+    """Samples decoded by one read carry the read's time; the driver steps the earlier ones
+    back by the nominal period (Bota: 200 Hz, 5 ms), never to or before the last stamp."""
+    h = _ft(bota)
+    t_prev = h.send(bota.send_ft, [0.0, 0.0, -1.0], [0.0, 0.0, 0.0], dt_ns=5 * MS).header.stamp_ns
+
+    def one_read(n_samples: int) -> list[int]:
+        n = len(h.out)
+        for k in range(n_samples):
+            bota.send_ft([0.0, 0.0, -1.0 - k], [0.0, 0.0, 0.0])
+        h.wait_for(lambda: len(h.out) >= n + n_samples)
+        assert [m.status for m in h.out[n:]] == ["ok"] * n_samples
+        return [m.header.stamp_ns for m in h.out[n:]]
+
+    h.advance(12 * MS)  # within the 12.5 ms stale limit
+    assert one_read(3) == [t_prev + 2 * MS, t_prev + 7 * MS, t_prev + 12 * MS] == [h.now - 10 * MS, h.now - 5 * MS, h.now]
+    assert one_read(2) == [h.now + 1, h.now + 2]  # the same instant again: 1 ns apart, after the last
+    h.advance(4 * MS)
+    assert one_read(3) == [h.now - 4 * MS + 3, h.now - 4 * MS + 4, h.now]
+
+
+def test_rdt_at_7khz_in_bursts_of_a_millisecond_is_never_stale_by_default():
+    """The rig (and a host that reads the socket once per millisecond) delivers 7 kHz RDT
+    records in bursts of seven every 1 ms. With the default stale limit (2.5 periods =
+    0.36 ms at 7 kHz) every gap between bursts flagged the sensor stale and the grip held
+    (fail-safe) on good data; the default has a floor of 2.5 ms."""
+    server = RdtUdpServer()
+    try:
+        h = Harness(FtDriver(FtDriverParams(url=server.url + "?rate_hz=7000")), server)
+        h.start()
+        h.send(server.send_ft, [0.0, 0.0, -1.0], [0.0, 0.0, 0.0], dt_ns=MS)
+        streaming = len(h.out)
+        for _ in range(20):
+            h.advance(MS)
+            n = len(h.out)
+            for _ in range(7):
+                server.send_ft([0.0, 0.0, -1.0], [0.0, 0.0, 0.0])
+            h.wait_for(lambda: sum(m.status == "ok" for m in h.out[n:]) == 7)
+        statuses = [m.status for m in h.out[streaming:]]
+        assert statuses == ["ok"] * 140, [s for s in statuses if s != "ok"][:3]
+        h.advance(3 * MS)  # a real silence is still said within the floor
+        assert h.out[-1].status == "stale"
+    finally:
+        server.close()
 
 
 def test_bias_from_tare_then_sensor_to_pad_transform(bota):

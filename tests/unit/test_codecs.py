@@ -64,6 +64,11 @@ def test_rdt_request_and_records() -> None:
     np.testing.assert_allclose(t, [5e-4, -5e-4, (2**31 - 1) / 1e6])
     assert [x.rdt_sequence for x in ati_rdt.decode_records(rec + rec)] == [1, 1]
     assert ati_rdt.decode_records(rec[:35]) is None and ati_rdt.decode_records(b"") is None
+    # counts round half to even and saturate at the int32 range; a NaN is refused
+    rounded = ati_rdt.encode_record(2, 1, 0, np.array([0.5, 1.5, -2.5, 1234.4999, 3e12, -np.inf]))
+    assert ati_rdt.decode_records(rounded)[0].counts.tolist() == [0, 2, -2, 1234, 2**31 - 1, -(2**31)]
+    with pytest.raises(ValueError):
+        ati_rdt.encode_record(3, 1, 0, [0.0, 0.0, float("nan"), 0.0, 0.0, 0.0])
 
 
 # ---------------------------------------------------------------- Bota
@@ -236,7 +241,8 @@ def test_calibration_check_size() -> None:
 def test_backend_urls() -> None:
     b = backend_from_url("rdt://10.0.0.2?cpf=1000000&cpt=1000")
     assert isinstance(b, RdtBackend) and b.counts_per_torque == 1000 and b.kind == "ft"
-    assert b.stale_after_s == pytest.approx(2.5 / 7000)
+    assert b.stale_after_s == pytest.approx(2.5e-3)  # 2.5 periods at 7 kHz (0.36 ms) is below the floor
+    assert backend_from_url("bota:///dev/ttyUSB1").stale_after_s == pytest.approx(2.5 / 200)  # 2.5 periods
     r = backend_from_url("robotiq:///dev/ttyUSB0?stop_ms=20&stale_ms=40")
     assert isinstance(r, RobotiqBackend) and r.stale_after_s == pytest.approx(0.04)
     assert isinstance(backend_from_url("bota:///dev/ttyUSB1"), BotaBackend)
