@@ -9,7 +9,7 @@ $(VENV)/.installed: pyproject.toml
 	python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -e '.[test,foxglove]'
-	$(PY) -c 'from slipstack.lib.limit_set import compile_kernels; compile_kernels()'
+	$(PY) -c 'from slipstack.lib.limit_set import compile_kernels; compile_kernels(); import slipstack.lib.protocols.crc'
 	touch $@
 
 run: $(VENV)/.installed
