@@ -57,7 +57,7 @@ import zmq
 from slipstack.lib.errors import ConfigError, SlipstackError
 from slipstack.launch.launch_file import SIM_ARG, LaunchFile, arg_comments, load_launch_file
 from slipstack.launch.peers import PeerLinks, launcher_endpoint
-from slipstack.launch.plan import PEER_WAIT_S, NodePlan, ProcessPlan, plan_launch, runs_on
+from slipstack.launch.plan import PEER_WAIT_S, NodePlan, ProcessPlan, plan_launch, remote_sources, runs_on
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.nodes.devices.sim_link import SIM_PREFIX
 from slipstack.launch.quiet_shutdown import WorldEndFilter, WorldLogLevels
@@ -66,6 +66,7 @@ from slipstack.nodes.runtime.logs import LOG_LEVEL_ENV, parse_log_levels
 from slipstack.nodes.runtime.curve import INSECURE_ENV, KEYS_ENV, MACHINE_ENV, GraphKeys, machine_env, use_keys
 from slipstack.nodes.runtime.graph_info import process_start_ticks, write_graph
 from slipstack.nodes.runtime.run_dir import finish_run_dir, make_run_dir, remove_run_dir, write_private_file
+from slipstack.nodes.runtime.remote_sources import REMOTE_SOURCES_ENV
 from slipstack.nodes.runtime.time_base import CLOCK_OFFSET_ENV
 
 __all__ = ["Launcher", "add_parser", "main_launch"]
@@ -135,6 +136,8 @@ class Launcher:
         self.machine = _check_machine(launch, machine)
         self.plan = plan_launch(launch, run_dir, self.machine)
         self.peers: PeerLinks | None = None
+        self.remote_sources = remote_sources(self.plan)
+        """Topic → the other machines its data comes from, for the nodes that name them when it stops."""
         self.clock_offset_ns = 0
         """Added to this machine's monotonic clock by its nodes: the first machine's time base."""
         self._next_drift_check = 0.0
@@ -199,6 +202,8 @@ class Launcher:
         env.update(self._security_env())
         if self.clock_offset_ns:
             env[CLOCK_OFFSET_ENV] = str(self.clock_offset_ns)
+        if self.remote_sources:
+            env[REMOTE_SOURCES_ENV] = json.dumps(self.remote_sources)
         nice = c.entry.nice
 
         def in_child() -> None:

@@ -36,7 +36,7 @@ from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.transport import ipc_endpoint, machine_ports, tcp_endpoint
 
 __all__ = ["NodePlan", "ProcessPlan", "LaunchPlan", "plan_launch", "tapped_topics", "machine_endpoints", "runs_on",
-           "PEER_WAIT_S"]
+           "remote_sources", "PEER_WAIT_S"]
 
 PEER_WAIT_S = 60.0
 """How long (s) a machine's launcher waits for the first machine's to answer, and so how long
@@ -230,6 +230,35 @@ def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -
             proc.spec = specs[proc.members[0].entry.name]
     order = _start_order(children, processes, here)
     return LaunchPlan(launch, run_dir, control_ep, children, processes, order, machine)
+
+
+def remote_sources(plan: LaunchPlan) -> dict[str, str]:
+    """Topic → the other machines its data passes through on its way to ``plan``'s machine, as a
+    label (``"machine robot, 127.0.0.1"``): the topic graph followed upstream from the topic's
+    publishers, ``diagnostics`` left out (every node publishes it). Only topics with such a machine;
+    {} without machines. What ``$SLIPSTACK_REMOTE_SOURCES`` carries (nodes/runtime/remote_sources.py)."""
+    if plan.machine is None:
+        return {}
+    publishers: dict[str, list[NodePlan]] = {}
+    for c in plan.nodes.values():
+        for topic in c.outputs:
+            publishers.setdefault(topic, []).append(c)
+    out: dict[str, str] = {}
+    for topic in publishers:
+        if topic == DIAGNOSTICS_TOPIC:
+            continue
+        machines: set[str] = set()
+        seen, pending = {topic}, [topic]
+        while pending:
+            for c in publishers.get(pending.pop(), []):
+                machines.add(c.entry.machine)
+                fresh = set(c.inputs) - seen - {DIAGNOSTICS_TOPIC}
+                seen |= fresh
+                pending += sorted(fresh)
+        machines.discard(plan.machine)
+        if machines:
+            out[topic] = "; ".join(f"machine {m}, {plan.launch.machines[m].address}" for m in sorted(machines))
+    return out
 
 
 def _feeds_elsewhere(c: NodePlan, children: dict[str, NodePlan], taps: dict[str, set[str]], here: set[str]) -> bool:

@@ -29,6 +29,7 @@ import zmq
 import zmq.auth
 
 from slipstack.lib.toml_file import resolve_path
+from slipstack.messages import decode
 
 from .conftest import LaunchedGraph, count_frames, pid_alive
 
@@ -164,6 +165,17 @@ def test_a_machine_gone_quiet_is_named_the_grip_holds_and_the_loop_resumes(two_h
     commands = ctx.socket(zmq.SUB)  # on the workstation, where the controller runs: its ipc endpoint
     commands.setsockopt(zmq.SUBSCRIBE, b"grip/command")
     commands.connect(nodes["grip_controller"]["pub"])
+    diagnostics = ctx.socket(zmq.SUB)  # the controller's status line, as the monitor reads it
+    diagnostics.setsockopt(zmq.SUBSCRIBE, b"diagnostics")
+    diagnostics.connect(nodes["grip_controller"]["pub"])
+
+    def status_naming(text: str, seconds: float) -> str:
+        """The first status of the controller containing ``text`` within ``seconds`` (else the last seen)."""
+        status, end = "", time.monotonic() + seconds
+        while time.monotonic() < end and text not in status:
+            if diagnostics.poll(100):
+                status = decode(diagnostics.recv_multipart()[1]).status
+        return status
 
     def read(seconds: float, until: str | None = None) -> list[tuple[float, str]]:
         """(f_n desired, reason) of the commands over ``seconds``, or until ``until`` is in the log."""
@@ -187,6 +199,8 @@ def test_a_machine_gone_quiet_is_named_the_grip_holds_and_the_loop_resumes(two_h
         assert "machine robot (127.0.0.1) went quiet" in workstation.log(), workstation.log()
         held = read(1.0)
         assert held and all(reason == "fail-safe" for _, reason in held), held
+        status = status_naming("(from machine robot, 127.0.0.1)", 30)  # the controller itself names it
+        assert status.startswith("fail-safe: ") and "(from machine robot, 127.0.0.1)" in status, status
         trail = before + frozen + held  # from the last command judged on fresh data on, never lower
         last_ok = max(k for k, (_, reason) in enumerate(trail) if reason != "fail-safe")
         forces = [f for f, _ in trail[last_ok:]]

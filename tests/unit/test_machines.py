@@ -17,6 +17,7 @@ import zmq
 from slipstack.launch.launch_file import load_launch_file
 from slipstack.launch import launcher as launcher_module
 from slipstack.launch.launcher import Launcher
+from slipstack.launch.plan import plan_launch, remote_sources
 from slipstack.lib.clock_offset import ClockOffset
 from slipstack.lib.errors import ConfigError
 from slipstack.nodes.runtime import curve
@@ -98,6 +99,19 @@ def test_both_launchers_compute_the_same_endpoints_ipc_inside_a_machine_tcp_betw
     assert source["expected_subscribers"] == {"ft/wrench": 1}  # the relay on b is waited for,
     assert source["handshake_timeout_s"] == launcher_module.PEER_WAIT_S  # as long as b's launcher may take
     assert "handshake_timeout_s" not in relay  # its subscriber is on its own machine
+
+
+def test_each_machine_knows_which_other_machine_its_topics_come_from(tmp_path, keys):
+    lf = _load(tmp_path)
+    assert remote_sources(plan_launch(lf, tmp_path, "b")) == {  # followed upstream: the relay's output too
+        "ft/wrench": "machine a, 127.0.0.1", "ft/relayed": "machine a, 127.0.0.1"}
+    assert remote_sources(plan_launch(lf, tmp_path, "a")) == {"ft/relayed": "machine b, 127.0.0.2"}  # a's own left out
+    assert remote_sources(plan_launch(lf, tmp_path)) == {}  # one computer
+    shipped = load_launch_file("two_hosts", builtins=BUILTINS)
+    workstation = remote_sources(plan_launch(shipped, tmp_path, "workstation"))
+    assert workstation["slip"] == workstation["ft/wrench"] == "machine robot, 127.0.0.1"
+    assert "diagnostics" not in workstation
+    assert remote_sources(plan_launch(shipped, tmp_path, "robot"))["grip/command"] == "machine workstation, 127.0.0.2"
 
 
 @pytest.mark.parametrize("change, message", [
