@@ -56,8 +56,10 @@ import zmq
 
 from slipstack.lib.errors import ConfigError, SlipstackError
 from slipstack.launch.launch_file import SIM_ARG, LaunchFile, arg_comments, load_launch_file
+from slipstack.launch.inject_relay import InjectionRelay
 from slipstack.launch.peers import PeerLinks, launcher_endpoint
-from slipstack.launch.plan import PEER_WAIT_S, NodePlan, ProcessPlan, plan_launch, remote_sources, runs_on
+from slipstack.launch.plan import (PEER_WAIT_S, NodePlan, ProcessPlan, plan_launch, relay_endpoint, remote_sources,
+                                   runs_on)
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.nodes.devices.sim_link import SIM_PREFIX
 from slipstack.launch.quiet_shutdown import WorldEndFilter, WorldLogLevels
@@ -136,6 +138,8 @@ class Launcher:
         self.machine = _check_machine(launch, machine)
         self.plan = plan_launch(launch, run_dir, self.machine)
         self.peers: PeerLinks | None = None
+        self.relay: InjectionRelay | None = None
+        """Injection from tools on other machines into this machine's nodes (with machines)."""
         self.remote_sources = remote_sources(self.plan)
         """Topic → the other machines its data comes from, for the nodes that name them when it stops."""
         self.clock_offset_ns = 0
@@ -340,6 +344,8 @@ class Launcher:
         first one's launcher and take its clock as this machine's nodes' time base."""
         use_keys(self._keys_dir(), self.machine, self._machine_hosts(), insecure=self.launch.insecure)
         self.peers = PeerLinks(self.zctx, self.launch.machines, self.machine, self.echo)
+        self.relay = InjectionRelay(self.zctx, relay_endpoint(self.launch.machines[self.machine]),
+                                    [ep for p in self.processes.values() for c in p.members for ep in c.inject.values()])
         reference = self._reference()
         if reference == self.machine:
             return
@@ -467,6 +473,8 @@ class Launcher:
             self.control.close(linger=0)
             if self.peers is not None:
                 self.peers.close()
+            if self.relay is not None:
+                self.relay.close()
         self._report_events()
         if self.launch.check:
             self._report_check()

@@ -18,7 +18,9 @@ specs. Every machine's launcher computes the same endpoints from the same file: 
 binds ipc for the nodes of its machine and also its machine's tcp port
 (``transport.py: machine_ports``) for subscribers and tools elsewhere
 (:attr:`NodePlan.remote_endpoint`, ``pub_remote`` of its run spec); a subscriber
-connects to a publisher of another machine on that tcp endpoint. ``after`` a node of
+connects to a publisher of another machine on that tcp endpoint. A node of another
+machine is injected into through its machine's launcher (:func:`relay_endpoint`, the
+machine's last port: ``launch/inject_relay.py``). ``after`` a node of
 another machine is the launcher's to wait for, not part of this start order. A plan
 with no machine named runs every node on this computer (the lock-step run).
 """
@@ -29,14 +31,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from slipstack.lib.errors import ConfigError
-from slipstack.launch.launch_file import LaunchFile, NodeEntry, free_port
+from slipstack.launch.launch_file import LaunchFile, Machine, NodeEntry, free_port
 from slipstack.messages import Diagnostics
 from slipstack.nodes.device_driver import DeviceDriver
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.transport import ipc_endpoint, machine_ports, tcp_endpoint
 
 __all__ = ["NodePlan", "ProcessPlan", "LaunchPlan", "plan_launch", "tapped_topics", "machine_endpoints", "runs_on",
-           "remote_sources", "PEER_WAIT_S"]
+           "remote_sources", "relay_endpoint", "PEER_WAIT_S"]
 
 PEER_WAIT_S = 60.0
 """How long (s) a machine's launcher waits for the first machine's to answer, and so how long
@@ -156,6 +158,12 @@ def machine_endpoints(launch: LaunchFile) -> dict[str, str]:
     return out
 
 
+def relay_endpoint(machine: Machine) -> str:
+    """Where the launcher of ``machine`` takes frames injected by tools on other machines: its
+    address, the last of its ports (launch/inject_relay.py)."""
+    return tcp_endpoint(machine.address, machine.ports[1])
+
+
 def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -> LaunchPlan:
     """The plan of ``launch`` in ``run_dir`` (the share of ``machine`` of a graph with
     machines; None: every node here); nothing is bound or written.
@@ -184,8 +192,9 @@ def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -
         child.outputs[DIAGNOSTICS_TOPIC] = Diagnostics.TYPE  # every node publishes it
         child.inputs = {t: nodes[e.name].inputs[n].type.TYPE for n, t in e.input_topics(nodes[e.name]).items()}
         children[e.name] = child
-        if not runs_here:
-            continue  # another machine's launcher runs it
+        if not runs_here:  # another machine's launcher runs it; tools here inject through it
+            child.inject = {t: relay_endpoint(launch.machines[e.machine]) for t in child.inputs}
+            continue
         child.inject = {t: ipc_endpoint(run_dir, f"{e.name}.in") for t in child.inputs}
         proc = processes.setdefault(child.process, ProcessPlan(child.process, [], run_dir / f"{child.process}.spec.json"))
         proc.members.append(child)

@@ -228,7 +228,7 @@ def play(
     injector = InjectionSender([ep for _, ep in injects], name, sndhwm=100_000)  # one per node, whatever its topics
     try:
         want: dict[str, int] = {}
-        for topic, _ in injects:
+        for topic, _ in set(injects):  # the nodes of another machine share its launcher's address
             want[topic] = want.get(topic, 0) + 1
         injector.wait_for_subscriptions(want, wait_s)
         bus.wait_for_recorders(sum(1 for n in graph_nodes.values() if n.get("type") == "recorder"), wait_s)

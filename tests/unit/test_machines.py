@@ -31,7 +31,7 @@ GRAPH = """
 
 [machines.a]
 address = "{a}"
-ports = [31200, 31202]
+ports = [31200, 31203]
 {a_keys}
 
 [machines.b]
@@ -120,7 +120,7 @@ def test_each_machine_knows_which_other_machine_its_topics_come_from(tmp_path, k
     ({"a_keys": "", "b_keys": ""}, r"link over tcp without keys.*or insecure = true"),
     ({"extra": '[[node]]\nname = "x"\ntype = "sink"\nmachine = "c"\n'}, r"node x: no \[machines.c\]; machines: a, b"),
     ({"extra": '[[node]]\nname = "x"\ntype = "sink"\n[[node]]\nname = "y"\ntype = "sink"\n'},
-     r"\[machines.a\].ports \[31200, 31202\] holds 3 ports; it needs 4"),
+     r"\[machines.a\].ports \[31200, 31203\] holds 4 ports; it needs 5"),
     ({"relay": 'container = "box"', "extra": '[[node]]\nname = "z"\ntype = "sink"\ncontainer = "box"\n'},
      r"share container 'box' but differ in .*machine"),
 ])
