@@ -35,7 +35,7 @@ import numpy as np
 from slipstack.lib.errors import ConfigError, DecodeError
 from slipstack.messages import Header, Message, encode, registry, validate
 from slipstack.nodes.tools.topic_tools import TopicInfo, load_graph, resolve_topic
-from slipstack.nodes.runtime.graph_info import time_base_offset_ns
+from slipstack.nodes.runtime.graph_info import time_base_clock
 from slipstack.nodes.runtime.stop_signal import stop_on_signals
 from slipstack.nodes.runtime.tool_pub import BusPublisher, InjectionSender, tool_name
 from slipstack.nodes.tools.topic_yaml import parse_flow
@@ -154,16 +154,15 @@ def main_pub(args: argparse.Namespace) -> int:
             print(f"topic pub: only {joined} of {len(injector.addresses)} subscribers joined; publishing anyway",
                   file=sys.stderr)
         period = round(1e9 / args.rate)
-        time_base = time_base_offset_ns(graph)  # stamps on the graph's clock (another machine's, with machines)
-        due = time.monotonic_ns()
+        clock = time_base_clock(graph)  # stamps on the graph's clock (the first machine's, with machines)
+        due = clock()
         seq = 0
         while times is None or seq < times:
-            now = time.monotonic_ns()
+            now = clock()
             if now < due:
                 time.sleep((due - now) / 1e9)
-                now = time.monotonic_ns()
-            stamp = now + time_base
-            payload = encode(dataclasses.replace(body, header=Header(stamp, seq, stamp, {})))
+                now = clock()
+            payload = encode(dataclasses.replace(body, header=Header(now, seq, now, {})))
             bus.send(info.name, payload)
             if injector is not None:
                 injector.send(payload)
