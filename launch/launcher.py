@@ -55,11 +55,13 @@ import msgpack
 import zmq
 
 from slipstack.lib.errors import ConfigError, SlipstackError
+from slipstack.messages import Diagnostics
 from slipstack.launch.launch_file import SIM_ARG, LaunchFile, arg_comments, load_launch_file
+from slipstack.launch.clock_report import REPORT_PERIOD_S, ClockReport, launcher_node
 from slipstack.launch.inject_relay import InjectionRelay
 from slipstack.launch.peers import PeerLinks, launcher_endpoint
-from slipstack.launch.plan import (PEER_WAIT_S, NodePlan, ProcessPlan, plan_launch, relay_endpoint, remote_sources,
-                                   runs_on)
+from slipstack.launch.plan import (PEER_WAIT_S, NodePlan, ProcessPlan, launcher_pub_endpoints, plan_launch,
+                                   relay_endpoint, remote_sources, runs_on)
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.nodes.devices.sim_link import SIM_PREFIX
 from slipstack.launch.quiet_shutdown import WorldEndFilter, WorldLogLevels
@@ -67,6 +69,7 @@ from slipstack.launch.run_log import RunLog, log_path_for
 from slipstack.nodes.runtime.logs import LOG_LEVEL_ENV, parse_log_levels
 from slipstack.nodes.runtime.curve import INSECURE_ENV, KEYS_ENV, MACHINE_ENV, GraphKeys, machine_env, use_keys
 from slipstack.nodes.runtime.graph_info import process_start_ticks, write_graph
+from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.run_dir import finish_run_dir, make_run_dir, remove_run_dir, write_private_file
 from slipstack.nodes.runtime.remote_sources import REMOTE_SOURCES_ENV
 from slipstack.nodes.runtime.time_base import CLOCK_OFFSET_ENV
@@ -139,6 +142,9 @@ class Launcher:
         self.plan = plan_launch(launch, run_dir, self.machine)
         self.peers: PeerLinks | None = None
         self.relay: InjectionRelay | None = None
+        self.clock_report: ClockReport | None = None
+        """This launcher's clock offsets on ``diagnostics`` (with machines)."""
+        self._next_clock_report = 0.0
         """Injection from tools on other machines into this machine's nodes (with machines)."""
         self.remote_sources = remote_sources(self.plan)
         """Topic → the other machines its data comes from, for the nodes that name them when it stops."""
@@ -303,6 +309,11 @@ class Launcher:
             "nodes": {name: self._graph_node(c) for name, c in self.children.items()},
         }
         if self.machine is not None:
+            for name, endpoint in launcher_pub_endpoints(self.launch, self.run_dir, self.machine).items():
+                graph["nodes"][launcher_node(name)] = {
+                    "type": "launcher", "pid": os.getpid() if name == self.machine else None, "pub": endpoint,
+                    "inputs": {}, "outputs": {DIAGNOSTICS_TOPIC: Diagnostics.TYPE}, "inject": {}, "restarts": 0,
+                    "machine": name}
             graph["machine"] = {"name": self.machine, "hosts": self._machine_hosts(),
                                 "clock_offset_ns": self.clock_offset_ns, "peers": self._peer_report()}
         if self.peers is not None:
@@ -344,6 +355,9 @@ class Launcher:
         first one's launcher and take its clock as this machine's nodes' time base."""
         use_keys(self._keys_dir(), self.machine, self._machine_hosts(), insecure=self.launch.insecure)
         self.peers = PeerLinks(self.zctx, self.launch.machines, self.machine, self.echo)
+        pubs = launcher_pub_endpoints(self.launch, self.run_dir, self.machine)
+        self.clock_report = ClockReport(self.zctx, self.machine, pubs[self.machine],  # and the tcp one, for the others
+                                        launcher_pub_endpoints(self.launch, self.run_dir, None)[self.machine])
         self.relay = InjectionRelay(self.zctx, relay_endpoint(self.launch.machines[self.machine]),
                                     [ep for p in self.processes.values() for c in p.members for ep in c.inject.values()])
         reference = self._reference()
@@ -401,6 +415,19 @@ class Launcher:
                       f"{timeout / 1e6:g} ms timeout: ages of messages between the machines are misjudged by that "
                       "much; keep the machines' clocks disciplined (NTP/PTP) and restart the launch")
         self._drift_warned = error > timeout / 2
+
+    def _report_clocks(self) -> None:
+        """Every ``REPORT_PERIOD_S``: this launcher's clock offsets on ``diagnostics`` (launch/clock_report.py)."""
+        if self.clock_report is None or time.monotonic() < self._next_clock_report:
+            return
+        self._next_clock_report = time.monotonic() + REPORT_PERIOD_S
+        quiet = [p.label for p in self.peers.peers.values() if p.quiet]
+        warning = "; ".join([*(f"{label} went quiet" for label in quiet),
+                             *([f"the clock drifted from machine {self._reference()}'s beyond half the grip "
+                                "controller's timeout"] if self._drift_warned else [])])
+        self.clock_report.publish(time.monotonic_ns() + self.clock_offset_ns,
+                                  {name: p.offset() for name, p in self.peers.peers.items()}, self.clock_offset_ns,
+                                  warning)
 
     def _required_peer_stopped(self) -> bool:
         """True (and said) if another machine's launcher stopped while running a ``required`` node:
@@ -475,6 +502,8 @@ class Launcher:
                 self.peers.close()
             if self.relay is not None:
                 self.relay.close()
+            if self.clock_report is not None:
+                self.clock_report.close()
         self._report_events()
         if self.launch.check:
             self._report_check()
@@ -491,6 +520,7 @@ class Launcher:
             self._forward_logs(0.05)
             self._service_peers()
             self._check_drift()
+            self._report_clocks()
             if self._required_peer_stopped():
                 return
             self._note_ready_reports()

@@ -20,7 +20,9 @@ binds ipc for the nodes of its machine and also its machine's tcp port
 (:attr:`NodePlan.remote_endpoint`, ``pub_remote`` of its run spec); a subscriber
 connects to a publisher of another machine on that tcp endpoint. A node of another
 machine is injected into through its machine's launcher (:func:`relay_endpoint`, the
-machine's last port: ``launch/inject_relay.py``). ``after`` a node of
+machine's last port: ``launch/inject_relay.py``); its launcher publishes its clock
+offsets on ``diagnostics`` from the next-to-last (:func:`launcher_pub_endpoints`), and
+the plan adds the launchers to the publishers of ``diagnostics`` a node subscribes to. ``after`` a node of
 another machine is the launcher's to wait for, not part of this start order. A plan
 with no machine named runs every node on this computer (the lock-step run).
 """
@@ -38,7 +40,7 @@ from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.transport import ipc_endpoint, machine_ports, tcp_endpoint
 
 __all__ = ["NodePlan", "ProcessPlan", "LaunchPlan", "plan_launch", "tapped_topics", "machine_endpoints", "runs_on",
-           "remote_sources", "relay_endpoint", "PEER_WAIT_S"]
+           "remote_sources", "relay_endpoint", "launcher_pub_endpoints", "PEER_WAIT_S"]
 
 PEER_WAIT_S = 60.0
 """How long (s) a machine's launcher waits for the first machine's to answer, and so how long
@@ -164,6 +166,14 @@ def relay_endpoint(machine: Machine) -> str:
     return tcp_endpoint(machine.address, machine.ports[1])
 
 
+def launcher_pub_endpoints(launch: LaunchFile, run_dir: Path, machine: str | None) -> dict[str, str]:
+    """Machine → where its launcher publishes its ``diagnostics`` (clock offsets, launch/clock_report.py), as
+    seen from ``machine``: ipc in ``run_dir`` for its own, the next-to-last port of the others' (of every
+    machine's if None)."""
+    return {name: f"ipc://{run_dir}/launcher.pub" if name == machine else tcp_endpoint(m.address, m.ports[1] - 1)
+            for name, m in launch.machines.items()}
+
+
 def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -> LaunchPlan:
     """The plan of ``launch`` in ``run_dir`` (the share of ``machine`` of a graph with
     machines; None: every node here); nothing is bound or written.
@@ -179,6 +189,7 @@ def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -
     processes: dict[str, ProcessPlan] = {}
     nodes = {e.name: e.instance() for e in launch.nodes}
     remote = machine_endpoints(launch) if machine is not None else {}
+    launchers = list(launcher_pub_endpoints(launch, run_dir, machine).values()) if machine is not None else []
     for e in launch.nodes:
         runs_here = runs_on(e, machine)
         if not runs_here or (remote and e.transport == "tcp"):
@@ -222,8 +233,8 @@ def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -
             "name": name,
             "pub": c.endpoint,
             "pub_remote": c.remote_endpoint if c.remote_endpoint != c.endpoint else None,
-            "subs": {t: [children[p].endpoint for p in publishers.get(t, [])
-                         if children[p].process != c.process] for t in c.inputs},
+            "subs": {t: [children[p].endpoint for p in publishers.get(t, []) if children[p].process != c.process]
+                     + (launchers if t == DIAGNOSTICS_TOPIC else []) for t in c.inputs},
             "remap": c.entry.remap,
             "inject": c.inject,
             "expected_subscribers": {t: n for t, n in expected.items() if n},

@@ -245,7 +245,7 @@ machine = "b"
 """
 
 
-def test_topic_pub_on_one_machine_reaches_a_node_on_the_other_and_a_stranger_injects_nothing(tmp_path):
+def test_topic_pub_on_one_machine_reaches_a_node_on_the_other_and_both_launchers_publish_their_offsets(tmp_path):
     keys, stranger = tmp_path / "keys", tmp_path / "stranger"
     for directory in (keys, stranger):
         subprocess.run([sys.executable, "-m", "slipstack.launch.cli", "keys", str(directory), "--machine", "a",
@@ -292,6 +292,16 @@ def test_topic_pub_on_one_machine_reaches_a_node_on_the_other_and_a_stranger_inj
         got = injected(20, 30.0)
         assert list(got) == [-7.25] and len(got[-7.25]) == 20, got  # every frame of topic pub, none of the intruder's
         assert all(sent_at <= s <= time.monotonic_ns() for s in got[-7.25])  # on a's clock: the graph's time base
+
+        # each launcher's clock offsets on diagnostics: b's as a tool on a sees them (tcp, a's keys)
+        offsets = _curve_client(ctx, zmq.SUB, keys / "a" / "a.key_secret", keys / "a" / "b.key")
+        offsets.setsockopt(zmq.SUBSCRIBE, b"diagnostics")
+        offsets.connect(graph_a["nodes"]["launcher@b"]["pub"])
+        assert offsets.poll(30_000), "no diagnostics from b's launcher"
+        report = decode(offsets.recv_multipart()[1])
+        assert report.node == "launcher@b" and report.status.startswith("ok: clock of a "), report
+        assert abs(report.counters["clock.a.offset_ns"] - report.counters["clock.time_base_offset_ns"]) < 50e6
+        assert 0 < report.counters["clock.a.uncertainty_ns"] < 50e6  # one computer: both clocks are one
     finally:
         ctx.destroy(linger=0)
         for g in (a, b):

@@ -31,7 +31,7 @@ GRAPH = """
 
 [machines.a]
 address = "{a}"
-ports = [31200, 31203]
+ports = [31200, 31204]
 {a_keys}
 
 [machines.b]
@@ -120,7 +120,7 @@ def test_each_machine_knows_which_other_machine_its_topics_come_from(tmp_path, k
     ({"a_keys": "", "b_keys": ""}, r"link over tcp without keys.*or insecure = true"),
     ({"extra": '[[node]]\nname = "x"\ntype = "sink"\nmachine = "c"\n'}, r"node x: no \[machines.c\]; machines: a, b"),
     ({"extra": '[[node]]\nname = "x"\ntype = "sink"\n[[node]]\nname = "y"\ntype = "sink"\n'},
-     r"\[machines.a\].ports \[31200, 31203\] holds 4 ports; it needs 5"),
+     r"\[machines.a\].ports \[31200, 31204\] holds 5 ports; it needs 6"),
     ({"relay": 'container = "box"', "extra": '[[node]]\nname = "z"\ntype = "sink"\ncontainer = "box"\n'},
      r"share container 'box' but differ in .*machine"),
 ])
@@ -220,3 +220,24 @@ def test_graph_clock_is_shifted_by_the_launchers_offset(monkeypatch):
     monkeypatch.setenv(CLOCK_OFFSET_ENV, "soon")
     with pytest.raises(ConfigError, match="must be an integer number of nanoseconds"):
         graph_clock()
+
+
+def test_the_monitor_summary_says_the_launchers_clock_offsets():
+    from slipstack.launch.clock_report import clock_counters, clock_status
+    from slipstack.lib.clock_offset import OffsetEstimate
+    from slipstack.messages import Diagnostics, Header
+    from slipstack.nodes.monitor import Monitor, format_summary, summarise
+    from slipstack.nodes.runtime.inprocess import InProcessExecutor
+
+    estimates = {"robot": OffsetEstimate(12_345_000, 50_000, 40)}
+    report = Diagnostics(node="launcher@workstation", status=clock_status(estimates),
+                         counters=clock_counters(estimates, 12_300_000), header=Header(1_000_000, 0, 1_000_000, {}))
+    assert report.status == "ok: clock of robot +12.345 ms ± 0.050 ms"
+    monitor = Monitor()
+    ex = InProcessExecutor([monitor])
+    ex.feed([(1_000_000, "diagnostics", report)])
+    ex.run(until_ns=2_000_000)
+    summary = summarise(monitor, 2_000_000)
+    assert summary["clock_offsets"] == {"launcher@workstation": {"robot": {"offset_ms": 12.345, "uncertainty_ms": 0.05}}}
+    assert ("clock offsets between the machines (their clock minus the launcher's): launcher@workstation: robot "
+            "+12.345 ms ± 0.050 ms") in format_summary(summary)
