@@ -8,14 +8,21 @@ launchers of tests/e2e/test_two_machines.py run the whole graph over two address
 from __future__ import annotations
 
 import json
+import os
+import random
+import signal
+import threading
 import time
 from pathlib import Path
 
+import msgpack
 import pytest
 import zmq
+import zmq.auth
 
 from slipstack.launch.launch_file import load_launch_file
 from slipstack.launch import launcher as launcher_module
+from slipstack.launch import peers as peers_module
 from slipstack.launch.launcher import Launcher
 from slipstack.launch.plan import plan_launch, remote_sources
 from slipstack.lib.clock_offset import ClockOffset
@@ -241,3 +248,92 @@ def test_the_monitor_summary_says_the_launchers_clock_offsets():
     assert summary["clock_offsets"] == {"launcher@workstation": {"robot": {"offset_ms": 12.345, "uncertainty_ms": 0.05}}}
     assert ("clock offsets between the machines (their clock minus the launcher's): launcher@workstation: robot "
             "+12.345 ms ± 0.050 ms") in format_summary(summary)
+
+
+class _StandInPeer(threading.Thread):
+    """Machine a's launcher as machine b's sees it: a real CURVE ROUTER at a's launcher endpoint
+    answering the peers protocol (launch/peers.py), its clock ``shift_ns`` ahead of ours from the
+    ``shift_after``-th ping on (a clock that jumped or drifted)."""
+
+    def __init__(self, endpoint: str, secret_file: Path, shift_ns: int, shift_after: int) -> None:
+        super().__init__(daemon=True)
+        self.ctx = zmq.Context()
+        self.sock = self.ctx.socket(zmq.ROUTER)
+        self.sock.setsockopt(zmq.LINGER, 0)
+        self.sock.curve_publickey, self.sock.curve_secretkey = zmq.auth.load_certificate(secret_file)
+        self.sock.curve_server = True
+        self.sock.bind(endpoint)
+        self.shift_ns, self.shift_after, self.pings = shift_ns, shift_after, 0
+        self.done = threading.Event()
+        self.start()
+
+    def run(self) -> None:
+        status = msgpack.packb({"machine": "a", "state": "running", "ready": []})
+        while not self.done.is_set():
+            if not self.sock.poll(50):
+                continue
+            ident, kind, t1, *_ = self.sock.recv_multipart()
+            if kind != b"ping":
+                continue
+            self.pings += 1
+            shift = self.shift_ns if self.pings > self.shift_after else 0
+            t2 = (time.monotonic_ns() + shift).to_bytes(8, "big", signed=True)
+            self.sock.send_multipart([ident, b"pong", t1, t2, t2, status])
+
+    def close(self) -> None:
+        self.done.set()
+        self.join(5)
+        self.ctx.destroy(linger=0)
+
+
+DRIFT_GRAPH = """
+[machines.a]
+address = "127.0.0.1"
+ports = [{first}, {last}]
+keys = "keys/a"
+
+[machines.b]
+address = "127.0.0.2"
+ports = [{first}, {last}]
+keys = "keys/b"
+
+[[node]]
+name = "grip_controller"
+type = "grip_controller"
+machine = "a"
+params = {{timeout_ms = 20.0}}
+"""
+
+
+@pytest.mark.parametrize("shift_ms, warned", [(15, True), (0, False)])  # half the timeout: 10 ms
+def test_the_launcher_warns_when_the_clock_offset_drifts_beyond_half_the_controllers_timeout(
+        tmp_path, keys, monkeypatch, shift_ms, warned):
+    monkeypatch.setattr(peers_module, "PING_PERIOD_S", 0.01)  # the estimate's window fills in a second
+    monkeypatch.setattr(launcher_module, "DRIFT_CHECK_S", 0.1)
+    first = random.randrange(20000, 32000, 10)  # below the ephemeral ports
+    path = tmp_path / "drift.toml"
+    path.write_text(DRIFT_GRAPH.format(first=first, last=first + 9))
+    lf = load_launch_file(str(path), builtins=BUILTINS)
+    lf.duration_s = 4.0 if not warned else 30.0  # a bound: the warning stops the launch at once
+    peer = _StandInPeer(f"tcp://127.0.0.1:{first}", tmp_path / "keys" / "a" / "a.key_secret",
+                        shift_ms * 1_000_000, shift_after=30)
+    lines: list[str] = []
+
+    def echo(line: str) -> None:
+        lines.append(line)
+        if "drifted" in line:
+            os.kill(os.getpid(), signal.SIGINT)  # the launcher stops as on Ctrl-C
+
+    run_dir = tmp_path / "run"
+    run_dir.mkdir(mode=0o700)
+    try:
+        Launcher(lf, run_dir, machine="b", echo=echo).run()
+    finally:
+        curve.use_keys(None)
+        peer.close()
+    drift = [line for line in lines if "drifted" in line]
+    if warned:
+        assert drift and drift[0].startswith("[launch] WARNING: this machine's clock drifted ") and (
+            "more than half the grip controller's 20 ms timeout" in drift[0]), lines
+    else:
+        assert not drift and any("clock of machine a is" in line for line in lines), lines
