@@ -142,10 +142,10 @@ class Launcher:
         self.plan = plan_launch(launch, run_dir, self.machine)
         self.peers: PeerLinks | None = None
         self.relay: InjectionRelay | None = None
+        """Injection from tools on other machines into this machine's nodes (with machines)."""
         self.clock_report: ClockReport | None = None
         """This launcher's clock offsets on ``diagnostics`` (with machines)."""
         self._next_clock_report = 0.0
-        """Injection from tools on other machines into this machine's nodes (with machines)."""
         self.remote_sources = remote_sources(self.plan)
         """Topic → the other machines its data comes from, for the nodes that name them when it stops."""
         self.clock_offset_ns = 0
