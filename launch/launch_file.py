@@ -41,8 +41,8 @@ Format::
 
     [machines.robot]          # a graph over several computers: one table per machine
     address = "10.0.0.2"      # its IP address (or host name); its tcp endpoints bind there
-    ports = [24700, 24799]    # tcp ports its launcher (the first) and its nodes use, in order of
-                              # node name: both launchers compute every endpoint from the file
+    ports = [24700, 24799]    # tcp ports its launcher (the first, the last two) and its nodes use,
+                              # in order of node name: every launcher computes every endpoint
     keys = "keys/robot"       # its key directory (DIR/robot after `slipstack keys DIR --machine
                               # robot ...`); default: DIR/robot for [launch] keys = "DIR"
     nodes = ["rig"]           # nodes of a file this one extends that run here (a node's own
@@ -88,8 +88,9 @@ _IDENTIFIER = re.compile(r"[A-Za-z0-9_-]+")
 _TOP_KEYS = {"launch", "args", "node", "machines"}
 _MACHINE_KEYS = {"address", "ports", "keys", "nodes"}
 DEFAULT_PORTS = (24700, 24799)
-"""tcp ports of a machine without ``ports``: the first for its launcher, then one per node
-(below Linux's ephemeral ports, 32768-60999, which outgoing connections may hold)."""
+"""tcp ports of a machine without ``ports``: the first for its launcher, then one per node; the
+last two are its launcher's too: its clock offsets on ``diagnostics``, and the injection of tools
+on other machines into its nodes (below Linux's ephemeral ports, 32768-60999, which outgoing connections may hold)."""
 _LAUNCH_KEYS = {"description", "duration_s", "extends", "check", "keys", "insecure"}
 _NODE_KEYS = {"name", "type", "params", "remap", "respawn", "respawn_delay_s", "respawn_max_retries",
               "respawn_reset_s", "respawn_standby", "required", "transport", "enabled", "after", "nice", "container",
@@ -544,10 +545,10 @@ def _machines(p: Path, tables: dict[str, Any], meta: dict[str, Any], entries: li
             raise ConfigError(f"{p.name}: machines {a.name} and {b.name} share address {a.address} and overlap in "
                               "ports; give them disjoint ports = [first, last]")
     for m in machines.values():
-        needed = 1 + sum(1 for e in entries if e.machine == m.name)
+        needed = 3 + sum(1 for e in entries if e.machine == m.name)
         if m.ports[1] - m.ports[0] + 1 < needed:
             raise ConfigError(f"{p.name}: [machines.{m.name}].ports {list(m.ports)} holds "
-                              f"{m.ports[1] - m.ports[0] + 1} ports; it needs {needed} (its launcher and one per node)")
+                              f"{m.ports[1] - m.ports[0] + 1} ports; it needs {needed} (its launcher's first and last two, one per node)")
     return machines
 
 

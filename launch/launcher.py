@@ -55,10 +55,14 @@ import msgpack
 import zmq
 
 from slipstack.lib.errors import ConfigError, SlipstackError
+from slipstack.messages import Diagnostics
 from slipstack.launch.launch_file import SIM_ARG, LaunchFile, arg_comments, load_launch_file
+from slipstack.launch.clock_report import REPORT_PERIOD_S, ClockReport, launcher_node
+from slipstack.launch.inject_relay import InjectionRelay
 from slipstack.launch.peers import PeerLinks, launcher_endpoint
 from slipstack.launch.priority import set_autogroup_nice
-from slipstack.launch.plan import PEER_WAIT_S, NodePlan, ProcessPlan, plan_launch, runs_on
+from slipstack.launch.plan import (PEER_WAIT_S, NodePlan, ProcessPlan, launcher_pub_endpoints, plan_launch,
+                                   relay_endpoint, remote_sources, runs_on)
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.nodes.devices.sim_link import SIM_PREFIX
 from slipstack.launch.quiet_shutdown import WorldEndFilter, WorldLogLevels
@@ -66,7 +70,9 @@ from slipstack.launch.run_log import RunLog, log_path_for
 from slipstack.nodes.runtime.logs import LOG_LEVEL_ENV, parse_log_levels
 from slipstack.nodes.runtime.curve import INSECURE_ENV, KEYS_ENV, MACHINE_ENV, GraphKeys, machine_env, use_keys
 from slipstack.nodes.runtime.graph_info import process_start_ticks, write_graph
+from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.run_dir import finish_run_dir, make_run_dir, remove_run_dir, write_private_file
+from slipstack.nodes.runtime.remote_sources import REMOTE_SOURCES_ENV
 from slipstack.nodes.runtime.time_base import CLOCK_OFFSET_ENV
 
 __all__ = ["Launcher", "add_parser", "main_launch"]
@@ -136,6 +142,13 @@ class Launcher:
         self.machine = _check_machine(launch, machine)
         self.plan = plan_launch(launch, run_dir, self.machine)
         self.peers: PeerLinks | None = None
+        self.relay: InjectionRelay | None = None
+        """Injection from tools on other machines into this machine's nodes (with machines)."""
+        self.clock_report: ClockReport | None = None
+        """This launcher's clock offsets on ``diagnostics`` (with machines)."""
+        self._next_clock_report = 0.0
+        self.remote_sources = remote_sources(self.plan)
+        """Topic → the other machines its data comes from, for the nodes that name them when it stops."""
         self.clock_offset_ns = 0
         """Added to this machine's monotonic clock by its nodes: the first machine's time base."""
         self._next_drift_check = 0.0
@@ -200,6 +213,8 @@ class Launcher:
         env.update(self._security_env())
         if self.clock_offset_ns:
             env[CLOCK_OFFSET_ENV] = str(self.clock_offset_ns)
+        if self.remote_sources:
+            env[REMOTE_SOURCES_ENV] = json.dumps(self.remote_sources)
         nice = c.entry.nice
 
         def in_child() -> None:
@@ -296,6 +311,11 @@ class Launcher:
             "nodes": {name: self._graph_node(c) for name, c in self.children.items()},
         }
         if self.machine is not None:
+            for name, endpoint in launcher_pub_endpoints(self.launch, self.run_dir, self.machine).items():
+                graph["nodes"][launcher_node(name)] = {
+                    "type": "launcher", "pid": os.getpid() if name == self.machine else None, "pub": endpoint,
+                    "inputs": {}, "outputs": {DIAGNOSTICS_TOPIC: Diagnostics.TYPE}, "inject": {}, "restarts": 0,
+                    "machine": name}
             graph["machine"] = {"name": self.machine, "hosts": self._machine_hosts(),
                                 "clock_offset_ns": self.clock_offset_ns, "peers": self._peer_report()}
         if self.peers is not None:
@@ -337,6 +357,11 @@ class Launcher:
         first one's launcher and take its clock as this machine's nodes' time base."""
         use_keys(self._keys_dir(), self.machine, self._machine_hosts(), insecure=self.launch.insecure)
         self.peers = PeerLinks(self.zctx, self.launch.machines, self.machine, self.echo)
+        pubs = launcher_pub_endpoints(self.launch, self.run_dir, self.machine)
+        self.clock_report = ClockReport(self.zctx, self.machine, pubs[self.machine],  # and the tcp one, for the others
+                                        launcher_pub_endpoints(self.launch, self.run_dir, None)[self.machine])
+        self.relay = InjectionRelay(self.zctx, relay_endpoint(self.launch.machines[self.machine]),
+                                    [ep for p in self.processes.values() for c in p.members for ep in c.inject.values()])
         reference = self._reference()
         if reference == self.machine:
             return
@@ -392,6 +417,19 @@ class Launcher:
                       f"{timeout / 1e6:g} ms timeout: ages of messages between the machines are misjudged by that "
                       "much; keep the machines' clocks disciplined (NTP/PTP) and restart the launch")
         self._drift_warned = error > timeout / 2
+
+    def _report_clocks(self) -> None:
+        """Every ``REPORT_PERIOD_S``: this launcher's clock offsets on ``diagnostics`` (launch/clock_report.py)."""
+        if self.clock_report is None or time.monotonic() < self._next_clock_report:
+            return
+        self._next_clock_report = time.monotonic() + REPORT_PERIOD_S
+        quiet = [p.label for p in self.peers.peers.values() if p.quiet]
+        warning = "; ".join([*(f"{label} went quiet" for label in quiet),
+                             *([f"the clock drifted from machine {self._reference()}'s beyond half the grip "
+                                "controller's timeout"] if self._drift_warned else [])])
+        self.clock_report.publish(time.monotonic_ns() + self.clock_offset_ns,
+                                  {name: p.offset() for name, p in self.peers.peers.items()}, self.clock_offset_ns,
+                                  warning)
 
     def _required_peer_stopped(self) -> bool:
         """True (and said) if another machine's launcher stopped while running a ``required`` node:
@@ -464,6 +502,10 @@ class Launcher:
             self.control.close(linger=0)
             if self.peers is not None:
                 self.peers.close()
+            if self.relay is not None:
+                self.relay.close()
+            if self.clock_report is not None:
+                self.clock_report.close()
         self._report_events()
         if self.launch.check:
             self._report_check()
@@ -480,6 +522,7 @@ class Launcher:
             self._forward_logs(0.05)
             self._service_peers()
             self._check_drift()
+            self._report_clocks()
             if self._required_peer_stopped():
                 return
             self._note_ready_reports()

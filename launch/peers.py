@@ -8,7 +8,10 @@ departure (``lib/clock_offset.py``: the NTP formula) and the peer's state and re
 nodes, which is how ``after`` waits for a node on another machine. A peer silent for
 :data:`QUIET_AFTER_S` is reported as gone quiet (its nodes' data is then stale and the
 grip controller holds), and again when it answers. A launcher that stops says
-goodbye, so its peers report that it stopped rather than that its link failed.
+goodbye, so its peers report that it stopped rather than that its link failed; it repeats
+the goodbye until each peer acknowledges it (or :data:`BYE_LINGER_MS` passed), and a peer
+ignores the state in answers the stopped launcher gave before its goodbye (they travel on
+another connection and may arrive after it).
 
 The links run in a thread of their own, blocked in ``poll`` on their sockets, so a
 ping is answered and an answer stamped the moment it arrives, whatever the launcher's
@@ -17,7 +20,7 @@ reads the peers' state and prints the thread's reports (:meth:`PeerLinks.service
 
 Frames (multipart, integers as 8-byte signed big-endian ns of ``CLOCK_MONOTONIC``):
 ``[b"ping", t1, machine]`` → ``[b"pong", t1, t2, t3, msgpack {"machine", "state",
-"ready": [node, ...]}]``; ``[b"bye", machine]``.
+"ready": [node, ...]}]``; ``[b"bye", machine, t]`` → ``[b"bye-ack"]``.
 """
 
 from __future__ import annotations
@@ -71,6 +74,8 @@ class Peer:
     heard_at: float | None = None
     quiet: bool = False
     next_ping: float = 0.0
+    stopped_at: int | None = None
+    """Its clock (ns) when it said goodbye: its answers from before then are old news."""
 
     @property
     def label(self) -> str:
@@ -82,9 +87,10 @@ class Peer:
 
 
 BYE_LINGER_MS = 2000
-"""How long a closing launcher lets ZeroMQ deliver its goodbye (ms): a loaded machine's I/O
-thread can need well over the 200 ms this was, and a lost goodbye leaves the peers
-running, holding in fail-safe, instead of stopping with it."""
+"""How long a closing launcher repeats its goodbye until each peer acknowledges it (ms): a
+loaded machine can need well over 200 ms, and a lost goodbye leaves the peers running,
+holding in fail-safe, instead of stopping with it."""
+BYE_REPEAT_MS = 100
 
 
 class PeerLinks:
@@ -154,10 +160,11 @@ class PeerLinks:
             if len(parts) == 4 and parts[1] == b"ping" and len(parts[2]) == 8:
                 status = msgpack.packb({"machine": self.me.name, "state": self.state, "ready": list(self.ready)})
                 self._send(self.server, [parts[0], b"pong", parts[2], _ns(t2), _ns(time.monotonic_ns()), status])
-            elif len(parts) == 3 and parts[1] == b"bye":
+            elif len(parts) == 4 and parts[1] == b"bye" and len(parts[3]) == 8:
+                self._send(self.server, [parts[0], b"bye-ack"])
                 peer = self.peers.get(parts[2].decode(errors="replace"))
-                if peer is not None:
-                    peer.state, peer.ready = "stopped", frozenset()
+                if peer is not None and peer.stopped_at is None:
+                    peer.state, peer.ready, peer.stopped_at = "stopped", frozenset(), _int(parts[3])
                     self._reports.append(f"[launch] {peer.label} stopped (its launcher exited with its nodes)")
 
     def _read(self, peer: Peer, now: float) -> None:
@@ -172,6 +179,10 @@ class PeerLinks:
             except (ValueError, TypeError, KeyError, msgpack.ExtraData):
                 continue
             peer.clock.add(_int(parts[1]), _int(parts[2]), _int(parts[3]), t4)
+            if peer.stopped_at is not None:
+                if _int(parts[3]) <= peer.stopped_at:
+                    continue  # answered before its goodbye, arrived after it
+                peer.stopped_at = None  # a new launcher there
             if peer.quiet:
                 self._reports.append(f"[launch] {peer.label} is back after {now - peer.heard_at:.1f} s")
                 peer.quiet = False
@@ -191,7 +202,20 @@ class PeerLinks:
         self._stop.set()
         self._thread.join()
         self.service()
+        bye = [b"bye", self.me.name.encode(), _ns(time.monotonic_ns())]
+        waiting = [p for p in self.peers.values() if p.state not in ("", "stopped")]  # who may still listen
+        deadline = time.monotonic() + BYE_LINGER_MS / 1e3
+        while waiting and time.monotonic() < deadline:
+            for peer in waiting:
+                self._send(peer.sock, bye)
+            end = min(deadline, time.monotonic() + BYE_REPEAT_MS / 1e3)
+            while waiting and time.monotonic() < end:
+                for peer in list(waiting):
+                    while peer.sock.poll(0):
+                        if peer.sock.recv_multipart() == [b"bye-ack"]:
+                            waiting.remove(peer)
+                            break
+                time.sleep(0.005)
         for peer in self.peers.values():
-            self._send(peer.sock, [b"bye", self.me.name.encode()])
-            peer.sock.close(linger=BYE_LINGER_MS)
+            peer.sock.close(linger=0)
         self.server.close(linger=0)

@@ -18,7 +18,11 @@ specs. Every machine's launcher computes the same endpoints from the same file: 
 binds ipc for the nodes of its machine and also its machine's tcp port
 (``transport.py: machine_ports``) for subscribers and tools elsewhere
 (:attr:`NodePlan.remote_endpoint`, ``pub_remote`` of its run spec); a subscriber
-connects to a publisher of another machine on that tcp endpoint. ``after`` a node of
+connects to a publisher of another machine on that tcp endpoint. A node of another
+machine is injected into through its machine's launcher (:func:`relay_endpoint`, the
+machine's last port: ``launch/inject_relay.py``); its launcher publishes its clock
+offsets on ``diagnostics`` from the next-to-last (:func:`launcher_pub_endpoints`), and
+the plan adds the launchers to the publishers of ``diagnostics`` a node subscribes to. ``after`` a node of
 another machine is the launcher's to wait for, not part of this start order. A plan
 with no machine named runs every node on this computer (the lock-step run).
 """
@@ -29,14 +33,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from slipstack.lib.errors import ConfigError
-from slipstack.launch.launch_file import LaunchFile, NodeEntry, free_port
+from slipstack.launch.launch_file import LaunchFile, Machine, NodeEntry, free_port
 from slipstack.messages import Diagnostics
 from slipstack.nodes.device_driver import DeviceDriver
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.transport import ipc_endpoint, machine_ports, tcp_endpoint
 
 __all__ = ["NodePlan", "ProcessPlan", "LaunchPlan", "plan_launch", "tapped_topics", "machine_endpoints", "runs_on",
-           "PEER_WAIT_S"]
+           "remote_sources", "relay_endpoint", "launcher_pub_endpoints", "PEER_WAIT_S"]
 
 PEER_WAIT_S = 60.0
 """How long (s) a machine's launcher waits for the first machine's to answer, and so how long
@@ -156,6 +160,20 @@ def machine_endpoints(launch: LaunchFile) -> dict[str, str]:
     return out
 
 
+def relay_endpoint(machine: Machine) -> str:
+    """Where the launcher of ``machine`` takes frames injected by tools on other machines: its
+    address, the last of its ports (launch/inject_relay.py)."""
+    return tcp_endpoint(machine.address, machine.ports[1])
+
+
+def launcher_pub_endpoints(launch: LaunchFile, run_dir: Path, machine: str | None) -> dict[str, str]:
+    """Machine → where its launcher publishes its ``diagnostics`` (clock offsets, launch/clock_report.py), as
+    seen from ``machine``: ipc in ``run_dir`` for its own, the next-to-last port of the others' (of every
+    machine's if None)."""
+    return {name: f"ipc://{run_dir}/launcher.pub" if name == machine else tcp_endpoint(m.address, m.ports[1] - 1)
+            for name, m in launch.machines.items()}
+
+
 def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -> LaunchPlan:
     """The plan of ``launch`` in ``run_dir`` (the share of ``machine`` of a graph with
     machines; None: every node here); nothing is bound or written.
@@ -171,6 +189,7 @@ def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -
     processes: dict[str, ProcessPlan] = {}
     nodes = {e.name: e.instance() for e in launch.nodes}
     remote = machine_endpoints(launch) if machine is not None else {}
+    launchers = list(launcher_pub_endpoints(launch, run_dir, machine).values()) if machine is not None else []
     for e in launch.nodes:
         runs_here = runs_on(e, machine)
         if not runs_here or (remote and e.transport == "tcp"):
@@ -184,8 +203,9 @@ def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -
         child.outputs[DIAGNOSTICS_TOPIC] = Diagnostics.TYPE  # every node publishes it
         child.inputs = {t: nodes[e.name].inputs[n].type.TYPE for n, t in e.input_topics(nodes[e.name]).items()}
         children[e.name] = child
-        if not runs_here:
-            continue  # another machine's launcher runs it
+        if not runs_here:  # another machine's launcher runs it; tools here inject through it
+            child.inject = {t: relay_endpoint(launch.machines[e.machine]) for t in child.inputs}
+            continue
         child.inject = {t: ipc_endpoint(run_dir, f"{e.name}.in") for t in child.inputs}
         proc = processes.setdefault(child.process, ProcessPlan(child.process, [], run_dir / f"{child.process}.spec.json"))
         proc.members.append(child)
@@ -213,8 +233,8 @@ def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -
             "name": name,
             "pub": c.endpoint,
             "pub_remote": c.remote_endpoint if c.remote_endpoint != c.endpoint else None,
-            "subs": {t: [children[p].endpoint for p in publishers.get(t, [])
-                         if children[p].process != c.process] for t in c.inputs},
+            "subs": {t: [children[p].endpoint for p in publishers.get(t, []) if children[p].process != c.process]
+                     + (launchers if t == DIAGNOSTICS_TOPIC else []) for t in c.inputs},
             "remap": c.entry.remap,
             "inject": c.inject,
             "expected_subscribers": {t: n for t, n in expected.items() if n},
@@ -230,6 +250,35 @@ def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -
             proc.spec = specs[proc.members[0].entry.name]
     order = _start_order(children, processes, here)
     return LaunchPlan(launch, run_dir, control_ep, children, processes, order, machine)
+
+
+def remote_sources(plan: LaunchPlan) -> dict[str, str]:
+    """Topic → the other machines its data passes through on its way to ``plan``'s machine, as a
+    label (``"machine robot, 127.0.0.1"``): the topic graph followed upstream from the topic's
+    publishers, ``diagnostics`` left out (every node publishes it). Only topics with such a machine;
+    {} without machines. What ``$SLIPSTACK_REMOTE_SOURCES`` carries (nodes/runtime/remote_sources.py)."""
+    if plan.machine is None:
+        return {}
+    publishers: dict[str, list[NodePlan]] = {}
+    for c in plan.nodes.values():
+        for topic in c.outputs:
+            publishers.setdefault(topic, []).append(c)
+    out: dict[str, str] = {}
+    for topic in publishers:
+        if topic == DIAGNOSTICS_TOPIC:
+            continue
+        machines: set[str] = set()
+        seen, pending = {topic}, [topic]
+        while pending:
+            for c in publishers.get(pending.pop(), []):
+                machines.add(c.entry.machine)
+                fresh = set(c.inputs) - seen - {DIAGNOSTICS_TOPIC}
+                seen |= fresh
+                pending += sorted(fresh)
+        machines.discard(plan.machine)
+        if machines:
+            out[topic] = "; ".join(f"machine {m}, {plan.launch.machines[m].address}" for m in sorted(machines))
+    return out
 
 
 def _feeds_elsewhere(c: NodePlan, children: dict[str, NodePlan], taps: dict[str, set[str]], here: set[str]) -> bool:

@@ -9,6 +9,9 @@ implausible), stale or future-stamped inputs, and a watchdog deadline without a 
 verdict all hold the last grip with reason ``fail-safe``; held for longer than
 ``blind_grace_ms`` with a loaded contact, the grip rises at ``blind_rise_n_per_s``. A
 (re)started controller starts from the force the pad measures, never from ``f_nom``.
+In a graph over several machines, a fail-safe on stale inputs names the machines their
+data comes from (``$SLIPSTACK_REMOTE_SOURCES``, nodes/runtime/remote_sources.py), e.g.
+``fail-safe: input age 180.000 ms > timeout 20.000 ms (from machine robot, 127.0.0.1)``.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from slipstack.lib.status import SlipCase, SlipState
 from slipstack.messages import Contact, Cor, GripCommand, Slip
 from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
+from slipstack.nodes.runtime.remote_sources import remote_sources
 
 __all__ = ["GripController", "GripControllerParams", "INCREMENTS"]
 
@@ -97,6 +101,10 @@ class GripController(Node):
         self.cor: Cor | None = None
         self.slip: Slip | None = None
         self._last_publish_ns = 0
+        elsewhere = remote_sources()  # inputs by their default topic names (a remap is not seen here)
+        self._remote_label = " or ".join(sorted({elsewhere[i.topic] for i in self.inputs.values()
+                                                 if i.topic in elsewhere}))
+        """The other machines the inputs' data comes from ("" on one machine)."""
 
     def on_contact(self, msg: Contact, ctx: Context) -> None:
         self.contact = msg
@@ -160,9 +168,18 @@ class GripController(Node):
         if d.reason is GripReason.FAIL_SAFE:
             ctx.count("grip.fail_safe_steps")
             if d.detail:
-                ctx.set_status("fail-safe", d.detail)
+                ctx.set_status("fail-safe", self._name_the_machine(d.detail, ctx.now_ns()))
         else:
             ctx.set_status("ok")
         ctx.publish("command", GripCommand(f_n_desired=float(d.f_n_desired), law=d.law, reason=reason),
                     stamp_ns=stamp, sources=sources)
         self._last_publish_ns = ctx.now_ns()
+
+    def _name_the_machine(self, detail: str, now_ns: int) -> str:
+        """``detail``, naming the other machines the inputs come from when an input is a timeout old."""
+        if not self._remote_label:
+            return detail
+        stamps = [m.header.stamp_ns for m in (self.slip, self.contact, self.cor) if m is not None]
+        if stamps and now_ns - min(stamps) < self.governor.timeout_ns:
+            return detail
+        return f"{detail} (from {self._remote_label})"

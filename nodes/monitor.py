@@ -407,7 +407,21 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "nodes_that_went_silent": went_silent,
         "nodes_restarted_after_silence": sorted(name for name, w in m.nodes.items() if w.restarted),
         "recording": m.params.recording if m.params.recording and os.path.exists(m.params.recording) else "",
+        "clock_offsets": _clock_offsets(m.nodes),
     }
+
+
+def _clock_offsets(nodes: dict[str, NodeWatch]) -> dict[str, dict[str, dict[str, float]]]:
+    """The launchers' newest clock offsets (a graph over machines, launch/clock_report.py):
+    ``{launcher: {other machine: {"offset_ms", "uncertainty_ms"}}}``."""
+    out: dict[str, dict[str, dict[str, float]]] = {}
+    for node, w in sorted(nodes.items()):
+        for key, value in w.counters.items():
+            if key.startswith("clock.") and key.endswith(".offset_ns"):
+                peer = key[len("clock."):-len(".offset_ns")]
+                out.setdefault(node, {})[peer] = {
+                    "offset_ms": value / 1e6, "uncertainty_ms": w.counters.get(f"clock.{peer}.uncertainty_ns", 0.0) / 1e6}
+    return out
 
 
 def _losses(counters: dict) -> dict[str, dict[str, float]]:
@@ -576,6 +590,10 @@ def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
     skips = [f"{node} {topic} {n['skipped']:g} of {n['received']:g}"
              for node, inputs in sorted(s["skipped_for_newer"].items()) for topic, n in sorted(inputs.items())]
     lines.append("frames skipped for a newer one (latest-value inputs): " + ("; ".join(skips) if skips else "none"))
+    clocks = [f"{node}: {peer} {c['offset_ms']:+.3f} ms ± {c['uncertainty_ms']:.3f} ms"
+              for node, peers in sorted(s.get("clock_offsets", {}).items()) for peer, c in sorted(peers.items())]
+    if clocks:
+        lines.append("clock offsets between the machines (their clock minus the launcher's): " + "; ".join(clocks))
     if s["recording"]:
         lines.append(f"recording: {s['recording']}")
     return lines

@@ -34,7 +34,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.messages import registry
 from slipstack.messages.frame import peek_header, publisher_key, restamp
 from slipstack.nodes.recording.bag_io import RecordedFrame, clock_offset_ns, read_recording
-from slipstack.nodes.runtime.graph_info import find_run_dir, read_graph, time_base_offset_ns
+from slipstack.nodes.runtime.graph_info import find_run_dir, read_graph, time_base_clock
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.node import Context, Node, Output
 from slipstack.nodes.runtime.process import ProcessExecutor, RunSpec
@@ -147,12 +147,12 @@ class Player(Node):
     Params = PlayerParams
 
     def __init__(self, params: PlayerParams | None = None, *,
-                 send: Callable[[str, bytes], None] | None = None, graph_offset_ns: int = 0) -> None:
+                 send: Callable[[str, bytes], None] | None = None) -> None:
         """``send(topic, payload)``, if given, takes every due frame in place of the
         node's outputs, and the node stops after the last one (``bag play`` sends on its
-        own endpoint and into the running nodes). ``graph_offset_ns``: the graph's time
-        base minus this process's clock, for a player started outside the launch on
-        another machine; restamped frames land on the graph's clock."""
+        own endpoint and into the running nodes). Restamped frames land on the
+        executor's clock: the graph's time base (``bag play`` gives its executor the
+        graph's, nodes/runtime/time_base.py)."""
         super().__init__(params)
         p = self.params
         if not p.path:
@@ -165,7 +165,7 @@ class Player(Node):
                 head = peek_header(f.payload)
                 self.types[f.topic] = head.type_name if head else ""
         self.outputs = {t: Output(t, registry[name]) for t, name in self.types.items() if name in registry}
-        offset = clock_offset_ns(p.path, frames) + graph_offset_ns if p.restamp else None
+        offset = clock_offset_ns(p.path, frames) if p.restamp else None
         self.playback = Playback(frames, p.rate, p.loop, offset)
         self._send = send
 
@@ -218,7 +218,7 @@ def play(
     graph = read_graph(rd) if rd is not None else {"nodes": {}}
     graph_nodes: dict = graph["nodes"]
     player = Player(PlayerParams(path=path, topics=list(topics or []), rate=rate, loop=loop, restamp=restamp_stamps,
-                                 start_offset_s=start_offset_s), send=send, graph_offset_ns=time_base_offset_ns(graph))
+                                 start_offset_s=start_offset_s), send=send)
     played = set(player.types)
     injects: list[tuple[str, str]] = []
     if rd is not None:
@@ -229,13 +229,13 @@ def play(
     injector = InjectionSender([ep for _, ep in injects], name, sndhwm=100_000)  # one per node, whatever its topics
     try:
         want: dict[str, int] = {}
-        for topic, _ in injects:
+        for topic, _ in set(injects):  # the nodes of another machine share its launcher's address
             want[topic] = want.get(topic, 0) + 1
         injector.wait_for_subscriptions(want, wait_s)
         bus.wait_for_recorders(sum(1 for n in graph_nodes.values() if n.get("type") == "recorder"), wait_s)
         echo(f"playing {path}: {len(player.playback.frames)} frames on {', '.join(sorted(played))} at {rate:g}x "
              f"from {bus.endpoint}, into {len(injects)} subscriber(s)")
-        ProcessExecutor([(player, RunSpec(name=name))]).run()
+        ProcessExecutor([(player, RunSpec(name=name))], clock=time_base_clock(graph)).run()  # restamps on the graph's
         echo(f"played {player.playback.sent} frames ({player.playback.passes} loops)")
         return player.playback.sent
     finally:

@@ -31,7 +31,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.messages.frame import SeqTracker, peek_header, publisher_key
 from slipstack.nodes.recording.bag_io import RecordingWriter
 from slipstack.nodes.runtime.curve import secure_connect
-from slipstack.nodes.runtime.graph_info import (RUN_DIR_ENV, find_run_dir, read_graph, time_base_offset_ns,
+from slipstack.nodes.runtime.graph_info import (RUN_DIR_ENV, find_run_dir, read_graph, time_base_clock,
                                                 topic_endpoints)
 from slipstack.nodes.runtime.node import Context, Node
 from slipstack.nodes.runtime.process import ProcessExecutor, RunSpec
@@ -175,18 +175,16 @@ class Recorder(Node):
     Params = RecorderParams
 
     def __init__(self, params: RecorderParams | None = None, *,
-                 on_recording: Callable[[Path], None] | None = None, graph_offset_ns: int = 0) -> None:
+                 on_recording: Callable[[Path], None] | None = None) -> None:
         """``on_recording(path)`` is called once the file is open and the publishers the
-        graph lists are connected (``bag record`` prints the path then);
-        ``graph_offset_ns``: the graph's time base minus this process's clock, for a
-        recorder started outside the launch on another machine (launched nodes run on
-        the graph's time base already, nodes/runtime/time_base.py)."""
+        graph lists are connected (``bag record`` prints the path then). Log times are
+        mapped to stamps through the executor's clock: the graph's time base (``bag
+        record`` gives its executor the graph's, nodes/runtime/time_base.py)."""
         super().__init__(params)
         if not self.params.duration_s >= 0.0:
             raise ConfigError(f"recorder duration_s must be >= 0 s (0: until stopped), got {self.params.duration_s!r}")
         self.bus: BusRecorder | None = None
         self._on_recording = on_recording
-        self._graph_offset_ns = graph_offset_ns
         self._end_ns: int | None = None
 
     def start(self, ctx: Context) -> None:
@@ -195,7 +193,7 @@ class Recorder(Node):
         if os.path.lexists(path):  # never overwrite a recording (or write through a link)
             raise ConfigError(f"recording {path} exists; pass recording:=NEW.mcap (or path:=NEW.mcap) or delete it")
         # stamps are on the graph's time base: wall time = stamp + (wall − graph clock)
-        writer = RecordingWriter(path, wall_minus_monotonic_ns=time.time_ns() - ctx.now_ns() - self._graph_offset_ns)
+        writer = RecordingWriter(path, wall_minus_monotonic_ns=time.time_ns() - ctx.now_ns())
         # Launched: the launcher names our graph in $SLIPSTACK_RUN_DIR and counts us in
         # every publisher's readiness handshake (``taps_bus``), so no first sample is missed.
         chosen = p.run_dir or os.environ.get(RUN_DIR_ENV)
@@ -260,7 +258,7 @@ def record(
         raise ConfigError(f"{out} exists; choose another -o path or delete it")
     node = Recorder(RecorderParams(topics=list(topics or []), path=str(out), run_dir=str(rd),
                                    duration_s=duration_s or 0.0),
-                    on_recording=lambda path: print(path, flush=True), graph_offset_ns=time_base_offset_ns(graph))
-    if ProcessExecutor([(node, RunSpec(name=tool_name("bag_record")))]).run() != 0:
+                    on_recording=lambda path: print(path, flush=True))
+    if ProcessExecutor([(node, RunSpec(name=tool_name("bag_record")))], clock=time_base_clock(graph)).run() != 0:
         raise ConfigError(f"bag record could not start (said above); nothing was recorded to {out}")
     return node.bus.received if node.bus is not None else 0

@@ -36,13 +36,14 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from slipstack.lib.errors import ConfigError
 from slipstack.nodes.runtime.run_dir import CURRENT_LINK, point_current, run_root, write_private_file
+from slipstack.nodes.runtime.time_base import shifted_clock
 
 __all__ = ["GRAPH_FILE", "RUN_DIR_HELP", "write_graph", "read_graph", "find_run_dir", "topic_endpoints", "process_start_ticks",
-           "register_tool", "time_base_offset_ns"]
+           "register_tool", "time_base_clock"]
 
 GRAPH_FILE = "graph.json"
 _TOOL_GLOB = "tool-*.json"
@@ -157,8 +158,8 @@ def topic_endpoints(graph: dict[str, Any]) -> dict[str, list[str]]:
     return out
 
 
-def time_base_offset_ns(graph: dict[str, Any]) -> int:
-    """What the graph's nodes on this machine add to its monotonic clock (ns): 0 on one
-    machine, else the offset to the first machine's clock (nodes/runtime/time_base.py).
-    A tool comparing stamps with its own clock adds it too."""
-    return int((graph.get("machine") or {}).get("clock_offset_ns", 0))
+def time_base_clock(graph: dict[str, Any]) -> Callable[[], int]:
+    """The clock (ns) of the graph's nodes on this machine: its monotonic clock plus the offset
+    to the first machine's (``machine.clock_offset_ns``; 0 on one machine), nodes/runtime/time_base.py.
+    A tool that stamps or judges ages runs on it (the process executor's ``clock``)."""
+    return shifted_clock(int((graph.get("machine") or {}).get("clock_offset_ns", 0)))

@@ -40,7 +40,7 @@ import time
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 import msgpack
 import zmq
@@ -117,7 +117,7 @@ class _Member:
     """One node of a :class:`ProcessExecutor`: its host, sockets, timers and deadlines."""
 
     def __init__(self, node: Node, spec: RunSpec, zctx: zmq.Context, *, name_logs: bool = False,
-                 stage_cpu: StageCpu | None = None) -> None:
+                 stage_cpu: StageCpu | None = None, clock: Callable[[], int] = _now_ns) -> None:
         self.node = node
         self.spec = spec
         self.zctx = zctx
@@ -125,7 +125,7 @@ class _Member:
         log = node_log(spec.name, f"{spec.name}: " if name_logs else "")  # a container's members name themselves
         self.subscriptions: dict[bytes, int] = {}
         self.listened_topics: dict[str, bool] = {}  # topic → someone subscribes (cleared when subscriptions change)
-        self.host = NodeHost(node, _now_ns, self.send, name=spec.name, remap=spec.remap, log=log,
+        self.host = NodeHost(node, clock, self.send, name=spec.name, remap=spec.remap, log=log,
                              stage_cpu=stage_cpu, listened=self.listened if self.pub is not None else None)
         # One SUB socket per (input, publisher endpoint): sequence gaps are then tracked
         # per publisher, so several publishers on one topic (``diagnostics``) never look
@@ -360,15 +360,20 @@ class _Member:
 
 
 class ProcessExecutor:
-    """Run the nodes of ``members`` (one, or a container's) in this process, each wired by its spec."""
+    """Run the nodes of ``members`` (one, or a container's) in this process, each wired by its spec.
 
-    def __init__(self, members: Sequence[tuple[Node, RunSpec]]) -> None:
+    ``clock``: the graph's time base (ns) the nodes run on; default this process's
+    (``$SLIPSTACK_CLOCK_OFFSET_NS``, set by the launcher). A tool started outside the
+    launch passes the graph's (``graph_info.time_base_clock``)."""
+
+    def __init__(self, members: Sequence[tuple[Node, RunSpec]], *, clock: Callable[[], int] | None = None) -> None:
         if not members:
             raise ValueError("ProcessExecutor needs at least one node")
         self.zctx = zmq.Context.instance()
+        self.clock = clock or _now_ns
         self.stage_cpu = stage_cpu_from_env(members[0][1].name)
-        self.members = [_Member(node, spec, self.zctx, name_logs=len(members) > 1, stage_cpu=self.stage_cpu)
-                        for node, spec in members]
+        self.members = [_Member(node, spec, self.zctx, name_logs=len(members) > 1, stage_cpu=self.stage_cpu,
+                                clock=self.clock) for node, spec in members]
         by_name = {m.spec.name: m for m in self.members}
         # (publisher name, topic) → the members' inputs it feeds in-process
         self._routes: dict[tuple[str, str], list[tuple[_Member, str]]] = {}
@@ -479,6 +484,7 @@ class ProcessExecutor:
 
     def _loop(self) -> None:
         members = self.members
+        _now_ns = self.clock  # the module's clock, or the one a tool gave (a local: looked up fast)
         poller = zmq.Poller()
         handlers: dict[object, tuple[str, _Member, object]] = {}
         for m in members:

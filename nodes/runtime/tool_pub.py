@@ -5,6 +5,8 @@
   ``bag record`` and the recorder node see what the tool sends, as they see any node;
 * :class:`InjectionSender`: an XPUB connected to the injection endpoints of the nodes
   that subscribe (their SUB sockets bind them; nodes never connect to new publishers).
+  A node on another machine is reached through its machine's launcher (over tcp with
+  CURVE, ``launch/inject_relay.py``), which subscribes for it, so the sender waits alike.
   Its frames are ``[topic, payload, origin]``: the node tracks sequence numbers per
   origin, so two tools injecting on one topic (or a tool and a recording's several
   publishers) are not counted as lost frames.
@@ -18,6 +20,7 @@ from pathlib import Path
 
 import zmq
 
+from slipstack.nodes.runtime.curve import secure_connect
 from slipstack.nodes.runtime.graph_info import register_tool
 from slipstack.nodes.runtime.transport import (
     MAX_ORIGIN_BYTES, MAX_SUBSCRIPTION_BYTES, SUBSCRIPTION_HWM, bound_socket, ipc_endpoint, make_pub,
@@ -70,37 +73,55 @@ class BusPublisher:
 
 
 class InjectionSender:
-    """An XPUB connected to nodes' injection endpoints; frames carry ``origin`` (module docstring)."""
+    """XPUBs connected to nodes' injection endpoints; frames carry ``origin`` (module docstring).
+
+    The ipc endpoints of this machine's nodes share one socket; each tcp endpoint (another
+    machine's launcher) gets one of its own, as CURVE is set per socket and per server."""
 
     def __init__(self, addresses: list[str], origin: str, *, sndhwm: int = 1000) -> None:
-        self.sock = bound_socket(zmq.Context.instance(), zmq.XPUB, sndhwm=sndhwm, rcvhwm=SUBSCRIPTION_HWM,
-                                 max_msg_bytes=MAX_SUBSCRIPTION_BYTES)
-        self.sock.setsockopt(zmq.XPUB_VERBOSE, 1)
         self.origin = origin.encode()[:MAX_ORIGIN_BYTES]
+        groups: dict[str, list[str]] = {}
         for address in sorted(set(addresses)):
-            self.sock.connect(address)
+            groups.setdefault(address if address.startswith("tcp://") else "", []).append(address)
+        self.socks: list[zmq.Socket] = []
+        for key, members in sorted(groups.items()):
+            sock = bound_socket(zmq.Context.instance(), zmq.XPUB, sndhwm=sndhwm, rcvhwm=SUBSCRIPTION_HWM,
+                                max_msg_bytes=MAX_SUBSCRIPTION_BYTES)
+            sock.setsockopt(zmq.XPUB_VERBOSE, 1)
+            if key:
+                secure_connect(sock, key)  # another machine's launcher: tcp with CURVE
+            for address in members:
+                sock.connect(address)
+            self.socks.append(sock)
 
     def wait_for_subscriptions(self, want: dict[str, int], timeout_s: float) -> dict[str, int]:
         """Wait until ``want[topic]`` subscriptions to each topic arrived; returns the counts seen."""
         seen = {t: 0 for t in want}
+        poller = zmq.Poller()
+        for sock in self.socks:
+            poller.register(sock, zmq.POLLIN)
         deadline = time.monotonic() + timeout_s
         while any(seen[t] < n for t, n in want.items()):
             left = deadline - time.monotonic()
-            if left <= 0 or not self.sock.poll(max(1, round(left * 1000))):
+            ready = dict(poller.poll(max(1, round(left * 1000)))) if left > 0 else {}
+            if not ready:
                 break
-            frame = self.sock.recv()
-            topic = frame[1:].decode(errors="replace")
-            if frame[:1] == b"\x01" and topic in seen:
-                seen[topic] += 1
+            for sock in ready:
+                frame = sock.recv()
+                topic = frame[1:].decode(errors="replace")
+                if frame[:1] == b"\x01" and topic in seen:
+                    seen[topic] += 1
         return seen
 
     def send(self, topic: str, payload: bytes, origin: str | None = None) -> None:
         """One ``[topic, payload, origin]`` frame (``origin``: this sender's, or a sub-origin of it)."""
         tag = self.origin if origin is None else (self.origin + b"/" + origin.encode())[:MAX_ORIGIN_BYTES]
-        self.sock.send_multipart((topic.encode(), payload, tag), copy=True)
+        for sock in self.socks:
+            sock.send_multipart((topic.encode(), payload, tag), copy=True)
 
     def close(self, linger_s: float = 1.0) -> None:
-        self.sock.close(linger=round(linger_s * 1000))
+        for sock in self.socks:
+            sock.close(linger=round(linger_s * 1000))
 
 
 def tool_name(kind: str) -> str:

@@ -36,7 +36,7 @@ import zmq
 
 from slipstack.lib.errors import ConfigError
 from slipstack.messages.frame import peek_header
-from slipstack.nodes.runtime.graph_info import time_base_offset_ns
+from slipstack.nodes.runtime.graph_info import time_base_clock
 from slipstack.nodes.tools.topic_tools import load_graph, resolve_topic
 from slipstack.nodes.runtime.stop_signal import stop_on_signals
 from slipstack.nodes.runtime.transport import make_sub
@@ -146,8 +146,7 @@ def _watch(args: argparse.Namespace, value: Callable[[int, int, int], object], n
     sock = make_sub(ctx, endpoints, info.name, rcvhwm=max(1000, args.window))
     values: deque[int] = deque(maxlen=args.window)
     append = values.append
-    offset = time_base_offset_ns(graph)
-    clock = (lambda: time.monotonic_ns() + offset) if offset else time.monotonic_ns
+    clock = time_base_clock(graph)
     recv = sock.recv_multipart
     unparsed = 0
     new = 0

@@ -5,7 +5,10 @@ node's SUB socket also *binds* an injection endpoint per input (``inject`` in
 ``graph.json``). ``topic pub`` connects one XPUB socket to the injection endpoints
 of every subscriber of the topic, waits until each has subscribed (verbose XPUB:
 no slow-joiner loss), then publishes with its own header sequence from 0 and
-``stamp_ns = pub_ns = CLOCK_MONOTONIC`` (the executors' clock). Several ``topic
+``stamp_ns = pub_ns`` on the graph's time base (the executors' clock: this machine's
+``CLOCK_MONOTONIC``, shifted to the first machine's in a graph over machines). A
+subscriber on another machine of the graph is reached through that machine's launcher,
+over tcp with CURVE (``launch/inject_relay.py``). Several ``topic
 pub`` processes can inject at once: ZeroMQ lets many peers connect to one bound SUB,
 and each frame names its sender, so the nodes count sequence gaps per sender. The
 same frames go on the bus from the tool's own registered endpoint
@@ -32,7 +35,7 @@ import numpy as np
 from slipstack.lib.errors import ConfigError, DecodeError
 from slipstack.messages import Header, Message, encode, registry, validate
 from slipstack.nodes.tools.topic_tools import TopicInfo, load_graph, resolve_topic
-from slipstack.nodes.runtime.graph_info import time_base_offset_ns
+from slipstack.nodes.runtime.graph_info import time_base_clock
 from slipstack.nodes.runtime.stop_signal import stop_on_signals
 from slipstack.nodes.runtime.tool_pub import BusPublisher, InjectionSender, tool_name
 from slipstack.nodes.tools.topic_yaml import parse_flow
@@ -89,11 +92,13 @@ class Injector:
                 f"subscribers: {', '.join(e.node for e in info.subscribers) or 'none'}"
             )
         self._linger_s = linger_s
-        self.sender = InjectionSender([e.address for e in self.targets], origin or tool_name("topic_pub"))
+        self.addresses = sorted({e.address for e in self.targets})
+        """Where the frames go: one per node here, one per other machine (its launcher subscribes for its nodes)."""
+        self.sender = InjectionSender(self.addresses, origin or tool_name("topic_pub"))
 
     def wait_for_subscribers(self, timeout_s: float) -> int:
-        """Wait until every target has subscribed to the topic; returns how many did."""
-        return self.sender.wait_for_subscriptions({self.topic: len(self.targets)}, timeout_s)[self.topic]
+        """Wait until every address has subscribed to the topic; returns how many did."""
+        return self.sender.wait_for_subscriptions({self.topic: len(self.addresses)}, timeout_s)[self.topic]
 
     def send(self, payload: bytes) -> None:
         """Put one frame on the wire (any bytes: fault injection too)."""
@@ -145,20 +150,19 @@ def main_pub(args: argparse.Namespace) -> int:
         recorders = sum(1 for n in graph["nodes"].values() if n.get("type") == "recorder")
         bus.wait_for_recorders(recorders, args.wait)
         joined = 0 if injector is None else injector.wait_for_subscribers(args.wait)
-        if injector is not None and joined < len(injector.targets):
-            print(f"topic pub: only {joined} of {len(injector.targets)} subscribers joined; publishing anyway",
+        if injector is not None and joined < len(injector.addresses):
+            print(f"topic pub: only {joined} of {len(injector.addresses)} subscribers joined; publishing anyway",
                   file=sys.stderr)
         period = round(1e9 / args.rate)
-        time_base = time_base_offset_ns(graph)  # stamps on the graph's clock (another machine's, with machines)
-        due = time.monotonic_ns()
+        clock = time_base_clock(graph)  # stamps on the graph's clock (the first machine's, with machines)
+        due = clock()
         seq = 0
         while times is None or seq < times:
-            now = time.monotonic_ns()
+            now = clock()
             if now < due:
                 time.sleep((due - now) / 1e9)
-                now = time.monotonic_ns()
-            stamp = now + time_base
-            payload = encode(dataclasses.replace(body, header=Header(stamp, seq, stamp, {})))
+                now = clock()
+            payload = encode(dataclasses.replace(body, header=Header(now, seq, now, {})))
             bus.send(info.name, payload)
             if injector is not None:
                 injector.send(payload)

@@ -24,11 +24,13 @@ import time
 from pathlib import Path
 
 import msgpack
+import numpy as np
 import pytest
 import zmq
 import zmq.auth
 
 from slipstack.lib.toml_file import resolve_path
+from slipstack.messages import Header, Wrench, decode, encode
 
 from .conftest import LaunchedGraph, count_frames, pid_alive
 
@@ -164,6 +166,17 @@ def test_a_machine_gone_quiet_is_named_the_grip_holds_and_the_loop_resumes(two_h
     commands = ctx.socket(zmq.SUB)  # on the workstation, where the controller runs: its ipc endpoint
     commands.setsockopt(zmq.SUBSCRIBE, b"grip/command")
     commands.connect(nodes["grip_controller"]["pub"])
+    diagnostics = ctx.socket(zmq.SUB)  # the controller's status line, as the monitor reads it
+    diagnostics.setsockopt(zmq.SUBSCRIBE, b"diagnostics")
+    diagnostics.connect(nodes["grip_controller"]["pub"])
+
+    def status_naming(text: str, seconds: float) -> str:
+        """The first status of the controller containing ``text`` within ``seconds`` (else the last seen)."""
+        status, end = "", time.monotonic() + seconds
+        while time.monotonic() < end and text not in status:
+            if diagnostics.poll(100):
+                status = decode(diagnostics.recv_multipart()[1]).status
+        return status
 
     def read(seconds: float, until: str | None = None) -> list[tuple[float, str]]:
         """(f_n desired, reason) of the commands over ``seconds``, or until ``until`` is in the log."""
@@ -187,6 +200,8 @@ def test_a_machine_gone_quiet_is_named_the_grip_holds_and_the_loop_resumes(two_h
         assert "machine robot (127.0.0.1) went quiet" in workstation.log(), workstation.log()
         held = read(1.0)
         assert held and all(reason == "fail-safe" for _, reason in held), held
+        status = status_naming("(from machine robot, 127.0.0.1)", 30)  # the controller itself names it
+        assert status.startswith("fail-safe: ") and "(from machine robot, 127.0.0.1)" in status, status
         trail = before + frozen + held  # from the last command judged on fresh data on, never lower
         last_ok = max(k for k, (_, reason) in enumerate(trail) if reason != "fail-safe")
         forces = [f for f, _ in trail[last_ok:]]
@@ -205,3 +220,91 @@ def test_a_machine_gone_quiet_is_named_the_grip_holds_and_the_loop_resumes(two_h
             if pid_alive(pid):
                 os.kill(pid, signal.SIGCONT)
         ctx.destroy(linger=0)
+
+
+INJECTION_GRAPH = """
+[machines.a]
+address = "127.0.0.1"
+ports = [{first}, {last}]
+keys = "{keys}/a"
+
+[machines.b]
+address = "127.0.0.2"
+ports = [{first}, {last}]
+keys = "{keys}/b"
+
+[[node]]
+name = "source"
+type = "wrench_source"
+params = {{rate_hz = 20.0}}
+
+[[node]]
+name = "relay"
+type = "relay"
+machine = "b"
+"""
+
+
+def test_topic_pub_on_one_machine_reaches_a_node_on_the_other_and_both_launchers_publish_their_offsets(tmp_path):
+    keys, stranger = tmp_path / "keys", tmp_path / "stranger"
+    for directory in (keys, stranger):
+        subprocess.run([sys.executable, "-m", "slipstack.launch.cli", "keys", str(directory), "--machine", "a",
+                        "--machine", "b"], check=True, capture_output=True, timeout=60)
+    first = random.randrange(20000, 32000, 100)
+    launch_file = tmp_path / "inject.toml"
+    launch_file.write_text(INJECTION_GRAPH.format(first=first, last=first + 9, keys=keys))
+    roots = [tempfile.TemporaryDirectory(prefix="ss-", dir="/tmp") for _ in range(2)]
+    a, b = (LaunchedGraph([str(launch_file), "--machine", m], Path(r.name)) for m, r in zip("ab", roots))
+    ctx = zmq.Context()
+    try:
+        graph_a = a.wait_ready(timeout=90)
+        relay_pub = b.wait_ready(timeout=90)["nodes"]["relay"]["pub"]
+        assert graph_a["nodes"]["relay"]["inject"] == {"ft/wrench": f"tcp://127.0.0.2:{first + 9}"}
+        relayed = ctx.socket(zmq.SUB)  # what the relay on b republishes (its ipc endpoint, on b)
+        relayed.setsockopt(zmq.SUBSCRIBE, b"ft/relayed")
+        relayed.connect(relay_pub)
+        time.sleep(0.5)  # the test's own subscription (slow joiner)
+
+        def injected(count: int, seconds: float) -> dict[float, list[int]]:
+            """Force z → stamps of the relayed wrenches not from the source (z 10 N), until ``count``
+            of them or ``seconds``."""
+            got: dict[float, list[int]] = {}
+            end = time.monotonic() + seconds
+            while time.monotonic() < end and sum(map(len, got.values())) < count:
+                if relayed.poll(100):
+                    msg = decode(relayed.recv_multipart()[1])
+                    if msg.force[2] != 10.0:
+                        got.setdefault(float(msg.force[2]), []).append(msg.header.stamp_ns)
+            return got
+
+        # a peer holding keys the graph does not know: no subscription comes back, nothing gets in
+        intruder = _curve_client(ctx, zmq.XPUB, stranger / "a" / "a.key_secret", keys / "a" / "b.key")
+        intruder.connect(f"tcp://127.0.0.2:{first + 9}")
+        assert not intruder.poll(2000)
+        for k in range(20):
+            wrench = Wrench(force=np.array([0.0, 0.0, -3.5]), torque=np.zeros(3))
+            now = time.monotonic_ns()
+            intruder.send_multipart([b"ft/wrench", encode(wrench, Header(now, k, now, {})), b"intruder"])
+        sent_at = time.monotonic_ns()
+        pub = a.cli("topic", "pub", "ft/wrench", "{force: [0.0, 0.0, -7.25]}", "--times", "20", "--rate", "50",
+                    "--wait", "30", timeout=90)
+        assert pub.returncode == 0 and "joined" not in pub.stderr, pub.stderr
+        got = injected(20, 30.0)
+        assert list(got) == [-7.25] and len(got[-7.25]) == 20, got  # every frame of topic pub, none of the intruder's
+        assert all(sent_at <= s <= time.monotonic_ns() for s in got[-7.25])  # on a's clock: the graph's time base
+
+        # each launcher's clock offsets on diagnostics: b's as a tool on a sees them (tcp, a's keys)
+        offsets = _curve_client(ctx, zmq.SUB, keys / "a" / "a.key_secret", keys / "a" / "b.key")
+        offsets.setsockopt(zmq.SUBSCRIBE, b"diagnostics")
+        offsets.connect(graph_a["nodes"]["launcher@b"]["pub"])
+        assert offsets.poll(30_000), "no diagnostics from b's launcher"
+        report = decode(offsets.recv_multipart()[1])
+        assert report.node == "launcher@b" and report.status.startswith("ok: clock of a "), report
+        assert abs(report.counters["clock.a.offset_ns"] - report.counters["clock.time_base_offset_ns"]) < 50e6
+        assert 0 < report.counters["clock.a.uncertainty_ns"] < 50e6  # one computer: both clocks are one
+    finally:
+        ctx.destroy(linger=0)
+        for g in (a, b):
+            g.stop()
+        for r in roots:
+            r.cleanup()

@@ -8,15 +8,23 @@ launchers of tests/e2e/test_two_machines.py run the whole graph over two address
 from __future__ import annotations
 
 import json
+import os
+import random
+import signal
+import threading
 import time
 from pathlib import Path
 
+import msgpack
 import pytest
 import zmq
+import zmq.auth
 
 from slipstack.launch.launch_file import load_launch_file
 from slipstack.launch import launcher as launcher_module
+from slipstack.launch import peers as peers_module
 from slipstack.launch.launcher import Launcher
+from slipstack.launch.plan import plan_launch, remote_sources
 from slipstack.lib.clock_offset import ClockOffset
 from slipstack.lib.errors import ConfigError
 from slipstack.nodes.runtime import curve
@@ -30,7 +38,7 @@ GRAPH = """
 
 [machines.a]
 address = "{a}"
-ports = [31200, 31202]
+ports = [31200, 31204]
 {a_keys}
 
 [machines.b]
@@ -100,13 +108,26 @@ def test_both_launchers_compute_the_same_endpoints_ipc_inside_a_machine_tcp_betw
     assert "handshake_timeout_s" not in relay  # its subscriber is on its own machine
 
 
+def test_each_machine_knows_which_other_machine_its_topics_come_from(tmp_path, keys):
+    lf = _load(tmp_path)
+    assert remote_sources(plan_launch(lf, tmp_path, "b")) == {  # followed upstream: the relay's output too
+        "ft/wrench": "machine a, 127.0.0.1", "ft/relayed": "machine a, 127.0.0.1"}
+    assert remote_sources(plan_launch(lf, tmp_path, "a")) == {"ft/relayed": "machine b, 127.0.0.2"}  # a's own left out
+    assert remote_sources(plan_launch(lf, tmp_path)) == {}  # one computer
+    shipped = load_launch_file("two_hosts", builtins=BUILTINS)
+    workstation = remote_sources(plan_launch(shipped, tmp_path, "workstation"))
+    assert workstation["slip"] == workstation["ft/wrench"] == "machine robot, 127.0.0.1"
+    assert "diagnostics" not in workstation
+    assert remote_sources(plan_launch(shipped, tmp_path, "robot"))["grip/command"] == "machine workstation, 127.0.0.2"
+
+
 @pytest.mark.parametrize("change, message", [
     ({"a": "10.0.0.2", "a_keys": "", "b_keys": ""}, r"machines \['a'\] are on the network without keys: run "
                                                     r"`slipstack keys DIR --machine a --machine b`"),
     ({"a_keys": "", "b_keys": ""}, r"link over tcp without keys.*or insecure = true"),
     ({"extra": '[[node]]\nname = "x"\ntype = "sink"\nmachine = "c"\n'}, r"node x: no \[machines.c\]; machines: a, b"),
     ({"extra": '[[node]]\nname = "x"\ntype = "sink"\n[[node]]\nname = "y"\ntype = "sink"\n'},
-     r"\[machines.a\].ports \[31200, 31202\] holds 3 ports; it needs 4"),
+     r"\[machines.a\].ports \[31200, 31204\] holds 5 ports; it needs 6"),
     ({"relay": 'container = "box"', "extra": '[[node]]\nname = "z"\ntype = "sink"\ncontainer = "box"\n'},
      r"share container 'box' but differ in .*machine"),
 ])
@@ -206,3 +227,113 @@ def test_graph_clock_is_shifted_by_the_launchers_offset(monkeypatch):
     monkeypatch.setenv(CLOCK_OFFSET_ENV, "soon")
     with pytest.raises(ConfigError, match="must be an integer number of nanoseconds"):
         graph_clock()
+
+
+def test_the_monitor_summary_says_the_launchers_clock_offsets():
+    from slipstack.launch.clock_report import clock_counters, clock_status
+    from slipstack.lib.clock_offset import OffsetEstimate
+    from slipstack.messages import Diagnostics, Header
+    from slipstack.nodes.monitor import Monitor, format_summary, summarise
+    from slipstack.nodes.runtime.inprocess import InProcessExecutor
+
+    estimates = {"robot": OffsetEstimate(12_345_000, 50_000, 40)}
+    report = Diagnostics(node="launcher@workstation", status=clock_status(estimates),
+                         counters=clock_counters(estimates, 12_300_000), header=Header(1_000_000, 0, 1_000_000, {}))
+    assert report.status == "ok: clock of robot +12.345 ms ± 0.050 ms"
+    monitor = Monitor()
+    ex = InProcessExecutor([monitor])
+    ex.feed([(1_000_000, "diagnostics", report)])
+    ex.run(until_ns=2_000_000)
+    summary = summarise(monitor, 2_000_000)
+    assert summary["clock_offsets"] == {"launcher@workstation": {"robot": {"offset_ms": 12.345, "uncertainty_ms": 0.05}}}
+    assert ("clock offsets between the machines (their clock minus the launcher's): launcher@workstation: robot "
+            "+12.345 ms ± 0.050 ms") in format_summary(summary)
+
+
+class _StandInPeer(threading.Thread):
+    """Machine a's launcher as machine b's sees it: a real CURVE ROUTER at a's launcher endpoint
+    answering the peers protocol (launch/peers.py), its clock ``shift_ns`` ahead of ours from the
+    ``shift_after``-th ping on (a clock that jumped or drifted)."""
+
+    def __init__(self, endpoint: str, secret_file: Path, shift_ns: int, shift_after: int) -> None:
+        super().__init__(daemon=True)
+        self.ctx = zmq.Context()
+        self.sock = self.ctx.socket(zmq.ROUTER)
+        self.sock.setsockopt(zmq.LINGER, 0)
+        self.sock.curve_publickey, self.sock.curve_secretkey = zmq.auth.load_certificate(secret_file)
+        self.sock.curve_server = True
+        self.sock.bind(endpoint)
+        self.shift_ns, self.shift_after, self.pings = shift_ns, shift_after, 0
+        self.done = threading.Event()
+        self.start()
+
+    def run(self) -> None:
+        status = msgpack.packb({"machine": "a", "state": "running", "ready": []})
+        while not self.done.is_set():
+            if not self.sock.poll(50):
+                continue
+            ident, kind, t1, *_ = self.sock.recv_multipart()
+            if kind != b"ping":
+                continue
+            self.pings += 1
+            shift = self.shift_ns if self.pings > self.shift_after else 0
+            t2 = (time.monotonic_ns() + shift).to_bytes(8, "big", signed=True)
+            self.sock.send_multipart([ident, b"pong", t1, t2, t2, status])
+
+    def close(self) -> None:
+        self.done.set()
+        self.join(5)
+        self.ctx.destroy(linger=0)
+
+
+DRIFT_GRAPH = """
+[machines.a]
+address = "127.0.0.1"
+ports = [{first}, {last}]
+keys = "keys/a"
+
+[machines.b]
+address = "127.0.0.2"
+ports = [{first}, {last}]
+keys = "keys/b"
+
+[[node]]
+name = "grip_controller"
+type = "grip_controller"
+machine = "a"
+params = {{timeout_ms = 20.0}}
+"""
+
+
+@pytest.mark.parametrize("shift_ms, warned", [(15, True), (0, False)])  # half the timeout: 10 ms
+def test_the_launcher_warns_when_the_clock_offset_drifts_beyond_half_the_controllers_timeout(
+        tmp_path, keys, monkeypatch, shift_ms, warned):
+    monkeypatch.setattr(peers_module, "PING_PERIOD_S", 0.01)  # the estimate's window fills in a second
+    monkeypatch.setattr(launcher_module, "DRIFT_CHECK_S", 0.1)
+    first = random.randrange(20000, 32000, 10)  # below the ephemeral ports
+    path = tmp_path / "drift.toml"
+    path.write_text(DRIFT_GRAPH.format(first=first, last=first + 9))
+    lf = load_launch_file(str(path), builtins=BUILTINS)
+    lf.duration_s = 4.0 if not warned else 30.0  # a bound: the warning stops the launch at once
+    peer = _StandInPeer(f"tcp://127.0.0.1:{first}", tmp_path / "keys" / "a" / "a.key_secret",
+                        shift_ms * 1_000_000, shift_after=30)
+    lines: list[str] = []
+
+    def echo(line: str) -> None:
+        lines.append(line)
+        if "drifted" in line:
+            os.kill(os.getpid(), signal.SIGINT)  # the launcher stops as on Ctrl-C
+
+    run_dir = tmp_path / "run"
+    run_dir.mkdir(mode=0o700)
+    try:
+        Launcher(lf, run_dir, machine="b", echo=echo).run()
+    finally:
+        curve.use_keys(None)
+        peer.close()
+    drift = [line for line in lines if "drifted" in line]
+    if warned:
+        assert drift and drift[0].startswith("[launch] WARNING: this machine's clock drifted ") and (
+            "more than half the grip controller's 20 ms timeout" in drift[0]), lines
+    else:
+        assert not drift and any("clock of machine a is" in line for line in lines), lines
