@@ -17,6 +17,7 @@ import pytest
 
 from slipstack.lib.calibration import Calibration, save_calibration
 from slipstack.lib.errors import ConfigError
+from slipstack.lib.protocols.bota import encode_frame
 from slipstack.messages import decode
 from slipstack.nodes.devices.emulators import BotaEmulator, Dsacon32Emulator, M1616Emulator, RdtUdpServer
 from slipstack.nodes.ft_driver import FtDriver, FtDriverParams
@@ -96,8 +97,11 @@ def test_samples_of_one_read_are_stamped_back_by_the_period_and_strictly_increas
 
     def one_read(n_samples: int) -> list[int]:
         n = len(h.out)
-        for k in range(n_samples):
-            bota.send_ft([0.0, 0.0, -1.0 - k], [0.0, 0.0, 0.0])
+        frames = []
+        for k in range(n_samples):  # one write: the driver's read takes them together, however busy the machine
+            frames.append(encode_frame([0.0, 0.0, -1.0 - k], [0.0, 0.0, 0.0], timestamp_us=round(bota.n_sent * bota.period_us)))
+            bota.n_sent += 1
+        bota.device.write(b"".join(frames))
         h.wait_for(lambda: len(h.out) >= n + n_samples)
         assert [m.status for m in h.out[n:]] == ["ok"] * n_samples
         return [m.header.stamp_ns for m in h.out[n:]]
