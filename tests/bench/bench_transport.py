@@ -25,7 +25,7 @@ reported beside it, the rest being ZeroMQ's I/O thread.
 
     python tests/bench/bench_transport.py                 # 10 s per case
     python tests/bench/bench_transport.py --duration 60   # the real claim
-    python tests/bench/bench_transport.py --profile       # codec costs per message
+    python tests/bench/bench_transport.py --profile       # codec costs, receive path per wake-up
 """
 
 from __future__ import annotations
@@ -317,6 +317,62 @@ def _prototype_array_check(example: np.ndarray) -> Any:
     return check
 
 
+def _thread_us(step: Any, n: int = 20000, repeat: int = 5) -> float:
+    """Least main-thread CPU per call of ``step(k)`` over ``repeat`` runs of ``n`` calls, µs."""
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.thread_time_ns()
+        for k in range(n):
+            step(k)
+        best = min(best, (time.thread_time_ns() - t0) / n / 1e3)
+    return best
+
+
+def receive_path() -> None:
+    """A wake-up's receive path, one frame at a time, in one thread over ``inproc`` (no I/O
+    thread, no scheduler: what is left is the code): the executor's drain, decode, sequence
+    tracking and guarded handler against raw ``recv_multipart`` + slipstack ``decode``; both
+    include the send and a ``poll(0)``, as equal parts."""
+    import zmq
+
+    from slipstack.nodes.runtime.process import RunSpec, _Member
+
+    ctx = zmq.Context()
+    msg = make_message("small")
+    frames = [encode(msg, Header(k, k, k, {})) for k in range(20000)]
+    sink = BenchSink(type(msg), 0, None)
+    member_pub, raw_pub = ctx.socket(zmq.PUB), ctx.socket(zmq.PUB)
+    member_pub.bind("inproc://member")
+    raw_pub.bind("inproc://raw")
+    member = _Member(sink, RunSpec(name="sink", subs={"t0": ["inproc://member"]}), ctx)
+    (member_sub, _), = member.sub_topic.items()
+    raw_sub = ctx.socket(zmq.SUB)
+    raw_sub.setsockopt(zmq.SUBSCRIBE, b"")
+    raw_sub.connect("inproc://raw")
+    time.sleep(0.2)  # subscriptions reach the publishers
+    member_poller, raw_poller = zmq.Poller(), zmq.Poller()
+    member_poller.register(member_sub, zmq.POLLIN)
+    raw_poller.register(raw_sub, zmq.POLLIN)
+
+    def framework(k: int) -> None:
+        member_pub.send_multipart((b"t0", frames[k]))
+        member_poller.poll(0)
+        member.drain("x", member_sub)
+
+    def raw(k: int) -> None:
+        raw_pub.send_multipart((b"t0", frames[k]))
+        raw_poller.poll(0)
+        decode(raw_sub.recv_multipart(zmq.NOBLOCK)[1], type(msg))
+
+    fw_us, raw_us = _thread_us(framework), _thread_us(raw)
+    print(f"\n### receive path per wake-up, {msg.TYPE} over inproc (main-thread CPU, least of 5 × 20 000)\n")
+    print("| path | µs per message |\n| --- | ---: |")
+    print(f"| raw pyzmq: send, poll, recv_multipart, decode | {raw_us:.2f} |")
+    print(f"| framework: send, poll, drain (read, decode, sequence, counters, guarded handler) | {fw_us:.2f} |")
+    print(f"| framework's own share | {fw_us - raw_us:.2f} |")
+    ctx.destroy(linger=0)
+
+
 def profile() -> None:
     """Cost of each step a relay pays per message, and of prototyped cheaper steps."""
     from slipstack.messages.codec import packb, unpackb
@@ -370,10 +426,12 @@ def main() -> None:
     ap.add_argument("--rate", type=float, default=1000.0, help="source rate in Hz (default 1000)")
     ap.add_argument("--hops", type=int, nargs="+", default=[1, 6], help="chain lengths (default 1 6)")
     ap.add_argument("--sizes", nargs="+", default=["small", "large"], choices=["small", "large"])
-    ap.add_argument("--profile", action="store_true", help="print per-step codec costs and exit")
+    ap.add_argument("--profile", action="store_true",
+                    help="print per-step codec costs and the receive path's cost per wake-up, and exit")
     args = ap.parse_args()
     if args.profile:
         profile()
+        receive_path()
         return
     with open("/proc/loadavg") as fh:
         print(f"load average at start: {' '.join(fh.read().split()[:3])}\n")
