@@ -99,7 +99,7 @@ class NodeHost:
         self._durations: deque[int] = deque(maxlen=2000)
         self._logged_errors: set[tuple[str, str, str]] = set()
         self._log = log or (lambda text: print(text, file=sys.stderr, flush=True))
-        self._handlers = {n: getattr(node, f"on_{n}") for n in node.inputs}
+        self._handlers = {n: (f"on_{n}", getattr(node, f"on_{n}")) for n in node.inputs}  # (label, handler)
         self.on_publish: Callable[[str, Message, Header], None] | None = None
         """Called with every published message and its header (a container's in-process hand-over)."""
         self._timer_handlers = {n: getattr(node, f"on_timer_{n}") for n in node.timers}
@@ -238,7 +238,8 @@ class NodeHost:
 
     def dispatch(self, input_name: str, msg: Message) -> None:
         """Run the input's handler; exceptions are counted and logged, never raised."""
-        self._guarded(f"on_{input_name}", self._handlers[input_name], msg, self)
+        label, handler = self._handlers[input_name]
+        self._guarded(label, handler, msg, self)
 
     def fire_timer(self, timer: str) -> None:
         self._guarded(f"on_timer_{timer}", self._timer_handlers[timer], self)

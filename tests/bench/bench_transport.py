@@ -9,17 +9,23 @@ forked (no ZeroMQ context exists before the fork), endpoints are ``ipc://``.
 - raw: XPUB/SUB processes; relays ``unpackb`` then ``packb`` the list
   ``[stamp_ns, seq, blob]`` (blob sized so the frame matches the slipstack one);
   each process waits for its downstream subscription before data flows.
+- raw+codec: the same processes, but every frame is a slipstack message: the source
+  ``encode``s it with a new header, relays and sink ``decode`` it (unpack and validate
+  every field, as a node must) and the sink takes the stamp from the decoded header.
+  The fair baseline for the framework: raw pyzmq doing the work a node cannot skip.
 - slipstack: ``ProcessExecutor`` nodes (the source is a timer node, relays are
   ``queue`` inputs republishing the decoded message with its stamp, as the demo relay).
 
 Loss = messages the source sent that the sink never received. CPU per message =
 process CPU time (``time.process_time_ns``: every thread, ZeroMQ's I/O thread
 included) from the source's first send / the sink's first receive to the end,
-divided by the messages sent / received after that one.
+divided by the messages sent / received after that one; the sink's main thread
+alone (``time.thread_time_ns``: poll, receive, decode, handler, the loop) is
+reported beside it, the rest being ZeroMQ's I/O thread.
 
     python tests/bench/bench_transport.py                 # 10 s per case
     python tests/bench/bench_transport.py --duration 60   # the real claim
-    python tests/bench/bench_transport.py --profile       # codec costs per message
+    python tests/bench/bench_transport.py --profile       # codec costs, receive path per wake-up
 """
 
 from __future__ import annotations
@@ -57,19 +63,27 @@ class CpuPerMessage:
     def __init__(self) -> None:
         self.n = 0
         self.cpu0_ns = 0
+        self.thread0_ns = 0
 
     def count(self) -> None:
         if self.n == 0:
             self.cpu0_ns = time.process_time_ns()
+            self.thread0_ns = time.thread_time_ns()
         self.n += 1
 
     def us_per_message(self) -> float:
         return (time.process_time_ns() - self.cpu0_ns) / 1e3 / (self.n - 1) if self.n > 1 else float("nan")
 
+    def thread_us_per_message(self) -> float:
+        """The calling (main) thread's CPU per message, µs: the process's without ZeroMQ's I/O thread."""
+        return (time.thread_time_ns() - self.thread0_ns) / 1e3 / (self.n - 1) if self.n > 1 else float("nan")
+
 
 # -- raw pyzmq + msgpack ---------------------------------------------------------------------
 def _raw_process(role: str, ep_in: str | None, ep_out: str | None, size: int, rate: float,
-                 ready: Any, results: Any) -> None:
+                 ready: Any, results: Any, msg: Message | None = None) -> None:
+    """One raw pyzmq process; with ``msg``, frames are that message encoded and decoded by
+    slipstack's codec (the ``raw+codec`` case), otherwise msgpack lists of ``size`` bytes."""
     import zmq
 
     ctx = zmq.Context()
@@ -104,7 +118,11 @@ def _raw_process(role: str, ep_in: str | None, ep_out: str | None, size: int, ra
             now = time.monotonic_ns()
             if due > now:
                 time.sleep((due - now) / 1e9)
-            pub.send_multipart((b"t", msgpack.packb([time.monotonic_ns(), seq, blob])))
+            if msg is None:
+                pub.send_multipart((b"t", msgpack.packb([time.monotonic_ns(), seq, blob])))
+            else:
+                stamp = time.monotonic_ns()
+                pub.send_multipart((b"t", encode(msg, Header(stamp, seq, stamp, {}))))
             cpu.count()
             seq += 1
             due += period
@@ -114,19 +132,27 @@ def _raw_process(role: str, ep_in: str | None, ep_out: str | None, size: int, ra
         while not stop["now"]:
             if sub.poll(100):
                 _, payload = sub.recv_multipart()
-                pub.send_multipart((b"t", msgpack.packb(msgpack.unpackb(payload))))
+                if msg is None:
+                    pub.send_multipart((b"t", msgpack.packb(msgpack.unpackb(payload))))
+                else:
+                    got = decode(payload, type(msg))
+                    pub.send_multipart((b"t", encode(got, Header(got.header.stamp_ns, got.header.seq,
+                                                                 time.monotonic_ns(), {}))))
     else:
         lat: list[int] = []
         cpu = CpuPerMessage()
         while not stop["now"]:
             if sub.poll(100):
                 _, payload = sub.recv_multipart()
-                now = time.monotonic_ns()
-                stamp, seq, _ = msgpack.unpackb(payload)
+                if msg is None:
+                    now = time.monotonic_ns()
+                    stamp, seq, _ = msgpack.unpackb(payload)
+                else:  # as a node: the stamp is known once the frame is decoded and valid
+                    stamp = decode(payload, type(msg)).header.stamp_ns
+                    now = time.monotonic_ns()
                 lat.append(now - stamp)
                 cpu.count()
-        results.put(("lat", np.array(lat, dtype=np.int64)))
-        results.put(("cpu_sink", cpu.us_per_message()))
+        _put_sink_results(results, lat, cpu)
     ctx.destroy(linger=0)
 
 
@@ -179,8 +205,13 @@ class BenchSink(Node):
         self.cpu.count()
 
     def stop(self, ctx: Any) -> None:
-        self.results.put(("lat", np.array(self.lat, dtype=np.int64)))
-        self.results.put(("cpu_sink", self.cpu.us_per_message()))
+        _put_sink_results(self.results, self.lat, self.cpu)
+
+
+def _put_sink_results(results: Any, lat: list[int], cpu: CpuPerMessage) -> None:
+    results.put(("lat", np.array(lat, dtype=np.int64)))
+    results.put(("cpu_sink", cpu.us_per_message()))
+    results.put(("cpu_sink_thread", cpu.thread_us_per_message()))
 
 
 def _slip_process(node_factory: Any, spec_kwargs: dict, ready: Any) -> None:
@@ -206,8 +237,9 @@ def _run_case(impl: str, size: str, hops: int, rate: float, duration: float) -> 
             ep_in = eps[k - 1] if k > 0 else None
             ep_out = eps[k] if k < hops else None
             ready = fork.Event()
-            if impl == "raw":
-                target, args = _raw_process, (role, ep_in, ep_out, nbytes, rate, ready, results)
+            if impl in ("raw", "raw+codec"):
+                target = _raw_process
+                args = (role, ep_in, ep_out, nbytes, rate, ready, results, msg if impl == "raw+codec" else None)
             else:
                 mtype = type(msg)
                 factory = {
@@ -227,7 +259,7 @@ def _run_case(impl: str, size: str, hops: int, rate: float, duration: float) -> 
             os.kill(p.pid, signal.SIGINT)
             time.sleep(0.3 if role == "source" else 0.05)
         got: dict[str, Any] = {}
-        for _ in range(4):
+        for _ in range(5):
             key, value = results.get(timeout=20)
             got[key] = value
         for _, p in procs:
@@ -235,7 +267,8 @@ def _run_case(impl: str, size: str, hops: int, rate: float, duration: float) -> 
     lat = got["lat"][WARMUP:] / 1e3
     return {"impl": impl, "size": nbytes, "hops": hops, "n": len(got["lat"]), "sent": got["sent"],
             "p50": np.percentile(lat, 50), "p99": np.percentile(lat, 99), "p999": np.percentile(lat, 99.9),
-            "loss": got["sent"] - len(got["lat"]), "cpu_source": got["cpu_source"], "cpu_sink": got["cpu_sink"]}
+            "loss": got["sent"] - len(got["lat"]), "cpu_source": got["cpu_source"], "cpu_sink": got["cpu_sink"],
+            "cpu_sink_thread": got["cpu_sink_thread"]}
 
 
 # -- codec profile ---------------------------------------------------------------------------
@@ -282,6 +315,62 @@ def _prototype_array_check(example: np.ndarray) -> Any:
         return v
 
     return check
+
+
+def _thread_us(step: Any, n: int = 20000, repeat: int = 5) -> float:
+    """Least main-thread CPU per call of ``step(k)`` over ``repeat`` runs of ``n`` calls, µs."""
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.thread_time_ns()
+        for k in range(n):
+            step(k)
+        best = min(best, (time.thread_time_ns() - t0) / n / 1e3)
+    return best
+
+
+def receive_path() -> None:
+    """A wake-up's receive path, one frame at a time, in one thread over ``inproc`` (no I/O
+    thread, no scheduler: what is left is the code): the executor's drain, decode, sequence
+    tracking and guarded handler against raw ``recv_multipart`` + slipstack ``decode``; both
+    include the send and a ``poll(0)``, as equal parts."""
+    import zmq
+
+    from slipstack.nodes.runtime.process import RunSpec, _Member
+
+    ctx = zmq.Context()
+    msg = make_message("small")
+    frames = [encode(msg, Header(k, k, k, {})) for k in range(20000)]
+    sink = BenchSink(type(msg), 0, None)
+    member_pub, raw_pub = ctx.socket(zmq.PUB), ctx.socket(zmq.PUB)
+    member_pub.bind("inproc://member")
+    raw_pub.bind("inproc://raw")
+    member = _Member(sink, RunSpec(name="sink", subs={"t0": ["inproc://member"]}), ctx)
+    (member_sub, _), = member.sub_topic.items()
+    raw_sub = ctx.socket(zmq.SUB)
+    raw_sub.setsockopt(zmq.SUBSCRIBE, b"")
+    raw_sub.connect("inproc://raw")
+    time.sleep(0.2)  # subscriptions reach the publishers
+    member_poller, raw_poller = zmq.Poller(), zmq.Poller()
+    member_poller.register(member_sub, zmq.POLLIN)
+    raw_poller.register(raw_sub, zmq.POLLIN)
+
+    def framework(k: int) -> None:
+        member_pub.send_multipart((b"t0", frames[k]))
+        member_poller.poll(0)
+        member.drain("x", member_sub)
+
+    def raw(k: int) -> None:
+        raw_pub.send_multipart((b"t0", frames[k]))
+        raw_poller.poll(0)
+        decode(raw_sub.recv_multipart(zmq.NOBLOCK)[1], type(msg))
+
+    fw_us, raw_us = _thread_us(framework), _thread_us(raw)
+    print(f"\n### receive path per wake-up, {msg.TYPE} over inproc (main-thread CPU, least of 5 × 20 000)\n")
+    print("| path | µs per message |\n| --- | ---: |")
+    print(f"| raw pyzmq: send, poll, recv_multipart, decode | {raw_us:.2f} |")
+    print(f"| framework: send, poll, drain (read, decode, sequence, counters, guarded handler) | {fw_us:.2f} |")
+    print(f"| framework's own share | {fw_us - raw_us:.2f} |")
+    ctx.destroy(linger=0)
 
 
 def profile() -> None:
@@ -337,25 +426,27 @@ def main() -> None:
     ap.add_argument("--rate", type=float, default=1000.0, help="source rate in Hz (default 1000)")
     ap.add_argument("--hops", type=int, nargs="+", default=[1, 6], help="chain lengths (default 1 6)")
     ap.add_argument("--sizes", nargs="+", default=["small", "large"], choices=["small", "large"])
-    ap.add_argument("--profile", action="store_true", help="print per-step codec costs and exit")
+    ap.add_argument("--profile", action="store_true",
+                    help="print per-step codec costs and the receive path's cost per wake-up, and exit")
     args = ap.parse_args()
     if args.profile:
         profile()
+        receive_path()
         return
     with open("/proc/loadavg") as fh:
         print(f"load average at start: {' '.join(fh.read().split()[:3])}\n")
-    print("| size B | hops | impl | received | p50 µs | p99 µs | p99.9 µs | loss | p50 vs raw "
-          "| CPU µs/msg source | CPU µs/msg sink | sink CPU vs raw |")
-    print("| ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+    print("| size B | hops | impl | received | p50 µs | p99 µs | p99.9 µs | loss | p50 vs raw | p50 vs raw+codec "
+          "| CPU µs/msg source | CPU µs/msg sink (main thread) | sink CPU vs raw | sink CPU vs raw+codec |")
+    print("| ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     for size in args.sizes:
         for hops in args.hops:
-            raw = _run_case("raw", size, hops, args.rate, args.duration)
-            slip = _run_case("slipstack", size, hops, args.rate, args.duration)
-            for r in (raw, slip):
-                ratio = r["p50"] / raw["p50"]
+            raw, fair, slip = (_run_case(impl, size, hops, args.rate, args.duration)
+                               for impl in ("raw", "raw+codec", "slipstack"))
+            for r in (raw, fair, slip):
                 print(f"| {r['size']} | {r['hops']} | {r['impl']} | {r['n']} | {r['p50']:.0f} | {r['p99']:.0f} | "
-                      f"{r['p999']:.0f} | {r['loss']} | {ratio:.2f}× | {r['cpu_source']:.0f} | {r['cpu_sink']:.0f} | "
-                      f"{r['cpu_sink'] / raw['cpu_sink']:.2f}× |", flush=True)
+                      f"{r['p999']:.0f} | {r['loss']} | {r['p50'] / raw['p50']:.2f}× | {r['p50'] / fair['p50']:.2f}× | "
+                      f"{r['cpu_source']:.0f} | {r['cpu_sink']:.0f} ({r['cpu_sink_thread']:.0f}) | "
+                      f"{r['cpu_sink'] / raw['cpu_sink']:.2f}× | {r['cpu_sink'] / fair['cpu_sink']:.2f}× |", flush=True)
 
 
 if __name__ == "__main__":

@@ -67,6 +67,14 @@ def test_unpack_frame_and_header_from_wire_name_what_is_wrong():
         header_from_wire([1, "2", 3, {}], "T")
     with pytest.raises(DecodeError, match=r"T\.header\.pub_ns: must be within"):
         header_from_wire([1, 2, -3, {}], "T")
+    with pytest.raises(DecodeError, match=r"T\.header\.stamp_ns: expected int, got bool"):
+        header_from_wire([True, 2, 3, {}], "T")
+    with pytest.raises(DecodeError, match=r"T\.header\.seq: must be within"):
+        header_from_wire([1, 2**63, 3, {}], "T")
+    with pytest.raises(DecodeError, match=r"T\.header\.sources: expected a map"):
+        header_from_wire([1, 2, 3, []], "T")
+    with pytest.raises(DecodeError, match=r"T\.header\.sources: expected a map"):
+        header_from_wire([1, 2, 3, {"ft": -1}], "T")
     with pytest.raises(DecodeError, match=r"T\.header\.sources: at most 32 entries"):
         header_from_wire([1, 2, 3, {f"s{k}": k for k in range(33)}], "T")
     assert header_from_wire([1, 2, 3, {"ft": 4}], "T") == Header(1, 2, 3, {"ft": 4})
