@@ -3,12 +3,12 @@
 >>> from slipstack.messages import Wrench, encode, decode
 """
 
-from slipstack.messages.base import Header, Message, decode, encode, registry, validate, with_header
+from slipstack.messages.base import Header, Message, decode, encode, registry, validate, handed_over
 from slipstack.messages.types import (
     STATUS_OK, TACTILE_PAIRING, Contact, Cor, Diagnostics, GripCommand, RigTruth, Slip, TactileFrame, Wrench,
 )
 
 __all__ = [
-    "Header", "Message", "decode", "encode", "registry", "validate", "with_header", "STATUS_OK", "TACTILE_PAIRING",
+    "Header", "Message", "decode", "encode", "registry", "validate", "handed_over", "STATUS_OK", "TACTILE_PAIRING",
     "Contact", "Cor", "Diagnostics", "GripCommand", "RigTruth", "Slip", "TactileFrame", "Wrench",
 ]

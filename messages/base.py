@@ -36,7 +36,7 @@ from slipstack.messages.frame import (
 
 __all__ = [
     "Header", "Message", "ArraySpec", "Bounds", "array", "bounded", "declared_bounds", "message", "encode", "decode", "validate",
-    "with_header",
+    "handed_over",
     "registry", "MAX_STR_LEN", "MAX_DICT_ITEMS", "MAX_KEY_LEN", "MAX_HEADER_SOURCES", "INT64_MAX",
 ]
 
@@ -376,14 +376,22 @@ def decode(payload: bytes, expected: type[M] | None = None) -> M:
     return msg
 
 
-def with_header(msg: M, header: Header) -> M:
-    """A shallow copy of ``msg`` carrying ``header`` (an in-process hand-over: the publisher
-    may publish the same object again; the fields, arrays included, are shared, not copied)."""
+def handed_over(msg: M, header: Header) -> tuple[M, str | None]:
+    """What an in-process subscriber receives when ``msg`` is published with ``header``: a
+    shallow copy carrying ``header`` (the publisher may publish the same object again; the
+    fields, arrays included, are shared, not copied), and why it fails the decoder's checks
+    (``None`` if it passes). A subscriber rejects and counts a failing message exactly as it
+    would the frame on the bus (:meth:`NodeHost.receive_local`), so a container or a lock-step
+    run never lets through what separate processes would refuse."""
     copied = object.__new__(type(msg))
     fields = copied.__dict__
     fields.update(msg.__dict__)
     fields["header"] = header
-    return copied
+    try:
+        validate(copied)
+    except DecodeError as exc:
+        return copied, str(exc)
+    return copied, None
 
 
 def validate(msg: Message) -> Message:

@@ -195,10 +195,18 @@ class NodeHost:
             counters[lost] += gap
         return msg
 
-    def receive_local(self, input_name: str, msg: Message) -> None:
-        """Handle a message handed over in-process by a node of the same container
-        (already validated by its publisher's types; counted as received)."""
-        self.counters[self._in_keys[input_name][0]] += 1
+    def receive_local(self, input_name: str, msg: Message, rejection: str | None = None) -> None:
+        """Handle a message handed over in-process by another node of this process (counted
+        as received); ``rejection``: why it failed the decoder's checks
+        (:func:`~slipstack.messages.base.handed_over`): then it is counted as rejected and not
+        handled, as its frame would be on the bus."""
+        counters = self.counters
+        received, rejected, _, _ = self._in_keys[input_name]
+        counters[received] += 1
+        if rejection is not None:
+            counters[rejected] += 1
+            self.last_error = f"{self.input_topics[input_name]}: {rejection}"
+            return
         self.dispatch(input_name, msg)
 
     def skip(self, input_name: str, n: int) -> None:

@@ -3,12 +3,14 @@
 Nodes are fed from a list of ``(t_ns, topic, message_or_payload)`` events (a
 recording, or hand-made: :meth:`InProcessExecutor.feed`, :meth:`~InProcessExecutor.inject`);
 fed frames go through decode, so validation and counting behave exactly as on the bus.
-A message a node publishes is validated once and reaches its subscribers as one shared
-object with its new header, as inside a container (``NodeHost.receive_local``); it is
-encoded only for :attr:`~InProcessExecutor.published` and ``on_frame``, or when it fails
-validation, so that each subscriber rejects and counts it as it would on the bus.
+A message a node publishes is checked once and reaches its subscribers as one shared
+object with its new header, as inside a container (``messages.handed_over``,
+``NodeHost.receive_local``): one that fails the decoder's checks is rejected and counted
+by each subscriber, as on the bus. It is encoded only for
+:attr:`~InProcessExecutor.published` and ``on_frame``.
 Events, timers, deadlines and the messages nodes publish are processed in time order
-(ties: in the order they were scheduled), so a run is bit-for-bit repeatable. :meth:`~InProcessExecutor.advance` moves the simulated clock; a whole
+(ties: in the order they were scheduled), so a run is bit-for-bit repeatable.
+:meth:`~InProcessExecutor.advance` moves the simulated clock; a whole
 launch file runs this way with ``slipstack launch --lockstep`` (``launch/lockstep.py``).
 
 A node's deadline (``next_deadline_ns``) is re-read after each of its events, and a
@@ -24,8 +26,7 @@ import itertools
 from collections import defaultdict
 from typing import Callable, Collection, Iterable
 
-from slipstack.lib.errors import DecodeError
-from slipstack.messages import Header, Message, decode, encode, validate, with_header
+from slipstack.messages import Header, Message, decode, encode, handed_over
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC, NodeHost
 from slipstack.nodes.runtime.node import Node
 from slipstack.nodes.runtime.stage_cpu import StageCpu
@@ -163,18 +164,11 @@ class InProcessExecutor:
             self._schedule(self.now, ("frame", host, input_name, payload))
 
     def _hand_over(self, topic: str, msg: Message, header: Header) -> None:
-        """A published message to its subscribers, one validated object shared by all of them
-        (an invalid one as its frame, which each subscriber rejects as on the bus)."""
+        """A published message to its subscribers, one checked object shared by all of them
+        (an invalid one is rejected and counted by each, as on the bus)."""
         subscribers = self._subs.get(topic)
         if subscribers:
-            delivered = with_header(msg, header)
-            try:
-                validate(delivered)
-            except DecodeError:
-                payload = encode(delivered)
-                for host, input_name in subscribers:
-                    self._schedule(self.now, ("frame", host, input_name, payload))
-                return
+            delivered = handed_over(msg, header)
             for host, input_name in subscribers:
                 self._schedule(self.now, ("message", host, input_name, delivered))
 
@@ -219,8 +213,8 @@ class InProcessExecutor:
             if host.shutdown_requested:
                 continue
             if kind == "message":
-                _, host, input_name, msg = item
-                host.receive_local(input_name, msg)
+                _, host, input_name, (msg, rejection) = item
+                host.receive_local(input_name, msg, rejection)
             elif kind == "frame":
                 _, host, input_name, payload = item
                 msg = host.receive(input_name, payload)

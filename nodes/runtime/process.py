@@ -45,7 +45,7 @@ from typing import Any, Callable
 import msgpack
 import zmq
 
-from slipstack.messages import Header, Message, with_header
+from slipstack.messages import Header, Message, handed_over
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC, NodeHost
 from slipstack.nodes.runtime.logs import node_log
 from slipstack.nodes.runtime.node import Node
@@ -413,7 +413,7 @@ class ProcessExecutor:
                     for input_name, t in m.host.input_topics.items():
                         if t == topic:
                             self._routes.setdefault((pub, topic), []).append((m, input_name))
-        self._handover: deque[tuple[_Member, str, Message]] = deque()
+        self._handover: deque[tuple[_Member, str, tuple[Message, str | None]]] = deque()  # (message, rejection)
         # (member, input) of a ``latest`` input → its messages in the hand-over queue
         self._latest_queued: dict[tuple[_Member, str], int] = {
             (m, n): 0 for m in self.members for n, i in m.node.inputs.items() if i.policy == "latest"
@@ -431,7 +431,7 @@ class ProcessExecutor:
         def hand_over(topic: str, msg: Message, header: Header) -> None:
             targets = routes.get((publisher, topic))
             if targets:
-                delivered = with_header(msg, header)
+                delivered = handed_over(msg, header)
                 for member, input_name in targets:
                     handover.append((member, input_name, delivered))
                     key = (member, input_name)
@@ -455,7 +455,7 @@ class ProcessExecutor:
                 if waiting > 1:
                     member.host.skip(input_name, 1)
                     continue
-            member.host.receive_local(input_name, msg)
+            member.host.receive_local(input_name, *msg)
 
     def _on_signal(self, signum: int, frame: Any) -> None:
         self._stopping = True

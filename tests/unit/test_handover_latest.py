@@ -53,3 +53,31 @@ def test_a_batch_handed_over_reaches_a_latest_input_newest_only(tmp_path):
     finally:
         for sock in executor._sockets():
             sock.close(linger=0)
+
+
+class _NanBatch(_Batch):
+    """Publishes a wrench with a NaN force between two good ones: a member's bug."""
+
+    def on_readable(self, source, ctx) -> None:
+        for k, fx in enumerate((0.0, float("nan"), 0.0)):
+            ctx.publish("out", Wrench(force=np.array([fx, 0.0, 0.0]), torque=np.zeros(3), device_seq=k), stamp_ns=k + 1)
+
+
+def test_a_message_that_fails_the_decoders_checks_is_rejected_by_a_member_as_on_the_bus(tmp_path):
+    """The in-process hand-over checks what it hands over, as the lock-step executor does:
+    a container's member never handles what a separate process would refuse."""
+    sink = _Sink()
+    executor = ProcessExecutor([
+        (_NanBatch(), RunSpec(name="batch", pub=f"ipc://{tmp_path}/batch.pub")),
+        (sink, RunSpec(name="sink", local={"ft/wrench": ["batch"]})),
+    ])
+    try:
+        batch = executor.members[0]
+        batch.host.call("on_readable", batch.node.on_readable, None, batch.host)
+        executor._run_handovers()
+        assert sink.seen["every"] == [0, 2]
+        host = executor.members[1].host
+        assert host.counters["in.ft/wrench.rejected"] == 1 and "NaN" in host.last_error
+    finally:
+        for sock in executor._sockets():
+            sock.close(linger=0)
