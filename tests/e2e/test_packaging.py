@@ -7,6 +7,7 @@ warn that they are unlisted packages nor leave any of their files out.
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -21,7 +22,10 @@ DATA_FOLDERS = ("files", "scenes", "materials")
 
 
 def test_the_wheel_ships_every_launch_file_scene_and_material_without_warnings(tmp_path):
-    done = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-w", str(tmp_path), str(ROOT)],
+    source = tmp_path / "source"  # a copy: setuptools writes build/ and *.egg-info/ beside the sources it builds
+    shutil.copytree(ROOT, source, ignore=shutil.ignore_patterns(
+        ".git", ".venv", "build", "dist", "*.egg-info", "__pycache__", ".hypothesis", ".pytest_cache", "runs", "out"))
+    done = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-w", str(tmp_path), str(source)],
                           capture_output=True, text=True, timeout=280)
     if done.returncode != 0 and "setuptools" in done.stderr and "No matching distribution" in done.stderr:
         pytest.skip("no package index to fetch setuptools for the isolated build")
