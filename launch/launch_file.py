@@ -37,6 +37,9 @@ Format::
     nice = -5                 # scheduling priority, also of the node's autogroup (needs
                               # the privilege to raise it; without it the node runs at
                               # normal priority)
+    realtime_priority = 10    # SCHED_FIFO priority 1-99 (0: normal scheduling by nice), where
+                              # the launcher may set it (root, CAP_SYS_NICE or `ulimit -r`);
+                              # otherwise the node runs by its nice and the launcher says so
     machine = "robot"         # the [machines] entry whose launcher runs it (default: the first)
 
     [machines.robot]          # a graph over several computers: one table per machine
@@ -93,8 +96,8 @@ last two are its launcher's too: its clock offsets on ``diagnostics``, and the i
 on other machines into its nodes (below Linux's ephemeral ports, 32768-60999, which outgoing connections may hold)."""
 _LAUNCH_KEYS = {"description", "duration_s", "extends", "check", "keys", "insecure"}
 _NODE_KEYS = {"name", "type", "params", "remap", "respawn", "respawn_delay_s", "respawn_max_retries",
-              "respawn_reset_s", "respawn_standby", "required", "transport", "enabled", "after", "nice", "container",
-              "stop_first", "machine"}
+              "respawn_reset_s", "respawn_standby", "required", "transport", "enabled", "after", "nice",
+              "realtime_priority", "container", "stop_first", "machine"}
 SUBST_MAX_CHARS = 65536
 """Longest value an argument substitution may produce (a guard against self-doubling arguments)."""
 SUBST_MAX_DEPTH = 32
@@ -127,6 +130,8 @@ class NodeEntry:
     transport: str = "ipc"
     after: list[str] = field(default_factory=list)
     nice: int = 0
+    realtime_priority: int = 0
+    """``SCHED_FIFO`` priority (1-99) of its process; 0: normal scheduling (``launch/priority.py``)."""
     container: str = ""
     """Nodes naming the same container run in one process ("": a process of its own)."""
     stop_first: bool = False
@@ -138,7 +143,8 @@ class NodeEntry:
     def process_policy(self) -> tuple:
         """The settings that belong to the process, which a container's members must share."""
         return (self.respawn, self.respawn_delay_s, self.respawn_max_retries, self.respawn_reset_s,
-                self.respawn_standby, self.required, self.transport, self.nice, self.stop_first, self.machine)
+                self.respawn_standby, self.required, self.transport, self.nice, self.realtime_priority, self.stop_first,
+                self.machine)
 
     def instance(self) -> Node:
         """Build the node object (validates the parameters)."""
@@ -394,7 +400,7 @@ def _check_containers(file: str, entries: list[NodeEntry]) -> None:
             raise ConfigError(
                 f"{file}: nodes {lead.name} and {e.name} share container {e.container!r} but differ in "
                 "respawn, respawn_delay_s, respawn_max_retries, respawn_reset_s, respawn_standby, required, "
-                "transport, nice, stop_first or machine; make them equal"
+                "transport, nice, realtime_priority, stop_first or machine; make them equal"
             )
 
 
@@ -426,6 +432,7 @@ def _node_entry(raw: dict[str, Any], where: str) -> NodeEntry | None:
         required=read_flag(raw.get("required", False), f"{where}.required"), transport=transport,
         after=list(_names(raw.get("after", []), f"{where}.after")),
         nice=read_number(raw.get("nice", 0), f"{where}.nice", int, lo=-20),
+        realtime_priority=read_number(raw.get("realtime_priority", 0), f"{where}.realtime_priority", int, lo=0, hi=99),
         container=_identifier(container, f"{where}.container") if container else "",
         stop_first=read_flag(raw.get("stop_first", False), f"{where}.stop_first"),
         machine=_identifier(raw["machine"], f"{where}.machine") if raw.get("machine") else "",

@@ -60,7 +60,7 @@ from slipstack.launch.launch_file import SIM_ARG, LaunchFile, arg_comments, load
 from slipstack.launch.clock_report import REPORT_PERIOD_S, ClockReport, launcher_node
 from slipstack.launch.inject_relay import InjectionRelay
 from slipstack.launch.peers import PeerLinks, launcher_endpoint
-from slipstack.launch.priority import set_autogroup_nice
+from slipstack.launch.priority import has_realtime_priority, set_autogroup_nice, set_realtime_priority
 from slipstack.launch.plan import (PEER_WAIT_S, NodePlan, ProcessPlan, launcher_pub_endpoints, plan_launch,
                                    relay_endpoint, remote_sources, runs_on)
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
@@ -108,6 +108,8 @@ class _Process(ProcessPlan):
     standby: subprocess.Popen | None = None
     """A process with the node's modules imported, waiting on stdin to start (respawn in a fraction of the time)."""
     buffer: bytes = b""
+    realtime_refused_said: bool = False
+    """The log has said that its ``realtime_priority`` was not granted (once per launch)."""
 
 
 class Console:
@@ -215,7 +217,7 @@ class Launcher:
             env[CLOCK_OFFSET_ENV] = str(self.clock_offset_ns)
         if self.remote_sources:
             env[REMOTE_SOURCES_ENV] = json.dumps(self.remote_sources)
-        nice = c.entry.nice
+        nice, realtime = c.entry.nice, c.entry.realtime_priority
 
         def in_child() -> None:
             set_parent_death_signal()
@@ -225,6 +227,8 @@ class Launcher:
                 except OSError:  # raising priority needs the privilege: run at normal priority
                     pass
                 set_autogroup_nice(nice)
+            if realtime:
+                set_realtime_priority(realtime)  # without the privilege: by nice (checked below)
 
         proc = subprocess.Popen(
             cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
@@ -233,6 +237,10 @@ class Launcher:
         )
         os.set_blocking(proc.stdout.fileno(), False)
         self.selector.register(proc.stdout, selectors.EVENT_READ, c)
+        if realtime and not standby and not c.realtime_refused_said and not has_realtime_priority(proc.pid):
+            c.realtime_refused_said = True
+            self.echo(f"[launch] {c.label}: realtime_priority {realtime} not granted (it needs root, CAP_SYS_NICE "
+                      f"or `ulimit -r {realtime}`); it runs at normal scheduling, nice {nice}")
         return proc
 
     def _security_env(self) -> dict[str, str]:

@@ -483,7 +483,7 @@ def behind_problems(s: dict) -> list[str]:
         problems.append(f"{s['late_commands']} of {s['commands_while_running']} grip commands while running "
                         f"({s['late_share'] * 100:.2g}%) left later than {s['command_deadline_ms']:g} ms after their "
                         f"sample (worst {s['command_age_ms_max']:.1f} ms): the control path waited for a CPU core; "
-                        "free a core or raise the stack's priority (the launch file's `nice`)")
+                        "free a core or raise the stack's priority (the launch file's `realtime_priority` or `nice`)")
     for node, timers in sorted(s["behind_real_time"].items()):
         ticks = ", ".join(f"{k.split('.')[1]} {v:g}" for k, v in sorted(timers.items()))
         problems.append(f"{node} fell behind real time (timer ticks skipped: {ticks})")

@@ -15,6 +15,7 @@ import msgpack
 import pytest
 import zmq
 
+from slipstack.launch.priority import has_realtime_priority
 from slipstack.messages import decode
 
 from .conftest import pid_alive
@@ -301,3 +302,17 @@ def test_a_node_whose_address_is_taken_says_so_in_one_line():
     lines = out.stderr.strip().splitlines()
     assert len(lines) == 1 and "wrench_source: cannot bind its socket" in lines[0], out.stderr
     assert "Address already in use" in lines[0] and "stop it" in lines[0]
+
+
+def test_a_realtime_priority_is_taken_where_permitted_or_the_launch_says_it_was_not(launch, run_root):
+    text = ('[[node]]\nname = "source"\ntype = "wrench_source"\nrealtime_priority = 2\n'
+            '[[node]]\nname = "sink"\ntype = "sink"\n')
+    g = launch(_write_launch(run_root, text))
+    pids = _pids(g.wait_ready())
+    if has_realtime_priority(pids["source"]):
+        assert os.sched_getparam(pids["source"]).sched_priority == 2
+        assert "not granted" not in g.log()
+    else:
+        assert "node source (wrench_source): realtime_priority 2 not granted" in g.log()
+    assert not has_realtime_priority(pids["sink"])
+    assert g.stop() == 0

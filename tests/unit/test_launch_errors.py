@@ -38,6 +38,8 @@ def _load(tmp_path: Path, text: str, overrides: dict[str, str] | None = None, na
     (SOURCE + 'respawn_delay_s = "soon"\n', r"respawn_delay_s: must be a number, got 'soon'"),
     (SOURCE + 'respawn_max_retries = 1.5\n', r"respawn_max_retries: must be an integer, got 1.5"),
     (SOURCE + 'respawn_reset_s = -1\n', r"respawn_reset_s: must be >= 0, got -1"),
+    (SOURCE + 'realtime_priority = 100\n', r"realtime_priority: must be <= 99, got 100"),
+    (SOURCE + 'realtime_priority = -1\n', r"realtime_priority: must be >= 0, got -1"),
     (SOURCE + 'transport = "udp"\n', r"transport must be 'ipc' or 'tcp'; got 'udp'"),
     (SOURCE + 'params = "fast"\n', r"params must be a table"),
     (SOURCE + 'after = "rig"\n', r"after must be a list of node names"),
