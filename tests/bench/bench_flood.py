@@ -59,6 +59,8 @@ def flood(graph_path: Path, kind: str, rate_hz: float, big_mb: float, payload: s
 
     injector = Injector(resolve_topic(json.loads(graph_path.read_text()), FLOOD_TOPIC), linger_s=0.0)
     injector.wait_for_subscribers(5.0)
+    (sock,) = injector.sender.socks  # the nodes on this machine share one socket
+    origin = injector.sender.origin
     rng = np.random.default_rng(1)
     stale = [encode(Wrench(force=np.array([0.0, 0.0, -1.0]), frame="pad"), Header(INJECTED_STAMP, k, INJECTED_STAMP, {}))
              for k in range(1000)]
@@ -78,13 +80,13 @@ def flood(graph_path: Path, kind: str, rate_hz: float, big_mb: float, payload: s
                 time.sleep(due - now)
             target = int((time.monotonic() - t0) * 1000 * per_ms)
             while sent < target:
-                injector.sock.send_multipart((topic, frames[sent % len(frames)]), zmq.NOBLOCK)
+                sock.send_multipart((topic, frames[sent % len(frames)], origin), zmq.NOBLOCK)
                 sent += 1
             due += 0.001
     else:
         while time.monotonic() < end:
             try:
-                injector.sock.send_multipart((topic, big), zmq.NOBLOCK)
+                sock.send_multipart((topic, big, origin), zmq.NOBLOCK)
                 sent += 1
             except zmq.Again:
                 time.sleep(0.0005)
