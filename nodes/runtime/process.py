@@ -447,7 +447,7 @@ class ProcessExecutor:
         handover = self._handover
         latest_queued = self._latest_queued
         while handover:
-            member, input_name, msg = handover.popleft()
+            member, input_name, (msg, rejection) = handover.popleft()
             key = (member, input_name)
             waiting = latest_queued.get(key)
             if waiting is not None:
@@ -455,7 +455,7 @@ class ProcessExecutor:
                 if waiting > 1:
                     member.host.skip(input_name, 1)
                     continue
-            member.host.receive_local(input_name, *msg)
+            member.host.receive_local(input_name, msg, rejection)
 
     def _on_signal(self, signum: int, frame: Any) -> None:
         self._stopping = True
