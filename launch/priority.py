@@ -17,7 +17,7 @@ A node with a ``realtime_priority`` (1-99) runs under ``SCHED_FIFO`` instead, wh
 launcher may set it (root, CAP_SYS_NICE, or ``ulimit -r`` at least that high): a
 real-time process runs as soon as it wakes, ahead of every normal process, so other
 users' work on the machine no longer delays the control path (beside two CPU hogs on 2
-cores: 0.1 % of F/T samples skipped and p99 0.7 ms, against 9-23 % and 3.6-4.4 ms with
+cores: 0.6-3.1 % of F/T samples skipped and p99 0.73 ms, against 15-16 % and 3.0-4.4 ms with
 ``nice = -5`` alone; docs/benchmarks.md, scheduling). Linux's real-time throttling
 (``/proc/sys/kernel/sched_rt_runtime_us``, 95 % of each CPU by default) bounds what a
 runaway node could take. The threads a node starts share its priority (ZeroMQ's I/O
