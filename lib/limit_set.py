@@ -193,12 +193,15 @@ def load_factor(
     if fx == 0.0 and fy == 0.0 and tau == 0.0:
         return _none(SolverStatus.NO_LOAD)
     cap = mu * f_n
+    if not cap > 0.0:  # μ f_n underflows (pressures at the bottom of float range)
+        return _none(SolverStatus.INVALID_INPUT)
     gt = math.hypot(fx, fy) / cap
     pbar = (ox, oy)
     n_bar = tau + fx * oy - fy * ox  # torque about the centre of pressure
     if idx.size == 1 or L == 0.0:
         return _point_contact(n_bar, tau, fx, fy, pbar, gt, int(idx[0]))
-    tn = n_bar / (cap * L)  # normalised torque about p̄
+    scale = cap * L
+    tn = n_bar / scale if scale > 0.0 else math.inf  # normalised torque about p̄ (inf: μ f_n L underflows)
     if not (math.isfinite(tn) and math.isfinite(gt)):  # load/capacity beyond float range
         return _none(SolverStatus.INVALID_INPUT)
     if gt <= abs(tn) * _FORCE_BELOW_ROUNDING:  # the force cannot change n(c) in double precision

@@ -162,10 +162,13 @@ def _bad(method: str) -> SlipVerdict:
     return SlipVerdict(False, 0.0, SlipState.NO_CONTACT, SolverStatus.INVALID_INPUT, 0.0, None, method)
 
 
-def _load(contact: ContactLike) -> tuple[float, float, float, float] | None:
-    """``(f_n, f_tx, f_ty, τ)`` as floats, or None if any is non-finite."""
+def _load(contact: ContactLike, mu: float) -> tuple[float, float, float, float] | None:
+    """``(f_n, f_tx, f_ty, τ)`` as floats, or None if any is non-finite or the friction
+    capacity μ f_n of a positive f_n underflows to 0 (every test divides by it)."""
     vals = (float(contact.f_n), float(contact.f_t[0]), float(contact.f_t[1]), float(contact.tau))
-    return vals if all(math.isfinite(v) for v in vals) else None
+    if not all(math.isfinite(v) for v in vals) or (vals[0] > 0.0 and not mu * vals[0] > 0.0):
+        return None
+    return vals
 
 
 def _verdict(gamma: float, rho: float, params: SlipParams, status, p_c, method) -> SlipVerdict:
@@ -185,7 +188,7 @@ def ft_beta(contact: ContactLike, params: SlipParams) -> float | None:
 
 
 def _ft_test(contact, params, combine: Callable[[float, float], float], method: str) -> SlipVerdict:
-    load = _load(contact)
+    load = _load(contact, params.mu)
     if load is None:
         return _bad(method)
     f_n, fx, fy, tau = load
@@ -201,13 +204,15 @@ def _ft_test(contact, params, combine: Callable[[float, float], float], method: 
         if tau == 0.0:
             return _verdict(a_t, 0.0, params, SolverStatus.OK, None, method)
         return _verdict(math.inf, 1.0, params, SolverStatus.POINT_CONTACT, None, method)
-    a_r = abs(tau) / (beta * f_n)
+    a_r = abs(tau) / (beta * f_n) if beta * f_n > 0.0 else math.inf
+    if a_t == 0.0 and a_r == 0.0:  # a torque so small that its ratio underflows: no load either
+        return _verdict(0.0, 0.0, params, SolverStatus.NO_LOAD, None, method)
     return _verdict(combine(a_t, a_r), a_r / (a_t + a_r), params, SolverStatus.OK, None, method)
 
 
 def coulomb(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
     """Linear Coulomb test (7): stick iff ``|f_t| ≤ μ f_n``; torque ignored."""
-    load = _load(contact)
+    load = _load(contact, params.mu)
     if load is None:
         return _bad("coulomb")
     f_n, fx, fy, _ = load
@@ -259,7 +264,7 @@ def _cor_verdict(contact, params, res: CorResult, method: str) -> SlipVerdict:
 
 def tactile_cor(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
     """Tactile COR test (11) at the COR of (12) from the paper's fixed-gain iteration."""
-    load = _load(contact)
+    load = _load(contact, params.mu)
     if load is None:
         return _bad("tactile_cor")
     res = paper_cor(contact.phi, contact.positions, contact.f_t, load[3], params.mu,
@@ -269,7 +274,7 @@ def tactile_cor(contact: ContactLike, params: SlipParams, warm_start=None) -> Sl
 
 def tactile_cor_robust(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
     """Tactile COR test (11) at the maximiser of ``s·n − T`` over both senses (robust solver)."""
-    load = _load(contact)
+    load = _load(contact, params.mu)
     if load is None:
         return _bad("tactile_cor_robust")
     res = robust_cor(contact.phi, contact.positions, contact.f_t, load[3], params.mu, c0=warm_start)
@@ -278,7 +283,7 @@ def tactile_cor_robust(contact: ContactLike, params: SlipParams, warm_start=None
 
 def exact(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
     """Exact limit-set test (§4): stick iff the load factor ``γ ≤ 1 − δ``."""
-    load = _load(contact)
+    load = _load(contact, params.mu)
     if load is None:
         return _bad("exact")
     res = load_factor(contact.phi, contact.positions, contact.f_t, load[3], params.mu, c0=warm_start)

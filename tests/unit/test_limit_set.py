@@ -457,3 +457,10 @@ def test_a_line_contact_pushed_across_through_its_centre_is_a_plain_translation(
     cop_x = phi @ pts[:, 0] / phi.sum()
     res = load_factor(phi, pts, (0.0, 0.1), 0.1 * cop_x, MU)  # τ = −(f × p̄) = f_y·p̄_x
     assert res.status is SolverStatus.TRANSLATION and res.gamma == 0.1 / (MU * 4.0)
+
+
+def test_a_capacity_that_underflows_is_refused_not_divided_by():
+    """Pressures at the bottom of float range: μ f_n L underflows to 0 (ZeroDivisionError before)."""
+    square = np.array([[0.0, 0.0], [1e-3, 0.0], [0.0, 1e-3], [1e-3, 1e-3]])
+    res = load_factor(np.full(4, 5e-324), square, (0.0, 0.0), 5e-324, 0.5)
+    assert res.status is SolverStatus.INVALID_INPUT
