@@ -407,9 +407,22 @@ def compile_kernels() -> None:
 
     Nodes call it in ``start`` (before they report ready), so their first frame runs at full
     speed; building a node object (the launcher does, to check parameters) does not.
+    numba keeps one specialisation per argument type, and a read-only array is a type of
+    its own: nodes pass read-only pressures and positions (decoded message buffers,
+    fusion's frozen arrays, the cached pad geometry) and writable ones (pooled or
+    selected taxels), so every kernel is loaded for each mix of the two.
     """
     square = np.array([[0.0, 0.0], [1e-3, 0.0], [0.0, 1e-3], [1e-3, 1e-3]])
-    phi = np.array([1.0, 2.0, 3.0, 4.0])
-    load_factor(phi, square, (0.1, 0.2), 1e-4, 0.5, c0=(5e-4, 5e-4))  # Dinkelbach, warm
-    load_factor(phi, square, (0.1, 0.2), 1e-4, 0.5)  # Dinkelbach, ray start
-    torsional_coefficient(phi, square, 0.5)  # the Weber solver
+    weights = np.array([1.0, 2.0, 3.0, 4.0])
+    for positions in _writable_and_read_only(square):
+        for phi in _writable_and_read_only(weights):
+            load_factor(phi, positions, (0.1, 0.2), 1e-4, 0.5, c0=(5e-4, 5e-4))  # Dinkelbach, warm
+            load_factor(phi, positions, (0.1, 0.2), 1e-4, 0.5)  # Dinkelbach, ray start
+            torsional_coefficient(phi, positions, 0.5)  # the Weber solver
+
+
+def _writable_and_read_only(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``a`` and a read-only copy of it."""
+    frozen = a.copy()
+    frozen.setflags(write=False)
+    return a, frozen
