@@ -60,7 +60,9 @@ from slipstack.launch.launch_file import SIM_ARG, LaunchFile, arg_comments, load
 from slipstack.launch.clock_report import REPORT_PERIOD_S, ClockReport, launcher_node
 from slipstack.launch.inject_relay import InjectionRelay
 from slipstack.launch.peers import PeerLinks, launcher_endpoint
-from slipstack.launch.priority import has_realtime_priority, set_autogroup_nice, set_realtime_priority
+from slipstack.launch.priority import (
+    grant_realtime_priority, has_realtime_priority, set_autogroup_nice, set_realtime_priority,
+)
 from slipstack.launch.plan import (PEER_WAIT_S, NodePlan, ProcessPlan, launcher_pub_endpoints, plan_launch,
                                    relay_endpoint, remote_sources, runs_on)
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
@@ -182,6 +184,9 @@ class Launcher:
         c.proc = None
         if standby is not None and standby.poll() is None:
             try:
+                if c.entry.realtime_priority:  # it prepared at normal scheduling (see _popen)
+                    grant_realtime_priority(standby.pid, c.entry.realtime_priority)
+                    self._say_if_realtime_refused(c, standby.pid)
                 standby.stdin.write(b"go\n")
                 standby.stdin.close()
                 c.proc = standby
@@ -227,7 +232,7 @@ class Launcher:
                 except OSError:  # raising priority needs the privilege: run at normal priority
                     pass
                 set_autogroup_nice(nice)
-            if realtime:
+            if realtime and not standby:  # a standby prepares beside the graph, not ahead of it
                 set_realtime_priority(realtime)  # without the privilege: by nice (checked below)
 
         proc = subprocess.Popen(
@@ -237,11 +242,17 @@ class Launcher:
         )
         os.set_blocking(proc.stdout.fileno(), False)
         self.selector.register(proc.stdout, selectors.EVENT_READ, c)
-        if realtime and not standby and not c.realtime_refused_said and not has_realtime_priority(proc.pid):
+        if not standby:
+            self._say_if_realtime_refused(c, proc.pid)
+        return proc
+
+    def _say_if_realtime_refused(self, c: _Process, pid: int) -> None:
+        """Say once per launch that ``c``'s ``realtime_priority`` did not take on process ``pid``."""
+        realtime = c.entry.realtime_priority
+        if realtime and not c.realtime_refused_said and not has_realtime_priority(pid):
             c.realtime_refused_said = True
             self.echo(f"[launch] {c.label}: realtime_priority {realtime} not granted (it needs root, CAP_SYS_NICE "
-                      f"or `ulimit -r {realtime}`); it runs at normal scheduling, nice {nice}")
-        return proc
+                      f"or `ulimit -r {realtime}`); it runs at normal scheduling, nice {c.entry.nice}")
 
     def _security_env(self) -> dict[str, str]:
         """The environment that gives a node process the graph's (or this machine's) keys."""

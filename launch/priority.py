@@ -22,7 +22,9 @@ cores: 0.6-3.1 % of F/T samples skipped and p99 0.73 ms, against 15-16 % and 3.0
 (``/proc/sys/kernel/sched_rt_runtime_us``, 95 % of each CPU by default) bounds what a
 runaway node could take. The threads a node starts share its priority (ZeroMQ's I/O
 thread moves its frames: ``SCHED_RESET_ON_FORK`` would leave it at normal scheduling,
-since a thread is a fork to Linux here).
+since a thread is a fork to Linux here). A node's warm standby prepares (imports, kernels:
+about a second of CPU) at normal scheduling, beside the running graph rather than ahead
+of it, and gets the priority when the launcher wakes it (:func:`grant_realtime_priority`).
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-__all__ = ["AUTOGROUP_PATH", "has_realtime_priority", "set_autogroup_nice", "set_realtime_priority"]
+__all__ = ["AUTOGROUP_PATH", "grant_realtime_priority", "has_realtime_priority", "set_autogroup_nice", "set_realtime_priority"]
 
 AUTOGROUP_PATH = Path("/proc/self/autogroup")
 """This process's autogroup and its nice value (``/autogroup-123 nice 0``); absent when the
@@ -56,6 +58,18 @@ def set_realtime_priority(priority: int) -> bool:
     ``priority`` (1-99). Returns whether it took effect (``False`` without the privilege)."""
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except OSError:
+        return False
+    return True
+
+
+def grant_realtime_priority(pid: int, priority: int) -> bool:
+    """Put every thread of process ``pid`` under ``SCHED_FIFO`` at ``priority`` (1-99), as
+    :func:`set_realtime_priority` does for the calling process. Returns whether it took effect
+    (``False`` without the privilege, or if the process is gone)."""
+    try:
+        for tid in os.listdir(f"/proc/{pid}/task"):
+            os.sched_setscheduler(int(tid), os.SCHED_FIFO, os.sched_param(priority))
     except OSError:
         return False
     return True

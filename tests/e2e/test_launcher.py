@@ -316,3 +316,39 @@ def test_a_realtime_priority_is_taken_where_permitted_or_the_launch_says_it_was_
         assert "node source (wrench_source): realtime_priority 2 not granted" in g.log()
     assert not has_realtime_priority(pids["sink"])
     assert g.stop() == 0
+
+
+def _standby_of(g, process: str) -> int | None:
+    """The pid of ``process``'s warm standby, once the launcher has started it."""
+    for pid in _processes_of(g.run_root):
+        try:
+            args = (Path("/proc") / str(pid) / "cmdline").read_bytes().split(b"\0")
+        except OSError:
+            continue
+        if b"--standby" in args and f"{process}.spec.json".encode() in b" ".join(args):
+            return pid
+    return None
+
+
+def _all_threads_fifo_at(pid: int, priority: int) -> bool:
+    tids = [int(t) for t in os.listdir(f"/proc/{pid}/task")]
+    return all(has_realtime_priority(t) and os.sched_getparam(t).sched_priority == priority for t in tids)
+
+
+def test_a_warm_standby_prepares_at_normal_scheduling_and_takes_the_realtime_priority_when_woken(launch, run_root):
+    """A standby imports its node's modules and loads its kernels (about a second of CPU) while
+    the graph runs: under SCHED_FIFO it took a core from the real-time nodes for 100 ms and more at
+    a launch's start (the simulated finger's command watchdog fired). It waits at normal
+    scheduling, and the node it becomes runs at its realtime_priority, every thread of it."""
+    relay = "respawn = true\nrealtime_priority = 2"
+    g = launch(_write_launch(run_root, PIPELINE.format(source="", relay=relay)))
+    pids = _pids(g.wait_ready())
+    if not has_realtime_priority(pids["relay"]):
+        pytest.skip("SCHED_FIFO is not permitted here (root, CAP_SYS_NICE or ulimit -r)")
+    _wait_until(lambda: _standby_of(g, "relay") is not None, "no warm standby for relay", g)
+    standby = _standby_of(g, "relay")
+    assert not has_realtime_priority(standby)
+    assert _kill_and_wait_respawn(g, "relay", restarts=1) == standby
+    assert _all_threads_fifo_at(standby, 2)
+    assert "not granted" not in g.log()
+    assert g.stop() == 0, g.log()
