@@ -28,6 +28,7 @@ Stick per (11) iff ``max_s max_c g_s(c) ≤ 0``, which is exactly ``γ ≤ 1`` (
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,6 +38,9 @@ from slipstack.lib.status import SlipCase, SolverStatus
 from slipstack.lib.weber import solve_weber
 
 __all__ = ["CorResult", "paper_cor", "robust_cor", "cor_equations"]
+
+_SMALLEST_NORMAL = sys.float_info.min
+"""N: a friction capacity μΣφ below this (subnormal) is no measured force."""
 
 
 @dataclass(frozen=True)
@@ -119,10 +123,29 @@ def _translation(ratio_t: float) -> CorResult:
     return CorResult(SlipCase.TRANSLATION, None, 0.0, 0.0, ratio_t, 0, 0, 0.0, SolverStatus.TRANSLATION)
 
 
+def _measurable(ph, mu) -> bool:
+    """Whether the friction capacity ``μΣφ`` is a normal finite number: a subnormal one is no
+    force a sensor measures (its ratios are rounding noise or overflow), an overflowing one
+    makes every ratio 0."""
+    with np.errstate(over="ignore"):
+        capacity = mu * float(ph.sum())
+    return _SMALLEST_NORMAL <= capacity < math.inf
+
+
+def _in_float_range(res: CorResult) -> CorResult:
+    """``res``, or INVALID_INPUT when its ratio overflowed (only a point contact's may be +inf)."""
+    if math.isfinite(res.ratio) or res.status is SolverStatus.POINT_CONTACT:
+        return res
+    return _invalid(SolverStatus.INVALID_INPUT)
+
+
 def _special(ph, P, ft, tau, mu) -> CorResult | None:
-    """No contact, no load, translation and point contact: answered without iterating."""
+    """No contact, a pad without a measurable force (invalid), no load, translation and point
+    contact: answered without iterating."""
     if ph.size == 0:
         return _invalid(SolverStatus.NO_CONTACT)
+    if not _measurable(ph, mu):
+        return _invalid(SolverStatus.INVALID_INPUT)
     if ft[0] == 0.0 and ft[1] == 0.0 and tau == 0.0:
         return _invalid(SolverStatus.NO_LOAD)
     ratio_t = _translation_ratio(ph, ft, mu)
@@ -145,7 +168,7 @@ def _prepare(phi, positions, f_t, tau, mu) -> CorResult | tuple[np.ndarray, np.n
         return _invalid(SolverStatus.INVALID_INPUT)
     _, ph, P, ft = v
     special = _special(ph, P, ft, tau, mu)
-    return special if special is not None else (ph, P, ft)
+    return _in_float_range(special) if special is not None else (ph, P, ft)
 
 
 def paper_cor(
@@ -219,7 +242,8 @@ def paper_cor(
     ratio = abs(n) / T if T > 0 else math.inf
     case = SlipCase.ON_TAXEL if status is SolverStatus.ON_TAXEL else SlipCase.ROTATION
     residual = math.hypot(*F) / cap if np.isfinite(F).all() else math.inf
-    return CorResult(case, (float(c[0]), float(c[1])), float(n), float(T), float(ratio), 1, it, residual, status)
+    return _in_float_range(
+        CorResult(case, (float(c[0]), float(c[1])), float(n), float(T), float(ratio), 1, it, residual, status))
 
 
 def robust_cor(
@@ -264,6 +288,6 @@ def robust_cor(
     c = np.array(res.c)
     n, T = _load_terms(P, ph, ft, tau, mu, c)
     case = SlipCase.ON_TAXEL if res.status is SolverStatus.ON_TAXEL else SlipCase.ROTATION
-    return CorResult(
+    return _in_float_range(CorResult(
         case, res.c, float(n), float(T), float(abs(n) / T), s, iterations, res.residual, res.status
-    )
+    ))

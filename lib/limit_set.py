@@ -36,7 +36,8 @@ Method (:func:`load_factor`):
 5. ``f_t = 0`` (or below rounding beside the torque, ``|f̃| ≤ 1e-16 |ñ(p̄)|``): the COR is
    the weighted geometric median, ``γ = |τ|/T_min``.
 
-Special cases (documented choices): all ``φ = 0`` → NO_CONTACT, ``γ = 0``;
+Special cases (documented choices): all ``φ = 0`` → NO_CONTACT, ``γ = 0``; a friction
+capacity ``μ f_n`` that is subnormal (no measured force) or overflows → INVALID_INPUT;
 ``f_t = 0`` and ``τ = 0`` → NO_LOAD, ``γ = 0`` (margin ``1 − γ = 1``); all force
 on one taxel with a non-zero torque about it → POINT_CONTACT, ``γ = +inf`` (the
 only non-finite output).
@@ -45,6 +46,7 @@ only non-finite output).
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -190,11 +192,11 @@ def load_factor(
         return _none(SolverStatus.INVALID_INPUT)
     if code == CONTACT_NONE:
         return _none(SolverStatus.NO_CONTACT)
+    cap = mu * f_n
+    if not cap >= sys.float_info.min:  # μ f_n subnormal: no measured force (pressures at the bottom of float range)
+        return _none(SolverStatus.INVALID_INPUT)
     if fx == 0.0 and fy == 0.0 and tau == 0.0:
         return _none(SolverStatus.NO_LOAD)
-    cap = mu * f_n
-    if not cap > 0.0:  # μ f_n underflows (pressures at the bottom of float range)
-        return _none(SolverStatus.INVALID_INPUT)
     gt = math.hypot(fx, fy) / cap
     pbar = (ox, oy)
     n_bar = tau + fx * oy - fy * ox  # torque about the centre of pressure
@@ -218,6 +220,8 @@ def load_factor(
     outcome, cx, cy, gamma, T, n_s, it, residual, taxel = _dinkelbach(
         px, py, a, s, tn, fx_n, fy_n, lever, warm, w0x, w0y, float(xtol), int(max_iter)
     )
+    if not math.isfinite(gamma):  # the ratio overflows on the way (a load ~1e308 times the capacity)
+        return _none(SolverStatus.INVALID_INPUT)
     status = SOLVED_STATUS[outcome]
     case = SlipCase.ON_TAXEL if status is SolverStatus.ON_TAXEL else SlipCase.ROTATION
     return LimitSetResult(
@@ -362,10 +366,13 @@ def _pure_torque(positions, phi, tn, tau, pbar, L, cap, f_n, c0) -> LimitSetResu
     if med.c is None:
         return _none(med.status)
     T = cap / f_n * med.value
+    gamma = abs(tau) / T if T > 0.0 else math.inf
+    if not math.isfinite(gamma):  # the torsional capacity underflows (ZeroDivisionError before)
+        return _none(SolverStatus.INVALID_INPUT)
     sense = 1 if tau > 0 else -1
     case = SlipCase.ON_TAXEL if med.status is SolverStatus.ON_TAXEL else SlipCase.ROTATION
     return LimitSetResult(
-        case, abs(tau) / T, med.c, T, tau, sense, med.iterations, med.residual, med.status, med.taxel, pbar, L
+        case, gamma, med.c, T, tau, sense, med.iterations, med.residual, med.status, med.taxel, pbar, L
     )
 
 

@@ -77,7 +77,7 @@ _KUHN_TOL = 1e-14
 STEP_MOVED, STEP_ON_TAXEL, STEP_STALLED = 0, 1, 2
 """``newton_step`` outcomes: moved; ``c`` certified optimal at a point; no decrease possible."""
 CONTACT_OK, CONTACT_INVALID, CONTACT_NONE = 0, 1, 2
-"""``normalise_contact`` codes: usable; a non-finite value or negative weight; no positive weight."""
+"""``normalise_contact`` codes: usable; a non-finite value, a negative weight or an overflowing sum; no positive weight."""
 SOLVED_CONVERGED, SOLVED_ON_TAXEL, SOLVED_MAX_ITER = 0, 1, 2
 """Outcome codes of the compiled solvers (here and in :mod:`slipstack.lib.limit_set`)."""
 SOLVED_STATUS = {
@@ -126,8 +126,8 @@ def normalise_contact(points, weights):
 
     Returns:
         ``(code, idx, px, py, a, centre_x, centre_y, scale, total)``: code
-        :data:`CONTACT_OK`, :data:`CONTACT_INVALID` (a non-finite value or a negative
-        weight) or :data:`CONTACT_NONE` (no positive weight);
+        :data:`CONTACT_OK`, :data:`CONTACT_INVALID` (a non-finite value, a negative
+        weight, or weights whose sum overflows) or :data:`CONTACT_NONE` (no positive weight);
         ``idx`` the kept indices; ``px, py`` the kept points minus the weighted
         centroid, divided by ``scale`` (their weighted RMS radius, 0 if they all
         coincide, which leaves them unscaled); ``a`` the kept weights over their
@@ -151,6 +151,8 @@ def normalise_contact(points, weights):
             k += 1
     if m == 0:
         return CONTACT_NONE, idx, np.empty(0), np.empty(0), np.empty(0), 0.0, 0.0, 0.0, 0.0
+    if not math.isfinite(total):  # the weights overflow together: no weight is usable against their sum
+        return CONTACT_INVALID, np.empty(0, np.int64), np.empty(0), np.empty(0), np.empty(0), 0.0, 0.0, 0.0, 0.0
     a = np.empty(m)
     cx = 0.0
     cy = 0.0

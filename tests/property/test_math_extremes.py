@@ -4,6 +4,7 @@ follow the hypothesis profile (tests/conftest.py)."""
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 from hypothesis import example, given
@@ -61,6 +62,51 @@ def test_every_test_returns_a_status_and_no_nan(phi, load):
         assert _finite_or_documented(v), (name, v)
         if v.p_c is not None:
             assert all(math.isfinite(x) for x in v.p_c)
+
+
+TACTILE_TESTS = ("tactile_cor", "tactile_cor_robust", "exact")
+SMALLEST_NORMAL = sys.float_info.min
+extreme_taxel = st.one_of(
+    st.just(0.0),
+    st.floats(5e-324, SMALLEST_NORMAL, exclude_max=True),  # subnormal
+    st.floats(SMALLEST_NORMAL, 1e-290),  # tiny
+    st.floats(1e290, sys.float_info.max),  # huge: 36 of them may overflow Σφ
+)
+tiny_or_ordinary = st.one_of(st.floats(-2, 2), st.floats(-1e-300, 1e-300), st.just(5e-324))
+
+
+class _PressedContact:
+    """A contact whose normal force comes from the F/T sensor (4 N), not from the pad."""
+
+    def __init__(self, phi, f_t, tau, positions):
+        self.phi, self.f_t, self.tau, self.positions = phi, np.asarray(f_t, float), tau, positions
+        self.f_n = 4.0
+
+
+@given(arrays(float, 36, elements=extreme_taxel), tiny_or_ordinary, tiny_or_ordinary,
+       st.one_of(st.floats(-5e-3, 5e-3), st.floats(-1e-300, 1e-300)))
+@example(np.full(36, 5e-324), 0.0, 0.0, 1e-3)  # the paper's iteration: SINGULAR, γ = +inf ("slipping")
+@example(np.full(36, 5e-324), 0.2, 0.0, 1e-3)  # both COR tests: TRANSLATION, γ = +inf
+@example(np.full(36, 1e307), 0.2, 0.0, 1e-3)  # Σφ overflows: the robust COR test said stick
+@example(np.r_[6.39052545e-291, 5e-324, np.zeros(34)], 0.0, 1.0, 0.0)  # exact: T underflowed, ZeroDivisionError
+@example(np.r_[1.13841211e-308, 1.61605046e-308, np.zeros(15), 2.22507386e-308, np.zeros(18)], 0.0, 1.0, 0.0)
+# exact: the Dinkelbach ratio overflowed, γ = +inf (MAX_ITER)
+def test_a_tactile_test_on_a_pad_without_measurable_force_neither_slips_at_infinity_nor_sticks(phi, fx, fy, tau):
+    """No γ = +inf but a point contact's, and a pad whose friction capacity μΣφ is no normal
+    finite number (subnormal: no force a sensor measures; or overflowing) is never judged
+    stick or slip: the tactile tests refuse it as bad input (an empty pad is no contact)."""
+    c = _PressedContact(phi, (fx, fy), tau, PAD.positions)
+    with np.errstate(over="ignore"):
+        capacity = PARAMS.mu * float(np.sum(phi))
+    for name in TACTILE_TESTS:
+        v = SLIP_TESTS[name](c, PARAMS)
+        assert math.isfinite(v.gamma) or v.status is SolverStatus.POINT_CONTACT, (name, v)
+        if not SMALLEST_NORMAL <= capacity < math.inf:
+            assert not v.stick and v.kind == "no-contact", (name, v)
+            if not phi.any():
+                assert v.status is SolverStatus.NO_CONTACT, (name, v)
+            else:
+                assert v.status is SolverStatus.INVALID_INPUT, (name, v)
 
 
 @given(fields, loads, st.integers(1, 3))

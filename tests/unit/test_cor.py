@@ -302,3 +302,23 @@ def test_far_warm_starts_are_pulled_in_by_the_line_search_within_a_few_steps():
             res = solve_weber(PAD.positions, phi, b, c0=c0)
             assert res.status is SolverStatus.CONVERGED and res.iterations <= 7, (b, c0, res)
             assert res.c == pytest.approx(cold.c, abs=1e-10)  # xtol 1e-9 of the 3 mm contact radius
+
+
+_DENORMAL_PAD = np.zeros(PAD.n_taxels)
+_DENORMAL_PAD[[r * PAD.cols + c for r in range(5, 11) for c in range(5, 11)]] = 5e-324  # 36 taxels, subnormal
+
+
+@pytest.mark.parametrize("solve", [paper_cor, robust_cor])
+@pytest.mark.parametrize("phi, f_t, tau", [
+    (_DENORMAL_PAD, (0.0, 0.0), 1e-3),  # the paper's iteration said SINGULAR, ratio +inf: "slipping"
+    (_DENORMAL_PAD, (0.2, 0.0), 1e-3),  # both said TRANSLATION, ratio +inf
+    (_DENORMAL_PAD, (0.0, 0.0), 1e-320),  # a load as small: a ratio of numbers with a digit or two
+    (np.where(_DENORMAL_PAD > 0, 1e307, 0.0), (0.2, 0.0), 1e-3),  # Σφ overflows: robust said stick at γ 2e-309
+])
+def test_a_pad_without_a_measurable_force_or_beyond_float_range_is_refused_as_invalid(solve, phi, f_t, tau):
+    """Pressures whose friction capacity μΣφ is subnormal (no force a sensor measures; the ratio
+    is rounding noise or overflows to +inf, a "slip" verdict) or overflows (every ratio 0, a
+    "stick" one) are refused as bad input, as the slip tests refuse a μ f_n that underflows."""
+    res = solve(phi, PAD.positions, f_t, tau, MU)
+    assert res.status is SolverStatus.INVALID_INPUT and res.case is SlipCase.NONE and res.p_c is None
+    assert res.ratio == 0.0
