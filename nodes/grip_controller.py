@@ -101,10 +101,13 @@ class GripController(Node):
         self.cor: Cor | None = None
         self.slip: Slip | None = None
         self._last_publish_ns = 0
-        elsewhere = remote_sources()  # inputs by their default topic names (a remap is not seen here)
-        self._remote_label = " or ".join(sorted({elsewhere[i.topic] for i in self.inputs.values()
-                                                 if i.topic in elsewhere}))
-        """The other machines the inputs' data comes from ("" on one machine)."""
+        self._remote_sources = remote_sources()  # read here: a malformed map is refused before the node runs
+        self._remote_label = ""
+        """The other machines the inputs' data comes from ("" on one machine); set in ``start``."""
+
+    def start(self, ctx: Context) -> None:
+        topics = {ctx.input_topic(name) for name in self.inputs}  # as remapped in this graph
+        self._remote_label = " or ".join(sorted({self._remote_sources[t] for t in topics if t in self._remote_sources}))
 
     def on_contact(self, msg: Contact, ctx: Context) -> None:
         self.contact = msg

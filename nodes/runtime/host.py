@@ -111,6 +111,9 @@ class NodeHost:
     def now_ns(self) -> int:
         return self.clock()
 
+    def input_topic(self, input_name: str) -> str:
+        return self.input_topics[input_name]
+
     def publish(self, output: str, msg: Message, *, stamp_ns: int, sources: dict[str, int] | None = None) -> None:
         stage = self.stage_cpu
         if stage is not None:

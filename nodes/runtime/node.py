@@ -67,6 +67,9 @@ class Context(Protocol):
     def now_ns(self) -> int:
         """Executor time in integer nanoseconds (monotonic or simulated)."""
 
+    def input_topic(self, input_name: str) -> str:
+        """The topic the named input listens to in this graph (its default name unless remapped)."""
+
     def publish(self, output: str, msg: Message, *, stamp_ns: int, sources: dict[str, int] | None = None) -> None:
         """Publish ``msg`` on the named output; the executor fills the header."""
 

@@ -58,3 +58,20 @@ def test_a_malformed_map_is_refused_before_the_node_runs(monkeypatch):
     monkeypatch.setenv(REMOTE_SOURCES_ENV, "[1, 2]")
     with pytest.raises(ConfigError, match="JSON object topic"):
         GripController()
+
+
+@pytest.mark.parametrize("sources, named", [
+    ({"left/slip": ROBOT}, True),  # the remapped topic comes from the robot: missed before
+    ({"slip": ROBOT}, False),  # another node's `slip` does; this controller's input is local
+])
+def test_a_remapped_input_is_looked_up_by_the_topic_it_listens_to(monkeypatch, sources, named):
+    """A launch file that remaps the controller's input (``remap = {slip = "left/slip"}``, two
+    fingers on one graph): the machine is the one its data on ``left/slip`` comes from."""
+    monkeypatch.setenv(REMOTE_SOURCES_ENV, json.dumps(sources))
+    ex = InProcessExecutor([GripController(GripControllerParams(law="exact", timeout_ms=20.0))],
+                           remaps={"grip_controller": {"slip": "left/slip"}})
+    ex.feed([(k * MS, "left/slip", _slip(k)) for k in range(1, 11)])
+    ex.run(until_ns=200 * MS)
+    status = decode(ex.host("grip_controller").diagnostics()).status
+    assert status.startswith("fail-safe: input age"), status
+    assert status.endswith(f"(from {ROBOT})") == named and ("machine" in status) == named, status
