@@ -50,6 +50,7 @@ from dataclasses import dataclass, field
 
 from slipstack.lib.episodes import INCIPIENT_SHARE, EpisodeTracker
 from slipstack.lib.errors import ConfigError
+from slipstack.lib.late_ticks import BEHIND_REAL_TIME_ADVICE
 from slipstack.lib.status import SLIP_STATES
 from slipstack.messages import Diagnostics, GripCommand, RigTruth, Slip
 from slipstack.nodes.runtime.node import Context, Input, Node
@@ -486,7 +487,8 @@ def behind_problems(s: dict) -> list[str]:
                         "free a core or raise the stack's priority (the launch file's `realtime_priority` or `nice`)")
     for node, timers in sorted(s["behind_real_time"].items()):
         ticks = ", ".join(f"{k.split('.')[1]} {v:g}" for k, v in sorted(timers.items()))
-        problems.append(f"{node} fell behind real time (timer ticks skipped: {ticks})")
+        problems.append(f"{node} fell behind real time (timer ticks skipped: {ticks}; its diagnostics say how "
+                        f"late): {BEHIND_REAL_TIME_ADVICE}")
     for node, inputs in sorted(s["skipped_for_newer"].items()):
         for topic, n in sorted(inputs.items()):
             share = n["skipped"] / n["received"] if n["received"] else 0.0

@@ -7,7 +7,9 @@ on a pseudo-terminal; DSACON32, M1616 or the framed format on a pseudo-terminal)
 publishes ``rig/truth``. ``grip/command`` sets the finger's normal force; the finger's
 command watchdog (``command_timeout_ms``) holds the grip, and raises it towards
 ``watchdog_grip_n``, when commands stop (docs/safety.md). The detector only ever sees
-what the drivers decode from those bytes.
+what the drivers decode from those bytes. A tick handed over more than 10 ms late (its
+process waited for a core) is counted (``rig.late_ticks``) and told on ``diagnostics``
+and in the log, how late and what to do, at most every 10 s (:mod:`slipstack.lib.late_ticks`).
 
 The tactile calibration table of the simulated rubber is written to
 ``calibration_out`` at start, for the tactile driver to load.
@@ -22,6 +24,7 @@ import numpy as np
 
 from slipstack.lib.calibration import Calibration, save_calibration
 from slipstack.lib.errors import ConfigError
+from slipstack.lib.late_ticks import LateTicks
 from slipstack.lib.rig.actuator import CommandWatchdog
 from slipstack.lib.rig.scene import Scene, load_scene, with_rig_material
 from slipstack.lib.samples import FtSample, TactileSample
@@ -35,6 +38,12 @@ from slipstack.nodes.devices.sim_link import SIM_PREFIX, is_simulated
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
 __all__ = ["Rig", "RigParams", "load_scene_by_name", "truth_message", "with_rates"]
+
+_NS_PER_MS = 1_000_000
+_LATE_TICK_MS = 10
+"""A tick later than this (ms) after its due time is reported: half the grip controller's timeout."""
+_LATE_REPORT_EVERY_S = 10
+"""At most one "fell behind real time" report per this long (s)."""
 
 FT_PROTOCOLS = ("rdt", "robotiq", "bota")
 TACTILE_PROTOCOLS = ("dsacon32", "m1616")
@@ -97,6 +106,8 @@ class Rig(Node):
         self.tactile_dev = None
         self._powered_ns = 0
         self._t0: int | None = None
+        self.late_ticks = LateTicks(round(p.tick_ms * 1e6), _LATE_TICK_MS * _NS_PER_MS,
+                                    _LATE_REPORT_EVERY_S * 1000 * _NS_PER_MS)
         try:
             self.watchdog = CommandWatchdog(round(p.command_timeout_ms * 1e6), p.watchdog_grip_n,
                                             p.watchdog_rise_n_per_s)
@@ -157,6 +168,15 @@ class Rig(Node):
         elif was_expired:
             ctx.set_status("ok")
 
+    def _tell_if_late(self, ctx: Context) -> None:
+        """Count a tick that came late (its process waited for a core) and say so, rate-limited."""
+        now = ctx.now_ns()
+        if self.late_ticks.tick(now):
+            ctx.count("rig.late_ticks")
+        report = self.late_ticks.report(now, self._t0)
+        if report is not None:
+            ctx.report_error(report)
+
     def _sensors_streaming(self) -> bool:
         """Every emulated sensor has been started by its driver (M1616 pushes unasked)."""
         devs = [d for d in (self.ft_dev, self.tactile_dev) if d is not None]
@@ -175,6 +195,7 @@ class Rig(Node):
                 ctx.log(f"warning: sensors not streaming after {waited:.0f} s; starting the scene anyway")
             self._t0 = ctx.now_ns()
             ctx.log(f"sensors streaming; scene {self.scene.name} starts")
+        self._tell_if_late(ctx)
         self._guard_finger(ctx)
         for sample in sim.step_until(ctx.now_ns() - self._t0):
             if isinstance(sample, FtSample):

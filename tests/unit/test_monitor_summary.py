@@ -344,7 +344,8 @@ def test_behind_real_time_and_skipped_samples_reach_the_health_line(tmp_path):
     assert s["skipped_for_newer"] == {"fusion": {"ft/wrench": {"skipped": 400, "received": 1000}},
                                       "rig": {"grip/command": {"skipped": 400, "received": 1000}}}
     health_lines = health(logs)
-    assert "rig fell behind real time (timer ticks skipped: tick 35)" in health_lines
+    assert "rig fell behind real time (timer ticks skipped: tick 35; its diagnostics say how late)" in health_lines
+    assert "`realtime:=10`" in health_lines and "--lockstep" in health_lines  # what to do next
     assert "fusion skipped 40% of ft/wrench for newer samples" in health_lines
     assert "grip/command" not in health_lines  # the plant acting on the newest command: listed, not a problem
     assert any("rig grip/command 400 of 1000" in line for line in logs)
