@@ -61,7 +61,7 @@ from slipstack.launch.clock_report import REPORT_PERIOD_S, ClockReport, launcher
 from slipstack.launch.inject_relay import InjectionRelay
 from slipstack.launch.peers import PeerLinks, launcher_endpoint
 from slipstack.launch.priority import (
-    grant_realtime_priority, has_realtime_priority, set_autogroup_nice, set_realtime_priority,
+    grant_realtime_priority, has_realtime_priority, set_autogroup_nice,
 )
 from slipstack.launch.plan import (PEER_WAIT_S, NodePlan, ProcessPlan, launcher_pub_endpoints, plan_launch,
                                    relay_endpoint, remote_sources, runs_on)
@@ -184,9 +184,6 @@ class Launcher:
         c.proc = None
         if standby is not None and standby.poll() is None:
             try:
-                if c.entry.realtime_priority:  # it prepared at normal scheduling (see _popen)
-                    grant_realtime_priority(standby.pid, c.entry.realtime_priority)
-                    self._say_if_realtime_refused(c, standby.pid)
                 standby.stdin.write(b"go\n")
                 standby.stdin.close()
                 c.proc = standby
@@ -222,7 +219,7 @@ class Launcher:
             env[CLOCK_OFFSET_ENV] = str(self.clock_offset_ns)
         if self.remote_sources:
             env[REMOTE_SOURCES_ENV] = json.dumps(self.remote_sources)
-        nice, realtime = c.entry.nice, c.entry.realtime_priority
+        nice = c.entry.nice
 
         def in_child() -> None:
             set_parent_death_signal()
@@ -232,8 +229,6 @@ class Launcher:
                 except OSError:  # raising priority needs the privilege: run at normal priority
                     pass
                 set_autogroup_nice(nice)
-            if realtime and not standby:  # a standby prepares beside the graph, not ahead of it
-                set_realtime_priority(realtime)  # without the privilege: by nice (checked below)
 
         proc = subprocess.Popen(
             cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
@@ -242,14 +237,17 @@ class Launcher:
         )
         os.set_blocking(proc.stdout.fileno(), False)
         self.selector.register(proc.stdout, selectors.EVENT_READ, c)
-        if not standby:
-            self._say_if_realtime_refused(c, proc.pid)
         return proc
 
-    def _say_if_realtime_refused(self, c: _Process, pid: int) -> None:
-        """Say once per launch that ``c``'s ``realtime_priority`` did not take on process ``pid``."""
+    def _grant_realtime(self, c: _Process) -> None:
+        """Give ``c``'s process, now ready, its ``realtime_priority`` (every thread); say once per
+        launch if it was not granted. A process starts (and a standby waits) at normal scheduling:
+        its imports and kernel loads, about a second of CPU, run beside the graph, not ahead of it."""
         realtime = c.entry.realtime_priority
-        if realtime and not c.realtime_refused_said and not has_realtime_priority(pid):
+        if not realtime or c.proc is None:
+            return
+        grant_realtime_priority(c.proc.pid, realtime)  # without the privilege: by nice (checked below)
+        if not c.realtime_refused_said and not has_realtime_priority(c.proc.pid):
             c.realtime_refused_said = True
             self.echo(f"[launch] {c.label}: realtime_priority {realtime} not granted (it needs root, CAP_SYS_NICE "
                       f"or `ulimit -r {realtime}`); it runs at normal scheduling, nice {c.entry.nice}")
@@ -316,6 +314,7 @@ class Launcher:
                 raise SlipstackError(f"node(s) {', '.join(sorted(pending))} not ready after {timeout:.0f} s")
             self._forward_logs(0.01)
             self._service_peers()
+        self._grant_realtime(process)
 
     def _write_graph(self, state: str = "running") -> None:
         keys = self._keys_dir()
@@ -565,6 +564,7 @@ class Launcher:
                 if event.get("node") in c.not_ready:
                     c.not_ready.discard(event.get("node"))
                     if not c.not_ready and c.died_at is not None:
+                        self._grant_realtime(c)
                         self.echo(f"[launch] {c.name} ready again {1e3 * (time.monotonic() - c.died_at):.0f} ms "
                                   "after it exited")
                         c.died_at = None

@@ -22,9 +22,10 @@ cores: 0.6-3.1 % of F/T samples skipped and p99 0.73 ms, against 15-16 % and 3.0
 (``/proc/sys/kernel/sched_rt_runtime_us``, 95 % of each CPU by default) bounds what a
 runaway node could take. The threads a node starts share its priority (ZeroMQ's I/O
 thread moves its frames: ``SCHED_RESET_ON_FORK`` would leave it at normal scheduling,
-since a thread is a fork to Linux here). A node's warm standby prepares (imports, kernels:
-about a second of CPU) at normal scheduling, beside the running graph rather than ahead
-of it, and gets the priority when the launcher wakes it (:func:`grant_realtime_priority`).
+since a thread is a fork to Linux here). A node process starts, and a warm standby
+waits, at normal scheduling: their imports and kernel loads (about a second of CPU each)
+run beside the running graph rather than ahead of it, and the launcher gives a process
+its priority once its nodes report ready (:func:`grant_realtime_priority`).
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-__all__ = ["AUTOGROUP_PATH", "grant_realtime_priority", "has_realtime_priority", "set_autogroup_nice", "set_realtime_priority"]
+__all__ = ["AUTOGROUP_PATH", "grant_realtime_priority", "has_realtime_priority", "set_autogroup_nice"]
 
 AUTOGROUP_PATH = Path("/proc/self/autogroup")
 """This process's autogroup and its nice value (``/autogroup-123 nice 0``); absent when the
@@ -53,20 +54,10 @@ def set_autogroup_nice(nice: int, path: Path = AUTOGROUP_PATH) -> bool:
     return True
 
 
-def set_realtime_priority(priority: int) -> bool:
-    """Run the calling process, and the threads it starts from now on, under ``SCHED_FIFO`` at
-    ``priority`` (1-99). Returns whether it took effect (``False`` without the privilege)."""
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-    except OSError:
-        return False
-    return True
-
-
 def grant_realtime_priority(pid: int, priority: int) -> bool:
-    """Put every thread of process ``pid`` under ``SCHED_FIFO`` at ``priority`` (1-99), as
-    :func:`set_realtime_priority` does for the calling process. Returns whether it took effect
-    (``False`` without the privilege, or if the process is gone)."""
+    """Put every thread of process ``pid`` under ``SCHED_FIFO`` at ``priority`` (1-99); the
+    threads it starts later share it. Returns whether it took effect (``False`` without the
+    privilege, or if the process is gone)."""
     try:
         for tid in os.listdir(f"/proc/{pid}/task"):
             os.sched_setscheduler(int(tid), os.SCHED_FIFO, os.sched_param(priority))

@@ -339,7 +339,7 @@ def test_a_warm_standby_prepares_at_normal_scheduling_and_takes_the_realtime_pri
     """A standby imports its node's modules and loads its kernels (about a second of CPU) while
     the graph runs: under SCHED_FIFO it took a core from the real-time nodes for 100 ms and more at
     a launch's start (the simulated finger's command watchdog fired). It waits at normal
-    scheduling, and the node it becomes runs at its realtime_priority, every thread of it."""
+    scheduling, and the node it becomes runs at its realtime_priority once ready, every thread."""
     relay = "respawn = true\nrealtime_priority = 2"
     g = launch(_write_launch(run_root, PIPELINE.format(source="", relay=relay)))
     pids = _pids(g.wait_ready())
