@@ -51,7 +51,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.lib.known_cor import KNOWN_COR_METHOD, known_cor_test
 from slipstack.lib.material import Material, detector_thresholds
 from slipstack.lib.slip_tests import SlipParams, SlipVerdict, ft_beta, get_slip_test
-from slipstack.lib.status import SLIP_STATES, SlipState, SolverStatus
+from slipstack.lib.status import SAMPLE_NO_CONTACT, SAMPLE_OK, SLIP_STATES, SlipState, SolverStatus
 
 __all__ = [
     "FT_TESTS",
@@ -72,6 +72,9 @@ VALID = SolverStatus.OK.value
 
 CONTACT_LOST = SolverStatus.NO_CONTACT.value
 """The fused contact's status when the wrench says nothing touches the pad."""
+
+_UNUSABLE = "unusable"
+"""Validity status of an earlier sample of a batch whose data were not usable."""
 
 ONSET_NS_PER_FRAME = 900_000
 """Time an onset frame stands for, ns: the paper's 1 kHz F/T period less 10 % for the
@@ -223,15 +226,12 @@ class Detector:
         deciding_ft = self.settings.method in FT_TESTS
         params = ft_params if deciding_ft else self._params
         if getattr(contact, "earlier_samples", 0):
-            self._step_earlier(contact, view, params, deciding_ft)
+            self._step_earlier(contact, view, params)
         v = self._test(view, params, self._warm)
         if v.p_c is not None:
             self._warm = v.p_c
-        status = self._verdict_status(contact, v)
-        fresh = status == VALID
-        self.samples_examined += fresh
-        in_contact = v.kind != SlipState.NO_CONTACT if fresh else contact.status != CONTACT_LOST
-        slipping = self._latch.update(t_ns, v.margin if fresh else math.nan, in_contact=in_contact)
+        status = self._verdict_status(contact.status, contact, v)
+        slipping, in_contact = self._advance(t_ns, v, status, contact_lost=contact.status == CONTACT_LOST)
         verdicts = {v.method: (v.stick, v.margin)}
         for name, test in self._others:
             o = test(view, ft_params, None)
@@ -239,8 +239,6 @@ class Detector:
         if not in_contact:
             state = SlipState.NO_CONTACT
         elif slipping:
-            if v.kind in SLIP_STATES:
-                self._kind = v.kind
             state = self._kind
         else:
             state = SlipState.STICK
@@ -248,30 +246,34 @@ class Detector:
                                margin=v.margin, method=v.method, p_c=v.p_c, solver_status=v.status,
                                status=status, verdicts=verdicts)
 
-    def _step_earlier(self, contact: Any, view: ContactView, params: SlipParams, deciding_ft: bool) -> None:
-        """The deciding test and the latch over the contact's earlier samples, oldest first:
-        each sample's load with the contact's pressure frame scaled to its normal force. A
-        sample without usable data, or without a pressure frame for a tactile test, keeps
-        the latch as it is (no verdict), as its own contact would."""
+    def _advance(self, t_ns: int, v: SlipVerdict, status: str, *, contact_lost: bool) -> tuple[bool, bool]:
+        """Feed one sample's verdict (its validity ``status``) to the latch: (slipping, in contact)."""
+        fresh = status == VALID
+        self.samples_examined += fresh
+        in_contact = v.kind != SlipState.NO_CONTACT if fresh else not contact_lost
+        slipping = self._latch.update(t_ns, v.margin if fresh else math.nan, in_contact=in_contact)
+        if slipping and in_contact and v.kind in SLIP_STATES:
+            self._kind = v.kind
+        return slipping, in_contact
+
+    def _step_earlier(self, contact: Any, view: ContactView, params: SlipParams) -> None:
+        """The deciding test and the latch over the contact's earlier samples, oldest first,
+        each as its own contact would be judged: its load with the contact's pressure frame
+        scaled to its normal force (a contact whose newest sample pressed nothing has no
+        pressure to scale: a tactile test then has no verdict on its earlier samples)."""
         phi_sum = float(view.phi.sum()) if view.phi.size else 0.0
-        judgeable = deciding_ft or phi_sum > 0.0
-        for t_ns, f_n, f_tx, f_ty, tau, valid in zip(
+        for t_ns, f_n, f_tx, f_ty, tau, code in zip(
                 contact.earlier_stamp_ns.tolist(), contact.earlier_f_n.tolist(), contact.earlier_f_tx.tolist(),
-                contact.earlier_f_ty.tolist(), contact.earlier_tau.tolist(), contact.earlier_valid.tolist()):
-            if not (valid and judgeable):
-                self._latch.update(t_ns, math.nan)
-                continue
-            sample = _SampleView(f_n, np.array((f_tx, f_ty)), tau,
-                                 view.phi * (f_n / phi_sum) if phi_sum > 0.0 else view.phi, view.positions)
-            v = self._test(sample, params, self._warm)
+                contact.earlier_f_ty.tolist(), contact.earlier_tau.tolist(), contact.earlier_status.tolist()):
+            phi = view.phi * (f_n / phi_sum) if phi_sum > 0.0 else view.phi
+            v = self._test(_SampleView(f_n, np.array((f_tx, f_ty)), tau, phi, view.positions), params, self._warm)
             if v.p_c is not None:
                 self._warm = v.p_c
-            if not v.status.usable:
-                self._latch.update(t_ns, math.nan)
-                continue
-            self.samples_examined += 1
-            if self._latch.update(t_ns, v.margin, in_contact=v.kind != SlipState.NO_CONTACT) and v.kind in SLIP_STATES:
-                self._kind = v.kind
+            sample_status = VALID if code == SAMPLE_OK else CONTACT_LOST if code == SAMPLE_NO_CONTACT else _UNUSABLE
+            status = self._verdict_status(sample_status, contact, v)
+            if status == VALID and view.phi.size and phi_sum <= 0.0 and self.settings.method not in FT_TESTS:
+                status = "tactile_unpaired"
+            self._advance(t_ns, v, status, contact_lost=code == SAMPLE_NO_CONTACT)
 
     def _params_for_ft_tests(self, view: ContactView, frame: object) -> SlipParams:
         """SlipParams with β fixed: the configured one, or β_s of this pressure frame."""
@@ -283,11 +285,12 @@ class Detector:
             self._beta_frame = frame
         return self._ft_params
 
-    def _verdict_status(self, contact: FusedContact, v: SlipVerdict) -> str:
-        """``ok`` when the verdict judged valid data; otherwise the contact's status,
-        ``tactile_<why>`` for a tactile test without a paired frame, or the solver's."""
-        if contact.status != VALID:
-            return contact.status
+    def _verdict_status(self, sample_status: str, contact: FusedContact, v: SlipVerdict) -> str:
+        """``ok`` when the verdict judged valid data; otherwise the sample's status (the
+        contact's, for its newest), ``tactile_<why>`` for a tactile test without a paired
+        frame, or the solver's."""
+        if sample_status != VALID:
+            return sample_status
         if not contact.has_tactile and self.settings.method not in FT_TESTS:
             # a contact without a frame that claims its pairing was fine contradicts itself
             why = contact.tactile_status if contact.tactile_status != VALID else "fault"

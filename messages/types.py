@@ -16,13 +16,14 @@ from dataclasses import field
 
 import numpy as np
 
-from slipstack.lib.status import SlipCase, SlipState, SolverStatus
+from slipstack.lib.status import SAMPLE_NO_CONTACT, SAMPLE_OK, SAMPLE_UNUSABLE, SlipCase, SlipState, SolverStatus
 from slipstack.messages.base import Bounds, Message, array, bounded, message
 
 __all__ = [
     "Wrench", "TactileFrame", "Contact", "Cor", "Slip", "GripCommand", "RigTruth",
     "Diagnostics", "STATUS_OK", "STATUSES", "TACTILE_PAIRING", "DEVICE_STATUS_PATTERN", "NAME_PATTERN", "MAX_PAD_SIDE",
     "MAX_PITCH_M", "MAX_GRIP_FORCE_N", "MAX_TEXT_LEN", "MAX_COUNTERS", "MAX_VERDICTS", "MAX_EARLIER_SAMPLES",
+    "SAMPLE_OK", "SAMPLE_NO_CONTACT", "SAMPLE_UNUSABLE",
 ]
 
 STATUS_OK = "ok"
@@ -124,11 +125,11 @@ class Contact(Message):
     it, oldest first, carry their loads in the same pad frame ``F``, paired with the
     same tactile frame (its pressure shape scaled to each sample's normal force):
     earlier_stamp_ns (m,) ns; earlier_f_n (m,) N (≥ 0); earlier_f_tx, earlier_f_ty
-    (m,) N; earlier_tau (m,) N·m about z through the pad origin; earlier_valid (m,)
-    bool: the sample's data are usable (status ``ok`` or ``no_contact``). ``status``
-    is the newest sample's, unless that one is usable and an earlier one is not: then
-    the first unusable earlier sample's status, so no consumer lowers the grip on a
-    wake-up that held a bad sample.
+    (m,) N; earlier_tau (m,) N·m about z through the pad origin; earlier_status (m,)
+    uint8: :data:`SAMPLE_OK`, :data:`SAMPLE_NO_CONTACT` or :data:`SAMPLE_UNUSABLE`.
+    ``status`` is the newest sample's, unless that one is ``ok`` or ``no_contact`` and
+    an earlier one is unusable: then the first unusable earlier sample's status, so no
+    consumer lowers the grip on a wake-up that held a bad sample.
     """
 
     rows: int = bounded(16, ge=0, le=MAX_PAD_SIDE)
@@ -151,7 +152,7 @@ class Contact(Message):
     earlier_f_tx: np.ndarray = array("<f8", ("earlier_samples",), doc="N")
     earlier_f_ty: np.ndarray = array("<f8", ("earlier_samples",), doc="N")
     earlier_tau: np.ndarray = array("<f8", ("earlier_samples",), doc="N·m")
-    earlier_valid: np.ndarray = array("|b1", ("earlier_samples",))
+    earlier_status: np.ndarray = array("|u1", ("earlier_samples",))
 
 
 @message("slipstack/Cor")

@@ -35,7 +35,7 @@ from slipstack.lib.fusion import FusionThresholds, PressureShape, ft_understates
 from slipstack.lib.pad import PadGeometry
 from slipstack.lib.status import SolverStatus
 from slipstack.messages import STATUS_OK, TACTILE_PAIRING, Contact, TactileFrame, Wrench
-from slipstack.messages.types import MAX_EARLIER_SAMPLES
+from slipstack.messages.types import MAX_EARLIER_SAMPLES, SAMPLE_NO_CONTACT, SAMPLE_OK, SAMPLE_UNUSABLE
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
 __all__ = ["Fusion", "FusionParams", "BATCH_DEPTH"]
@@ -47,8 +47,8 @@ _USABLE_AS_OK = (STATUS_OK, SolverStatus.CLIPPED_INPUT.value)
 """Fusion outcomes a contact reports as ``ok`` (clipped taxels are counted, not flagged)."""
 _JUDGED_ON_THE_PAD = (*_USABLE_AS_OK, SolverStatus.NO_CONTACT.value)
 """Fusion outcomes after which the F/T reading is checked against the pressed pad."""
-_USABLE = (STATUS_OK, SolverStatus.NO_CONTACT.value)
-"""Contact statuses of usable data (``Contact.earlier_valid``)."""
+_SAMPLE_CODES = {STATUS_OK: SAMPLE_OK, SolverStatus.NO_CONTACT.value: SAMPLE_NO_CONTACT}
+"""``Contact.earlier_status`` of a sample by its own contact's status (any other: unusable)."""
 
 
 @dataclass(frozen=True)
@@ -149,15 +149,15 @@ class Fusion(Node):
         force = np.array([w.force for w in earlier])
         f_n = -force[:, 2]
         statuses = [self._sample_status(w, f, paired, ctx) for w, f in zip(earlier, f_n.tolist())]
-        valid = np.array([s in _USABLE for s in statuses], dtype=bool)
+        codes = np.array([_SAMPLE_CODES.get(s, SAMPLE_UNUSABLE) for s in statuses], dtype=np.uint8)
         status = contact.status
-        if status in _USABLE and not valid.all():
-            status = statuses[int(np.argmin(valid))]
+        if status in _SAMPLE_CODES and (codes == SAMPLE_UNUSABLE).any():
+            status = statuses[int(np.argmax(codes == SAMPLE_UNUSABLE))]
         return dataclasses.replace(
             contact, status=status, earlier_samples=len(earlier),
             earlier_stamp_ns=np.array([w.header.stamp_ns for w in earlier], dtype=np.int64),
             earlier_f_n=np.maximum(f_n, 0.0), earlier_f_tx=force[:, 0].copy(), earlier_f_ty=force[:, 1].copy(),
-            earlier_tau=np.array([float(w.torque[2]) for w in earlier]), earlier_valid=valid)
+            earlier_tau=np.array([float(w.torque[2]) for w in earlier]), earlier_status=codes)
 
     def _sample_status(self, w: Wrench, f_n: float, paired: bool, ctx: Context) -> str:
         """The status an earlier sample's own contact would carry (normal force ``f_n``, N)."""

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from slipstack.messages import Contact, Header, TactileFrame, Wrench, decode, encode
-from slipstack.messages.types import MAX_EARLIER_SAMPLES
+from slipstack.messages.types import MAX_EARLIER_SAMPLES, SAMPLE_NO_CONTACT, SAMPLE_OK, SAMPLE_UNUSABLE
 from slipstack.nodes.fusion import BATCH_DEPTH, Fusion, FusionParams
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 
@@ -52,7 +52,7 @@ def test_one_contact_carries_every_sample_of_the_batch(tactile):
     assert c.earlier_f_tx == pytest.approx([f_x for _, f_x, _ in loads[:-1]])
     assert c.earlier_f_ty == pytest.approx([-0.5 * f_x for _, f_x, _ in loads[:-1]])
     assert c.earlier_tau == pytest.approx([tau for _, _, tau in loads[:-1]])
-    assert c.earlier_valid.all()
+    assert (c.earlier_status == SAMPLE_OK).all()
     assert ex.host("fusion").counters["fusion.samples"] == 5
     assert decode(encode(c), Contact).earlier_f_n == pytest.approx(c.earlier_f_n)  # within the declared bounds
 
@@ -67,14 +67,14 @@ def test_an_unusable_earlier_sample_carries_its_status_onto_the_contact(bad):
     wrenches = [_wrench(0, 4.0, 0.1, 0.0), _wrench(1, 4.0, 0.1, 0.0, status=bad), _wrench(2, 4.0, 0.1, 0.0),
                 _wrench(3, 4.0, 0.1, 0.0, status="stale"), _wrench(4, 4.0, 0.1, 0.0)]
     (c,), _ = _run(wrenches)
-    assert c.earlier_valid.tolist() == [True, False, True, False]
+    assert c.earlier_status.tolist() == [SAMPLE_OK, SAMPLE_UNUSABLE, SAMPLE_OK, SAMPLE_UNUSABLE]
     assert c.status == bad  # the first unusable one's: the grip controller holds on it
 
 
 def test_a_zeroed_earlier_sample_beside_a_pressed_pad_is_implausible():
     """A biased F/T reading inside a batch is caught as it would be alone."""
     (c,), ex = _run([_wrench(0, 0.0, 0.0, 0.0), _wrench(1, 5.0, 0.1, 0.0)])
-    assert c.earlier_valid.tolist() == [False] and c.status == "implausible"
+    assert c.earlier_status.tolist() == [SAMPLE_UNUSABLE] and c.status == "implausible"
     assert ex.host("fusion").counters["fusion.implausible_ft"] == 1
 
 
@@ -82,7 +82,7 @@ def test_an_earlier_sample_without_load_is_usable_data_and_no_fault():
     """Lifting off inside a batch is no fault: the sample is usable, the contact's status stays the newest's."""
     (c,), _ = _run([_wrench(0, 4.0, 0.1, 0.0), _wrench(1, 5.0, 0.1, 0.0)], tactile=False)
     (lifted,), _ = _run([_wrench(0, 0.01, 0.0, 0.0), _wrench(1, 5.0, 0.1, 0.0)], tactile=False)
-    assert lifted.earlier_valid.tolist() == [True] and lifted.status == c.status == "ok"
+    assert lifted.earlier_status.tolist() == [SAMPLE_NO_CONTACT] and lifted.status == c.status == "ok"
 
 
 def test_the_newest_samples_own_fault_wins():
