@@ -211,7 +211,9 @@ class Detector:
         self._warm: tuple[float, float] | None = None
         self._kind = SlipState.TRANSLATION  # the latest slip kind, reported while the latch holds
         self.samples_examined = 0
-        """F/T samples whose load the deciding test judged (valid data), since construction."""
+        """F/T samples judged since construction: the deciding test's verdict on valid data,
+        or a loss of contact (each clears or moves the latch; samples without usable data
+        leave it as it is and are not counted)."""
 
     def step(self, contact: FusedContact, t_ns: int, *, tactile_frame: object = None) -> DetectorVerdict:
         """The verdict on ``contact`` stamped ``t_ns`` (ns; one clock, non-decreasing).
@@ -249,7 +251,7 @@ class Detector:
     def _advance(self, t_ns: int, v: SlipVerdict, status: str, *, contact_lost: bool) -> tuple[bool, bool]:
         """Feed one sample's verdict (its validity ``status``) to the latch: (slipping, in contact)."""
         fresh = status == VALID
-        self.samples_examined += fresh
+        self.samples_examined += fresh or contact_lost
         in_contact = v.kind != SlipState.NO_CONTACT if fresh else not contact_lost
         slipping = self._latch.update(t_ns, v.margin if fresh else math.nan, in_contact=in_contact)
         if slipping and in_contact and v.kind in SLIP_STATES:
