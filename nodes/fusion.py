@@ -14,8 +14,10 @@ The newest sample of a batch produces the ``contact``: with the newest tactile
 frame if its stamp lies within ``max_pair_age_ms`` of the wrench's and its status is
 ``ok``, otherwise an F/T-only contact (``has_tactile`` false) whose ``tactile_status``
 says why (``none``, ``unpaired``, or the frame's own status such as ``stale``).
-``header.sources`` carries both stamps and ``pair_offset_ns`` the tactile minus F/T
-stamp, so every consumer knows which samples were paired and how old they were.
+``header.sources`` carries both stamps (and ``ft_oldest``, the oldest sample's of a batch
+of several, so the age of every sample at the grip command is known downstream) and
+``pair_offset_ns`` the tactile minus F/T stamp, so every consumer knows which samples
+were paired and how old they were.
 
 Plausibility: when the pad is pressed far harder than the F/T sensor says (the pad's
 force over ``ft_plausibility_ratio`` times the F/T normal force, as a biased or spoofed
@@ -103,6 +105,7 @@ class Fusion(Node):
             sources = {"ft": stamp}
         if len(msgs) > 1:
             contact = self._with_earlier(contact, msgs[:-1], tactile_status == STATUS_OK, ctx)
+            sources["ft_oldest"] = msgs[0].header.stamp_ns
         ctx.count("fusion.samples", len(msgs))
         ctx.publish("contact", contact, stamp_ns=stamp, sources=sources)
 

@@ -48,6 +48,7 @@ def test_one_contact_carries_every_sample_of_the_batch(tactile):
     assert c.header.stamp_ns == wrenches[-1].header.stamp_ns and c.f_n == pytest.approx(loads[-1][0])
     assert c.earlier_samples == 4 and c.status == "ok" and c.has_tactile is tactile
     assert c.earlier_stamp_ns.tolist() == [w.header.stamp_ns for w in wrenches[:-1]]
+    assert c.header.sources["ft_oldest"] == wrenches[0].header.stamp_ns
     assert c.earlier_f_n == pytest.approx([f_n for f_n, _, _ in loads[:-1]])
     assert c.earlier_f_tx == pytest.approx([f_x for _, f_x, _ in loads[:-1]])
     assert c.earlier_f_ty == pytest.approx([-0.5 * f_x for _, f_x, _ in loads[:-1]])
@@ -60,6 +61,7 @@ def test_one_contact_carries_every_sample_of_the_batch(tactile):
 def test_a_batch_of_one_carries_no_earlier_samples():
     (c,), _ = _run([_wrench(0, 4.0, 0.2, 0.0)])
     assert c.earlier_samples == 0 and c.earlier_f_n.size == 0 and c.status == "ok"
+    assert "ft_oldest" not in c.header.sources
 
 
 @pytest.mark.parametrize("bad", ["stale", "disconnected", "device-status 0x0002"])
