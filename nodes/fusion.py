@@ -3,7 +3,8 @@
 Its ``wrench`` input is a ``batch``: every F/T sample that arrived since the last
 wake-up, oldest first (at most :data:`BATCH_DEPTH`; at 1 kHz usually one, at 7 kHz
 several). Each wake-up publishes one ``contact`` for the newest sample that carries the
-loads of the earlier ones too (``Contact.earlier_*``, each judged usable or not as its own
+loads of the earlier ones too (a backlog of more than :data:`SAMPLES_PER_CONTACT`, after
+a stall, makes several contacts, oldest first) (``Contact.earlier_*``, each judged usable or not as its own
 contact would be), so the slip detector examines every sample while the control chain
 runs once per wake-up, not once per sample. The tactile frame's pressure shape is
 computed once per frame. A batch that held an unusable sample (a device status, stale,
@@ -40,10 +41,14 @@ from slipstack.messages import STATUS_OK, TACTILE_PAIRING, Contact, TactileFrame
 from slipstack.messages.types import MAX_EARLIER_SAMPLES, SAMPLE_NO_CONTACT, SAMPLE_OK, SAMPLE_UNUSABLE
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
-__all__ = ["Fusion", "FusionParams", "BATCH_DEPTH"]
+__all__ = ["Fusion", "FusionParams", "BATCH_DEPTH", "SAMPLES_PER_CONTACT"]
 
-BATCH_DEPTH = MAX_EARLIER_SAMPLES + 1
-"""F/T samples fusion takes per wake-up (the newest and the earlier ones a contact carries)."""
+SAMPLES_PER_CONTACT = MAX_EARLIER_SAMPLES + 1
+"""F/T samples one contact carries: its newest and the earlier ones."""
+BATCH_DEPTH = 1000
+"""F/T samples fusion takes per wake-up, at most (the input socket's high-water mark):
+a backlog after a stall (1 s at 1 kHz, 0.14 s at 7 kHz) is examined, not skipped, as
+consecutive contacts of :data:`SAMPLES_PER_CONTACT` samples."""
 
 _USABLE_AS_OK = (STATUS_OK, SolverStatus.CLIPPED_INPUT.value)
 """Fusion outcomes a contact reports as ``ok`` (clipped taxels are counted, not flagged)."""
@@ -88,11 +93,17 @@ class Fusion(Node):
         self._shape = None
 
     def on_wrench(self, msgs: tuple[Wrench, ...], ctx: Context) -> None:
-        msg = msgs[-1]
-        stamp = msg.header.stamp_ns
         sensor_frame = sum(w.frame != "pad" for w in msgs)
         if sensor_frame:
             ctx.count("fusion.sensor_frame_wrenches", sensor_frame)  # the driver should apply the mount transform
+        for start in range(0, len(msgs), SAMPLES_PER_CONTACT):  # a backlog: several contacts, oldest first
+            self._publish_contact(msgs[start:start + SAMPLES_PER_CONTACT], ctx)
+
+    def _publish_contact(self, msgs: tuple[Wrench, ...], ctx: Context) -> None:
+        """One contact for the newest of ``msgs`` (at most :data:`SAMPLES_PER_CONTACT`)
+        carrying the earlier ones."""
+        msg = msgs[-1]
+        stamp = msg.header.stamp_ns
         tactile_status = self._tactile_status(stamp)
         if tactile_status == STATUS_OK:
             t = self.tactile

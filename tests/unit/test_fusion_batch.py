@@ -9,7 +9,7 @@ import pytest
 
 from slipstack.messages import Contact, Header, TactileFrame, Wrench, decode, encode
 from slipstack.messages.types import MAX_EARLIER_SAMPLES, SAMPLE_NO_CONTACT, SAMPLE_OK, SAMPLE_UNUSABLE
-from slipstack.nodes.fusion import BATCH_DEPTH, Fusion, FusionParams
+from slipstack.nodes.fusion import SAMPLES_PER_CONTACT, Fusion, FusionParams
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 
 MS = 1_000_000
@@ -92,9 +92,13 @@ def test_the_newest_samples_own_fault_wins():
     assert c.status == "disconnected"
 
 
-def test_the_batch_depth_matches_the_contacts_bound():
-    assert BATCH_DEPTH == MAX_EARLIER_SAMPLES + 1
-    wrenches = [_wrench(k, 4.0, 0.1, 0.0) for k in range(BATCH_DEPTH + 5)]
-    (c,), ex = _run(wrenches)
-    assert c.earlier_samples == MAX_EARLIER_SAMPLES
-    assert ex.host("fusion").counters["in.ft/wrench.dropped"] == 5
+def test_a_backlog_beyond_one_contact_makes_several_every_sample_carried():
+    """After a stall: consecutive contacts of at most SAMPLES_PER_CONTACT samples, oldest first."""
+    assert SAMPLES_PER_CONTACT == MAX_EARLIER_SAMPLES + 1
+    wrenches = [_wrench(k, 4.0, 0.1, 0.0) for k in range(2 * SAMPLES_PER_CONTACT + 5)]
+    contacts, ex = _run(wrenches)
+    assert [c.earlier_samples + 1 for c in contacts] == [SAMPLES_PER_CONTACT, SAMPLES_PER_CONTACT, 5]
+    carried = [s for c in contacts for s in (*c.earlier_stamp_ns.tolist(), c.header.stamp_ns)]
+    assert carried == [w.header.stamp_ns for w in wrenches]
+    c = ex.host("fusion").counters
+    assert c["in.ft/wrench.dropped"] == 0 and c["fusion.samples"] == len(wrenches)
