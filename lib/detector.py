@@ -274,7 +274,7 @@ class Detector:
             sample_status = VALID if code == SAMPLE_OK else CONTACT_LOST if code == SAMPLE_NO_CONTACT else _UNUSABLE
             status = self._verdict_status(sample_status, contact, v)
             if status == VALID and view.phi.size and phi_sum <= 0.0 and self.settings.method not in FT_TESTS:
-                status = "tactile_unpaired"
+                status = _UNUSABLE  # a pressure frame with nothing to scale: no verdict for a tactile test
             self._advance(t_ns, v, status, contact_lost=code == SAMPLE_NO_CONTACT)
 
     def _params_for_ft_tests(self, view: ContactView, frame: object) -> SlipParams:

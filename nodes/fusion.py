@@ -3,10 +3,10 @@
 Its ``wrench`` input is a ``batch``: every F/T sample that arrived since the last
 wake-up, oldest first (at most :data:`BATCH_DEPTH`; at 1 kHz usually one, at 7 kHz
 several). Each wake-up publishes one ``contact`` for the newest sample that carries the
-loads of the earlier ones too (a backlog of more than :data:`SAMPLES_PER_CONTACT`, after
-a stall, makes several contacts, oldest first) (``Contact.earlier_*``, each judged usable or not as its own
-contact would be), so the slip detector examines every sample while the control chain
-runs once per wake-up, not once per sample. The tactile frame's pressure shape is
+loads of the earlier ones too (``Contact.earlier_*``, each judged usable or not as its
+own contact would be), so the slip detector examines every sample while the control
+chain runs once per wake-up, not once per sample; a backlog of more than
+:data:`SAMPLES_PER_CONTACT` samples, after a stall, makes several contacts, oldest first. The tactile frame's pressure shape is
 computed once per frame. A batch that held an unusable sample (a device status, stale,
 implausible) passes that status on in the contact's ``status`` (docs/safety.md: the grip
 controller holds). ``fusion.samples`` counts the samples carried by contacts.
