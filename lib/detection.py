@@ -5,7 +5,10 @@ onset and, once sliding, drops to about ``μ_d/μ_s`` (the peak of the paper's
 Fig. 4). So :class:`SlipLatch`
 
 - flags slip when the contact is *at* the limit: ``γ ≥ 1 − δ`` (margin ``≤ δ``) on
-  ``onset_frames`` (two) valid frames in a row,
+  ``onset_frames`` (two) valid frames in a row that span at least ``onset_ns`` of
+  their stamps (the nodes: 0.9 ms, two samples at 1 kHz less stamp jitter: ``lib/detector.py``), so a
+  7 kHz stream raises the flag after the same time in the band as a 1 kHz one, not
+  after two of its samples (0.14 ms, which single noisy samples reach 7 times as often),
 - latches it through the static→dynamic drop: slip stays flagged while
   ``γ ≥ γ_release``, and
 - releases only after ``γ < γ_release`` has held for ``release_ns``; a frame at or
@@ -68,6 +71,8 @@ class DetectorConfig:
         (≥ 1; frames without a verdict neither count nor break the row). Two: a load
         held just under the band's edge crosses it on single noisy frames; two in a
         row are that much rarer, at the cost of one frame at an onset.
+    onset_ns: and how long, ns (≥ 0): from the stamp of the row's first frame to the
+        current one. 0: frames only (the latch's own default, for offline use).
     """
 
     delta: float = 0.18
@@ -75,6 +80,7 @@ class DetectorConfig:
     release_ns: int = 20_000_000
     gamma_resume: float = math.nan
     onset_frames: int = 2
+    onset_ns: int = 0
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.delta < 1.0:
@@ -85,6 +91,8 @@ class DetectorConfig:
             raise ConfigError(f"detector release_ns must be >= 0 ns, got {self.release_ns}")
         if not (isinstance(self.onset_frames, int) and self.onset_frames >= 1):
             raise ConfigError(f"detector onset_frames must be an integer >= 1, got {self.onset_frames!r}")
+        if not (isinstance(self.onset_ns, int) and self.onset_ns >= 0):
+            raise ConfigError(f"detector onset_ns must be an integer >= 0 ns, got {self.onset_ns!r}")
         if not (math.isnan(self.gamma_resume) or 0.0 < self.gamma_resume <= 1.0):
             raise ConfigError(f"detector gamma_resume must lie in (0, 1] (or be nan: gamma_release), "
                               f"got {self.gamma_resume}")
@@ -105,6 +113,7 @@ class SlipLatch:
         self.slipping = False
         self._below_since: int | None = None
         self._in_band = 0  # valid frames in a row in the band (while not yet slipping)
+        self._band_since: int | None = None  # stamp of the row's first frame (ns)
 
     def update(self, t_ns: int, margin: float, *, in_contact: bool = True) -> bool:
         """Feed one frame's margin (``1 − γ``); returns whether slip is flagged.
@@ -114,7 +123,7 @@ class SlipLatch:
         without information never counts towards it. No contact clears the flag.
         """
         if not in_contact:
-            self.slipping, self._below_since, self._in_band = False, None, 0
+            self.slipping, self._below_since, self._in_band, self._band_since = False, None, 0, None
             return False
         if margin != margin:  # NaN: no information, keep the flag, start the dwell again
             self._below_since = None
@@ -123,10 +132,12 @@ class SlipLatch:
         cfg = self.config
         if margin <= cfg.delta:
             self._in_band = min(self._in_band + 1, cfg.onset_frames)
-            if self.slipping or self._in_band >= cfg.onset_frames:
+            if self._band_since is None:
+                self._band_since = t_ns
+            if self.slipping or (self._in_band >= cfg.onset_frames and t_ns - self._band_since >= cfg.onset_ns):
                 self.slipping, self._below_since = True, None
             return self.slipping
-        self._in_band = 0
+        self._in_band, self._band_since = 0, None
         if self.slipping:
             if gamma >= cfg.resume_level:
                 self._below_since = None

@@ -15,6 +15,14 @@ status, the verdict's validity status and every side test's ``[stick, margin]``.
   the pressure frame, computed once per frame (it depends only on the shape of the
   pressure, not its size) and shared by every F/T test.
 - The deciding test's COR warm-starts the next frame's.
+- A contact that carries the earlier F/T samples of fusion's batch (the ``contact``
+  message's ``earlier_*``: at 7 kHz several samples per wake-up) has each of them
+  stepped through the deciding test and the latch first, oldest first, with the
+  contact's pressure frame scaled to the sample's normal force, then the newest: the
+  same latched state as stepping them one by one, so a slip flagged by any sample of
+  the batch is latched, never lost (only a loss of contact clears it). The side tests
+  run once, on the newest. ``samples_examined`` counts the samples whose load the
+  deciding test judged.
 - ``method = "tactile_cor_known"`` with ``known_cor_m`` evaluates test (11) about
   that fixed pivot instead of solving for the COR (``lib/known_cor.py``, Fig. 13).
 
@@ -43,12 +51,13 @@ from slipstack.lib.errors import ConfigError
 from slipstack.lib.known_cor import KNOWN_COR_METHOD, known_cor_test
 from slipstack.lib.material import Material, detector_thresholds
 from slipstack.lib.slip_tests import SlipParams, SlipVerdict, ft_beta, get_slip_test
-from slipstack.lib.status import SLIP_STATES, SlipState, SolverStatus
+from slipstack.lib.status import SAMPLE_NO_CONTACT, SAMPLE_OK, SLIP_STATES, SlipState, SolverStatus
 
 __all__ = [
     "FT_TESTS",
     "VALID",
     "CONTACT_LOST",
+    "ONSET_NS_PER_FRAME",
     "PadContact",
     "DetectorSettings",
     "DetectorVerdict",
@@ -63,6 +72,13 @@ VALID = SolverStatus.OK.value
 
 CONTACT_LOST = SolverStatus.NO_CONTACT.value
 """The fused contact's status when the wrench says nothing touches the pad."""
+
+_UNUSABLE = "unusable"
+"""Validity status of an earlier sample of a batch whose data were not usable."""
+
+ONSET_NS_PER_FRAME = 900_000
+"""Time an onset frame stands for, ns: the paper's 1 kHz F/T period less 10 % for the
+jitter of receive stamps (two frames at 1 kHz span 1 ms ≥ 0.9 ms, as before)."""
 
 
 @dataclass(frozen=True)
@@ -108,7 +124,10 @@ class DetectorSettings:
     release_ns: γ below the release level this long releases the latch, ns.
     pool: sum taxels in pool × pool blocks before testing (1: off).
     gamma_resume: a frame with γ ≥ this restarts the release dwell (NaN: gamma_release).
-    onset_frames: valid frames in a row in the band that raise the flag.
+    onset_frames: valid frames in a row in the band that raise the flag, and for as
+        long as they take at the paper's 1 kHz (:data:`ONSET_NS_PER_FRAME` each after
+        the first), whatever the F/T rate: at 7 kHz the band must hold as long, over
+        about seven times as many samples.
     known_cor_m: (x, y) of a fixed pivot in the pad frame, m; only with
         ``method = "tactile_cor_known"``, which needs it.
     """
@@ -186,27 +205,35 @@ class Detector:
         self._params = SlipParams(mu=s.mu, beta_m=s.beta_m or None, delta=s.delta)
         self._ft_params = self._params  # with β_s of the current pressure frame when beta_m is 0
         self._beta_frame: object = None
-        self._latch = SlipLatch(DetectorConfig(s.delta, s.gamma_release, s.release_ns, s.gamma_resume, s.onset_frames))
+        onset_ns = (s.onset_frames - 1) * ONSET_NS_PER_FRAME if isinstance(s.onset_frames, int) else 0
+        self._latch = SlipLatch(DetectorConfig(s.delta, s.gamma_release, s.release_ns, s.gamma_resume, s.onset_frames,
+                                               onset_ns))
         self._warm: tuple[float, float] | None = None
         self._kind = SlipState.TRANSLATION  # the latest slip kind, reported while the latch holds
+        self.samples_examined = 0
+        """F/T samples judged since construction: the deciding test's verdict on valid data,
+        or a loss of contact (each clears or moves the latch; samples without usable data
+        leave it as it is and are not counted)."""
 
     def step(self, contact: FusedContact, t_ns: int, *, tactile_frame: object = None) -> DetectorVerdict:
         """The verdict on ``contact`` stamped ``t_ns`` (ns; one clock, non-decreasing).
 
         ``tactile_frame`` identifies the pressure frame (e.g. its stamp): β_s is computed
         once per frame; ``None`` recomputes it whenever the previous frame was not ``None``.
+        A contact with ``earlier_samples`` has those stepped first (module docstring).
         Never raises on bad data: it shows in ``status``.
         """
         view = ContactView(contact, self.settings.pool)
         ft_params = self._params_for_ft_tests(view, tactile_frame)
         deciding_ft = self.settings.method in FT_TESTS
-        v = self._test(view, ft_params if deciding_ft else self._params, self._warm)
+        params = ft_params if deciding_ft else self._params
+        if getattr(contact, "earlier_samples", 0):
+            self._step_earlier(contact, view, params)
+        v = self._test(view, params, self._warm)
         if v.p_c is not None:
             self._warm = v.p_c
-        status = self._verdict_status(contact, v)
-        fresh = status == VALID
-        in_contact = v.kind != SlipState.NO_CONTACT if fresh else contact.status != CONTACT_LOST
-        slipping = self._latch.update(t_ns, v.margin if fresh else math.nan, in_contact=in_contact)
+        status = self._verdict_status(contact.status, contact, v)
+        slipping, in_contact = self._advance(t_ns, v, status, contact_lost=contact.status == CONTACT_LOST)
         verdicts = {v.method: (v.stick, v.margin)}
         for name, test in self._others:
             o = test(view, ft_params, None)
@@ -214,14 +241,41 @@ class Detector:
         if not in_contact:
             state = SlipState.NO_CONTACT
         elif slipping:
-            if v.kind in SLIP_STATES:
-                self._kind = v.kind
             state = self._kind
         else:
             state = SlipState.STICK
         return DetectorVerdict(t_ns=t_ns, state=state, slipping=slipping, kind=v.kind, gamma=v.gamma,
                                margin=v.margin, method=v.method, p_c=v.p_c, solver_status=v.status,
                                status=status, verdicts=verdicts)
+
+    def _advance(self, t_ns: int, v: SlipVerdict, status: str, *, contact_lost: bool) -> tuple[bool, bool]:
+        """Feed one sample's verdict (its validity ``status``) to the latch: (slipping, in contact)."""
+        fresh = status == VALID
+        self.samples_examined += fresh or contact_lost
+        in_contact = v.kind != SlipState.NO_CONTACT if fresh else not contact_lost
+        slipping = self._latch.update(t_ns, v.margin if fresh else math.nan, in_contact=in_contact)
+        if slipping and in_contact and v.kind in SLIP_STATES:
+            self._kind = v.kind
+        return slipping, in_contact
+
+    def _step_earlier(self, contact: Any, view: ContactView, params: SlipParams) -> None:
+        """The deciding test and the latch over the contact's earlier samples, oldest first,
+        each as its own contact would be judged: its load with the contact's pressure frame
+        scaled to its normal force (a contact whose newest sample pressed nothing has no
+        pressure to scale: a tactile test then has no verdict on its earlier samples)."""
+        phi_sum = float(view.phi.sum()) if view.phi.size else 0.0
+        for t_ns, f_n, f_tx, f_ty, tau, code in zip(
+                contact.earlier_stamp_ns.tolist(), contact.earlier_f_n.tolist(), contact.earlier_f_tx.tolist(),
+                contact.earlier_f_ty.tolist(), contact.earlier_tau.tolist(), contact.earlier_status.tolist()):
+            phi = view.phi * (f_n / phi_sum) if phi_sum > 0.0 else view.phi
+            v = self._test(_SampleView(f_n, np.array((f_tx, f_ty)), tau, phi, view.positions), params, self._warm)
+            if v.p_c is not None:
+                self._warm = v.p_c
+            sample_status = VALID if code == SAMPLE_OK else CONTACT_LOST if code == SAMPLE_NO_CONTACT else _UNUSABLE
+            status = self._verdict_status(sample_status, contact, v)
+            if status == VALID and view.phi.size and phi_sum <= 0.0 and self.settings.method not in FT_TESTS:
+                status = _UNUSABLE  # a pressure frame with nothing to scale: no verdict for a tactile test
+            self._advance(t_ns, v, status, contact_lost=code == SAMPLE_NO_CONTACT)
 
     def _params_for_ft_tests(self, view: ContactView, frame: object) -> SlipParams:
         """SlipParams with β fixed: the configured one, or β_s of this pressure frame."""
@@ -233,13 +287,26 @@ class Detector:
             self._beta_frame = frame
         return self._ft_params
 
-    def _verdict_status(self, contact: FusedContact, v: SlipVerdict) -> str:
-        """``ok`` when the verdict judged valid data; otherwise the contact's status,
-        ``tactile_<why>`` for a tactile test without a paired frame, or the solver's."""
-        if contact.status != VALID:
-            return contact.status
+    def _verdict_status(self, sample_status: str, contact: FusedContact, v: SlipVerdict) -> str:
+        """``ok`` when the verdict judged valid data; otherwise the sample's status (the
+        contact's, for its newest), ``tactile_<why>`` for a tactile test without a paired
+        frame, or the solver's."""
+        if sample_status != VALID:
+            return sample_status
         if not contact.has_tactile and self.settings.method not in FT_TESTS:
             # a contact without a frame that claims its pairing was fine contradicts itself
             why = contact.tactile_status if contact.tactile_status != VALID else "fault"
             return f"tactile_{why}"
         return VALID if v.status.usable else v.status.value
+
+
+@dataclass(frozen=True)
+class _SampleView:
+    """One earlier F/T sample of a batch as the slip tests read it (:class:`ContactView`'s
+    fields): ``f_n`` N, ``f_t`` (2,) N, ``tau`` N·m, ``phi`` (N,) N, ``positions`` (N, 2) m."""
+
+    f_n: float
+    f_t: np.ndarray
+    tau: float
+    phi: np.ndarray
+    positions: np.ndarray

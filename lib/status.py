@@ -17,7 +17,14 @@ from __future__ import annotations
 
 import enum
 
-__all__ = ["SolverStatus", "SlipCase", "SlipState", "SLIP_STATES", "CorSolver"]
+__all__ = ["SolverStatus", "SlipCase", "SlipState", "SLIP_STATES", "CorSolver", "SAMPLE_OK", "SAMPLE_NO_CONTACT",
+           "SAMPLE_UNUSABLE"]
+
+SAMPLE_OK, SAMPLE_NO_CONTACT, SAMPLE_UNUSABLE = 0, 1, 2
+"""What an earlier F/T sample of a batch was (the ``contact`` message's ``earlier_status``):
+its own contact would have been ``ok``, ``no_contact`` (usable data, nothing pressed), or
+anything else (unusable: stale, disconnected, a device status, implausible …; any other
+code reads as unusable)."""
 
 
 class SolverStatus(enum.Enum):

@@ -16,13 +16,14 @@ from dataclasses import field
 
 import numpy as np
 
-from slipstack.lib.status import SlipCase, SlipState, SolverStatus
+from slipstack.lib.status import SAMPLE_NO_CONTACT, SAMPLE_OK, SAMPLE_UNUSABLE, SlipCase, SlipState, SolverStatus
 from slipstack.messages.base import Bounds, Message, array, bounded, message
 
 __all__ = [
     "Wrench", "TactileFrame", "Contact", "Cor", "Slip", "GripCommand", "RigTruth",
     "Diagnostics", "STATUS_OK", "STATUSES", "TACTILE_PAIRING", "DEVICE_STATUS_PATTERN", "NAME_PATTERN", "MAX_PAD_SIDE",
-    "MAX_PITCH_M", "MAX_GRIP_FORCE_N", "MAX_TEXT_LEN", "MAX_COUNTERS", "MAX_VERDICTS",
+    "MAX_PITCH_M", "MAX_GRIP_FORCE_N", "MAX_TEXT_LEN", "MAX_COUNTERS", "MAX_VERDICTS", "MAX_EARLIER_SAMPLES",
+    "SAMPLE_OK", "SAMPLE_NO_CONTACT", "SAMPLE_UNUSABLE",
 ]
 
 STATUS_OK = "ok"
@@ -54,6 +55,9 @@ MAX_COUNTERS = 4096
 """Entries of a diagnostics counter map."""
 MAX_VERDICTS = 32
 """Entries of a slip verdict map (one per slip test)."""
+MAX_EARLIER_SAMPLES = 63
+"""F/T samples a contact carries besides its newest (``Contact.earlier_*``): fusion's batch
+of at most 64 samples per wake-up, 9 ms at the Net F/T's 7 kHz."""
 
 _SIDE = {"ge": 1, "le": MAX_PAD_SIDE}
 _STATUS = {"choices": STATUSES, "pattern": DEVICE_STATUS_PATTERN, "max_len": 64}
@@ -98,7 +102,7 @@ class TactileFrame(Message):
     status: str = bounded(STATUS_OK, **_STATUS)
 
 
-@message("slipstack/Contact", version=2)  # 2: tactile_status
+@message("slipstack/Contact", version=3)  # 2: tactile_status; 3: earlier_*
 class Contact(Message):
     """``contact``: fused contact state in the pad frame ``F`` (docs/math.md §2).
 
@@ -115,6 +119,17 @@ class Contact(Message):
     sensor reports, as a biased or spoofed F/T sensor would).
     header.sources holds both stamps (``ft``, ``tactile``).
     rows, cols, pitch_m: the pad's, or 0 for an F/T-only contact (then N = 0).
+
+    The fields above describe the newest F/T sample of fusion's wake-up. The
+    ``earlier_samples`` (m, 0 … :data:`MAX_EARLIER_SAMPLES`) samples that arrived with
+    it, oldest first, carry their loads in the same pad frame ``F``, paired with the
+    same tactile frame (its pressure shape scaled to each sample's normal force):
+    earlier_stamp_ns (m,) ns; earlier_f_n (m,) N (≥ 0); earlier_f_tx, earlier_f_ty
+    (m,) N; earlier_tau (m,) N·m about z through the pad origin; earlier_status (m,)
+    uint8: :data:`SAMPLE_OK`, :data:`SAMPLE_NO_CONTACT` or :data:`SAMPLE_UNUSABLE`.
+    ``status`` is the newest sample's, unless that one is ``ok`` or ``no_contact`` and
+    an earlier one is unusable: then the first unusable earlier sample's status, so no
+    consumer lowers the grip on a wake-up that held a bad sample.
     """
 
     rows: int = bounded(16, ge=0, le=MAX_PAD_SIDE)
@@ -131,6 +146,13 @@ class Contact(Message):
     has_tactile: bool = True
     status: str = bounded(STATUS_OK, **_STATUS)
     tactile_status: str = bounded(STATUS_OK, choices=TACTILE_PAIRING)
+    earlier_samples: int = bounded(0, ge=0, le=MAX_EARLIER_SAMPLES)
+    earlier_stamp_ns: np.ndarray = array("<i8", ("earlier_samples",), doc="ns")
+    earlier_f_n: np.ndarray = array("<f8", ("earlier_samples",), doc="N")
+    earlier_f_tx: np.ndarray = array("<f8", ("earlier_samples",), doc="N")
+    earlier_f_ty: np.ndarray = array("<f8", ("earlier_samples",), doc="N")
+    earlier_tau: np.ndarray = array("<f8", ("earlier_samples",), doc="N·m")
+    earlier_status: np.ndarray = array("|u1", ("earlier_samples",))
 
 
 @message("slipstack/Cor")

@@ -1,11 +1,24 @@
 """fusion: pairs ``ft/wrench`` with the newest ``tactile/frame`` into ``contact`` (docs/safety.md).
 
-Every wrench (the faster stream) produces one ``contact``: with the newest tactile
+Its ``wrench`` input is a ``batch``: every F/T sample that arrived since the last
+wake-up, oldest first (at most :data:`BATCH_DEPTH`; at 1 kHz usually one, at 7 kHz
+several). Each wake-up publishes one ``contact`` for the newest sample that carries the
+loads of the earlier ones too (``Contact.earlier_*``, each judged usable or not as its
+own contact would be), so the slip detector examines every sample while the control
+chain runs once per wake-up, not once per sample; a backlog of more than
+:data:`SAMPLES_PER_CONTACT` samples, after a stall, makes several contacts, oldest first. The tactile frame's pressure shape is
+computed once per frame. A batch that held an unusable sample (a device status, stale,
+implausible) passes that status on in the contact's ``status`` (docs/safety.md: the grip
+controller holds). ``fusion.samples`` counts the samples carried by contacts.
+
+The newest sample of a batch produces the ``contact``: with the newest tactile
 frame if its stamp lies within ``max_pair_age_ms`` of the wrench's and its status is
 ``ok``, otherwise an F/T-only contact (``has_tactile`` false) whose ``tactile_status``
 says why (``none``, ``unpaired``, or the frame's own status such as ``stale``).
-``header.sources`` carries both stamps and ``pair_offset_ns`` the tactile minus F/T
-stamp, so every consumer knows which samples were paired and how old they were.
+``header.sources`` carries both stamps (and ``ft_oldest``, the oldest sample's of a batch
+of several, so the age of every sample at the grip command is known downstream) and
+``pair_offset_ns`` the tactile minus F/T stamp, so every consumer knows which samples
+were paired and how old they were.
 
 Plausibility: when the pad is pressed far harder than the F/T sensor says (the pad's
 force over ``ft_plausibility_ratio`` times the F/T normal force, as a biased or spoofed
@@ -15,6 +28,7 @@ controller holds. A stale, disconnected or implausible sensor passes its status 
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -24,14 +38,24 @@ from slipstack.lib.fusion import FusionThresholds, PressureShape, ft_understates
 from slipstack.lib.pad import PadGeometry
 from slipstack.lib.status import SolverStatus
 from slipstack.messages import STATUS_OK, TACTILE_PAIRING, Contact, TactileFrame, Wrench
+from slipstack.messages.types import MAX_EARLIER_SAMPLES, SAMPLE_NO_CONTACT, SAMPLE_OK, SAMPLE_UNUSABLE
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
-__all__ = ["Fusion", "FusionParams"]
+__all__ = ["Fusion", "FusionParams", "BATCH_DEPTH", "SAMPLES_PER_CONTACT"]
+
+SAMPLES_PER_CONTACT = MAX_EARLIER_SAMPLES + 1
+"""F/T samples one contact carries: its newest and the earlier ones."""
+BATCH_DEPTH = 1000
+"""F/T samples fusion takes per wake-up, at most (the input socket's high-water mark):
+a backlog after a stall (1 s at 1 kHz, 0.14 s at 7 kHz) is examined, not skipped, as
+consecutive contacts of :data:`SAMPLES_PER_CONTACT` samples."""
 
 _USABLE_AS_OK = (STATUS_OK, SolverStatus.CLIPPED_INPUT.value)
 """Fusion outcomes a contact reports as ``ok`` (clipped taxels are counted, not flagged)."""
 _JUDGED_ON_THE_PAD = (*_USABLE_AS_OK, SolverStatus.NO_CONTACT.value)
 """Fusion outcomes after which the F/T reading is checked against the pressed pad."""
+_SAMPLE_CODES = {STATUS_OK: SAMPLE_OK, SolverStatus.NO_CONTACT.value: SAMPLE_NO_CONTACT}
+"""``Contact.earlier_status`` of a sample by its own contact's status (any other: unusable)."""
 
 
 @dataclass(frozen=True)
@@ -51,7 +75,7 @@ class Fusion(Node):
 
     name = "fusion"
     inputs = {
-        "wrench": Input("ft/wrench", Wrench),
+        "wrench": Input("ft/wrench", Wrench, policy="batch", depth=BATCH_DEPTH),
         "tactile": Input("tactile/frame", TactileFrame),
     }
     outputs = {"contact": Output("contact", Contact)}
@@ -68,10 +92,18 @@ class Fusion(Node):
         self.tactile = msg
         self._shape = None
 
-    def on_wrench(self, msg: Wrench, ctx: Context) -> None:
+    def on_wrench(self, msgs: tuple[Wrench, ...], ctx: Context) -> None:
+        sensor_frame = sum(w.frame != "pad" for w in msgs)
+        if sensor_frame:
+            ctx.count("fusion.sensor_frame_wrenches", sensor_frame)  # the driver should apply the mount transform
+        for start in range(0, len(msgs), SAMPLES_PER_CONTACT):  # a backlog: several contacts, oldest first
+            self._publish_contact(msgs[start:start + SAMPLES_PER_CONTACT], ctx)
+
+    def _publish_contact(self, msgs: tuple[Wrench, ...], ctx: Context) -> None:
+        """One contact for the newest of ``msgs`` (at most :data:`SAMPLES_PER_CONTACT`)
+        carrying the earlier ones."""
+        msg = msgs[-1]
         stamp = msg.header.stamp_ns
-        if msg.frame != "pad":
-            ctx.count("fusion.sensor_frame_wrenches")  # the driver should apply the mount transform
         tactile_status = self._tactile_status(stamp)
         if tactile_status == STATUS_OK:
             t = self.tactile
@@ -82,6 +114,10 @@ class Fusion(Node):
                 ctx.count(f"fusion.unpaired_wrenches.{tactile_status}")
             contact = self._ft_only(msg, tactile_status)
             sources = {"ft": stamp}
+        if len(msgs) > 1:
+            contact = self._with_earlier(contact, msgs[:-1], tactile_status == STATUS_OK, ctx)
+            sources["ft_oldest"] = msgs[0].header.stamp_ns
+        ctx.count("fusion.samples", len(msgs))
         ctx.publish("contact", contact, stamp_ns=stamp, sources=sources)
 
     def _tactile_status(self, wrench_stamp_ns: int) -> str:
@@ -119,6 +155,35 @@ class Fusion(Node):
             pair_offset_ns=t.header.stamp_ns - w.header.stamp_ns, has_tactile=True,
             status=STATUS_OK if status in _USABLE_AS_OK else status,
         )
+
+    def _with_earlier(self, contact: Contact, earlier: tuple[Wrench, ...], paired: bool, ctx: Context) -> Contact:
+        """``contact`` (the newest sample's) carrying the loads of the ``earlier`` samples of
+        its batch in the pad frame, each judged usable as its own contact would be, and the
+        first unusable one's status when the newest is usable (class docstring)."""
+        force = np.array([w.force for w in earlier])
+        f_n = -force[:, 2]
+        statuses = [self._sample_status(w, f, paired, ctx) for w, f in zip(earlier, f_n.tolist())]
+        codes = np.array([_SAMPLE_CODES.get(s, SAMPLE_UNUSABLE) for s in statuses], dtype=np.uint8)
+        status = contact.status
+        if status in _SAMPLE_CODES and (codes == SAMPLE_UNUSABLE).any():
+            status = statuses[int(np.argmax(codes == SAMPLE_UNUSABLE))]
+        return dataclasses.replace(
+            contact, status=status, earlier_samples=len(earlier),
+            earlier_stamp_ns=np.array([w.header.stamp_ns for w in earlier], dtype=np.int64),
+            earlier_f_n=np.maximum(f_n, 0.0), earlier_f_tx=force[:, 0].copy(), earlier_f_ty=force[:, 1].copy(),
+            earlier_tau=np.array([float(w.torque[2]) for w in earlier]), earlier_status=codes)
+
+    def _sample_status(self, w: Wrench, f_n: float, paired: bool, ctx: Context) -> str:
+        """The status an earlier sample's own contact would carry (normal force ``f_n``, N)."""
+        if w.status != STATUS_OK:
+            return w.status
+        p = self.params
+        if paired and self._shape is not None and ft_understates_pad(
+                self._shape, _pad(self.tactile.rows, self.tactile.cols, self.tactile.pitch_m), f_n,
+                ratio=p.ft_plausibility_ratio, min_pad_force_n=p.ft_plausibility_min_n):
+            ctx.count("fusion.implausible_ft")
+            return "implausible"
+        return STATUS_OK if f_n > p.min_normal_force_n else SolverStatus.NO_CONTACT.value
 
     def _ft_only(self, w: Wrench, tactile_status: str) -> Contact:
         f_n = -float(w.force[2])

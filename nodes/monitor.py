@@ -20,10 +20,12 @@ silent nodes also on the live line):
   the moment they left), exceeded ``command_deadline_ms`` (those while the sensors
   started and after the scene, and the watchdog's repeats, are counted apart: see
   :class:`CommandStats`);
-- *samples skipped for newer ones*: ``in.<topic>.dropped`` over ``in.<topic>.received``
-  of each node's latest-value inputs (fusion acting on the newest F/T sample when its
-  process waited for a core), on the HEALTH line for sensor topics above
-  :data:`SKIP_WARN_SHARE`;
+- *samples not examined*: ``in.<topic>.dropped`` over ``in.<topic>.received`` of each
+  node's inputs: skipped for a newer one by a latest-value input, or beyond the depth of
+  a batch input (fusion takes every F/T sample of a wake-up as one batch, so it skips
+  none unless it falls 64 samples behind), on the HEALTH line for sensor topics above
+  :data:`SKIP_WARN_SHARE`; and the F/T samples fusion received, carried in contacts and
+  the slip test judged (``fusion.samples``, ``slip_test.samples_examined``);
 - *behind real time*: ``timer.<name>.skipped`` ticks of a timer-paced node (the rig
   skips simulator ticks it could not make up);
 - *silent nodes*: a node whose ``diagnostics`` (every 1 s) stopped for longer than
@@ -401,6 +403,7 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "slip_angle_deg": math.degrees(truth.slip_angle_rad) if truth else None,
         "losses": {n: v for n, v in losses.items() if v},
         "skipped_for_newer": {n: v for n, v in skipped.items() if v},
+        "ft_samples": _ft_samples(m.nodes),
         "behind_real_time": {n: v for n, v in behind.items() if v},
         "silent_nodes": silent_now,
         # with a simulated rig, the devices close when its scene ends: only earlier losses count
@@ -410,6 +413,20 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "recording": m.params.recording if m.params.recording and os.path.exists(m.params.recording) else "",
         "clock_offsets": _clock_offsets(m.nodes),
     }
+
+
+def _ft_samples(nodes: dict[str, NodeWatch]) -> dict[str, float]:
+    """F/T samples over the run: ``received`` by fusion (its ``ft/wrench`` input), ``carried``
+    in its contacts, ``judged`` by the slip test (a verdict on valid data or a loss of
+    contact; the rest had no usable data and held the grip)."""
+    totals = {"received": 0.0, "carried": 0.0, "judged": 0.0}
+    for w in nodes.values():
+        c = w.counters
+        if "fusion.samples" in c:
+            totals["received"] += c.get("in.ft/wrench.received", 0)
+            totals["carried"] += c["fusion.samples"]
+        totals["judged"] += c.get("slip_test.samples_examined", 0)
+    return totals
 
 
 def _clock_offsets(nodes: dict[str, NodeWatch]) -> dict[str, dict[str, dict[str, float]]]:
@@ -591,7 +608,12 @@ def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
         lines.append("frames lost: none (no rejected frames, sequence gaps or send-queue drops reported)")
     skips = [f"{node} {topic} {n['skipped']:g} of {n['received']:g}"
              for node, inputs in sorted(s["skipped_for_newer"].items()) for topic, n in sorted(inputs.items())]
-    lines.append("frames skipped for a newer one (latest-value inputs): " + ("; ".join(skips) if skips else "none"))
+    lines.append("samples not examined (skipped for a newer one, or beyond a batch's depth): "
+                 + ("; ".join(skips) if skips else "none"))
+    ft = s.get("ft_samples")
+    if ft and ft["received"]:
+        lines.append(f"F/T samples: {ft['received']:g} received by fusion, {ft['carried']:g} carried in contacts, "
+                     f"{ft['judged']:g} judged by the slip test (the others had no usable data: grip held)")
     clocks = [f"{node}: {peer} {c['offset_ms']:+.3f} ms ± {c['uncertainty_ms']:.3f} ms"
               for node, peers in sorted(s.get("clock_offsets", {}).items()) for peer, c in sorted(peers.items())]
     if clocks:

@@ -18,6 +18,15 @@ The F/T tests need a torsional coefficient β: ``beta_m`` if set, otherwise β_s
 the tactile data (docs/math.md §4.3), computed once per tactile frame (β_s depends only
 on the shape of the pressure, not on its size) and shared by every F/T test.
 
+Every F/T sample is examined: a contact carries the earlier samples of fusion's batch,
+which the detector steps before the newest, and the ``contact`` input is a ``batch``
+too (every contact that arrived since the last wake-up, each stepped in order; one
+``slip`` for the newest). ``slip_test.samples_examined`` counts the samples the deciding test
+judged (the monitor's and the benchmark's "not examined" are fusion's received
+samples less these). ``onset_frames`` is counted in time at any F/T rate (frames at
+1 kHz: ``lib/detector.py``), so the flag rises after the same time in the band at
+1 kHz and at 7 kHz.
+
 All of this is :class:`~slipstack.lib.detector.Detector` (usable offline, without the
 graph); the node feeds it each contact and publishes what it returns.
 """
@@ -57,7 +66,8 @@ class SlipDetectorParams:
     release_ms: float = field(default=DetectorConfig.release_ns / 1e6,
                               metadata={"help": "gamma below release this long -> stick (ms)"})
     onset_frames: int = field(default=DetectorConfig.onset_frames, metadata={
-        "help": "valid frames in a row in the band that raise the slip flag (>= 1)"})
+        "help": "valid frames in a row in the band that raise the slip flag (>= 1), and as long as "
+                "that many take at 1 kHz at any F/T rate"})
     gamma_resume: float = field(default=math.nan, metadata={
         "help": "a frame with gamma >= this restarts the release dwell (a noise margin above gamma_release); "
                 "nan: from the material"})
@@ -80,7 +90,7 @@ class SlipDetector(Node):
     """Publishes ``slip`` for every contact: :class:`~slipstack.lib.detector.Detector`'s verdict."""
 
     name = "slip_detector"
-    inputs = {"contact": Input("contact", Contact)}
+    inputs = {"contact": Input("contact", Contact, policy="batch")}
     outputs = {"slip": Output("slip", Slip)}
     Params = SlipDetectorParams
 
@@ -102,8 +112,12 @@ class SlipDetector(Node):
     def start(self, ctx: Context) -> None:
         compile_kernels()  # before the node reports ready, so its first contact runs at full speed
 
-    def on_contact(self, msg: Contact, ctx: Context) -> None:
-        v = self.detector.step(msg, msg.header.stamp_ns, tactile_frame=msg.header.sources.get("tactile"))
+    def on_contact(self, msgs: tuple[Contact, ...], ctx: Context) -> None:
+        detector = self.detector
+        examined = detector.samples_examined
+        for msg in msgs:
+            v = detector.step(msg, msg.header.stamp_ns, tactile_frame=msg.header.sources.get("tactile"))
+        ctx.count("slip_test.samples_examined", detector.samples_examined - examined)
         if not v.solver_status.usable:
             ctx.count(f"slip.{v.solver_status.value}")
         if v.status == _WITHOUT_TACTILE and not self._said_without_tactile:

@@ -203,14 +203,21 @@ class NodeHost:
         as received); ``rejection``: why it failed the decoder's checks
         (:func:`~slipstack.messages.base.handed_over`): then it is counted as rejected and not
         handled, as its frame would be on the bus."""
+        if self.accept_local(input_name, msg, rejection) is not None:
+            self.dispatch(input_name, msg)
+
+    def accept_local(self, input_name: str, msg: Message, rejection: str | None = None) -> Message | None:
+        """Count a message handed over in-process as received, and as rejected when
+        ``rejection`` says why it fails the decoder's checks; the message, or ``None`` if rejected
+        (a ``batch`` input gathers the accepted ones before its handler runs)."""
         counters = self.counters
         received, rejected, _, _ = self._in_keys[input_name]
         counters[received] += 1
         if rejection is not None:
             counters[rejected] += 1
             self.last_error = f"{self.input_topics[input_name]}: {rejection}"
-            return
-        self.dispatch(input_name, msg)
+            return None
+        return msg
 
     def skip(self, input_name: str, n: int) -> None:
         """Count ``n`` frames received but skipped undecoded for a newer one (drain-to-latest)."""

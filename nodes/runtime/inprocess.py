@@ -9,7 +9,9 @@ object with its new header, as inside a container (``messages.handed_over``,
 by each subscriber, as on the bus. It is encoded only for
 :attr:`~InProcessExecutor.published` and ``on_frame``.
 Events, timers, deadlines and the messages nodes publish are processed in time order
-(ties: in the order they were scheduled), so a run is bit-for-bit repeatable.
+(ties: in the order they were scheduled), so a run is bit-for-bit repeatable. A
+``batch`` input takes the messages due for it at one instant, one after the other in
+that order, in one call (a driver's device read of several samples).
 :meth:`~InProcessExecutor.advance` moves the simulated clock; a whole
 launch file runs this way with ``slipstack launch --lockstep`` (``launch/lockstep.py``).
 
@@ -111,6 +113,8 @@ class InProcessExecutor:
         self._io_hosts = [h for h in self.hosts if type(h.node).next_deadline_ns is not Node.next_deadline_ns
                           and type(h.node).io_sources is not Node.io_sources]
         self._by_name = {h.name: h for h in self.hosts}
+        self._batch_depths = {(id(h), n): i.depth for h in self.hosts for n, i in h.node.inputs.items()
+                              if i.policy == "batch"}
 
     # -- the public driving API ----------------------------------------------------------
     @property
@@ -212,7 +216,9 @@ class InProcessExecutor:
             host = item[1]
             if host.shutdown_requested:
                 continue
-            if kind == "message":
+            if kind in ("message", "frame") and (id(host), item[2]) in self._batch_depths:
+                self._run_batch(item, t_ns)
+            elif kind == "message":
                 _, host, input_name, (msg, rejection) = item
                 host.receive_local(input_name, msg, rejection)
             elif kind == "frame":
@@ -241,6 +247,27 @@ class InProcessExecutor:
                 ending = True
         if until_ns is not None:
             self.now = max(self.now, until_ns)
+
+    def _run_batch(self, first: tuple, t_ns: int) -> None:
+        """``first`` and the messages for the same ``batch`` input due next at ``t_ns``, in one
+        call; those beyond the input's depth, the oldest, are counted as received and dropped."""
+        _, host, input_name, _ = first
+        items = [first]
+        queue = self._queue
+        while queue and queue[0][0] == t_ns:
+            nxt = queue[0][3]
+            if nxt[0] not in ("message", "frame") or nxt[1] is not host or nxt[2] != input_name:
+                break
+            items.append(heapq.heappop(queue)[3])
+        overflow = max(len(items) - self._batch_depths[(id(host), input_name)], 0)
+        host.skip(input_name, overflow)
+        msgs = []
+        for kind, _, _, delivered in items[overflow:]:
+            msg = host.accept_local(input_name, *delivered) if kind == "message" else host.receive(input_name, delivered)
+            if msg is not None:
+                msgs.append(msg)
+        if msgs:
+            host.dispatch(input_name, tuple(msgs))
 
     def _schedule_deadline(self, host: NodeHost) -> None:
         due = host.node.next_deadline_ns()

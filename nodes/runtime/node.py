@@ -30,7 +30,10 @@ from slipstack.lib.config import read_typed
 from slipstack.lib.errors import ConfigError
 from slipstack.messages import Message
 
-__all__ = ["Input", "Output", "Node", "Context", "IoSource", "NoParams", "make_params", "param_help"]
+__all__ = ["INPUT_POLICIES", "Input", "Output", "Node", "Context", "IoSource", "NoParams", "make_params", "param_help"]
+
+INPUT_POLICIES = ("latest", "queue", "batch")
+"""How an input hands its messages to the handler (:class:`Input`)."""
 
 
 @dataclass(frozen=True)
@@ -40,7 +43,11 @@ class Input:
     topic: default topic name (a launch file may remap it).
     type: message type expected; other types are rejected and counted.
     policy: ``latest`` (drain to the newest, count the skipped ones as dropped — for
-        control data) or ``queue`` (handle every message, bounded by ``depth``).
+        control data), ``queue`` (handle every message, one call each, bounded by
+        ``depth``) or ``batch`` (one call per wake-up with every valid message queued
+        since the last one, oldest first, as a tuple: ``on_<input>(self, msgs, ctx)``;
+        at most ``depth`` of them, the older overflow counted as dropped — for a fast
+        sensor stream whose every sample matters at the wake-up rate).
     """
 
     topic: str
@@ -49,8 +56,10 @@ class Input:
     depth: int = 100
 
     def __post_init__(self) -> None:
-        if self.policy not in ("latest", "queue"):
-            raise ConfigError(f"input policy must be 'latest' or 'queue', got {self.policy!r}")
+        if self.policy not in INPUT_POLICIES:
+            raise ConfigError(f"input policy must be one of {', '.join(INPUT_POLICIES)}, got {self.policy!r}")
+        if self.depth < 1:
+            raise ConfigError(f"input depth must be >= 1, got {self.depth!r}")
 
 
 @dataclass(frozen=True)

@@ -5,9 +5,9 @@ Life cycle: bind the XPUB, connect the SUBs, call ``node.start``, report *ready*
 the launcher, then hold all data flow (timers, device I/O, handlers) until every
 subscriber the launch graph expects has subscribed — so nobody misses the first
 message — and run the loop until SIGINT/SIGTERM. Timers are paced by absolute
-deadlines; inputs are drained to the newest frame (``latest``) or queued
-(``queue``); every drop and rejected frame is counted and published on
-``diagnostics``.
+deadlines; inputs are drained to the newest frame (``latest``), queued
+(``queue``) or handed over as one tuple of what the wake-up found (``batch``); every
+drop and rejected frame is counted and published on ``diagnostics``.
 
 Work per wake-up is bounded. A ``latest`` input reads what is waiting (at most
 :data:`_DRAIN_LIMIT` frames) and decodes only from the newest back to the first
@@ -26,7 +26,8 @@ sees the same graph; a message one member publishes to another is also handed ov
 in-process — the same object with its header, no encode/decode, no socket hop, no
 wake-up of another process — right after the publishing handler returns (the
 launcher leaves those publishers out of the member's SUB sockets: ``RunSpec.local``);
-a ``latest`` input handed several at once handles the newest. A publication no
+a ``latest`` input handed several at once handles the newest, a ``batch`` input all
+of them in one call. A publication no
 subscriber outside the process wants is not encoded nor sent (the XPUB is polled for
 (un)subscriptions, so a tool that subscribes gets the next one).
 """
@@ -148,7 +149,7 @@ class _Member:
         # like loss. One more SUB, bound, takes frames injected by tools.
         self.sub_topic: dict[zmq.Socket, tuple[str, bytes, str]] = {}
         for input_name, topic in self.host.input_topics.items():
-            hwm = 1000 if node.inputs[input_name].policy == "queue" else 100
+            hwm = 100 if node.inputs[input_name].policy == "latest" else 1000
             for origin in spec.subs.get(topic, []):
                 sock = make_sub(zctx, [origin], topic, rcvhwm=hwm)
                 self.sub_topic[sock] = (input_name, topic.encode(), origin)
@@ -167,6 +168,7 @@ class _Member:
                 secure_bind(self.inject_sock, endpoint)
                 self.inject_sock.bind(endpoint)
         self.queues = {n: deque(maxlen=i.depth) for n, i in node.inputs.items() if i.policy == "queue"}
+        self.batch_depths = {n: i.depth for n, i in node.inputs.items() if i.policy == "batch"}
         self.watches_io = type(node).io_sources is not Node.io_sources
         self.has_deadline = type(node).next_deadline_ns is not Node.next_deadline_ns
         self.precise = bool(node.timers) and getattr(node, "precise_timers", False)
@@ -261,7 +263,10 @@ class _Member:
             stage.enter(resume)
         queue = self.queues.get(input_name)
         if queue is None:
-            self._dispatch_newest(input_name, payloads, origin)
+            if input_name in self.batch_depths:
+                self._dispatch_batch(input_name, payloads, origin)
+            else:
+                self._dispatch_newest(input_name, payloads, origin)
             return
         for payload in payloads:
             msg = host.receive(input_name, payload, origin)
@@ -284,14 +289,31 @@ class _Member:
                 return
         host.skip(input_name, max(len(payloads) - _DECODE_TRIES, 0))
 
+    def _dispatch_batch(self, input_name: str, payloads: list[bytes], origin: str) -> None:
+        """Handle the valid frames of a ``batch`` input's backlog in one call, oldest first; the
+        frames beyond its depth, oldest first, are skipped undecoded (received and dropped)."""
+        host = self.host
+        overflow = max(len(payloads) - self.batch_depths[input_name], 0)
+        host.skip(input_name, overflow)
+        msgs = []
+        for k in range(overflow, len(payloads)):
+            msg = host.receive(input_name, payloads[k], origin, skipped=overflow)
+            if msg is not None:
+                msgs.append(msg)
+                overflow = 0  # the skipped frames fill the sequence gap before the first valid one only
+        if msgs:
+            host.dispatch(input_name, tuple(msgs))
+
     def drain_injected(self, now_ns: int) -> None:
         """Frames put in by tools, within the node's injection rate: a ``queue`` input
-        handles each valid one in order, a ``latest`` input the newest valid one. Sets
+        handles each valid one in order, a ``latest`` input the newest valid one, a ``batch``
+        input its valid ones in one call (at most its depth, the newest). Sets
         :attr:`inject_resume_ns` when a flood calls for a pause (module docstring)."""
         host = self.host
         bucket = self.inject_bucket
         bucket.refill(now_ns)
         newest: dict[str, Message] = {}
+        batches: dict[str, list[Message]] = {}
         over_rate = 0
         for _ in range(_INJECT_READ_LIMIT):
             if not self.inject_sock.getsockopt(_EVENTS) & _POLLIN:
@@ -316,6 +338,8 @@ class _Member:
                     continue
                 if input_name in self.queues:
                     host.dispatch(input_name, msg)
+                elif input_name in self.batch_depths:
+                    batches.setdefault(input_name, []).append(msg)
                 else:
                     if input_name in newest:
                         host.count_dropped(input_name, 1)
@@ -324,6 +348,10 @@ class _Member:
             host.count("inject.dropped_rate", over_rate)
         for input_name, msg in newest.items():
             host.dispatch(input_name, msg)
+        for input_name, msgs in batches.items():
+            depth = self.batch_depths[input_name]
+            host.count_dropped(input_name, max(len(msgs) - depth, 0))
+            host.dispatch(input_name, tuple(msgs[-depth:]))
 
     def watch_io(self, poller: zmq.Poller, handlers: dict) -> None:
         """Keep the poller in step with the node's current descriptors."""
@@ -413,7 +441,12 @@ class ProcessExecutor:
                     for input_name, t in m.host.input_topics.items():
                         if t == topic:
                             self._routes.setdefault((pub, topic), []).append((m, input_name))
-        self._handover: deque[tuple[_Member, str, tuple[Message, str | None]]] = deque()  # (message, rejection)
+        self._handover: deque[tuple[_Member, str, tuple[Message, str | None] | None]] = deque()  # (message, rejection)
+        # (member, input) of a ``batch`` input → its (message, rejection) pairs gathered for one call
+        # (the hand-over queue holds ``None`` in their place, once)
+        self._batch_waiting: dict[tuple[_Member, str], list[tuple[Message, str | None]]] = {
+            (m, n): [] for m in self.members for n in m.batch_depths
+        }
         # (member, input) of a ``latest`` input → its messages in the hand-over queue
         self._latest_queued: dict[tuple[_Member, str], int] = {
             (m, n): 0 for m in self.members for n, i in m.node.inputs.items() if i.policy == "latest"
@@ -427,14 +460,21 @@ class ProcessExecutor:
         routes = self._routes
         handover = self._handover
         latest_queued = self._latest_queued
+        batch_waiting = self._batch_waiting
 
         def hand_over(topic: str, msg: Message, header: Header) -> None:
             targets = routes.get((publisher, topic))
             if targets:
                 delivered = handed_over(msg, header)
                 for member, input_name in targets:
-                    handover.append((member, input_name, delivered))
                     key = (member, input_name)
+                    batch = batch_waiting.get(key)
+                    if batch is not None:
+                        if not batch:
+                            handover.append((member, input_name, None))
+                        batch.append(delivered)
+                        continue
+                    handover.append((member, input_name, delivered))
                     if key in latest_queued:
                         latest_queued[key] += 1
 
@@ -443,12 +483,17 @@ class ProcessExecutor:
     def _run_handovers(self) -> None:
         """Messages published to members of this process, in order (new ones appended while
         running); a ``latest`` input with a newer message waiting skips the older one, as
-        its bus socket would (a driver in the container publishes a device read's batch)."""
+        its bus socket would (a driver in the container publishes a device read's batch); a
+        ``batch`` input takes all of its waiting messages in one call."""
         handover = self._handover
         latest_queued = self._latest_queued
         while handover:
-            member, input_name, (msg, rejection) = handover.popleft()
+            member, input_name, delivered = handover.popleft()
             key = (member, input_name)
+            if delivered is None:
+                self._run_batch(member, input_name, self._batch_waiting[key])
+                continue
+            msg, rejection = delivered
             waiting = latest_queued.get(key)
             if waiting is not None:
                 latest_queued[key] = waiting - 1
@@ -456,6 +501,18 @@ class ProcessExecutor:
                     member.host.skip(input_name, 1)
                     continue
             member.host.receive_local(input_name, msg, rejection)
+
+    @staticmethod
+    def _run_batch(member: _Member, input_name: str, waiting: list[tuple[Message, str | None]]) -> None:
+        """The messages handed over to a ``batch`` input since its last call, in one call
+        (emptied); those beyond its depth, the oldest, are counted as received and dropped."""
+        host = member.host
+        overflow = max(len(waiting) - member.batch_depths[input_name], 0)
+        host.skip(input_name, overflow)
+        msgs = tuple(m for m, rejection in waiting[overflow:] if host.accept_local(input_name, m, rejection) is not None)
+        waiting.clear()
+        if msgs:
+            host.dispatch(input_name, msgs)
 
     def _on_signal(self, signum: int, frame: Any) -> None:
         self._stopping = True

@@ -469,3 +469,16 @@ def test_fail_safe_while_starting_and_after_the_scene_is_kept_apart_from_the_run
     assert (stats.count, stats.fail_safe, stats.starting) == (110, 12, 3)
     assert stats.judged(with_rig=True) == (100, 2)
     assert stats.judged(with_rig=False) == (107, 9)  # on hardware the tail is a real hold
+
+
+def test_the_summary_counts_the_ft_samples_fusion_received_carried_and_the_slip_test_judged(tmp_path):
+    events = [(t * MS, "rig/truth", _truth(t * MS)) for t in range(100)]
+    events.append((60 * MS, "diagnostics", _diag("fusion", 60 * MS, **{"in.ft/wrench.received": 7000,
+                                                                       "fusion.samples": 7000})))
+    events.append((61 * MS, "diagnostics", _diag("slip_detector", 61 * MS, **{"slip_test.samples_examined": 6990})))
+    s, logs, _ = monitor_over(events, tmp_path)
+    assert s["ft_samples"] == {"received": 7000, "carried": 7000, "judged": 6990}
+    assert s["skipped_for_newer"] == {}
+    assert any("samples not examined (skipped for a newer one, or beyond a batch's depth): none" in line
+               for line in logs)
+    assert any("F/T samples: 7000 received by fusion, 7000 carried in contacts, 6990 judged" in line for line in logs)

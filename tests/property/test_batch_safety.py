@@ -1,0 +1,78 @@
+"""Safety with batched F/T samples (docs/safety.md): through the real fusion, slip
+detector and grip controller on the in-process executor, F/T samples arrive several at
+one instant (one wake-up's batch, as at 7 kHz), some of them stale, disconnected or
+zeroed (a biased sensor beside a pressed pad). A command derived from a batch that held
+an unusable sample is ``fail-safe`` and never lower than the one before, whichever
+sample of the batch it was; only a batch of good samples may lower the grip."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from slipstack.messages import Header, TactileFrame, Wrench
+from slipstack.nodes.fusion import Fusion, FusionParams
+from slipstack.nodes.grip_controller import GripController, GripControllerParams
+from slipstack.nodes.runtime.inprocess import InProcessExecutor
+from slipstack.nodes.slip_detector import SlipDetector, SlipDetectorParams
+
+MS = 1_000_000
+PERIOD_NS = 143_000  # 7 kHz
+F_NOM, F_MAX, RATE, MU = 2.0, 20.0, 200.0, 0.45
+PITCH_M = 1.25e-3
+BAD = ("stale", "disconnected", "zero")
+
+sample = st.tuples(st.sampled_from(("ok",) * 6 + BAD), st.floats(1.0, 10.0), st.floats(-1.2, 1.2))
+wake_ups = st.lists(st.lists(sample, min_size=1, max_size=8), min_size=3, max_size=40)
+
+
+def _tactile(f_n: float, stamp: int) -> TactileFrame:
+    p = np.zeros((16, 16), dtype=np.float32)
+    p[5:11, 5:11] = f_n / (36 * PITCH_M**2)
+    return TactileFrame(rows=16, cols=16, pitch_m=PITCH_M, pressure_pa=p.reshape(-1), saturated=np.zeros(256, bool),
+                        dead=np.zeros(256, bool), header=Header(stamp, stamp, stamp, {}))
+
+
+@settings(max_examples=40, deadline=None)
+@given(wake_ups=wake_ups, law=st.sampled_from(["exact", "linear"]))
+def test_an_unusable_sample_in_a_batch_never_lets_the_grip_drop(wake_ups, law):
+    ex = InProcessExecutor([
+        Fusion(FusionParams()),
+        SlipDetector(SlipDetectorParams(method="exact", mu=MU, also=[])),
+        GripController(GripControllerParams(law=law, mu=MU, beta_m=2.5e-3, f_nom_n=F_NOM, f_max_n=F_MAX,
+                                            max_rate_n_per_s=RATE)),
+    ])
+    events, bad_batch = [], {}
+    t, seq = MS, 0
+    for batch in wake_ups:
+        arrive = t + len(batch) * PERIOD_NS
+        events.append((arrive - PERIOD_NS // 2, "tactile/frame", _tactile(batch[-1][1], arrive - PERIOD_NS // 2)))
+        for fault, f_n, load in batch:
+            t += PERIOD_NS
+            seq += 1
+            f = 0.0 if fault == "zero" else f_n
+            status = fault if fault in ("stale", "disconnected") else "ok"
+            events.append((arrive, "ft/wrench", Wrench(
+                force=np.array([load * MU * f, 0.0, -f]), torque=np.zeros(3), frame="pad", status=status,
+                header=Header(t, seq, t, {}))))
+        bad_batch[t] = any(fault in BAD for fault, _, _ in batch)  # by the newest sample's stamp
+    ex.feed(events)
+    ex.run(until_ns=t + 100 * MS)
+
+    assert all(h.counters.get("handler_errors", 0) == 0 for h in ex.hosts), ex.logs[-3:]
+    fusion = ex.host("fusion").counters
+    assert fusion["fusion.samples"] == fusion["in.ft/wrench.received"] == seq  # every sample reached a contact
+    prev = None
+    for c in ex.published["grip/command"]:
+        f = c.f_n_desired
+        assert math.isfinite(f) and F_NOM - 1e-9 <= f <= F_MAX + 1e-9
+        newest = c.header.sources.get("ft")
+        if newest in bad_batch and bad_batch[newest]:
+            assert c.reason == "fail-safe", f"a batch with an unusable sample drove a {c.reason} command"
+            assert prev is None or f >= prev - 1e-12, f"a batch with an unusable sample lowered the grip {prev} -> {f}"
+        if prev is not None and f < prev - 1e-12:
+            assert newest in bad_batch and not bad_batch[newest], "lowered without a batch of good samples"
+        prev = f
