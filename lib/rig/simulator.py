@@ -32,6 +32,7 @@ import scipy.linalg
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.rig.actuator import FingerActuator
 from slipstack.lib.rig.body import PlanarBody
+from slipstack.lib.rig.bristle_kernels import surface_velocity
 from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.disturbance import DisturbanceMotor
 from slipstack.lib.rig.friction import BristleField
@@ -372,7 +373,10 @@ class Simulator:
         dt = self._dt
         body, br, P = self._body, self._bristles, self._P
         self._update_pressure(self._finger.step(dt))
-        u_n = body.origin_velocity + (1j * body.omega) * P if br.n_sliding else None
+        u_n = None
+        if br.n_sliding:
+            u_n = np.empty_like(P)
+            surface_velocity(body.origin_velocity, body.omega, P, u_n)
         D, e = br.begin(u_n)
         if D is not self._sums_of:  # Σ D terms are reused while the stick set is unchanged
             self._sums_of = D
@@ -395,7 +399,8 @@ class Simulator:
         for _ in range(_MAX_CAP_PASSES):
             v_mid, w_mid = body.solve(dt, s, sp, spp, s_rot, f_total, tau)
             v0_mid = v_mid - 1j * w_mid * ref  # mid velocity at the pad origin
-            u_avg = v0_mid + (1j * w_mid) * P
+            u_avg = np.empty_like(P)
+            surface_velocity(v0_mid, w_mid, P, u_avg)
             fixed = br.limit_slip_damping(D, u_avg)
             if fixed is None:
                 break
