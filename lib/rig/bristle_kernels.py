@@ -26,7 +26,8 @@ from numba.extending import intrinsic
 from slipstack.lib.weber import JIT
 
 __all__ = ["complex_abs", "compile_kernels", "finish_sliding", "linearise_sliding", "advance",
-           "limit_slip_damping", "release_over_cap", "slide_caps", "stick_arrays", "surface_velocity"]
+           "limit_slip_damping", "release_over_cap", "slide_caps", "stick_arrays", "surface_velocity",
+           "take_normal_forces"]
 
 _TINY_SPEED = 1e-300
 """Floor of a speed used as a divisor (m/s): a direction from a zero velocity is 0."""
@@ -178,6 +179,33 @@ def release_over_cap(q: np.ndarray, cap_stick: np.ndarray, cap_static: np.ndarra
 
 
 @njit(**JIT)
+def take_normal_forces(phi: np.ndarray, mu_s: np.ndarray, mu_d: np.ndarray, contact: np.ndarray,
+                       z: np.ndarray, s: np.ndarray, sliding: np.ndarray, cap_static_out: np.ndarray,
+                       cap_dynamic_out: np.ndarray, cap_weakening_out: np.ndarray) -> int:
+    """New normal forces ``φ_i`` (N): the contact set and the static and dynamic caps.
+
+    A taxel entering or leaving contact (``φ_i > 0``) restarts relaxed and sticking
+    (``z = 0``, ``s = 0``). Writes ``μ_s φ``, ``μ_d φ`` and their difference (N).
+    Returns the number of taxels whose contact changed.
+    """
+    changed = 0
+    for i in range(phi.shape[0]):
+        touching = phi[i] > 0.0
+        if touching != contact[i]:
+            contact[i] = touching
+            z[i] = 0j
+            s[i] = 0.0
+            sliding[i] = False
+            changed += 1
+        cap_static = mu_s[i] * phi[i]
+        cap_dynamic = mu_d[i] * phi[i]
+        cap_static_out[i] = cap_static
+        cap_dynamic_out[i] = cap_dynamic
+        cap_weakening_out[i] = cap_static - cap_dynamic
+    return changed
+
+
+@njit(**JIT)
 def slide_caps(cap_dynamic: np.ndarray, cap_weakening: np.ndarray, weakening: np.ndarray,
                sliding: np.ndarray, cap_slide_out: np.ndarray, cap_slide_tol_out: np.ndarray) -> None:
     """Slip-weakened caps ``μ_d φ + (μ_s − μ_d) φ·weakening`` (N), ``weakening = exp(−s/d_c)``;
@@ -227,5 +255,6 @@ def compile_kernels() -> None:
     limit_slip_damping(f, c, f, f, f.copy(), f.copy())
     finish_sliding(c, c, f, f, b.copy(), f, 1.0, 1e-3, c.copy(), f.copy())
     release_over_cap(c, f, f, 1.0, c.copy(), b.copy(), f.copy())
+    take_normal_forces(f, f, f, b.copy(), c.copy(), f.copy(), b.copy(), f.copy(), f.copy(), f.copy())
     slide_caps(f, f, f, b, f.copy(), f.copy())
     stick_arrays(b, b, f, f, 1.0, 1.0, 1e-3, f.copy(), f.copy(), f.copy(), np.zeros((n, 2)), f.copy(), f.copy())

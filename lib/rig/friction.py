@@ -118,20 +118,12 @@ class BristleField:
 
     def set_normal_forces(self, phi: np.ndarray) -> None:
         """Take new normal forces ``φ_i`` (N). Taxels leaving contact relax to z = 0."""
-        contact = phi > 0.0
-        if not np.array_equal(contact, self._contact):
-            # z of taxels out of contact is not kept (it follows the body for free);
-            # a taxel entering contact starts relaxed, one leaving releases its energy.
-            changed = self._contact ^ contact
-            self.z[changed] = 0.0
-            self.s[changed] = 0.0
-            self.sliding[changed] = False
-            self._contact = contact
+        # z of taxels out of contact is not kept (it follows the body for free); a taxel
+        # entering contact starts relaxed, one leaving releases its energy.
+        if kernels.take_normal_forces(phi, self.mu_s, self.mu_d, self._contact, self.z, self.s, self.sliding,
+                                      self._cap_static, self._cap_dynamic, self._cap_weakening):
             self._n_sliding = int(self.sliding.sum())
         self.phi = phi
-        self._cap_static = self.mu_s * phi
-        self._cap_dynamic = self.mu_d * phi
-        self._cap_weakening = self._cap_static - self._cap_dynamic
         self._update_caps()
         self._update_stick_arrays()
 

@@ -276,3 +276,40 @@ def test_caps_and_stick_arrays_match_the_numpy_formula(t, dt):
                 (c + 0.5 * k * dt) * stick, -k * stick]
     for got, want in zip(outs, expected):
         np.testing.assert_array_equal(got, want)
+
+
+def test_take_normal_forces_restarts_taxels_entering_or_leaving_contact():
+    phi = np.array([2.0, 0.0, 1.0])
+    contact = np.array([True, True, False])  # the second leaves, the third enters
+    z = np.array([1e-4 + 1e-4j, 2e-4 + 0j, 3e-4j])
+    s = np.array([1e-3, 2e-3, 3e-3])
+    sliding = np.array([True, True, True])
+    caps = [np.empty(3) for _ in range(3)]
+    assert kernels.take_normal_forces(phi, np.full(3, 0.5), np.full(3, 0.25), contact, z, s, sliding, *caps) == 2
+    np.testing.assert_array_equal(contact, [True, False, True])
+    np.testing.assert_array_equal(z, [1e-4 + 1e-4j, 0j, 0j])
+    np.testing.assert_array_equal(s, [1e-3, 0.0, 0.0])
+    np.testing.assert_array_equal(sliding, [True, False, False])
+    for got, want in zip(caps, ([1.0, 0.0, 0.5], [0.5, 0.0, 0.25], [0.5, 0.0, 0.25])):
+        np.testing.assert_array_equal(got, want)
+
+
+@given(_taxel_state())
+def test_take_normal_forces_matches_the_numpy_formula(t):
+    """set_normal_forces() of b737fcd."""
+    n = t["s"].size
+    phi = t["cap"] * (t["damping"] > 1.0)
+    old_contact = t["u_n"].real > 0.0
+    mu_s, mu_d = 0.5 + t["s"], 0.3 + t["s"]
+    contact, z, s, sliding = old_contact.copy(), t["z"].copy(), t["s"].copy(), t["sliding"].copy()
+    caps = [np.empty(n) for _ in range(3)]
+    n_changed = kernels.take_normal_forces(phi, mu_s, mu_d, contact, z, s, sliding, *caps)
+    ref_contact = phi > 0.0
+    changed = old_contact ^ ref_contact
+    ref_z, ref_s, ref_sliding = t["z"].copy(), t["s"].copy(), t["sliding"].copy()
+    ref_z[changed], ref_s[changed], ref_sliding[changed] = 0.0, 0.0, False
+    assert n_changed == changed.sum()
+    for got, want in zip((contact, z, s, sliding), (ref_contact, ref_z, ref_s, ref_sliding)):
+        np.testing.assert_array_equal(got, want)
+    for got, want in zip(caps, (mu_s * phi, mu_d * phi, mu_s * phi - mu_d * phi)):
+        np.testing.assert_array_equal(got, want)
