@@ -17,8 +17,10 @@ have one entry per taxel (shape (N,)); ``*_out`` arrays are written in place.
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 
 import numpy as np
+from numba import config as numba_config
 from numba import njit
 from numba.core import types
 from numba.extending import intrinsic
@@ -33,15 +35,25 @@ _TINY_SPEED = 1e-300
 """Floor of a speed used as a divisor (m/s): a direction from a zero velocity is 0."""
 
 
+def _exact_fused_multiply_add(a: float, b: float, c: float) -> float:
+    """``a·b + c`` rounded once, in Python (exact rationals; the float conversion rounds
+    to nearest): what the FMA instruction gives, for interpreted runs."""
+    return float(Fraction(a) * Fraction(b) + Fraction(c))
+
+
 @intrinsic
-def _fused_multiply_add(typingctx, a, b, c):
-    """``a·b + c`` rounded once (the FMA instruction), as numpy's SIMD loops use it."""
+def _fma_instruction(typingctx, a, b, c):
+    """``a·b + c`` rounded once: the FMA instruction, as numpy's SIMD loops use it."""
     sig = types.float64(types.float64, types.float64, types.float64)
 
     def codegen(context, builder, signature, args):
         return builder.fma(*args)
 
     return sig, codegen
+
+
+# NUMBA_DISABLE_JIT=1 (the mutation runner's --interpreted) cannot call an intrinsic
+_fused_multiply_add = _exact_fused_multiply_add if numba_config.DISABLE_JIT else _fma_instruction
 
 
 @njit(**JIT)
