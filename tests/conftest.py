@@ -22,7 +22,7 @@ import os
 from hypothesis import HealthCheck, settings
 
 from slipstack.lib.limit_set import compile_kernels
-from slipstack.lib.rig.bristle_kernels import compile_kernels as compile_rig_kernels
+from slipstack.lib.rig.simulator import compile_kernels as compile_rig_kernels
 
 _COMMON = {"deadline": None, "suppress_health_check": [HealthCheck.too_slow]}
 settings.register_profile("ci", derandomize=True, database=None, max_examples=100, **_COMMON)

@@ -31,6 +31,7 @@ import numpy as np
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.rig.actuator import FingerActuator
 from slipstack.lib.rig.body import PlanarBody
+from slipstack.lib.rig import bristle_kernels, pressure_kernels
 from slipstack.lib.rig.bristle_kernels import surface_velocity
 from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.disturbance import DisturbanceMotor
@@ -39,7 +40,7 @@ from slipstack.lib.rig.scene import Scene
 from slipstack.lib.rig.sensors import FtSensorModel, TactileSensorModel
 from slipstack.lib.samples import FtSample, TactileSample
 
-__all__ = ["Truth", "TaxelState", "Sample", "Simulator", "GROSS_SLIP_FRACTION", "MAX_OMEGA_DT"]
+__all__ = ["Truth", "TaxelState", "Sample", "Simulator", "GROSS_SLIP_FRACTION", "MAX_OMEGA_DT", "compile_kernels"]
 
 GROSS_SLIP_FRACTION = 0.95
 """Gross slip ⇔ slipping taxels account for at least this share of the frictional
@@ -456,3 +457,13 @@ class Simulator:
         scale = 1.0 / np.sqrt(np.array([body.mass, body.mass, body.inertia])[idx])
         eig = np.linalg.eigvalsh(K[np.ix_(idx, idx)] * np.outer(scale, scale))
         return float(math.sqrt(max(eig.max(), 0.0)))
+
+
+def compile_kernels() -> None:
+    """Compile the rig's numba kernels (friction, pressure), or load them from the cache.
+
+    The rig node calls it in ``start``, so no scene pays it on its first slip or
+    Hertzian re-shape; ``make`` and the test suite call it once after install.
+    """
+    bristle_kernels.compile_kernels()
+    pressure_kernels.compile_kernels()
