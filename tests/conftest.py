@@ -22,6 +22,7 @@ import os
 from hypothesis import HealthCheck, settings
 
 from slipstack.lib.limit_set import compile_kernels
+from slipstack.lib.rig.simulator import compile_kernels as compile_rig_kernels
 
 _COMMON = {"deadline": None, "suppress_health_check": [HealthCheck.too_slow]}
 settings.register_profile("ci", derandomize=True, database=None, max_examples=100, **_COMMON)
@@ -29,3 +30,4 @@ settings.register_profile("dev", max_examples=100, **_COMMON)
 settings.register_profile("thorough", max_examples=1000, **_COMMON)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE") or ("ci" if os.environ.get("CI") else "dev"))
 compile_kernels()
+compile_rig_kernels()

@@ -27,7 +27,8 @@ import numpy as np
 
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.pad import PadGeometry
-from slipstack.lib.rig.scene import ContactSpec
+from slipstack.lib.rig.pressure_kernels import MAX_POINTS_PER_CELL, hertz_cell_means
+from slipstack.lib.rig.scene import MAX_SUBSAMPLES, ContactSpec
 
 __all__ = ["PressureModel"]
 
@@ -52,6 +53,8 @@ class PressureModel:
         self._spec = spec
         self._pad = pad
         s = spec.subsamples
+        if not 1 <= s * s <= MAX_POINTS_PER_CELL:
+            raise ConfigError(f"contact.subsamples: {s} is out of range; use 1 to {MAX_SUBSAMPLES}")
         offs = ((np.arange(s) + 0.5) / s - 0.5) * pad.pitch_m
         sub = (offs[None, :] + 1j * offs[:, None]).ravel()
         centres = pad.positions[:, 0] + 1j * pad.positions[:, 1]
@@ -119,7 +122,11 @@ class PressureModel:
         if self._attached:
             o0, th0 = self._pose0
             points = o0 + cmath.exp(1j * (th0 - theta)) * (points - origin)
-        weights = self._pressure(points, f_n).mean(axis=1)
+        if self._spec.model == "hertz":  # re-evaluated often (its shape follows f_n): compiled
+            weights = np.empty(points.shape[0])
+            hertz_cell_means(points, complex(*self._spec.centre_m), self._hertz_radius(f_n), weights)
+        else:
+            weights = self._pressure(points, f_n).mean(axis=1)
         total = float(weights.sum())
         if total > 0.0:
             return weights / total
@@ -133,14 +140,16 @@ class PressureModel:
         out[int(np.argmin(np.abs(self._centres - complex(*self._spec.centre_m))))] = 1.0
         return out
 
+    def _hertz_radius(self, f_n: float) -> float:
+        """Hertzian contact radius ``a = a_ref·(f_n/f_ref)^{1/3}`` (m)."""
+        spec = self._spec
+        return spec.a_ref_m * (max(f_n, 0.0) / spec.f_ref_N) ** (1.0 / 3.0)
+
     def _pressure(self, q: np.ndarray, f_n: float) -> np.ndarray:
-        """Unnormalised pressure at points ``q`` (complex, in the footprint's frame)."""
+        """Unnormalised pressure at points ``q`` (complex, in the footprint's frame) of
+        the models other than hertz (see :func:`hertz_cell_means`)."""
         spec = self._spec
         d = q - complex(*spec.centre_m)
-        if spec.model == "hertz":
-            a = spec.a_ref_m * (max(f_n, 0.0) / spec.f_ref_N) ** (1.0 / 3.0)
-            r2 = (d.real**2 + d.imag**2) / (a * a) if a > 0 else np.full(d.shape, np.inf)
-            return np.sqrt(np.clip(1.0 - r2, 0.0, None))
         if spec.model == "edge":
             b = spec.b_ref_m * (max(f_n, 0.0) / spec.f_ref_N) ** 0.5
             local = d * cmath.exp(-1j * spec.angle_rad)

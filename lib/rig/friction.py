@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from slipstack.lib.rig import bristle_kernels as kernels
 from slipstack.lib.rig.scene import ContactSpec
 
 __all__ = ["BristleField"]
@@ -46,6 +47,9 @@ __all__ = ["BristleField"]
 
 class BristleField:
     """Bristle states of all taxels of a pad (vectorised over taxels).
+
+    The per-taxel loops run in the compiled kernels of
+    :mod:`slipstack.lib.rig.bristle_kernels`; sums over taxels stay numpy's.
 
     Args:
         spec: friction parameters.
@@ -77,17 +81,18 @@ class BristleField:
         self._cap_static = np.zeros(n)
         self._cap_dynamic = np.zeros(n)
         self._cap_weakening = np.zeros(n)
-        self._cap_slide = np.zeros(n)
+        self._cap_slide = np.zeros(n)  # slip cap μ(s)·φ (N); the static cap while none slides
+        self._cap_slide_tol = np.full(n, np.inf)  # 1.001·cap of slipping taxels, inf elsewhere
+        self._cap_stick = np.zeros(n)  # static cap of sticking taxels, inf for slipping ones
         self._slide_mask = np.zeros(n)
         self._dt_slide_mask = np.zeros(n)
+        self._share_weights = np.zeros((n, 2))  # (φ_i, φ_i·slide_i)
         self._stick_damping = np.zeros(n)  # D_i of sticking taxels in contact, else 0
         self._stick_stiffness = np.zeros(n)  # -k for sticking taxels in contact, else 0
-        self._speed_n = np.zeros(n)
+        self._speed_n = np.zeros(n)  # |u_n| at the start of the step (m/s)
+        self._speed_avg = np.zeros(n)  # |ū| of the last velocity checked by limit_slip_damping (m/s)
         self._u_prev: np.ndarray | None = None
         self._slip_share = 0.0
-        self._speed_avg: tuple[np.ndarray | None, np.ndarray] = (None, self._speed_n)
-        self._cap_stick = np.zeros(n)
-        self._cap_slide_tol = np.full(n, np.inf)
 
     @property
     def n_sliding(self) -> int:
@@ -113,20 +118,12 @@ class BristleField:
 
     def set_normal_forces(self, phi: np.ndarray) -> None:
         """Take new normal forces ``φ_i`` (N). Taxels leaving contact relax to z = 0."""
-        contact = phi > 0.0
-        if not np.array_equal(contact, self._contact):
-            # z of taxels out of contact is not kept (it follows the body for free);
-            # a taxel entering contact starts relaxed, one leaving releases its energy.
-            changed = self._contact ^ contact
-            self.z[changed] = 0.0
-            self.s[changed] = 0.0
-            self.sliding[changed] = False
-            self._contact = contact
+        # z of taxels out of contact is not kept (it follows the body for free); a taxel
+        # entering contact starts relaxed, one leaving releases its energy.
+        if kernels.take_normal_forces(phi, self.mu_s, self.mu_d, self._contact, self.z, self.s, self.sliding,
+                                      self._cap_static, self._cap_dynamic, self._cap_weakening):
             self._n_sliding = int(self.sliding.sum())
         self.phi = phi
-        self._cap_static = self.mu_s * phi
-        self._cap_dynamic = self.mu_d * phi
-        self._cap_weakening = self._cap_static - self._cap_dynamic
         self._update_caps()
         self._update_stick_arrays()
 
@@ -139,7 +136,8 @@ class BristleField:
 
         Returns:
             ``(D, e)``: damping coefficients (N·s/m, shape (N,)) and explicit forces
-            (complex N, shape (N,)).
+            (complex N, shape (N,)). ``D`` is a new array whenever its values may have
+            changed (the caller may key cached sums of it on its identity).
         """
         e = self._stick_stiffness * self.z
         if self._n_sliding == 0:
@@ -148,13 +146,12 @@ class BristleField:
         u_prev, self._u_prev = self._u_prev, u_n
         if u_prev is None:
             u_prev = u_n
-        self._speed_n = np.abs(u_n)
         # Expected mid-step speed: extrapolate when accelerating (else the force would
         # exceed the cap by |ū|/|u_n|), never below |u_n| (decelerating: force ≤ cap).
-        speed = np.abs(1.5 * u_n - 0.5 * u_prev)
-        np.maximum(speed, self._speed_n, out=speed)
-        np.maximum(speed, self._v_reg, out=speed)
-        return np.where(self.sliding, self._cap_slide / speed, self._stick_damping), e
+        damping = np.empty(self.phi.shape[0])
+        kernels.linearise_sliding(u_n, u_prev, self.sliding, self._cap_slide, self._stick_damping,
+                                  self._v_reg, self._speed_n, damping)
+        return damping, e
 
     def limit_slip_damping(self, D: np.ndarray, u_avg: np.ndarray) -> np.ndarray | None:
         """Damping that keeps every slipping patch at or below its cap, if needed.
@@ -167,39 +164,33 @@ class BristleField:
         """
         if self._n_sliding == 0:
             return None
-        speed = np.abs(u_avg)
-        self._speed_avg = (u_avg, speed)
-        over = D * speed > self._cap_slide_tol
-        if not over.any():
-            return None
-        return np.where(over, self._cap_slide / np.maximum(speed, 1e-300), D)
+        fixed = np.empty_like(D)
+        if kernels.limit_slip_damping(D, u_avg, self._cap_slide_tol, self._cap_slide, self._speed_avg, fixed):
+            return fixed
+        return None
 
     def finish(self, D: np.ndarray, e: np.ndarray, u_avg: np.ndarray, u_n: np.ndarray) -> np.ndarray:
         """Advance deflections and stick/slip states with the step's mid-point velocity.
 
         Args:
             D, e: as returned by :meth:`begin` for this step.
-            u_avg: mid-point surface velocity ``ū_i`` (complex, m/s).
+            u_avg: mid-point surface velocity ``ū_i`` (complex, m/s); while some taxel
+                slides, the one last given to :meth:`limit_slip_damping`.
             u_n: start-of-step surface velocity (complex, m/s), as given to :meth:`begin`.
 
         Returns:
             ``q``: the force each patch exerts on the object during the step (complex N).
         """
-        q = e - D * u_avg
+        q = np.empty_like(u_avg)
+        z_new = np.empty_like(u_avg)
+        kernels.advance(e, D, u_avg, self.z, self.dt, q, z_new)
         self.q = q
-        z_new = self.z + self.dt * u_avg
         changed = False
         self._slip_share = 0.0
         if self._n_sliding:
             changed = self._advance_sliding(u_avg, u_n, z_new)
-        over = np.abs(q) > self._cap_stick  # only sticking taxels have a finite cap here
-        if over.any():
-            # Release to the static cap along the current deflection; never raises |z|.
-            mag = np.abs(z_new[over])
-            cap = self._cap_static[over] / self.k
-            z_new[over] *= np.minimum(1.0, cap / np.maximum(mag, 1e-300))
-            self.sliding |= over
-            self.s[over] = 0.0
+        # only sticking taxels have a finite cap here
+        if kernels.release_over_cap(q, self._cap_stick, self._cap_static, self.k, z_new, self.sliding, self.s):
             changed = True
         self.z = z_new
         if changed:
@@ -210,9 +201,7 @@ class BristleField:
 
     def _advance_sliding(self, u_avg: np.ndarray, u_n: np.ndarray, z_new: np.ndarray) -> bool:
         """Slip distance, weakening and re-sticking of sliding taxels; edits z_new."""
-        cached_u, speed = self._speed_avg
-        if cached_u is not u_avg:
-            speed = np.abs(u_avg)
+        speed = self._speed_avg  # |u_avg|, from limit_slip_damping
         total, slipping = (speed @ self._share_weights).tolist()
         if total > 0.0:
             self._slip_share = min(1.0, slipping / total)
@@ -224,31 +213,22 @@ class BristleField:
         # A sliding bristle rests deflected along the slip velocity, where its spring
         # force −k z equals the slip force −μφ û (at zero speed it relaxes, which only
         # releases energy).
-        z_slide = u_avg * (self._cap_slide * (1.0 / self.k) / np.maximum(speed, 1e-300))
-        np.copyto(z_new, z_slide, where=self.sliding)
-        restick = ((u_avg * u_n.conj()).real <= 0.0) | ((speed < self._v_stick)
-                                                         & (speed < self._speed_n))
-        restick &= self.sliding
-        if not restick.any():
-            return False
-        self.sliding &= ~restick
-        self.s[restick] = 0.0
-        return True
+        return kernels.finish_sliding(u_avg, u_n, speed, self._speed_n, self.sliding, self._cap_slide,
+                                      1.0 / self.k, self._v_stick, z_new, self.s) > 0
 
     def _update_caps(self) -> None:
         if self._n_sliding:
-            self._cap_slide = self._cap_dynamic + self._cap_weakening * np.exp(
-                self.s * (-1.0 / self._d_c))
-            # cap checked by limit_slip_damping: slipping taxels only, 0.1 % slack
-            self._cap_slide_tol = np.where(self.sliding, 1.001 * self._cap_slide, np.inf)
+            # the weakening factor stays numpy's exp (its rounding differs from libm's)
+            weakening = np.exp(self.s * (-1.0 / self._d_c))
+            kernels.slide_caps(self._cap_dynamic, self._cap_weakening, weakening, self.sliding,
+                               self._cap_slide, self._cap_slide_tol)
         else:
-            self._cap_slide = self._cap_static
+            np.copyto(self._cap_slide, self._cap_static)
 
     def _update_stick_arrays(self) -> None:
-        self._cap_stick = np.where(self.sliding, np.inf, self._cap_static)
-        self._slide_mask = self.sliding.astype(float)
-        self._dt_slide_mask = self.dt * self._slide_mask
-        self._share_weights = np.column_stack([self.phi, self.phi * self._slide_mask])
-        stick = self._contact & ~self.sliding
-        self._stick_damping = (self.c + 0.5 * self.k * self.dt) * stick
-        self._stick_stiffness = -self.k * stick
+        # a new array, so that a caller's sums keyed on its identity are redone
+        self._stick_damping = np.empty(self.phi.shape[0])
+        kernels.stick_arrays(self.sliding, self._contact, self.phi, self._cap_static,
+                             self.c + 0.5 * self.k * self.dt, self.k, self.dt, self._cap_stick,
+                             self._slide_mask, self._dt_slide_mask, self._share_weights,
+                             self._stick_damping, self._stick_stiffness)

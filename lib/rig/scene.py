@@ -38,6 +38,7 @@ from slipstack.lib.toml_file import read_toml
 from slipstack.lib.pad import PadGeometry
 
 __all__ = [
+    "MAX_SUBSAMPLES",
     "ObjectSpec",
     "ContactSpec",
     "DofSpec",
@@ -57,6 +58,10 @@ __all__ = [
     "RIG_MATERIALS",
     "with_rig_material",
 ]
+
+MAX_SUBSAMPLES = 11
+"""Most sample points per taxel side: 121 per taxel, within the 128 that the compiled
+pressure sampling sums in numpy's order (lib/rig/pressure_kernels.py)."""
 
 PRESSURE_MODELS = ("flat", "hertz", "offset", "edge")
 RIG_MATERIALS: dict[str, tuple[float, float]] = {
@@ -111,7 +116,8 @@ class ContactSpec:
             ``b = b_ref_m·(f_n/f_ref_N)^{1/2}``.
     ``moves_with_object`` (default: true except hertz) makes the footprint a part of the
     object, so the pressure image translates and rotates on the pad when it slips.
-    ``subsamples``² points per taxel sample the pressure (small contacts do not alias).
+    ``subsamples``² points per taxel sample the pressure (small contacts do not alias);
+    at most ``MAX_SUBSAMPLES`` (11: 121 points per taxel).
     """
 
     model: str = "flat"
@@ -344,7 +350,7 @@ def _contact(t: ConfigTable) -> ContactSpec:
         stick_speed_m_s=t.real("stick_speed_m_s", d.stick_speed_m_s, lo=0.0, lo_open=True),
         regularisation_speed_m_s=t.real(
             "regularisation_speed_m_s", d.regularisation_speed_m_s, lo=0.0, lo_open=True),
-        subsamples=t.integer("subsamples", d.subsamples, lo=1),
+        subsamples=t.integer("subsamples", d.subsamples, lo=1, hi=MAX_SUBSAMPLES),
         moves_with_object=t.flag("moves_with_object", None),
         footprint=t.text("footprint", d.footprint, choices=("pad", "disc", "rect")),
         centre_m=t.vector("centre_m", 2, d.centre_m),

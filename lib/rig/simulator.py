@@ -27,11 +27,12 @@ from dataclasses import dataclass
 from typing import Iterator, Union
 
 import numpy as np
-import scipy.linalg
 
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.rig.actuator import FingerActuator
 from slipstack.lib.rig.body import PlanarBody
+from slipstack.lib.rig import bristle_kernels, pressure_kernels
+from slipstack.lib.rig.bristle_kernels import surface_velocity
 from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.disturbance import DisturbanceMotor
 from slipstack.lib.rig.friction import BristleField
@@ -39,7 +40,7 @@ from slipstack.lib.rig.scene import Scene
 from slipstack.lib.rig.sensors import FtSensorModel, TactileSensorModel
 from slipstack.lib.samples import FtSample, TactileSample
 
-__all__ = ["Truth", "TaxelState", "Sample", "Simulator", "GROSS_SLIP_FRACTION", "MAX_OMEGA_DT"]
+__all__ = ["Truth", "TaxelState", "Sample", "Simulator", "GROSS_SLIP_FRACTION", "MAX_OMEGA_DT", "compile_kernels"]
 
 GROSS_SLIP_FRACTION = 0.95
 """Gross slip ⇔ slipping taxels account for at least this share of the frictional
@@ -372,7 +373,10 @@ class Simulator:
         dt = self._dt
         body, br, P = self._body, self._bristles, self._P
         self._update_pressure(self._finger.step(dt))
-        u_n = body.origin_velocity + (1j * body.omega) * P if br.n_sliding else None
+        u_n = None
+        if br.n_sliding:
+            u_n = np.empty_like(P)
+            surface_velocity(body.origin_velocity, body.omega, P, u_n)
         D, e = br.begin(u_n)
         if D is not self._sums_of:  # Σ D terms are reused while the stick set is unchanged
             self._sums_of = D
@@ -395,7 +399,8 @@ class Simulator:
         for _ in range(_MAX_CAP_PASSES):
             v_mid, w_mid = body.solve(dt, s, sp, spp, s_rot, f_total, tau)
             v0_mid = v_mid - 1j * w_mid * ref  # mid velocity at the pad origin
-            u_avg = v0_mid + (1j * w_mid) * P
+            u_avg = np.empty_like(P)
+            surface_velocity(v0_mid, w_mid, P, u_avg)
             fixed = br.limit_slip_damping(D, u_avg)
             if fixed is None:
                 break
@@ -446,7 +451,19 @@ class Simulator:
             [0.0, d.size, d.real.sum()],
             [-d.imag.sum(), d.real.sum(), float((d * d.conj()).real.sum())],
         ])
-        M = np.diag([body.mass, body.mass, body.inertia])
+        # M is diagonal: the generalised problem K x = λ M x is the symmetric one of
+        # M^{-1/2} K M^{-1/2} (no scipy: its import alone cost 0.15 s of start-up)
         idx = np.array(body.free)
-        eig = scipy.linalg.eigh(K[np.ix_(idx, idx)], M[np.ix_(idx, idx)], eigvals_only=True)
+        scale = 1.0 / np.sqrt(np.array([body.mass, body.mass, body.inertia])[idx])
+        eig = np.linalg.eigvalsh(K[np.ix_(idx, idx)] * np.outer(scale, scale))
         return float(math.sqrt(max(eig.max(), 0.0)))
+
+
+def compile_kernels() -> None:
+    """Compile the rig's numba kernels (friction, pressure), or load them from the cache.
+
+    The rig node calls it in ``start``, so no scene pays it on its first slip or
+    Hertzian re-shape; ``make`` and the test suite call it once after install.
+    """
+    bristle_kernels.compile_kernels()
+    pressure_kernels.compile_kernels()

@@ -1,0 +1,272 @@
+"""Compiled per-taxel arithmetic of one bristle-friction step (see lib/rig/friction.py).
+
+:class:`~slipstack.lib.rig.friction.BristleField` owns the state and the physics;
+these numba kernels do its element-wise loops over the taxels in one call each,
+instead of a dozen small numpy operations per step. Each kernel evaluates exactly
+the expressions of the numpy code it replaced, element by element and in the same
+order, so a run's results do not change: on this project's machines they are bit
+for bit those of numpy (``complex_abs`` rounds as numpy's ``abs`` of a complex
+does). Sums over taxels are not done here: the caller keeps numpy's (BLAS) for them,
+as their rounding depends on the summation order.
+
+Conventions: planar vectors are complex ``x + i·y`` in the pad frame ``F``;
+velocities m/s, forces N, deflections and slip distances m, damping N·s/m. Arrays
+have one entry per taxel (shape (N,)); ``*_out`` arrays are written in place.
+"""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+
+import numpy as np
+from numba import config as numba_config
+from numba import njit
+from numba.core import types
+from numba.extending import intrinsic
+
+from slipstack.lib.weber import JIT
+
+__all__ = ["complex_abs", "compile_kernels", "finish_sliding", "linearise_sliding", "advance",
+           "limit_slip_damping", "release_over_cap", "slide_caps", "stick_arrays", "surface_velocity",
+           "take_normal_forces"]
+
+_TINY_SPEED = 1e-300
+"""Floor of a speed used as a divisor (m/s): a direction from a zero velocity is 0."""
+
+
+def _exact_fused_multiply_add(a: float, b: float, c: float) -> float:
+    """``a·b + c`` rounded once, in Python (exact rationals; the float conversion rounds
+    to nearest): what the FMA instruction gives, for interpreted runs."""
+    return float(Fraction(a) * Fraction(b) + Fraction(c))
+
+
+@intrinsic
+def _fma_instruction(typingctx, a, b, c):
+    """``a·b + c`` rounded once: the FMA instruction, as numpy's SIMD loops use it."""
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        return builder.fma(*args)
+
+    return sig, codegen
+
+
+# NUMBA_DISABLE_JIT=1 (the mutation runner's --interpreted) cannot call an intrinsic
+_fused_multiply_add = _exact_fused_multiply_add if numba_config.DISABLE_JIT else _fma_instruction
+
+
+@njit(**JIT)
+def complex_abs(z: complex) -> float:
+    """``|z|`` computed as numpy's vectorised ``abs`` does: ``l·sqrt(fma(s/l, s/l, 1))``
+    with ``l, s`` the larger and smaller of ``|Re z|, |Im z|`` (0 for z = 0; inf if a
+    part is infinite; NaN if a part is NaN and none is infinite)."""
+    re = abs(z.real)
+    im = abs(z.imag)
+    if re == math.inf or im == math.inf:
+        return math.inf
+    if re != re or im != im:
+        return math.nan
+    larger = max(re, im)
+    if larger == 0.0:
+        return 0.0
+    ratio = min(re, im) / larger
+    return math.sqrt(_fused_multiply_add(ratio, ratio, 1.0)) * larger
+
+
+@njit(**JIT)
+def surface_velocity(v_origin: complex, omega: float, positions: np.ndarray, u_out: np.ndarray) -> None:
+    """Surface velocity over each taxel ``u_i = v_0 + i·ω·p_i`` (m/s).
+
+    Args:
+        v_origin: velocity of the body point over the pad origin (complex, m/s).
+        omega: angular rate (rad/s).
+        positions: taxel centres ``p_i`` (complex, m).
+        u_out: receives ``u_i``.
+    """
+    spin = 1j * omega
+    for i in range(positions.shape[0]):
+        u_out[i] = v_origin + spin * positions[i]
+
+
+@njit(**JIT)
+def advance(e: np.ndarray, damping: np.ndarray, u_avg: np.ndarray, z: np.ndarray, dt: float,
+            q_out: np.ndarray, z_out: np.ndarray) -> None:
+    """Forces of the step ``q_i = e_i − D_i ū_i`` (N) and the stuck deflections moved
+    by the step, ``z_i + dt·ū_i`` (m)."""
+    for i in range(u_avg.shape[0]):
+        u = u_avg[i]
+        q_out[i] = e[i] - damping[i] * u
+        z_out[i] = z[i] + dt * u
+
+
+@njit(**JIT)
+def linearise_sliding(u_n: np.ndarray, u_prev: np.ndarray, sliding: np.ndarray, cap_slide: np.ndarray,
+                      stick_damping: np.ndarray, v_reg: float, speed_n_out: np.ndarray,
+                      damping_out: np.ndarray) -> None:
+    """Damping ``D_i`` of the coming step while some taxel slides (N·s/m).
+
+    Slipping taxels: ``D_i = cap_i / ŝ_i`` with the expected mid-step speed
+    ``ŝ_i = max(|1.5 u_n − 0.5 u_prev|, |u_n|, v_reg)``; sticking ones keep
+    ``stick_damping``. ``speed_n_out`` receives ``|u_n|``.
+    """
+    for i in range(u_n.shape[0]):
+        speed_n = complex_abs(u_n[i])
+        speed_n_out[i] = speed_n
+        speed = complex_abs(1.5 * u_n[i] - 0.5 * u_prev[i])
+        speed = max(speed, speed_n)
+        speed = max(speed, v_reg)
+        damping_out[i] = cap_slide[i] / speed if sliding[i] else stick_damping[i]
+
+
+@njit(**JIT)
+def limit_slip_damping(damping: np.ndarray, u_avg: np.ndarray, cap_slide_tol: np.ndarray,
+                       cap_slide: np.ndarray, speed_out: np.ndarray, damping_out: np.ndarray) -> bool:
+    """Cap check of the slipping taxels after a solve.
+
+    ``speed_out`` receives ``|ū_i|``. Where ``D_i |ū_i| > cap_tol_i`` (a slipping
+    patch over its cap plus slack; sticking taxels have an infinite tolerance),
+    ``damping_out`` gets ``cap_i / |ū_i|``, elsewhere ``D_i``. Returns True if any
+    taxel was over (``damping_out`` then differs from ``damping``).
+    """
+    over_any = False
+    for i in range(u_avg.shape[0]):
+        speed = complex_abs(u_avg[i])
+        speed_out[i] = speed
+        if damping[i] * speed > cap_slide_tol[i]:
+            over_any = True
+            damping_out[i] = cap_slide[i] / max(speed, _TINY_SPEED)
+        else:
+            damping_out[i] = damping[i]
+    return over_any
+
+
+@njit(**JIT)
+def finish_sliding(u_avg: np.ndarray, u_n: np.ndarray, speed: np.ndarray, speed_n: np.ndarray,
+                   sliding: np.ndarray, cap_slide: np.ndarray, inv_k: float, v_stick: float,
+                   z_new: np.ndarray, s: np.ndarray) -> int:
+    """Deflection and re-sticking of the slipping taxels at the end of a step.
+
+    A slipping bristle rests along the slip velocity, ``z_i = ū_i·cap_i/(k |ū_i|)``,
+    written into ``z_new``. It sticks again when the velocity reverses within the
+    step (``Re(ū_i·conj(u_n,i)) ≤ 0``) or falls below ``v_stick`` while decelerating;
+    such taxels leave ``sliding`` and their slip distance ``s`` restarts at 0.
+
+    Returns:
+        The number of taxels that stuck again.
+    """
+    restuck = 0
+    for i in range(u_avg.shape[0]):
+        if not sliding[i]:
+            continue
+        u = u_avg[i]
+        z_new[i] = u * (cap_slide[i] * inv_k / max(speed[i], _TINY_SPEED))
+        un = u_n[i]
+        reversed_ = u.real * un.real + u.imag * un.imag <= 0.0
+        if reversed_ or (speed[i] < v_stick and speed[i] < speed_n[i]):
+            sliding[i] = False
+            s[i] = 0.0
+            restuck += 1
+    return restuck
+
+
+@njit(**JIT)
+def release_over_cap(q: np.ndarray, cap_stick: np.ndarray, cap_static: np.ndarray, k: float,
+                     z_new: np.ndarray, sliding: np.ndarray, s: np.ndarray) -> int:
+    """Sticking taxels whose force ``|q_i|`` exceeds the static cap start to slip.
+
+    Their deflection shrinks to the static cap along itself (``|z| ≤ cap/k``: never
+    raised), they enter ``sliding`` with slip distance 0. ``cap_stick`` is infinite
+    for taxels already slipping. Returns the number of taxels released.
+    """
+    released = 0
+    for i in range(q.shape[0]):
+        if complex_abs(q[i]) > cap_stick[i]:
+            mag = complex_abs(z_new[i])
+            z_new[i] *= min(1.0, (cap_static[i] / k) / max(mag, _TINY_SPEED))
+            sliding[i] = True
+            s[i] = 0.0
+            released += 1
+    return released
+
+
+@njit(**JIT)
+def take_normal_forces(phi: np.ndarray, mu_s: np.ndarray, mu_d: np.ndarray, contact: np.ndarray,
+                       z: np.ndarray, s: np.ndarray, sliding: np.ndarray, cap_static_out: np.ndarray,
+                       cap_dynamic_out: np.ndarray, cap_weakening_out: np.ndarray) -> int:
+    """New normal forces ``φ_i`` (N): the contact set and the static and dynamic caps.
+
+    A taxel entering or leaving contact (``φ_i > 0``) restarts relaxed and sticking
+    (``z = 0``, ``s = 0``). Writes ``μ_s φ``, ``μ_d φ`` and their difference (N).
+    Returns the number of taxels whose contact changed.
+    """
+    changed = 0
+    for i in range(phi.shape[0]):
+        touching = phi[i] > 0.0
+        if touching != contact[i]:
+            contact[i] = touching
+            z[i] = 0j
+            s[i] = 0.0
+            sliding[i] = False
+            changed += 1
+        cap_static = mu_s[i] * phi[i]
+        cap_dynamic = mu_d[i] * phi[i]
+        cap_static_out[i] = cap_static
+        cap_dynamic_out[i] = cap_dynamic
+        cap_weakening_out[i] = cap_static - cap_dynamic
+    return changed
+
+
+@njit(**JIT)
+def slide_caps(cap_dynamic: np.ndarray, cap_weakening: np.ndarray, weakening: np.ndarray,
+               sliding: np.ndarray, cap_slide_out: np.ndarray, cap_slide_tol_out: np.ndarray) -> None:
+    """Slip-weakened caps ``μ_d φ + (μ_s − μ_d) φ·weakening`` (N), ``weakening = exp(−s/d_c)``;
+    the checked cap is 1.001 times that for slipping taxels, infinite for sticking ones."""
+    for i in range(cap_dynamic.shape[0]):
+        cap = cap_dynamic[i] + cap_weakening[i] * weakening[i]
+        cap_slide_out[i] = cap
+        cap_slide_tol_out[i] = 1.001 * cap if sliding[i] else math.inf
+
+
+@njit(**JIT)
+def stick_arrays(sliding: np.ndarray, contact: np.ndarray, phi: np.ndarray, cap_static: np.ndarray,
+                 stick_damping: float, k: float, dt: float, cap_stick_out: np.ndarray,
+                 slide_mask_out: np.ndarray, dt_slide_mask_out: np.ndarray, share_weights_out: np.ndarray,
+                 stick_damping_out: np.ndarray, stick_stiffness_out: np.ndarray) -> None:
+    """Per-taxel coefficients that change only when the stick/slip set or ``φ`` changes.
+
+    Writes: ``cap_stick`` (static cap of sticking taxels, inf if slipping), the slip mask
+    (1.0/0.0) and ``dt`` times it, the slip-share weights ``(φ_i, φ_i·mask_i)``
+    (shape (N, 2)), and for sticking taxels in contact the damping ``c + k dt/2`` and
+    stiffness ``−k`` of the step (0 elsewhere).
+    """
+    for i in range(sliding.shape[0]):
+        slide = sliding[i]
+        mask = 1.0 if slide else 0.0
+        stick = contact[i] and not slide
+        cap_stick_out[i] = math.inf if slide else cap_static[i]
+        slide_mask_out[i] = mask
+        dt_slide_mask_out[i] = dt * mask
+        share_weights_out[i, 0] = phi[i]
+        share_weights_out[i, 1] = phi[i] * mask
+        stick_damping_out[i] = stick_damping * stick
+        stick_stiffness_out[i] = -k * stick
+
+
+def compile_kernels() -> None:
+    """Compile these kernels, or load them from numba's cache (a few seconds the first
+    time after an install, well under a second after)."""
+    n = 2
+    c = np.zeros(n, dtype=complex)
+    f = np.ones(n)
+    b = np.array([True, False])
+    complex_abs(1j)
+    surface_velocity(0j, 1.0, c, c.copy())
+    advance(c, f, c, c, 1e-3, c.copy(), c.copy())
+    linearise_sliding(c, c, b, f, f, 1e-6, f.copy(), f.copy())
+    limit_slip_damping(f, c, f, f, f.copy(), f.copy())
+    finish_sliding(c, c, f, f, b.copy(), f, 1.0, 1e-3, c.copy(), f.copy())
+    release_over_cap(c, f, f, 1.0, c.copy(), b.copy(), f.copy())
+    take_normal_forces(f, f, f, b.copy(), c.copy(), f.copy(), b.copy(), f.copy(), f.copy(), f.copy())
+    slide_caps(f, f, f, b, f.copy(), f.copy())
+    stick_arrays(b, b, f, f, 1.0, 1.0, 1e-3, f.copy(), f.copy(), f.copy(), np.zeros((n, 2)), f.copy(), f.copy())

@@ -1,0 +1,86 @@
+"""Compiled Hertzian pressure sampling of the taxel cells (see lib/rig/contact.py).
+
+:class:`~slipstack.lib.rig.contact.PressureModel` re-evaluates a Hertzian contact's
+shape whenever the normal force moves by 0.2 % (its radius follows ``f_n^{1/3}``):
+under grip control that is often, and each evaluation samples ``s²`` points in each
+of the N taxel cells. This kernel does it in one pass with the rounding of the numpy
+code it replaced: the same element-wise expressions, and each cell's mean summed in
+numpy's pairwise order (:func:`numpy_pairwise_sum`), so the shapes are bit for bit
+those of numpy.
+
+Positions are complex ``x + i·y`` (m) in the footprint's frame; pressures are
+relative (dimensionless, the shape is normalised by the caller).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from slipstack.lib.weber import JIT
+
+__all__ = ["MAX_POINTS_PER_CELL", "compile_kernels", "hertz_cell_means", "numpy_pairwise_sum"]
+
+MAX_POINTS_PER_CELL = 128
+"""numpy's PW_BLOCKSIZE: runs up to this long are summed in eight interleaved lanes (longer
+ones by halving, which :func:`numpy_pairwise_sum` does not do)."""
+
+
+@njit(**JIT)
+def numpy_pairwise_sum(a: np.ndarray, n: int) -> float:
+    """``a[:n].sum()`` of a contiguous float64 run of at most 128 values, in numpy's order.
+
+    numpy adds short runs (< 8) left to right, and runs up to 128 in eight interleaved
+    partial sums combined as a tree, then the last ``n mod 8`` left to right.
+    """
+    if n < 8:
+        total = 0.0
+        for i in range(n):
+            total += a[i]
+        return total
+    l0, l1, l2, l3, l4, l5, l6, l7 = a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7]
+    end = n - n % 8
+    i = 8
+    while i < end:
+        l0 += a[i]
+        l1 += a[i + 1]
+        l2 += a[i + 2]
+        l3 += a[i + 3]
+        l4 += a[i + 4]
+        l5 += a[i + 5]
+        l6 += a[i + 6]
+        l7 += a[i + 7]
+        i += 8
+    total = ((l0 + l1) + (l2 + l3)) + ((l4 + l5) + (l6 + l7))
+    while i < n:
+        total += a[i]
+        i += 1
+    return total
+
+
+@njit(**JIT)
+def hertz_cell_means(points: np.ndarray, centre: complex, radius_m: float, out: np.ndarray) -> None:
+    """Mean Hertzian pressure ``sqrt(max(1 − |q − c|²/a², 0))`` over each cell's points.
+
+    Args:
+        points: sample points, shape (N, s²) (complex, m), ``s² ≤ MAX_POINTS_PER_CELL``.
+        centre: contact centre ``c`` (complex, m).
+        radius_m: contact radius ``a`` (m); 0 gives no pressure anywhere.
+        out: receives the N cell means.
+    """
+    n_cells, n_points = points.shape
+    scale = radius_m * radius_m
+    row = np.empty(n_points)
+    for k in range(n_cells):
+        for j in range(n_points):
+            d = points[k, j] - centre
+            r2 = (d.real * d.real + d.imag * d.imag) / scale if radius_m > 0 else math.inf
+            row[j] = math.sqrt(max(1.0 - r2, 0.0))
+        out[k] = numpy_pairwise_sum(row, n_points) / n_points
+
+
+def compile_kernels() -> None:
+    """Compile these kernels, or load them from numba's cache."""
+    hertz_cell_means(np.zeros((2, 4), dtype=complex), 0j, 1e-3, np.empty(2))
