@@ -116,13 +116,13 @@ class DeviceDriver(Node):
         self._poll(ctx)
 
     def next_deadline_ns(self) -> int | None:
-        due = [self._next_sync_ns]
+        due = self._next_sync_ns
         backend_due = self.backend.next_deadline_ns()
-        if backend_due is not None:
-            due.append(backend_due)
+        if backend_due is not None and backend_due < due:
+            due = backend_due
         if self.status != LinkStatus.OK.value and self._last_status_pub_ns is not None:
-            due.append(self._last_status_pub_ns + self.status_period_ns)
-        return min(due)
+            due = min(due, self._last_status_pub_ns + self.status_period_ns)
+        return due
 
     def on_deadline(self, ctx: Context) -> None:
         now = ctx.now_ns()

@@ -108,7 +108,8 @@ class InProcessExecutor:
         self._started = False
         self._deadlines: dict[int, int] = {}
         # nodes doing I/O of their own may become due from outside the bus (a simulated device written by another node)
-        self._io_hosts = [h for h in self.hosts if type(h.node).next_deadline_ns is not Node.next_deadline_ns
+        self._deadline_hosts = {h for h in self.hosts if type(h.node).next_deadline_ns is not Node.next_deadline_ns}
+        self._io_hosts = [h for h in self.hosts if h in self._deadline_hosts
                           and type(h.node).io_sources is not Node.io_sources]
         self._by_name = {h.name: h for h in self.hosts}
 
@@ -196,7 +197,8 @@ class InProcessExecutor:
             self._started = True
             for host in self.hosts:
                 host.call("start", host.node.start, host)
-                self._schedule_deadline(host)
+                if host in self._deadline_hosts:
+                    self._schedule_deadline(host)
         ending = False
         while True:
             if self._io_hosts and (not self._queue or self._queue[0][0] > self.now):
@@ -236,7 +238,8 @@ class InProcessExecutor:
                 self._send(DIAGNOSTICS_TOPIC, host.diagnostics())
                 if until_ns is not None or self._has_frames():
                     self._schedule(t_ns + period, item)
-            self._schedule_deadline(host)
+            if host in self._deadline_hosts:
+                self._schedule_deadline(host)
             if host.shutdown_requested and id(host) in stop_hosts:
                 ending = True
         if until_ns is not None:
