@@ -200,16 +200,19 @@ class InProcessExecutor:
                 if host in self._deadline_hosts:
                     self._schedule_deadline(host)
         ending = False
+        queue, pop = self._queue, heapq.heappop  # the loop runs once per event: locals, not attributes
+        io_hosts, deadline_hosts, schedule_deadline = self._io_hosts, self._deadline_hosts, self._schedule_deadline
         while True:
-            if self._io_hosts and (not self._queue or self._queue[0][0] > self.now):
-                for io_host in self._io_hosts:  # before the clock moves on: a device may have been given work
-                    self._schedule_deadline(io_host)
-            if not self._queue or (until_ns is not None and self._queue[0][0] > until_ns):
+            if io_hosts and (not queue or queue[0][0] > self.now):
+                for io_host in io_hosts:  # before the clock moves on: a device may have been given work
+                    schedule_deadline(io_host)
+            if not queue or (until_ns is not None and queue[0][0] > until_ns):
                 break
-            if ending and self._queue[0][0] > self.now:
+            if ending and queue[0][0] > self.now:
                 return
-            t_ns, _, _, item = heapq.heappop(self._queue)
-            self.now = max(self.now, t_ns)
+            t_ns, _, _, item = pop(queue)
+            if t_ns > self.now:
+                self.now = t_ns
             kind = item[0]
             host = item[1]
             if host.shutdown_requested:
@@ -238,8 +241,8 @@ class InProcessExecutor:
                 self._send(DIAGNOSTICS_TOPIC, host.diagnostics())
                 if until_ns is not None or self._has_frames():
                     self._schedule(t_ns + period, item)
-            if host in self._deadline_hosts:
-                self._schedule_deadline(host)
+            if host in deadline_hosts:
+                schedule_deadline(host)
             if host.shutdown_requested and id(host) in stop_hosts:
                 ending = True
         if until_ns is not None:
