@@ -16,7 +16,9 @@ launch file runs this way with ``slipstack launch --lockstep`` (``launch/lockste
 A node's deadline (``next_deadline_ns``) is re-read after each of its events, and a
 node doing I/O of its own (``io_sources``) before the clock moves on: a driver whose
 simulated device, fed by the rig, has bytes waiting (``nodes/devices/sim_link.py``)
-runs at the same simulated instant.
+runs at the same simulated instant. A deadline a node has moved since it was scheduled
+is dropped unread, so it never moves the clock (nor makes the executor re-read the I/O
+nodes' deadlines at an instant where nothing happens).
 """
 
 from __future__ import annotations
@@ -202,7 +204,10 @@ class InProcessExecutor:
         ending = False
         queue, pop = self._queue, heapq.heappop  # the loop runs once per event: locals, not attributes
         io_hosts, deadline_hosts, schedule_deadline = self._io_hosts, self._deadline_hosts, self._schedule_deadline
+        deadlines = self._deadlines
         while True:
+            while queue and queue[0][3][0] == "deadline" and deadlines.get(id(queue[0][3][1])) != queue[0][3][2]:
+                pop(queue)  # a deadline its node has moved since: dropped before it could move the clock
             if io_hosts and (not queue or queue[0][0] > self.now):
                 for io_host in io_hosts:  # before the clock moves on: a device may have been given work
                     schedule_deadline(io_host)
