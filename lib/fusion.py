@@ -49,7 +49,7 @@ def wrench_to_pad(
     f = np.asarray(R_FS, dtype=float) @ np.asarray(force_S, dtype=float)
     t = np.asarray(R_FS, dtype=float) @ np.asarray(torque_S, dtype=float)
     x, y, z = (float(v) for v in p_SF)
-    a, b, c = (float(v) for v in f)
+    a, b, c = f.tolist()  # Python floats, as float() of each
     # p × f written out: np.cross costs ~5x more on 3-vectors, at every F/T sample
     return f, t + np.array((y * c - z * b, z * a - x * c, x * b - y * a))
 
