@@ -49,7 +49,7 @@ def wrench_to_pad(
     f = np.asarray(R_FS, dtype=float) @ np.asarray(force_S, dtype=float)
     t = np.asarray(R_FS, dtype=float) @ np.asarray(torque_S, dtype=float)
     x, y, z = (float(v) for v in p_SF)
-    a, b, c = (float(v) for v in f)
+    a, b, c = f.tolist()  # Python floats, as float() of each
     # p × f written out: np.cross costs ~5x more on 3-vectors, at every F/T sample
     return f, t + np.array((y * c - z * b, z * a - x * c, x * b - y * a))
 
@@ -196,11 +196,13 @@ def pressure_shape(
         empty = np.zeros(n)
         return PressureShape(_frozen(empty), 0.0, np.zeros(2), _frozen(np.zeros(n, dtype=bool)), 0.0, valid=False)
     bad = ~np.isfinite(w)
-    n_nonfinite = int(bad.sum())
-    w[bad] = 0.0
+    n_nonfinite = int(np.count_nonzero(bad))
+    if n_nonfinite:
+        w[bad] = 0.0
     neg = w < 0
-    n_negative = int(neg.sum())
-    w[neg] = 0.0
+    n_negative = int(np.count_nonzero(neg))
+    if n_negative:
+        w[neg] = 0.0
     mask = w > thresholds.noise_floor_pa
     n_sat = int(np.count_nonzero(np.asarray(saturated, dtype=bool).reshape(-1) & mask)) if (
         saturated is not None and np.size(saturated) == n
@@ -250,18 +252,18 @@ def fuse_shape(
         offset = int(wrench_stamp_ns) - int(tactile_stamp_ns)
     f3 = np.asarray(force, dtype=float).reshape(-1)
     t3 = np.asarray(torque, dtype=float).reshape(-1)
-    zeros = np.zeros(n)
     if not shape.valid or f3.shape != (3,) or t3.shape != (3,) or not (
         np.isfinite(f3).all() and np.isfinite(t3).all()
     ):
-        return _empty(pad, zeros, np.zeros(n, dtype=bool), 0, 0, 0, offset, SolverStatus.INVALID_INPUT)
+        return _empty(pad, np.zeros(n), np.zeros(n, dtype=bool), 0, 0, 0, offset, SolverStatus.INVALID_INPUT)
     if mount is not None:
         f3, t3 = wrench_to_pad(f3, t3, np.asarray(mount.R_FS), np.asarray(mount.p_SF))
     counts = (shape.n_nonfinite, shape.n_negative, shape.n_saturated)
     f_n = -float(f3[2])
     if not (f_n > thresholds.min_normal_force_n and shape.pressure_sum_pa > thresholds.min_pressure_sum_pa
             and shape.shape_sum > 0.0):
-        return _empty(pad, zeros, shape.mask, *counts, offset, SolverStatus.NO_CONTACT, f_t=f3[:2], tau=float(t3[2]))
+        return _empty(pad, np.zeros(n), shape.mask, *counts, offset, SolverStatus.NO_CONTACT, f_t=f3[:2],
+                      tau=float(t3[2]))
     phi = shape.shape * (f_n / shape.shape_sum)
     status = SolverStatus.CLIPPED_INPUT if (shape.n_nonfinite or shape.n_negative) else SolverStatus.OK
     return _result(pad, phi, f3[:2].copy(), float(t3[2]), shape.cop, shape.mask, *counts, offset, status)
@@ -310,7 +312,7 @@ def fuse(
 
 
 def _result(pad, phi, f_t, tau, cop, mask, n_nonfinite, n_negative, n_sat, offset, status) -> FusionResult:
-    n_contact = int(mask.sum())
+    n_contact = int(np.count_nonzero(mask))
     return FusionResult(
         phi=_frozen(phi),
         f_n=float(phi.sum()),

@@ -245,6 +245,8 @@ class GripLaw:
 
 def _finite(value: object) -> bool:
     """True for a finite number or a sequence of finite numbers; False for anything else."""
+    if type(value) is float:  # the common case, at every step: no list
+        return math.isfinite(value)
     try:
         items = list(value) if hasattr(value, "__iter__") else [value]  # type: ignore[call-overload]
         return all(math.isfinite(float(v)) for v in items)

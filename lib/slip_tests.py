@@ -165,10 +165,12 @@ def _bad(method: str) -> SlipVerdict:
 def _load(contact: ContactLike, mu: float) -> tuple[float, float, float, float] | None:
     """``(f_n, f_tx, f_ty, τ)`` as floats, or None if any is non-finite or the friction
     capacity μ f_n of a positive f_n underflows to 0 (every test divides by it)."""
-    vals = (float(contact.f_n), float(contact.f_t[0]), float(contact.f_t[1]), float(contact.tau))
-    if not all(math.isfinite(v) for v in vals) or (vals[0] > 0.0 and not mu * vals[0] > 0.0):
+    f_n, f_tx, f_ty, tau = float(contact.f_n), float(contact.f_t[0]), float(contact.f_t[1]), float(contact.tau)
+    isfinite = math.isfinite  # every test of every frame passes here: no generator
+    if not (isfinite(f_n) and isfinite(f_tx) and isfinite(f_ty) and isfinite(tau)) or (
+            f_n > 0.0 and not mu * f_n > 0.0):
         return None
-    return vals
+    return f_n, f_tx, f_ty, tau
 
 
 def _verdict(gamma: float, rho: float, params: SlipParams, status, p_c, method) -> SlipVerdict:

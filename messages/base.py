@@ -396,7 +396,9 @@ def handed_over(msg: M, header: Header) -> tuple[M, str | None]:
 
 def validate(msg: Message) -> Message:
     """Run the decoder's checks on a message built in memory; returns it unchanged."""
+    fields = msg.__dict__
     for n, check in zip(msg._body_fields, msg._validators):  # type: ignore[attr-defined]
-        check(getattr(msg, n))
-    _check_tied_lengths(msg, msg.__dict__)
+        check(fields[n])
+    if msg._tied_lengths:  # type: ignore[attr-defined]
+        _check_tied_lengths(msg, fields)
     return msg

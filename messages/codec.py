@@ -49,16 +49,25 @@ ALLOWED_DTYPES = frozenset({"<f8", "<f4", "<i8", "<i4", "<u2", "|u1", "|b1"})
 _U32 = struct.Struct("<I")
 
 
+_PACKED_HEADS: dict[tuple[np.dtype, tuple[int, ...]], bytes] = {}
+_PACKED_HEADS_MAX = 256
+
+
 def pack_array(arr: np.ndarray) -> msgpack.ExtType:
     """Encode a numpy array as extension type :data:`ARRAY_EXT` (little-endian, C order)."""
-    a = np.ascontiguousarray(arr)
-    dt = a.dtype.newbyteorder("<") if a.dtype.byteorder == ">" else a.dtype
-    code = dt.str
-    if code not in ALLOWED_DTYPES:
-        raise TypeError(f"array dtype {a.dtype} cannot be sent; use one of {sorted(ALLOWED_DTYPES)}")
-    a = a.astype(dt, copy=False)
-    head = bytes([len(code)]) + code.encode() + bytes([a.ndim]) + b"".join(_U32.pack(n) for n in a.shape)
-    return msgpack.ExtType(ARRAY_EXT, head + a.tobytes())
+    key = (arr.dtype, arr.shape)
+    head = _PACKED_HEADS.get(key)  # built once per dtype and shape (a stream carries few)
+    if head is None:
+        dt = arr.dtype.newbyteorder("<") if arr.dtype.byteorder == ">" else arr.dtype
+        code = dt.str
+        if code not in ALLOWED_DTYPES:
+            raise TypeError(f"array dtype {arr.dtype} cannot be sent; use one of {sorted(ALLOWED_DTYPES)}")
+        head = bytes([len(code)]) + code.encode() + bytes([arr.ndim]) + b"".join(_U32.pack(n) for n in arr.shape)
+        if len(_PACKED_HEADS) < _PACKED_HEADS_MAX:
+            _PACKED_HEADS[key] = head
+    if arr.dtype.byteorder == ">":
+        arr = arr.astype(arr.dtype.newbyteorder("<"))
+    return msgpack.ExtType(ARRAY_EXT, head + arr.tobytes())  # tobytes: C order, contiguous or not
 
 
 _HEADER_CACHE: dict[bytes, tuple[np.dtype, tuple[int, ...], int, int]] = {}

@@ -44,6 +44,7 @@ from slipstack.nodes.runtime.node import Context, IoSource, Node
 
 __all__ = ["DeviceDriver"]
 
+_LINK_OK = LinkStatus.OK.value  # looked up once: next_deadline_ns runs between every two simulated instants
 _COUNTER_SYNC_NS = 50_000_000  # mirror back-end counters at most every 50 ms (and at stop)
 
 
@@ -116,20 +117,20 @@ class DeviceDriver(Node):
         self._poll(ctx)
 
     def next_deadline_ns(self) -> int | None:
-        due = [self._next_sync_ns]
+        due = self._next_sync_ns
         backend_due = self.backend.next_deadline_ns()
-        if backend_due is not None:
-            due.append(backend_due)
-        if self.status != LinkStatus.OK.value and self._last_status_pub_ns is not None:
-            due.append(self._last_status_pub_ns + self.status_period_ns)
-        return min(due)
+        if backend_due is not None and backend_due < due:
+            due = backend_due
+        if self.status != _LINK_OK and self._last_status_pub_ns is not None:
+            due = min(due, self._last_status_pub_ns + self.status_period_ns)
+        return due
 
     def on_deadline(self, ctx: Context) -> None:
         now = ctx.now_ns()
         deadline = self.backend.next_deadline_ns()
         if deadline is not None and now >= deadline:
             self._poll(ctx)
-        elif self.status != LinkStatus.OK.value and now - (self._last_status_pub_ns or now) >= self.status_period_ns:
+        elif self.status != _LINK_OK and now - (self._last_status_pub_ns or now) >= self.status_period_ns:
             self._publish_status(ctx)
         if now >= self._next_sync_ns:
             self._sync_counters(ctx)
@@ -166,7 +167,7 @@ class DeviceDriver(Node):
         status = self.backend.status.value
         changed = status != self.status
         self.status = status
-        if status == LinkStatus.OK.value:
+        if status == _LINK_OK:
             self._last_status_pub_ns = None
             if changed:
                 ctx.set_status("ok")

@@ -145,16 +145,16 @@ class GripController(Node):
             return GripInput(), [], False
         stamps = [s.header.stamp_ns]
         ok = s.status == "ok"
-        inp = GripInput(f_t=(float(s.f_t[0]), float(s.f_t[1])), tau=s.tau, f_n=s.f_n, gamma=s.gamma,
-                        slip_state=s.state)
+        rotation: dict[str, object] = {}
         if self.law.name == "tactile14":
             c, r = self.contact, self.cor
             if c is None or r is None:
                 return GripInput(f_n=s.f_n), stamps, False
             stamps += [c.header.stamp_ns, r.header.stamp_ns]
             ok = ok and c.status == "ok"
-            inp = dataclasses.replace(inp, **self._rotation_inputs(c, r))
-        return inp, stamps, ok
+            rotation = self._rotation_inputs(c, r)
+        f_x, f_y = s.f_t.tolist()
+        return GripInput(f_t=(f_x, f_y), tau=s.tau, f_n=s.f_n, gamma=s.gamma, slip_state=s.state, **rotation), stamps, ok
 
     @staticmethod
     def _rotation_inputs(c: Contact, r: Cor) -> dict[str, object]:
@@ -162,9 +162,11 @@ class GripController(Node):
         needs that frame (without one the case is ``none``)."""
         if not c.phi.size:
             return {"cor_case": SlipCase.NONE}
-        dist = np.linalg.norm(pad_positions(c.rows, c.cols, c.pitch_m)[c.mask] - r.p_c, axis=1)
+        offsets = pad_positions(c.rows, c.cols, c.pitch_m)[c.mask] - r.p_c
+        x, y = offsets[:, 0], offsets[:, 1]
+        dist = np.sqrt(x * x + y * y)  # |p_i − p_c| (m), rounded as np.linalg.norm(offsets, axis=1)
         return {"n_c": r.load_torque, "t_c": r.torque_capacity, "sum_dist_m": float(dist.sum()),
-                "n_contact": int(np.count_nonzero(c.mask)), "cor_case": r.case}
+                "n_contact": len(dist), "cor_case": r.case}
 
     def _publish(self, d: GripDecision, stamp: int, sources: dict[str, int], ctx: Context) -> None:
         reason = d.reason.value

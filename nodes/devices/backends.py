@@ -128,9 +128,15 @@ class Backend(ABC):
 
     def next_deadline_ns(self) -> int | None:
         """Latest time to call poll() again without input (stale, retry or handshake timer)."""
-        stale_at = self._samples.deadline_ns() if self.status is LinkStatus.OK else None
-        times = [t for t in (stale_at, self._link.next_attempt_ns(), self._timer_ns()) if t is not None]
-        return min(times) if times else None
+        due = self._link.next_attempt_ns()  # called between every two simulated instants: no temporaries
+        if self.status is LinkStatus.OK:
+            stale_at = self._samples.deadline_ns()
+            if stale_at is not None and (due is None or stale_at < due):
+                due = stale_at
+        timer = self._timer_ns()
+        if timer is not None and (due is None or timer < due):
+            due = timer
+        return due
 
     @property
     def last_error(self) -> str:

@@ -18,7 +18,9 @@ launch file runs this way with ``slipstack launch --lockstep`` (``launch/lockste
 A node's deadline (``next_deadline_ns``) is re-read after each of its events, and a
 node doing I/O of its own (``io_sources``) before the clock moves on: a driver whose
 simulated device, fed by the rig, has bytes waiting (``nodes/devices/sim_link.py``)
-runs at the same simulated instant.
+runs at the same simulated instant. A deadline a node has moved since it was scheduled
+is dropped unread, so it never moves the clock (nor makes the executor re-read the I/O
+nodes' deadlines at an instant where nothing happens).
 """
 
 from __future__ import annotations
@@ -110,7 +112,8 @@ class InProcessExecutor:
         self._started = False
         self._deadlines: dict[int, int] = {}
         # nodes doing I/O of their own may become due from outside the bus (a simulated device written by another node)
-        self._io_hosts = [h for h in self.hosts if type(h.node).next_deadline_ns is not Node.next_deadline_ns
+        self._deadline_hosts = {h for h in self.hosts if type(h.node).next_deadline_ns is not Node.next_deadline_ns}
+        self._io_hosts = [h for h in self.hosts if h in self._deadline_hosts
                           and type(h.node).io_sources is not Node.io_sources]
         self._by_name = {h.name: h for h in self.hosts}
         self._batch_depths = {(id(h), n): i.depth for h in self.hosts for n, i in h.node.inputs.items()
@@ -200,18 +203,25 @@ class InProcessExecutor:
             self._started = True
             for host in self.hosts:
                 host.call("start", host.node.start, host)
-                self._schedule_deadline(host)
+                if host in self._deadline_hosts:
+                    self._schedule_deadline(host)
         ending = False
+        queue, pop = self._queue, heapq.heappop  # the loop runs once per event: locals, not attributes
+        io_hosts, deadline_hosts, schedule_deadline = self._io_hosts, self._deadline_hosts, self._schedule_deadline
+        deadlines = self._deadlines
         while True:
-            if self._io_hosts and (not self._queue or self._queue[0][0] > self.now):
-                for io_host in self._io_hosts:  # before the clock moves on: a device may have been given work
-                    self._schedule_deadline(io_host)
-            if not self._queue or (until_ns is not None and self._queue[0][0] > until_ns):
+            while queue and queue[0][3][0] == "deadline" and deadlines.get(id(queue[0][3][1])) != queue[0][3][2]:
+                pop(queue)  # a deadline its node has moved since: dropped before it could move the clock
+            if io_hosts and (not queue or queue[0][0] > self.now):
+                for io_host in io_hosts:  # before the clock moves on: a device may have been given work
+                    schedule_deadline(io_host)
+            if not queue or (until_ns is not None and queue[0][0] > until_ns):
                 break
-            if ending and self._queue[0][0] > self.now:
+            if ending and queue[0][0] > self.now:
                 return
-            t_ns, _, _, item = heapq.heappop(self._queue)
-            self.now = max(self.now, t_ns)
+            t_ns, _, _, item = pop(queue)
+            if t_ns > self.now:
+                self.now = t_ns
             kind = item[0]
             host = item[1]
             if host.shutdown_requested:
@@ -242,7 +252,8 @@ class InProcessExecutor:
                 self._send(DIAGNOSTICS_TOPIC, host.diagnostics())
                 if until_ns is not None or self._has_frames():
                     self._schedule(t_ns + period, item)
-            self._schedule_deadline(host)
+            if host in deadline_hosts:
+                schedule_deadline(host)
             if host.shutdown_requested and id(host) in stop_hosts:
                 ending = True
         if until_ns is not None:

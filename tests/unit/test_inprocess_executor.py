@@ -140,3 +140,43 @@ def test_an_invalid_published_message_is_rejected_by_its_subscriber_as_on_the_bu
     host = ex.host("keeper")
     assert keeper.got == [] and host.counters["in.ft/relayed.rejected"] == 1
     assert "NaN" in host.last_error
+
+
+class _MovingDeadline(Node):
+    """Asks for a deadline at 5 ms, moves it to 8 ms on the first wrench, back to 5 ms on
+    the second; records when ``on_deadline`` runs (ns) and stops asking once it ran."""
+
+    name = "moving_deadline"
+    inputs = {"wrench": Input("ft/wrench", Wrench)}
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.due: int | None = 5_000_000
+        self.fired: list[int] = []
+        self.seen = 0
+
+    def on_wrench(self, msg: Wrench, ctx: Context) -> None:
+        self.seen += 1
+        self.due = 8_000_000 if self.seen == 1 else 5_000_000
+
+    def next_deadline_ns(self) -> int | None:
+        return self.due
+
+    def on_deadline(self, ctx: Context) -> None:
+        self.fired.append(ctx.now_ns())
+        self.due = None
+
+
+def test_a_moved_deadline_fires_at_its_new_time_only_and_one_moved_back_fires_again():
+    moved = _MovingDeadline()
+    ex = InProcessExecutor([moved])
+    ex.feed([(1_000_000, "ft/wrench", _wrench(0, 1_000_000))])
+    ex.run(until_ns=20_000_000)
+    assert moved.fired == [8_000_000]  # not at the 5 ms it asked for first
+
+    back = _MovingDeadline()
+    ex = InProcessExecutor([back])
+    ex.feed([(1_000_000, "ft/wrench", _wrench(0, 1_000_000)), (2_000_000, "ft/wrench", _wrench(1, 2_000_000))])
+    ex.run(until_ns=20_000_000)
+    assert back.fired == [5_000_000]  # moved to 8 ms, then back to 5 ms: fires once, at 5 ms
+    assert ex.now_ns == 20_000_000

@@ -54,3 +54,23 @@ def test_wrong_type_and_version_are_rejected():
 def test_tactile_frame_of_256_taxels_is_about_1_2_kb():
     t = TactileFrame(pressure_pa=np.ones(256, np.float32), saturated=np.zeros(256, bool), dead=np.zeros(256, bool))
     assert 1200 < len(encode(t)) < 1700
+
+
+@pytest.mark.parametrize("layout", ["big-endian", "strided", "fortran", "reversed"])
+def test_an_array_in_any_memory_layout_encodes_as_its_little_endian_c_order_copy(layout):
+    """The encoder caches each array's extension header by dtype and shape: an array whose bytes
+    are not little-endian C order must still travel as exactly those values."""
+    values = np.arange(12, dtype="<f8").reshape(3, 4) * 0.5 - 1.0
+    given = {"big-endian": values.astype(">f8"), "strided": np.arange(24.0).reshape(3, 8)[:, ::2] * 0.5 - 1.0,
+             "fortran": np.asfortranarray(values), "reversed": values[:, ::-1]}[layout]
+    expected = packb(np.ascontiguousarray(given, dtype="<f8"))
+    packb(values)  # the header of (<f8, (3, 4)) is cached before the odd layout is packed
+    assert packb(given) == expected
+    back = decode(_wrench_body(force=given[0, :3]), Wrench)
+    assert np.array_equal(back.force, np.asarray(given[0, :3], dtype="<f8"))
+
+
+def test_an_array_of_a_dtype_that_cannot_be_sent_is_refused_every_time():
+    for _ in range(2):  # a refused dtype is never cached as sendable
+        with pytest.raises(TypeError, match="cannot be sent"):
+            packb(np.zeros(3, dtype=np.complex128))
