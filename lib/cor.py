@@ -209,33 +209,36 @@ def paper_cor(
     status = SolverStatus.MAX_ITER
     F = np.full(2, np.inf)
     it = 0
-    for it in range(1, max_iter + 1):
-        r = np.hypot(*(c - P).T)
-        j = int(r.argmin())
-        if r[j] == 0.0:
-            rest = np.ones(ph.size, dtype=bool)
-            rest[j] = False
-            Fj, _ = cor_equations(c, ph[rest], P[rest], ft, mu)
-            if math.hypot(*Fj) <= mu * ph[j]:  # the paper's on-taxel condition
-                status = SolverStatus.ON_TAXEL
-                F = np.zeros(2)
-            else:
+    # a pad near the top of float range overflows in (12); the non-finite results are the
+    # statuses below (SINGULAR, DIVERGED), not warnings
+    with np.errstate(over="ignore", invalid="ignore"):
+        for it in range(1, max_iter + 1):
+            r = np.hypot(*(c - P).T)
+            j = int(r.argmin())
+            if r[j] == 0.0:
+                rest = np.ones(ph.size, dtype=bool)
+                rest[j] = False
+                Fj, _ = cor_equations(c, ph[rest], P[rest], ft, mu)
+                if math.hypot(*Fj) <= mu * ph[j]:  # the paper's on-taxel condition
+                    status = SolverStatus.ON_TAXEL
+                    F = np.zeros(2)
+                else:
+                    status = SolverStatus.SINGULAR
+                break
+            F, J = cor_equations(c, ph, P, ft, mu)
+            det = np.linalg.det(J)
+            if not math.isfinite(det) or abs(det) <= 1e-300:
                 status = SolverStatus.SINGULAR
-            break
-        F, J = cor_equations(c, ph, P, ft, mu)
-        det = np.linalg.det(J)
-        if not math.isfinite(det) or abs(det) <= 1e-300:
-            status = SolverStatus.SINGULAR
-            break
-        step = gain * np.linalg.solve(J, F)
-        c = c - step
-        if not np.isfinite(c).all() or math.hypot(*(c - pbar)) > 1e12 * L:
-            status = SolverStatus.DIVERGED
-            break
-        if math.hypot(*step) <= xtol * L:
-            status = SolverStatus.CONVERGED
-            F, _ = cor_equations(c, ph, P, ft, mu)
-            break
+                break
+            step = gain * np.linalg.solve(J, F)
+            c = c - step
+            if not np.isfinite(c).all() or math.hypot(*(c - pbar)) > 1e12 * L:
+                status = SolverStatus.DIVERGED
+                break
+            if math.hypot(*step) <= xtol * L:
+                status = SolverStatus.CONVERGED
+                F, _ = cor_equations(c, ph, P, ft, mu)
+                break
     if not np.isfinite(c).all():
         return CorResult(SlipCase.NONE, None, 0.0, 0.0, 0.0, 0, it, math.inf, status)
     n, T = _load_terms(P, ph, ft, tau, mu, c)
