@@ -236,10 +236,14 @@ def _magnitude(a: np.ndarray, n: int) -> np.ndarray | None:
 
 
 def _from_start(a: np.ndarray) -> np.ndarray:
-    """``a`` minus its first finite sample (displacement from the start)."""
+    """``a`` minus its first finite sample (displacement from the start); a difference beyond
+    float range is +-inf, which the estimators treat as any other non-finite sample."""
     rows = a if a.ndim > 1 else a[:, None] if a.ndim == 1 else a.reshape(1, -1)
     finite = np.flatnonzero(np.all(np.isfinite(rows), axis=1))
-    return a - a[finite[0]] if finite.size else a
+    if not finite.size:
+        return a
+    with np.errstate(over="ignore"):
+        return a - a[finite[0]]
 
 
 def _identify(quantity: str, t_raw: ArrayLike, fn_raw: ArrayLike, load_raw: ArrayLike,
