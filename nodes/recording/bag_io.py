@@ -180,15 +180,20 @@ class RecordingWriter:
     def write(self, topic: str, payload: bytes, log_time_ns: int) -> None:
         """Append one frame received at ``log_time_ns`` (wall-clock ns)."""
         head = peek_header(payload)
-        cid = self._channel(topic, head)
-        self._writer.add_message(
-            cid, int(log_time_ns), bytes(payload),
-            publish_time=head.pub_ns if head else 0, sequence=(head.seq & 0xFFFFFFFF) if head else 0,
-        )
+        log_time_ns = int(log_time_ns)
+        if head is None:
+            cid = self._channel(topic, None)
+            publish_time = sequence = 0
+        else:  # the channel of a known (topic, type) without the registry walk
+            cid = self._channels.get((topic, head.type_name)) or self._channel(topic, head)
+            publish_time, sequence = head.pub_ns, head.seq & 0xFFFFFFFF
+        self._writer.add_message(cid, log_time_ns, payload if type(payload) is bytes else bytes(payload),
+                                 publish_time, sequence)
         self.counts[topic] += 1
         if self._chunk_opened_ns is None:
-            self._chunk_opened_ns = int(log_time_ns)
-        self.tick(int(log_time_ns))
+            self._chunk_opened_ns = log_time_ns
+        if log_time_ns - self._chunk_opened_ns >= self._flush_period_ns:
+            self.flush()
 
     def tick(self, now_ns: int) -> None:
         """Flush the chunk in progress if it is older than the flush period (call when idle too)."""
