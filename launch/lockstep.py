@@ -38,7 +38,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.launch.launch_file import SIM_ARG, LaunchFile, load_launch_file
 from slipstack.launch.plan import LaunchPlan, plan_launch, tapped_topics
 from slipstack.nodes.device_driver import DeviceDriver
-from slipstack.nodes.devices.sim_link import SIM_PREFIX, is_simulated
+from slipstack.nodes.devices.sim_link import SIM_PREFIX, host_side_changes, is_simulated
 from slipstack.nodes.recording.bag_io import RecordingWriter
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.nodes.runtime.node import Node
@@ -117,7 +117,8 @@ class LockstepRun:
         self.executor = InProcessExecutor(
             nodes, names=names, remaps={e.name: e.remap for e in launch.nodes},
             diagnostics_period_s=DIAGNOSTICS_PERIOD_S, keep_published=keep_published, on_frame=self._on_frame,
-            on_frame_topics=self._recorded_topics(), log=echo, stage_cpu=self.stage_cpu)
+            on_frame_topics=self._recorded_topics(), log=echo, stage_cpu=self.stage_cpu,
+            io_changes=host_side_changes)
         self.required = [e.name for e in launch.nodes if e.required and e.name in names]
         self.end_ns = round(launch.duration_s * 1e9) if launch.duration_s > 0 else None
 

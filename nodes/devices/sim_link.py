@@ -30,13 +30,14 @@ from .serial_link import SerialLink
 from .udp_link import UdpLink
 
 __all__ = ["SIM_PREFIX", "PORT_MAX_BYTES", "SimPort", "SimDevice", "SimLink", "is_simulated", "udp_address",
-           "sim_twin", "plugged_ports"]
+           "sim_twin", "plugged_ports", "host_side_changes"]
 
 SIM_PREFIX = "sim:"
 PORT_MAX_BYTES = 1 << 20
 """Bytes one direction of a :class:`SimPort` holds before it drops (1 MiB, ~1 s of a 16×16 tactile stream at 500 Hz)."""
 
 _TABLE: dict[str, "SimPort"] = {}
+_host_side_changes = 0  # see host_side_changes()
 
 
 def is_simulated(address: str) -> bool:
@@ -47,6 +48,19 @@ def is_simulated(address: str) -> bool:
 def udp_address(host: str, port: int) -> str:
     """The table address of a simulated UDP device."""
     return f"udp:{host}:{port}"
+
+
+def host_side_changes() -> int:
+    """A count that moves whenever a device wrote to its host or a port was plugged or
+    unplugged: the only things outside a driver's own calls that can move a
+    :class:`SimLink`'s :meth:`~SimLink.next_attempt_ns`. A lock-step executor re-reads its
+    drivers' deadlines before the clock moves only when this count moved."""
+    return _host_side_changes
+
+
+def _host_side_changed() -> None:
+    global _host_side_changes
+    _host_side_changes += 1
 
 
 def plugged_ports() -> list[str]:
@@ -107,15 +121,20 @@ class SimDevice:
         """Put a fresh port in the table at the address (a host still holding the old one reads it lost)."""
         if self._port is None:
             self._port = _TABLE[self.address] = SimPort(self.address)
+            _host_side_changed()
 
     def unplug(self) -> None:
         if self._port is not None and _TABLE.get(self.address) is self._port:
             del _TABLE[self.address]
         self._port = None
+        _host_side_changed()
 
     def write(self, data: bytes) -> bool:
         """To the host; False if unplugged or the port is full (the bytes are dropped and counted)."""
-        return self._port is not None and self._port.to_host.put(data)
+        if self._port is None:
+            return False
+        _host_side_changed()
+        return self._port.to_host.put(data)
 
     def read(self) -> bytes:
         """Every byte the host wrote since the last read."""

@@ -58,6 +58,10 @@ class InProcessExecutor:
         log: receives each node's log lines, ``[name] text`` (default: :attr:`logs`).
         stage_cpu: charges each node's decode, handler, encode and send to their stages
             (:mod:`slipstack.nodes.runtime.stage_cpu`; the rest is the executor's ``loop``).
+        io_changes: a count that moves whenever something outside the bus may have moved
+            the deadline of a node doing I/O of its own (a simulated device wrote to its
+            driver); the executor then re-reads those deadlines before the clock moves,
+            and only then. ``None``: re-read them before every move of the clock.
 
     After :meth:`run`, :attr:`published` maps topic → list of decoded messages in
     publication order.
@@ -76,8 +80,11 @@ class InProcessExecutor:
         on_frame_topics: Collection[str] | None = None,
         log: Callable[[str], None] | None = None,
         stage_cpu: StageCpu | None = None,
+        io_changes: Callable[[], int] | None = None,
     ) -> None:
         self.now = start_ns
+        self._io_changes = io_changes
+        self._io_changes_seen: int | None = None
         self._queue: list[tuple[int, int, str, object]] = []
         self._order = itertools.count()
         self.published: dict[str, list[Message]] = defaultdict(list)
@@ -212,7 +219,7 @@ class InProcessExecutor:
         while True:
             while queue and queue[0][3][0] == "deadline" and deadlines.get(id(queue[0][3][1])) != queue[0][3][2]:
                 pop(queue)  # a deadline its node has moved since: dropped before it could move the clock
-            if io_hosts and (not queue or queue[0][0] > self.now):
+            if io_hosts and (not queue or queue[0][0] > self.now) and self._io_may_have_changed():
                 for io_host in io_hosts:  # before the clock moves on: a device may have been given work
                     schedule_deadline(io_host)
             if not queue or (until_ns is not None and queue[0][0] > until_ns):
@@ -259,6 +266,16 @@ class InProcessExecutor:
         if until_ns is not None:
             self.now = max(self.now, until_ns)
 
+    def _io_may_have_changed(self) -> bool:
+        """Whether the I/O nodes' deadlines must be re-read (see ``io_changes``)."""
+        if self._io_changes is None:
+            return True
+        changes = self._io_changes()
+        if changes == self._io_changes_seen:
+            return False
+        self._io_changes_seen = changes
+        return True
+
     def _run_batch(self, first: tuple, t_ns: int) -> None:
         """``first`` and the messages for the same ``batch`` input due next at ``t_ns``, in one
         call; those beyond the input's depth, the oldest, are counted as received and dropped."""
@@ -282,7 +299,9 @@ class InProcessExecutor:
 
     def _schedule_deadline(self, host: NodeHost) -> None:
         due = host.node.next_deadline_ns()
-        if due is not None and self._deadlines.get(id(host)) != due:
+        if due is None:  # cleared: the same instant asked again later is a new deadline
+            self._deadlines.pop(id(host), None)
+        elif self._deadlines.get(id(host)) != due:
             self._deadlines[id(host)] = due
             self._schedule(max(due, self.now), ("deadline", host, due))
 

@@ -6,6 +6,7 @@ import numpy as np
 
 from slipstack.messages import Header, Wrench, encode
 from slipstack.nodes.demo import Relay, SourceParams, WrenchSource
+from slipstack.nodes.devices.sim_link import SimDevice, SimLink, host_side_changes
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.nodes.runtime.node import Context, Input, Node
 
@@ -180,3 +181,76 @@ def test_a_moved_deadline_fires_at_its_new_time_only_and_one_moved_back_fires_ag
     ex.run(until_ns=20_000_000)
     assert back.fired == [5_000_000]  # moved to 8 ms, then back to 5 ms: fires once, at 5 ms
     assert ex.now_ns == 20_000_000
+
+
+class _Writer(Node):
+    """A device-side node: writes one byte to its simulated port every 3 ms."""
+
+    name = "writer"
+
+    def __init__(self) -> None:
+        self.device = SimDevice("sim:/dev/wake-test")
+        self.timers = {"tick": 0.003}
+        self.written: list[int] = []
+
+    def start(self, ctx: Context) -> None:
+        self.device.plug()
+
+    def on_timer_tick(self, ctx: Context) -> None:
+        self.device.write(b"x")
+        self.written.append(ctx.now_ns())
+
+    def stop(self, ctx: Context) -> None:
+        self.device.unplug()
+
+
+class _Ticker(Node):
+    """Makes a simulated instant every 0.5 ms (nothing else)."""
+
+    name = "ticker"
+    timers = {"tick": 0.0005}
+
+    def on_timer_tick(self, ctx: Context) -> None:
+        pass
+
+
+class _PortReader(Node):
+    """A driver-like node: due at once while bytes wait on its link, no bus input."""
+
+    name = "reader"
+
+    def __init__(self) -> None:
+        self.link = SimLink("/dev/wake-test", stale_after_s=1.0)
+        self.received: list[int] = []
+        self.deadline_reads = 0
+
+    def start(self, ctx: Context) -> None:
+        self.link.open(ctx.now_ns())
+
+    def io_sources(self) -> list:
+        return []
+
+    def next_deadline_ns(self) -> int | None:
+        self.deadline_reads += 1
+        return self.link.next_attempt_ns()
+
+    def on_deadline(self, ctx: Context) -> None:
+        if not self.link.is_open:
+            self.link.open(ctx.now_ns())
+        self.received += [ctx.now_ns()] * len(self.link.recv(ctx.now_ns()))
+
+
+def test_a_device_write_wakes_its_reader_at_that_instant_and_only_writes_make_it_read_deadlines():
+    def run(io_changes) -> tuple[list[int], list[int], int]:
+        writer, reader = _Writer(), _PortReader()
+        ex = InProcessExecutor([writer, _Ticker(), reader], io_changes=io_changes)
+        ex.run(until_ns=300_000_000)
+        ex.stop()
+        return writer.written, reader.received, reader.deadline_reads
+
+    written, received, reads_on_change = run(host_side_changes)
+    written_all, received_all, reads_every_instant = run(None)
+    assert len(written) == 100 and received == written  # every byte read at the instant it was written
+    assert (written_all, received_all) == (written, received)
+    assert reads_every_instant > 600  # one per simulated instant (600 of them)
+    assert reads_on_change < 350  # only after a write (100) and after the reader's own calls
