@@ -25,7 +25,7 @@ silent nodes also on the live line):
   a batch input (fusion takes every F/T sample of a wake-up as one batch, so it skips
   none unless it falls 64 samples behind), on the HEALTH line for sensor topics above
   :data:`SKIP_WARN_SHARE`; and the F/T samples fusion received, carried in contacts and
-  the slip test judged (``fusion.samples``, ``slip_test.samples_examined``);
+  the slip test judged (``fusion.samples``, ``slip_test.samples_judged``);
 - *behind real time*: ``timer.<name>.skipped`` ticks of a timer-paced node (the rig
   skips simulator ticks it could not make up);
 - *silent nodes*: a node whose ``diagnostics`` (every 1 s) stopped for longer than
@@ -425,7 +425,7 @@ def _ft_samples(nodes: dict[str, NodeWatch]) -> dict[str, float]:
         if "fusion.samples" in c:
             totals["received"] += c.get("in.ft/wrench.received", 0)
             totals["carried"] += c["fusion.samples"]
-        totals["judged"] += c.get("slip_test.samples_examined", 0)
+        totals["judged"] += c.get("slip_test.samples_judged", 0)
     return totals
 
 

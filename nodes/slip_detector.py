@@ -22,9 +22,11 @@ Every F/T sample is examined: a contact carries the earlier samples of fusion's 
 which the detector steps before the newest, and the ``contact`` input is a ``batch``
 too (every contact that arrived since the last wake-up, each stepped in order; one
 ``slip`` for the newest, with the status of the first earlier one that had no usable
-verdict when the newest's was usable, so the grip is held). ``slip_test.samples_examined`` counts the samples the deciding test
-judged (the monitor's and the benchmark's "not examined" are fusion's received
-samples less these). ``onset_frames`` is counted in time at any F/T rate (frames at
+verdict when the newest's was usable, so the grip is held). ``slip_test.samples_judged``
+counts the samples the deciding test judged: a verdict on valid data or a loss of
+contact (the monitor's and the benchmark's "not examined" are the samples fusion
+received but no contact carried; those examined but not judged had no usable data and
+held the grip). ``onset_frames`` is counted in time at any F/T rate (frames at
 1 kHz: ``lib/detector.py``), so the flag rises after the same time in the band at
 1 kHz and at 7 kHz.
 
@@ -120,13 +122,13 @@ class SlipDetector(Node):
 
     def on_contact(self, msgs: tuple[Contact, ...], ctx: Context) -> None:
         detector = self.detector
-        examined = detector.samples_examined
+        judged = detector.samples_judged
         held = None  # the first earlier contact's status without a usable verdict
         for msg in msgs:
             v = detector.step(msg, msg.header.stamp_ns, tactile_frame=msg.header.sources.get("tactile"))
             if held is None and v.status not in _JUDGED and msg is not msgs[-1]:
                 held = v.status
-        ctx.count("slip_test.samples_examined", detector.samples_examined - examined)
+        ctx.count("slip_test.samples_judged", detector.samples_judged - judged)
         status = held if held is not None and v.status in _JUDGED else v.status
         if not v.solver_status.usable:
             ctx.count(f"slip.{v.solver_status.value}")

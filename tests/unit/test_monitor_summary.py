@@ -475,7 +475,7 @@ def test_the_summary_counts_the_ft_samples_fusion_received_carried_and_the_slip_
     events = [(t * MS, "rig/truth", _truth(t * MS)) for t in range(100)]
     events.append((60 * MS, "diagnostics", _diag("fusion", 60 * MS, **{"in.ft/wrench.received": 7000,
                                                                        "fusion.samples": 7000})))
-    events.append((61 * MS, "diagnostics", _diag("slip_detector", 61 * MS, **{"slip_test.samples_examined": 6990})))
+    events.append((61 * MS, "diagnostics", _diag("slip_detector", 61 * MS, **{"slip_test.samples_judged": 6990})))
     s, logs, _ = monitor_over(events, tmp_path)
     assert s["ft_samples"] == {"received": 7000, "carried": 7000, "judged": 6990}
     assert s["skipped_for_newer"] == {}
