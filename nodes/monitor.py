@@ -495,7 +495,7 @@ def device_problems(s: dict) -> list[str]:
 
 def behind_problems(s: dict) -> list[str]:
     """Signs that the control path fell behind: late commands, timer ticks skipped, more
-    than :data:`SKIP_WARN_SHARE` of a sensor topic's samples skipped for newer ones."""
+    than :data:`SKIP_WARN_SHARE` of a sensor topic's samples not examined."""
     problems = []
     if s["late_commands"]:
         problems.append(f"{s['late_commands']} of {s['commands_while_running']} grip commands while running "
@@ -510,7 +510,9 @@ def behind_problems(s: dict) -> list[str]:
         for topic, n in sorted(inputs.items()):
             share = n["skipped"] / n["received"] if n["received"] else 0.0
             if topic in SENSOR_TOPICS and share > SKIP_WARN_SHARE:
-                problems.append(f"{node} skipped {share * 100:.0f}% of {topic} for newer samples")
+                problems.append(f"{node} did not examine {share * 100:.0f}% of {topic} (skipped for a newer one, "
+                                "or beyond a batch's depth): it fell behind its input; free a CPU core or raise "
+                                "the stack's priority (the launch file's `realtime_priority` or `nice`)")
     return problems
 
 
