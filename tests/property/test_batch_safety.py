@@ -36,9 +36,25 @@ def _tactile(f_n: float, stamp: int) -> TactileFrame:
                         dead=np.zeros(256, bool), header=Header(stamp, stamp, stamp, {}))
 
 
+rare_fault = st.tuples(st.sampled_from(("ok",) * 100 + BAD), st.floats(1.0, 10.0), st.floats(-1.2, 1.2))
+backlogs = st.lists(st.lists(rare_fault, min_size=65, max_size=3 * 64 + 5), min_size=2, max_size=5)
+"""Wake-ups after stalls: up to four contacts each, handed to the slip detector at one
+instant, a bad sample rare enough that some contacts of a backlog hold none."""
+
+
 @settings(max_examples=40, deadline=None)
 @given(wake_ups=wake_ups, law=st.sampled_from(["exact", "linear"]))
 def test_an_unusable_sample_in_a_batch_never_lets_the_grip_drop(wake_ups, law):
+    _check_the_grip_never_drops_on_a_bad_batch(wake_ups, law)
+
+
+@settings(max_examples=25, deadline=None)
+@given(wake_ups=backlogs, law=st.sampled_from(["exact", "linear"]))
+def test_an_unusable_sample_anywhere_in_a_backlog_never_lets_the_grip_drop(wake_ups, law):
+    _check_the_grip_never_drops_on_a_bad_batch(wake_ups, law)
+
+
+def _check_the_grip_never_drops_on_a_bad_batch(wake_ups: list, law: str) -> None:
     ex = InProcessExecutor([
         Fusion(FusionParams()),
         SlipDetector(SlipDetectorParams(method="exact", mu=MU, also=[])),
