@@ -376,10 +376,12 @@ def decode(payload: bytes, expected: type[M] | None = None) -> M:
         raise DecodeError(f"{type_name}.{missing}: missing")
     msg = object.__new__(cls)  # fields are validated above; skip the frozen __init__'s setattr per field
     fields = msg.__dict__
-    for n, check, v in zip(names[:required], cls._validators, raw_body):  # type: ignore[attr-defined]
+    older = required < len(names)
+    for n, check, v in zip(names, cls._validators, raw_body[:required] if older else raw_body):  # type: ignore[attr-defined]
         fields[n] = check(v)
-    for n, default in zip(names[required:], cls._defaults[required:]):  # type: ignore[attr-defined]
-        fields[n] = default()  # fields an older version did not write
+    if older:  # the fields an older version did not write
+        for n, default in zip(names[required:], cls._defaults[required:]):  # type: ignore[attr-defined]
+            fields[n] = default()
     if cls._tied_lengths:  # type: ignore[attr-defined]
         _check_tied_lengths(msg, fields)
     fields["header"] = header
