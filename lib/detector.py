@@ -21,7 +21,7 @@ status, the verdict's validity status and every side test's ``[stick, margin]``.
   contact's pressure frame scaled to the sample's normal force, then the newest: the
   same latched state as stepping them one by one, so a slip flagged by any sample of
   the batch is latched, never lost (only a loss of contact clears it). The side tests
-  run once, on the newest. ``samples_examined`` counts the samples whose load the
+  run once, on the newest. ``samples_judged`` counts the samples whose load the
   deciding test judged.
 - ``method = "tactile_cor_known"`` with ``known_cor_m`` evaluates test (11) about
   that fixed pivot instead of solving for the COR (``lib/known_cor.py``, Fig. 13).
@@ -210,7 +210,7 @@ class Detector:
                                                onset_ns))
         self._warm: tuple[float, float] | None = None
         self._kind = SlipState.TRANSLATION  # the latest slip kind, reported while the latch holds
-        self.samples_examined = 0
+        self.samples_judged = 0
         """F/T samples judged since construction: the deciding test's verdict on valid data,
         or a loss of contact (each clears or moves the latch; samples without usable data
         leave it as it is and are not counted)."""
@@ -251,7 +251,7 @@ class Detector:
     def _advance(self, t_ns: int, v: SlipVerdict, status: str, *, contact_lost: bool) -> tuple[bool, bool]:
         """Feed one sample's verdict (its validity ``status``) to the latch: (slipping, in contact)."""
         fresh = status == VALID
-        self.samples_examined += fresh or contact_lost
+        self.samples_judged += fresh or contact_lost
         in_contact = v.kind != SlipState.NO_CONTACT if fresh else not contact_lost
         slipping = self._latch.update(t_ns, v.margin if fresh else math.nan, in_contact=in_contact)
         if slipping and in_contact and v.kind in SLIP_STATES:

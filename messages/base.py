@@ -286,8 +286,13 @@ def _validator(owner: str, f: dataclasses.Field, hint: Any):
     return check_scalar
 
 
-def message(type_name: str, version: int = 1):
-    """Class decorator: make a frozen message dataclass and register its type name."""
+def message(type_name: str, version: int = 1, *, reads_older: dict[int, str] | None = None):
+    """Class decorator: make a frozen message dataclass and register its type name.
+
+    ``reads_older`` maps an older version that decode still accepts to the first field it
+    lacked: that version wrote every field before it, and the later ones take their
+    defaults (e.g. recordings made before fields were appended).
+    """
 
     def wrap(cls: type[M]) -> type[M]:
         if "header" not in cls.__dict__.get("__annotations__", {}):
@@ -313,6 +318,10 @@ def message(type_name: str, version: int = 1):
         # Every declared field must be on the wire; trailing extra fields (appended by
         # a newer writer of the same version) are ignored.
         dc._required = len(body)  # type: ignore[attr-defined]
+        names = [f.name for f in body]
+        dc._older_required = {v: names.index(first_new) for v, first_new in (reads_older or {}).items()}  # type: ignore[attr-defined]
+        dc._defaults = tuple(f.default_factory if f.default is dataclasses.MISSING else (lambda d=f.default: d)  # type: ignore[attr-defined,misc]
+                             for f in body)
         if type_name in registry:
             raise TypeError(f"message type {type_name!r} registered twice")
         registry[type_name] = dc
@@ -357,23 +366,36 @@ def decode(payload: bytes, expected: type[M] | None = None) -> M:
         raise DecodeError(f"payload.type: unknown message type {type_name!r}")
     if type_name != cls.TYPE:
         raise DecodeError(f"payload.type: expected {cls.TYPE!r}, got {type_name!r}")
-    if version != cls.VERSION:
-        raise DecodeError(f"{type_name}.version: expected {cls.VERSION}, got {version!r}")
+    required = cls._required if version == cls.VERSION else _older_required(cls, version)  # type: ignore[attr-defined]
     header = header_from_wire(raw_header, type_name)
     if not isinstance(raw_body, list):
         raise DecodeError(f"{type_name}.body: expected a list of fields")
     names = cls._body_fields  # type: ignore[attr-defined]
-    if len(raw_body) < cls._required:  # type: ignore[attr-defined]
+    if len(raw_body) < required:
         missing = names[len(raw_body)]
         raise DecodeError(f"{type_name}.{missing}: missing")
     msg = object.__new__(cls)  # fields are validated above; skip the frozen __init__'s setattr per field
     fields = msg.__dict__
-    for n, check, v in zip(names, cls._validators, raw_body):  # type: ignore[attr-defined]
+    older = required < len(names)
+    for n, check, v in zip(names, cls._validators, raw_body[:required] if older else raw_body):  # type: ignore[attr-defined]
         fields[n] = check(v)
+    if older:  # the fields an older version did not write
+        for n, default in zip(names[required:], cls._defaults[required:]):  # type: ignore[attr-defined]
+            fields[n] = default()
     if cls._tied_lengths:  # type: ignore[attr-defined]
         _check_tied_lengths(msg, fields)
     fields["header"] = header
     return msg
+
+
+def _older_required(cls: type[Message], version: Any) -> int:
+    """Body fields an older ``version`` of ``cls`` wrote; DecodeError if decode cannot read it."""
+    older = cls._older_required  # type: ignore[attr-defined]
+    if type(version) is not int or version not in older:
+        readable = f" (or {', '.join(map(str, sorted(older)))})" if older else ""
+        raise DecodeError(f"{cls.TYPE}.version: expected {cls.VERSION}{readable}, got {version!r}; the frame "
+                          f"was written by another slipstack release: read it with that release")
+    return older[version]
 
 
 def handed_over(msg: M, header: Header) -> tuple[M, str | None]:

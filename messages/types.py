@@ -102,7 +102,7 @@ class TactileFrame(Message):
     status: str = bounded(STATUS_OK, **_STATUS)
 
 
-@message("slipstack/Contact", version=3)  # 2: tactile_status; 3: earlier_*
+@message("slipstack/Contact", version=3, reads_older={2: "earlier_samples"})  # 2: tactile_status; 3: earlier_*
 class Contact(Message):
     """``contact``: fused contact state in the pad frame ``F`` (docs/math.md §2).
 
@@ -129,7 +129,8 @@ class Contact(Message):
     uint8: :data:`SAMPLE_OK`, :data:`SAMPLE_NO_CONTACT` or :data:`SAMPLE_UNUSABLE`.
     ``status`` is the newest sample's, unless that one is ``ok`` or ``no_contact`` and
     an earlier one is unusable: then the first unusable earlier sample's status, so no
-    consumer lowers the grip on a wake-up that held a bad sample.
+    consumer lowers the grip on a wake-up that held a bad sample. A version 2 contact
+    (recorded before the earlier samples existed) reads as one without earlier samples.
     """
 
     rows: int = bounded(16, ge=0, le=MAX_PAD_SIDE)

@@ -6,7 +6,9 @@ several). Each wake-up publishes one ``contact`` for the newest sample that carr
 loads of the earlier ones too (``Contact.earlier_*``, each judged usable or not as its
 own contact would be), so the slip detector examines every sample while the control
 chain runs once per wake-up, not once per sample; a backlog of more than
-:data:`SAMPLES_PER_CONTACT` samples, after a stall, makes several contacts, oldest first. The tactile frame's pressure shape is
+:data:`SAMPLES_PER_CONTACT` samples, after a stall, makes several contacts, oldest first,
+and samples outside the tactile frame's pairing window are never carried by a contact
+paired with it. The tactile frame's pressure shape is
 computed once per frame. A batch that held an unusable sample (a device status, stale,
 implausible) passes that status on in the contact's ``status`` (docs/safety.md: the grip
 controller holds). ``fusion.samples`` counts the samples carried by contacts.
@@ -96,8 +98,23 @@ class Fusion(Node):
         sensor_frame = sum(w.frame != "pad" for w in msgs)
         if sensor_frame:
             ctx.count("fusion.sensor_frame_wrenches", sensor_frame)  # the driver should apply the mount transform
-        for start in range(0, len(msgs), SAMPLES_PER_CONTACT):  # a backlog: several contacts, oldest first
-            self._publish_contact(msgs[start:start + SAMPLES_PER_CONTACT], ctx)
+        for run in self._pairing_runs(msgs):
+            for start in range(0, len(run), SAMPLES_PER_CONTACT):  # a backlog: several contacts, oldest first
+                self._publish_contact(run[start:start + SAMPLES_PER_CONTACT], ctx)
+
+    def _pairing_runs(self, msgs: tuple[Wrench, ...]) -> list[tuple[Wrench, ...]]:
+        """``msgs`` cut, in order, into runs of consecutive samples that the tactile frame
+        pairs with alike (inside or outside ``max_pair_age_ms``), so a contact never
+        carries a sample its frame would not be paired with (a backlog spans more than
+        the window)."""
+        runs: list[tuple[Wrench, ...]] = []
+        start = 0
+        paired = [self._tactile_status(w.header.stamp_ns) == STATUS_OK for w in msgs]
+        for k in range(1, len(msgs) + 1):
+            if k == len(msgs) or paired[k] != paired[start]:
+                runs.append(msgs[start:k])
+                start = k
+        return runs
 
     def _publish_contact(self, msgs: tuple[Wrench, ...], ctx: Context) -> None:
         """One contact for the newest of ``msgs`` (at most :data:`SAMPLES_PER_CONTACT`)

@@ -25,7 +25,7 @@ silent nodes also on the live line):
   a batch input (fusion takes every F/T sample of a wake-up as one batch, so it skips
   none unless it falls 64 samples behind), on the HEALTH line for sensor topics above
   :data:`SKIP_WARN_SHARE`; and the F/T samples fusion received, carried in contacts and
-  the slip test judged (``fusion.samples``, ``slip_test.samples_examined``);
+  the slip test judged (``fusion.samples``, ``slip_test.samples_judged``);
 - *behind real time*: ``timer.<name>.skipped`` ticks of a timer-paced node (the rig
   skips simulator ticks it could not make up);
 - *silent nodes*: a node whose ``diagnostics`` (every 1 s) stopped for longer than
@@ -425,7 +425,7 @@ def _ft_samples(nodes: dict[str, NodeWatch]) -> dict[str, float]:
         if "fusion.samples" in c:
             totals["received"] += c.get("in.ft/wrench.received", 0)
             totals["carried"] += c["fusion.samples"]
-        totals["judged"] += c.get("slip_test.samples_examined", 0)
+        totals["judged"] += c.get("slip_test.samples_judged", 0)
     return totals
 
 
@@ -495,7 +495,7 @@ def device_problems(s: dict) -> list[str]:
 
 def behind_problems(s: dict) -> list[str]:
     """Signs that the control path fell behind: late commands, timer ticks skipped, more
-    than :data:`SKIP_WARN_SHARE` of a sensor topic's samples skipped for newer ones."""
+    than :data:`SKIP_WARN_SHARE` of a sensor topic's samples not examined."""
     problems = []
     if s["late_commands"]:
         problems.append(f"{s['late_commands']} of {s['commands_while_running']} grip commands while running "
@@ -510,7 +510,9 @@ def behind_problems(s: dict) -> list[str]:
         for topic, n in sorted(inputs.items()):
             share = n["skipped"] / n["received"] if n["received"] else 0.0
             if topic in SENSOR_TOPICS and share > SKIP_WARN_SHARE:
-                problems.append(f"{node} skipped {share * 100:.0f}% of {topic} for newer samples")
+                problems.append(f"{node} did not examine {share * 100:.0f}% of {topic} (skipped for a newer one, "
+                                "or beyond a batch's depth): it fell behind its input; free a CPU core or raise "
+                                "the stack's priority (the launch file's `realtime_priority` or `nice`)")
     return problems
 
 

@@ -21,9 +21,12 @@ on the shape of the pressure, not on its size) and shared by every F/T test.
 Every F/T sample is examined: a contact carries the earlier samples of fusion's batch,
 which the detector steps before the newest, and the ``contact`` input is a ``batch``
 too (every contact that arrived since the last wake-up, each stepped in order; one
-``slip`` for the newest). ``slip_test.samples_examined`` counts the samples the deciding test
-judged (the monitor's and the benchmark's "not examined" are fusion's received
-samples less these). ``onset_frames`` is counted in time at any F/T rate (frames at
+``slip`` for the newest, with the status of the first earlier one that had no usable
+verdict when the newest's was usable, so the grip is held). ``slip_test.samples_judged``
+counts the samples the deciding test judged: a verdict on valid data or a loss of
+contact (the monitor's and the benchmark's "not examined" are the samples fusion
+received but no contact carried; those examined but not judged had no usable data and
+held the grip). ``onset_frames`` is counted in time at any F/T rate (frames at
 1 kHz: ``lib/detector.py``), so the flag rises after the same time in the band at
 1 kHz and at 7 kHz.
 
@@ -39,7 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from slipstack.lib.detection import DetectorConfig
-from slipstack.lib.detector import FT_TESTS, Detector, DetectorSettings
+from slipstack.lib.detector import CONTACT_LOST, FT_TESTS, VALID, Detector, DetectorSettings
 from slipstack.lib.known_cor import KNOWN_COR_METHOD
 from slipstack.lib.limit_set import compile_kernels
 from slipstack.lib.slip_tests import SLIP_TESTS
@@ -84,6 +87,11 @@ class SlipDetectorParams:
 
 _WITHOUT_TACTILE = "tactile_off"
 """A tactile test's verdict on a contact of a stack run without tactile (fusion ``use_tactile = false``)."""
+_JUDGED = (VALID, CONTACT_LOST)
+"""Verdict statuses of a contact the slip test judged (valid data, or a loss of contact);
+any other status of an earlier contact of a batch is the published verdict's, as fusion
+passes an earlier sample's on, so the grip is held, not lowered, after a backlog with a
+bad sample in it."""
 
 
 class SlipDetector(Node):
@@ -114,10 +122,14 @@ class SlipDetector(Node):
 
     def on_contact(self, msgs: tuple[Contact, ...], ctx: Context) -> None:
         detector = self.detector
-        examined = detector.samples_examined
+        judged = detector.samples_judged
+        held = None  # the first earlier contact's status without a usable verdict
         for msg in msgs:
             v = detector.step(msg, msg.header.stamp_ns, tactile_frame=msg.header.sources.get("tactile"))
-        ctx.count("slip_test.samples_examined", detector.samples_examined - examined)
+            if held is None and v.status not in _JUDGED and msg is not msgs[-1]:
+                held = v.status
+        ctx.count("slip_test.samples_judged", detector.samples_judged - judged)
+        status = held if held is not None and v.status in _JUDGED else v.status
         if not v.solver_status.usable:
             ctx.count(f"slip.{v.solver_status.value}")
         if v.status == _WITHOUT_TACTILE and not self._said_without_tactile:
@@ -127,7 +139,7 @@ class SlipDetector(Node):
                              f"method:=coulomb law:=linear as `slipstack launch fig10` does ({', '.join(FT_TESTS)})")
         ctx.publish("slip", Slip(state=v.state, margin=v.margin, method=v.method,
                                  verdicts={name: list(pair) for name, pair in v.verdicts.items()},
-                                 gamma=v.gamma, status=v.status, f_n=msg.f_n, f_t=msg.f_t, tau=msg.tau,
+                                 gamma=v.gamma, status=status, f_n=msg.f_n, f_t=msg.f_t, tau=msg.tau,
                                  p_c=np.array(v.p_c if v.p_c is not None else (0.0, 0.0)),
                                  p_c_valid=v.p_c is not None),
                     stamp_ns=v.t_ns, sources=msg.header.sources)

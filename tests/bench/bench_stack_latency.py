@@ -21,7 +21,7 @@ headers are decoded), and reports over ``--duration`` seconds after ``--warmup``
   its batch;
 - F/T samples received by fusion, *not examined* (received − carried in contacts:
   skipped beyond a batch's depth, or for a newer one by a latest-value input) and
-  judged by the slip test (``fusion.samples``, ``slip_test.samples_examined``), commands
+  judged by the slip test (``fusion.samples``, ``slip_test.samples_judged``), commands
   per second;
 - loss: sequence gaps per topic seen by the tap, RDT sequence gaps, and *lost*
   (``.lost``, ``.rejected``, ``.dropped_hwm``) from the nodes' diagnostics;
@@ -385,13 +385,13 @@ def analyse(tap: Tap, w0: int, w1: int, args: argparse.Namespace, report: Report
     path_skips = sum(window.get(n, (0, {}, {}))[1].get(k, 0) for n, k in on_path.items())
     fusion = window.get("fusion", (0, {}, {}))[1]
     received, carried = fusion.get("in.ft/wrench.received", 0), fusion.get("fusion.samples", fusion.get("out.contact.published", 0))
-    judged = sum(d.get("slip_test.samples_examined", 0) for _, d, _ in window.values())
+    judged = sum(d.get("slip_test.samples_judged", 0) for _, d, _ in window.values())
     span = (w1 - w0) / 1e9
     report.add("Every sample examined (counter window)", _table(["what", "count"], [
         ["F/T samples received by fusion", f"{received:g}"],
         ["… **not examined** (received − carried in contacts: skipped for a newer one or beyond a batch's depth)",
          f"{received - carried:g} ({100 * (received - carried) / received:.2f} %)" if received else "–"],
-        ["… judged by the slip test (`slip_test.samples_examined`; the rest had no usable data)", f"{judged:g}"],
+        ["… judged by the slip test (`slip_test.samples_judged`; the rest had no usable data)", f"{judged:g}"],
         ["grip commands from a new verdict per second (tap window)", f"{len(fresh) / span:.0f}" if span else "–"],
     ]))
     report.passed["every sample examined"] = received > 0 and received == carried

@@ -36,9 +36,25 @@ def _tactile(f_n: float, stamp: int) -> TactileFrame:
                         dead=np.zeros(256, bool), header=Header(stamp, stamp, stamp, {}))
 
 
+rare_fault = st.tuples(st.sampled_from(("ok",) * 100 + BAD), st.floats(1.0, 10.0), st.floats(-1.2, 1.2))
+backlogs = st.lists(st.lists(rare_fault, min_size=65, max_size=3 * 64 + 5), min_size=2, max_size=5)
+"""Wake-ups after stalls: up to four contacts each, handed to the slip detector at one
+instant, a bad sample rare enough that some contacts of a backlog hold none."""
+
+
 @settings(max_examples=40, deadline=None)
 @given(wake_ups=wake_ups, law=st.sampled_from(["exact", "linear"]))
 def test_an_unusable_sample_in_a_batch_never_lets_the_grip_drop(wake_ups, law):
+    _check_the_grip_never_drops_on_a_bad_batch(wake_ups, law)
+
+
+@settings(max_examples=25, deadline=None)
+@given(wake_ups=backlogs, law=st.sampled_from(["exact", "linear"]))
+def test_an_unusable_sample_anywhere_in_a_backlog_never_lets_the_grip_drop(wake_ups, law):
+    _check_the_grip_never_drops_on_a_bad_batch(wake_ups, law)
+
+
+def _check_the_grip_never_drops_on_a_bad_batch(wake_ups: list, law: str) -> None:
     ex = InProcessExecutor([
         Fusion(FusionParams()),
         SlipDetector(SlipDetectorParams(method="exact", mu=MU, also=[])),
@@ -76,3 +92,36 @@ def test_an_unusable_sample_in_a_batch_never_lets_the_grip_drop(wake_ups, law):
         if prev is not None and f < prev - 1e-12:
             assert newest in bad_batch and not bad_batch[newest], "lowered without a batch of good samples"
         prev = f
+
+
+def test_a_stale_sample_early_in_a_backlog_holds_the_grip():
+    """A backlog after a stall makes several contacts at one instant; the slip detector
+    takes them as one batch and publishes one verdict for the newest: a stale sample in
+    the first contact must still make that verdict (and the command) hold the grip."""
+    ex = InProcessExecutor([
+        Fusion(FusionParams(use_tactile=False)),
+        SlipDetector(SlipDetectorParams(method="coulomb", mu=MU, beta_m=2.5e-3, also=[])),
+        GripController(GripControllerParams(law="linear", mu=MU, beta_m=2.5e-3, f_nom_n=F_NOM, f_max_n=F_MAX,
+                                            max_rate_n_per_s=RATE)),
+    ], keep_published=True)
+    t, seq, events = MS, 0, []
+    for k in range(40):  # 40 ms of one sample per wake-up under a heavy load: the grip rises
+        t += MS
+        seq += 1
+        events.append((t, "ft/wrench", Wrench(force=np.array([0.9 * MU * 8.0, 0.0, -8.0]), torque=np.zeros(3),
+                                              frame="pad", header=Header(t, seq, t, {}))))
+    last_steady_ns, arrive = t, t + 200 * PERIOD_NS + MS
+    for k in range(200):  # then a stall: 200 samples at one instant, the load gone, the 3rd one stale
+        t += PERIOD_NS
+        seq += 1
+        events.append((arrive, "ft/wrench", Wrench(force=np.array([0.0, 0.0, -8.0]), torque=np.zeros(3), frame="pad",
+                                                   status="stale" if k == 2 else "ok", header=Header(t, seq, t, {}))))
+    ex.feed(events)
+    ex.run(until_ns=arrive + 10 * MS)
+    assert all(h.counters.get("handler_errors", 0) == 0 for h in ex.hosts), ex.logs[-3:]
+    assert len(ex.published["contact"]) == 40 + 4  # the backlog made four contacts at one instant
+    before = [c for c in ex.published["grip/command"] if c.header.stamp_ns <= last_steady_ns]
+    after = [c for c in ex.published["grip/command"] if c.header.stamp_ns > last_steady_ns]
+    assert after, "no command after the backlog"
+    assert after[0].reason == "fail-safe" and after[0].f_n_desired >= before[-1].f_n_desired - 1e-12, (
+        before[-1], after[0])

@@ -95,7 +95,7 @@ def test_a_batch_is_judged_as_its_samples_one_by_one(batches, method, period_ns)
         want_slipping = want.slipping
         assert (got.slipping, got.state, got.kind, got.status) == (want.slipping, want.state, want.kind, want.status)
         assert got.gamma == want.gamma or (math.isnan(got.gamma) and math.isnan(want.gamma))
-        assert by_batch.samples_examined == one_by_one.samples_examined
+        assert by_batch.samples_judged == one_by_one.samples_judged
         if raised_at is not None and not lost_after and want.state != "no-contact" \
                 and stamps[-1] - raised_at < SETTINGS["release_ns"]:
             assert got.slipping, "a slip raised inside the batch was lost"

@@ -66,10 +66,10 @@ def test_the_policy_is_checked():
 
 
 # -- process executor, from the bus -----------------------------------------------------
-def _subscribed_member(ctx: zmq.Context, tmp_path):
+def _subscribed_member(ctx: zmq.Context, tmp_path, node: Node | None = None):
     endpoint = f"ipc://{tmp_path}/src.pub"
     pub = make_pub(ctx, endpoint)
-    node = _Gatherer()
+    node = node or _Gatherer()
     member = _Member(node, RunSpec(name="g", subs={"ft/wrench": [endpoint]}), ctx)
     sock = next(iter(member.sub_topic))
     deadline = time.monotonic() + 10
@@ -81,14 +81,15 @@ def _subscribed_member(ctx: zmq.Context, tmp_path):
 
 
 def _send_and_drain(pub, member, sock, payloads: list[bytes]) -> None:
+    c = member.host.counters
+    total = c["in.ft/wrench.received"] + len(payloads)
     for p in payloads:
         pub.send_multipart([b"ft/wrench", p])
-    c = member.host.counters
     deadline = time.monotonic() + 20
     while True:  # every frame reaches the socket eventually; drain until all were taken
         if sock.getsockopt(zmq.EVENTS) & zmq.POLLIN:
             member.drain("wrench", sock)
-        if c["in.ft/wrench.received"] >= len(payloads):
+        if c["in.ft/wrench.received"] >= total:
             return
         assert time.monotonic() < deadline, f"only {c['in.ft/wrench.received']} of {len(payloads)} arrived"
         time.sleep(0.01)
@@ -137,8 +138,8 @@ def test_process_executor_backlog_beyond_depth_keeps_the_newest_in_one_wake_up(t
 
 
 # -- process executor, in-container hand-over --------------------------------------------
-def _container(tmp_path):
-    device, sink = _Device(), _Gatherer()
+def _container(tmp_path, sink: Node | None = None):
+    device, sink = _Device(), sink or _Gatherer()
     executor = ProcessExecutor([
         (device, RunSpec(name="device", pub=f"ipc://{tmp_path}/device.pub")),
         (sink, RunSpec(name="gatherer", local={"ft/wrench": ["device"]})),
@@ -202,3 +203,42 @@ def test_inprocess_executor_hands_a_published_read_over_as_one_tuple_bounded_by_
     c = ex.host("gatherer").counters
     assert c["in.ft/wrench.dropped"] == 3 and c["in.ft/wrench.rejected"] == 1
     assert c["in.ft/wrench.received"] == DEPTH + 3
+
+
+# -- a handler that raises on a batch, in each executor ----------------------------------
+class _Fragile(_Gatherer):
+    """Raises on a batch that holds device_seq 2 (after remembering it), handles the rest."""
+
+    def on_wrench(self, msgs: tuple[Wrench, ...], ctx) -> None:
+        super().on_wrench(msgs, ctx)
+        if any(m.device_seq == 2 for m in msgs):
+            raise RuntimeError("a bug in the handler")
+
+
+def test_a_handler_that_raises_on_a_batch_is_counted_and_the_next_batch_is_handled(tmp_path):
+    ex = InProcessExecutor([_Fragile()])
+    ex.feed([(1_000, "ft/wrench", _payload(k, k)) for k in (1, 2, 3)] + [(2_000, "ft/wrench", _payload(4, 3))])
+    ex.run()
+    assert ex.host("gatherer").node.calls == [(1, 2, 3), (4,)]
+    assert ex.host("gatherer").counters["handler_errors"] == 1
+
+    executor, device, sink = _container(tmp_path, _Fragile())
+    try:
+        _read(executor, device, (1, 2, 3))
+        _read(executor, device, (4,))
+        assert sink.calls == [(1, 2, 3), (4,)]
+        assert executor.members[1].host.counters["handler_errors"] == 1
+    finally:
+        for sock in executor._sockets():
+            sock.close(linger=0)
+
+    pub, node, member, sock = _subscribed_member(zmq.Context.instance(), tmp_path, _Fragile())
+    try:
+        _send_and_drain(pub, member, sock, [_payload(k, k) for k in (1, 2, 3)])
+        _send_and_drain(pub, member, sock, [_payload(4, 3)])
+        assert [k for call in node.calls for k in call] == [1, 2, 3, 4]  # however the wake-ups cut them
+        assert member.host.counters["handler_errors"] == 1
+    finally:
+        for s in member.sockets():
+            s.close(linger=0)
+        pub.close(linger=0)

@@ -96,9 +96,32 @@ def test_a_backlog_beyond_one_contact_makes_several_every_sample_carried():
     """After a stall: consecutive contacts of at most SAMPLES_PER_CONTACT samples, oldest first."""
     assert SAMPLES_PER_CONTACT == MAX_EARLIER_SAMPLES + 1
     wrenches = [_wrench(k, 4.0, 0.1, 0.0) for k in range(2 * SAMPLES_PER_CONTACT + 5)]
-    contacts, ex = _run(wrenches)
+    contacts, ex = _run(wrenches, tactile=False)  # F/T only: the backlog outlasts the pairing window
     assert [c.earlier_samples + 1 for c in contacts] == [SAMPLES_PER_CONTACT, SAMPLES_PER_CONTACT, 5]
     carried = [s for c in contacts for s in (*c.earlier_stamp_ns.tolist(), c.header.stamp_ns)]
     assert carried == [w.header.stamp_ns for w in wrenches]
     c = ex.host("fusion").counters
     assert c["in.ft/wrench.dropped"] == 0 and c["fusion.samples"] == len(wrenches)
+
+
+def test_an_earlier_sample_outside_the_pairing_window_is_not_paired_with_the_frame():
+    """A backlog at 1 kHz spans 64 ms: its samples farther than max_pair_age_ms from the
+    tactile frame are carried by an F/T-only contact, as each would be alone, never
+    judged with a pressure frame they were not paired with."""
+    frame_ns = 100 * MS
+    wrenches = [Wrench(force=np.array([0.1, 0.0, -4.0]), torque=np.zeros(3), frame="pad", device_seq=k,
+                       header=Header(40 * MS + k * MS, k, 40 * MS + k * MS, {})) for k in range(64)]  # 40 … 103 ms
+    ex = InProcessExecutor([Fusion(FusionParams(max_pair_age_ms=10.0))], keep_published=True)
+    ex.feed([(frame_ns, "tactile/frame", _tactile(4.0, frame_ns))])
+    ex.feed([(104 * MS, "ft/wrench", w) for w in wrenches])
+    ex.run()
+    contacts = ex.published["contact"]
+    carried = [s for c in contacts for s in (*c.earlier_stamp_ns.tolist(), c.header.stamp_ns)]
+    assert carried == [w.header.stamp_ns for w in wrenches]  # every sample, once, oldest first
+    for c in contacts:
+        stamps = np.array([*c.earlier_stamp_ns.tolist(), c.header.stamp_ns])
+        if c.has_tactile:
+            assert (np.abs(stamps - frame_ns) <= 10 * MS).all(), stamps.tolist()
+        else:
+            assert c.tactile_status == "unpaired"
+    assert sum(c.has_tactile for c in contacts) >= 1 and sum(not c.has_tactile for c in contacts) >= 1

@@ -346,7 +346,9 @@ def test_behind_real_time_and_skipped_samples_reach_the_health_line(tmp_path):
     health_lines = health(logs)
     assert "rig fell behind real time (timer ticks skipped: tick 35; its diagnostics say how late)" in health_lines
     assert "`realtime:=10`" in health_lines and "--lockstep" in health_lines  # what to do next
-    assert "fusion skipped 40% of ft/wrench for newer samples" in health_lines
+    # fusion's ft/wrench is a batch input: its drops are a backlog beyond the depth, not "for newer samples"
+    assert ("fusion did not examine 40% of ft/wrench (skipped for a newer one, or beyond a batch's depth): "
+            "it fell behind its input; free a CPU core") in health_lines
     assert "grip/command" not in health_lines  # the plant acting on the newest command: listed, not a problem
     assert any("rig grip/command 400 of 1000" in line for line in logs)
 
@@ -475,7 +477,7 @@ def test_the_summary_counts_the_ft_samples_fusion_received_carried_and_the_slip_
     events = [(t * MS, "rig/truth", _truth(t * MS)) for t in range(100)]
     events.append((60 * MS, "diagnostics", _diag("fusion", 60 * MS, **{"in.ft/wrench.received": 7000,
                                                                        "fusion.samples": 7000})))
-    events.append((61 * MS, "diagnostics", _diag("slip_detector", 61 * MS, **{"slip_test.samples_examined": 6990})))
+    events.append((61 * MS, "diagnostics", _diag("slip_detector", 61 * MS, **{"slip_test.samples_judged": 6990})))
     s, logs, _ = monitor_over(events, tmp_path)
     assert s["ft_samples"] == {"received": 7000, "carried": 7000, "judged": 6990}
     assert s["skipped_for_newer"] == {}
