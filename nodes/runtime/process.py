@@ -355,7 +355,10 @@ class _Member:
 
     def watch_io(self, poller: zmq.Poller, handlers: dict) -> None:
         """Keep the poller in step with the node's current descriptors."""
-        current = {src.fileno(): src for src in self.node.io_sources()}
+        sources = self.node.io_sources()
+        if len(sources) == 1 and len(self.io) == 1 and self.io.get(sources[0].fileno()) is sources[0]:
+            return  # a driver's one device, unchanged since the last turn: nothing to re-register
+        current = {src.fileno(): src for src in sources}
         if current.keys() != self.io.keys():
             for fd in self.io.keys() - current.keys():
                 poller.unregister(fd)

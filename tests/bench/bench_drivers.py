@@ -19,8 +19,14 @@ CLOCK_MONOTONIC in both processes): device read → decode → publish → SUB.
 RDT runs with ``stale_ms=5``: the back-end default (2.5 periods = 0.36 ms at 7 kHz)
 flags every scheduler hiccup of the pacing loop as stale.
 
+``--tight N`` instead runs each driver node in this process against the same
+emulator, one sample written and read at a time, no bus (the payload is encoded and
+dropped), and prints the thread CPU of the driver's ``on_readable`` alone per sample
+(device read + decode + the node's work + encode): median of 5 runs of N samples.
+
     python tests/bench/bench_drivers.py                  # 10 s per case
     python tests/bench/bench_drivers.py --duration 3 --case rdt
+    python tests/bench/bench_drivers.py --tight 4000 --case rdt --case dsacon32
 """
 
 from __future__ import annotations
@@ -140,12 +146,58 @@ def _pace(send, rate: float, seconds: float, drain, stop_when=None) -> int:
         time.sleep(0.0005)
 
 
+def tight_loop_us(name: str, n: int) -> float:
+    """Thread CPU (µs) of one ``on_readable`` per sample, driver in this process (module docstring)."""
+    import select
+    import statistics
+
+    from slipstack.nodes.ft_driver import FtDriver, FtDriverParams
+    from slipstack.nodes.runtime.host import NodeHost
+    from slipstack.nodes.tactile_driver import TactileDriver, TactileDriverParams
+
+    def one_run() -> float:
+        node_type, url, _rate, emu, send, _params = make_case(name)
+        node = (FtDriver(FtDriverParams(url=url)) if node_type == "ft_driver"
+                else TactileDriver(TactileDriverParams(url=url)))
+        published = []
+        host = NodeHost(node, time.monotonic_ns, lambda topic, payload: published.append(len(payload)), name=name)
+        service = getattr(emu, "service", lambda: None)
+        try:
+            host.call("start", node.start, host)
+            deadline = time.monotonic() + 5.0
+            while node.status != "ok" and time.monotonic() < deadline:  # handshake, first samples
+                send()
+                service()
+                time.sleep(0.002)
+                node.on_readable(None, host)
+            cpu_ns = 0
+            for _ in range(n):
+                send()
+                service()
+                select.select([node.backend.fileno()], [], [], 1.0)
+                t0 = time.thread_time_ns()
+                node.on_readable(None, host)
+                cpu_ns += time.thread_time_ns() - t0
+            return cpu_ns / n / 1e3
+        finally:
+            node.stop(host)
+            emu.close()
+
+    return statistics.median(one_run() for _ in range(5))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--duration", type=float, default=10.0, help="measured window per case (s)")
     ap.add_argument("--case", action="append", choices=["rdt", "m1616", "dsacon32"],
                     help="run only this case (repeatable)")
+    ap.add_argument("--tight", type=int, metavar="N", default=0,
+                    help="instead: the driver's on_readable CPU per sample in this process, no bus, N samples")
     args = ap.parse_args()
+    if args.tight:
+        for name in args.case or ["rdt", "m1616", "dsacon32"]:
+            print(f"{name:<10}{tight_loop_us(name, args.tight):8.1f} us CPU per sample (on_readable, median of 5)")
+        return
     rows = []
     with tempfile.TemporaryDirectory(prefix="ssb-", dir="/tmp") as d:
         for name in args.case or ["rdt", "m1616", "dsacon32"]:
