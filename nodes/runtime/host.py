@@ -12,7 +12,7 @@ import sys
 import time
 import traceback
 from collections import defaultdict, deque
-from typing import Any, Callable
+from typing import Any, Callable, Sequence, TypeVar
 
 import numpy as np
 
@@ -23,6 +23,8 @@ from slipstack.messages.frame import SeqTracker
 from slipstack.messages.types import MAX_COUNTERS, MAX_TEXT_LEN
 from slipstack.nodes.runtime.node import Node
 from slipstack.nodes.runtime.stage_cpu import StageCpu
+
+_Delivered = TypeVar("_Delivered")
 
 __all__ = ["NodeHost", "DIAGNOSTICS_TOPIC"]
 
@@ -218,6 +220,24 @@ class NodeHost:
             self.last_error = f"{self.input_topics[input_name]}: {rejection}"
             return None
         return msg
+
+    def dispatch_batch(self, input_name: str, backlog: Sequence[_Delivered],
+                       accept: Callable[[_Delivered, int], Message | None]) -> None:
+        """Handle a ``batch`` input's backlog, oldest first, in one call: the oldest beyond the
+        input's depth are counted as received and dropped (:meth:`skip`); ``accept(item,
+        skipped)`` counts each other one and returns its message, or ``None`` if rejected
+        (``skipped``: how many were dropped just before it, which fill a sequence gap — the
+        overflow for the first accepted one, then 0)."""
+        overflow = max(len(backlog) - self.node.inputs[input_name].depth, 0)
+        self.skip(input_name, overflow)
+        msgs = []
+        for item in backlog[overflow:]:
+            msg = accept(item, overflow)
+            if msg is not None:
+                msgs.append(msg)
+                overflow = 0
+        if msgs:
+            self.dispatch(input_name, tuple(msgs))
 
     def skip(self, input_name: str, n: int) -> None:
         """Count ``n`` frames received but skipped undecoded for a newer one (drain-to-latest)."""

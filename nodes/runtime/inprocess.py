@@ -123,7 +123,7 @@ class InProcessExecutor:
         self._io_hosts = [h for h in self.hosts if h in self._deadline_hosts
                           and type(h.node).io_sources is not Node.io_sources]
         self._by_name = {h.name: h for h in self.hosts}
-        self._batch_depths = {(id(h), n): i.depth for h in self.hosts for n, i in h.node.inputs.items()
+        self._batch_inputs = {(id(h), n) for h in self.hosts for n, i in h.node.inputs.items()
                               if i.policy == "batch"}
 
     # -- the public driving API ----------------------------------------------------------
@@ -233,7 +233,7 @@ class InProcessExecutor:
             host = item[1]
             if host.shutdown_requested:
                 continue
-            if kind in ("message", "frame") and (id(host), item[2]) in self._batch_depths:
+            if kind in ("message", "frame") and (id(host), item[2]) in self._batch_inputs:
                 self._run_batch(item, t_ns)
             elif kind == "message":
                 _, host, input_name, (msg, rejection) = item
@@ -287,15 +287,8 @@ class InProcessExecutor:
             if nxt[0] not in ("message", "frame") or nxt[1] is not host or nxt[2] != input_name:
                 break
             items.append(heapq.heappop(queue)[3])
-        overflow = max(len(items) - self._batch_depths[(id(host), input_name)], 0)
-        host.skip(input_name, overflow)
-        msgs = []
-        for kind, _, _, delivered in items[overflow:]:
-            msg = host.accept_local(input_name, *delivered) if kind == "message" else host.receive(input_name, delivered)
-            if msg is not None:
-                msgs.append(msg)
-        if msgs:
-            host.dispatch(input_name, tuple(msgs))
+        host.dispatch_batch(input_name, items, lambda item, _: (
+            host.accept_local(input_name, *item[3]) if item[0] == "message" else host.receive(input_name, item[3])))
 
     def _schedule_deadline(self, host: NodeHost) -> None:
         due = host.node.next_deadline_ns()

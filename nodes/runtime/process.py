@@ -168,7 +168,7 @@ class _Member:
                 secure_bind(self.inject_sock, endpoint)
                 self.inject_sock.bind(endpoint)
         self.queues = {n: deque(maxlen=i.depth) for n, i in node.inputs.items() if i.policy == "queue"}
-        self.batch_depths = {n: i.depth for n, i in node.inputs.items() if i.policy == "batch"}
+        self.batch_inputs = {n for n, i in node.inputs.items() if i.policy == "batch"}
         self.watches_io = type(node).io_sources is not Node.io_sources
         self.has_deadline = type(node).next_deadline_ns is not Node.next_deadline_ns
         self.precise = bool(node.timers) and getattr(node, "precise_timers", False)
@@ -263,7 +263,7 @@ class _Member:
             stage.enter(resume)
         queue = self.queues.get(input_name)
         if queue is None:
-            if input_name in self.batch_depths:
+            if input_name in self.batch_inputs:
                 self._dispatch_batch(input_name, payloads, origin)
             else:
                 self._dispatch_newest(input_name, payloads, origin)
@@ -293,16 +293,8 @@ class _Member:
         """Handle the valid frames of a ``batch`` input's backlog in one call, oldest first; the
         frames beyond its depth, oldest first, are skipped undecoded (received and dropped)."""
         host = self.host
-        overflow = max(len(payloads) - self.batch_depths[input_name], 0)
-        host.skip(input_name, overflow)
-        msgs = []
-        for k in range(overflow, len(payloads)):
-            msg = host.receive(input_name, payloads[k], origin, skipped=overflow)
-            if msg is not None:
-                msgs.append(msg)
-                overflow = 0  # the skipped frames fill the sequence gap before the first valid one only
-        if msgs:
-            host.dispatch(input_name, tuple(msgs))
+        host.dispatch_batch(input_name, payloads,
+                            lambda payload, skipped: host.receive(input_name, payload, origin, skipped=skipped))
 
     def drain_injected(self, now_ns: int) -> None:
         """Frames put in by tools, within the node's injection rate: a ``queue`` input
@@ -338,7 +330,7 @@ class _Member:
                     continue
                 if input_name in self.queues:
                     host.dispatch(input_name, msg)
-                elif input_name in self.batch_depths:
+                elif input_name in self.batch_inputs:
                     batches.setdefault(input_name, []).append(msg)
                 else:
                     if input_name in newest:
@@ -349,7 +341,7 @@ class _Member:
         for input_name, msg in newest.items():
             host.dispatch(input_name, msg)
         for input_name, msgs in batches.items():
-            depth = self.batch_depths[input_name]
+            depth = self.node.inputs[input_name].depth
             host.count_dropped(input_name, max(len(msgs) - depth, 0))
             host.dispatch(input_name, tuple(msgs[-depth:]))
 
@@ -448,7 +440,7 @@ class ProcessExecutor:
         # (member, input) of a ``batch`` input → its (message, rejection) pairs gathered for one call
         # (the hand-over queue holds ``None`` in their place, once)
         self._batch_waiting: dict[tuple[_Member, str], list[tuple[Message, str | None]]] = {
-            (m, n): [] for m in self.members for n in m.batch_depths
+            (m, n): [] for m in self.members for n in m.batch_inputs
         }
         # (member, input) of a ``latest`` input → its messages in the hand-over queue
         self._latest_queued: dict[tuple[_Member, str], int] = {
@@ -510,12 +502,8 @@ class ProcessExecutor:
         """The messages handed over to a ``batch`` input since its last call, in one call
         (emptied); those beyond its depth, the oldest, are counted as received and dropped."""
         host = member.host
-        overflow = max(len(waiting) - member.batch_depths[input_name], 0)
-        host.skip(input_name, overflow)
-        msgs = tuple(m for m, rejection in waiting[overflow:] if host.accept_local(input_name, m, rejection) is not None)
+        host.dispatch_batch(input_name, waiting, lambda delivered, _: host.accept_local(input_name, *delivered))
         waiting.clear()
-        if msgs:
-            host.dispatch(input_name, msgs)
 
     def _on_signal(self, signum: int, frame: Any) -> None:
         self._stopping = True
