@@ -23,7 +23,7 @@ silent nodes also on the live line):
 - *samples not examined*: ``in.<topic>.dropped`` over ``in.<topic>.received`` of each
   node's inputs: skipped for a newer one by a latest-value input, or beyond the depth of
   a batch input (fusion takes every F/T sample of a wake-up as one batch, so it skips
-  none unless it falls 64 samples behind), on the HEALTH line for sensor topics above
+  none unless it falls 1 000 samples, its batch depth, behind), on the HEALTH line for sensor topics above
   :data:`SKIP_WARN_SHARE`; and the F/T samples fusion received, carried in contacts and
   the slip test judged (``fusion.samples``, ``slip_test.samples_judged``);
 - *behind real time*: ``timer.<name>.skipped`` ticks of a timer-paced node (the rig
