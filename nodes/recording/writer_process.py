@@ -1,0 +1,154 @@
+"""A recording written by a child process: the caller only hands it encoded frames.
+
+``slipstack launch FILE --lockstep`` runs the whole graph on one core; writing its
+recording (the MCAP records, the chunk index, zstd) cost about a tenth of that core.
+:class:`RecordingWriterProcess` moves that work to a child process, on the other core:
+the caller appends each frame to a buffer and sends the buffer down the child's stdin
+every :data:`BATCH_BYTES`; the child writes the frames with
+:class:`~slipstack.nodes.recording.bag_io.RecordingWriter`, so the file is, byte for
+byte, the one an in-process writer makes of the same frames.
+
+Bounds and failures:
+
+* what waits is bounded by the batch and the pipe's buffer: a slow disk slows the
+  caller (a full pipe blocks its write), it never grows memory;
+* the caller stopping in any way (return, exception, Ctrl-C, ``kill -9``) closes the
+  pipe, and the child then finishes the file (summary, index, footer); frames still
+  in the caller's buffer at a ``kill -9`` are lost, as the chunk in progress would be;
+* the child failing (disk full, a folder it may not write) does not stop the caller:
+  later frames are dropped, and :meth:`RecordingWriterProcess.close` raises
+  :class:`~slipstack.nodes.recording.bag_io.RecordingError` with the child's reason.
+
+Wire format on the pipe, per frame: ``<q H I`` (log time ns, topic length, payload
+length), the topic (UTF-8), the payload.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import struct
+import subprocess
+import sys
+from pathlib import Path
+from typing import BinaryIO
+
+__all__ = ["RecordingWriterProcess", "BATCH_BYTES", "main"]
+
+BATCH_BYTES = 256 * 1024
+"""Bytes of frames gathered before one write to the child (one pipe write per ~100 frames)."""
+_RECORD = struct.Struct("<qHI")
+
+
+class RecordingWriterProcess:
+    """Write frames to the MCAP file ``path`` through a child process (see the module docstring).
+
+    Args:
+        path: output file; it must not exist (never overwritten).
+        wall_minus_monotonic_ns: as :class:`~slipstack.nodes.recording.bag_io.RecordingWriter`'s.
+    """
+
+    def __init__(self, path: str | os.PathLike, *, wall_minus_monotonic_ns: int | None = None) -> None:
+        self.path = Path(path)
+        command = [sys.executable, "-m", __name__, str(self.path)]
+        if wall_minus_monotonic_ns is not None:
+            command += ["--wall-minus-monotonic-ns", str(int(wall_minus_monotonic_ns))]
+        self._child = subprocess.Popen(command, stdin=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0)
+        self._pipe: BinaryIO = self._child.stdin  # type: ignore[assignment]
+        self._buffer = bytearray()
+        self._topics: dict[str, bytes] = {}
+        self._broken = False
+        self.closed = False
+
+    def write(self, topic: str, payload: bytes, log_time_ns: int) -> None:
+        """Append one frame logged at ``log_time_ns`` (ns, the recording's log clock)."""
+        name = self._topics.get(topic)
+        if name is None:
+            name = self._topics[topic] = topic.encode()
+        buffer = self._buffer
+        buffer += _RECORD.pack(log_time_ns, len(name), len(payload))
+        buffer += name
+        buffer += payload
+        if len(buffer) >= BATCH_BYTES:
+            self._send()
+
+    def _send(self) -> None:
+        if not self._broken:
+            try:
+                self._pipe.write(self._buffer)  # a blocking pipe: returns once every byte is in
+            except BrokenPipeError:  # the child failed: close() says why
+                self._broken = True
+        self._buffer.clear()
+
+    def close(self) -> None:
+        """Send what is left, let the child finish the file, and wait for it. Idempotent.
+
+        Raises:
+            RecordingError: the child failed; the file may be incomplete (its reason attached).
+        """
+        if self.closed:
+            return
+        self.closed = True
+        self._send()
+        try:
+            self._pipe.close()
+        except BrokenPipeError:
+            self._broken = True
+        reason = self._child.stderr.read().decode(errors="replace").strip()  # type: ignore[union-attr]
+        self._child.stderr.close()  # type: ignore[union-attr]
+        if self._child.wait() != 0 or self._broken:
+            from slipstack.nodes.recording.bag_io import RecordingError
+
+            raise RecordingError(f"the recording {self.path} may be incomplete: its writer failed "
+                                 f"({reason or f'exit code {self._child.returncode}'})")
+
+    def __enter__(self) -> "RecordingWriterProcess":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _copy_frames(source: BinaryIO, path: Path, wall_minus_monotonic_ns: int | None) -> int:
+    """Write every frame read from ``source`` until its end to ``path``; the frame count."""
+    from slipstack.nodes.recording.bag_io import RecordingWriter
+
+    count = 0
+    with RecordingWriter(path, wall_minus_monotonic_ns=wall_minus_monotonic_ns) as writer:
+        while True:
+            head = source.read(_RECORD.size)
+            if len(head) < _RECORD.size:
+                if head:
+                    raise ValueError(f"the frames ended inside a record header after {count} frames")
+                return count
+            log_time_ns, topic_len, payload_len = _RECORD.unpack(head)
+            topic = source.read(topic_len)
+            payload = source.read(payload_len)
+            if len(topic) < topic_len or len(payload) < payload_len:
+                raise ValueError(f"the frames ended inside frame {count + 1}")
+            writer.write(topic.decode(), payload, log_time_ns)
+            count += 1
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The child: frames on stdin (the format of the module docstring) into the recording PATH."""
+    parser = argparse.ArgumentParser(
+        prog="python -m slipstack.nodes.recording.writer_process",
+        description="Write the frames arriving on stdin to an MCAP recording (the child of "
+                    "RecordingWriterProcess; started by `slipstack launch --lockstep`, not by hand).")
+    parser.add_argument("path", type=Path, help="the recording to write (must not exist)")
+    parser.add_argument("--wall-minus-monotonic-ns", type=int, default=None,
+                        help="the clock metadata to store (ns)")
+    args = parser.parse_args(argv)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the parent, which then closes the pipe
+    try:
+        _copy_frames(sys.stdin.buffer, args.path, args.wall_minus_monotonic_ns)
+    except (OSError, ValueError) as exc:
+        print(f"{type(exc).__name__}: {exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
