@@ -47,8 +47,8 @@ from slipstack.nodes.runtime.stage_cpu import STAGE_CPU_ENV, stage_cpu_from_env
 
 __all__ = ["LockstepRun", "check_lockstep", "run_launch_file", "STEP_NS", "DIAGNOSTICS_PERIOD_S"]
 
-STEP_NS = 10_000_000
-"""Simulated time advanced between checks for the end of the run and progress reports (10 ms)."""
+STEP_NS = 100_000_000
+"""Simulated time advanced between checks for the end of the run and progress reports (100 ms)."""
 DIAGNOSTICS_PERIOD_S = 1.0
 """Simulated seconds between each node's ``diagnostics`` (as in a real-time launch)."""
 PROGRESS_STEPS = 10
