@@ -33,7 +33,6 @@ from pathlib import Path
 
 import zmq
 import zmq.auth
-from zmq.auth.thread import ThreadAuthenticator
 
 from slipstack.lib.errors import ConfigError
 
@@ -141,7 +140,7 @@ def endpoint_host(endpoint: str) -> str:
 
 _keys: GraphKeys | None = None
 _insecure = False
-_authenticators: dict[int, ThreadAuthenticator] = {}
+_authenticators: dict[int, "zmq.auth.thread.ThreadAuthenticator"] = {}
 
 
 def use_keys(directory: str | Path | None, machine: str | None = None, hosts: dict[str, str] | None = None, *,
@@ -180,6 +179,8 @@ def secure_bind(sock: zmq.Socket, endpoint: str) -> None:
         return
     ctx = sock.context
     if id(ctx) not in _authenticators:
+        from zmq.auth.thread import ThreadAuthenticator  # here, not at the top: it imports asyncio (~15 ms)
+
         auth = ThreadAuthenticator(ctx)
         auth.start()
         auth.configure_curve(domain="*", location=str(keys.directory))
