@@ -29,7 +29,8 @@ from slipstack.lib.weber import JIT
 
 __all__ = ["complex_abs", "compile_kernels", "finish_sliding", "linearise_sliding", "advance",
            "limit_slip_damping", "release_over_cap", "slide_caps", "stick_arrays", "surface_velocity",
-           "take_normal_forces"]
+           "take_normal_forces", "restart_weakening", "caps_and_stick_arrays", "new_normal_forces", "begin_step",
+           "mid_step_check", "advance_step", "end_step"]
 
 _TINY_SPEED = 1e-300
 """Floor of a speed used as a divisor (m/s): a direction from a zero velocity is 0."""
@@ -253,6 +254,150 @@ def stick_arrays(sliding: np.ndarray, contact: np.ndarray, phi: np.ndarray, cap_
         stick_stiffness_out[i] = -k * stick
 
 
+# ------------------------------------------------------------------ one call per phase of a step
+#
+# BristleField calls these instead of the kernels above one by one: a step is four
+# calls (new normal forces, begin, each cap pass, end) and numpy's exp, not a dozen
+# kernel and numpy calls with their Python overhead. They chain the kernels above in
+# the order BristleField chained them, so the results are those of the kernels.
+
+
+@njit(**JIT)
+def restart_weakening(s: np.ndarray, weakening: np.ndarray) -> None:
+    """``weakening_i = 1`` where the slip distance restarted (``s_i = 0``): numpy's
+    ``exp(−0/d_c)``, so the weakening of the other taxels need not be recomputed."""
+    for i in range(s.shape[0]):
+        if s[i] == 0.0:
+            weakening[i] = 1.0
+
+
+@njit(**JIT)
+def caps_and_stick_arrays(n_sliding: int, cap_static: np.ndarray, cap_dynamic: np.ndarray,
+                          cap_weakening: np.ndarray, weakening: np.ndarray, sliding: np.ndarray,
+                          contact: np.ndarray, phi: np.ndarray, stick_damping: float, k: float, dt: float,
+                          cap_slide_out: np.ndarray, cap_slide_tol_out: np.ndarray, cap_stick_out: np.ndarray,
+                          slide_mask_out: np.ndarray, dt_slide_mask_out: np.ndarray,
+                          share_weights_out: np.ndarray, stick_damping_out: np.ndarray,
+                          stick_stiffness_out: np.ndarray) -> None:
+    """The slip caps (:func:`slide_caps`; the static caps while no taxel slides, the
+    tolerance then left as it is) and :func:`stick_arrays`, after φ or the stick set changed."""
+    if n_sliding:
+        slide_caps(cap_dynamic, cap_weakening, weakening, sliding, cap_slide_out, cap_slide_tol_out)
+    else:
+        cap_slide_out[:] = cap_static
+    stick_arrays(sliding, contact, phi, cap_static, stick_damping, k, dt, cap_stick_out, slide_mask_out,
+                 dt_slide_mask_out, share_weights_out, stick_damping_out, stick_stiffness_out)
+
+
+@njit(**JIT)
+def new_normal_forces(f_n: float, shape: np.ndarray, mu_s: np.ndarray, mu_d: np.ndarray, n_sliding: int,
+                      stick_damping: float, k: float, dt: float, contact: np.ndarray, z: np.ndarray, s: np.ndarray,
+                      sliding: np.ndarray, weakening: np.ndarray, phi_out: np.ndarray, cap_static: np.ndarray,
+                      cap_dynamic: np.ndarray, cap_weakening: np.ndarray, cap_slide: np.ndarray,
+                      cap_slide_tol: np.ndarray, cap_stick: np.ndarray, slide_mask: np.ndarray,
+                      dt_slide_mask: np.ndarray, share_weights: np.ndarray, stick_damping_out: np.ndarray,
+                      stick_stiffness: np.ndarray) -> int:
+    """Normal forces ``φ_i = f_n·shape_i`` (N) into ``phi_out``, :func:`take_normal_forces`
+    of them, then :func:`caps_and_stick_arrays`.
+
+    Returns:
+        The new number of slipping taxels if a taxel entered or left contact, else −1
+        (the stick set is unchanged, and so are the values written to ``stick_damping_out``).
+    """
+    for i in range(shape.shape[0]):
+        phi_out[i] = f_n * shape[i]
+    changed = take_normal_forces(phi_out, mu_s, mu_d, contact, z, s, sliding, cap_static, cap_dynamic,
+                                 cap_weakening) > 0
+    if changed:
+        n_sliding = 0
+        for i in range(sliding.shape[0]):
+            n_sliding += sliding[i]
+        restart_weakening(s, weakening)
+    caps_and_stick_arrays(n_sliding, cap_static, cap_dynamic, cap_weakening, weakening, sliding, contact,
+                          phi_out, stick_damping, k, dt, cap_slide, cap_slide_tol, cap_stick, slide_mask,
+                          dt_slide_mask, share_weights, stick_damping_out, stick_stiffness)
+    return n_sliding if changed else -1
+
+
+@njit(**JIT)
+def begin_step(stick_stiffness: np.ndarray, z: np.ndarray, n_sliding: int, v_origin: complex, omega: float,
+               positions: np.ndarray, u_prev: np.ndarray, has_prev: bool, sliding: np.ndarray,
+               cap_slide: np.ndarray, stick_damping: np.ndarray, v_reg: float, e_out: np.ndarray,
+               u_n_out: np.ndarray, speed_n_out: np.ndarray, damping_out: np.ndarray) -> None:
+    """Explicit forces ``e_i = −k z_i`` of sticking taxels (``stick_stiffness·z``, complex N)
+    and, while ``n_sliding > 0``, the start-of-step surface velocity ``u_n``
+    (:func:`surface_velocity`) and the damping of the step (:func:`linearise_sliding`;
+    ``u_prev = u_n`` without a previous step, ``has_prev`` False)."""
+    for i in range(z.shape[0]):
+        e_out[i] = complex(stick_stiffness[i], 0.0) * z[i]  # numpy's float·complex: a complex product
+    if n_sliding:
+        surface_velocity(v_origin, omega, positions, u_n_out)
+        linearise_sliding(u_n_out, u_prev if has_prev else u_n_out, sliding, cap_slide, stick_damping, v_reg,
+                          speed_n_out, damping_out)
+
+
+@njit(**JIT)
+def mid_step_check(v_origin: complex, omega: float, positions: np.ndarray, n_sliding: int,
+                   damping: np.ndarray, cap_slide_tol: np.ndarray, cap_slide: np.ndarray, u_out: np.ndarray,
+                   speed_out: np.ndarray, damping_out: np.ndarray) -> bool:
+    """The mid-point surface velocity ``ū`` (:func:`surface_velocity`) and, while some
+    taxel slides, :func:`limit_slip_damping` of it; returns whether a taxel was over its cap."""
+    surface_velocity(v_origin, omega, positions, u_out)
+    if not n_sliding:
+        return False
+    return limit_slip_damping(damping, u_out, cap_slide_tol, cap_slide, speed_out, damping_out)
+
+
+@njit(**JIT)
+def advance_step(e: np.ndarray, damping: np.ndarray, u_avg: np.ndarray, z: np.ndarray, dt: float,
+                 n_sliding: int, speed: np.ndarray, dt_slide_mask: np.ndarray, s: np.ndarray,
+                 neg_inv_d_c: float, q_out: np.ndarray, z_out: np.ndarray, weakening_arg_out: np.ndarray) -> None:
+    """:func:`advance`; while some taxel slides, also the slip distances
+    ``s_i += |ū_i|·dt·slide_i`` (m) and the argument ``−s_i/d_c`` of their weakening
+    (``neg_inv_d_c`` = −1/d_c, 1/m), whose exp the caller takes with numpy (its rounding)."""
+    advance(e, damping, u_avg, z, dt, q_out, z_out)
+    if n_sliding:
+        for i in range(s.shape[0]):
+            s[i] += speed[i] * dt_slide_mask[i]
+            weakening_arg_out[i] = s[i] * neg_inv_d_c
+
+
+@njit(**JIT)
+def end_step(n_sliding: int, u_avg: np.ndarray, u_n: np.ndarray, speed: np.ndarray, speed_n: np.ndarray,
+             q: np.ndarray, cap_static: np.ndarray, cap_dynamic: np.ndarray, cap_weakening: np.ndarray,
+             weakening: np.ndarray, contact: np.ndarray, phi: np.ndarray, stick_damping: float, k: float,
+             dt: float, v_stick: float, z_new: np.ndarray, sliding: np.ndarray, s: np.ndarray,
+             cap_slide: np.ndarray, cap_slide_tol: np.ndarray, cap_stick: np.ndarray, slide_mask: np.ndarray,
+             dt_slide_mask: np.ndarray, share_weights: np.ndarray, stick_damping_out: np.ndarray,
+             stick_stiffness: np.ndarray) -> int:
+    """The end of a step after :func:`advance_step` and the new weakening: while some
+    taxel slides, its caps (:func:`slide_caps`) and :func:`finish_sliding`; then
+    :func:`release_over_cap`. If the stick set changed, the caps and
+    :func:`stick_arrays` again (``stick_damping_out`` receives the damping).
+
+    Returns:
+        The new number of slipping taxels, or −1 if the stick set did not change
+        (``stick_damping_out`` is then not written).
+    """
+    changed = False
+    if n_sliding:
+        slide_caps(cap_dynamic, cap_weakening, weakening, sliding, cap_slide, cap_slide_tol)
+        changed = finish_sliding(u_avg, u_n, speed, speed_n, sliding, cap_slide, 1.0 / k, v_stick, z_new, s) > 0
+    # only sticking taxels have a finite cap here
+    if release_over_cap(q, cap_stick, cap_static, k, z_new, sliding, s):
+        changed = True
+    if not changed:
+        return -1
+    n_sliding = 0
+    for i in range(sliding.shape[0]):
+        n_sliding += sliding[i]
+    restart_weakening(s, weakening)
+    caps_and_stick_arrays(n_sliding, cap_static, cap_dynamic, cap_weakening, weakening, sliding, contact, phi,
+                          stick_damping, k, dt, cap_slide, cap_slide_tol, cap_stick, slide_mask, dt_slide_mask,
+                          share_weights, stick_damping_out, stick_stiffness)
+    return n_sliding
+
+
 def compile_kernels() -> None:
     """Compile these kernels, or load them from numba's cache (a few seconds the first
     time after an install, well under a second after)."""
@@ -270,3 +415,14 @@ def compile_kernels() -> None:
     take_normal_forces(f, f, f, b.copy(), c.copy(), f.copy(), b.copy(), f.copy(), f.copy(), f.copy())
     slide_caps(f, f, f, b, f.copy(), f.copy())
     stick_arrays(b, b, f, f, 1.0, 1.0, 1e-3, f.copy(), f.copy(), f.copy(), np.zeros((n, 2)), f.copy(), f.copy())
+    w = np.zeros((n, 2))
+    restart_weakening(f, f.copy())
+    caps_and_stick_arrays(1, f, f, f, f, b, b, f, 1.0, 1.0, 1e-3, *(f.copy() for _ in range(5)), w.copy(), f.copy(),
+                          f.copy())
+    new_normal_forces(1.0, f, f, f, 1, 1.0, 1.0, 1e-3, b.copy(), c.copy(), f.copy(), b.copy(), f.copy(),
+                      *(f.copy() for _ in range(9)), w.copy(), f.copy(), f.copy())
+    begin_step(f, c, 1, 0j, 1.0, c, c, True, b, f, f, 1e-6, c.copy(), c.copy(), f.copy(), f.copy())
+    mid_step_check(0j, 1.0, c, 1, f, f, f, c.copy(), f.copy(), f.copy())
+    advance_step(c, f, c, c, 1e-3, 1, f, f, f.copy(), -1.0, c.copy(), c.copy(), f.copy())
+    end_step(1, c, c, f, f, c, f, f, f, f.copy(), b, f, 1.0, 1.0, 1e-3, 1e-3, c.copy(), b.copy(), f.copy(),
+             *(f.copy() for _ in range(5)), w.copy(), f.copy(), f.copy())

@@ -32,7 +32,6 @@ from slipstack.lib.errors import ConfigError
 from slipstack.lib.rig.actuator import FingerActuator
 from slipstack.lib.rig.body import PlanarBody
 from slipstack.lib.rig import bristle_kernels, pressure_kernels
-from slipstack.lib.rig.bristle_kernels import surface_velocity
 from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.disturbance import DisturbanceMotor
 from slipstack.lib.rig.friction import BristleField
@@ -367,17 +366,13 @@ class Simulator:
             return
         self._shape = shape
         self._f_phi = f_n
-        self._bristles.set_normal_forces(max(f_n, 0.0) * shape)
+        self._bristles.set_normal_forces(max(f_n, 0.0), shape)
 
     def _step(self) -> None:
         dt = self._dt
         body, br, P = self._body, self._bristles, self._P
         self._update_pressure(self._finger.step(dt))
-        u_n = None
-        if br.n_sliding:
-            u_n = np.empty_like(P)
-            surface_velocity(body.origin_velocity, body.omega, P, u_n)
-        D, e = br.begin(u_n)
+        D, e = br.begin(body.origin_velocity, body.omega, P)
         if D is not self._sums_of:  # Σ D terms are reused while the stick set is unchanged
             self._sums_of = D
             self._d_sums = self._damping_sums(D)
@@ -399,15 +394,13 @@ class Simulator:
         for _ in range(_MAX_CAP_PASSES):
             v_mid, w_mid = body.solve(dt, s, sp, spp, s_rot, f_total, tau)
             v0_mid = v_mid - 1j * w_mid * ref  # mid velocity at the pad origin
-            u_avg = np.empty_like(P)
-            surface_velocity(v0_mid, w_mid, P, u_avg)
-            fixed = br.limit_slip_damping(D, u_avg)
+            u_avg, fixed = br.mid_velocity(v0_mid, w_mid, P, D)
             if fixed is None:
                 break
             ds, dsp, dspp = self._damping_sums(fixed - D)
             s, sp, spp = s + ds, sp + dsp, spp + dspp
             D = fixed
-        br.finish(D, e, u_avg, u_n)
+        br.finish(D, e, u_avg)
         v_point = v0_mid + 1j * w_mid * point
         self._work += dt * ((force.conjugate() * v_point).real + torque * w_mid)
         body.commit(dt, v_mid, w_mid)
