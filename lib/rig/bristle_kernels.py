@@ -109,15 +109,20 @@ def linearise_sliding(u_n: np.ndarray, u_prev: np.ndarray, sliding: np.ndarray, 
 
     Slipping taxels: ``D_i = cap_i / ŝ_i`` with the expected mid-step speed
     ``ŝ_i = max(|1.5 u_n − 0.5 u_prev|, |u_n|, v_reg)``; sticking ones keep
-    ``stick_damping``. ``speed_n_out`` receives ``|u_n|``.
+    ``stick_damping``. ``speed_n_out`` receives ``|u_n|`` of the slipping taxels (the
+    only ones :func:`finish_sliding` reads; most taxels stick, and their two magnitudes
+    were most of this kernel's time).
     """
     for i in range(u_n.shape[0]):
+        if not sliding[i]:
+            damping_out[i] = stick_damping[i]
+            continue
         speed_n = complex_abs(u_n[i])
         speed_n_out[i] = speed_n
         speed = complex_abs(1.5 * u_n[i] - 0.5 * u_prev[i])
         speed = max(speed, speed_n)
         speed = max(speed, v_reg)
-        damping_out[i] = cap_slide[i] / speed if sliding[i] else stick_damping[i]
+        damping_out[i] = cap_slide[i] / speed
 
 
 @njit(**JIT)
@@ -178,11 +183,11 @@ def release_over_cap(q: np.ndarray, cap_stick: np.ndarray, cap_static: np.ndarra
 
     Their deflection shrinks to the static cap along itself (``|z| ≤ cap/k``: never
     raised), they enter ``sliding`` with slip distance 0. ``cap_stick`` is infinite
-    for taxels already slipping. Returns the number of taxels released.
+    for taxels already slipping (skipped). Returns the number of taxels released.
     """
     released = 0
     for i in range(q.shape[0]):
-        if complex_abs(q[i]) > cap_stick[i]:
+        if cap_stick[i] != math.inf and complex_abs(q[i]) > cap_stick[i]:  # |q| > inf is never true
             mag = complex_abs(z_new[i])
             z_new[i] *= min(1.0, (cap_static[i] / k) / max(mag, _TINY_SPEED))
             sliding[i] = True

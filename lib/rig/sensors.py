@@ -144,7 +144,8 @@ class TactileSensorModel:
         level += spec.baseline_counts + spec.full_scale_counts
         if spec.noise_counts > 0.0:
             level += self._rng.normal(0.0, spec.noise_counts, level.shape[0])
-        np.clip(level, 0.0, spec.full_scale_counts, out=level)
+        np.maximum(level, 0.0, out=level)  # np.clip's order, without its Python wrapper (3 µs a frame)
+        np.minimum(level, spec.full_scale_counts, out=level)
         level *= self._alive
         counts = np.rint(level).astype(np.uint16)
         return TactileSample(t_ns, counts.reshape(self.pad.rows, self.pad.cols), device_seq=seq)
