@@ -404,26 +404,14 @@ def end_step(n_sliding: int, u_avg: np.ndarray, u_n: np.ndarray, speed: np.ndarr
 
 
 def compile_kernels() -> None:
-    """Compile these kernels, or load them from numba's cache (a few seconds the first
-    time after an install, well under a second after)."""
+    """Compile the kernels :class:`~slipstack.lib.rig.friction.BristleField` calls, or load
+    them from numba's cache (a few seconds the first time after an install, some
+    milliseconds after); the kernels they chain are compiled into them."""
     n = 2
     c = np.zeros(n, dtype=complex)
     f = np.ones(n)
     b = np.array([True, False])
-    complex_abs(1j)
-    surface_velocity(0j, 1.0, c, c.copy())
-    advance(c, f, c, c, 1e-3, c.copy(), c.copy())
-    linearise_sliding(c, c, b, f, f, 1e-6, f.copy(), f.copy())
-    limit_slip_damping(f, c, f, f, f.copy(), f.copy())
-    finish_sliding(c, c, f, f, b.copy(), f, 1.0, 1e-3, c.copy(), f.copy())
-    release_over_cap(c, f, f, 1.0, c.copy(), b.copy(), f.copy())
-    take_normal_forces(f, f, f, b.copy(), c.copy(), f.copy(), b.copy(), f.copy(), f.copy(), f.copy())
-    slide_caps(f, f, f, b, f.copy(), f.copy())
-    stick_arrays(b, b, f, f, 1.0, 1.0, 1e-3, f.copy(), f.copy(), f.copy(), np.zeros((n, 2)), f.copy(), f.copy())
     w = np.zeros((n, 2))
-    restart_weakening(f, f.copy())
-    caps_and_stick_arrays(1, f, f, f, f, b, b, f, 1.0, 1.0, 1e-3, *(f.copy() for _ in range(5)), w.copy(), f.copy(),
-                          f.copy())
     new_normal_forces(1.0, f, f, f, 1, 1.0, 1.0, 1e-3, b.copy(), c.copy(), f.copy(), b.copy(), f.copy(),
                       *(f.copy() for _ in range(9)), w.copy(), f.copy(), f.copy())
     begin_step(f, c, 1, 0j, 1.0, c, c, True, b, f, f, 1e-6, c.copy(), c.copy(), f.copy(), f.copy())

@@ -191,6 +191,7 @@ class Simulator:
                                    ("truth", scene.sim.truth_rate_hz, True))
             if on
         ]
+        self._next_due_ns = 0  # the earliest next sample time of the clocks (ns)
         self._shape = None
         self._f_phi = math.nan
         px, py = pad.positions[:, 0], pad.positions[:, 1]
@@ -324,6 +325,8 @@ class Simulator:
 
     def _emit(self, out: list[Sample]) -> None:
         t = self._t_ns
+        if t < self._next_due_ns:  # most steps: no sample is due
+            return
         for kind, clock in self._clocks:
             n = clock.due(t)
             if not n:
@@ -340,6 +343,7 @@ class Simulator:
                 out.append(self.tactile.measure(t, seq, self._bristles.phi))
             else:
                 out.append(self.truth())
+        self._next_due_ns = min(clock.next_ns for _, clock in self._clocks)
 
     def _contact_load(self) -> tuple[complex, float]:
         """Load on the object transmitted by the contact: ``(−Σ q_i, −Σ p_i × q_i)``."""
