@@ -31,7 +31,7 @@ import numpy as np
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.rig.actuator import FingerActuator
 from slipstack.lib.rig.body import PlanarBody
-from slipstack.lib.rig import bristle_kernels, pressure_kernels
+from slipstack.lib.rig import bristle_kernels, pressure_kernels, sensor_kernels
 from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.disturbance import DisturbanceMotor
 from slipstack.lib.rig.friction import BristleField
@@ -457,10 +457,11 @@ class Simulator:
 
 
 def compile_kernels() -> None:
-    """Compile the rig's numba kernels (friction, pressure), or load them from the cache.
+    """Compile the rig's numba kernels (friction, pressure, tactile counts), or load them from the cache.
 
     The rig node calls it in ``start``, so no scene pays it on its first slip or
     Hertzian re-shape; ``make`` and the test suite call it once after install.
     """
     bristle_kernels.compile_kernels()
     pressure_kernels.compile_kernels()
+    sensor_kernels.compile_kernels()
