@@ -65,33 +65,36 @@ class BristleField:
         self.c = spec.damping_Ns_per_m3 * taxel_area_m2
         self.dt = dt_s
         factor = np.clip(1.0 + spec.mu_spread * rng.standard_normal(n_taxels), 0.5, 1.5)
-        self.mu_s = spec.mu_s * factor
-        self.mu_d = spec.mu_d * factor
         self._v_stick = spec.stick_speed_m_s
         self._v_reg = spec.regularisation_speed_m_s
         n = n_taxels
+        # the per-taxel state the step kernels share, one row per quantity (rows and
+        # units: lib/rig/bristle_kernels.py); the attributes below are views of the rows
+        self._taxels = np.zeros((kernels.N_TAXEL_ROWS, n))
+        self._flags = np.zeros((kernels.N_FLAG_ROWS, n), dtype=bool)
+        t = self._taxels
+        self.mu_s, self.mu_d, self.s = t[kernels.MU_S], t[kernels.MU_D], t[kernels.SLIP]
+        self.mu_s[:] = spec.mu_s * factor
+        self.mu_d[:] = spec.mu_d * factor
+        self.sliding, self._contact = self._flags[kernels.SLIDING], self._flags[kernels.CONTACT]
+        self._cap_static, self._cap_dynamic = t[kernels.CAP_STATIC], t[kernels.CAP_DYNAMIC]
+        self._cap_weakening, self._cap_slide = t[kernels.CAP_WEAKENING], t[kernels.CAP_SLIDE]
+        self._cap_slide_tol, self._cap_stick = t[kernels.CAP_SLIDE_TOL], t[kernels.CAP_STICK]
+        self._cap_slide_tol[:] = np.inf
+        self._weakening = t[kernels.WEAKENING]
+        self._weakening[:] = 1.0
+        self._weakening_arg = t[kernels.WEAKENING_ARG]
+        self._dt_slide_mask, self._stick_stiffness = t[kernels.DT_SLIDE_MASK], t[kernels.STICK_STIFFNESS]
+        self._speed_n = t[kernels.SPEED_N]
+        # numpy sums (BLAS) read these: arrays of their own, as before
         self.z = np.zeros(n, dtype=complex)
-        self.s = np.zeros(n)
-        self.sliding = np.zeros(n, dtype=bool)
         self.phi = np.zeros(n)
         self.q = np.zeros(n, dtype=complex)
-        self._contact = np.zeros(n, dtype=bool)
         self._n_sliding = 0
-        self._cap_static = np.zeros(n)
-        self._cap_dynamic = np.zeros(n)
-        self._cap_weakening = np.zeros(n)
-        self._cap_slide = np.zeros(n)  # slip cap μ(s)·φ (N); the static cap while none slides
-        self._cap_slide_tol = np.full(n, np.inf)  # 1.001·cap of slipping taxels, inf elsewhere
-        self._cap_stick = np.zeros(n)  # static cap of sticking taxels, inf for slipping ones
         self._slide_mask = np.zeros(n)
-        self._dt_slide_mask = np.zeros(n)
         self._share_weights = np.zeros((n, 2))  # (φ_i, φ_i·slide_i)
-        self._stick_damping = np.zeros(n)  # D_i of sticking taxels in contact, else 0
-        self._stick_stiffness = np.zeros(n)  # -k for sticking taxels in contact, else 0
-        self._speed_n = np.zeros(n)  # |u_n| at the start of the step (m/s)
+        self._stick_damping = np.zeros(n)  # D_i of sticking taxels in contact, else 0 (its identity keys sums)
         self._speed_avg = np.zeros(n)  # |ū| of the last velocity checked by limit_slip_damping (m/s)
-        self._weakening = np.ones(n)  # exp(−s/d_c), numpy's, kept in step with s
-        self._weakening_arg = np.zeros(n)  # −s/d_c, the exp's argument
         self._neg_inv_d_c = -1.0 / spec.slip_weakening_m
         self._stick_damping_value = self.c + 0.5 * self.k * self.dt  # D_i of a sticking taxel (N·s/m)
         self._u_prev: np.ndarray | None = None  # u_n of the step (and of the next one's extrapolation)
@@ -126,11 +129,9 @@ class BristleField:
         # entering contact starts relaxed, one leaving releases its energy.
         phi = np.empty_like(shape)
         stick_damping = np.empty_like(shape)
-        n_sliding = kernels.new_normal_forces(
-            f_n, shape, self.mu_s, self.mu_d, self._n_sliding, self._stick_damping_value, self.k, self.dt,
-            self._contact, self.z, self.s, self.sliding, self._weakening, phi, self._cap_static, self._cap_dynamic,
-            self._cap_weakening, self._cap_slide, self._cap_slide_tol, self._cap_stick, self._slide_mask,
-            self._dt_slide_mask, self._share_weights, stick_damping, self._stick_stiffness)
+        n_sliding = kernels.new_normal_forces(f_n, shape, self._n_sliding, self._stick_damping_value, self.k, self.dt,
+                                              self._taxels, self._flags, self.z, phi, self._slide_mask,
+                                              self._share_weights, stick_damping)
         self.phi = phi
         self._take_stick_set(n_sliding, stick_damping)
 
@@ -152,18 +153,17 @@ class BristleField:
         if self._n_sliding == 0:
             self._u_prev = None
             # u and damping outputs are not written while nothing slides
-            kernels.begin_step(self._stick_stiffness, self.z, 0, v_origin, omega, positions, self.z, False,
-                               self.sliding, self._cap_slide, self._stick_damping, self._v_reg, e, self.z,
-                               self._speed_n, self._speed_n)
+            kernels.begin_step(self._taxels, self._flags, self.z, 0, v_origin, omega, positions, self.z, False,
+                               self._stick_damping, self._v_reg, e, self.z, self._speed_avg)
             return self._stick_damping, e
         # Expected mid-step speed: extrapolate when accelerating (else the force would
         # exceed the cap by |ū|/|u_n|), never below |u_n| (decelerating: force ≤ cap).
         u_n = np.empty_like(self.z)
         damping = np.empty(self.phi.shape[0])
         has_prev = self._u_prev is not None
-        kernels.begin_step(self._stick_stiffness, self.z, self._n_sliding, v_origin, omega, positions,
-                           self._u_prev if has_prev else u_n, has_prev, self.sliding, self._cap_slide,
-                           self._stick_damping, self._v_reg, e, u_n, self._speed_n, damping)
+        kernels.begin_step(self._taxels, self._flags, self.z, self._n_sliding, v_origin, omega, positions,
+                           self._u_prev if has_prev else u_n, has_prev, self._stick_damping, self._v_reg, e, u_n,
+                           damping)
         self._u_prev = u_n
         return damping, e
 
@@ -189,8 +189,8 @@ class BristleField:
         """
         u_avg = np.empty_like(self.z)
         fixed = np.empty_like(D)
-        if kernels.mid_step_check(v_origin, omega, positions, self._n_sliding, D, self._cap_slide_tol,
-                                  self._cap_slide, u_avg, self._speed_avg, fixed):
+        if kernels.mid_step_check(v_origin, omega, positions, self._n_sliding, D, self._taxels, u_avg,
+                                  self._speed_avg, fixed):
             return u_avg, fixed
         return u_avg, None
 
@@ -210,8 +210,8 @@ class BristleField:
         z_new = np.empty_like(u_avg)
         n_sliding = self._n_sliding
         self._slip_share = self._share_of_slip() if n_sliding else 0.0
-        kernels.advance_step(e, D, u_avg, self.z, self.dt, n_sliding, self._speed_avg, self._dt_slide_mask,
-                             self.s, self._neg_inv_d_c, q, z_new, self._weakening_arg)
+        kernels.advance_step(e, D, u_avg, self.z, self.dt, n_sliding, self._speed_avg, self._neg_inv_d_c,
+                             self._taxels, q, z_new)
         if n_sliding:
             # the weakening exp(−s/d_c) stays numpy's exp (its rounding differs from libm's)
             np.exp(self._weakening_arg, out=self._weakening)
@@ -219,12 +219,10 @@ class BristleField:
         # force −k z equals the slip force −μφ û (at zero speed it relaxes, which only
         # releases energy).
         stick_damping = np.empty_like(self.s)
-        n_sliding = kernels.end_step(
-            n_sliding, u_avg, self._u_prev if n_sliding else u_avg, self._speed_avg, self._speed_n, q,
-            self._cap_static, self._cap_dynamic, self._cap_weakening, self._weakening, self._contact, self.phi,
-            self._stick_damping_value, self.k, self.dt, self._v_stick, z_new, self.sliding, self.s, self._cap_slide,
-            self._cap_slide_tol, self._cap_stick, self._slide_mask, self._dt_slide_mask, self._share_weights,
-            stick_damping, self._stick_stiffness)
+        n_sliding = kernels.end_step(n_sliding, u_avg, self._u_prev if n_sliding else u_avg, self._speed_avg, q,
+                                     self.phi, self._stick_damping_value, self.k, self.dt, self._v_stick,
+                                     self._taxels, self._flags, z_new, self._slide_mask, self._share_weights,
+                                     stick_damping)
         self.q = q
         self.z = z_new
         self._take_stick_set(n_sliding, stick_damping)
