@@ -69,23 +69,18 @@ class BristleField:
         self._v_reg = spec.regularisation_speed_m_s
         n = n_taxels
         # the per-taxel state the step kernels share, one row per quantity (rows and
-        # units: lib/rig/bristle_kernels.py); the attributes below are views of the rows
+        # units: lib/rig/bristle_kernels.py); the attributes below are views of rows
         self._taxels = np.zeros((kernels.N_TAXEL_ROWS, n))
         self._flags = np.zeros((kernels.N_FLAG_ROWS, n), dtype=bool)
         t = self._taxels
+        t[kernels.MU_S] = spec.mu_s * factor
+        t[kernels.MU_D] = spec.mu_d * factor
+        t[kernels.CAP_SLIDE_TOL] = np.inf
+        t[kernels.WEAKENING] = 1.0
         self.mu_s, self.mu_d, self.s = t[kernels.MU_S], t[kernels.MU_D], t[kernels.SLIP]
-        self.mu_s[:] = spec.mu_s * factor
-        self.mu_d[:] = spec.mu_d * factor
         self.sliding, self._contact = self._flags[kernels.SLIDING], self._flags[kernels.CONTACT]
-        self._cap_static, self._cap_dynamic = t[kernels.CAP_STATIC], t[kernels.CAP_DYNAMIC]
-        self._cap_weakening, self._cap_slide = t[kernels.CAP_WEAKENING], t[kernels.CAP_SLIDE]
-        self._cap_slide_tol, self._cap_stick = t[kernels.CAP_SLIDE_TOL], t[kernels.CAP_STICK]
-        self._cap_slide_tol[:] = np.inf
-        self._weakening = t[kernels.WEAKENING]
-        self._weakening[:] = 1.0
-        self._weakening_arg = t[kernels.WEAKENING_ARG]
-        self._dt_slide_mask, self._stick_stiffness = t[kernels.DT_SLIDE_MASK], t[kernels.STICK_STIFFNESS]
-        self._speed_n = t[kernels.SPEED_N]
+        # numpy's exp takes the one to the other between two kernels
+        self._weakening, self._weakening_arg = t[kernels.WEAKENING], t[kernels.WEAKENING_ARG]
         # numpy sums (BLAS) read these: arrays of their own, as before
         self.z = np.zeros(n, dtype=complex)
         self.phi = np.zeros(n)

@@ -127,14 +127,19 @@ def _same(a, b) -> None:
     np.testing.assert_array_equal(np.asarray(a), np.asarray(b), strict=True)
 
 
+_TAXEL_ROWS = {"_cap_static": kernels.CAP_STATIC, "_cap_dynamic": kernels.CAP_DYNAMIC,
+               "_cap_weakening": kernels.CAP_WEAKENING, "_cap_slide": kernels.CAP_SLIDE,
+               "_cap_stick": kernels.CAP_STICK, "_dt_slide_mask": kernels.DT_SLIDE_MASK,
+               "_stick_stiffness": kernels.STICK_STIFFNESS}
+
+
 def _check_state(fused: BristleField, chained: _ChainedField) -> None:
-    for name in ("z", "s", "sliding", "phi", "q"):
+    for name in ("z", "s", "sliding", "phi", "q", "_contact", "_slide_mask", "_share_weights", "_stick_damping"):
         _same(getattr(fused, name), getattr(chained, name))
-    for name in ("_contact", "_cap_static", "_cap_dynamic", "_cap_weakening", "_cap_slide", "_cap_stick",
-                 "_slide_mask", "_dt_slide_mask", "_share_weights", "_stick_damping", "_stick_stiffness"):
-        _same(getattr(fused, name), getattr(chained, name))
+    for name, row in _TAXEL_ROWS.items():
+        _same(fused._taxels[row], getattr(chained, name))
     sliding = chained.sliding
-    _same(fused._cap_slide_tol[sliding], chained._cap_slide_tol[sliding])  # read only where slipping
+    _same(fused._taxels[kernels.CAP_SLIDE_TOL][sliding], chained._cap_slide_tol[sliding])  # read where slipping
     assert fused.n_sliding == chained.n_sliding
     assert fused.slip_share == chained.slip_share
     _same(fused._weakening, np.exp(fused.s * fused._neg_inv_d_c))  # kept in step with s
