@@ -67,7 +67,7 @@ class BristleField:
         factor = np.clip(1.0 + spec.mu_spread * rng.standard_normal(n_taxels), 0.5, 1.5)
         self._v_stick = spec.stick_speed_m_s
         self._v_reg = spec.regularisation_speed_m_s
-        n = n_taxels
+        self._n = n = n_taxels  # arrays allocated per step: np.empty(n) (np.empty_like costs twice its time)
         # the per-taxel state the step kernels share, one row per quantity (rows and
         # units: lib/rig/bristle_kernels.py); the attributes below are views of rows
         self._taxels = np.zeros((kernels.N_TAXEL_ROWS, n))
@@ -122,8 +122,8 @@ class BristleField:
         normalised pressure). Taxels leaving contact relax to z = 0."""
         # z of taxels out of contact is not kept (it follows the body for free); a taxel
         # entering contact starts relaxed, one leaving releases its energy.
-        phi = np.empty_like(shape)
-        stick_damping = np.empty_like(shape)
+        phi = np.empty(self._n)
+        stick_damping = np.empty(self._n)
         n_sliding = kernels.new_normal_forces(f_n, shape, self._n_sliding, self._stick_damping_value, self.k, self.dt,
                                               self._taxels, self._flags, self.z, phi, self._slide_mask,
                                               self._share_weights, stick_damping)
@@ -144,7 +144,7 @@ class BristleField:
             (complex N, shape (N,)). ``D`` is a new array whenever its values may have
             changed (the caller may key cached sums of it on its identity).
         """
-        e = np.empty_like(self.z)
+        e = np.empty(self._n, dtype=complex)
         if self._n_sliding == 0:
             self._u_prev = None
             # u and damping outputs are not written while nothing slides
@@ -153,8 +153,8 @@ class BristleField:
             return self._stick_damping, e
         # Expected mid-step speed: extrapolate when accelerating (else the force would
         # exceed the cap by |ū|/|u_n|), never below |u_n| (decelerating: force ≤ cap).
-        u_n = np.empty_like(self.z)
-        damping = np.empty(self.phi.shape[0])
+        u_n = np.empty(self._n, dtype=complex)
+        damping = np.empty(self._n)
         has_prev = self._u_prev is not None
         kernels.begin_step(self._taxels, self._flags, self.z, self._n_sliding, v_origin, omega, positions,
                            self._u_prev if has_prev else u_n, has_prev, self._stick_damping, self._v_reg, e, u_n,
@@ -182,8 +182,8 @@ class BristleField:
             ``D_i = μ_i φ_i / |ū_i|`` for the taxels over their cap (re-solve the step
             with it), or None when no patch exceeds its cap by more than 0.1 %.
         """
-        u_avg = np.empty_like(self.z)
-        fixed = np.empty_like(D)
+        u_avg = np.empty(self._n, dtype=complex)
+        fixed = np.empty(self._n)
         if kernels.mid_step_check(v_origin, omega, positions, self._n_sliding, D, self._taxels, u_avg,
                                   self._speed_avg, fixed):
             return u_avg, fixed
@@ -201,8 +201,8 @@ class BristleField:
         Returns:
             ``q``: the force each patch exerts on the object during the step (complex N).
         """
-        q = np.empty_like(u_avg)
-        z_new = np.empty_like(u_avg)
+        q = np.empty(self._n, dtype=complex)
+        z_new = np.empty(self._n, dtype=complex)
         n_sliding = self._n_sliding
         self._slip_share = self._share_of_slip() if n_sliding else 0.0
         kernels.advance_step(e, D, u_avg, self.z, self.dt, n_sliding, self._speed_avg, self._neg_inv_d_c,
@@ -213,7 +213,7 @@ class BristleField:
         # A sliding bristle rests deflected along the slip velocity, where its spring
         # force −k z equals the slip force −μφ û (at zero speed it relaxes, which only
         # releases energy).
-        stick_damping = np.empty_like(self.s)
+        stick_damping = np.empty(self._n)
         n_sliding = kernels.end_step(n_sliding, u_avg, self._u_prev if n_sliding else u_avg, self._speed_avg, q,
                                      self.phi, self._stick_damping_value, self.k, self.dt, self._v_stick,
                                      self._taxels, self._flags, z_new, self._slide_mask, self._share_weights,
