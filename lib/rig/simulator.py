@@ -31,8 +31,7 @@ import numpy as np
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.rig.actuator import FingerActuator
 from slipstack.lib.rig.body import PlanarBody
-from slipstack.lib.rig import bristle_kernels, pressure_kernels
-from slipstack.lib.rig.bristle_kernels import surface_velocity
+from slipstack.lib.rig import bristle_kernels, pressure_kernels, sensor_kernels
 from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.disturbance import DisturbanceMotor
 from slipstack.lib.rig.friction import BristleField
@@ -192,6 +191,7 @@ class Simulator:
                                    ("truth", scene.sim.truth_rate_hz, True))
             if on
         ]
+        self._next_due_ns = 0  # the earliest next sample time of the clocks (ns)
         self._shape = None
         self._f_phi = math.nan
         px, py = pad.positions[:, 0], pad.positions[:, 1]
@@ -325,6 +325,8 @@ class Simulator:
 
     def _emit(self, out: list[Sample]) -> None:
         t = self._t_ns
+        if t < self._next_due_ns:  # most steps: no sample is due
+            return
         for kind, clock in self._clocks:
             n = clock.due(t)
             if not n:
@@ -341,6 +343,7 @@ class Simulator:
                 out.append(self.tactile.measure(t, seq, self._bristles.phi))
             else:
                 out.append(self.truth())
+        self._next_due_ns = min(clock.next_ns for _, clock in self._clocks)
 
     def _contact_load(self) -> tuple[complex, float]:
         """Load on the object transmitted by the contact: ``(−Σ q_i, −Σ p_i × q_i)``."""
@@ -367,17 +370,13 @@ class Simulator:
             return
         self._shape = shape
         self._f_phi = f_n
-        self._bristles.set_normal_forces(max(f_n, 0.0) * shape)
+        self._bristles.set_normal_forces(max(f_n, 0.0), shape)
 
     def _step(self) -> None:
         dt = self._dt
         body, br, P = self._body, self._bristles, self._P
         self._update_pressure(self._finger.step(dt))
-        u_n = None
-        if br.n_sliding:
-            u_n = np.empty_like(P)
-            surface_velocity(body.origin_velocity, body.omega, P, u_n)
-        D, e = br.begin(u_n)
+        D, e = br.begin(body.origin_velocity, body.omega, P)
         if D is not self._sums_of:  # Σ D terms are reused while the stick set is unchanged
             self._sums_of = D
             self._d_sums = self._damping_sums(D)
@@ -399,15 +398,13 @@ class Simulator:
         for _ in range(_MAX_CAP_PASSES):
             v_mid, w_mid = body.solve(dt, s, sp, spp, s_rot, f_total, tau)
             v0_mid = v_mid - 1j * w_mid * ref  # mid velocity at the pad origin
-            u_avg = np.empty_like(P)
-            surface_velocity(v0_mid, w_mid, P, u_avg)
-            fixed = br.limit_slip_damping(D, u_avg)
+            u_avg, fixed = br.mid_velocity(v0_mid, w_mid, P, D)
             if fixed is None:
                 break
             ds, dsp, dspp = self._damping_sums(fixed - D)
             s, sp, spp = s + ds, sp + dsp, spp + dspp
             D = fixed
-        br.finish(D, e, u_avg, u_n)
+        br.finish(D, e, u_avg)
         v_point = v0_mid + 1j * w_mid * point
         self._work += dt * ((force.conjugate() * v_point).real + torque * w_mid)
         body.commit(dt, v_mid, w_mid)
@@ -460,10 +457,11 @@ class Simulator:
 
 
 def compile_kernels() -> None:
-    """Compile the rig's numba kernels (friction, pressure), or load them from the cache.
+    """Compile the rig's numba kernels (friction, pressure, tactile counts), or load them from the cache.
 
     The rig node calls it in ``start``, so no scene pays it on its first slip or
     Hertzian re-shape; ``make`` and the test suite call it once after install.
     """
     bristle_kernels.compile_kernels()
     pressure_kernels.compile_kernels()
+    sensor_kernels.compile_kernels()
