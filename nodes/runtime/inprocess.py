@@ -123,8 +123,8 @@ class InProcessExecutor:
         self._io_hosts = [h for h in self.hosts if h in self._deadline_hosts
                           and type(h.node).io_sources is not Node.io_sources]
         self._by_name = {h.name: h for h in self.hosts}
-        self._batch_inputs = {(id(h), n) for h in self.hosts for n, i in h.node.inputs.items()
-                              if i.policy == "batch"}
+        self._batch_inputs = {h: frozenset(n for n, i in h.node.inputs.items() if i.policy == "batch")
+                              for h in self.hosts}  # per host: its ``batch`` inputs
 
     # -- the public driving API ----------------------------------------------------------
     @property
@@ -215,10 +215,13 @@ class InProcessExecutor:
         ending = False
         queue, pop = self._queue, heapq.heappop  # the loop runs once per event: locals, not attributes
         io_hosts, deadline_hosts, schedule_deadline = self._io_hosts, self._deadline_hosts, self._schedule_deadline
-        deadlines = self._deadlines
+        deadlines, batch_inputs = self._deadlines, self._batch_inputs
         while True:
-            while queue and queue[0][3][0] == "deadline" and deadlines.get(id(queue[0][3][1])) != queue[0][3][2]:
-                pop(queue)  # a deadline its node has moved since: dropped before it could move the clock
+            while queue:  # a deadline its node has moved since: dropped before it could move the clock
+                head = queue[0][3]
+                if head[0] != "deadline" or deadlines.get(id(head[1])) == head[2]:
+                    break
+                pop(queue)
             if io_hosts and (not queue or queue[0][0] > self.now) and self._io_may_have_changed():
                 for io_host in io_hosts:  # before the clock moves on: a device may have been given work
                     schedule_deadline(io_host)
@@ -229,20 +232,16 @@ class InProcessExecutor:
             t_ns, _, _, item = pop(queue)
             if t_ns > self.now:
                 self.now = t_ns
-            kind = item[0]
-            host = item[1]
+            kind, host = item[0], item[1]
             if host.shutdown_requested:
                 continue
-            if kind in ("message", "frame") and (id(host), item[2]) in self._batch_inputs:
-                self._run_batch(item, t_ns)
-            elif kind == "message":
-                _, host, input_name, (msg, rejection) = item
-                host.receive_local(input_name, msg, rejection)
-            elif kind == "frame":
-                _, host, input_name, payload = item
-                msg = host.receive(input_name, payload)
-                if msg is not None:
-                    host.dispatch(input_name, msg)
+            # the kinds by how often they come: a published message, a timer, a deadline, a frame, diagnostics
+            if kind == "message":
+                if item[2] in batch_inputs[host]:
+                    self._run_batch(item, t_ns)
+                else:
+                    msg, rejection = item[3]
+                    host.receive_local(item[2], msg, rejection)
             elif kind == "timer":
                 _, host, timer, period = item
                 host.fire_timer(timer)
@@ -254,6 +253,14 @@ class InProcessExecutor:
                     continue  # run-to-completion ends with the last frame, watchdogs too
                 if host.node.next_deadline_ns() == due:  # still wanted
                     host.call("on_deadline", host.node.on_deadline, host)
+            elif kind == "frame":
+                if item[2] in batch_inputs[host]:
+                    self._run_batch(item, t_ns)
+                else:
+                    _, host, input_name, payload = item
+                    msg = host.receive(input_name, payload)
+                    if msg is not None:
+                        host.dispatch(input_name, msg)
             elif kind == "diag":
                 _, host, period = item
                 self._send(DIAGNOSTICS_TOPIC, host.diagnostics())
