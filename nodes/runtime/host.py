@@ -91,6 +91,7 @@ class NodeHost:
         }
         self._seq_tracker = SeqTracker(_MAX_ORIGINS)
         self._input_types = {n: i.type for n, i in node.inputs.items()}
+        self._depths = {n: i.depth for n, i in node.inputs.items()}
         self.counters: dict[str, float] = defaultdict(int)
         self.status = "ok"
         self.detail = ""
@@ -228,10 +229,14 @@ class NodeHost:
         skipped)`` counts each other one and returns its message, or ``None`` if rejected
         (``skipped``: how many were dropped just before it, which fill a sequence gap — the
         overflow for the first accepted one, then 0)."""
-        overflow = max(len(backlog) - self.node.inputs[input_name].depth, 0)
-        self.skip(input_name, overflow)
+        overflow = len(backlog) - self._depths[input_name]
+        if overflow > 0:
+            self.skip(input_name, overflow)
+            backlog = backlog[overflow:]
+        else:
+            overflow = 0
         msgs = []
-        for item in backlog[overflow:]:
+        for item in backlog:
             msg = accept(item, overflow)
             if msg is not None:
                 msgs.append(msg)
