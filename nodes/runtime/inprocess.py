@@ -223,8 +223,15 @@ class InProcessExecutor:
                     break
                 pop(queue)
             if io_hosts and (not queue or queue[0][0] > self.now) and self._io_may_have_changed():
-                for io_host in io_hosts:  # before the clock moves on: a device may have been given work
+                due_now = self._reread_io_deadlines(until_ns)  # before the clock moves on: a device may have work
+                for io_host, due in due_now:  # as their deadline events would run: next, in this order
+                    if io_host.shutdown_requested or not self._run_deadline(io_host, due, until_ns):
+                        continue
                     schedule_deadline(io_host)
+                    if io_host.shutdown_requested and id(io_host) in stop_hosts:
+                        ending = True
+                if due_now:
+                    continue
             if not queue or (until_ns is not None and queue[0][0] > until_ns):
                 break
             if ending and queue[0][0] > self.now:
@@ -248,11 +255,8 @@ class InProcessExecutor:
                 if until_ns is not None or self._has_frames():
                     self._schedule(t_ns + period, item)
             elif kind == "deadline":
-                _, host, due = item
-                if until_ns is None and not self._has_frames():
-                    continue  # run-to-completion ends with the last frame, watchdogs too
-                if host.node.next_deadline_ns() == due:  # still wanted
-                    host.call("on_deadline", host.node.on_deadline, host)
+                if not self._run_deadline(host, item[2], until_ns):
+                    continue
             elif kind == "frame":
                 if item[2] in batch_inputs[host]:
                     self._run_batch(item, t_ns)
@@ -297,13 +301,51 @@ class InProcessExecutor:
         host.dispatch_batch(input_name, items, lambda item, _: (
             host.accept_local(input_name, *item[3]) if item[0] == "message" else host.receive(input_name, item[3])))
 
+    def _run_deadline(self, host: NodeHost, due: int, until_ns: int | None) -> bool:
+        """A deadline event of ``host`` for ``due``: its ``on_deadline`` if it still wants that time;
+        False if the event is dropped (run-to-completion ends with the last frame, watchdogs too)."""
+        if until_ns is None and not self._has_frames():
+            return False
+        if host.node.next_deadline_ns() == due:
+            host.call("on_deadline", host.node.on_deadline, host)
+        return True
+
+    def _reread_io_deadlines(self, until_ns: int | None) -> list[tuple[NodeHost, int]]:
+        """Re-read the I/O nodes' deadlines (called when no event is due at this instant or before).
+
+        A new deadline in the future is scheduled; the ``(host, due)`` of those due by now are
+        returned, in node order, for the caller to run at once: scheduled, their events would be
+        the next ones, in that order, so the queue trip (push, pop, a loop turn each: once per
+        device read) changes nothing. Past ``until_ns`` they are scheduled, to run in a later call.
+        """
+        due_now = []
+        runnable = until_ns is None or self.now <= until_ns
+        for host in self._io_hosts:
+            due = self._new_deadline(host)
+            if due is None:
+                continue
+            if runnable and due <= self.now:
+                due_now.append((host, due))
+            else:
+                self._schedule(max(due, self.now), ("deadline", host, due))
+        return due_now
+
     def _schedule_deadline(self, host: NodeHost) -> None:
-        due = host.node.next_deadline_ns()
-        if due is None:  # cleared: the same instant asked again later is a new deadline
-            self._deadlines.pop(id(host), None)
-        elif self._deadlines.get(id(host)) != due:
-            self._deadlines[id(host)] = due
+        due = self._new_deadline(host)
+        if due is not None:
             self._schedule(max(due, self.now), ("deadline", host, due))
+
+    def _new_deadline(self, host: NodeHost) -> int | None:
+        """Read ``host``'s deadline and record it; the time if it is a new one, else ``None`` (unchanged,
+        or cleared: the same instant asked again later is a new deadline)."""
+        due = host.node.next_deadline_ns()
+        if due is None:
+            self._deadlines.pop(id(host), None)
+            return None
+        if self._deadlines.get(id(host)) == due:
+            return None
+        self._deadlines[id(host)] = due
+        return due
 
     def _has_frames(self) -> bool:
         return any(entry[3][0] in ("frame", "message") for entry in self._queue)
