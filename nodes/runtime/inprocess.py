@@ -18,7 +18,8 @@ launch file runs this way with ``slipstack launch --lockstep`` (``launch/lockste
 A node's deadline (``next_deadline_ns``) is re-read after each of its events, and a
 node doing I/O of its own (``io_sources``) before the clock moves on: a driver whose
 simulated device, fed by the rig, has bytes waiting (``nodes/devices/sim_link.py``)
-runs at the same simulated instant. A deadline a node has moved since it was scheduled
+runs at the same simulated instant (at once: nothing else is due at that instant then, so its
+deadline event would be the next one anyway). A deadline a node has moved since it was scheduled
 is dropped unread, so it never moves the clock (nor makes the executor re-read the I/O
 nodes' deadlines at an instant where nothing happens).
 """
