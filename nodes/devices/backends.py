@@ -330,7 +330,8 @@ class Dsacon32Backend(_SerialBackend):
         self._codec = dsacon32.PacketCodec(allow_empty=False)
         self._deframer = Deframer(self._codec)
         self.matrices: list[dsacon32.MatrixInfo] = []
-        self._frame_layout = (0, 0, (0, 0))  # cells before ours, cells in a frame, our (rows, cols): set by the handshake
+        # cells before our matrix, cells in a frame, our (rows, cols): set by the handshake
+        self._frame_layout = (0, 0, (0, 0))
         self._state = _DsaState.STOPPING
         self._timer = 0
 

@@ -258,7 +258,7 @@ class NodeHost:
 
     def _guarded(self, label: str, fn: Callable[..., None], *args: Any) -> None:
         stage = self.stage_cpu
-        if stage is None and not self._measure:  # the lock-step executor's case: nothing to time
+        if stage is None and not self._measure:  # in-process, no stage CPU: nothing to time
             try:
                 fn(*args)
             except Exception as exc:  # a handler bug must not kill the control loop
