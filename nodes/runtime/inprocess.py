@@ -225,8 +225,8 @@ class InProcessExecutor:
                 pop(queue)
             if io_hosts and (not queue or queue[0][0] > self.now) and self._io_may_have_changed():
                 due_now = self._reread_io_deadlines(until_ns)  # before the clock moves on: a device may have work
-                for io_host, due in due_now:  # as their deadline events would run: next, in this order
-                    if io_host.shutdown_requested or not self._run_deadline(io_host, due, until_ns):
+                for k, (io_host, due) in enumerate(due_now):  # as their deadline events would run: next, in order
+                    if io_host.shutdown_requested or not self._run_deadline(io_host, due, until_ns, asked=k == 0):
                         continue
                     schedule_deadline(io_host)
                     if io_host.shutdown_requested and id(io_host) in stop_hosts:
@@ -302,12 +302,13 @@ class InProcessExecutor:
         host.dispatch_batch(input_name, items, lambda item, _: (
             host.accept_local(input_name, *item[3]) if item[0] == "message" else host.receive(input_name, item[3])))
 
-    def _run_deadline(self, host: NodeHost, due: int, until_ns: int | None) -> bool:
-        """A deadline event of ``host`` for ``due``: its ``on_deadline`` if it still wants that time;
-        False if the event is dropped (run-to-completion ends with the last frame, watchdogs too)."""
+    def _run_deadline(self, host: NodeHost, due: int, until_ns: int | None, *, asked: bool = False) -> bool:
+        """A deadline event of ``host`` for ``due``: its ``on_deadline`` if it still wants that time
+        (``asked``: it said so just now, no node has run since); False if the event is dropped
+        (run-to-completion ends with the last frame, watchdogs too)."""
         if until_ns is None and not self._has_frames():
             return False
-        if host.node.next_deadline_ns() == due:
+        if asked or host.node.next_deadline_ns() == due:
             host.call("on_deadline", host.node.on_deadline, host)
         return True
 
