@@ -97,12 +97,15 @@ class Calibration:
             flat = flat * self.gain
         p = np.interp(flat, self.counts, self.pressure_pa)
         dead = np.zeros(flat.shape, dtype=bool)
-        dead[self.dead] = True
-        p[dead] = 0.0
+        if len(self.dead):  # none is the common case: no indexing at every frame then
+            dead[self.dead] = True
+            p[self.dead] = 0.0
         if self.saturation_counts is None:
             sat = np.zeros(flat.shape, dtype=bool)
         else:
             sat = raw.ravel() >= self.saturation_counts
+        if raw.ndim == 1:  # the driver's flat frame: the arrays have its shape already
+            return CalibratedFrame(p, sat, dead)
         return CalibratedFrame(p.reshape(raw.shape), sat.reshape(raw.shape), dead.reshape(raw.shape))
 
     def to_toml(self) -> str:

@@ -46,12 +46,18 @@ def wrench_to_pad(
     Returns:
         ``(force_F (3,), torque_F (3,))``: the same wrench in F, torque about F's origin.
     """
-    f = np.asarray(R_FS, dtype=float) @ np.asarray(force_S, dtype=float)
-    t = np.asarray(R_FS, dtype=float) @ np.asarray(torque_S, dtype=float)
-    x, y, z = (float(v) for v in p_SF)
-    a, b, c = f.tolist()  # Python floats, as float() of each
-    # p × f written out: np.cross costs ~5x more on 3-vectors, at every F/T sample
-    return f, t + np.array((y * c - z * b, z * a - x * c, x * b - y * a))
+    R = np.asarray(R_FS, dtype=float)
+    # ndarray.dot, not @: the same BLAS product for a matrix and a vector (the same bits), without the
+    # ufunc machinery of matmul (0.25 instead of 0.65 µs on 3-vectors, at every F/T sample)
+    f = R.dot(np.asarray(force_S, dtype=float))
+    t = R.dot(np.asarray(torque_S, dtype=float))  # a new array: added to in place below
+    x, y, z = np.asarray(p_SF, dtype=float).tolist()
+    a, b, c = f.tolist()
+    # p × f written out on Python floats (np.cross costs ~5x more on 3-vectors, at every F/T sample)
+    t[0] += y * c - z * b
+    t[1] += z * a - x * c
+    t[2] += x * b - y * a
+    return f, t
 
 
 @dataclass(frozen=True)

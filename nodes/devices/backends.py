@@ -330,6 +330,8 @@ class Dsacon32Backend(_SerialBackend):
         self._codec = dsacon32.PacketCodec(allow_empty=False)
         self._deframer = Deframer(self._codec)
         self.matrices: list[dsacon32.MatrixInfo] = []
+        # cells before our matrix, cells in a frame, our (rows, cols): set by the handshake
+        self._frame_layout = (0, 0, (0, 0))
         self._state = _DsaState.STOPPING
         self._timer = 0
 
@@ -366,14 +368,12 @@ class Dsacon32Backend(_SerialBackend):
     def _handle(self, p: dsacon32.Packet, now_ns: int) -> TactileSample | None:
         st = self._state
         if p.id == dsacon32.PacketId.FRAME and st is _DsaState.STREAMING:
-            n_before = sum(m.cells_x * m.cells_y for m in self.matrices[:-1])
-            m = self.matrices[-1]
-            frame = dsacon32.decode_frame_payload(p.payload, n_before + m.cells_x * m.cells_y)
+            n_before, n_cells, shape = self._frame_layout
+            frame = dsacon32.decode_frame_payload(p.payload, n_cells)
             if frame is None:
                 self._own["bad_frames"] += 1
                 return None
-            counts = frame.counts[n_before:].reshape(m.cells_y, m.cells_x)
-            return TactileSample(now_ns, counts, frame.timestamp_ms * 1e-3)
+            return TactileSample(now_ns, frame.counts[n_before:].reshape(shape), frame.timestamp_ms * 1e-3)
         if p.id == dsacon32.PacketId.CONFIGURE_ACQUISITION and st in (_DsaState.STOPPING, _DsaState.CONFIGURING):
             if dsacon32.decode_error_reply(p.payload) != 0:
                 self._own["handshake_failures"] += 1
@@ -394,6 +394,8 @@ class Dsacon32Backend(_SerialBackend):
                 self._send(dsacon32.encode_query_matrix_info(len(self.matrices)), _DsaState.QUERYING, now_ns)
             else:
                 n = sum(m.cells_x * m.cells_y for m in self.matrices)
+                ours = self.matrices[-1]
+                self._frame_layout = (n - ours.cells_x * ours.cells_y, n, (ours.cells_y, ours.cells_x))
                 self._codec.max_length = self._codec.header_length + max(64, 5 + 2 * n) + 2
                 flags = dsacon32.AcquisitionFlags.ACQUIRE | dsacon32.AcquisitionFlags.INTERNAL_TRIGGER
                 if self.rle:

@@ -190,9 +190,10 @@ class SimLink(ReconnectingLink[SimPort]):
         """When the back-end must poll again without a timer of its own: at once (0) while bytes
         wait, else the retry of a lost link (None while open and idle)."""
         port = self._handle
-        if port is not None and port.to_host.chunks and _TABLE.get(self.address) is port:
-            return 0
-        return super().next_attempt_ns()
+        if port is None:
+            return super().next_attempt_ns()
+        # open: no retry pending (the base class's answer, without its call: read at every simulated instant)
+        return 0 if port.to_host.chunks and _TABLE.get(self.address) is port else None
 
     def read(self, now_ns: int) -> bytes:
         """Every byte the device sent (b"" if none or closed)."""

@@ -91,6 +91,7 @@ class NodeHost:
         }
         self._seq_tracker = SeqTracker(_MAX_ORIGINS)
         self._input_types = {n: i.type for n, i in node.inputs.items()}
+        self._depths = {n: i.depth for n, i in node.inputs.items()}
         self.counters: dict[str, float] = defaultdict(int)
         self.status = "ok"
         self.detail = ""
@@ -104,7 +105,7 @@ class NodeHost:
         self._handlers = {n: (f"on_{n}", getattr(node, f"on_{n}")) for n in node.inputs}  # (label, handler)
         self.on_publish: Callable[[str, Message, Header], None] | None = None
         """Called with every published message and its header (a container's in-process hand-over)."""
-        self._timer_handlers = {n: getattr(node, f"on_timer_{n}") for n in node.timers}
+        self._timer_handlers = {n: (f"on_timer_{n}", getattr(node, f"on_timer_{n}")) for n in node.timers}
         self.stage_cpu = stage_cpu
         self._listened = listened
         self.stage_keys = {stage: (self.name, stage) for stage in ("receive", "decode", "handler", "encode", "send")}
@@ -228,10 +229,14 @@ class NodeHost:
         skipped)`` counts each other one and returns its message, or ``None`` if rejected
         (``skipped``: how many were dropped just before it, which fill a sequence gap — the
         overflow for the first accepted one, then 0)."""
-        overflow = max(len(backlog) - self.node.inputs[input_name].depth, 0)
-        self.skip(input_name, overflow)
+        overflow = len(backlog) - self._depths[input_name]
+        if overflow > 0:
+            self.skip(input_name, overflow)
+            backlog = backlog[overflow:]
+        else:
+            overflow = 0
         msgs = []
-        for item in backlog[overflow:]:
+        for item in backlog:
             msg = accept(item, overflow)
             if msg is not None:
                 msgs.append(msg)
@@ -253,26 +258,36 @@ class NodeHost:
 
     def _guarded(self, label: str, fn: Callable[..., None], *args: Any) -> None:
         stage = self.stage_cpu
+        if stage is None and not self._measure:  # in-process, no stage CPU: nothing to time
+            try:
+                fn(*args)
+            except Exception as exc:  # a handler bug must not kill the control loop
+                self._handler_failed(label, exc)
+            return
         if stage is not None:
             resume = stage.enter(self.stage_keys["handler"])
         t0 = time.perf_counter_ns() if self._measure else 0
         try:
             fn(*args)
         except Exception as exc:  # a handler bug must not kill the control loop
-            self.counters["handler_errors"] += 1
-            self.status = "error"
-            self.detail = f"{label} raised; see log"
-            self.last_error = _clip(f"{label}: {type(exc).__name__}: {exc}")
-            seen = (label, type(exc).__name__, str(exc))
-            if seen not in self._logged_errors:  # a repeating error is logged once, then counted
-                if len(self._logged_errors) < _MAX_LOGGED_ERRORS:
-                    self._logged_errors.add(seen)
-                self._log(f"error in {label} (logged once; repeats count as handler_errors on diagnostics):\n"
-                          f"{traceback.format_exc().rstrip()}")
+            self._handler_failed(label, exc)
         if self._measure:
             self._durations.append(time.perf_counter_ns() - t0)
         if stage is not None:
             stage.enter(resume)
+
+    def _handler_failed(self, label: str, exc: Exception) -> None:
+        """Count, show and log (once per distinct error) the exception ``exc`` a callback raised."""
+        self.counters["handler_errors"] += 1
+        self.status = "error"
+        self.detail = f"{label} raised; see log"
+        self.last_error = _clip(f"{label}: {type(exc).__name__}: {exc}")
+        seen = (label, type(exc).__name__, str(exc))
+        if seen not in self._logged_errors:  # a repeating error is logged once, then counted
+            if len(self._logged_errors) < _MAX_LOGGED_ERRORS:
+                self._logged_errors.add(seen)
+            self._log(f"error in {label} (logged once; repeats count as handler_errors on diagnostics):\n"
+                      f"{traceback.format_exc().rstrip()}")
 
     def dispatch(self, input_name: str, msg: Message) -> None:
         """Run the input's handler; exceptions are counted and logged, never raised."""
@@ -280,7 +295,8 @@ class NodeHost:
         self._guarded(label, handler, msg, self)
 
     def fire_timer(self, timer: str) -> None:
-        self._guarded(f"on_timer_{timer}", self._timer_handlers[timer], self)
+        label, handler = self._timer_handlers[timer]
+        self._guarded(label, handler, self)
 
     def call(self, label: str, fn: Callable[..., None], *args: Any) -> None:
         """Run any node callback (start, stop, on_readable) under the same guard."""

@@ -18,7 +18,8 @@ launch file runs this way with ``slipstack launch --lockstep`` (``launch/lockste
 A node's deadline (``next_deadline_ns``) is re-read after each of its events, and a
 node doing I/O of its own (``io_sources``) before the clock moves on: a driver whose
 simulated device, fed by the rig, has bytes waiting (``nodes/devices/sim_link.py``)
-runs at the same simulated instant. A deadline a node has moved since it was scheduled
+runs at the same simulated instant (at once: nothing else is due at that instant then, so its
+deadline event would be the next one anyway). A deadline a node has moved since it was scheduled
 is dropped unread, so it never moves the clock (nor makes the executor re-read the I/O
 nodes' deadlines at an instant where nothing happens).
 """
@@ -123,8 +124,8 @@ class InProcessExecutor:
         self._io_hosts = [h for h in self.hosts if h in self._deadline_hosts
                           and type(h.node).io_sources is not Node.io_sources]
         self._by_name = {h.name: h for h in self.hosts}
-        self._batch_inputs = {(id(h), n) for h in self.hosts for n, i in h.node.inputs.items()
-                              if i.policy == "batch"}
+        self._batch_inputs = {h: frozenset(n for n, i in h.node.inputs.items() if i.policy == "batch")
+                              for h in self.hosts}  # per host: its ``batch`` inputs
 
     # -- the public driving API ----------------------------------------------------------
     @property
@@ -215,13 +216,23 @@ class InProcessExecutor:
         ending = False
         queue, pop = self._queue, heapq.heappop  # the loop runs once per event: locals, not attributes
         io_hosts, deadline_hosts, schedule_deadline = self._io_hosts, self._deadline_hosts, self._schedule_deadline
-        deadlines = self._deadlines
+        deadlines, batch_inputs = self._deadlines, self._batch_inputs
         while True:
-            while queue and queue[0][3][0] == "deadline" and deadlines.get(id(queue[0][3][1])) != queue[0][3][2]:
-                pop(queue)  # a deadline its node has moved since: dropped before it could move the clock
+            while queue:  # a deadline its node has moved since: dropped before it could move the clock
+                head = queue[0][3]
+                if head[0] != "deadline" or deadlines.get(id(head[1])) == head[2]:
+                    break
+                pop(queue)
             if io_hosts and (not queue or queue[0][0] > self.now) and self._io_may_have_changed():
-                for io_host in io_hosts:  # before the clock moves on: a device may have been given work
+                due_now = self._reread_io_deadlines(until_ns)  # before the clock moves on: a device may have work
+                for k, (io_host, due) in enumerate(due_now):  # as their deadline events would run: next, in order
+                    if io_host.shutdown_requested or not self._run_deadline(io_host, due, until_ns, asked=k == 0):
+                        continue
                     schedule_deadline(io_host)
+                    if io_host.shutdown_requested and id(io_host) in stop_hosts:
+                        ending = True
+                if due_now:
+                    continue
             if not queue or (until_ns is not None and queue[0][0] > until_ns):
                 break
             if ending and queue[0][0] > self.now:
@@ -229,31 +240,32 @@ class InProcessExecutor:
             t_ns, _, _, item = pop(queue)
             if t_ns > self.now:
                 self.now = t_ns
-            kind = item[0]
-            host = item[1]
+            kind, host = item[0], item[1]
             if host.shutdown_requested:
                 continue
-            if kind in ("message", "frame") and (id(host), item[2]) in self._batch_inputs:
-                self._run_batch(item, t_ns)
-            elif kind == "message":
-                _, host, input_name, (msg, rejection) = item
-                host.receive_local(input_name, msg, rejection)
-            elif kind == "frame":
-                _, host, input_name, payload = item
-                msg = host.receive(input_name, payload)
-                if msg is not None:
-                    host.dispatch(input_name, msg)
+            # the kinds by how often they come: a published message, a timer, a deadline, a frame, diagnostics
+            if kind == "message":
+                if item[2] in batch_inputs[host]:
+                    self._run_batch(item, t_ns)
+                else:
+                    msg, rejection = item[3]
+                    host.receive_local(item[2], msg, rejection)
             elif kind == "timer":
                 _, host, timer, period = item
                 host.fire_timer(timer)
                 if until_ns is not None or self._has_frames():
                     self._schedule(t_ns + period, item)
             elif kind == "deadline":
-                _, host, due = item
-                if until_ns is None and not self._has_frames():
-                    continue  # run-to-completion ends with the last frame, watchdogs too
-                if host.node.next_deadline_ns() == due:  # still wanted
-                    host.call("on_deadline", host.node.on_deadline, host)
+                if not self._run_deadline(host, item[2], until_ns):
+                    continue
+            elif kind == "frame":
+                if item[2] in batch_inputs[host]:
+                    self._run_batch(item, t_ns)
+                else:
+                    _, host, input_name, payload = item
+                    msg = host.receive(input_name, payload)
+                    if msg is not None:
+                        host.dispatch(input_name, msg)
             elif kind == "diag":
                 _, host, period = item
                 self._send(DIAGNOSTICS_TOPIC, host.diagnostics())
@@ -290,13 +302,52 @@ class InProcessExecutor:
         host.dispatch_batch(input_name, items, lambda item, _: (
             host.accept_local(input_name, *item[3]) if item[0] == "message" else host.receive(input_name, item[3])))
 
+    def _run_deadline(self, host: NodeHost, due: int, until_ns: int | None, *, asked: bool = False) -> bool:
+        """A deadline event of ``host`` for ``due``: its ``on_deadline`` if it still wants that time
+        (``asked``: it said so just now, no node has run since); False if the event is dropped
+        (run-to-completion ends with the last frame, watchdogs too)."""
+        if until_ns is None and not self._has_frames():
+            return False
+        if asked or host.node.next_deadline_ns() == due:
+            host.call("on_deadline", host.node.on_deadline, host)
+        return True
+
+    def _reread_io_deadlines(self, until_ns: int | None) -> list[tuple[NodeHost, int]]:
+        """Re-read the I/O nodes' deadlines (called when no event is due at this instant or before).
+
+        A new deadline in the future is scheduled; the ``(host, due)`` of those due by now are
+        returned, in node order, for the caller to run at once: scheduled, their events would be
+        the next ones, in that order, so the queue trip (push, pop, a loop turn each: once per
+        device read) changes nothing. Past ``until_ns`` they are scheduled, to run in a later call.
+        """
+        due_now = []
+        runnable = until_ns is None or self.now <= until_ns
+        for host in self._io_hosts:
+            due = self._new_deadline(host)
+            if due is None:
+                continue
+            if runnable and due <= self.now:
+                due_now.append((host, due))
+            else:
+                self._schedule(max(due, self.now), ("deadline", host, due))
+        return due_now
+
     def _schedule_deadline(self, host: NodeHost) -> None:
-        due = host.node.next_deadline_ns()
-        if due is None:  # cleared: the same instant asked again later is a new deadline
-            self._deadlines.pop(id(host), None)
-        elif self._deadlines.get(id(host)) != due:
-            self._deadlines[id(host)] = due
+        due = self._new_deadline(host)
+        if due is not None:
             self._schedule(max(due, self.now), ("deadline", host, due))
+
+    def _new_deadline(self, host: NodeHost) -> int | None:
+        """Read ``host``'s deadline and record it; the time if it is a new one, else ``None`` (unchanged,
+        or cleared: the same instant asked again later is a new deadline)."""
+        due = host.node.next_deadline_ns()
+        if due is None:
+            self._deadlines.pop(id(host), None)
+            return None
+        if self._deadlines.get(id(host)) == due:
+            return None
+        self._deadlines[id(host)] = due
+        return due
 
     def _has_frames(self) -> bool:
         return any(entry[3][0] in ("frame", "message") for entry in self._queue)

@@ -8,7 +8,7 @@ from slipstack.messages import Header, Wrench, encode
 from slipstack.nodes.demo import Relay, SourceParams, WrenchSource
 from slipstack.nodes.devices.sim_link import SimDevice, SimLink, host_side_changes
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
-from slipstack.nodes.runtime.node import Context, Input, Node
+from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
 
 def _wrench(seq: int, t: int) -> Wrench:
@@ -254,3 +254,78 @@ def test_a_device_write_wakes_its_reader_at_that_instant_and_only_writes_make_it
     assert (written_all, received_all) == (written, received)
     assert reads_every_instant > 600  # one per simulated instant (600 of them)
     assert reads_on_change < 350  # only after a write (100) and after the reader's own calls
+
+
+class _TwoPortWriter(Node):
+    """Writes one byte to each of two simulated devices every 2 ms."""
+
+    name = "two_writer"
+    timers = {"tick": 0.002}
+
+    def __init__(self) -> None:
+        self.devices = [SimDevice("/dev/order-a"), SimDevice("/dev/order-b")]
+
+    def start(self, ctx: Context) -> None:
+        for device in self.devices:
+            device.plug()
+
+    def on_timer_tick(self, ctx: Context) -> None:
+        for device in self.devices:
+            device.write(b"x")
+
+    def stop(self, ctx: Context) -> None:
+        for device in self.devices:
+            device.unplug()
+
+
+class _PublishingReader(Node):
+    """Reads its device when due and publishes one wrench per read; logs its reads."""
+
+    def __init__(self, path: str, topic: str, log: list[str]) -> None:
+        self.name = f"reader_{topic}"
+        self.outputs = {"out": Output(topic, Wrench)}
+        self.link = SimLink(path, stale_after_s=1.0)
+        self.log = log
+
+    def start(self, ctx: Context) -> None:
+        self.link.open(ctx.now_ns())
+
+    def io_sources(self) -> list:
+        return []
+
+    def next_deadline_ns(self) -> int | None:
+        return self.link.next_attempt_ns()
+
+    def on_deadline(self, ctx: Context) -> None:
+        if self.link.recv(ctx.now_ns()):
+            self.log.append(f"{self.name} read at {ctx.now_ns()}")
+            ctx.publish("out", _wrench(0, ctx.now_ns()), stamp_ns=ctx.now_ns())
+
+
+class _OrderSink(Node):
+    """Logs the messages of both readers as they arrive."""
+
+    name = "sink"
+    inputs = {"a": Input("a", Wrench), "b": Input("b", Wrench)}
+
+    def __init__(self, log: list[str]) -> None:
+        self.log = log
+
+    def on_a(self, msg: Wrench, ctx: Context) -> None:
+        self.log.append(f"a delivered at {ctx.now_ns()}")
+
+    def on_b(self, msg: Wrench, ctx: Context) -> None:
+        self.log.append(f"b delivered at {ctx.now_ns()}")
+
+
+def test_readers_woken_by_one_write_all_read_before_what_they_publish_is_delivered():
+    """Two I/O nodes made due by the same device writes read in node order, and both read before
+    either's message reaches a subscriber: a deadline found due when the executor re-reads them
+    comes before the messages the first reader's handler publishes at that instant."""
+    log: list[str] = []
+    ex = InProcessExecutor([_TwoPortWriter(), _OrderSink(log), _PublishingReader("/dev/order-a", "a", log),
+                            _PublishingReader("/dev/order-b", "b", log)], io_changes=host_side_changes)
+    ex.run(until_ns=4_500_000)
+    ex.stop()
+    assert log == [f"{what} at {t}" for t in (2_000_000, 4_000_000)
+                   for what in ("reader_a read", "reader_b read", "a delivered", "b delivered")]

@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from slipstack.lib.protocols import dsacon32
+from slipstack.lib.protocols.stream import Deframer
 from slipstack.nodes.devices import LinkStatus
 from slipstack.nodes.devices.backends import FtSample, TactileSample, backend_from_url
 from slipstack.nodes.devices.emulators import Dsacon32Emulator, RdtSimServer, RobotiqEmulator
@@ -94,4 +96,44 @@ def test_a_port_is_bounded_and_counts_what_it_drops() -> None:
         assert link.next_attempt_ns() is None
     finally:
         link.close()
+        device.close()
+
+
+def test_dsacon32_reads_its_own_matrix_out_of_a_frame_of_two() -> None:
+    """``matrix=1``: the frame carries matrix 0 (2 x 3) then matrix 1 (4 x 2); the sample is
+    matrix 1's taxels only, rows x cols as its matrix info says, from every frame."""
+    device = SimDevice("sim:/run/x/two_matrices.tty")
+    device.plug()
+    backend = backend_from_url("sim:dsacon32:///run/x/two_matrices.tty?fps=500&matrix=1")
+    infos = [dsacon32.MatrixInfo(0, 1e-3, 1e-3, 3, 2), dsacon32.MatrixInfo(0, 1e-3, 1e-3, 2, 4)]
+    commands = Deframer(dsacon32.PacketCodec())
+    now = 1_000 * MS
+
+    def answer() -> None:
+        for p in commands.feed(device.read()):
+            if p.id == dsacon32.PacketId.MATRIX_INFO:
+                device.write(dsacon32.encode_matrix_info(infos[p.payload[0]]))
+            else:
+                device.write(dsacon32.encode_error_reply(p.id, 0))
+
+    try:
+        backend.open(now)
+        for _ in range(4):  # stop, matrix info 0 and 1, start push mode
+            answer()
+            now += MS
+            assert backend.poll(now) == []
+        samples = []
+        for k in range(3):
+            first = np.full(6, 4000 + k, dtype=np.uint16)
+            ours = np.arange(8, dtype=np.uint16) * 10 + k
+            device.write(dsacon32.encode_packet(dsacon32.PacketId.FRAME,
+                                                dsacon32.encode_frame_payload(k, np.concatenate([first, ours]))))
+            now += MS
+            samples += backend.poll(now)
+        assert [s.counts.shape for s in samples] == [(4, 2)] * 3
+        for k, s in enumerate(samples):
+            np.testing.assert_array_equal(s.counts, (np.arange(8) * 10 + k).reshape(4, 2))
+        assert backend.counters["bad_frames"] == 0 and backend.status is LinkStatus.OK
+    finally:
+        backend.close()
         device.close()
