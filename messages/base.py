@@ -23,14 +23,16 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import operator
 import re
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, TypeVar, get_type_hints
+from typing import Any, Callable, ClassVar, TypeVar, get_type_hints
 
 import numpy as np
 
 from slipstack.lib.errors import DecodeError
 from slipstack.messages.accept import FieldRule, all_finite, compile_accept
+from slipstack.messages.codec import pack_array
 from slipstack.messages.frame import (
     INT64_MAX, MAX_HEADER_SOURCES, MAX_KEY_LEN, Header, header_from_wire, pack_frame, unpack_frame,
 )
@@ -278,6 +280,14 @@ def _validator(owner: str, f: dataclasses.Field, hint: Any):
     return check_scalar
 
 
+def _values_getter(names: tuple[str, ...]) -> Callable[[dict[str, Any]], tuple[Any, ...]]:
+    """``fields -> (fields[names[0]], fields[names[1]], ...)``: ``operator.itemgetter``
+    (one C call) where it returns a tuple, i.e. for two names or more."""
+    if len(names) > 1:
+        return operator.itemgetter(*names)
+    return lambda fields: tuple(fields[n] for n in names)
+
+
 def _field_rule(f: dataclasses.Field, hint: Any, tied: dict[str, tuple[str, ...]]) -> FieldRule:
     """What the generated accept test (:mod:`slipstack.messages.accept`) checks of field ``f``:
     the declaration :func:`_validator` checks it against, limits resolved."""
@@ -310,6 +320,8 @@ def message(type_name: str, version: int = 1, *, reads_older: dict[int, str] | N
         dc.TYPE = type_name
         dc.VERSION = version
         dc._body_fields = tuple(f.name for f in body)  # type: ignore[attr-defined]
+        dc._body_values = staticmethod(_values_getter(dc._body_fields))  # type: ignore[attr-defined]
+        dc._array_positions = tuple(i for i, f in enumerate(body) if "array" in f.metadata)  # type: ignore[attr-defined]
         dc._validators = tuple(_validator(type_name, f, hints[f.name]) for f in body)  # type: ignore[attr-defined]
         ints: list[str] = []
         tied = []
@@ -349,8 +361,10 @@ def _check_tied_lengths(msg: Message, fields: dict[str, Any]) -> None:
 
 def encode(msg: Message, header: Header | None = None) -> bytes:
     """Encode a message to its MessagePack payload, with ``header`` in place of its own."""
-    fields = msg.__dict__
-    body = [fields[n] for n in msg._body_fields]  # type: ignore[attr-defined]
+    body = list(msg._body_values(msg.__dict__))  # type: ignore[attr-defined]
+    for i in msg._array_positions:  # type: ignore[attr-defined]
+        if type(body[i]) is np.ndarray:  # as its extension now, not through the packer's fallback for unknown types
+            body[i] = pack_array(body[i])
     return pack_frame(msg.TYPE, msg.VERSION, msg.header if header is None else header, body)
 
 

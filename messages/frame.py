@@ -24,7 +24,7 @@ from typing import Any, NamedTuple
 
 from slipstack.lib.errors import DecodeError
 from slipstack.lib.sequence import SeqTracker
-from slipstack.messages.codec import pack_nested, unpackb
+from slipstack.messages.codec import packb, unpackb
 
 __all__ = [
     "Header", "FrameHeader", "MAX_KEY_LEN", "MAX_HEADER_SOURCES", "INT64_MAX", "DIAGNOSTICS_TYPE",
@@ -71,7 +71,7 @@ class FrameHeader(NamedTuple):
 
 def pack_frame(type_name: str, version: int, header: Header, body: list[Any]) -> bytes:
     """One frame payload from its type, version, header and body fields (declared order)."""
-    return pack_nested((type_name, version, [header.stamp_ns, header.seq, header.pub_ns, header.sources]), body)
+    return packb([type_name, version, [header.stamp_ns, header.seq, header.pub_ns, header.sources], body])
 
 
 def unpack_frame(payload: bytes) -> tuple[Any, Any, Any, Any]:
