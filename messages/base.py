@@ -280,6 +280,34 @@ def _validator(owner: str, f: dataclasses.Field, hint: Any):
     return check_scalar
 
 
+def _init_through_dict(cls: type) -> Callable[..., None]:
+    """An ``__init__`` for frozen dataclass ``cls`` with the signature, defaults and default
+    factories of the one :func:`dataclasses.dataclass` writes, that stores the fields in the
+    instance ``__dict__`` in one update instead of one ``object.__setattr__`` per field (the
+    frozen way: ~80 ns a field, 1–4 µs a message as the nodes publish them)."""
+    params, kw_only, values = [], [], []
+    env: dict[str, Any] = {"MISSING": dataclasses.MISSING}
+    for f in dataclasses.fields(cls):
+        if f.default_factory is not dataclasses.MISSING:
+            env[f"factory_{f.name}"] = f.default_factory
+            param, value = f"{f.name}=MISSING", f"factory_{f.name}() if {f.name} is MISSING else {f.name}"
+        elif f.default is not dataclasses.MISSING:
+            env[f"default_{f.name}"] = f.default
+            param, value = f"{f.name}=default_{f.name}", f.name
+        else:
+            param, value = f.name, f.name
+        (kw_only if f.kw_only else params).append(param)
+        values.append(f"{f.name!r}: {value}")
+    signature = ", ".join(["self", *params, *(["*", *kw_only] if kw_only else [])])
+    source = f"def __init__({signature}):\n    self.__dict__.update({{{', '.join(values)}}})"
+    namespace: dict[str, Any] = {}
+    exec(compile(source, f"<__init__ of {cls.__qualname__}>", "exec"), env, namespace)  # noqa: S102 - built from the fields
+    init = namespace["__init__"]
+    init.__qualname__ = f"{cls.__qualname__}.__init__"
+    init.__doc__ = cls.__init__.__doc__
+    return init
+
+
 def _values_getter(names: tuple[str, ...]) -> Callable[[dict[str, Any]], tuple[Any, ...]]:
     """``fields -> (fields[names[0]], fields[names[1]], ...)``: ``operator.itemgetter``
     (one C call) where it returns a tuple, i.e. for two names or more."""
@@ -315,6 +343,8 @@ def message(type_name: str, version: int = 1, *, reads_older: dict[int, str] | N
             cls.__annotations__ = {"header": Header, **cls.__dict__.get("__annotations__", {})}
             cls.header = field(default_factory=Header, kw_only=True)  # type: ignore[attr-defined]
         dc = dataclass(frozen=True)(cls)
+        if not hasattr(dc, "__post_init__"):
+            dc.__init__ = _init_through_dict(dc)
         hints = get_type_hints(dc)
         body = [f for f in dataclasses.fields(dc) if f.name != "header"]
         dc.TYPE = type_name

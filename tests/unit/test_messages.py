@@ -144,3 +144,29 @@ def test_threads_encoding_at_once_each_get_their_own_frames():
     for t in threads:
         t.join()
     assert not wrong
+
+
+def test_a_message_is_built_as_its_dataclass_declares_it():
+    """Message types store their fields through the instance dict (base._init_through_dict): same
+    signature, defaults and fresh default factories as the dataclass ``__init__``, still frozen."""
+    import dataclasses
+
+    from slipstack.messages import Contact, GripCommand, registry
+
+    for cls in registry.values():
+        built = cls()
+        for f in dataclasses.fields(cls):
+            want = f.default if f.default is not dataclasses.MISSING else f.default_factory()
+            got = getattr(built, f.name)
+            assert (np.array_equal(got, want) and got.dtype == want.dtype) if isinstance(want, np.ndarray) else got == want
+    a, b = Contact(), Contact()
+    assert a.phi is not b.phi and a.header is not b.header and a.header.sources is not b.header.sources
+    g = GripCommand(2.0, "law")
+    assert (g.f_n_desired, g.law, g.reason) == (2.0, "law", "nominal")
+    assert dataclasses.replace(g, reason="slip") == GripCommand(f_n_desired=2.0, law="law", reason="slip")
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        g.law = "other"
+    with pytest.raises(TypeError):
+        GripCommand(1.0, "a", "b", Header())  # the header is keyword-only
+    with pytest.raises(TypeError):
+        GripCommand(force=1.0)
