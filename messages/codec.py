@@ -120,7 +120,7 @@ def unpack_array(data: bytes) -> np.ndarray:
     off, dtype, shape, count, nbytes = _parse_array_header(data)
     if len(data) - off != nbytes:
         raise DecodeError(f"array: {len(data) - off} data bytes do not match shape {shape} of {dtype.str}")
-    arr = np.frombuffer(data, dtype=dtype, count=count, offset=off)
+    arr = np.frombuffer(data, dtype, count, off)  # positional: numpy parses keywords slowly (~0.4 µs)
     return arr if len(shape) == 1 else arr.reshape(shape)
 
 
