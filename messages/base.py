@@ -23,15 +23,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import operator
 import re
 from dataclasses import dataclass, field
-from typing import Any, Callable, ClassVar, TypeVar, get_type_hints
+from typing import Any, ClassVar, TypeVar, get_type_hints
 
 import numpy as np
 
 from slipstack.lib.errors import DecodeError
-from slipstack.messages.accept import FieldRule, all_finite, compile_accept
+from slipstack.messages.generated import FieldRule, all_finite, compile_accept, compile_init, compile_wire_body
 from slipstack.messages.codec import pack_array
 from slipstack.messages.frame import (
     INT64_MAX, MAX_HEADER_SOURCES, MAX_KEY_LEN, Header, header_from_wire, pack_frame, unpack_frame,
@@ -280,44 +279,8 @@ def _validator(owner: str, f: dataclasses.Field, hint: Any):
     return check_scalar
 
 
-def _init_through_dict(cls: type) -> Callable[..., None]:
-    """An ``__init__`` for frozen dataclass ``cls`` with the signature, defaults and default
-    factories of the one :func:`dataclasses.dataclass` writes, that stores the fields in the
-    instance ``__dict__`` in one update instead of one ``object.__setattr__`` per field (the
-    frozen way: ~80 ns a field, 1–4 µs a message as the nodes publish them)."""
-    params, kw_only, values = [], [], []
-    env: dict[str, Any] = {"MISSING": dataclasses.MISSING}
-    for f in dataclasses.fields(cls):
-        if f.default_factory is not dataclasses.MISSING:
-            env[f"factory_{f.name}"] = f.default_factory
-            param, value = f"{f.name}=MISSING", f"factory_{f.name}() if {f.name} is MISSING else {f.name}"
-        elif f.default is not dataclasses.MISSING:
-            env[f"default_{f.name}"] = f.default
-            param, value = f"{f.name}=default_{f.name}", f.name
-        else:
-            param, value = f.name, f.name
-        (kw_only if f.kw_only else params).append(param)
-        values.append(f"{f.name!r}: {value}")
-    signature = ", ".join(["self", *params, *(["*", *kw_only] if kw_only else [])])
-    source = f"def __init__({signature}):\n    self.__dict__.update({{{', '.join(values)}}})"
-    namespace: dict[str, Any] = {}
-    exec(compile(source, f"<__init__ of {cls.__qualname__}>", "exec"), env, namespace)  # noqa: S102 - built from the fields
-    init = namespace["__init__"]
-    init.__qualname__ = f"{cls.__qualname__}.__init__"
-    init.__doc__ = cls.__init__.__doc__
-    return init
-
-
-def _values_getter(names: tuple[str, ...]) -> Callable[[dict[str, Any]], tuple[Any, ...]]:
-    """``fields -> (fields[names[0]], fields[names[1]], ...)``: ``operator.itemgetter``
-    (one C call) where it returns a tuple, i.e. for two names or more."""
-    if len(names) > 1:
-        return operator.itemgetter(*names)
-    return lambda fields: tuple(fields[n] for n in names)
-
-
 def _field_rule(f: dataclasses.Field, hint: Any, tied: dict[str, tuple[str, ...]]) -> FieldRule:
-    """What the generated accept test (:mod:`slipstack.messages.accept`) checks of field ``f``:
+    """What the generated accept test (:mod:`slipstack.messages.generated`) checks of field ``f``:
     the declaration :func:`_validator` checks it against, limits resolved."""
     spec: ArraySpec | None = f.metadata.get("array")
     if spec is not None:
@@ -344,14 +307,14 @@ def message(type_name: str, version: int = 1, *, reads_older: dict[int, str] | N
             cls.header = field(default_factory=Header, kw_only=True)  # type: ignore[attr-defined]
         dc = dataclass(frozen=True)(cls)
         if not hasattr(dc, "__post_init__"):
-            dc.__init__ = _init_through_dict(dc)
+            dc.__init__ = compile_init(dc)
         hints = get_type_hints(dc)
         body = [f for f in dataclasses.fields(dc) if f.name != "header"]
         dc.TYPE = type_name
         dc.VERSION = version
         dc._body_fields = tuple(f.name for f in body)  # type: ignore[attr-defined]
-        dc._body_values = staticmethod(_values_getter(dc._body_fields))  # type: ignore[attr-defined]
-        dc._array_positions = tuple(i for i, f in enumerate(body) if "array" in f.metadata)  # type: ignore[attr-defined]
+        dc._wire_body = staticmethod(compile_wire_body(  # type: ignore[attr-defined]
+            type_name, dc._body_fields, [f.name for f in body if "array" in f.metadata], pack_array))
         dc._validators = tuple(_validator(type_name, f, hints[f.name]) for f in body)  # type: ignore[attr-defined]
         ints: list[str] = []
         tied = []
@@ -391,10 +354,7 @@ def _check_tied_lengths(msg: Message, fields: dict[str, Any]) -> None:
 
 def encode(msg: Message, header: Header | None = None) -> bytes:
     """Encode a message to its MessagePack payload, with ``header`` in place of its own."""
-    body = list(msg._body_values(msg.__dict__))  # type: ignore[attr-defined]
-    for i in msg._array_positions:  # type: ignore[attr-defined]
-        if type(body[i]) is np.ndarray:  # as its extension now, not through the packer's fallback for unknown types
-            body[i] = pack_array(body[i])
+    body = msg._wire_body(msg.__dict__)  # type: ignore[attr-defined]
     return pack_frame(msg.TYPE, msg.VERSION, msg.header if header is None else header, body)
 
 
@@ -482,7 +442,7 @@ def _check_fields(msg: Message, fields: dict[str, Any], checked: int | None = No
     ``msg`` (the first ``checked`` fields, all by default: an older version's defaults are
     not checked), then the tied lengths: each value is replaced by its checked one (an
     ``int`` in a ``float`` field becomes a float); :class:`DecodeError` names the first
-    fault. The full form of the generated accept test (:mod:`slipstack.messages.accept`),
+    fault. The full form of the generated accept test (:mod:`slipstack.messages.generated`),
     run when that one does not accept: it names the fault or passes what the test was too
     strict for."""
     for n, check in zip(msg._body_fields[:checked], msg._validators):  # type: ignore[attr-defined]

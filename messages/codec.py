@@ -150,12 +150,13 @@ def packb(obj: Any) -> bytes:
     Each thread reuses one packer (``msgpack.packb`` builds one per call, ~0.4 µs); a
     failed call leaves it empty (msgpack resets it), so the next starts clean.
     """
-    packer = getattr(_thread, "packer", None)
-    if packer is None:
+    try:
+        packer = _thread.packer
+    except AttributeError:  # this thread's first frame, or the first after a large one
         packer = _thread.packer = msgpack.Packer(default=_default, use_bin_type=True)
     payload = packer.pack(obj)
     if len(payload) > _PACKER_KEPT_BYTES:
-        _thread.packer = None
+        del _thread.packer
     return payload
 
 

@@ -1,7 +1,7 @@
 """The generated accept test of each message type never changes a check's outcome.
 
-``messages/accept.py`` accepts a valid message in one pass; what it does not accept goes
-through the field-by-field checks. So for every registered type, with one or two fields
+``messages/generated.py``'s accept test takes a valid message in one pass; what it does
+not accept goes through the field-by-field checks. So for every registered type, with one or two fields
 of a valid message replaced by a random value — NaN, ±inf, huge, out of bounds, of
 the wrong type, an array of the wrong shape or dtype, oversized text or maps — the
 hand-over must reject exactly what the field-by-field checks reject, with their text,

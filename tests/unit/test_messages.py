@@ -98,7 +98,7 @@ def _as_the_nodes_publish_them() -> list:
 
 @pytest.mark.parametrize("msg", _as_the_nodes_publish_them(), ids=lambda m: m.TYPE)
 def test_a_message_as_its_node_publishes_it_passes_the_one_pass_accept_test_and_decodes_the_same(msg):
-    """The generated accept test (messages/accept.py) must take what the nodes publish (else every
+    """The generated accept test (messages/generated.py) must take what the nodes publish (else every
     message goes the slow field-by-field way), and a frame decoded on that path equals the original."""
     assert type(msg)._accept(msg.__dict__)
     back = decode(encode(msg), type(msg))
@@ -124,6 +124,10 @@ def test_a_message_that_cannot_be_encoded_leaves_the_next_frame_intact():
     expected = msgpack.packb(["slipstack/Wrench", 1, [5, 1, 6, {"ft": 5}],
                               [pack_array(good.force), pack_array(good.torque), "sensor", -1, "ok"]], use_bin_type=True)
     assert encode(good) == expected
+    large = TactileFrame(rows=256, cols=256, pressure_pa=np.ones(65536, np.float32), saturated=np.zeros(65536, bool),
+                         dead=np.zeros(65536, bool))
+    assert decode(encode(large), TactileFrame).pressure_pa.sum() == 65536  # a large frame: its packer is let go
+    assert encode(good) == expected
 
 
 def test_threads_encoding_at_once_each_get_their_own_frames():
@@ -147,7 +151,7 @@ def test_threads_encoding_at_once_each_get_their_own_frames():
 
 
 def test_a_message_is_built_as_its_dataclass_declares_it():
-    """Message types store their fields through the instance dict (base._init_through_dict): same
+    """Message types store their fields through the instance dict (messages/generated.py compile_init): same
     signature, defaults and fresh default factories as the dataclass ``__init__``, still frozen."""
     import dataclasses
 
