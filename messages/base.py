@@ -30,11 +30,11 @@ from typing import Any, ClassVar, TypeVar, get_type_hints
 import numpy as np
 
 from slipstack.lib.errors import DecodeError
-from slipstack.messages.generated import FieldRule, all_finite, compile_accept, compile_init, compile_wire_body
 from slipstack.messages.codec import pack_array
 from slipstack.messages.frame import (
     INT64_MAX, MAX_HEADER_SOURCES, MAX_KEY_LEN, Header, header_from_wire, pack_frame, unpack_frame,
 )
+from slipstack.messages.generated import FieldRule, all_finite, compile_accept, compile_init, compile_wire_body
 
 __all__ = [
     "Header", "Message", "ArraySpec", "Bounds", "array", "bounded", "declared_bounds", "message", "encode", "decode", "validate",

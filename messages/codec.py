@@ -148,7 +148,8 @@ def packb(obj: Any) -> bytes:
     """Encode a tree of builtins and numpy arrays to MessagePack bytes.
 
     Each thread reuses one packer (``msgpack.packb`` builds one per call, ~0.4 µs); a
-    failed call leaves it empty (msgpack resets it), so the next starts clean.
+    failed call leaves it empty (msgpack resets it), so the next starts clean, and no
+    call re-enters it (its only callback, ``_default``, packs nothing itself).
     """
     try:
         packer = _thread.packer
