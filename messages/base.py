@@ -30,7 +30,6 @@ from typing import Any, ClassVar, TypeVar, get_type_hints
 import numpy as np
 
 from slipstack.lib.errors import DecodeError
-from slipstack.messages.codec import pack_array
 from slipstack.messages.frame import (
     INT64_MAX, MAX_HEADER_SOURCES, MAX_KEY_LEN, Header, header_from_wire, pack_frame, unpack_frame,
 )
@@ -280,8 +279,8 @@ def _validator(owner: str, f: dataclasses.Field, hint: Any):
 
 
 def _field_rule(f: dataclasses.Field, hint: Any, tied: dict[str, tuple[str, ...]]) -> FieldRule:
-    """What the generated accept test (:mod:`slipstack.messages.generated`) checks of field ``f``:
-    the declaration :func:`_validator` checks it against, limits resolved."""
+    """What the generated accept test and wire body (:mod:`slipstack.messages.generated`) need
+    of field ``f``: the declaration :func:`_validator` checks it against, limits resolved."""
     spec: ArraySpec | None = f.metadata.get("array")
     if spec is not None:
         return FieldRule(f.name, np.ndarray, dtype=np.dtype(spec.dtype), shape=spec.shape, finite=spec.finite,
@@ -313,8 +312,6 @@ def message(type_name: str, version: int = 1, *, reads_older: dict[int, str] | N
         dc.TYPE = type_name
         dc.VERSION = version
         dc._body_fields = tuple(f.name for f in body)  # type: ignore[attr-defined]
-        dc._wire_body = staticmethod(compile_wire_body(  # type: ignore[attr-defined]
-            type_name, dc._body_fields, [f.name for f in body if "array" in f.metadata], pack_array))
         dc._validators = tuple(_validator(type_name, f, hints[f.name]) for f in body)  # type: ignore[attr-defined]
         ints: list[str] = []
         tied = []
@@ -326,8 +323,9 @@ def message(type_name: str, version: int = 1, *, reads_older: dict[int, str] | N
             elif hints[f.name] is int:
                 ints.append(f.name)
         dc._tied_lengths = tuple(tied)  # type: ignore[attr-defined]
-        dc._accept = staticmethod(compile_accept(  # type: ignore[attr-defined]
-            type_name, [_field_rule(f, hints[f.name], dict(tied)) for f in body], max_key_len=MAX_KEY_LEN))
+        rules = [_field_rule(f, hints[f.name], dict(tied)) for f in body]
+        dc._accept = staticmethod(compile_accept(type_name, rules, max_key_len=MAX_KEY_LEN))  # type: ignore[attr-defined]
+        dc._wire_body = staticmethod(compile_wire_body(type_name, rules))  # type: ignore[attr-defined]
         # Every declared field must be on the wire; trailing extra fields (appended by
         # a newer writer of the same version) are ignored.
         dc._required = len(body)  # type: ignore[attr-defined]

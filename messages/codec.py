@@ -30,8 +30,8 @@ import numpy as np
 from slipstack.lib.errors import DecodeError
 
 __all__ = [
-    "ARRAY_EXT", "ALLOWED_DTYPES", "MAX_PAYLOAD_BYTES", "UNPACK_LIMITS", "pack_array", "unpack_array", "packb",
-    "unpackb",
+    "ARRAY_EXT", "ALLOWED_DTYPES", "MAX_PAYLOAD_BYTES", "UNPACK_LIMITS", "pack_array", "array_head", "ext_type",
+    "unpack_array", "packb", "unpackb",
 ]
 
 ARRAY_EXT = 1
@@ -60,7 +60,7 @@ def pack_array(arr: np.ndarray) -> msgpack.ExtType:
     head = _PACKED_HEADS.get((arr.dtype, arr.shape))  # built once per dtype and shape (a stream carries few)
     if head is None:
         return _pack_array_first(arr)
-    return _ext_type((ARRAY_EXT, head + arr.tobytes()))  # tobytes: C order, contiguous or not
+    return ext_type((ARRAY_EXT, head + arr.tobytes()))  # tobytes: C order, contiguous or not
 
 
 def _pack_array_first(arr: np.ndarray) -> msgpack.ExtType:
@@ -70,17 +70,24 @@ def _pack_array_first(arr: np.ndarray) -> msgpack.ExtType:
     code = (arr.dtype.newbyteorder("<") if swap else arr.dtype).str
     if code not in ALLOWED_DTYPES:
         raise TypeError(f"array dtype {arr.dtype} cannot be sent; use one of {sorted(ALLOWED_DTYPES)}")
-    head = bytes([len(code)]) + code.encode() + bytes([arr.ndim]) + b"".join(_U32.pack(n) for n in arr.shape)
+    head = array_head(code, arr.shape)
     if swap:
         arr = arr.astype(arr.dtype.newbyteorder("<"))
     elif len(_PACKED_HEADS) < _PACKED_HEADS_MAX:
         _PACKED_HEADS[(arr.dtype, arr.shape)] = head
-    return _ext_type((ARRAY_EXT, head + arr.tobytes()))
+    return ext_type((ARRAY_EXT, head + arr.tobytes()))
 
 
-_ext_type = functools.partial(tuple.__new__, msgpack.ExtType)
-"""``msgpack.ExtType(code, data)`` without the checks its constructor runs in Python
-(~0.2 µs, a third of an array's encoding): :func:`pack_array` gives it an int code and bytes."""
+def array_head(code: str, shape: tuple[int, ...]) -> bytes:
+    """The header of :func:`pack_array`'s extension data for an array of dtype ``code``
+    (one of :data:`ALLOWED_DTYPES`) and ``shape``; the raw bytes follow it."""
+    return bytes([len(code)]) + code.encode() + bytes([len(shape)]) + b"".join(_U32.pack(n) for n in shape)
+
+
+ext_type = functools.partial(tuple.__new__, msgpack.ExtType)
+"""``ext_type((code, data))`` is ``msgpack.ExtType(code, data)`` without the checks its
+constructor runs in Python (~0.2 µs, a third of an array's encoding), for an int code
+and bytes data."""
 
 
 _HEADER_CACHE: dict[bytes, tuple[np.dtype, tuple[int, ...], int, int]] = {}

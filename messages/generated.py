@@ -30,8 +30,8 @@ as ever, or pass it after all. So each test is at most as permissive as the chec
 stands for, never more, and may be stricter where that is cheaper:
 
 * a float is accepted only as exactly ``float`` (an ``int`` or a numpy float goes to the
-  full check, which accepts and converts it); a finite float is ``-inf < v < inf``
-  (false for NaN);
+  full check, which accepts and converts it); a float is finite when ``v - v == 0.0``
+  (``inf - inf`` and anything with NaN is NaN);
 * an array's dtype must be the declared dtype object itself (numpy keeps one object per
   built-in dtype; an equal but distinct object goes to the full check);
 * a small float array of fixed size is finite when the sum of its values as Python
@@ -45,7 +45,7 @@ stands for, never more, and may be stricter where that is cheaper:
 * a ``dict`` field's keys must be exactly ``str`` and its values exactly the declared
   types (``int`` or ``float`` for a number, a ``list`` for a fixed-length list).
 
-``tests/property/test_accept_matches_checks.py`` checks on random valid and invalid
+``tests/property/test_generated_code.py`` checks on random valid and invalid
 values, for every registered type, that the hand-over and the decoder reject exactly
 what the field-by-field checks reject.
 """
@@ -59,6 +59,8 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from slipstack.messages.codec import ALLOWED_DTYPES, ARRAY_EXT, array_head, ext_type, pack_array
+
 __all__ = ["FieldRule", "compile_accept", "compile_wire_body", "compile_init", "all_finite"]
 
 _SUMMED_SIZE = 16
@@ -69,7 +71,7 @@ _KNOWN_STRINGS_KEPT = 32
 
 
 class FieldRule:
-    """What :func:`compile_accept` needs of one body field: its name and declaration.
+    """What the generated functions need of one body field: its name and declaration.
 
     kind: the declared Python type (``float``, ``int``, ``bool``, ``str``, ``dict``) or
         ``np.ndarray`` for an array field.
@@ -99,15 +101,28 @@ def compile_accept(type_name: str, rules: Sequence[FieldRule], *, max_key_len: i
     return _define(f"accept_{type_name}", "fields", lines, env)
 
 
-def compile_wire_body(type_name: str, names: Sequence[str], arrays: Sequence[str],
-                      pack_array: Callable[[np.ndarray], Any]) -> Callable[[dict[str, Any]], list[Any]]:
-    """The function ``wire_body(fields) -> list`` of a message type: the values of body
-    fields ``names`` in declared order, each numpy array among ``arrays`` (the array
-    fields) as ``pack_array(value)`` (anything else there is left to the packer)."""
-    lines = [f"    v_{n} = fields[{n!r}]" for n in names]
-    items = [f"pack_array(v_{n}) if type(v_{n}) is ndarray else v_{n}" if n in arrays else f"v_{n}" for n in names]
+def compile_wire_body(type_name: str, rules: Sequence[FieldRule]) -> Callable[[dict[str, Any]], list[Any]]:
+    """The function ``wire_body(fields) -> list`` of a message type: the values of its body
+    fields in declared order (``rules``), each numpy array as its extension
+    (:func:`~slipstack.messages.codec.pack_array`; anything else in an array field is left
+    to the packer). An array of its field's fixed shape and declared dtype (that very
+    object, as in the accept test) takes the header built here: no look-up, no call."""
+    env: dict[str, Any] = {"ndarray": np.ndarray, "pack_array": pack_array, "ext_type": ext_type, "ARRAY_EXT": ARRAY_EXT}
+    items = []
+    for rule in rules:
+        v = f"v_{rule.name}"
+        if rule.kind is not np.ndarray:
+            items.append(v)
+            continue
+        item = f"pack_array({v}) if type({v}) is ndarray else {v}"
+        if rule.tied is None and None not in rule.shape and rule.dtype.str in ALLOWED_DTYPES:
+            env[f"dtype_{v}"], env[f"head_{v}"] = rule.dtype, array_head(rule.dtype.str, rule.shape)
+            item = (f"ext_type((ARRAY_EXT, head_{v} + {v}.tobytes())) if type({v}) is ndarray and {v}.dtype is "
+                    f"dtype_{v} and {v}.shape == {tuple(rule.shape)!r} else {item}")
+        items.append(item)
+    lines = [f"    v_{rule.name} = fields[{rule.name!r}]" for rule in rules]
     lines.append("    return [" + ",\n            ".join(items) + "]")
-    return _define(f"wire_body_{type_name}", "fields", lines, {"ndarray": np.ndarray, "pack_array": pack_array})
+    return _define(f"wire_body_{type_name}", "fields", lines, env)
 
 
 def compile_init(cls: type) -> Callable[..., None]:
@@ -169,7 +184,7 @@ def _test(rule: FieldRule, env: dict[str, Any]) -> str:
 def _number_tests(v: str, kind: type, b: Any) -> list[str]:
     tests = []
     if kind is float:
-        tests.append(f"{v} == {v}" if b.allow_inf else f"-inf < {v} < inf")  # not NaN / finite
+        tests.append(f"{v} == {v}" if b.allow_inf else f"{v} - {v} == 0.0")  # not NaN / finite (inf - inf is NaN)
     for op, limit in ((">=", b.ge), (">", b.gt), ("<=", b.le)):
         if limit is not None:
             tests.append(f"{v} {op} {limit!r}")
