@@ -17,6 +17,7 @@ import typing
 
 import msgpack
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -30,6 +31,7 @@ from slipstack.messages.codec import _default
 from slipstack.messages.frame import pack_frame, unpack_frame
 
 _HEADER = Header(5, 1, 6, {"ft": 5})
+pytestmark = pytest.mark.filterwarnings("ignore:invalid value encountered:RuntimeWarning")  # NaN/Inf arrays, on purpose
 _SPECIAL_FLOATS = [math.nan, math.inf, -math.inf, 1e308, -1e308, 1e200, 0.0, -0.0, 5e-324, 2.5]
 
 
