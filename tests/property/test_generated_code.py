@@ -124,7 +124,7 @@ def _message(cls: type[Message], fields: dict[str, object]) -> Message:
     return msg
 
 
-@settings(max_examples=250)
+@settings(max_examples=150)
 @given(_tampered())
 def test_the_hand_over_rejects_exactly_what_the_field_checks_reject(case):
     cls, fields = case
@@ -133,7 +133,7 @@ def test_the_hand_over_rejects_exactly_what_the_field_checks_reject(case):
     assert handed_over(_message(cls, fields), _HEADER)[1] == expected
 
 
-@settings(max_examples=250)
+@settings(max_examples=150)
 @given(_tampered())
 def test_the_decoder_rejects_exactly_what_the_field_checks_reject(case):
     cls, fields = case
@@ -155,7 +155,7 @@ def test_the_decoder_rejects_exactly_what_the_field_checks_reject(case):
         assert expected is None
 
 
-@settings(max_examples=300)
+@settings(max_examples=150)
 @given(_tampered())
 def test_a_message_encodes_to_the_bytes_the_generic_packer_writes(case):
     cls, fields = case
