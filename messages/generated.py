@@ -145,6 +145,7 @@ def compile_init(cls: type) -> Callable[..., None]:
     signature = ", ".join(["self", *params, *(["*", *kw_only] if kw_only else [])])
     init = _define(f"init_{cls.__qualname__}", signature, [f"    self.__dict__.update({{{', '.join(values)}}})"], env)
     init.__name__, init.__qualname__, init.__doc__ = "__init__", f"{cls.__qualname__}.__init__", cls.__init__.__doc__
+    init.__module__ = cls.__module__
     return init
 
 
@@ -154,6 +155,7 @@ def _define(name: str, params: str, body: list[str], env: dict[str, Any]) -> Cal
     local = re.sub(r"\W", "_", name)
     source = "\n".join([f"def {local}({params}):", *body])
     namespace: dict[str, Any] = {}
+    env.setdefault("__name__", __name__)  # the module its functions name as theirs
     exec(compile(source, f"<{name}>", "exec"), env, namespace)  # noqa: S102 - source built here from declarations
     return namespace[local]
 
