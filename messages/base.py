@@ -33,6 +33,7 @@ from slipstack.lib.errors import DecodeError
 from slipstack.messages.frame import (
     INT64_MAX, MAX_HEADER_SOURCES, MAX_KEY_LEN, Header, header_from_wire, pack_frame, unpack_frame,
 )
+from slipstack.messages.generated import FieldRule, all_finite, compile_accept, compile_init, compile_wire_body
 
 __all__ = [
     "Header", "Message", "ArraySpec", "Bounds", "array", "bounded", "declared_bounds", "message", "encode", "decode", "validate",
@@ -45,7 +46,6 @@ MAX_STR_LEN = 256
 MAX_DICT_ITEMS = 256
 """Entries a ``dict`` field may hold unless it declares its own ``max_len``."""
 _SHOWN_CHARS = 40  # a rejected string is quoted up to this many characters in the error
-_ZERO_VECTORS_KEPT = 8  # array sizes per field whose zero vector for the finiteness test is kept
 
 
 @dataclass(frozen=True)
@@ -162,7 +162,6 @@ def _array_validator(name: str, spec: ArraySpec):
     shape = tuple(None if isinstance(n, str) else n for n in spec.shape)  # a tied length is checked later
     fixed_shape = shape if None not in shape else None
     check_finite = spec.finite and want_dtype.kind == "f"
-    zeros: dict[int, np.ndarray] = {}  # size → a zero vector for the finiteness test (few sizes per field)
 
     def check_array(v: Any) -> Any:
         if type(v) is not np.ndarray:
@@ -173,15 +172,8 @@ def _array_validator(name: str, spec: ArraySpec):
             s is not None and s != n for s, n in zip(shape, v.shape)
         )):
             raise DecodeError(f"{name}: expected shape {spec.shape}, got {v.shape}")
-        # NaN/Inf make the dot product with zeros NaN: one pass, no temporary array
-        if check_finite and v.size:
-            zero = zeros.get(v.size)
-            if zero is None:
-                zero = np.zeros(v.size, v.dtype)
-                if len(zeros) < _ZERO_VECTORS_KEPT:
-                    zeros[v.size] = zero
-            if (v if v.ndim == 1 else v.reshape(-1)).dot(zero) != 0:
-                raise DecodeError(f"{name}: contains NaN or Inf")
+        if check_finite and not all_finite(v):
+            raise DecodeError(f"{name}: contains NaN or Inf")
         return v
 
     return check_array
@@ -286,6 +278,20 @@ def _validator(owner: str, f: dataclasses.Field, hint: Any):
     return check_scalar
 
 
+def _field_rule(f: dataclasses.Field, hint: Any, tied: dict[str, tuple[str, ...]]) -> FieldRule:
+    """What the generated accept test and wire body (:mod:`slipstack.messages.generated`) need
+    of field ``f``: the declaration :func:`_validator` checks it against, limits resolved."""
+    spec: ArraySpec | None = f.metadata.get("array")
+    if spec is not None:
+        return FieldRule(f.name, np.ndarray, dtype=np.dtype(spec.dtype), shape=spec.shape, finite=spec.finite,
+                         tied=tied.get(f.name))
+    kind = getattr(hint, "__origin__", hint)
+    b: Bounds = f.metadata.get("bounds") or Bounds()
+    default_len = {str: MAX_STR_LEN, dict: MAX_DICT_ITEMS}.get(kind)
+    return FieldRule(f.name, kind, bounds=b, max_len=b.max_len if b.max_len is not None else default_len,
+                     values=f.metadata.get("values"))
+
+
 def message(type_name: str, version: int = 1, *, reads_older: dict[int, str] | None = None):
     """Class decorator: make a frozen message dataclass and register its type name.
 
@@ -299,6 +305,8 @@ def message(type_name: str, version: int = 1, *, reads_older: dict[int, str] | N
             cls.__annotations__ = {"header": Header, **cls.__dict__.get("__annotations__", {})}
             cls.header = field(default_factory=Header, kw_only=True)  # type: ignore[attr-defined]
         dc = dataclass(frozen=True)(cls)
+        if not hasattr(dc, "__post_init__"):
+            dc.__init__ = compile_init(dc)
         hints = get_type_hints(dc)
         body = [f for f in dataclasses.fields(dc) if f.name != "header"]
         dc.TYPE = type_name
@@ -315,6 +323,9 @@ def message(type_name: str, version: int = 1, *, reads_older: dict[int, str] | N
             elif hints[f.name] is int:
                 ints.append(f.name)
         dc._tied_lengths = tuple(tied)  # type: ignore[attr-defined]
+        rules = [_field_rule(f, hints[f.name], dict(tied)) for f in body]
+        dc._accept = staticmethod(compile_accept(type_name, rules, max_key_len=MAX_KEY_LEN))  # type: ignore[attr-defined]
+        dc._wire_body = staticmethod(compile_wire_body(type_name, rules))  # type: ignore[attr-defined]
         # Every declared field must be on the wire; trailing extra fields (appended by
         # a newer writer of the same version) are ignored.
         dc._required = len(body)  # type: ignore[attr-defined]
@@ -341,8 +352,7 @@ def _check_tied_lengths(msg: Message, fields: dict[str, Any]) -> None:
 
 def encode(msg: Message, header: Header | None = None) -> bytes:
     """Encode a message to its MessagePack payload, with ``header`` in place of its own."""
-    fields = msg.__dict__
-    body = [fields[n] for n in msg._body_fields]  # type: ignore[attr-defined]
+    body = msg._wire_body(msg.__dict__)  # type: ignore[attr-defined]
     return pack_frame(msg.TYPE, msg.VERSION, msg.header if header is None else header, body)
 
 
@@ -374,16 +384,17 @@ def decode(payload: bytes, expected: type[M] | None = None) -> M:
     if len(raw_body) < required:
         missing = names[len(raw_body)]
         raise DecodeError(f"{type_name}.{missing}: missing")
-    msg = object.__new__(cls)  # fields are validated above; skip the frozen __init__'s setattr per field
+    msg = object.__new__(cls)  # fields are validated below; skip the frozen __init__'s setattr per field
     fields = msg.__dict__
-    older = required < len(names)
-    for n, check, v in zip(names, cls._validators, raw_body[:required] if older else raw_body):  # type: ignore[attr-defined]
-        fields[n] = check(v)
-    if older:  # the fields an older version did not write
+    if required == len(names):
+        fields.update(zip(names, raw_body))  # trailing fields of a newer writer are left out
+        if not cls._accept(fields):  # type: ignore[attr-defined]
+            _check_fields(msg, fields)
+    else:  # an older version: the fields it wrote, then the defaults of those it did not
+        fields.update(zip(names, raw_body[:required]))
         for n, default in zip(names[required:], cls._defaults[required:]):  # type: ignore[attr-defined]
             fields[n] = default()
-    if cls._tied_lengths:  # type: ignore[attr-defined]
-        _check_tied_lengths(msg, fields)
+        _check_fields(msg, fields, checked=required)
     fields["header"] = header
     return msg
 
@@ -419,8 +430,20 @@ def handed_over(msg: M, header: Header) -> tuple[M, str | None]:
 def validate(msg: Message) -> Message:
     """Run the decoder's checks on a message built in memory; returns it unchanged."""
     fields = msg.__dict__
-    for n, check in zip(msg._body_fields, msg._validators):  # type: ignore[attr-defined]
-        check(fields[n])
+    if not msg._accept(fields):  # type: ignore[attr-defined]
+        _check_fields(msg, dict(fields))  # a copy: the checks' converted values (int -> float) stay out of msg
+    return msg
+
+
+def _check_fields(msg: Message, fields: dict[str, Any], checked: int | None = None) -> None:
+    """The decoder's checks, field by field in declared order, on the body ``fields`` of
+    ``msg`` (the first ``checked`` fields, all by default: an older version's defaults are
+    not checked), then the tied lengths: each value is replaced by its checked one (an
+    ``int`` in a ``float`` field becomes a float); :class:`DecodeError` names the first
+    fault. The full form of the generated accept test (:mod:`slipstack.messages.generated`),
+    run when that one does not accept: it names the fault or passes what the test was too
+    strict for."""
+    for n, check in zip(msg._body_fields[:checked], msg._validators):  # type: ignore[attr-defined]
+        fields[n] = check(fields[n])
     if msg._tied_lengths:  # type: ignore[attr-defined]
         _check_tied_lengths(msg, fields)
-    return msg

@@ -6,8 +6,14 @@
    absolute deadlines for ``--seconds``: ATI RDT over loopback UDP at 7 kHz, and
    tactile 16×16 frames over a pty at 1 kHz (DSACON32 and M1616). Losses are counted
    from sequence numbers (RDT) or a frame counter embedded in the counts (tactile).
+3. The publication path of the graph's messages, one message of each type as the
+   ``fig15`` scene publishes it: µs per hand-over to in-process subscribers
+   (``handed_over``: the decoder's checks), per ``encode`` and per ``decode``, and
+   their mean over fig15's lock-step mix (``--messages``: this part only). It uses
+   only the public message API, so the same script measures another checkout:
+   ``/other/.venv/bin/python tests/bench/bench_codecs.py --messages``.
 
-    .venv/bin/python tests/bench/bench_codecs.py [--seconds 3] [--frames 3000]
+    .venv/bin/python tests/bench/bench_codecs.py [--seconds 3] [--frames 3000] [--messages]
 """
 
 from __future__ import annotations
@@ -25,6 +31,10 @@ from slipstack.lib.protocols.crc import CRC16_DSACON32, CRC16_MODBUS, CRC16_X25
 from slipstack.lib.protocols.framed import FramedCodec, FramedFormat, encode_frame as encode_framed
 from slipstack.lib.protocols.stream import Deframer
 from slipstack.nodes.devices.backends import backend_from_url
+from slipstack.messages import (
+    Contact, Cor, Diagnostics, GripCommand, Header, Message, RigTruth, Slip, TactileFrame, Wrench, decode, encode,
+    handed_over,
+)
 from slipstack.nodes.devices.emulators import Dsacon32Emulator, M1616Emulator, RdtUdpServer
 
 
@@ -64,6 +74,65 @@ def bench_decoding(n_frames: int, chunk: int) -> list[tuple[str, int, float]]:
     rows.append(("  CRC-16/X-25 over 34 B", 34, _per_call_us(lambda: CRC16_X25(body34), n_frames)))
     rows.append(("  CRC-16/Modbus over 14 B", 14, _per_call_us(lambda: CRC16_MODBUS(body34[:14]), n_frames)))
     rows.append(("  CRC DSACON32 over 519 B", 519, _per_call_us(lambda: CRC16_DSACON32(dsa_payload), n_frames // 10)))
+    return rows
+
+
+FIG15_PUBLISHED = {"Wrench": 6002, "TactileFrame": 3002, "Contact": 6002, "Cor": 3002, "Slip": 6002,
+                   "GripCommand": 6002, "RigTruth": 3001, "Diagnostics": 96}
+"""Messages of each type one ``slipstack launch fig15 --lockstep`` publishes: each is handed
+over to its in-process subscribers, and encoded for the recording unless it is a ``Contact``."""
+FIG15_UNRECORDED = ("Contact",)
+
+
+def fig15_messages() -> dict[str, Message]:
+    """One message of each type with the values, dtypes and sizes fig15 publishes."""
+    rng = np.random.default_rng(2)
+    pressure = rng.uniform(0.0, 4e4, 256).astype(np.float32)
+    mask = pressure > 1e4
+    verdict = {name: [True, 0.9886446731056432] for name in ("exact", "coulomb", "decoupled", "linear_ls", "elliptic_ls")}
+    no_earlier = {"earlier_stamp_ns": np.zeros(0, np.int64), "earlier_status": np.zeros(0, np.uint8),
+                  **{n: np.zeros(0) for n in ("earlier_f_n", "earlier_f_tx", "earlier_f_ty", "earlier_tau")}}
+    return {
+        "Wrench": Wrench(force=np.array([0.12, -0.03, -2.71]), torque=np.array([1e-3, 2e-4, -1e-4]), frame="pad",
+                         device_seq=49, status="ok"),
+        "TactileFrame": TactileFrame(rows=16, cols=16, pitch_m=1.25e-3, pressure_pa=pressure,
+                                     saturated=np.zeros(256, bool), dead=np.zeros(256, bool), device_stamp=1_600_000_000),
+        "Contact": Contact(rows=16, cols=16, pitch_m=1.25e-3, phi=np.where(mask, pressure, 0).astype(np.float64) * 1e-6, f_n=2.71875,
+                           f_t=np.array([0.12, -0.03]), tau=0.0, cop=np.array([1e-3, -2e-3]), area_m2=2.25e-4, mask=mask,
+                           pair_offset_ns=-4_000_000, **no_earlier),
+        "Cor": Cor(case="rotation", p_c=np.array([1e-3, 2e-3]), torque_capacity=0.0079, load_torque=-1.1e-4,
+                   gamma=0.0141, iterations=3, residual=6.2e-10, converged=True, status="converged"),
+        "Slip": Slip(state="stick", margin=0.9877945639956087, method="exact", verdicts=verdict, gamma=0.0122,
+                     f_n=2.71875, f_t=np.array([0.12, -0.03]), tau=0.0, p_c=np.array([1e-3, 2e-3]), p_c_valid=True),
+        "GripCommand": GripCommand(f_n_desired=2.71875, law="tactile14", reason="slip"),
+        "RigTruth": RigTruth(x=1e-5, y=-2e-5, theta=1e-4, vx=0.0, vy=0.0, omega=0.0, cor=np.zeros(2),
+                             f_n_applied=2.714, f_n_command=2.7125, load_f_t=np.array([0.12, -0.03]), load_tau=-0.0),
+        "Diagnostics": Diagnostics(node="fusion", counters={f"in.topic{k}.received": 1000 + k for k in range(40)}),
+    }
+
+
+def _best_us(fn, n: int, repeats: int = 7) -> float:
+    """CPU µs per call (``time.process_time``: what other processes take is not counted),
+    the least of ``repeats`` runs of ``n`` calls."""
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.process_time()
+        for _ in range(n):
+            fn()
+        best = min(best, (time.process_time() - t0) / n * 1e6)
+    return best
+
+
+def bench_messages(n: int) -> list[tuple[str, float, float, float]]:
+    """(type, µs per hand-over, per encode, per decode) for each of :func:`fig15_messages`."""
+    header = Header(1_600_000_000, 1234, 1_600_000_100, {"ft": 1_600_000_000, "tactile": 1_596_000_000})
+    rows = []
+    for name, msg in fig15_messages().items():
+        assert handed_over(msg, header)[1] is None, name
+        payload = encode(msg, header)
+        reps = max(1, n if len(payload) < 1000 else n // 4)
+        rows.append((name, _best_us(lambda: handed_over(msg, header), reps), _best_us(lambda: encode(msg, header), reps),
+                     _best_us(lambda: decode(payload), reps)))
     return rows
 
 
@@ -134,7 +203,23 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=3.0, help="duration of each path run (s)")
     ap.add_argument("--frames", type=int, default=3000, help="frames per decoding measurement")
     ap.add_argument("--chunk", type=int, default=4, help="frames per feed() call")
+    ap.add_argument("--messages", action="store_true", help="only the messages' hand-over, encoding and decoding")
+    ap.add_argument("--calls", type=int, default=10000, help="calls per message measurement (the best of 7 runs)")
     args = ap.parse_args()
+
+    print(f"{'message':14s} {'hand-over':>9s} {'encode':>7s} {'both':>6s} {'decode':>7s}  (CPU µs per message)")
+    rows = bench_messages(args.calls)
+    for name, hand_over_us, encode_us, decode_us in rows:
+        print(f"{name:14s} {hand_over_us:9.2f} {encode_us:7.2f} {hand_over_us + encode_us:6.2f} {decode_us:7.2f}")
+    published = sum(FIG15_PUBLISHED.values())
+    hand_over = sum(FIG15_PUBLISHED[r[0]] * r[1] for r in rows) / published
+    encoded = sum(FIG15_PUBLISHED[r[0]] * r[2] for r in rows if r[0] not in FIG15_UNRECORDED) / published
+    decoded = sum(FIG15_PUBLISHED[r[0]] * r[3] for r in rows) / published
+    print(f"{'fig15 mix':14s} {hand_over:9.2f} {encoded:7.2f} {hand_over + encoded:6.2f} {decoded:7.2f}  "
+          f"(per message published: {published}, all handed over, all but {', '.join(FIG15_UNRECORDED)} encoded)")
+    if args.messages:
+        return
+    print()
 
     print(f"{'decoder':34s} {'bytes':>6s} {'µs/frame':>9s}")
     for name, nbytes, us in bench_decoding(args.frames, args.chunk):
