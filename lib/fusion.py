@@ -159,6 +159,7 @@ class PressureShape:
         n_nonfinite, n_negative: taxels that were NaN/Inf or negative and were set to 0.
         n_saturated: in-contact taxels flagged saturated by the driver.
         valid: False when the frame does not match the pad (wrong number of taxels).
+        n_contact: number of taxels in the mask.
     """
 
     shape: np.ndarray
@@ -170,6 +171,7 @@ class PressureShape:
     n_negative: int = 0
     n_saturated: int = 0
     valid: bool = True
+    n_contact: int = 0
 
 
 def pressure_shape(
@@ -217,7 +219,8 @@ def pressure_shape(
         cop = w @ pad.positions / shape_sum
     else:
         shape_sum, cop = 0.0, np.zeros(2)
-    return PressureShape(_frozen(w), shape_sum, _frozen(cop), _frozen(mask), total, n_nonfinite, n_negative, n_sat)
+    return PressureShape(_frozen(w), shape_sum, _frozen(cop), _frozen(mask), total, n_nonfinite, n_negative, n_sat,
+                         n_contact=int(np.count_nonzero(mask)))
 
 
 def fuse_shape(
@@ -252,21 +255,28 @@ def fuse_shape(
         offset = int(wrench_stamp_ns) - int(tactile_stamp_ns)
     f3 = np.asarray(force, dtype=float).reshape(-1)
     t3 = np.asarray(torque, dtype=float).reshape(-1)
-    if not shape.valid or f3.shape != (3,) or t3.shape != (3,) or not (
-        np.isfinite(f3).all() and np.isfinite(t3).all()
-    ):
+    if not shape.valid or f3.shape != (3,) or t3.shape != (3,) or not _all_finite(f3.tolist() + t3.tolist()):
         return _empty(pad, np.zeros(n), np.zeros(n, dtype=bool), 0, 0, 0, offset, SolverStatus.INVALID_INPUT)
     if mount is not None:
         f3, t3 = wrench_to_pad(f3, t3, np.asarray(mount.R_FS), np.asarray(mount.p_SF))
     counts = (shape.n_nonfinite, shape.n_negative, shape.n_saturated)
-    f_n = -float(f3[2])
+    f_x, f_y, f_z = f3.tolist()
+    tau = float(t3[2])
+    f_n = -f_z
     if not (f_n > thresholds.min_normal_force_n and shape.pressure_sum_pa > thresholds.min_pressure_sum_pa
             and shape.shape_sum > 0.0):
-        return _empty(pad, np.zeros(n), shape.mask, *counts, offset, SolverStatus.NO_CONTACT, f_t=f3[:2],
-                      tau=float(t3[2]))
+        return _empty(pad, np.zeros(n), shape.mask, *counts, offset, SolverStatus.NO_CONTACT, f_t=(f_x, f_y),
+                      tau=tau)
     phi = shape.shape * (f_n / shape.shape_sum)
     status = SolverStatus.CLIPPED_INPUT if (shape.n_nonfinite or shape.n_negative) else SolverStatus.OK
-    return _result(pad, phi, f3[:2].copy(), float(t3[2]), shape.cop, shape.mask, *counts, offset, status)
+    return _result(pad, phi, np.array((f_x, f_y)), tau, shape.cop, shape.mask, shape.n_contact, *counts, offset,
+                   status)
+
+
+def _all_finite(values: list[float]) -> bool:
+    """Whether every value is finite: ``np.isfinite(a).all()`` for a 3-vector's
+    ``tolist()``, at a tenth of its cost (two of them at every F/T sample)."""
+    return all(map(math.isfinite, values))
 
 
 def ft_understates_pad(shape: PressureShape, pad: PadGeometry, f_n: float, *, ratio: float,
@@ -311,8 +321,7 @@ def fuse(
                       thresholds, mount=mount, tactile_stamp_ns=tactile_stamp_ns, wrench_stamp_ns=wrench_stamp_ns)
 
 
-def _result(pad, phi, f_t, tau, cop, mask, n_nonfinite, n_negative, n_sat, offset, status) -> FusionResult:
-    n_contact = int(np.count_nonzero(mask))
+def _result(pad, phi, f_t, tau, cop, mask, n_contact, n_nonfinite, n_negative, n_sat, offset, status) -> FusionResult:
     return FusionResult(
         phi=_frozen(phi),
         f_n=float(phi.sum()),
@@ -333,4 +342,5 @@ def _result(pad, phi, f_t, tau, cop, mask, n_nonfinite, n_negative, n_sat, offse
 
 def _empty(pad, zeros, mask, n_nonfinite, n_negative, n_sat, offset, status, f_t=None, tau=0.0) -> FusionResult:
     ft = np.zeros(2) if f_t is None else np.array(f_t, dtype=float)
-    return _result(pad, zeros, ft, tau, np.zeros(2), mask.copy(), n_nonfinite, n_negative, n_sat, offset, status)
+    return _result(pad, zeros, ft, tau, np.zeros(2), mask.copy(), int(np.count_nonzero(mask)), n_nonfinite,
+                   n_negative, n_sat, offset, status)

@@ -95,7 +95,7 @@ class Fusion(Node):
         self._shape = None
 
     def on_wrench(self, msgs: tuple[Wrench, ...], ctx: Context) -> None:
-        sensor_frame = sum(w.frame != "pad" for w in msgs)
+        sensor_frame = len(msgs) - [w.frame for w in msgs].count("pad")
         if sensor_frame:
             ctx.count("fusion.sensor_frame_wrenches", sensor_frame)  # the driver should apply the mount transform
         for run in self._pairing_runs(msgs):
@@ -107,6 +107,8 @@ class Fusion(Node):
         pairs with alike (inside or outside ``max_pair_age_ms``), so a contact never
         carries a sample its frame would not be paired with (a backlog spans more than
         the window)."""
+        if len(msgs) == 1:  # the usual wake-up: one sample, one run
+            return [msgs]
         runs: list[tuple[Wrench, ...]] = []
         start = 0
         paired = [self._tactile_status(w.header.stamp_ns) == STATUS_OK for w in msgs]
