@@ -44,8 +44,9 @@ torque about it → ``γ = +inf``, margin ``−inf`` (slip). No other non-finite
 from __future__ import annotations
 
 import math
+import operator
 from dataclasses import dataclass
-from typing import Callable, Protocol
+from typing import Callable, Protocol, Sequence
 
 import numpy as np
 
@@ -62,6 +63,8 @@ __all__ = [
     "SlipTest",
     "SLIP_TESTS",
     "ft_beta",
+    "ft_stick_margins",
+    "FT_BETA_TESTS",
     "get_slip_test",
     "coulomb",
     "decoupled",
@@ -173,9 +176,14 @@ def _load(contact: ContactLike, mu: float) -> tuple[float, float, float, float] 
     return f_n, f_tx, f_ty, tau
 
 
-def _verdict(gamma: float, rho: float, params: SlipParams, status, p_c, method) -> SlipVerdict:
+def _stick_margin(gamma: float, params: SlipParams, status: SolverStatus) -> tuple[bool, float]:
+    """``(stick, margin)`` of a load factor γ computed with ``status``."""
     margin = 1.0 - gamma
-    stick = status.usable and margin >= params.delta
+    return status.usable and margin >= params.delta, margin
+
+
+def _verdict(gamma: float, rho: float, params: SlipParams, status, p_c, method) -> SlipVerdict:
+    stick, margin = _stick_margin(gamma, params, status)
     kind = SlipState.STICK if stick else _kind_from_share(rho)
     return SlipVerdict(stick, margin, kind, status, gamma, p_c, method)
 
@@ -189,27 +197,68 @@ def ft_beta(contact: ContactLike, params: SlipParams) -> float | None:
     return tor.beta_m if tor.status.usable and tor.median is not None else None
 
 
-def _ft_test(contact, params, combine: Callable[[float, float], float], method: str) -> SlipVerdict:
+def _ft_ratios(contact: ContactLike, params: SlipParams) -> tuple[SolverStatus, float, float]:
+    """The part of the F/T tests with β that does not depend on how they combine:
+    ``(status, a_t, a_r)`` with ``a_t = |f_t|/(μ f_n)`` and ``a_r = |τ|/(β f_n)``.
+
+    status OK: both ratios (``a_r = 0`` for a tactile point contact without torque);
+    NO_LOAD: no load, or a torque so small that its ratio underflows (both 0);
+    POINT_CONTACT: a tactile point contact (β = 0) under a torque (``a_r = inf``);
+    NO_CONTACT, INVALID_INPUT (a bad load or no β): no ratios (both 0).
+    """
     load = _load(contact, params.mu)
     if load is None:
-        return _bad(method)
+        return SolverStatus.INVALID_INPUT, 0.0, 0.0
     f_n, fx, fy, tau = load
     if not f_n > 0:
-        return _no_contact(method)
+        return SolverStatus.NO_CONTACT, 0.0, 0.0
     a_t = math.hypot(fx, fy) / (params.mu * f_n)
     if a_t == 0.0 and tau == 0.0:
-        return _verdict(0.0, 0.0, params, SolverStatus.NO_LOAD, None, method)
+        return SolverStatus.NO_LOAD, 0.0, 0.0
     beta = ft_beta(contact, params)
     if beta is None:
-        return _bad(method)
+        return SolverStatus.INVALID_INPUT, 0.0, 0.0
     if beta == 0.0:  # tactile point contact: no torsional friction
-        if tau == 0.0:
-            return _verdict(a_t, 0.0, params, SolverStatus.OK, None, method)
-        return _verdict(math.inf, 1.0, params, SolverStatus.POINT_CONTACT, None, method)
+        return (SolverStatus.OK, a_t, 0.0) if tau == 0.0 else (SolverStatus.POINT_CONTACT, a_t, math.inf)
     a_r = abs(tau) / (beta * f_n) if beta * f_n > 0.0 else math.inf
     if a_t == 0.0 and a_r == 0.0:  # a torque so small that its ratio underflows: no load either
-        return _verdict(0.0, 0.0, params, SolverStatus.NO_LOAD, None, method)
-    return _verdict(combine(a_t, a_r), a_r / (a_t + a_r), params, SolverStatus.OK, None, method)
+        return SolverStatus.NO_LOAD, 0.0, 0.0
+    return SolverStatus.OK, a_t, a_r
+
+
+def _ft_gamma(ratios: tuple[SolverStatus, float, float], method: str) -> float | None:
+    """γ of the F/T test ``method`` on the :func:`_ft_ratios` of a contact (``None``: no
+    verdict, for no contact or bad input)."""
+    status, a_t, a_r = ratios
+    if status is SolverStatus.OK:
+        return _FT_COMBINE[method](a_t, a_r)
+    if status is SolverStatus.NO_LOAD:
+        return 0.0
+    return math.inf if status is SolverStatus.POINT_CONTACT else None
+
+
+def _ft_verdict(ratios: tuple[SolverStatus, float, float], params: SlipParams, method: str) -> SlipVerdict:
+    """The verdict of the F/T test ``method`` on the :func:`_ft_ratios` of a contact."""
+    status, a_t, a_r = ratios
+    gamma = _ft_gamma(ratios, method)
+    if gamma is None:
+        return _no_contact(method) if status is SolverStatus.NO_CONTACT else _bad(method)
+    rho = a_r / (a_t + a_r) if status is SolverStatus.OK else 1.0 if status is SolverStatus.POINT_CONTACT else 0.0
+    return _verdict(gamma, rho, params, status, None, method)
+
+
+def ft_stick_margins(contact: ContactLike, params: SlipParams, methods: Sequence[str]) -> list[tuple[bool, float]]:
+    """``(stick, margin)`` of each F/T test with β named in ``methods`` (``decoupled``,
+    ``linear_ls``, ``elliptic_ls``), as in the verdict its own function returns, from one
+    evaluation of the ratios they share and without building the verdicts: what a
+    detector publishes of the tests it runs alongside on every contact."""
+    ratios = _ft_ratios(contact, params)
+    status = ratios[0]
+    out = []
+    for method in methods:
+        gamma = _ft_gamma(ratios, method)
+        out.append((False, 0.0) if gamma is None else _stick_margin(gamma, params, status))
+    return out
 
 
 def coulomb(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
@@ -227,17 +276,27 @@ def coulomb(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVe
 
 def decoupled(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
     """Decoupled test (Fig. 5d): ``|f_t| ≤ μ f_n`` and ``|τ| ≤ β f_n``."""
-    return _ft_test(contact, params, max, "decoupled")
+    return _ft_verdict(_ft_ratios(contact, params), params, "decoupled")
 
 
 def linear_ls(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
     """Linear limit surface (5): ``|f_t|/μ + |τ|/β ≤ f_n``."""
-    return _ft_test(contact, params, lambda t, r: t + r, "linear_ls")
+    return _ft_verdict(_ft_ratios(contact, params), params, "linear_ls")
 
 
 def elliptic_ls(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
     """Elliptical limit surface (6): ``f_t²/μ² + τ²/β² ≤ f_n²``."""
-    return _ft_test(contact, params, math.hypot, "elliptic_ls")
+    return _ft_verdict(_ft_ratios(contact, params), params, "elliptic_ls")
+
+
+_FT_COMBINE: dict[str, Callable[[float, float], float]] = {
+    "decoupled": max,
+    "linear_ls": operator.add,
+    "elliptic_ls": math.hypot,
+}
+"""How each F/T test with β makes γ of ``a_t = |f_t|/(μ f_n)`` and ``a_r = |τ|/(β f_n)``."""
+FT_BETA_TESTS = tuple(_FT_COMBINE)
+"""The F/T tests that need β (:func:`ft_stick_margins` judges any of them)."""
 
 
 def _rotation_share(contact: ContactLike, p_c: tuple[float, float] | None,
