@@ -137,6 +137,11 @@ class FusionResult:
     status: SolverStatus = field(default=SolverStatus.OK)
 
 
+_sum = np.add.reduce
+"""``a.sum()`` of a 1-D array without ndarray.sum's Python wrapper (the same pairwise
+sum, so the same bits, at two thirds of the cost: fusion sums at every sample)."""
+
+
 def _frozen(a: np.ndarray) -> np.ndarray:
     a.setflags(write=False)
     return a
@@ -197,10 +202,10 @@ def pressure_shape(
     if w.shape != (n,):
         empty = np.zeros(n)
         return PressureShape(_frozen(empty), 0.0, np.zeros(2), _frozen(np.zeros(n, dtype=bool)), 0.0, valid=False)
-    bad = ~np.isfinite(w)
-    n_nonfinite = int(np.count_nonzero(bad))
+    finite = np.isfinite(w)
+    n_nonfinite = n - int(np.count_nonzero(finite))
     if n_nonfinite:
-        w[bad] = 0.0
+        w[~finite] = 0.0
     neg = w < 0
     n_negative = int(np.count_nonzero(neg))
     if n_negative:
@@ -211,11 +216,11 @@ def pressure_shape(
     ) else 0
     w = np.where(mask, w, 0.0)
     with np.errstate(over="ignore"):
-        total = float(w.sum())  # inf for absurd pressures: only compared with the threshold
+        total = float(_sum(w))  # inf for absurd pressures: only compared with the threshold
     peak = float(w.max())
     if peak > 0.0:
         w /= peak  # in [0, 1]: Σ neither overflows (huge pressures) nor underflows (tiny ones)
-        shape_sum = float(w.sum())
+        shape_sum = float(_sum(w))
         cop = w @ pad.positions / shape_sum
     else:
         shape_sum, cop = 0.0, np.zeros(2)
@@ -324,7 +329,7 @@ def fuse(
 def _result(pad, phi, f_t, tau, cop, mask, n_contact, n_nonfinite, n_negative, n_sat, offset, status) -> FusionResult:
     return FusionResult(
         phi=_frozen(phi),
-        f_n=float(phi.sum()),
+        f_n=float(_sum(phi)),
         f_t=_frozen(np.asarray(f_t, dtype=float)),
         tau=float(tau),
         cop=_frozen(cop),

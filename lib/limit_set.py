@@ -184,7 +184,7 @@ def load_factor(
     ft = np.asarray(f_t, dtype=np.float64).reshape(-1)
     if ph_all.ndim != 1 or pos.shape != (ph_all.shape[0], 2) or ft.shape != (2,):
         return _none(SolverStatus.INVALID_INPUT)
-    fx, fy, tau = float(ft[0]), float(ft[1]), float(tau)
+    (fx, fy), tau = ft.tolist(), float(tau)
     if not (math.isfinite(fx) and math.isfinite(fy) and math.isfinite(tau) and math.isfinite(mu) and mu > 0):
         return _none(SolverStatus.INVALID_INPUT)
     code, idx, px, py, a, ox, oy, L, f_n = normalise_contact(np.ascontiguousarray(pos), np.ascontiguousarray(ph_all))
@@ -244,10 +244,14 @@ def _warm_start(c0, pbar, L) -> tuple[bool, float, float]:
     """``c0`` in normalised coordinates, if it is a usable point (finite, within 1e7 L)."""
     if c0 is None:
         return False, 0.0, 0.0
-    cw = np.asarray(c0, dtype=np.float64).reshape(-1)
-    if cw.shape != (2,):
-        return False, 0.0, 0.0
-    x, y = (float(cw[0]) - pbar[0]) / L, (float(cw[1]) - pbar[1]) / L
+    if type(c0) is tuple and len(c0) == 2 and type(c0[0]) is float and type(c0[1]) is float:
+        c0x, c0y = c0  # a previous result's COR: no array to build at every frame
+    else:
+        cw = np.asarray(c0, dtype=np.float64).reshape(-1)
+        if cw.shape != (2,):
+            return False, 0.0, 0.0
+        c0x, c0y = float(cw[0]), float(cw[1])
+    x, y = (c0x - pbar[0]) / L, (c0y - pbar[1]) / L
     return bool(math.isfinite(x) and math.isfinite(y) and math.hypot(x, y) < _MAX_FAR), x, y
 
 
@@ -405,7 +409,7 @@ def torsional_coefficient(
     if med.c is None:
         return TorsionResult(0.0, None, med.status)
     ph = np.asarray(phi, dtype=float)
-    return TorsionResult(mu * med.value / float(ph[ph > 0].sum()), med.c, med.status)
+    return TorsionResult(mu * med.value / float(np.add.reduce(ph[ph > 0])), med.c, med.status)  # ph[ph > 0].sum()
 
 
 def compile_kernels() -> None:

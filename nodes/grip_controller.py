@@ -182,7 +182,8 @@ class GripController(Node):
         offsets = pad_positions(c.rows, c.cols, c.pitch_m)[c.mask] - r.p_c
         x, y = offsets[:, 0], offsets[:, 1]
         dist = np.sqrt(x * x + y * y)  # |p_i − p_c| (m), rounded as np.linalg.norm(offsets, axis=1)
-        return {"n_c": r.load_torque, "t_c": r.torque_capacity, "sum_dist_m": float(dist.sum()),
+        # np.add.reduce: dist.sum() without its Python wrapper (the same pairwise sum)
+        return {"n_c": r.load_torque, "t_c": r.torque_capacity, "sum_dist_m": float(np.add.reduce(dist)),
                 "n_contact": len(dist), "cor_case": r.case}
 
     def _publish(self, d: GripDecision, stamp: int, sources: dict[str, int], ctx: Context) -> None:
