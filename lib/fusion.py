@@ -217,7 +217,7 @@ def pressure_shape(
     w = np.where(mask, w, 0.0)
     with np.errstate(over="ignore"):
         total = float(_sum(w))  # inf for absurd pressures: only compared with the threshold
-    peak = float(w.max())
+    peak = float(np.maximum.reduce(w))  # w.max() without its Python wrapper
     if peak > 0.0:
         w /= peak  # in [0, 1]: Σ neither overflows (huge pressures) nor underflows (tiny ones)
         shape_sum = float(_sum(w))

@@ -176,14 +176,14 @@ def _load(contact: ContactLike, mu: float) -> tuple[float, float, float, float] 
     return f_n, f_tx, f_ty, tau
 
 
-def _stick_margin(gamma: float, params: SlipParams, status: SolverStatus) -> tuple[bool, float]:
-    """``(stick, margin)`` of a load factor γ computed with ``status``."""
+def _stick_margin(gamma: float, params: SlipParams, usable: bool) -> tuple[bool, float]:
+    """``(stick, margin)`` of a load factor γ computed with a status that is ``usable`` or not."""
     margin = 1.0 - gamma
-    return status.usable and margin >= params.delta, margin
+    return usable and margin >= params.delta, margin
 
 
 def _verdict(gamma: float, rho: float, params: SlipParams, status, p_c, method) -> SlipVerdict:
-    stick, margin = _stick_margin(gamma, params, status)
+    stick, margin = _stick_margin(gamma, params, status.usable)
     kind = SlipState.STICK if stick else _kind_from_share(rho)
     return SlipVerdict(stick, margin, kind, status, gamma, p_c, method)
 
@@ -253,11 +253,11 @@ def ft_stick_margins(contact: ContactLike, params: SlipParams, methods: Sequence
     evaluation of the ratios they share and without building the verdicts: what a
     detector publishes of the tests it runs alongside on every contact."""
     ratios = _ft_ratios(contact, params)
-    status = ratios[0]
+    usable = ratios[0].usable
     out = []
     for method in methods:
         gamma = _ft_gamma(ratios, method)
-        out.append((False, 0.0) if gamma is None else _stick_margin(gamma, params, status))
+        out.append((False, 0.0) if gamma is None else _stick_margin(gamma, params, usable))
     return out
 
 
