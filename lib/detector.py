@@ -164,7 +164,7 @@ class DetectorSettings:
         return cls(**{**derived, **overrides})
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class DetectorVerdict:
     """One frame's verdict.
 
@@ -308,7 +308,7 @@ class Detector:
         return VALID if v.status.usable else v.status.value
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class _SampleView:
     """One earlier F/T sample of a batch as the slip tests read it (:class:`ContactView`'s
     fields): ``f_n`` N, ``f_t`` (2,) N, ``tau`` N·m, ``phi`` (N,) N, ``positions`` (N, 2) m."""

@@ -101,7 +101,7 @@ class FusionThresholds:
                 raise ConfigError(f"fusion threshold {name} must be a finite number >= 0, got {v!r}")
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, slots=True)
 class FusionResult:
     """One fused contact sample (pad frame F, SI units). Satisfies the slip tests' contact protocol.
 
@@ -154,7 +154,7 @@ def _frozen(a: np.ndarray) -> np.ndarray:
     return a
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, slots=True)
 class PressureShape:
     """The tactile half of fusion: one frame's cleaned pressure shape (pad frame F).
 

@@ -82,7 +82,7 @@ _MAX_FAR = 1e7
 _MAX_RESIDUAL = 1e-3
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class LimitSetResult:
     """Load factor and centre of rotation of impending slip (pad frame F, SI).
 
@@ -432,7 +432,7 @@ def _pure_torque(positions, phi, tn, tau, pbar, L, cap, f_n, c0) -> LimitSetResu
     )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class TorsionResult:
     """Torsional coefficient from tactile data (docs/math.md §4.3).
 

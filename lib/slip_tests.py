@@ -120,7 +120,7 @@ class SlipParams:
             raise ConfigError(f"paper_gain must be in (0, 1], got {self.paper_gain}")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class SlipVerdict:
     """The answer of one slip test.
 
