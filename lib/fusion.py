@@ -296,24 +296,28 @@ def fuse_shape(
     Returns:
         :class:`FusionResult`; never raises.
     """
-    n = pad.n_taxels
     offset = None
     if tactile_stamp_ns is not None and wrench_stamp_ns is not None:
         offset = int(wrench_stamp_ns) - int(tactile_stamp_ns)
     f3 = np.asarray(force, dtype=float).reshape(-1)
     t3 = np.asarray(torque, dtype=float).reshape(-1)
-    if not shape.valid or f3.shape != (3,) or t3.shape != (3,) or not _all_finite(f3.tolist() + t3.tolist()):
+    f_list = t_list = None
+    if f3.shape == (3,) and t3.shape == (3,):
+        f_list, t_list = f3.tolist(), t3.tolist()
+    if not shape.valid or f_list is None or not _all_finite(f_list + t_list):
+        n = pad.n_taxels
         return _empty(pad, np.zeros(n), np.zeros(n, dtype=bool), 0, 0, 0, offset, SolverStatus.INVALID_INPUT)
     if mount is not None:
         f3, t3 = wrench_to_pad(f3, t3, np.asarray(mount.R_FS), np.asarray(mount.p_SF))
+        f_list, t_list = f3.tolist(), t3.tolist()
     counts = (shape.n_nonfinite, shape.n_negative, shape.n_saturated)
-    f_x, f_y, f_z = f3.tolist()
-    tau = float(t3[2])
+    f_x, f_y, f_z = f_list
+    tau = t_list[2]
     f_n = -f_z
     if not (f_n > thresholds.min_normal_force_n and shape.pressure_sum_pa > thresholds.min_pressure_sum_pa
             and shape.shape_sum > 0.0):
-        return _empty(pad, np.zeros(n), shape.mask, *counts, offset, SolverStatus.NO_CONTACT, f_t=(f_x, f_y),
-                      tau=tau)
+        return _empty(pad, np.zeros(pad.n_taxels), shape.mask, *counts, offset, SolverStatus.NO_CONTACT,
+                      f_t=(f_x, f_y), tau=tau)
     phi = shape.shape * (f_n / shape.shape_sum)
     status = SolverStatus.CLIPPED_INPUT if (shape.n_nonfinite or shape.n_negative) else SolverStatus.OK
     return _result(pad, phi, np.array((f_x, f_y)), tau, shape.cop, shape.mask, shape.n_contact, *counts, offset,
