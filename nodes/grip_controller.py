@@ -181,8 +181,12 @@ class GripController(Node):
             return {"cor_case": SlipCase.NONE}
         positions = pad_positions(c.rows, c.cols, c.pitch_m)
         p_x, p_y = r.p_c  # each column masked on its own: cheaper than the (N, 2) rows, the same numbers
-        x, y = positions[:, 0][c.mask] - p_x, positions[:, 1][c.mask] - p_y
-        dist = np.sqrt(x * x + y * y)  # |p_i − p_c| (m), rounded as np.linalg.norm(offsets, axis=1)
+        dist = positions[:, 0][c.mask] - p_x  # a new array: worked on in place
+        y = positions[:, 1][c.mask] - p_y
+        dist *= dist
+        y *= y
+        dist += y
+        np.sqrt(dist, out=dist)  # |p_i − p_c| (m), rounded as np.linalg.norm(offsets, axis=1)
         # np.add.reduce: dist.sum() without its Python wrapper (the same pairwise sum)
         return {"n_c": r.load_torque, "t_c": r.torque_capacity, "sum_dist_m": float(np.add.reduce(dist)),
                 "n_contact": len(dist), "cor_case": r.case}
