@@ -240,7 +240,10 @@ def _solve(points, weights, fx, fy, tau, mu, f_t_abs, given, c0x, c0y, xtol, max
     taxel arrays, which cost more to pass than the sums over them) with one that returns
     numbers only; every number is computed by the same operations as before.
     ``f_t_abs`` is ``math.hypot(fx, fy)`` from Python (the rounding it always had);
-    ``given, c0x, c0y`` the warm start (m, F), if any.
+    ``given, c0x, c0y`` the warm start (m, F), if any. Only the warm start's distance
+    bound (1e7 contact radii) is now taken with the C library's ``hypot``, which may
+    round its last bit unlike Python's: it decides nothing but whether so far a start is
+    used.
 
     Returns ``(branch, taxel, ox, oy, L, f_n, cap, gt, n_bar, tn, s, lever, sig2, code,
     cx, cy, gamma, T, n_s, iterations, residual)``: the branch (:data:`_SOLVED` …
