@@ -50,7 +50,7 @@ from slipstack.lib.detection import DetectorConfig, SlipLatch
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.known_cor import KNOWN_COR_METHOD, known_cor_test
 from slipstack.lib.material import Material, detector_thresholds
-from slipstack.lib.slip_tests import FT_BETA_TESTS, SlipParams, SlipVerdict, ft_beta, ft_stick_margins, get_slip_test
+from slipstack.lib.slip_tests import FT_TESTS, SlipParams, SlipVerdict, ft_beta, ft_stick_margins, get_slip_test
 from slipstack.lib.status import SAMPLE_NO_CONTACT, SAMPLE_OK, SLIP_STATES, SlipState, SolverStatus
 
 __all__ = [
@@ -63,9 +63,6 @@ __all__ = [
     "DetectorVerdict",
     "Detector",
 ]
-
-FT_TESTS: tuple[str, ...] = ("coulomb", "decoupled", "linear_ls", "elliptic_ls")
-"""The slip tests that read only the wrench (and β): valid without a pressure frame."""
 
 VALID = SolverStatus.OK.value
 """The status of a verdict that judged valid data (and of a valid contact)."""
@@ -202,10 +199,10 @@ class Detector:
         s = self.settings = settings
         self._test = known_cor_test(s.known_cor_m) if s.known_cor_m is not None else get_slip_test(s.method)
         others = [name for name in s.also if name != s.method]
-        self._others = [(name, None if name in FT_BETA_TESTS else get_slip_test(name)) for name in others]
-        """The side tests in the order of ``also``; ``None`` for an F/T test with β: those
-        are judged together, by :func:`ft_stick_margins` on the ratios they share, in ``_beta_others``."""
-        self._beta_others = [name for name, test in self._others if test is None]
+        self._others = [(name, None if name in FT_TESTS else get_slip_test(name)) for name in others]
+        """The side tests in the order of ``also``; ``None`` for an F/T test: those are
+        judged together, by :func:`ft_stick_margins` on the load they share, in ``_ft_others``."""
+        self._ft_others = [name for name, test in self._others if test is None]
         self._deciding_ft = s.method in FT_TESTS
         self._params = SlipParams(mu=s.mu, beta_m=s.beta_m or None, delta=s.delta)
         self._ft_params = self._params  # with β_s of the current pressure frame when beta_m is 0
@@ -239,10 +236,10 @@ class Detector:
         status = self._verdict_status(contact.status, contact, v)
         slipping, in_contact = self._advance(t_ns, v, status, contact_lost=contact.status == CONTACT_LOST)
         verdicts = {v.method: (v.stick, v.margin)}
-        beta_judged = iter(ft_stick_margins(view, ft_params, self._beta_others) if self._beta_others else ())
+        ft_judged = iter(ft_stick_margins(view, ft_params, self._ft_others) if self._ft_others else ())
         for name, test in self._others:
             if test is None:
-                verdicts[name] = next(beta_judged)
+                verdicts[name] = next(ft_judged)
             else:
                 o = test(view, ft_params, None)
                 verdicts[name] = (o.stick, o.margin)

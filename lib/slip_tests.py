@@ -64,7 +64,7 @@ __all__ = [
     "SLIP_TESTS",
     "ft_beta",
     "ft_stick_margins",
-    "FT_BETA_TESTS",
+    "FT_TESTS",
     "get_slip_test",
     "coulomb",
     "decoupled",
@@ -197,24 +197,33 @@ def ft_beta(contact: ContactLike, params: SlipParams) -> float | None:
     return tor.beta_m if tor.status.usable and tor.median is not None else None
 
 
-def _ft_ratios(contact: ContactLike, params: SlipParams) -> tuple[SolverStatus, float, float]:
-    """The part of the F/T tests with β that does not depend on how they combine:
-    ``(status, a_t, a_r)`` with ``a_t = |f_t|/(μ f_n)`` and ``a_r = |τ|/(β f_n)``.
+def _ft_load(contact: ContactLike, params: SlipParams) -> tuple[SolverStatus, float, float, float]:
+    """What every F/T test reads first: ``(status, a_t, τ, f_n)`` with ``a_t = |f_t|/(μ f_n)``
+    (τ N·m, f_n N). status OK; NO_LOAD: neither force nor torque (``a_t = 0``);
+    NO_CONTACT (``f_n ≤ 0``) or INVALID_INPUT (a non-finite load): no ratio (all 0)."""
+    load = _load(contact, params.mu)
+    if load is None:
+        return SolverStatus.INVALID_INPUT, 0.0, 0.0, 0.0
+    f_n, fx, fy, tau = load
+    if not f_n > 0:
+        return SolverStatus.NO_CONTACT, 0.0, 0.0, 0.0
+    a_t = math.hypot(fx, fy) / (params.mu * f_n)
+    return (SolverStatus.NO_LOAD if a_t == 0.0 and tau == 0.0 else SolverStatus.OK), a_t, tau, f_n
+
+
+def _ft_ratios(contact: ContactLike, params: SlipParams,
+               load: tuple[SolverStatus, float, float, float]) -> tuple[SolverStatus, float, float]:
+    """The part of the F/T tests with β that does not depend on how they combine, from the
+    contact's :func:`_ft_load`: ``(status, a_t, a_r)`` with ``a_r = |τ|/(β f_n)``.
 
     status OK: both ratios (``a_r = 0`` for a tactile point contact without torque);
     NO_LOAD: no load, or a torque so small that its ratio underflows (both 0);
     POINT_CONTACT: a tactile point contact (β = 0) under a torque (``a_r = inf``);
     NO_CONTACT, INVALID_INPUT (a bad load or no β): no ratios (both 0).
     """
-    load = _load(contact, params.mu)
-    if load is None:
-        return SolverStatus.INVALID_INPUT, 0.0, 0.0
-    f_n, fx, fy, tau = load
-    if not f_n > 0:
-        return SolverStatus.NO_CONTACT, 0.0, 0.0
-    a_t = math.hypot(fx, fy) / (params.mu * f_n)
-    if a_t == 0.0 and tau == 0.0:
-        return SolverStatus.NO_LOAD, 0.0, 0.0
+    status, a_t, tau, f_n = load
+    if status is not SolverStatus.OK:
+        return status, 0.0, 0.0
     beta = ft_beta(contact, params)
     if beta is None:
         return SolverStatus.INVALID_INPUT, 0.0, 0.0
@@ -248,45 +257,48 @@ def _ft_verdict(ratios: tuple[SolverStatus, float, float], params: SlipParams, m
 
 
 def ft_stick_margins(contact: ContactLike, params: SlipParams, methods: Sequence[str]) -> list[tuple[bool, float]]:
-    """``(stick, margin)`` of each F/T test with β named in ``methods`` (``decoupled``,
-    ``linear_ls``, ``elliptic_ls``), as in the verdict its own function returns, from one
-    evaluation of the ratios they share and without building the verdicts: what a
-    detector publishes of the tests it runs alongside on every contact."""
-    ratios = _ft_ratios(contact, params)
-    usable = ratios[0].usable
+    """``(stick, margin)`` of each F/T test named in ``methods`` (:data:`FT_TESTS`),
+    as in the verdict its own function returns, from one evaluation of the load and the
+    ratios they share and without building the verdicts: what a detector publishes of the
+    tests it runs alongside on every contact."""
+    load = _ft_load(contact, params)
+    ratios = None
     out = []
     for method in methods:
-        gamma = _ft_gamma(ratios, method)
-        out.append((False, 0.0) if gamma is None else _stick_margin(gamma, params, usable))
+        if method == "coulomb":
+            status, gamma = load[0], (load[1] if load[0] in _COULOMB_JUDGES else None)
+        else:
+            ratios = ratios or _ft_ratios(contact, params, load)
+            status, gamma = ratios[0], _ft_gamma(ratios, method)
+        out.append((False, 0.0) if gamma is None else _stick_margin(gamma, params, status.usable))
     return out
 
 
 def coulomb(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
     """Linear Coulomb test (7): stick iff ``|f_t| ≤ μ f_n``; torque ignored."""
-    load = _load(contact, params.mu)
-    if load is None:
-        return _bad("coulomb")
-    f_n, fx, fy, _ = load
-    if not f_n > 0:
-        return _no_contact("coulomb")
-    gamma = math.hypot(fx, fy) / (params.mu * f_n)
-    status = SolverStatus.NO_LOAD if gamma == 0.0 and load[3] == 0.0 else SolverStatus.OK
+    status, gamma, _, _ = _ft_load(contact, params)
+    if status not in _COULOMB_JUDGES:
+        return _no_contact("coulomb") if status is SolverStatus.NO_CONTACT else _bad("coulomb")
     return _verdict(gamma, 0.0, params, status, None, "coulomb")
+
+
+_COULOMB_JUDGES = (SolverStatus.OK, SolverStatus.NO_LOAD)
+"""The :func:`_ft_load` statuses on which the Coulomb test judges (γ = ``a_t``)."""
 
 
 def decoupled(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
     """Decoupled test (Fig. 5d): ``|f_t| ≤ μ f_n`` and ``|τ| ≤ β f_n``."""
-    return _ft_verdict(_ft_ratios(contact, params), params, "decoupled")
+    return _ft_verdict(_ft_ratios(contact, params, _ft_load(contact, params)), params, "decoupled")
 
 
 def linear_ls(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
     """Linear limit surface (5): ``|f_t|/μ + |τ|/β ≤ f_n``."""
-    return _ft_verdict(_ft_ratios(contact, params), params, "linear_ls")
+    return _ft_verdict(_ft_ratios(contact, params, _ft_load(contact, params)), params, "linear_ls")
 
 
 def elliptic_ls(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
     """Elliptical limit surface (6): ``f_t²/μ² + τ²/β² ≤ f_n²``."""
-    return _ft_verdict(_ft_ratios(contact, params), params, "elliptic_ls")
+    return _ft_verdict(_ft_ratios(contact, params, _ft_load(contact, params)), params, "elliptic_ls")
 
 
 _FT_COMBINE: dict[str, Callable[[float, float], float]] = {
@@ -295,8 +307,9 @@ _FT_COMBINE: dict[str, Callable[[float, float], float]] = {
     "elliptic_ls": math.hypot,
 }
 """How each F/T test with β makes γ of ``a_t = |f_t|/(μ f_n)`` and ``a_r = |τ|/(β f_n)``."""
-FT_BETA_TESTS = tuple(_FT_COMBINE)
-"""The F/T tests that need β (:func:`ft_stick_margins` judges any of them)."""
+FT_TESTS: tuple[str, ...] = ("coulomb", *_FT_COMBINE)
+"""The slip tests that read only the wrench (and β): valid without a pressure frame
+(:func:`ft_stick_margins` judges any of them)."""
 
 
 def _rotation_share(contact: ContactLike, p_c: tuple[float, float] | None,

@@ -12,7 +12,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.lib.fusion import fuse
 from slipstack.lib.limit_set import load_factor
 from slipstack.lib.pad import PadGeometry
-from slipstack.lib.slip_tests import FT_BETA_TESTS, SLIP_TESTS, SlipParams, ft_stick_margins, get_slip_test
+from slipstack.lib.slip_tests import FT_TESTS, SLIP_TESTS, SlipParams, ft_stick_margins, get_slip_test
 from slipstack.lib.status import SolverStatus
 
 PAD = PadGeometry(8, 8, 1.25e-3)
@@ -135,7 +135,8 @@ def _point(f_n=2.0, f_t=(0.0, 0.0), tau=0.0):
 @pytest.mark.parametrize("beta_m", [None, 2e-3])
 def test_the_ft_tests_judged_together_agree_with_each_test_alone(contact, beta_m):
     params = SlipParams(mu=0.5, beta_m=beta_m, delta=0.1)
-    together = ft_stick_margins(contact, params, FT_BETA_TESTS)
-    alone = [SLIP_TESTS[name](contact, params) for name in FT_BETA_TESTS]
-    assert together == [(v.stick, v.margin) for v in alone]
-    assert FT_BETA_TESTS == ("decoupled", "linear_ls", "elliptic_ls")
+    for names in (FT_TESTS, FT_TESTS[::-1], ("elliptic_ls",), ("coulomb",)):
+        together = ft_stick_margins(contact, params, names)
+        alone = [SLIP_TESTS[name](contact, params) for name in names]
+        assert together == [(v.stick, v.margin) for v in alone]
+    assert FT_TESTS == ("coulomb", "decoupled", "linear_ls", "elliptic_ls")
