@@ -171,10 +171,9 @@ class Fusion(Node):
                 self._shape, pad, -float(w.force[2]), ratio=p.ft_plausibility_ratio, min_pad_force_n=p.ft_plausibility_min_n):
             ctx.count("fusion.implausible_ft")
             status = "implausible"
-        return Contact(
-            rows=t.rows, cols=t.cols, pitch_m=t.pitch_m, phi=np.asarray(r.phi, dtype=float), f_n=r.f_n,
-            f_t=np.asarray(r.f_t, dtype=float), tau=r.tau, cop=np.asarray(r.cop, dtype=float),
-            area_m2=r.contact_area_m2, mask=np.asarray(r.mask, dtype=bool),
+        return Contact(  # the result's arrays are float64 (the mask bool) and read-only: passed on as they are
+            rows=t.rows, cols=t.cols, pitch_m=t.pitch_m, phi=r.phi, f_n=r.f_n, f_t=r.f_t, tau=r.tau, cop=r.cop,
+            area_m2=r.contact_area_m2, mask=r.mask,
             pair_offset_ns=t.header.stamp_ns - w.header.stamp_ns, has_tactile=True,
             status=STATUS_OK if status in _USABLE_AS_OK else status,
         )
