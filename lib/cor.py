@@ -43,7 +43,7 @@ _SMALLEST_NORMAL = sys.float_info.min
 """N: a friction capacity μΣφ below this (subnormal) is no measured force."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class CorResult:
     """A COR of (12) and the quantities of test (11) there (F, SI).
 

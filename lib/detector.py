@@ -50,7 +50,7 @@ from slipstack.lib.detection import DetectorConfig, SlipLatch
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.known_cor import KNOWN_COR_METHOD, known_cor_test
 from slipstack.lib.material import Material, detector_thresholds
-from slipstack.lib.slip_tests import SlipParams, SlipVerdict, ft_beta, get_slip_test
+from slipstack.lib.slip_tests import FT_TESTS, SlipParams, SlipVerdict, ft_beta, ft_stick_margins, get_slip_test
 from slipstack.lib.status import SAMPLE_NO_CONTACT, SAMPLE_OK, SLIP_STATES, SlipState, SolverStatus
 
 __all__ = [
@@ -63,9 +63,6 @@ __all__ = [
     "DetectorVerdict",
     "Detector",
 ]
-
-FT_TESTS: tuple[str, ...] = ("coulomb", "decoupled", "linear_ls", "elliptic_ls")
-"""The slip tests that read only the wrench (and β): valid without a pressure frame."""
 
 VALID = SolverStatus.OK.value
 """The status of a verdict that judged valid data (and of a valid contact)."""
@@ -164,7 +161,7 @@ class DetectorSettings:
         return cls(**{**derived, **overrides})
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class DetectorVerdict:
     """One frame's verdict.
 
@@ -201,7 +198,12 @@ class Detector:
         """Raises ConfigError for an unknown test or a threshold out of range."""
         s = self.settings = settings
         self._test = known_cor_test(s.known_cor_m) if s.known_cor_m is not None else get_slip_test(s.method)
-        self._others = [(name, get_slip_test(name)) for name in s.also if name != s.method]
+        others = [name for name in s.also if name != s.method]
+        self._others = [(name, None if name in FT_TESTS else get_slip_test(name)) for name in others]
+        """The side tests in the order of ``also``; ``None`` for an F/T test: those are
+        judged together, by :func:`ft_stick_margins` on the load they share, in ``_ft_others``."""
+        self._ft_others = [name for name, test in self._others if test is None]
+        self._deciding_ft = s.method in FT_TESTS
         self._params = SlipParams(mu=s.mu, beta_m=s.beta_m or None, delta=s.delta)
         self._ft_params = self._params  # with β_s of the current pressure frame when beta_m is 0
         self._beta_frame: object = None
@@ -225,8 +227,7 @@ class Detector:
         """
         view = ContactView(contact, self.settings.pool)
         ft_params = self._params_for_ft_tests(view, tactile_frame)
-        deciding_ft = self.settings.method in FT_TESTS
-        params = ft_params if deciding_ft else self._params
+        params = ft_params if self._deciding_ft else self._params
         if getattr(contact, "earlier_samples", 0):
             self._step_earlier(contact, view, params)
         v = self._test(view, params, self._warm)
@@ -235,9 +236,13 @@ class Detector:
         status = self._verdict_status(contact.status, contact, v)
         slipping, in_contact = self._advance(t_ns, v, status, contact_lost=contact.status == CONTACT_LOST)
         verdicts = {v.method: (v.stick, v.margin)}
+        ft_judged = iter(ft_stick_margins(view, ft_params, self._ft_others) if self._ft_others else ())
         for name, test in self._others:
-            o = test(view, ft_params, None)
-            verdicts[name] = (o.stick, o.margin)
+            if test is None:
+                verdicts[name] = next(ft_judged)
+            else:
+                o = test(view, ft_params, None)
+                verdicts[name] = (o.stick, o.margin)
         if not in_contact:
             state = SlipState.NO_CONTACT
         elif slipping:
@@ -273,7 +278,7 @@ class Detector:
                 self._warm = v.p_c
             sample_status = VALID if code == SAMPLE_OK else CONTACT_LOST if code == SAMPLE_NO_CONTACT else _UNUSABLE
             status = self._verdict_status(sample_status, contact, v)
-            if status == VALID and view.phi.size and phi_sum <= 0.0 and self.settings.method not in FT_TESTS:
+            if status == VALID and view.phi.size and phi_sum <= 0.0 and not self._deciding_ft:
                 status = _UNUSABLE  # a pressure frame with nothing to scale: no verdict for a tactile test
             self._advance(t_ns, v, status, contact_lost=code == SAMPLE_NO_CONTACT)
 
@@ -293,14 +298,14 @@ class Detector:
         frame, or the solver's."""
         if sample_status != VALID:
             return sample_status
-        if not contact.has_tactile and self.settings.method not in FT_TESTS:
+        if not contact.has_tactile and not self._deciding_ft:
             # a contact without a frame that claims its pairing was fine contradicts itself
             why = contact.tactile_status if contact.tactile_status != VALID else "fault"
             return f"tactile_{why}"
         return VALID if v.status.usable else v.status.value
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class _SampleView:
     """One earlier F/T sample of a batch as the slip tests read it (:class:`ContactView`'s
     fields): ``f_n`` N, ``f_t`` (2,) N, ``tau`` N·m, ``phi`` (N,) N, ``positions`` (N, 2) m."""

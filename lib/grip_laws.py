@@ -71,7 +71,7 @@ class GripReason(str, Enum):
     FAIL_SAFE = "fail-safe"  # invalid or stale input: last safe grip held
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class GripDecision:
     """One grip command.
 
@@ -92,7 +92,7 @@ class GripDecision:
     detail: str = ""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class GripInput:
     """Everything a law may need for one control step; unused fields may stay NaN.
 

@@ -82,7 +82,7 @@ _MAX_FAR = 1e7
 _MAX_RESIDUAL = 1e-3
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class LimitSetResult:
     """Load factor and centre of rotation of impending slip (pad frame F, SI).
 
@@ -184,71 +184,130 @@ def load_factor(
     ft = np.asarray(f_t, dtype=np.float64).reshape(-1)
     if ph_all.ndim != 1 or pos.shape != (ph_all.shape[0], 2) or ft.shape != (2,):
         return _none(SolverStatus.INVALID_INPUT)
-    fx, fy, tau = float(ft[0]), float(ft[1]), float(tau)
+    (fx, fy), tau = ft.tolist(), float(tau)
     if not (math.isfinite(fx) and math.isfinite(fy) and math.isfinite(tau) and math.isfinite(mu) and mu > 0):
         return _none(SolverStatus.INVALID_INPUT)
-    code, idx, px, py, a, ox, oy, L, f_n = normalise_contact(np.ascontiguousarray(pos), np.ascontiguousarray(ph_all))
+    given, c0x, c0y = _warm_point(c0)
+    (branch, taxel, ox, oy, L, f_n, cap, gt, n_bar, tn, s, lever, sig2, outcome, cx, cy, gamma, T, n_s, it,
+     residual) = _solve(np.ascontiguousarray(pos), np.ascontiguousarray(ph_all), fx, fy, tau, float(mu), math.hypot(fx, fy),
+                        given, c0x, c0y, float(xtol), int(max_iter))
+    if branch == _SOLVED:
+        if not math.isfinite(gamma):  # the ratio overflows on the way (a load ~1e308 times the capacity)
+            return _none(SolverStatus.INVALID_INPUT)
+        status = SOLVED_STATUS[outcome]
+        case = SlipCase.ON_TAXEL if status is SolverStatus.ON_TAXEL else SlipCase.ROTATION
+        return LimitSetResult(
+            case,
+            float(gamma),
+            (ox + L * cx, oy + L * cy),
+            float(cap * L * T),
+            float(s * cap * L * n_s),
+            s,
+            int(it),
+            float(residual),
+            status,
+            taxel,
+            (ox, oy),
+            L,
+        )
+    if branch == _NEAR_TRANSLATION_CASE:
+        gamma = gt * (1.0 + (lever * lever / (2.0 * sig2) if sig2 > 0 else 0.0))
+        return LimitSetResult(SlipCase.TRANSLATION, float(gamma), None, 0.0, 0.0, 0, 0, 0.0,
+                              SolverStatus.TRANSLATION, -1, (ox, oy), L)
+    if branch == _POINT_CONTACT:
+        return _point_contact(n_bar, tau, fx, fy, (ox, oy), gt, taxel)
+    if branch == _PURE_TORQUE:
+        return _pure_torque(pos, ph_all, tn, tau, (ox, oy), L, cap, f_n, c0)
+    return _none(_EARLY_STATUS[branch])
+
+
+_SOLVED, _NEAR_TRANSLATION_CASE, _POINT_CONTACT, _PURE_TORQUE = 0, 1, 2, 3
+""":func:`_solve`'s outcomes that :func:`load_factor` turns into a result with numbers."""
+_BAD_INPUT, _NO_CONTACT, _NO_LOAD = 4, 5, 6
+""":func:`_solve`'s outcomes without numbers, and their status (:data:`_EARLY_STATUS`)."""
+_EARLY_STATUS = {_BAD_INPUT: SolverStatus.INVALID_INPUT, _NO_CONTACT: SolverStatus.NO_CONTACT,
+                 _NO_LOAD: SolverStatus.NO_LOAD}
+_FLOAT_MIN = sys.float_info.min
+
+
+@njit(**JIT)
+def _solve(points, weights, fx, fy, tau, mu, f_t_abs, given, c0x, c0y, xtol, max_iter):
+    """Steps 1–4 of the module docstring in one compiled call, from the pressure to the
+    Dinkelbach answer: :func:`~slipstack.lib.weber.normalise_contact`, the special
+    cases, :func:`_spread_along`, the warm start and :func:`_dinkelbach`.
+
+    It replaces four calls from Python (two of them returning or taking the normalised
+    taxel arrays, which cost more to pass than the sums over them) with one that returns
+    numbers only; every number is computed by the same operations as before.
+    ``f_t_abs`` is ``math.hypot(fx, fy)`` from Python (the rounding it always had);
+    ``given, c0x, c0y`` the warm start (m, F), if any. Only the warm start's distance
+    bound (1e7 contact radii) is now taken with the C library's ``hypot``, which may
+    round its last bit unlike Python's: it decides nothing but whether so far a start is
+    used.
+
+    Returns ``(branch, taxel, ox, oy, L, f_n, cap, gt, n_bar, tn, s, lever, sig2, code,
+    cx, cy, gamma, T, n_s, iterations, residual)``: the branch (:data:`_SOLVED` …
+    :data:`_NO_LOAD`), the taxel of a point contact or of the COR (an index of
+    ``weights``, −1: none), the centre of pressure and contact radius (m), ``f_n``,
+    ``μ f_n`` (N), ``γ_t``, the torque about the centre of pressure (N·m), its normalised
+    value and sense, the lever arm, the spread along the force, and
+    :func:`_dinkelbach`'s answer (zeros on the other branches).
+    """
+    code, idx, px, py, a, ox, oy, L, f_n = normalise_contact(points, weights)
+    none = (-1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0, 0.0, 0.0, SOLVED_MAX_ITER, 0.0, 0.0, 0.0, 0.0, 0.0, 0, 0.0)
     if code == CONTACT_INVALID:
-        return _none(SolverStatus.INVALID_INPUT)
+        return (_BAD_INPUT,) + none
     if code == CONTACT_NONE:
-        return _none(SolverStatus.NO_CONTACT)
+        return (_NO_CONTACT,) + none
     cap = mu * f_n
-    if not cap >= sys.float_info.min:  # μ f_n subnormal: no measured force (pressures at the bottom of float range)
-        return _none(SolverStatus.INVALID_INPUT)
+    if not cap >= _FLOAT_MIN:  # μ f_n subnormal: no measured force (pressures at the bottom of float range)
+        return (_BAD_INPUT,) + none
     if fx == 0.0 and fy == 0.0 and tau == 0.0:
-        return _none(SolverStatus.NO_LOAD)
-    gt = math.hypot(fx, fy) / cap
-    pbar = (ox, oy)
+        return (_NO_LOAD,) + none
+    gt = f_t_abs / cap
     n_bar = tau + fx * oy - fy * ox  # torque about the centre of pressure
     if idx.size == 1 or L == 0.0:
-        return _point_contact(n_bar, tau, fx, fy, pbar, gt, int(idx[0]))
+        return (_POINT_CONTACT, idx[0], ox, oy, L, f_n, cap, gt, n_bar, 0.0, 0, 0.0, 0.0, SOLVED_MAX_ITER, 0.0, 0.0,
+                0.0, 0.0, 0.0, 0, 0.0)
     scale = cap * L
     tn = n_bar / scale if scale > 0.0 else math.inf  # normalised torque about p̄ (inf: μ f_n L underflows)
     if not (math.isfinite(tn) and math.isfinite(gt)):  # load/capacity beyond float range
-        return _none(SolverStatus.INVALID_INPUT)
+        return (_BAD_INPUT,) + none
     if gt <= abs(tn) * _FORCE_BELOW_ROUNDING:  # the force cannot change n(c) in double precision
-        return _pure_torque(pos, ph_all, tn, tau, pbar, L, cap, f_n, c0)
+        return (_PURE_TORQUE, -1, ox, oy, L, f_n, cap, gt, n_bar, tn, 0, 0.0, 0.0, SOLVED_MAX_ITER, 0.0, 0.0, 0.0,
+                0.0, 0.0, 0, 0.0)
     s = 1 if tn > 0 else -1
-    fx_n, fy_n = fx / cap, fy / cap  # normalised force f_t/(μ f_n)
+    fx_n = fx / cap  # normalised force f_t/(μ f_n)
+    fy_n = fy / cap
     lever = abs(tn) / gt
     sig2 = _spread_along(px, py, a, fx_n / gt, fy_n / gt)
     if tn == 0.0 or lever <= _NEAR_TRANSLATION * math.sqrt(sig2):
-        gamma = gt * (1.0 + (lever * lever / (2.0 * sig2) if sig2 > 0 else 0.0))
-        return LimitSetResult(SlipCase.TRANSLATION, float(gamma), None, 0.0, 0.0, 0, 0, 0.0,
-                              SolverStatus.TRANSLATION, -1, pbar, L)
-    warm, w0x, w0y = _warm_start(c0, pbar, L)
+        return (_NEAR_TRANSLATION_CASE, -1, ox, oy, L, f_n, cap, gt, n_bar, tn, s, lever, sig2, SOLVED_MAX_ITER, 0.0,
+                0.0, 0.0, 0.0, 0.0, 0, 0.0)
+    warm = False
+    wx = 0.0
+    wy = 0.0
+    if given:  # usable if finite and within 1e7 contact radii
+        wx = (c0x - ox) / L
+        wy = (c0y - oy) / L
+        warm = math.isfinite(wx) and math.isfinite(wy) and math.hypot(wx, wy) < _MAX_FAR
     outcome, cx, cy, gamma, T, n_s, it, residual, taxel = _dinkelbach(
-        px, py, a, s, tn, fx_n, fy_n, lever, warm, w0x, w0y, float(xtol), int(max_iter)
+        px, py, a, s, tn, fx_n, fy_n, lever, warm, wx, wy, xtol, max_iter
     )
-    if not math.isfinite(gamma):  # the ratio overflows on the way (a load ~1e308 times the capacity)
-        return _none(SolverStatus.INVALID_INPUT)
-    status = SOLVED_STATUS[outcome]
-    case = SlipCase.ON_TAXEL if status is SolverStatus.ON_TAXEL else SlipCase.ROTATION
-    return LimitSetResult(
-        case,
-        float(gamma),
-        (ox + L * cx, oy + L * cy),
-        float(cap * L * T),
-        float(s * cap * L * n_s),
-        s,
-        int(it),
-        float(residual),
-        status,
-        int(idx[taxel]) if taxel >= 0 else -1,
-        pbar,
-        L,
-    )
+    return (_SOLVED, idx[taxel] if taxel >= 0 else -1, ox, oy, L, f_n, cap, gt, n_bar, tn, s, lever, sig2, outcome,
+            cx, cy, gamma, T, n_s, it, residual)
 
 
-def _warm_start(c0, pbar, L) -> tuple[bool, float, float]:
-    """``c0`` in normalised coordinates, if it is a usable point (finite, within 1e7 L)."""
+def _warm_point(c0) -> tuple[bool, float, float]:
+    """``(given, x, y)`` of the warm start ``c0`` (m, F): given if it is two numbers."""
     if c0 is None:
         return False, 0.0, 0.0
+    if type(c0) is tuple and len(c0) == 2 and type(c0[0]) is float and type(c0[1]) is float:
+        return True, c0[0], c0[1]  # a previous result's COR: no array to build at every frame
     cw = np.asarray(c0, dtype=np.float64).reshape(-1)
     if cw.shape != (2,):
         return False, 0.0, 0.0
-    x, y = (float(cw[0]) - pbar[0]) / L, (float(cw[1]) - pbar[1]) / L
-    return bool(math.isfinite(x) and math.isfinite(y) and math.hypot(x, y) < _MAX_FAR), x, y
+    return True, float(cw[0]), float(cw[1])
 
 
 @njit(**JIT)
@@ -376,7 +435,7 @@ def _pure_torque(positions, phi, tn, tau, pbar, L, cap, f_n, c0) -> LimitSetResu
     )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class TorsionResult:
     """Torsional coefficient from tactile data (docs/math.md §4.3).
 
@@ -405,7 +464,7 @@ def torsional_coefficient(
     if med.c is None:
         return TorsionResult(0.0, None, med.status)
     ph = np.asarray(phi, dtype=float)
-    return TorsionResult(mu * med.value / float(ph[ph > 0].sum()), med.c, med.status)
+    return TorsionResult(mu * med.value / float(np.add.reduce(ph[ph > 0])), med.c, med.status)  # ph[ph > 0].sum()
 
 
 def compile_kernels() -> None:

@@ -44,8 +44,9 @@ torque about it → ``γ = +inf``, margin ``−inf`` (slip). No other non-finite
 from __future__ import annotations
 
 import math
+import operator
 from dataclasses import dataclass
-from typing import Callable, Protocol
+from typing import Callable, Protocol, Sequence
 
 import numpy as np
 
@@ -62,6 +63,8 @@ __all__ = [
     "SlipTest",
     "SLIP_TESTS",
     "ft_beta",
+    "ft_stick_margins",
+    "FT_TESTS",
     "get_slip_test",
     "coulomb",
     "decoupled",
@@ -117,7 +120,7 @@ class SlipParams:
             raise ConfigError(f"paper_gain must be in (0, 1], got {self.paper_gain}")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class SlipVerdict:
     """The answer of one slip test.
 
@@ -173,9 +176,14 @@ def _load(contact: ContactLike, mu: float) -> tuple[float, float, float, float] 
     return f_n, f_tx, f_ty, tau
 
 
-def _verdict(gamma: float, rho: float, params: SlipParams, status, p_c, method) -> SlipVerdict:
+def _stick_margin(gamma: float, params: SlipParams, usable: bool) -> tuple[bool, float]:
+    """``(stick, margin)`` of a load factor γ computed with a status that is ``usable`` or not."""
     margin = 1.0 - gamma
-    stick = status.usable and margin >= params.delta
+    return usable and margin >= params.delta, margin
+
+
+def _verdict(gamma: float, rho: float, params: SlipParams, status, p_c, method) -> SlipVerdict:
+    stick, margin = _stick_margin(gamma, params, status.usable)
     kind = SlipState.STICK if stick else _kind_from_share(rho)
     return SlipVerdict(stick, margin, kind, status, gamma, p_c, method)
 
@@ -189,55 +197,119 @@ def ft_beta(contact: ContactLike, params: SlipParams) -> float | None:
     return tor.beta_m if tor.status.usable and tor.median is not None else None
 
 
-def _ft_test(contact, params, combine: Callable[[float, float], float], method: str) -> SlipVerdict:
+def _ft_load(contact: ContactLike, params: SlipParams) -> tuple[SolverStatus, float, float, float]:
+    """What every F/T test reads first: ``(status, a_t, τ, f_n)`` with ``a_t = |f_t|/(μ f_n)``
+    (τ N·m, f_n N). status OK; NO_LOAD: neither force nor torque (``a_t = 0``);
+    NO_CONTACT (``f_n ≤ 0``) or INVALID_INPUT (a non-finite load): no ratio (all 0)."""
     load = _load(contact, params.mu)
     if load is None:
-        return _bad(method)
+        return SolverStatus.INVALID_INPUT, 0.0, 0.0, 0.0
     f_n, fx, fy, tau = load
     if not f_n > 0:
-        return _no_contact(method)
+        return SolverStatus.NO_CONTACT, 0.0, 0.0, 0.0
     a_t = math.hypot(fx, fy) / (params.mu * f_n)
-    if a_t == 0.0 and tau == 0.0:
-        return _verdict(0.0, 0.0, params, SolverStatus.NO_LOAD, None, method)
+    return (SolverStatus.NO_LOAD if a_t == 0.0 and tau == 0.0 else SolverStatus.OK), a_t, tau, f_n
+
+
+def _ft_ratios(contact: ContactLike, params: SlipParams,
+               load: tuple[SolverStatus, float, float, float]) -> tuple[SolverStatus, float, float]:
+    """The part of the F/T tests with β that does not depend on how they combine, from the
+    contact's :func:`_ft_load`: ``(status, a_t, a_r)`` with ``a_r = |τ|/(β f_n)``.
+
+    status OK: both ratios (``a_r = 0`` for a tactile point contact without torque);
+    NO_LOAD: no load, or a torque so small that its ratio underflows (both 0);
+    POINT_CONTACT: a tactile point contact (β = 0) under a torque (``a_r = inf``);
+    NO_CONTACT, INVALID_INPUT (a bad load or no β): no ratios (both 0).
+    """
+    status, a_t, tau, f_n = load
+    if status is not SolverStatus.OK:
+        return status, 0.0, 0.0
     beta = ft_beta(contact, params)
     if beta is None:
-        return _bad(method)
+        return SolverStatus.INVALID_INPUT, 0.0, 0.0
     if beta == 0.0:  # tactile point contact: no torsional friction
-        if tau == 0.0:
-            return _verdict(a_t, 0.0, params, SolverStatus.OK, None, method)
-        return _verdict(math.inf, 1.0, params, SolverStatus.POINT_CONTACT, None, method)
+        return (SolverStatus.OK, a_t, 0.0) if tau == 0.0 else (SolverStatus.POINT_CONTACT, a_t, math.inf)
     a_r = abs(tau) / (beta * f_n) if beta * f_n > 0.0 else math.inf
     if a_t == 0.0 and a_r == 0.0:  # a torque so small that its ratio underflows: no load either
-        return _verdict(0.0, 0.0, params, SolverStatus.NO_LOAD, None, method)
-    return _verdict(combine(a_t, a_r), a_r / (a_t + a_r), params, SolverStatus.OK, None, method)
+        return SolverStatus.NO_LOAD, 0.0, 0.0
+    return SolverStatus.OK, a_t, a_r
+
+
+def _ft_gamma(ratios: tuple[SolverStatus, float, float], method: str) -> float | None:
+    """γ of the F/T test ``method`` on the :func:`_ft_ratios` of a contact (``None``: no
+    verdict, for no contact or bad input)."""
+    status, a_t, a_r = ratios
+    if status is SolverStatus.OK:
+        return _FT_COMBINE[method](a_t, a_r)
+    if status is SolverStatus.NO_LOAD:
+        return 0.0
+    return math.inf if status is SolverStatus.POINT_CONTACT else None
+
+
+def _ft_verdict(ratios: tuple[SolverStatus, float, float], params: SlipParams, method: str) -> SlipVerdict:
+    """The verdict of the F/T test ``method`` on the :func:`_ft_ratios` of a contact."""
+    status, a_t, a_r = ratios
+    gamma = _ft_gamma(ratios, method)
+    if gamma is None:
+        return _no_contact(method) if status is SolverStatus.NO_CONTACT else _bad(method)
+    rho = a_r / (a_t + a_r) if status is SolverStatus.OK else 1.0 if status is SolverStatus.POINT_CONTACT else 0.0
+    return _verdict(gamma, rho, params, status, None, method)
+
+
+def ft_stick_margins(contact: ContactLike, params: SlipParams, methods: Sequence[str]) -> list[tuple[bool, float]]:
+    """``(stick, margin)`` of each F/T test named in ``methods`` (:data:`FT_TESTS`),
+    as in the verdict its own function returns, from one evaluation of the load and the
+    ratios they share and without building the verdicts: what a detector publishes of the
+    tests it runs alongside on every contact."""
+    load = _ft_load(contact, params)
+    ratios = None
+    out = []
+    for method in methods:
+        if method == "coulomb":
+            status, gamma = load[0], (load[1] if load[0] in _COULOMB_JUDGES else None)
+        else:
+            ratios = ratios or _ft_ratios(contact, params, load)
+            status, gamma = ratios[0], _ft_gamma(ratios, method)
+        out.append((False, 0.0) if gamma is None else _stick_margin(gamma, params, status.usable))
+    return out
 
 
 def coulomb(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
     """Linear Coulomb test (7): stick iff ``|f_t| ≤ μ f_n``; torque ignored."""
-    load = _load(contact, params.mu)
-    if load is None:
-        return _bad("coulomb")
-    f_n, fx, fy, _ = load
-    if not f_n > 0:
-        return _no_contact("coulomb")
-    gamma = math.hypot(fx, fy) / (params.mu * f_n)
-    status = SolverStatus.NO_LOAD if gamma == 0.0 and load[3] == 0.0 else SolverStatus.OK
+    status, gamma, _, _ = _ft_load(contact, params)
+    if status not in _COULOMB_JUDGES:
+        return _no_contact("coulomb") if status is SolverStatus.NO_CONTACT else _bad("coulomb")
     return _verdict(gamma, 0.0, params, status, None, "coulomb")
+
+
+_COULOMB_JUDGES = (SolverStatus.OK, SolverStatus.NO_LOAD)
+"""The :func:`_ft_load` statuses on which the Coulomb test judges (γ = ``a_t``)."""
 
 
 def decoupled(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
     """Decoupled test (Fig. 5d): ``|f_t| ≤ μ f_n`` and ``|τ| ≤ β f_n``."""
-    return _ft_test(contact, params, max, "decoupled")
+    return _ft_verdict(_ft_ratios(contact, params, _ft_load(contact, params)), params, "decoupled")
 
 
 def linear_ls(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
     """Linear limit surface (5): ``|f_t|/μ + |τ|/β ≤ f_n``."""
-    return _ft_test(contact, params, lambda t, r: t + r, "linear_ls")
+    return _ft_verdict(_ft_ratios(contact, params, _ft_load(contact, params)), params, "linear_ls")
 
 
 def elliptic_ls(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
     """Elliptical limit surface (6): ``f_t²/μ² + τ²/β² ≤ f_n²``."""
-    return _ft_test(contact, params, math.hypot, "elliptic_ls")
+    return _ft_verdict(_ft_ratios(contact, params, _ft_load(contact, params)), params, "elliptic_ls")
+
+
+_FT_COMBINE: dict[str, Callable[[float, float], float]] = {
+    "decoupled": max,
+    "linear_ls": operator.add,
+    "elliptic_ls": math.hypot,
+}
+"""How each F/T test with β makes γ of ``a_t = |f_t|/(μ f_n)`` and ``a_r = |τ|/(β f_n)``."""
+FT_TESTS: tuple[str, ...] = ("coulomb", *_FT_COMBINE)
+"""The slip tests that read only the wrench (and β): valid without a pressure frame
+(:func:`ft_stick_margins` judges any of them)."""
 
 
 def _rotation_share(contact: ContactLike, p_c: tuple[float, float] | None,

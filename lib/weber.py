@@ -88,7 +88,7 @@ SOLVED_STATUS = {
 _TRANSLATION, _SINGLE = 3, 4  # further outcomes of _solve_kernel
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class WeberResult:
     """Minimiser of ``Σ a_i|p_i − c| − b·c``.
 

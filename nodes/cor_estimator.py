@@ -88,10 +88,11 @@ class CorEstimator(Node):
             gamma = r.ratio
         if r.p_c is not None:
             self._last_pc = r.p_c
-        if not r.status.usable:
+        usable = r.status.usable
+        if not usable:
             ctx.count(f"cor.{r.status.value}")
         ctx.publish("cor", Cor(
             case=r.case.value, p_c=np.array(r.p_c if r.p_c is not None else (0.0, 0.0)),
             torque_capacity=r.torque_capacity, load_torque=r.load_torque, gamma=float(gamma),
-            iterations=r.iterations, residual=float(r.residual), converged=r.status.usable, status=r.status.value,
+            iterations=r.iterations, residual=float(r.residual), converged=usable, status=r.status.value,
         ), stamp_ns=stamp, sources=msg.header.sources)

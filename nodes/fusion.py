@@ -36,7 +36,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from slipstack.lib.fusion import FusionThresholds, PressureShape, ft_understates_pad, fuse_shape, pressure_shape
+from slipstack.lib.fusion import (FusionThresholds, PressureShape, compile_kernels, ft_understates_pad, fuse_shape,
+                                  pressure_shape)
 from slipstack.lib.pad import PadGeometry
 from slipstack.lib.status import SolverStatus
 from slipstack.messages import STATUS_OK, TACTILE_PAIRING, Contact, TactileFrame, Wrench
@@ -90,12 +91,15 @@ class Fusion(Node):
         self.tactile: TactileFrame | None = None
         self._shape: PressureShape | None = None  # of self.tactile, computed at its first pairing
 
+    def start(self, ctx: Context) -> None:
+        compile_kernels()  # before the node reports ready, so its first tactile frame runs at full speed
+
     def on_tactile(self, msg: TactileFrame, ctx: Context) -> None:
         self.tactile = msg
         self._shape = None
 
     def on_wrench(self, msgs: tuple[Wrench, ...], ctx: Context) -> None:
-        sensor_frame = sum(w.frame != "pad" for w in msgs)
+        sensor_frame = len(msgs) - [w.frame for w in msgs].count("pad")
         if sensor_frame:
             ctx.count("fusion.sensor_frame_wrenches", sensor_frame)  # the driver should apply the mount transform
         for run in self._pairing_runs(msgs):
@@ -107,6 +111,8 @@ class Fusion(Node):
         pairs with alike (inside or outside ``max_pair_age_ms``), so a contact never
         carries a sample its frame would not be paired with (a backlog spans more than
         the window)."""
+        if len(msgs) == 1:  # the usual wake-up: one sample, one run
+            return [msgs]
         runs: list[tuple[Wrench, ...]] = []
         start = 0
         paired = [self._tactile_status(w.header.stamp_ns) == STATUS_OK for w in msgs]
@@ -165,10 +171,9 @@ class Fusion(Node):
                 self._shape, pad, -float(w.force[2]), ratio=p.ft_plausibility_ratio, min_pad_force_n=p.ft_plausibility_min_n):
             ctx.count("fusion.implausible_ft")
             status = "implausible"
-        return Contact(
-            rows=t.rows, cols=t.cols, pitch_m=t.pitch_m, phi=np.asarray(r.phi, dtype=float), f_n=r.f_n,
-            f_t=np.asarray(r.f_t, dtype=float), tau=r.tau, cop=np.asarray(r.cop, dtype=float),
-            area_m2=r.contact_area_m2, mask=np.asarray(r.mask, dtype=bool),
+        return Contact(  # the result's arrays are float64 (the mask bool) and read-only: passed on as they are
+            rows=t.rows, cols=t.cols, pitch_m=t.pitch_m, phi=r.phi, f_n=r.f_n, f_t=r.f_t, tau=r.tau, cop=r.cop,
+            area_m2=r.contact_area_m2, mask=r.mask,
             pair_offset_ns=t.header.stamp_ns - w.header.stamp_ns, has_tactile=True,
             status=STATUS_OK if status in _USABLE_AS_OK else status,
         )

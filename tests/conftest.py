@@ -21,6 +21,7 @@ import os
 
 from hypothesis import HealthCheck, settings
 
+from slipstack.lib.fusion import compile_kernels as compile_fusion_kernels
 from slipstack.lib.limit_set import compile_kernels
 from slipstack.lib.rig.simulator import compile_kernels as compile_rig_kernels
 
@@ -30,4 +31,5 @@ settings.register_profile("dev", max_examples=100, **_COMMON)
 settings.register_profile("thorough", max_examples=1000, **_COMMON)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE") or ("ci" if os.environ.get("CI") else "dev"))
 compile_kernels()
+compile_fusion_kernels()
 compile_rig_kernels()

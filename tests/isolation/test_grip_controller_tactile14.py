@@ -114,3 +114,21 @@ def test_an_ft_only_contact_gives_law_14_no_rotation_to_act_on():
     cmds = run(steady(5, T_C + 0.01, tactile=False), until_ms=5)
     assert len(cmds) == 5
     assert all(c.f_n_desired == F_N and c.reason != "fail-safe" for c in cmds)
+
+
+def test_law_14_follows_each_new_cor_on_the_same_tactile_frame():
+    # Fusion passes one frame's read-only mask on to every contact paired with that frame, and
+    # the controller reuses the distances it computed for that mask and COR: a new COR on the
+    # same frame must still move the command to its own lever.
+    shared = contact(1)
+    shared.mask.setflags(write=False)
+    other_p_c = (-2.5e-3, 1.25e-3)
+    moved = Cor(case="rotation", p_c=np.array(other_p_c), torque_capacity=T_C, load_torque=T_C + 0.001,
+                gamma=(T_C + 0.001) / T_C, converged=True, header=header(3))
+    events = [(1 * MS, "contact", shared), (1 * MS, "cor", cor(1, T_C + 0.001)), (1 * MS, "slip", slip(1)),
+              (2 * MS, "slip", slip(2)), (3 * MS, "cor", moved), (3 * MS, "slip", slip(3))]
+    cmds = run(events, until_ms=3)
+    other_sum = sum(math.dist(taxel_position(i), other_p_c) for i in IN_CONTACT)
+    assert other_sum != pytest.approx(SUM_DIST_M)
+    assert cmds[1].f_n_desired == pytest.approx(F_N + 4 * 0.001 / (SIGMA * MU * SUM_DIST_M), rel=1e-9)
+    assert cmds[2].f_n_desired == pytest.approx(F_N + 4 * 0.001 / (SIGMA * MU * other_sum), rel=1e-9)

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import math
+import warnings
+
 import numpy as np
 import pytest
 
 from slipstack.lib.errors import ConfigError
-from slipstack.lib.fusion import FusionThresholds, SensorMount, fuse, wrench_to_pad
+from slipstack.lib.fusion import FusionThresholds, SensorMount, fuse, pressure_shape, wrench_to_pad
 from slipstack.lib.pad import PadGeometry
 from slipstack.lib.status import SolverStatus
 
@@ -201,3 +204,13 @@ def test_thresholds_are_strict_and_one_stamp_gives_no_offset():
     assert fuse(p, [0, 0, -1], [0, 0, 0], PAD, tactile_stamp_ns=1000).stamp_offset_ns is None
     assert fuse(p, [0, 0, -1], [0, 0, 0], PAD, wrench_stamp_ns=1000).stamp_offset_ns is None
     assert fuse(p, [0, 0, -1], [0, 0, 0], PAD, tactile_stamp_ns=1500, wrench_stamp_ns=1000).stamp_offset_ns == -500
+
+
+@pytest.mark.parametrize("pressure_pa, total", [(5e306, math.inf), (2e306, 36 * 2e306), (1e4, 36 * 1e4)])
+def test_a_frames_pressure_sum_overflows_quietly(pressure_pa, total):
+    # The sum is only compared with a threshold: an overflow to inf is expected, not warned about.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        shape = pressure_shape(np.full(36, pressure_pa), PadGeometry(6, 6, 1e-3), FusionThresholds(0.0, 0.0, 0.0))
+    assert shape.pressure_sum_pa == pytest.approx(total, rel=1e-12)
+    assert shape.shape_sum == pytest.approx(36.0, rel=1e-12)

@@ -12,7 +12,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.lib.fusion import fuse
 from slipstack.lib.limit_set import load_factor
 from slipstack.lib.pad import PadGeometry
-from slipstack.lib.slip_tests import SLIP_TESTS, SlipParams, get_slip_test
+from slipstack.lib.slip_tests import FT_TESTS, SLIP_TESTS, SlipParams, ft_stick_margins, get_slip_test
 from slipstack.lib.status import SolverStatus
 
 PAD = PadGeometry(8, 8, 1.25e-3)
@@ -112,3 +112,31 @@ def test_params_validation():
     for kw in ({"mu": 0.0}, {"beta_m": -1.0}, {"delta": 1.0}, {"paper_gain": 2.0}):
         with pytest.raises(ConfigError):
             SlipParams(**kw)
+
+
+def _point(f_n=2.0, f_t=(0.0, 0.0), tau=0.0):
+    """All the normal force on one taxel: β_s = 0."""
+    phi = np.zeros(64)
+    phi[27] = f_n
+    return Contact(f_n, np.array(f_t, dtype=float), tau, phi)
+
+
+@pytest.mark.parametrize("contact", [
+    _uniform(f_t=(0.3, -0.4), tau=2e-3),                 # both ratios
+    _uniform(f_t=(2.0, 0.0), tau=-9e-3),                 # slips
+    _uniform(),                                          # no load
+    _uniform(f_t=(0.0, 0.0), tau=1e-320),                # a torque whose ratio underflows
+    _uniform(f_n=0.0, f_t=(0.1, 0.0)),                   # no contact
+    _uniform(f_t=(math.nan, 0.0)),                       # bad input
+    _point(f_t=(0.5, 0.0)),                              # point contact, no torque
+    _point(f_t=(0.5, 0.0), tau=1e-4),                    # point contact under a torque
+    Contact(2.0, np.array([0.3, 0.0]), 1e-3, np.zeros(0), np.zeros((0, 2))),  # no β at all
+], ids=["load", "slip", "no-load", "underflow", "no-contact", "nan", "point", "point-torque", "no-beta"])
+@pytest.mark.parametrize("beta_m", [None, 2e-3])
+def test_the_ft_tests_judged_together_agree_with_each_test_alone(contact, beta_m):
+    params = SlipParams(mu=0.5, beta_m=beta_m, delta=0.1)
+    for names in (FT_TESTS, FT_TESTS[::-1], ("elliptic_ls",), ("coulomb",)):
+        together = ft_stick_margins(contact, params, names)
+        alone = [SLIP_TESTS[name](contact, params) for name in names]
+        assert together == [(v.stick, v.margin) for v in alone]
+    assert FT_TESTS == ("coulomb", "decoupled", "linear_ls", "elliptic_ls")
