@@ -30,7 +30,7 @@ from slipstack.lib.weber import JIT
 __all__ = ["complex_abs", "compile_kernels", "finish_sliding", "linearise_sliding", "advance",
            "limit_slip_damping", "release_over_cap", "slide_caps", "stick_arrays", "surface_velocity",
            "take_normal_forces", "restart_weakening", "caps_and_stick_arrays", "new_normal_forces", "end_step",
-           "N_TAXEL_ROWS", "MU_S", "MU_D", "SLIP", "WEAKENING", "PHI", "CAP_STATIC", "CAP_DYNAMIC", "CAP_WEAKENING", "CAP_SLIDE", "CAP_SLIDE_TOL", "CAP_STICK",
+           "deflection_square_sum", "N_TAXEL_ROWS", "MU_S", "MU_D", "SLIP", "WEAKENING", "PHI", "CAP_STATIC", "CAP_DYNAMIC", "CAP_WEAKENING", "CAP_SLIDE", "CAP_SLIDE_TOL", "CAP_STICK",
            "DT_SLIDE_MASK", "STICK_STIFFNESS", "SPEED_N", "STICK_DAMPING", "DAMPING", "SLIDE_MASK",
            "SPEED_AVG", "N_FLAG_ROWS", "SLIDING", "CONTACT", "N_VECTOR_ROWS", "POSITION", "DEFLECTION", "FORCE",
            "U_N", "U_PREV", "U_AVG", "EXPLICIT"]
@@ -258,6 +258,16 @@ def stick_arrays(sliding: np.ndarray, contact: np.ndarray, phi: np.ndarray, cap_
         stick_damping_out[i] = stick_damping * stick
         stick_stiffness_out[i] = -k * stick
 
+
+
+@njit(**JIT)
+def deflection_square_sum(z: np.ndarray, contact: np.ndarray) -> float:
+    """``Σ |z_i|²`` over the taxels in contact (m²), in taxel order."""
+    total = 0.0
+    for i in range(z.shape[0]):
+        if contact[i]:
+            total += z[i].real * z[i].real + z[i].imag * z[i].imag
+    return total
 
 
 # ------------------------------------------------------------------ the per-taxel state tables

@@ -110,8 +110,7 @@ class BristleField:
 
     def potential_energy(self) -> float:
         """Elastic energy stored in the bristles ``Σ ½ k |z_i|²`` (J)."""
-        z = self.z[self._contact]
-        return 0.5 * self.k * float(np.vdot(z, z).real)
+        return 0.5 * self.k * kernels.deflection_square_sum(self.z, self._contact)
 
     def plant_constants(self, mass: float, inertia: float, free_mask: tuple[float, float, float]) -> np.ndarray:
         """The ``constants`` of :meth:`step` for a body of ``mass`` (kg), ``inertia``

@@ -25,14 +25,14 @@ import numpy as np
 from numba import njit
 
 from slipstack.lib.rig.bristle_kernels import (
-    CAP_SLIDE, CAP_SLIDE_TOL, DAMPING, DEFLECTION, DT_SLIDE_MASK, EXPLICIT, FORCE, N_FLAG_ROWS, N_TAXEL_ROWS,
+    CAP_SLIDE, CAP_SLIDE_TOL, CONTACT, DAMPING, DEFLECTION, DT_SLIDE_MASK, EXPLICIT, FORCE, N_FLAG_ROWS, N_TAXEL_ROWS,
     N_VECTOR_ROWS, PHI, POSITION, SLIDE_MASK, SLIDING, SLIP, SPEED_AVG, SPEED_N, STICK_DAMPING, STICK_STIFFNESS, U_AVG,
-    U_N, U_PREV, WEAKENING, advance, end_step, limit_slip_damping, linearise_sliding, new_normal_forces,
-    surface_velocity)
+    U_N, U_PREV, WEAKENING, advance, deflection_square_sum, end_step, limit_slip_damping, linearise_sliding,
+    new_normal_forces, surface_velocity)
 from slipstack.lib.rig.body import mid_point_twist
 from slipstack.lib.weber import JIT
 
-__all__ = ["MAX_CAP_PASSES", "N_CONSTANTS", "plant_step", "force_sums", "compile_kernels"]
+__all__ = ["MAX_CAP_PASSES", "N_CONSTANTS", "plant_step", "compile_kernels"]
 
 MAX_CAP_PASSES = 4
 """Solves per step at most: the last one is taken even if a cap is still exceeded."""
@@ -58,7 +58,7 @@ def _damping_sums(damping: np.ndarray, positions: np.ndarray) -> tuple[float, co
 
 
 @njit(**JIT)
-def force_sums(forces: np.ndarray, positions: np.ndarray) -> tuple[complex, float]:
+def _force_sums(forces: np.ndarray, positions: np.ndarray) -> tuple[complex, float]:
     """``(Σ f_i, Σ p_i × f_i)`` of per-taxel forces (complex N, N·m about the pad origin)."""
     fx = fy = tau = 0.0
     for i in range(forces.shape[0]):
@@ -139,7 +139,7 @@ def plant_step(taxels: np.ndarray, flags: np.ndarray, vectors: np.ndarray, const
                           taxels[STICK_DAMPING], v_reg, taxels[SPEED_N], damping)
     else:
         damping[:] = taxels[STICK_DAMPING]
-    f_e, tau_e = force_sums(e, positions)
+    f_e, tau_e = _force_sums(e, positions)
     force = f_e + force_ext
     tau = tau_e + tau_ext
     v_mid = v_ref
@@ -163,13 +163,14 @@ def plant_step(taxels: np.ndarray, flags: np.ndarray, vectors: np.ndarray, const
                 s_slid[i] += speed_avg[i] * dt_slide_mask[i]
                 weakening[i] = math.exp(s_slid[i] * neg_inv_d_c)
     n_sliding = end_step(n_sliding, stick_damping, k, dt, v_stick, taxels, flags, vectors)
-    f_q, tau_q = force_sums(q, positions)
+    f_q, tau_q = _force_sums(q, positions)
     return n_sliding, v_mid, w_mid, slip_share, f_q, tau_q
 
 
 def compile_kernels() -> None:
-    """Compile the kernels the simulator calls (:func:`plant_step`, :func:`force_sums`,
-    :func:`~slipstack.lib.rig.bristle_kernels.new_normal_forces`), or load them from
+    """Compile the kernels the simulator calls (:func:`plant_step`,
+    :func:`~slipstack.lib.rig.bristle_kernels.new_normal_forces` and
+    :func:`~slipstack.lib.rig.bristle_kernels.deflection_square_sum`), or load them from
     numba's cache (a few seconds the first time after an install, some milliseconds
     after); the kernels they chain are compiled into them."""
     n = 2
@@ -179,4 +180,4 @@ def compile_kernels() -> None:
     constants = np.ones(N_CONSTANTS)
     new_normal_forces(1.0, np.ones(n), 1, 1.0, 1.0, 1e-3, taxels, flags, vectors)
     plant_step(taxels, flags, vectors, constants, 1, True, 0j, 0j, 1.0, 0.0, 0j, 0.0, 0.0, 0j, 0.0)
-    force_sums(vectors[FORCE], vectors[POSITION])
+    deflection_square_sum(vectors[DEFLECTION], flags[CONTACT])

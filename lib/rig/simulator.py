@@ -416,7 +416,7 @@ class Simulator:
 
 
 def compile_kernels() -> None:
-    """Compile the rig's numba kernels (friction, pressure, tactile counts), or load them from the cache.
+    """Compile the rig's numba kernels (plant step, pressure, sensors), or load them from the cache.
 
     The rig node calls it in ``start``, so no scene pays it on its first slip or
     Hertzian re-shape; ``make`` and the test suite call it once after install.
