@@ -3,7 +3,8 @@
 Until the plant kernel, :class:`~slipstack.lib.rig.simulator.Simulator` stepped the
 bristles with one kernel call per operation (``_ChainedField`` below: the 1637698
 friction step, verbatim in substance), summed over the taxels with numpy (BLAS) and
-solved the body in Python (``_reference_twist``). The kernel sums in plain loops and
+solved the body in Python (``_reference_twist``: the same solve, interpreted; the
+body's physics is checked in tests/unit/test_rig_physics.py). The kernel sums in plain loops and
 takes libm's ``exp``, so the two differ in their last bits only: a sum of N ≤ 256
 terms rounds differently by at most ~N·eps of its terms' magnitudes (~6e-14), and
 the solve and a few dozen steps of this stable (implicit mid-point) system do not
@@ -17,11 +18,13 @@ import numpy as np
 from hypothesis import given, settings, strategies as st
 
 from slipstack.lib.rig import bristle_kernels as kernels
+from slipstack.lib.rig.body import mid_point_twist
 from slipstack.lib.rig.friction import BristleField
 from slipstack.lib.rig.scene import ContactSpec
 
 _N = 36  # a 6 x 6 pad
 _POSITIONS = ((np.arange(_N) % 6 - 2.5) + 1j * (np.arange(_N) // 6 - 2.5)) * 1.25e-3
+_reference_twist = getattr(mid_point_twist, "py_func", mid_point_twist)  # interpreted, as PlanarBody.solve ran
 _RTOL = 1e-12
 """Relative to each compared array's largest magnitude (see the module docstring)."""
 
@@ -163,33 +166,6 @@ def _surface_velocity(v, omega):
     return v + 1j * omega * _POSITIONS
 
 
-def _reference_twist(dt, mass, inertia, free, r, v_ref, omega, s, sp, spp, s_rot, force, tau):
-    """PlanarBody.solve of 1637698: the implicit mid-point twist, in Python."""
-    sd = sp - r * s
-    srr = spp - 2.0 * (r.conjugate() * sp).real + (r.real**2 + r.imag**2) * s + s_rot
-    tau -= (r.conjugate() * force).imag
-    vx, vy, w = v_ref.real, v_ref.imag, omega
-    kx, ky = -sd.imag, sd.real
-    h = 0.5 * dt
-    a = mass + h * s
-    bx = dt * (force.real - s * vx - kx * w)
-    by = dt * (force.imag - s * vy - ky * w)
-    fx, fy, fr = free
-    dx = dy = dw = 0.0
-    if fr:
-        px, py = h * kx * fx, h * ky * fy
-        c = inertia + h * srr - (px * px + py * py) / a
-        bt = dt * (tau - kx * vx - ky * vy - srr * w) - (px * bx * fx + py * by * fy) / a
-        dw = bt / c
-        bx -= px * dw
-        by -= py * dw
-    if fx:
-        dx = bx / a
-    if fy:
-        dy = by / a
-    return complex(vx + 0.5 * dx, vy + 0.5 * dy), w + 0.5 * dw
-
-
 def _reference_step(chained, dt, body, twist, external):
     """Simulator._step of 1637698 after the motor's load: numpy sums, Python solve."""
     mass, inertia, free, r = body
@@ -206,7 +182,7 @@ def _reference_step(chained, dt, body, twist, external):
     force = e.sum() + force_ext
     tau = float((_POSITIONS.conjugate() * e).imag.sum()) + tau_ext
     for _ in range(4):
-        v_mid, w_mid = _reference_twist(dt, mass, inertia, free, r, v_ref, omega, *damping_sums(D), s_rot, force, tau)
+        v_mid, w_mid = _reference_twist(dt, mass, inertia, *free, r, v_ref, omega, *damping_sums(D), s_rot, force, tau)
         u_avg = _surface_velocity(v_mid - 1j * w_mid * r, w_mid)
         fixed = chained.limit_slip_damping(D, u_avg)
         if fixed is None:
