@@ -27,13 +27,13 @@ from numba.extending import intrinsic
 
 from slipstack.lib.weber import JIT
 
-__all__ = ["complex_abs", "compile_kernels", "finish_sliding", "linearise_sliding", "advance",
-           "limit_slip_damping", "release_over_cap", "slide_caps", "stick_arrays", "surface_velocity",
-           "take_normal_forces", "restart_weakening", "caps_and_stick_arrays", "new_normal_forces", "end_step",
-           "deflection_square_sum", "N_TAXEL_ROWS", "MU_S", "MU_D", "SLIP", "WEAKENING", "PHI", "CAP_STATIC", "CAP_DYNAMIC", "CAP_WEAKENING", "CAP_SLIDE", "CAP_SLIDE_TOL", "CAP_STICK",
-           "DT_SLIDE_MASK", "STICK_STIFFNESS", "SPEED_N", "STICK_DAMPING", "DAMPING", "SLIDE_MASK",
-           "SPEED_AVG", "N_FLAG_ROWS", "SLIDING", "CONTACT", "N_VECTOR_ROWS", "POSITION", "DEFLECTION", "FORCE",
-           "U_N", "U_PREV", "U_AVG", "EXPLICIT"]
+__all__ = ["complex_abs", "finish_sliding", "linearise_sliding", "advance", "limit_slip_damping", "release_over_cap",
+           "slide_caps", "stick_arrays", "surface_velocity", "take_normal_forces", "restart_weakening",
+           "caps_and_stick_arrays", "count_sliding", "new_normal_forces", "end_step", "deflection_square_sum",
+           "N_TAXEL_ROWS", "MU_S", "MU_D", "SLIP", "WEAKENING", "PHI", "CAP_STATIC", "CAP_DYNAMIC", "CAP_WEAKENING",
+           "CAP_SLIDE", "CAP_SLIDE_TOL", "CAP_STICK", "DT_SLIDE_MASK", "STICK_STIFFNESS", "SPEED_N", "STICK_DAMPING",
+           "DAMPING", "SLIDE_MASK", "SPEED_AVG", "N_FLAG_ROWS", "SLIDING", "CONTACT", "N_VECTOR_ROWS", "POSITION",
+           "DEFLECTION", "FORCE", "U_N", "U_PREV", "U_AVG", "EXPLICIT"]
 
 _TINY_SPEED = 1e-300
 """Floor of a speed used as a divisor (m/s): a direction from a zero velocity is 0."""

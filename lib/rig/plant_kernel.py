@@ -126,7 +126,8 @@ def plant_step(taxels: np.ndarray, flags: np.ndarray, vectors: np.ndarray, const
     k, dt, stick_damping, v_reg, v_stick, neg_inv_d_c = (constants[0], constants[1], constants[2], constants[3],
                                                          constants[4], constants[5])
     mass, inertia, free_x, free_y, free_r = constants[6], constants[7], constants[8], constants[9], constants[10]
-    positions, z, e, u_n, u_avg = vectors[POSITION], vectors[DEFLECTION], vectors[EXPLICIT], vectors[U_N], vectors[U_AVG]
+    positions, z, e = vectors[POSITION], vectors[DEFLECTION], vectors[EXPLICIT]
+    u_n, u_avg = vectors[U_N], vectors[U_AVG]
     damping, speed_avg = taxels[DAMPING], taxels[SPEED_AVG]
     stick_stiffness = taxels[STICK_STIFFNESS]
     for i in range(z.shape[0]):
