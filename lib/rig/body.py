@@ -15,7 +15,7 @@ zero and never integrated. One step solves the implicit mid-point equations
 for forces of the form ``q_j = e_j − D_j ū_j`` at points ``p_j`` (friction patches,
 motor damping) plus a generalised load ``g``, where ``K = Σ D_j J_jᵀJ_j`` and
 ``J_j = [[1, 0, −d_y], [0, 1, d_x]]``, ``d = p_j − r``. The caller gathers the sums
-about the pad origin (so per-taxel lever arms never change) and :meth:`PlanarBody.solve`
+about the pad origin (so per-taxel lever arms never change) and :func:`mid_point_twist`
 moves them to ``r``: ``S = Σ D``, ``S_p = Σ D p``, ``S_pp = Σ D |p|²``, ``F = Σ e``,
 ``τ = Σ p × e`` (+ pure torques, and ``S_rot`` for rotational damping). The pose then advances with the
 mid-point twist ``ξ̄``. With this pairing the kinetic energy change over a step is
@@ -26,9 +26,12 @@ from __future__ import annotations
 
 import cmath
 
-from slipstack.lib.rig.scene import DofSpec, ObjectSpec
+from numba import njit
 
-__all__ = ["PlanarBody"]
+from slipstack.lib.rig.scene import DofSpec, ObjectSpec
+from slipstack.lib.weber import JIT
+
+__all__ = ["PlanarBody", "mid_point_twist"]
 
 
 class PlanarBody:
@@ -54,7 +57,8 @@ class PlanarBody:
             self.inertia = obj.inertia_kgm2
         else:
             self.inertia = obj.inertia_kgm2 + obj.mass_kg * abs(self.origin - self._pivot) ** 2
-        self._free_mask = tuple(float(i in self._free) for i in range(3))
+        self.free_mask = tuple(float(i in self._free) for i in range(3))
+        """1.0 for a free coordinate among (v_x, v_y, ω), else 0.0."""
 
     @property
     def free(self) -> tuple[int, ...]:
@@ -90,47 +94,6 @@ class PlanarBody:
         """Velocity of the body point over the pad origin, ``v_r − i ω r`` (complex, m/s)."""
         return self.v_ref - 1j * self.omega * self.reference
 
-    def solve(self, dt: float, s: float, sp: complex, spp: float, s_rot: float,
-              force: complex, tau: float) -> tuple[complex, float]:
-        """One implicit mid-point velocity step; returns the mid-point twist ``(v̄_r, ω̄)``.
-
-        Args:
-            dt: step (s).
-            s, sp, spp: ``Σ D`` (N·s/m), ``Σ D p`` (N·s), ``Σ D |p|²`` (N·m·s) of the
-                linearised point forces, about the pad origin.
-            s_rot: rotational damping (N·m·s/rad).
-            force, tau: explicit force (complex N) and torque about the pad origin (N·m).
-
-        The constrained coordinates stay zero. Pure: call :meth:`commit` to take the
-        step (the caller may re-solve with corrected damping first).
-        """
-        r = self.reference
-        sd = sp - r * s  # Σ D (p − r)
-        srr = spp - 2.0 * (r.conjugate() * sp).real + (r.real**2 + r.imag**2) * s + s_rot
-        tau -= (r.conjugate() * force).imag
-        # K = [[s, 0, −sd_y], [0, s, sd_x], [−sd_y, sd_x, srr]]; A = M + dt/2·K;
-        # b = dt·(g − K ξ_n). Eliminate the rotation by its Schur complement.
-        vx, vy, w = self.v_ref.real, self.v_ref.imag, self.omega
-        kx, ky = -sd.imag, sd.real
-        h = 0.5 * dt
-        a = self.mass + h * s
-        bx = dt * (force.real - s * vx - kx * w)
-        by = dt * (force.imag - s * vy - ky * w)
-        fx, fy, fr = self._free_mask
-        dx = dy = dw = 0.0
-        if fr:
-            px, py = h * kx * fx, h * ky * fy
-            c = self.inertia + h * srr - (px * px + py * py) / a
-            bt = dt * (tau - kx * vx - ky * vy - srr * w) - (px * bx * fx + py * by * fy) / a
-            dw = bt / c
-            bx -= px * dw
-            by -= py * dw
-        if fx:
-            dx = bx / a
-        if fy:
-            dy = by / a
-        return complex(vx + 0.5 * dx, vy + 0.5 * dy), w + 0.5 * dw
-
     def commit(self, dt: float, v_mid: complex, omega_mid: float) -> None:
         """Take the step: end twist ``2ξ̄ − ξ_n``, pose moved by ``dt·ξ̄``."""
         self.v_ref = 2.0 * v_mid - self.v_ref
@@ -141,3 +104,49 @@ class PlanarBody:
         else:
             self.origin = self._pivot + cmath.exp(1j * (self.theta - self._theta0)) * (
                 self._origin0 - self._pivot)
+
+
+@njit(**JIT)
+def mid_point_twist(dt: float, mass: float, inertia: float, free_x: float, free_y: float, free_r: float,
+                    r: complex, v_ref: complex, omega: float, s: float, sp: complex, spp: float, s_rot: float,
+                    force: complex, tau: float) -> tuple[complex, float]:
+    """One implicit mid-point velocity step of the body; returns the mid-point twist ``(v̄_r, ω̄)``.
+
+    Args:
+        dt: step (s).
+        mass, inertia: ``M``'s diagonal (kg, kg·m² about ``r``).
+        free_x, free_y, free_r: :attr:`PlanarBody.free_mask`.
+        r: the reference point (complex, m); v_ref, omega: the twist ``ξ_n`` at the
+            start of the step (complex m/s, rad/s).
+        s, sp, spp: ``Σ D`` (N·s/m), ``Σ D p`` (N·s), ``Σ D |p|²`` (N·m·s) of the
+            linearised point forces, about the pad origin.
+        s_rot: rotational damping (N·m·s/rad).
+        force, tau: explicit force (complex N) and torque about the pad origin (N·m).
+
+    The constrained coordinates stay zero. Pure: :meth:`PlanarBody.commit` takes the
+    step (the caller may re-solve with corrected damping first).
+    """
+    sd = sp - r * s  # Σ D (p − r)
+    srr = spp - 2.0 * (r.conjugate() * sp).real + (r.real * r.real + r.imag * r.imag) * s + s_rot
+    tau -= (r.conjugate() * force).imag
+    # K = [[s, 0, −sd_y], [0, s, sd_x], [−sd_y, sd_x, srr]]; A = M + dt/2·K;
+    # b = dt·(g − K ξ_n). Eliminate the rotation by its Schur complement.
+    vx, vy, w = v_ref.real, v_ref.imag, omega
+    kx, ky = -sd.imag, sd.real
+    h = 0.5 * dt
+    a = mass + h * s
+    bx = dt * (force.real - s * vx - kx * w)
+    by = dt * (force.imag - s * vy - ky * w)
+    dx = dy = dw = 0.0
+    if free_r:
+        px, py = h * kx * free_x, h * ky * free_y
+        c = inertia + h * srr - (px * px + py * py) / a
+        bt = dt * (tau - kx * vx - ky * vy - srr * w) - (px * bx * free_x + py * by * free_y) / a
+        dw = bt / c
+        bx -= px * dw
+        by -= py * dw
+    if free_x:
+        dx = bx / a
+    if free_y:
+        dy = by / a
+    return complex(vx + 0.5 * dx, vy + 0.5 * dy), w + 0.5 * dw

@@ -6,8 +6,8 @@ instead of a dozen small numpy operations per step. Each kernel evaluates exactl
 the expressions of the numpy code it replaced, element by element and in the same
 order, so a run's results do not change: on this project's machines they are bit
 for bit those of numpy (``complex_abs`` rounds as numpy's ``abs`` of a complex
-does). Sums over taxels are not done here: the caller keeps numpy's (BLAS) for them,
-as their rounding depends on the summation order.
+does). The plant step that chains them with the body's solve, and sums over the
+taxels in plain loops, is :func:`slipstack.lib.rig.plant_kernel.plant_step`.
 
 Conventions: planar vectors are complex ``x + i·y`` in the pad frame ``F``;
 velocities m/s, forces N, deflections and slip distances m, damping N·s/m. Arrays
@@ -27,12 +27,13 @@ from numba.extending import intrinsic
 
 from slipstack.lib.weber import JIT
 
-__all__ = ["complex_abs", "compile_kernels", "finish_sliding", "linearise_sliding", "advance",
-           "limit_slip_damping", "release_over_cap", "slide_caps", "stick_arrays", "surface_velocity",
-           "take_normal_forces", "restart_weakening", "caps_and_stick_arrays", "new_normal_forces", "begin_step",
-           "mid_step_check", "advance_step", "end_step", "N_TAXEL_ROWS", "MU_S", "MU_D", "SLIP", "WEAKENING",
-           "WEAKENING_ARG", "CAP_STATIC", "CAP_DYNAMIC", "CAP_WEAKENING", "CAP_SLIDE", "CAP_SLIDE_TOL", "CAP_STICK",
-           "DT_SLIDE_MASK", "STICK_STIFFNESS", "SPEED_N", "N_FLAG_ROWS", "SLIDING", "CONTACT"]
+__all__ = ["complex_abs", "finish_sliding", "linearise_sliding", "advance", "limit_slip_damping", "release_over_cap",
+           "slide_caps", "stick_arrays", "surface_velocity", "take_normal_forces", "restart_weakening",
+           "caps_and_stick_arrays", "count_sliding", "new_normal_forces", "end_step", "deflection_square_sum",
+           "N_TAXEL_ROWS", "MU_S", "MU_D", "SLIP", "WEAKENING", "PHI", "CAP_STATIC", "CAP_DYNAMIC", "CAP_WEAKENING",
+           "CAP_SLIDE", "CAP_SLIDE_TOL", "CAP_STICK", "DT_SLIDE_MASK", "STICK_STIFFNESS", "SPEED_N", "STICK_DAMPING",
+           "DAMPING", "SLIDE_MASK", "SPEED_AVG", "N_FLAG_ROWS", "SLIDING", "CONTACT", "N_VECTOR_ROWS", "POSITION",
+           "DEFLECTION", "FORCE", "U_N", "U_PREV", "U_AVG", "EXPLICIT"]
 
 _TINY_SPEED = 1e-300
 """Floor of a speed used as a divisor (m/s): a direction from a zero velocity is 0."""
@@ -239,14 +240,13 @@ def slide_caps(cap_dynamic: np.ndarray, cap_weakening: np.ndarray, weakening: np
 @njit(**JIT)
 def stick_arrays(sliding: np.ndarray, contact: np.ndarray, phi: np.ndarray, cap_static: np.ndarray,
                  stick_damping: float, k: float, dt: float, cap_stick_out: np.ndarray,
-                 slide_mask_out: np.ndarray, dt_slide_mask_out: np.ndarray, share_weights_out: np.ndarray,
-                 stick_damping_out: np.ndarray, stick_stiffness_out: np.ndarray) -> None:
+                 slide_mask_out: np.ndarray, dt_slide_mask_out: np.ndarray, stick_damping_out: np.ndarray,
+                 stick_stiffness_out: np.ndarray) -> None:
     """Per-taxel coefficients that change only when the stick/slip set or ``φ`` changes.
 
     Writes: ``cap_stick`` (static cap of sticking taxels, inf if slipping), the slip mask
-    (1.0/0.0) and ``dt`` times it, the slip-share weights ``(φ_i, φ_i·mask_i)``
-    (shape (N, 2)), and for sticking taxels in contact the damping ``c + k dt/2`` and
-    stiffness ``−k`` of the step (0 elsewhere).
+    (1.0/0.0) and ``dt`` times it, and for sticking taxels in contact the damping
+    ``c + k dt/2`` and stiffness ``−k`` of the step (0 elsewhere).
     """
     for i in range(sliding.shape[0]):
         slide = sliding[i]
@@ -255,29 +255,37 @@ def stick_arrays(sliding: np.ndarray, contact: np.ndarray, phi: np.ndarray, cap_
         cap_stick_out[i] = math.inf if slide else cap_static[i]
         slide_mask_out[i] = mask
         dt_slide_mask_out[i] = dt * mask
-        share_weights_out[i, 0] = phi[i]
-        share_weights_out[i, 1] = phi[i] * mask
         stick_damping_out[i] = stick_damping * stick
         stick_stiffness_out[i] = -k * stick
 
 
-# ------------------------------------------------------------------ one call per phase of a step
-#
-# BristleField calls these instead of the kernels above one by one: a step is four
-# calls (new normal forces, begin, each cap pass, end) and numpy's exp, not a dozen
-# kernel and numpy calls with their Python overhead. They chain the kernels above in
-# the order BristleField chained them, so the results are those of the kernels. The
-# per-taxel state they share travels in two tables (rows below) rather than as two
-# dozen arrays: every array argument costs its unboxing on each call.
 
-N_TAXEL_ROWS = 14
+@njit(**JIT)
+def deflection_square_sum(z: np.ndarray, contact: np.ndarray) -> float:
+    """``Σ |z_i|²`` over the taxels in contact (m²), in taxel order."""
+    total = 0.0
+    for i in range(z.shape[0]):
+        if contact[i]:
+            total += z[i].real * z[i].real + z[i].imag * z[i].imag
+    return total
+
+
+# ------------------------------------------------------------------ the per-taxel state tables
+#
+# The plant step (lib/rig/plant_kernel.py) and the kernels below read and write
+# BristleField's per-taxel state in three tables with named rows rather than as
+# two dozen arrays: every array argument costs its unboxing on each call.
+
+N_TAXEL_ROWS = 18
 """Rows of the float table (shape (N_TAXEL_ROWS, N)) of per-taxel state:"""
 MU_S, MU_D = 0, 1
 """Static and dynamic friction coefficients."""
 SLIP = 2
 """Distance slid since the taxel last stuck ``s`` (m)."""
-WEAKENING, WEAKENING_ARG = 3, 4
-"""Slip weakening ``exp(−s/d_c)`` (numpy's exp; 1 where ``s = 0``) and its argument ``−s/d_c``."""
+WEAKENING = 3
+"""Slip weakening ``exp(−s/d_c)`` (1 where ``s = 0``)."""
+PHI = 4
+"""Normal force ``φ`` (N)."""
 CAP_STATIC, CAP_DYNAMIC, CAP_WEAKENING = 5, 6, 7
 """``μ_s φ``, ``μ_d φ`` and their difference (N)."""
 CAP_SLIDE, CAP_SLIDE_TOL, CAP_STICK = 8, 9, 10
@@ -287,25 +295,35 @@ taxels (inf elsewhere; left as is while none slides), static cap of sticking tax
 DT_SLIDE_MASK, STICK_STIFFNESS, SPEED_N = 11, 12, 13
 """``dt`` for slipping taxels else 0 (s); ``−k`` for sticking taxels in contact else 0
 (N/m); ``|u_n|`` of slipping taxels at the start of the step (m/s)."""
+STICK_DAMPING, DAMPING, SLIDE_MASK, SPEED_AVG = 14, 15, 16, 17
+"""``c + k dt/2`` for sticking taxels in contact else 0, and the damping ``D`` of the
+step being taken (N·s/m); 1.0 for slipping taxels else 0.0; ``|ū|`` of the last cap
+check (m/s)."""
 N_FLAG_ROWS = 2
 """Rows of the bool table (shape (N_FLAG_ROWS, N)):"""
 SLIDING, CONTACT = 0, 1
 """In the slip state; in contact (``φ > 0``)."""
+N_VECTOR_ROWS = 7
+"""Rows of the complex table (shape (N_VECTOR_ROWS, N)) of planar per-taxel vectors:"""
+POSITION, DEFLECTION, FORCE = 0, 1, 2
+"""Taxel centre ``p`` (m); bristle deflection ``z`` (m); force of the last step ``q`` on the object (N)."""
+U_N, U_PREV, U_AVG, EXPLICIT = 3, 4, 5, 6
+"""Surface velocity at the start of the step ``u_n`` and of the step before (m/s), the
+mid-point one ``ū`` (m/s); explicit force ``e`` of the step (N)."""
 
 
 @njit(**JIT)
 def restart_weakening(s: np.ndarray, weakening: np.ndarray) -> None:
-    """``weakening_i = 1`` where the slip distance restarted (``s_i = 0``): numpy's
-    ``exp(−0/d_c)``, so the weakening of the other taxels need not be recomputed."""
+    """``weakening_i = 1`` where the slip distance restarted (``s_i = 0``): ``exp(−0/d_c)``,
+    so the weakening of the other taxels need not be recomputed."""
     for i in range(s.shape[0]):
         if s[i] == 0.0:
             weakening[i] = 1.0
 
 
 @njit(**JIT)
-def caps_and_stick_arrays(n_sliding: int, taxels: np.ndarray, flags: np.ndarray, phi: np.ndarray,
-                          stick_damping: float, k: float, dt: float, slide_mask_out: np.ndarray,
-                          share_weights_out: np.ndarray, stick_damping_out: np.ndarray) -> None:
+def caps_and_stick_arrays(n_sliding: int, taxels: np.ndarray, flags: np.ndarray, stick_damping: float, k: float,
+                          dt: float) -> None:
     """The slip caps (:func:`slide_caps`; the static caps while no taxel slides, the
     tolerance then left as it is) and :func:`stick_arrays`, after φ or the stick set changed."""
     sliding = flags[SLIDING]
@@ -314,127 +332,64 @@ def caps_and_stick_arrays(n_sliding: int, taxels: np.ndarray, flags: np.ndarray,
                    taxels[CAP_SLIDE_TOL])
     else:
         taxels[CAP_SLIDE][:] = taxels[CAP_STATIC]
-    stick_arrays(sliding, flags[CONTACT], phi, taxels[CAP_STATIC], stick_damping, k, dt, taxels[CAP_STICK],
-                 slide_mask_out, taxels[DT_SLIDE_MASK], share_weights_out, stick_damping_out,
-                 taxels[STICK_STIFFNESS])
+    stick_arrays(sliding, flags[CONTACT], taxels[PHI], taxels[CAP_STATIC], stick_damping, k, dt, taxels[CAP_STICK],
+                 taxels[SLIDE_MASK], taxels[DT_SLIDE_MASK], taxels[STICK_DAMPING], taxels[STICK_STIFFNESS])
+
+
+@njit(**JIT)
+def count_sliding(sliding: np.ndarray) -> int:
+    """Number of taxels in the slip state."""
+    n_sliding = 0
+    for i in range(sliding.shape[0]):
+        n_sliding += sliding[i]
+    return n_sliding
 
 
 @njit(**JIT)
 def new_normal_forces(f_n: float, shape: np.ndarray, n_sliding: int, stick_damping: float, k: float, dt: float,
-                      taxels: np.ndarray, flags: np.ndarray, z: np.ndarray, phi_out: np.ndarray,
-                      slide_mask: np.ndarray, share_weights: np.ndarray, stick_damping_out: np.ndarray) -> int:
-    """Normal forces ``φ_i = f_n·shape_i`` (N) into ``phi_out``, :func:`take_normal_forces`
+                      taxels: np.ndarray, flags: np.ndarray, vectors: np.ndarray) -> int:
+    """Normal forces ``φ_i = f_n·shape_i`` (N) into the ``PHI`` row, :func:`take_normal_forces`
     of them, then :func:`caps_and_stick_arrays`.
 
     Returns:
-        The new number of slipping taxels if a taxel entered or left contact, else −1
-        (the stick set is unchanged, and so are the values written to ``stick_damping_out``).
+        The new number of slipping taxels.
     """
+    phi = taxels[PHI]
     for i in range(shape.shape[0]):
-        phi_out[i] = f_n * shape[i]
+        phi[i] = f_n * shape[i]
     sliding = flags[SLIDING]
-    changed = take_normal_forces(phi_out, taxels[MU_S], taxels[MU_D], flags[CONTACT], z, taxels[SLIP], sliding,
-                                 taxels[CAP_STATIC], taxels[CAP_DYNAMIC], taxels[CAP_WEAKENING]) > 0
-    if changed:
-        n_sliding = 0
-        for i in range(sliding.shape[0]):
-            n_sliding += sliding[i]
+    if take_normal_forces(phi, taxels[MU_S], taxels[MU_D], flags[CONTACT], vectors[DEFLECTION], taxels[SLIP],
+                          sliding, taxels[CAP_STATIC], taxels[CAP_DYNAMIC], taxels[CAP_WEAKENING]):
+        n_sliding = count_sliding(sliding)
         restart_weakening(taxels[SLIP], taxels[WEAKENING])
-    caps_and_stick_arrays(n_sliding, taxels, flags, phi_out, stick_damping, k, dt, slide_mask, share_weights,
-                          stick_damping_out)
-    return n_sliding if changed else -1
+    caps_and_stick_arrays(n_sliding, taxels, flags, stick_damping, k, dt)
+    return n_sliding
 
 
 @njit(**JIT)
-def begin_step(taxels: np.ndarray, flags: np.ndarray, z: np.ndarray, n_sliding: int, v_origin: complex,
-               omega: float, positions: np.ndarray, u_prev: np.ndarray, has_prev: bool, stick_damping: np.ndarray,
-               v_reg: float, e_out: np.ndarray, u_n_out: np.ndarray, damping_out: np.ndarray) -> None:
-    """Explicit forces ``e_i = −k z_i`` of sticking taxels (``stick_stiffness·z``, complex N)
-    and, while ``n_sliding > 0``, the start-of-step surface velocity ``u_n``
-    (:func:`surface_velocity`) and the damping of the step (:func:`linearise_sliding`;
-    ``u_prev = u_n`` without a previous step, ``has_prev`` False)."""
-    stick_stiffness = taxels[STICK_STIFFNESS]
-    for i in range(z.shape[0]):
-        e_out[i] = complex(stick_stiffness[i], 0.0) * z[i]  # numpy's float·complex: a complex product
-    if n_sliding:
-        surface_velocity(v_origin, omega, positions, u_n_out)
-        linearise_sliding(u_n_out, u_prev if has_prev else u_n_out, flags[SLIDING], taxels[CAP_SLIDE],
-                          stick_damping, v_reg, taxels[SPEED_N], damping_out)
-
-
-@njit(**JIT)
-def mid_step_check(v_origin: complex, omega: float, positions: np.ndarray, n_sliding: int, damping: np.ndarray,
-                   taxels: np.ndarray, u_out: np.ndarray, speed_out: np.ndarray, damping_out: np.ndarray) -> bool:
-    """The mid-point surface velocity ``ū`` (:func:`surface_velocity`) and, while some
-    taxel slides, :func:`limit_slip_damping` of it; returns whether a taxel was over its cap."""
-    surface_velocity(v_origin, omega, positions, u_out)
-    if not n_sliding:
-        return False
-    return limit_slip_damping(damping, u_out, taxels[CAP_SLIDE_TOL], taxels[CAP_SLIDE], speed_out, damping_out)
-
-
-@njit(**JIT)
-def advance_step(e: np.ndarray, damping: np.ndarray, u_avg: np.ndarray, z: np.ndarray, dt: float,
-                 n_sliding: int, speed: np.ndarray, neg_inv_d_c: float, taxels: np.ndarray, q_out: np.ndarray,
-                 z_out: np.ndarray) -> None:
-    """:func:`advance`; while some taxel slides, also the slip distances
-    ``s_i += |ū_i|·dt·slide_i`` (m) and the argument ``−s_i/d_c`` of their weakening
-    (``neg_inv_d_c`` = −1/d_c, 1/m), whose exp the caller takes with numpy (its rounding)."""
-    advance(e, damping, u_avg, z, dt, q_out, z_out)
-    if n_sliding:
-        s, dt_slide_mask, weakening_arg = taxels[SLIP], taxels[DT_SLIDE_MASK], taxels[WEAKENING_ARG]
-        for i in range(s.shape[0]):
-            s[i] += speed[i] * dt_slide_mask[i]
-            weakening_arg[i] = s[i] * neg_inv_d_c
-
-
-@njit(**JIT)
-def end_step(n_sliding: int, u_avg: np.ndarray, u_n: np.ndarray, speed: np.ndarray, q: np.ndarray, phi: np.ndarray,
-             stick_damping: float, k: float, dt: float, v_stick: float, taxels: np.ndarray, flags: np.ndarray,
-             z_new: np.ndarray, slide_mask: np.ndarray, share_weights: np.ndarray,
-             stick_damping_out: np.ndarray) -> int:
-    """The end of a step after :func:`advance_step` and the new weakening: while some
-    taxel slides, its caps (:func:`slide_caps`) and :func:`finish_sliding`; then
-    :func:`release_over_cap`. If the stick set changed, :func:`caps_and_stick_arrays`
-    again (``stick_damping_out`` receives the damping).
+def end_step(n_sliding: int, stick_damping: float, k: float, dt: float, v_stick: float, taxels: np.ndarray,
+             flags: np.ndarray, vectors: np.ndarray) -> int:
+    """The end of a step after the forces ``q``, the moved deflections and the new slip
+    distances and weakening: while some taxel slides, its caps (:func:`slide_caps`) and
+    :func:`finish_sliding`; then :func:`release_over_cap`. If the stick set changed,
+    :func:`caps_and_stick_arrays` again.
 
     Returns:
-        The new number of slipping taxels, or −1 if the stick set did not change
-        (``stick_damping_out`` is then not written).
+        The new number of slipping taxels.
     """
-    sliding, s = flags[SLIDING], taxels[SLIP]
+    sliding, s, z_new = flags[SLIDING], taxels[SLIP], vectors[DEFLECTION]
     changed = False
     if n_sliding:
         slide_caps(taxels[CAP_DYNAMIC], taxels[CAP_WEAKENING], taxels[WEAKENING], sliding, taxels[CAP_SLIDE],
                    taxels[CAP_SLIDE_TOL])
-        changed = finish_sliding(u_avg, u_n, speed, taxels[SPEED_N], sliding, taxels[CAP_SLIDE], 1.0 / k, v_stick,
-                                 z_new, s) > 0
+        changed = finish_sliding(vectors[U_AVG], vectors[U_N], taxels[SPEED_AVG], taxels[SPEED_N], sliding,
+                                 taxels[CAP_SLIDE], 1.0 / k, v_stick, z_new, s) > 0
     # only sticking taxels have a finite cap here
-    if release_over_cap(q, taxels[CAP_STICK], taxels[CAP_STATIC], k, z_new, sliding, s):
+    if release_over_cap(vectors[FORCE], taxels[CAP_STICK], taxels[CAP_STATIC], k, z_new, sliding, s):
         changed = True
     if not changed:
-        return -1
-    n_sliding = 0
-    for i in range(sliding.shape[0]):
-        n_sliding += sliding[i]
+        return n_sliding
+    n_sliding = count_sliding(sliding)
     restart_weakening(s, taxels[WEAKENING])
-    caps_and_stick_arrays(n_sliding, taxels, flags, phi, stick_damping, k, dt, slide_mask, share_weights,
-                          stick_damping_out)
+    caps_and_stick_arrays(n_sliding, taxels, flags, stick_damping, k, dt)
     return n_sliding
-
-
-def compile_kernels() -> None:
-    """Compile the kernels :class:`~slipstack.lib.rig.friction.BristleField` calls, or load
-    them from numba's cache (a few seconds the first time after an install, some
-    milliseconds after); the kernels they chain are compiled into them."""
-    n = 2
-    c = np.zeros(n, dtype=complex)
-    f = np.ones(n)
-    w = np.zeros((n, 2))
-    taxels = np.ones((N_TAXEL_ROWS, n))
-    flags = np.zeros((N_FLAG_ROWS, n), dtype=bool)
-    new_normal_forces(1.0, f, 1, 1.0, 1.0, 1e-3, taxels, flags, c.copy(), f.copy(), f.copy(), w.copy(), f.copy())
-    begin_step(taxels, flags, c, 1, 0j, 1.0, c, c, True, f, 1e-6, c.copy(), c.copy(), f.copy())
-    mid_step_check(0j, 1.0, c, 1, f, taxels, c.copy(), f.copy(), f.copy())
-    advance_step(c, f, c, c, 1e-3, 1, f, -1.0, taxels, c.copy(), c.copy())
-    end_step(1, c, c, f, c, f, 1.0, 1.0, 1e-3, 1e-3, taxels, flags, c.copy(), f.copy(), w.copy(), f.copy())

@@ -49,10 +49,11 @@ class Profile:
             return self._final if k == len(self._pieces) - 1 else v1
         if seg.kind == "ramp":
             a = tau / seg.duration_s
-            return tuple(x0 + a * (x1 - x0) for x0, x1 in zip(v0, v1))
+            return (v0[0] + a * (v1[0] - v0[0]), v0[1] + a * (v1[1] - v0[1]), v0[2] + a * (v1[2] - v0[2]))
         if seg.kind == "sine":
             s = math.sin(2.0 * math.pi * seg.frequency_hz * tau)
-            return tuple(x0 + amp * s for x0, amp in zip(v0, seg.amplitude))
+            amp = seg.amplitude
+            return (v0[0] + amp[0] * s, v0[1] + amp[1] * s, v0[2] + amp[2] * s)
         return v1
 
 

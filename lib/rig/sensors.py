@@ -22,6 +22,7 @@ import numpy as np
 
 from slipstack.lib.pad import PadGeometry
 from slipstack.lib.rig.scene import FtSpec, TactileSpec
+from slipstack.lib.rig import sensor_kernels
 from slipstack.lib.rig.sensor_kernels import tactile_counts
 from slipstack.lib.samples import FtSample, TactileSample
 
@@ -44,11 +45,14 @@ class FtSensorModel:
         self._px = pad.positions[:, 0].copy()
         self._py = pad.positions[:, 1].copy()
         self._rng = rng
-        self._noise = [spec.noise_force_N] * 3 + [spec.noise_torque_Nm] * 3
-        self._bias = list(spec.bias_force_N + spec.bias_torque_Nm)
-        self._res = [spec.resolution_force_N] * 3 + [spec.resolution_torque_Nm] * 3
-        self._range = list(spec.range_force_N + spec.range_torque_Nm)
-        self._quantised = min(self._res) > 0.0
+        res = [spec.resolution_force_N] * 3 + [spec.resolution_torque_Nm] * 3
+        if min(res) <= 0.0:  # quantised on every axis or on none
+            res = [0.0] * 6
+        self._constants = np.array([*spec.origin_m, math.cos(spec.yaw_rad), math.sin(spec.yaw_rad),
+                                    *spec.bias_force_N, *spec.bias_torque_Nm,
+                                    *[spec.noise_force_N] * 3, *[spec.noise_torque_Nm] * 3,
+                                    *res, *spec.range_force_N, *spec.range_torque_Nm])
+        """The reading's constants (lib/rig/sensor_kernels.py, ``N_FT_CONSTANTS``)."""
         self._cos, self._sin = math.cos(spec.yaw_rad), math.sin(spec.yaw_rad)
 
     def ideal_wrench(self, phi: np.ndarray, f_n: float, load_force: complex,
@@ -66,35 +70,19 @@ class FtSensorModel:
         Returns:
             ``(force_S, torque_S)``, three floats each, N and N·m.
         """
-        fx, fy, fz = load_force.real, load_force.imag, -f_n
-        # τ_F about the pad origin of the forces at p_i = (x_i, y_i, 0): the tangential
-        # parts give load_torque about z; the normals −φ_i ẑ give (−Σ y φ, Σ x φ, 0).
-        tx, ty, tz = -float(self._py @ phi), float(self._px @ phi), load_torque
-        sx, sy, sz = self.spec.origin_m
-        # τ_S = τ_F − p_S × f
-        tx -= sy * fz - sz * fy
-        ty -= sz * fx - sx * fz
-        tz -= sx * fy - sy * fx
-        c, s = self._cos, self._sin  # rotate F → S: by −yaw about z
-        return ([c * fx + s * fy, -s * fx + c * fy, fz], [c * tx + s * ty, -s * tx + c * ty, tz])
+        wrench = np.empty(6)
+        sensor_kernels.ideal_wrench(phi, self._px, self._py, f_n, load_force, load_torque, self._constants, wrench)
+        values = wrench.tolist()
+        return values[:3], values[3:]
 
     def measure(self, t_ns: int, seq: int, phi: np.ndarray, f_n: float, load_force: complex,
                 load_torque: float) -> FtSample:
         """A noisy, biased, quantised, range-limited reading (see :meth:`ideal_wrench`)."""
-        force, torque = self.ideal_wrench(phi, f_n, load_force, load_torque)
-        noise = self._rng.standard_normal(6).tolist()
-        out = []
-        saturated = False
-        for v, b, sd, res, lim, z in zip(force + torque, self._bias, self._noise, self._res,
-                                         self._range, noise):
-            v += b + sd * z
-            if self._quantised:
-                v = round(v / res) * res
-            if abs(v) > lim:
-                saturated = True
-                v = math.copysign(lim, v)
-            out.append(v)
-        return FtSample(t_ns, np.array(out[:3]), np.array(out[3:]), device_seq=seq, saturated=saturated)
+        noise = self._rng.standard_normal(6)
+        force, torque = np.empty(3), np.empty(3)
+        saturated = sensor_kernels.ft_reading(phi, self._px, self._py, f_n, load_force, load_torque,
+                                              self._constants, noise, force, torque)
+        return FtSample(t_ns, force, torque, device_seq=seq, saturated=saturated)
 
     def pad_load(self, force_S: np.ndarray, torque_S: np.ndarray) -> tuple[float, float, float, float]:
         """Map a reading to docs/math.md §1: returns ``(f_x N, f_y N, τ N·m, f_n N)`` in ``F``.

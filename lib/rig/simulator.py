@@ -31,7 +31,7 @@ import numpy as np
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.rig.actuator import FingerActuator
 from slipstack.lib.rig.body import PlanarBody
-from slipstack.lib.rig import bristle_kernels, pressure_kernels, sensor_kernels
+from slipstack.lib.rig import plant_kernel, pressure_kernels, sensor_kernels
 from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.disturbance import DisturbanceMotor
 from slipstack.lib.rig.friction import BristleField
@@ -49,8 +49,6 @@ rotation (they barely move), so the share never reaches exactly 1 there; below t
 threshold the contact is in partial slip (edges slipping, core sticking)."""
 MAX_OMEGA_DT = 1.0
 """Accuracy guard: the stiffest contact mode ``ω_c`` must satisfy ``ω_c·dt ≤ 1``."""
-_MAX_CAP_PASSES = 4
-"""Solves per step at most: the last one is taken even if a cap is still exceeded."""
 _COR_MIN_OMEGA = 1e-4
 """Below this rate (rad/s) the motion is reported as a translation: no COR."""
 _COR_MAX_DISTANCE = 1.0
@@ -178,8 +176,9 @@ class Simulator:
         self._body = PlanarBody(scene.object, scene.dof)
         self._pressure = PressureModel(scene.contact, pad, scene.object.pose)
         self._pressure.check_touches_pad(scene.finger.f_initial_N)
-        self._bristles = BristleField(scene.contact, pad.taxel_area_m2, self._dt, rng_friction,
-                                      pad.n_taxels)
+        self._bristles = BristleField(scene.contact, pad.taxel_area_m2, self._dt, rng_friction, self._P)
+        self._plant_constants = self._bristles.plant_constants(self._body.mass, self._body.inertia,
+                                                               self._body.free_mask)
         self._point0 = complex(*scene.disturbance.point_m)
         self._motor = DisturbanceMotor(scene.disturbance, self._point0, self._body.theta)
         self.ft = FtSensorModel(scene.ft, pad, rng_ft)
@@ -194,19 +193,9 @@ class Simulator:
         self._next_due_ns = 0  # the earliest next sample time of the clocks (ns)
         self._shape = None
         self._f_phi = math.nan
-        px, py = pad.positions[:, 0], pad.positions[:, 1]
-        self._lever4 = np.column_stack([np.ones_like(px), px, py, px * px + py * py])
-        # rows alternate (f_x, f_y) of taxel i as in complex128.view(float64)
-        self._lever_f = np.zeros((2 * pad.n_taxels, 3))
-        self._lever_f[0::2, 0] = 1.0
-        self._lever_f[1::2, 1] = 1.0
-        self._lever_f[0::2, 2] = -py
-        self._lever_f[1::2, 2] = px
-        self._sums_of: np.ndarray | None = None
-        self._d_sums = (0.0, 0j, 0.0)
+        self._contact_load = (0j, 0.0)  # (−Σ q_i N, −Σ p_i × q_i N·m) of the last step
         self._load = self._motor.load(0.0, self._point0, self._body.theta)
         self._motor_damping = self._motor.damping
-        self._load_cache: tuple[int, complex, float] = (-1, 0j, 0.0)
         self._has_support = scene.support.force_N > 0.0 or scene.support.torque_Nm > 0.0
         self._work = 0.0
         self._slip_distance = 0.0
@@ -299,7 +288,7 @@ class Simulator:
         point = body.body_point(self._point0)
         v_com = body.com_velocity
         force, torque = self._load
-        lf, lt = self._contact_load()
+        lf, lt = self._contact_load
         return Truth(
             stamp_ns=self._t_ns,
             x=body.origin.real, y=body.origin.imag, theta=body.theta,
@@ -334,7 +323,7 @@ class Simulator:
             if kind == "ft":  # a sensor faster than the step samples the held state n times
                 for k in range(n - 1, -1, -1):
                     out.append(self.ft.measure(t - k * clock.period_ns, clock.seq, self._bristles.phi, self._f_phi,
-                                               *self._contact_load()))
+                                               *self._contact_load))
                     clock.seq += 1
                 continue
             seq = clock.seq
@@ -344,22 +333,6 @@ class Simulator:
             else:
                 out.append(self.truth())
         self._next_due_ns = min(clock.next_ns for _, clock in self._clocks)
-
-    def _contact_load(self) -> tuple[complex, float]:
-        """Load on the object transmitted by the contact: ``(−Σ q_i, −Σ p_i × q_i)``."""
-        if self._load_cache[0] != self._t_ns:
-            fx, fy, tau = self._force_sums(self._bristles.q)
-            self._load_cache = (self._t_ns, complex(-fx, -fy), -tau)
-        return self._load_cache[1], self._load_cache[2]
-
-    def _damping_sums(self, D: np.ndarray) -> tuple[float, complex, float]:
-        """``(Σ D, Σ D p, Σ D |p|²)`` over the taxels, in one product."""
-        s, sx, sy, spp = (D @ self._lever4).tolist()
-        return s, complex(sx, sy), spp
-
-    def _force_sums(self, f: np.ndarray) -> tuple[float, float, float]:
-        """``(Σ f_x, Σ f_y, Σ p × f)`` of complex per-taxel forces, in one product."""
-        return tuple((f.view(np.float64) @ self._lever_f).tolist())
 
     def _update_pressure(self, f_n: float) -> None:
         body = self._body
@@ -373,38 +346,24 @@ class Simulator:
         self._bristles.set_normal_forces(max(f_n, 0.0), shape)
 
     def _step(self) -> None:
+        """One internal step: the finger and the pressure in Python, then the bristles
+        and the body in one compiled call (lib/rig/plant_kernel.py), then the books."""
         dt = self._dt
-        body, br, P = self._body, self._bristles, self._P
+        body = self._body
         self._update_pressure(self._finger.step(dt))
-        D, e = br.begin(body.origin_velocity, body.omega, P)
-        if D is not self._sums_of:  # Σ D terms are reused while the stick set is unchanged
-            self._sums_of = D
-            self._d_sums = self._damping_sums(D)
-        s, sp, spp = self._d_sums
-        s_rot = self._motor_damping[1]
         point = body.body_point(self._point0)
         force, torque = self._motor.load(self._t_ns * 1e-9, point, body.theta)
         self._load = (force, torque)
-        c = self._motor_damping[0]
-        s += c
-        sp += c * point
-        spp += c * (point.real**2 + point.imag**2)
-        ex, ey, et = self._force_sums(e)
-        f_total = complex(ex + force.real, ey + force.imag)
-        tau = et + (point.conjugate() * force).imag + torque
+        c, s_rot = self._motor_damping
+        s, sp, spp = c, c * point, c * (point.real * point.real + point.imag * point.imag)
         if self._has_support:
             s, sp, spp, s_rot = self._support(s, sp, spp, s_rot)
         ref = body.reference
-        for _ in range(_MAX_CAP_PASSES):
-            v_mid, w_mid = body.solve(dt, s, sp, spp, s_rot, f_total, tau)
-            v0_mid = v_mid - 1j * w_mid * ref  # mid velocity at the pad origin
-            u_avg, fixed = br.mid_velocity(v0_mid, w_mid, P, D)
-            if fixed is None:
-                break
-            ds, dsp, dspp = self._damping_sums(fixed - D)
-            s, sp, spp = s + ds, sp + dsp, spp + dspp
-            D = fixed
-        br.finish(D, e, u_avg)
+        v_mid, w_mid, f_q, tau_q = self._bristles.step(
+            self._plant_constants, ref, body.v_ref, body.omega, s, sp, spp, s_rot, force,
+            (point.conjugate() * force).imag + torque)
+        self._contact_load = (-f_q, -tau_q)
+        v0_mid = v_mid - 1j * w_mid * ref  # mid velocity at the pad origin
         v_point = v0_mid + 1j * w_mid * point
         self._work += dt * ((force.conjugate() * v_point).real + torque * w_mid)
         body.commit(dt, v_mid, w_mid)
@@ -457,11 +416,11 @@ class Simulator:
 
 
 def compile_kernels() -> None:
-    """Compile the rig's numba kernels (friction, pressure, tactile counts), or load them from the cache.
+    """Compile the rig's numba kernels (plant step, pressure, sensors), or load them from the cache.
 
     The rig node calls it in ``start``, so no scene pays it on its first slip or
     Hertzian re-shape; ``make`` and the test suite call it once after install.
     """
-    bristle_kernels.compile_kernels()
+    plant_kernel.compile_kernels()
     pressure_kernels.compile_kernels()
     sensor_kernels.compile_kernels()
