@@ -27,11 +27,14 @@ import numpy as np
 
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.pad import PadGeometry
-from slipstack.lib.rig.pressure_kernels import MAX_POINTS_PER_CELL, hertz_cell_means
+from slipstack.lib.rig.pressure_kernels import (
+    FOOTPRINT_DISC, FOOTPRINT_PAD, FOOTPRINT_RECT, MAX_POINTS_PER_CELL, footprint_cell_means, hertz_cell_means)
 from slipstack.lib.rig.scene import MAX_SUBSAMPLES, ContactSpec
 
 __all__ = ["PressureModel"]
 
+_FOOTPRINTS = {"pad": FOOTPRINT_PAD, "disc": FOOTPRINT_DISC, "rect": FOOTPRINT_RECT}
+"""The scene's ``contact.footprint`` → the kernel's code."""
 _SHAPE_FORCE_RTOL = 2e-3
 """Re-evaluate a force-dependent shape when f_n moved by more than this (relative);
 a Hertzian radius then moves by ≤ 0.07 %."""
@@ -122,11 +125,16 @@ class PressureModel:
         if self._attached:
             o0, th0 = self._pose0
             points = o0 + cmath.exp(1j * (th0 - theta)) * (points - origin)
-        if self._spec.model == "hertz":  # re-evaluated often (its shape follows f_n): compiled
+        spec = self._spec
+        if spec.model == "hertz":  # re-evaluated often (its shape follows f_n): compiled
             weights = np.empty(points.shape[0])
-            hertz_cell_means(points, complex(*self._spec.centre_m), self._hertz_radius(f_n), weights)
-        else:
-            weights = self._pressure(points, f_n).mean(axis=1)
+            hertz_cell_means(points, complex(*spec.centre_m), self._hertz_radius(f_n), weights)
+        elif spec.model == "edge":
+            weights = self._edge_pressure(points, f_n).mean(axis=1)
+        else:  # flat, offset: re-evaluated whenever an attached contact moves: compiled
+            weights = np.empty(points.shape[0])
+            footprint_cell_means(points, complex(*spec.centre_m), _FOOTPRINTS[spec.footprint], spec.radius_m,
+                                 *spec.half_size_m, spec.model == "offset", *spec.slope_per_m, weights)
         total = float(weights.sum())
         if total > 0.0:
             return weights / total
@@ -145,28 +153,13 @@ class PressureModel:
         spec = self._spec
         return spec.a_ref_m * (max(f_n, 0.0) / spec.f_ref_N) ** (1.0 / 3.0)
 
-    def _pressure(self, q: np.ndarray, f_n: float) -> np.ndarray:
-        """Unnormalised pressure at points ``q`` (complex, in the footprint's frame) of
-        the models other than hertz (see :func:`hertz_cell_means`)."""
+    def _edge_pressure(self, q: np.ndarray, f_n: float) -> np.ndarray:
+        """Unnormalised pressure of the edge model at points ``q`` (complex, in the
+        footprint's frame); the other models are compiled (lib/rig/pressure_kernels.py)."""
         spec = self._spec
         d = q - complex(*spec.centre_m)
-        if spec.model == "edge":
-            b = spec.b_ref_m * (max(f_n, 0.0) / spec.f_ref_N) ** 0.5
-            local = d * cmath.exp(-1j * spec.angle_rad)
-            across = (local.imag / b) ** 2 if b > 0 else np.full(d.shape, np.inf)
-            along = np.abs(local.real) <= spec.length_m / 2
-            return np.sqrt(np.clip(1.0 - across, 0.0, None)) * along
-        inside = self._footprint(d)
-        if spec.model == "offset":
-            slope = spec.slope_per_m[0] * d.real + spec.slope_per_m[1] * d.imag
-            return inside * np.clip(1.0 + slope, 0.0, None)
-        return inside.astype(float)
-
-    def _footprint(self, d: np.ndarray) -> np.ndarray:
-        spec = self._spec
-        if spec.footprint == "pad":
-            return np.ones(d.shape, dtype=bool)
-        if spec.footprint == "disc":
-            return np.abs(d) <= spec.radius_m
-        hx, hy = spec.half_size_m
-        return (np.abs(d.real) <= hx) & (np.abs(d.imag) <= hy)
+        b = spec.b_ref_m * (max(f_n, 0.0) / spec.f_ref_N) ** 0.5
+        local = d * cmath.exp(-1j * spec.angle_rad)
+        across = (local.imag / b) ** 2 if b > 0 else np.full(d.shape, np.inf)
+        along = np.abs(local.real) <= spec.length_m / 2
+        return np.sqrt(np.clip(1.0 - across, 0.0, None)) * along

@@ -6,7 +6,9 @@ under grip control that is often, and each evaluation samples ``s²`` points in 
 of the N taxel cells. This kernel does it in one pass with the rounding of the numpy
 code it replaced: the same element-wise expressions, and each cell's mean summed in
 numpy's pairwise order (:func:`numpy_pairwise_sum`), so the shapes are bit for bit
-those of numpy.
+those of numpy. :func:`footprint_cell_means` does the same for the flat and offset
+models (a uniform or sloped pressure over a pad, disc or rectangle footprint), which
+re-shape whenever an attached contact moves with the object.
 
 Positions are complex ``x + i·y`` (m) in the footprint's frame; pressures are
 relative (dimensionless, the shape is normalised by the caller).
@@ -19,9 +21,11 @@ import math
 import numpy as np
 from numba import njit
 
+from slipstack.lib.rig.bristle_kernels import complex_abs
 from slipstack.lib.weber import JIT
 
-__all__ = ["MAX_POINTS_PER_CELL", "compile_kernels", "hertz_cell_means", "numpy_pairwise_sum"]
+__all__ = ["MAX_POINTS_PER_CELL", "compile_kernels", "hertz_cell_means", "footprint_cell_means", "numpy_pairwise_sum",
+           "FOOTPRINT_PAD", "FOOTPRINT_DISC", "FOOTPRINT_RECT"]
 
 MAX_POINTS_PER_CELL = 128
 """numpy's PW_BLOCKSIZE: runs up to this long are summed in eight interleaved lanes (longer
@@ -81,6 +85,50 @@ def hertz_cell_means(points: np.ndarray, centre: complex, radius_m: float, out: 
         out[k] = numpy_pairwise_sum(row, n_points) / n_points
 
 
+FOOTPRINT_PAD, FOOTPRINT_DISC, FOOTPRINT_RECT = 0, 1, 2
+"""Footprints of :func:`footprint_cell_means`: the whole pad, a disc, a rectangle."""
+
+
+@njit(**JIT)
+def footprint_cell_means(points: np.ndarray, centre: complex, footprint: int, radius_m: float, half_x_m: float,
+                         half_y_m: float, sloped: bool, slope_x: float, slope_y: float, out: np.ndarray) -> None:
+    """Mean pressure of the flat and offset models over each cell's points.
+
+    At a point ``d = q − c`` from the centre: 1 inside the footprint (``|d| ≤ radius``
+    for a disc, ``|d_x| ≤ half_x`` and ``|d_y| ≤ half_y`` for a rectangle, everywhere
+    for the pad), 0 outside; ``sloped`` (the offset model) multiplies it by
+    ``max(1 + slope_x d_x + slope_y d_y, 0)``. The expressions and the order of each
+    cell's sum are numpy's, so the means are bit for bit those of the numpy code.
+
+    Args:
+        points: sample points, shape (N, s²) (complex, m), ``s² ≤ MAX_POINTS_PER_CELL``.
+        centre: footprint centre ``c`` (complex, m).
+        footprint: ``FOOTPRINT_PAD``, ``FOOTPRINT_DISC`` or ``FOOTPRINT_RECT``.
+        radius_m, half_x_m, half_y_m: the disc's radius, the rectangle's half sizes (m).
+        sloped, slope_x, slope_y: the offset model's slope (1/m).
+        out: receives the N cell means (dimensionless).
+    """
+    n_cells, n_points = points.shape
+    row = np.empty(n_points)
+    for k in range(n_cells):
+        for j in range(n_points):
+            d = points[k, j] - centre
+            if footprint == FOOTPRINT_DISC:
+                inside = complex_abs(d) <= radius_m
+            elif footprint == FOOTPRINT_RECT:
+                inside = abs(d.real) <= half_x_m and abs(d.imag) <= half_y_m
+            else:
+                inside = True
+            value = 1.0 if inside else 0.0
+            if sloped:
+                level = 1.0 + (slope_x * d.real + slope_y * d.imag)
+                value *= level if not level < 0.0 else 0.0  # np.clip(level, 0, None): NaN stays NaN
+            row[j] = value
+        out[k] = numpy_pairwise_sum(row, n_points) / n_points
+
+
 def compile_kernels() -> None:
     """Compile these kernels, or load them from numba's cache."""
     hertz_cell_means(np.zeros((2, 4), dtype=complex), 0j, 1e-3, np.empty(2))
+    footprint_cell_means(np.zeros((2, 4), dtype=complex), 0j, FOOTPRINT_RECT, 1e-3, 1e-3, 1e-3, True, 1.0, 1.0,
+                         np.empty(2))

@@ -1,6 +1,6 @@
-"""The compiled Hertzian pressure sampling against the numpy code it replaced.
+"""The compiled pressure sampling (hertz, flat, offset) against the numpy code it replaced.
 
-The kernel must give the shapes numpy gave, bit for bit: its per-cell mean sums in
+The kernels must give the shapes numpy gave, bit for bit: their per-cell mean sums in
 numpy's pairwise order. Hand-checked values, then hypothesis on random contacts.
 """
 
@@ -16,7 +16,9 @@ from hypothesis.extra import numpy as hnp
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.pad import PadGeometry
 from slipstack.lib.rig.contact import PressureModel
-from slipstack.lib.rig.pressure_kernels import MAX_POINTS_PER_CELL, hertz_cell_means, numpy_pairwise_sum
+from slipstack.lib.rig.pressure_kernels import (
+    FOOTPRINT_DISC, FOOTPRINT_PAD, FOOTPRINT_RECT, MAX_POINTS_PER_CELL, footprint_cell_means, hertz_cell_means,
+    numpy_pairwise_sum)
 from slipstack.lib.rig.scene import MAX_SUBSAMPLES, ContactSpec
 
 
@@ -85,3 +87,45 @@ def test_pressure_model_hertz_shape_is_the_numpy_formulas(f_n):
 def test_too_many_subsamples_is_a_clear_error():
     with pytest.raises(ConfigError, match="subsamples"):
         PressureModel(ContactSpec(model="hertz", subsamples=MAX_SUBSAMPLES + 1), PadGeometry(), (0.0, 0.0, 0.0))
+
+
+def _reference_footprint_means(points, centre, footprint, radius, half_size, slope):
+    """PressureModel._pressure(...).mean(axis=1) of 1637698 for the flat (slope None) and offset models."""
+    d = points - centre
+    if footprint == "pad":
+        inside = np.ones(d.shape, dtype=bool)
+    elif footprint == "disc":
+        inside = np.abs(d) <= radius
+    else:
+        inside = (np.abs(d.real) <= half_size[0]) & (np.abs(d.imag) <= half_size[1])
+    if slope is None:
+        return inside.astype(float).mean(axis=1)
+    level = slope[0] * d.real + slope[1] * d.imag
+    return (inside * np.clip(1.0 + level, 0.0, None)).mean(axis=1)
+
+
+_CODES = {"pad": FOOTPRINT_PAD, "disc": FOOTPRINT_DISC, "rect": FOOTPRINT_RECT}
+
+
+def test_footprint_cell_means_known_values():
+    points = np.array([[0j, 2e-3 + 0j], [1e-3 + 1e-3j, -3e-3j]])
+    out = np.empty(2)
+    footprint_cell_means(points, 0j, FOOTPRINT_DISC, 1.5e-3, 0.0, 0.0, False, 0.0, 0.0, out)
+    np.testing.assert_array_equal(out, [0.5, 0.5])  # |1+1j| mm = 1.41 mm is inside
+    footprint_cell_means(points, 0j, FOOTPRINT_RECT, 0.0, 2e-3, 1e-3, True, 100.0, 0.0, out)
+    np.testing.assert_array_equal(out, [(1.0 + 1.2) / 2, 1.1 / 2])  # 1 + 100·x inside, 0 outside
+    footprint_cell_means(points, 0j, FOOTPRINT_PAD, 0.0, 0.0, 0.0, True, 0.0, -1000.0, out)
+    np.testing.assert_array_equal(out, [1.0, (0.0 + 4.0) / 2])  # 1 − 1000·y, clipped at 0
+
+
+@given(st.integers(1, MAX_SUBSAMPLES), st.sampled_from(["pad", "disc", "rect"]), st.booleans(),
+       st.floats(-3e-3, 3e-3), st.floats(-3e-3, 3e-3), st.floats(0.0, 5e-3), st.floats(0.0, 5e-3),
+       st.floats(-500.0, 500.0), st.floats(-500.0, 500.0), st.integers(1, 6))
+def test_footprint_cell_means_match_the_numpy_formula(s, footprint, sloped, cx, cy, size, other, sx, sy, n_cells):
+    rng = np.random.default_rng(s * 11 + n_cells)
+    points = (rng.uniform(-4e-3, 4e-3, (n_cells, s * s)) + 1j * rng.uniform(-4e-3, 4e-3, (n_cells, s * s)))
+    out = np.empty(n_cells)
+    footprint_cell_means(points, complex(cx, cy), _CODES[footprint], size, size, other, sloped, sx, sy, out)
+    want = _reference_footprint_means(points, complex(cx, cy), footprint, size, (size, other),
+                                      (sx, sy) if sloped else None)
+    np.testing.assert_array_equal(out, want)
