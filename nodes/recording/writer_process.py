@@ -10,8 +10,10 @@ byte, the one an in-process writer makes of the same frames.
 
 Bounds and failures:
 
-* what waits is bounded by the batch and the pipe's buffer: a slow disk slows the
-  caller (a full pipe blocks its write), it never grows memory;
+* what waits is bounded by the batch and the pipe's buffer (raised to
+  :data:`PIPE_BYTES`, so the caller does not wait while the child writes a batch
+  into the file): a slow disk slows the caller (a full pipe blocks its write), it
+  never grows memory;
 * the caller stopping in any way (return, exception, Ctrl-C, ``kill -9``) closes the
   pipe, and the child then finishes the file (summary, index, footer); frames still
   in the caller's buffer at a ``kill -9`` are lost, as the chunk in progress would be;
@@ -26,18 +28,21 @@ length), the topic (UTF-8), the payload.
 from __future__ import annotations
 
 import argparse
+import fcntl
 import os
-import signal
 import struct
 import subprocess
 import sys
 from pathlib import Path
 from typing import BinaryIO
 
-__all__ = ["RecordingWriterProcess", "BATCH_BYTES", "main"]
+__all__ = ["RecordingWriterProcess", "BATCH_BYTES", "PIPE_BYTES", "main"]
 
 BATCH_BYTES = 256 * 1024
-"""Bytes of frames gathered before one write to the child (one pipe write per ~100 frames)."""
+"""Bytes of frames gathered before one write to the child (one pipe write per ~1 000 frames)."""
+PIPE_BYTES = 1024 * 1024
+"""The pipe's buffer, where Linux allows it (64 KiB by default: a batch would wait for the
+child to read three quarters of it, ~5 ms each time in ``fig15 --lockstep``)."""
 _RECORD = struct.Struct("<qHI")
 
 
@@ -54,8 +59,14 @@ class RecordingWriterProcess:
         command = [sys.executable, "-m", __name__, str(self.path)]
         if wall_minus_monotonic_ns is not None:
             command += ["--wall-minus-monotonic-ns", str(int(wall_minus_monotonic_ns))]
-        self._child = subprocess.Popen(command, stdin=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0)
+        # a session of its own: Ctrl-C in the terminal reaches the caller only, which then closes the pipe
+        self._child = subprocess.Popen(command, stdin=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0,
+                                       start_new_session=True)
         self._pipe: BinaryIO = self._child.stdin  # type: ignore[assignment]
+        try:
+            fcntl.fcntl(self._pipe.fileno(), fcntl.F_SETPIPE_SZ, PIPE_BYTES)
+        except (AttributeError, OSError):  # not Linux, or above /proc/sys/fs/pipe-max-size: the default
+            pass
         self._buffer = bytearray()
         self._topics: dict[str, bytes] = {}
         self._broken = False
@@ -110,25 +121,31 @@ class RecordingWriterProcess:
         self.close()
 
 
-def _copy_frames(source: BinaryIO, path: Path, wall_minus_monotonic_ns: int | None) -> int:
-    """Write every frame read from ``source`` until its end to ``path``; the frame count."""
+def _copy_frames(source: int, path: Path, wall_minus_monotonic_ns: int | None) -> int:
+    """Write every frame read from the descriptor ``source`` until its end to ``path``; the
+    frame count. It reads what the pipe holds, up to :data:`PIPE_BYTES` at a time."""
     from slipstack.nodes.recording.bag_io import RecordingWriter
 
     count = 0
+    pending = bytearray()
     with RecordingWriter(path, wall_minus_monotonic_ns=wall_minus_monotonic_ns) as writer:
-        while True:
-            head = source.read(_RECORD.size)
-            if len(head) < _RECORD.size:
-                if head:
-                    raise ValueError(f"the frames ended inside a record header after {count} frames")
-                return count
-            log_time_ns, topic_len, payload_len = _RECORD.unpack(head)
-            topic = source.read(topic_len)
-            payload = source.read(payload_len)
-            if len(topic) < topic_len or len(payload) < payload_len:
-                raise ValueError(f"the frames ended inside frame {count + 1}")
-            writer.write(topic.decode(), payload, log_time_ns)
-            count += 1
+        while chunk := os.read(source, PIPE_BYTES):
+            pending += chunk
+            view, at = memoryview(pending), 0
+            while len(pending) - at >= _RECORD.size:
+                log_time_ns, topic_len, payload_len = _RECORD.unpack_from(view, at)
+                end = at + _RECORD.size + topic_len + payload_len
+                if end > len(pending):
+                    break
+                topic = str(view[at + _RECORD.size:at + _RECORD.size + topic_len], "utf-8")
+                writer.write(topic, bytes(view[end - payload_len:end]), log_time_ns)
+                count += 1
+                at = end
+            view.release()
+            del pending[:at]
+    if pending:
+        raise ValueError(f"the frames ended inside a frame after {count} frames ({len(pending)} bytes left over)")
+    return count
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -141,9 +158,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--wall-minus-monotonic-ns", type=int, default=None,
                         help="the clock metadata to store (ns)")
     args = parser.parse_args(argv)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the parent, which then closes the pipe
     try:
-        _copy_frames(sys.stdin.buffer, args.path, args.wall_minus_monotonic_ns)
+        _copy_frames(sys.stdin.fileno(), args.path, args.wall_minus_monotonic_ns)
     except (OSError, ValueError) as exc:
         print(f"{type(exc).__name__}: {exc}", file=sys.stderr)
         return 1
