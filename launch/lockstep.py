@@ -11,9 +11,11 @@ command takes effect at the rig's next tick, as in a real-time launch.
 
 The monitor prints the same summary and writes the same ``check.json``; the recorder
 entry of the plan writes the frames of its topics to its ``path`` as they are
-published, with the simulated publication time as log time (ns from the run's start).
-With ``SLIPSTACK_STAGE_CPU=1`` the run ends with each node's CPU (its handlers, encoding
-and the recording of its frames; ``lockstep``: the executor's own loop), and every
+published, with the simulated publication time as log time (ns from the run's start),
+through a writer in a child process (``nodes/recording/writer_process.py``: the MCAP
+work runs on another core). With ``SLIPSTACK_STAGE_CPU=1`` the run ends with each node's
+CPU (its handlers, the encoding of its frames and their hand-over to the writer;
+``lockstep``: the executor's own loop), and every
 ``diagnostics`` carries the ``cpu.<stage>_us`` counters (``nodes/runtime/stage_cpu.py``).
 A message a node publishes reaches its in-process subscribers as one shared object and
 is encoded only for the recording (``nodes/runtime/inprocess.py``).
