@@ -65,6 +65,7 @@ from slipstack.lib.weber import (
     STEP_STALLED,
     fill_distances,
     geometric_median,
+    kernel_input,
     newton_step,
     normalise_contact,
     step_converged,
@@ -189,7 +190,7 @@ def load_factor(
         return _none(SolverStatus.INVALID_INPUT)
     given, c0x, c0y = _warm_point(c0)
     (branch, taxel, ox, oy, L, f_n, cap, gt, n_bar, tn, s, lever, sig2, outcome, cx, cy, gamma, T, n_s, it,
-     residual) = _solve(np.ascontiguousarray(pos), np.ascontiguousarray(ph_all), fx, fy, tau, float(mu), math.hypot(fx, fy),
+     residual) = _solve(kernel_input(pos), kernel_input(ph_all), fx, fy, tau, float(mu), math.hypot(fx, fy),
                         given, c0x, c0y, float(xtol), int(max_iter))
     if branch == _SOLVED:
         if not math.isfinite(gamma):  # the ratio overflows on the way (a load ~1e308 times the capacity)
@@ -469,26 +470,15 @@ def torsional_coefficient(
 
 def compile_kernels() -> None:
     """Compile the numba kernels of :func:`load_factor` and the Weber solver, or load
-    them from the cache (about 0.3 s; 5 s the first time after an install).
+    them from the cache (about 0.05 s; 5 s the first time after an install).
 
     Nodes call it in ``start`` (before they report ready), so their first frame runs at full
-    speed; building a node object (the launcher does, to check parameters) does not.
-    numba keeps one specialisation per argument type, and a read-only array is a type of
-    its own: nodes pass read-only pressures and positions (decoded message buffers,
-    fusion's frozen arrays, the cached pad geometry) and writable ones (pooled or
-    selected taxels), so every kernel is loaded for each mix of the two.
+    speed; building a node object (the launcher does, to check parameters) does not. The
+    kernels take every array read-only (:func:`~slipstack.lib.weber.kernel_input`), so one
+    specialisation each is all a node can need.
     """
     square = np.array([[0.0, 0.0], [1e-3, 0.0], [0.0, 1e-3], [1e-3, 1e-3]])
     weights = np.array([1.0, 2.0, 3.0, 4.0])
-    for positions in _writable_and_read_only(square):
-        for phi in _writable_and_read_only(weights):
-            load_factor(phi, positions, (0.1, 0.2), 1e-4, 0.5, c0=(5e-4, 5e-4))  # Dinkelbach, warm
-            load_factor(phi, positions, (0.1, 0.2), 1e-4, 0.5)  # Dinkelbach, ray start
-            torsional_coefficient(phi, positions, 0.5)  # the Weber solver
-
-
-def _writable_and_read_only(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``a`` and a read-only copy of it."""
-    frozen = a.copy()
-    frozen.setflags(write=False)
-    return a, frozen
+    load_factor(weights, square, (0.1, 0.2), 1e-4, 0.5, c0=(5e-4, 5e-4))  # Dinkelbach, warm
+    load_factor(weights, square, (0.1, 0.2), 1e-4, 0.5)  # Dinkelbach, ray start
+    torsional_coefficient(weights, square, 0.5)  # the Weber solver

@@ -464,3 +464,22 @@ def test_a_capacity_that_underflows_is_refused_not_divided_by():
     square = np.array([[0.0, 0.0], [1e-3, 0.0], [0.0, 1e-3], [1e-3, 1e-3]])
     res = load_factor(np.full(4, 5e-324), square, (0.0, 0.0), 5e-324, 0.5)
     assert res.status is SolverStatus.INVALID_INPUT
+
+
+def test_the_solvers_kernels_have_one_specialisation_whatever_arrays_they_are_given():
+    """A read-only array is a numba type of its own; the kernels take every array read-only
+    (``kernel_input``), so a node passing writable pooled taxels loads no second specialisation."""
+    from slipstack.lib import limit_set, weber
+
+    square = np.array([[0.0, 0.0], [1e-3, 0.0], [0.0, 1e-3], [1e-3, 1e-3]])
+    weights = np.array([1.0, 2.0, 3.0, 4.0])
+    frozen_square, frozen_weights = square.copy(), weights.copy()
+    frozen_square.setflags(write=False)
+    frozen_weights.setflags(write=False)
+    for positions in (square, frozen_square, square[::-1]):
+        for phi in (weights, frozen_weights, weights.astype(np.float32)):
+            assert limit_set.load_factor(phi, positions, (0.1, 0.2), 1e-4, 0.5).gamma > 0
+            assert limit_set.torsional_coefficient(phi, positions, 0.5).beta_m > 0
+    assert len(limit_set._solve.signatures) == 1, limit_set._solve.signatures
+    assert len(weber._solve_kernel.signatures) == 1, weber._solve_kernel.signatures
+    assert square.flags.writeable and weights.flags.writeable  # the callers' arrays are left as they were
