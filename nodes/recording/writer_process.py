@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import fcntl
 import os
+import signal
 import struct
 import subprocess
 import sys
@@ -127,8 +128,12 @@ class RecordingWriterProcess:
                 raise RecordingError(f"the recording {self.path} ends before the frames its last, interrupted "
                                      "write held (Ctrl-C or another signal while its writer was busy); "
                                      "the frames before are intact")
+            code = self._child.returncode
+            if code < 0:  # e.g. the OOM killer, or kill -9 on the wrong process
+                raise RecordingError(f"the recording {self.path} may be incomplete: its writer was killed by "
+                                     f"{signal.Signals(-code).name}; run again to record the whole run")
             raise RecordingError(f"the recording {self.path} may be incomplete: its writer failed "
-                                 f"({reason or f'exit code {self._child.returncode}'})")
+                                 f"({reason or f'exit code {code}'})")
 
     def __enter__(self) -> "RecordingWriterProcess":
         return self

@@ -60,6 +60,18 @@ def test_a_child_that_cannot_write_fails_the_close_with_its_reason_and_the_calle
     writer.close()  # idempotent: reported once
 
 
+
+def test_a_killed_child_fails_the_close_naming_the_signal_and_the_caller_goes_on(tmp_path):
+    import signal
+
+    writer = RecordingWriterProcess(tmp_path / "run.mcap")
+    os.kill(writer._child.pid, signal.SIGKILL)
+    for topic, payload, t in frames(1500):  # several batches into a pipe nobody reads: dropped, not raised
+        writer.write(topic, payload, t)
+    with pytest.raises(RecordingError, match=r"run\.mcap may be incomplete: its writer was killed by SIGKILL"):
+        writer.close()
+
+
 CALLER = textwrap.dedent("""
     import os, signal, sys
     import numpy as np
