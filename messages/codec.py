@@ -155,14 +155,19 @@ def packb(obj: Any) -> bytes:
     """Encode a tree of builtins and numpy arrays to MessagePack bytes.
 
     Each thread reuses one packer (``msgpack.packb`` builds one per call, ~0.4 µs); a
-    failed call leaves it empty (msgpack resets it), so the next starts clean, and no
-    call re-enters it (its only callback, ``_default``, packs nothing itself).
+    failed call lets it go (its buffer may have grown before the failure), so the next
+    starts clean, and no call re-enters it (its only callback, ``_default``, packs
+    nothing itself).
     """
     try:
         packer = _thread.packer
-    except AttributeError:  # this thread's first frame, or the first after a large one
+    except AttributeError:  # this thread's first frame, or the first after a large or failed one
         packer = _thread.packer = msgpack.Packer(default=_default, use_bin_type=True)
-    payload = packer.pack(obj)
+    try:
+        payload = packer.pack(obj)
+    except BaseException:
+        del _thread.packer
+        raise
     if len(payload) > _PACKER_KEPT_BYTES:
         del _thread.packer
     return payload

@@ -72,11 +72,11 @@ def _make_table(poly: int, reflected_table: bool) -> tuple[int, ...]:
 @njit(**JIT)
 def _table_crc(data: np.ndarray, table: np.ndarray, crc: int, reflected_update: bool) -> int:
     """The register after *data* (uint8) from *crc*, one table step per byte (module docstring)."""
-    if reflected_update:
-        for b in data:
+    for byte in data:
+        b = int(byte)  # interpreted (NUMBA_DISABLE_JIT=1), numpy's uint8 would take crc's width
+        if reflected_update:
             crc = (crc >> 8) ^ table[(crc ^ b) & 0xFF]
-    else:
-        for b in data:
+        else:
             crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ b) & 0xFF]
     return crc
 

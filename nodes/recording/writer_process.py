@@ -16,7 +16,8 @@ Bounds and failures:
   never grows memory;
 * the caller stopping in any way (return, exception, Ctrl-C, ``kill -9``) closes the
   pipe, and the child then finishes the file (summary, index, footer); frames still
-  in the caller's buffer at a ``kill -9`` are lost, as the chunk in progress would be;
+  in the caller's buffer at a ``kill -9``, or in a write that Ctrl-C interrupts, are
+  lost, as the chunk in progress would be (the latter is reported by ``close``);
 * the child failing (disk full, a folder it may not write) does not stop the caller:
   later frames are dropped, and :meth:`RecordingWriterProcess.close` raises
   :class:`~slipstack.nodes.recording.bag_io.RecordingError` with the child's reason.
@@ -30,6 +31,7 @@ from __future__ import annotations
 import argparse
 import fcntl
 import os
+import signal
 import struct
 import subprocess
 import sys
@@ -70,6 +72,7 @@ class RecordingWriterProcess:
         self._buffer = bytearray()
         self._topics: dict[str, bytes] = {}
         self._broken = False
+        self._interrupted = False  # a write was cut short: nothing more is sent (see _send)
         self.closed = False
 
     def write(self, topic: str, payload: bytes, log_time_ns: int) -> None:
@@ -85,11 +88,21 @@ class RecordingWriterProcess:
             self._send()
 
     def _send(self) -> None:
-        if not self._broken:
+        """Send the buffer down the pipe (a blocking write: it returns once every byte is in).
+
+        A write a signal interrupts (Ctrl-C while the child is slow) may have put part of
+        the buffer in the pipe, and how much is unknown (the handler's exception comes
+        before the count): nothing more is sent then, as if the caller had been killed, so
+        the child keeps every whole frame before the cut and drops the one it splits."""
+        if not self._broken and not self._interrupted:
             try:
-                self._pipe.write(self._buffer)  # a blocking pipe: returns once every byte is in
+                self._pipe.write(self._buffer)
             except BrokenPipeError:  # the child failed: close() says why
                 self._broken = True
+            except BaseException:
+                self._interrupted = True
+                self._buffer.clear()
+                raise
         self._buffer.clear()
 
     def close(self) -> None:
@@ -108,11 +121,19 @@ class RecordingWriterProcess:
             self._broken = True
         reason = self._child.stderr.read().decode(errors="replace").strip()  # type: ignore[union-attr]
         self._child.stderr.close()  # type: ignore[union-attr]
-        if self._child.wait() != 0 or self._broken:
+        if self._child.wait() != 0 or self._broken or self._interrupted:
             from slipstack.nodes.recording.bag_io import RecordingError
 
+            if self._interrupted:
+                raise RecordingError(f"the recording {self.path} ends before the frames its last, interrupted "
+                                     "write held (Ctrl-C or another signal while its writer was busy); "
+                                     "the frames before are intact")
+            code = self._child.returncode
+            if code < 0:  # e.g. the OOM killer, or kill -9 on the wrong process
+                raise RecordingError(f"the recording {self.path} may be incomplete: its writer was killed by "
+                                     f"{signal.Signals(-code).name}; run again to record the whole run")
             raise RecordingError(f"the recording {self.path} may be incomplete: its writer failed "
-                                 f"({reason or f'exit code {self._child.returncode}'})")
+                                 f"({reason or f'exit code {code}'})")
 
     def __enter__(self) -> "RecordingWriterProcess":
         return self

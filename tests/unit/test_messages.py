@@ -174,3 +174,27 @@ def test_a_message_is_built_as_its_dataclass_declares_it():
         GripCommand(1.0, "a", "b", Header())  # the header is keyword-only
     with pytest.raises(TypeError):
         GripCommand(force=1.0)
+
+
+def test_a_large_frame_that_cannot_be_encoded_leaves_no_grown_buffer_behind():
+    """A thread's packer whose buffer a large frame grew is let go even when that frame's
+    encoding fails half-way (after its 32 MB array, on a value it cannot encode): the
+    thread keeps none of the ~64 MB the buffer grew to."""
+    import gc
+    import tracemalloc
+
+    from slipstack.messages.codec import packb
+
+    large = np.zeros(4_000_000)  # 32 MB
+    packb([1])  # this thread's packer exists before the measurement
+    tracemalloc.start()
+    try:
+        before = tracemalloc.get_traced_memory()[0]
+        with pytest.raises(TypeError, match="cannot encode object"):
+            packb([large, object()])
+        gc.collect()
+        held = tracemalloc.get_traced_memory()[0] - before
+    finally:
+        tracemalloc.stop()
+    assert held < 1_000_000, f"{held / 1e6:.1f} MB kept after a failed large frame"
+    assert packb([1.5, "z"]) == b"\x92\xcb?\xf8\x00\x00\x00\x00\x00\x00\xa1z"  # the next frame starts clean

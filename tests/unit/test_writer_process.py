@@ -60,6 +60,18 @@ def test_a_child_that_cannot_write_fails_the_close_with_its_reason_and_the_calle
     writer.close()  # idempotent: reported once
 
 
+
+def test_a_killed_child_fails_the_close_naming_the_signal_and_the_caller_goes_on(tmp_path):
+    import signal
+
+    writer = RecordingWriterProcess(tmp_path / "run.mcap")
+    os.kill(writer._child.pid, signal.SIGKILL)
+    for topic, payload, t in frames(1500):  # several batches into a pipe nobody reads: dropped, not raised
+        writer.write(topic, payload, t)
+    with pytest.raises(RecordingError, match=r"run\.mcap may be incomplete: its writer was killed by SIGKILL"):
+        writer.close()
+
+
 CALLER = textwrap.dedent("""
     import os, signal, sys
     import numpy as np
@@ -108,3 +120,48 @@ def test_ctrl_c_reaches_the_caller_not_the_child_and_the_recording_is_complete(t
                           text=True, start_new_session=True)  # its own group: the SIGINT stays in there
     assert done.stdout.strip() == "closed after Ctrl-C", done.stderr
     assert [f.log_time_ns for f in read_recording(path, tolerant=False)] == list(range(4000))
+
+
+INTERRUPTED_WRITE = textwrap.dedent("""
+    import os, signal, sys, threading, time
+    from slipstack.nodes.recording.bag_io import RecordingError
+    from slipstack.nodes.recording.writer_process import RecordingWriterProcess
+
+    writer = RecordingWriterProcess(sys.argv[1])
+    os.kill(writer._child.pid, signal.SIGSTOP)  # a stalled disk: the pipe fills and a batch write blocks
+    def interrupt_then_resume():
+        time.sleep(1.0)
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.5)
+        os.kill(writer._child.pid, signal.SIGCONT)
+    threading.Thread(target=interrupt_then_resume, daemon=True).start()
+    sent = 0
+    try:
+        for k in range(200_000):
+            writer.write("t", k.to_bytes(8, "little") * 100, k)
+            sent = k + 1
+    except KeyboardInterrupt:
+        pass
+    try:
+        writer.close()
+    except RecordingError as exc:
+        print(exc, file=sys.stderr)
+    print(sent)
+""")
+
+
+def test_ctrl_c_during_a_blocked_write_loses_no_frame_and_repeats_none(tmp_path):
+    """Ctrl-C while the caller waits in a write to a full pipe (the child slow): the batch
+    in flight may be partly in the pipe, by an unknown count. The recording must be a
+    finished file of whole frames, each once and in order, from the first on, and the
+    close must say that it ends at the interrupted write."""
+    path = tmp_path / "blocked.mcap"
+    done = subprocess.run([sys.executable, "-c", INTERRUPTED_WRITE, str(path)], timeout=120,
+                          capture_output=True, text=True, start_new_session=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    sent = int(done.stdout)
+    got = list(read_recording(path, tolerant=False))
+    assert [f.log_time_ns for f in got] == list(range(len(got)))
+    assert 0 < len(got) <= sent + 1  # the frame being appended when Ctrl-C came may be in too
+    assert all(f.payload == f.log_time_ns.to_bytes(8, "little") * 100 for f in got)
+    assert "interrupted" in done.stderr and str(path) in done.stderr
