@@ -115,21 +115,25 @@ class LockstepRun:
         self.stage_cpu = stage_cpu_from_env("lockstep")
         nodes: list[Node] = []
         names: list[str] = []
-        for name in self.plan.node_order():
-            entry = self.plan.nodes[name].entry
-            node = entry.instance()
-            tapped = tapped_topics(node)
-            if tapped is not None:
-                self.recordings.append(_Recording(Path(node.params.path), tapped))
-                echo(f"[{name}] recording to {node.params.path}")
-                continue
-            nodes.append(node)
-            names.append(name)
-        self.executor = InProcessExecutor(
-            nodes, names=names, remaps={e.name: e.remap for e in launch.nodes},
-            diagnostics_period_s=DIAGNOSTICS_PERIOD_S, keep_published=keep_published, on_frame=self._on_frame,
-            on_frame_topics=self._recorded_topics(), log=echo, stage_cpu=self.stage_cpu,
-            io_changes=host_side_changes)
+        try:  # a recording's writer already started is finished (and its child process ended) if the rest fails
+            for name in self.plan.node_order():
+                entry = self.plan.nodes[name].entry
+                node = entry.instance()
+                tapped = tapped_topics(node)
+                if tapped is not None:
+                    self.recordings.append(_Recording(Path(node.params.path), tapped))
+                    echo(f"[{name}] recording to {node.params.path}")
+                    continue
+                nodes.append(node)
+                names.append(name)
+            self.executor = InProcessExecutor(
+                nodes, names=names, remaps={e.name: e.remap for e in launch.nodes},
+                diagnostics_period_s=DIAGNOSTICS_PERIOD_S, keep_published=keep_published, on_frame=self._on_frame,
+                on_frame_topics=self._recorded_topics(), log=echo, stage_cpu=self.stage_cpu,
+                io_changes=host_side_changes)
+        except BaseException:
+            self._close_recordings()
+            raise
         self.required = [e.name for e in launch.nodes if e.required and e.name in names]
         self.end_ns = round(launch.duration_s * 1e9) if launch.duration_s > 0 else None
 

@@ -54,7 +54,7 @@ from slipstack.lib.cor import CorResult, paper_cor, robust_cor
 from slipstack.lib.defaults import MU
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.limit_set import load_factor, torsional_coefficient
-from slipstack.lib.status import CorSolver, SlipCase, SlipState, SolverStatus
+from slipstack.lib.status import SlipCase, SlipState, SolverStatus
 
 __all__ = [
     "ContactLike",

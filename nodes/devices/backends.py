@@ -47,7 +47,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from enum import Enum
-from typing import Callable, ClassVar, Union
+from typing import ClassVar, Union
 from urllib.parse import parse_qs, urlsplit
 
 import numpy as np

@@ -4,6 +4,7 @@ on real devices is refused with what to do instead."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -117,3 +118,36 @@ def test_a_lockstep_recording_it_cannot_write_is_refused_before_the_run(tmp_path
     out, err = capsys.readouterr()
     assert "cannot write the recording" in err and "in a folder you may write" in err
     assert "simulated in" not in out  # refused before the run
+
+
+def _writer_children() -> list[int]:
+    """This process's children that are recording writers (from /proc)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        try:
+            stat = (entry / "stat").read_text()
+            cmdline = (entry / "cmdline").read_bytes()
+        except (OSError, ValueError):
+            continue
+        if int(stat.rsplit(")", 1)[1].split()[1]) == os.getpid() and b"writer_process" in cmdline:
+            found.append(int(entry.name))
+    return found
+
+
+def test_a_run_interrupted_while_it_is_built_finishes_its_recording_and_its_writer(tmp_path: Path, monkeypatch) -> None:
+    """Ctrl-C after the recording's writer started but before the run exists (here: while the
+    executor is built) leaves a finished, empty recording and no writer process behind."""
+    from slipstack.launch import lockstep
+    from slipstack.launch.launch_file import SIM_ARG, load_launch_file
+    from slipstack.nodes.devices.sim_link import SIM_PREFIX
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    path = tmp_path / "take.mcap"
+    launch = load_launch_file("fig15", {"recording": str(path)}, builtins={"run_dir": str(tmp_path), SIM_ARG: SIM_PREFIX})
+    monkeypatch.setattr(lockstep, "InProcessExecutor", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        lockstep.LockstepRun(launch, tmp_path, echo=lambda line: None)
+    assert list(read_recording(path, tolerant=False)) == []  # finished: summary and footer written
+    assert _writer_children() == []
