@@ -312,7 +312,7 @@ def fuse_shape(
         f_list, t_list = f3.tolist(), t3.tolist()
     if not shape.valid or f_list is None or not _all_finite(f_list + t_list):
         n = pad.n_taxels
-        return _empty(pad, np.zeros(n), np.zeros(n, dtype=bool), 0, 0, 0, offset, SolverStatus.INVALID_INPUT)
+        return _empty(pad, np.zeros(n), np.zeros(n, dtype=bool), 0, 0, 0, 0, offset, SolverStatus.INVALID_INPUT)
     if mount is not None:
         f3, t3 = wrench_to_pad(f3, t3, np.asarray(mount.R_FS), np.asarray(mount.p_SF))
         f_list, t_list = f3.tolist(), t3.tolist()
@@ -322,8 +322,8 @@ def fuse_shape(
     f_n = -f_z
     if not (f_n > thresholds.min_normal_force_n and shape.pressure_sum_pa > thresholds.min_pressure_sum_pa
             and shape.shape_sum > 0.0):
-        return _empty(pad, np.zeros(pad.n_taxels), shape.mask, *counts, offset, SolverStatus.NO_CONTACT,
-                      f_t=(f_x, f_y), tau=tau)
+        return _empty(pad, np.zeros(pad.n_taxels), shape.mask, shape.n_contact, *counts, offset,
+                      SolverStatus.NO_CONTACT, f_t=(f_x, f_y), tau=tau)
     phi = shape.shape * (f_n / shape.shape_sum)
     status = SolverStatus.CLIPPED_INPUT if (shape.n_nonfinite or shape.n_negative) else SolverStatus.OK
     return _result(pad, phi, np.array((f_x, f_y)), tau, shape.cop, shape.mask, shape.n_contact, *counts, offset,
@@ -397,7 +397,8 @@ def _result(pad, phi, f_t, tau, cop, mask, n_contact, n_nonfinite, n_negative, n
     )
 
 
-def _empty(pad, zeros, mask, n_nonfinite, n_negative, n_sat, offset, status, f_t=None, tau=0.0) -> FusionResult:
+def _empty(pad, zeros, mask, n_contact, n_nonfinite, n_negative, n_sat, offset, status, f_t=None,
+           tau=0.0) -> FusionResult:
     ft = np.zeros(2) if f_t is None else np.array(f_t, dtype=float)
-    return _result(pad, zeros, ft, tau, np.zeros(2), mask.copy(), int(np.count_nonzero(mask)), n_nonfinite,
-                   n_negative, n_sat, offset, status)
+    return _result(pad, zeros, ft, tau, np.zeros(2), mask.copy(), n_contact, n_nonfinite, n_negative, n_sat, offset,
+                   status)
