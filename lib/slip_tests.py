@@ -256,6 +256,11 @@ def _ft_verdict(ratios: tuple[SolverStatus, float, float], params: SlipParams, m
     return _verdict(gamma, rho, params, status, None, method)
 
 
+def _ft_test(contact: ContactLike, params: SlipParams, method: str) -> SlipVerdict:
+    """The verdict of the F/T test with β ``method`` on ``contact``."""
+    return _ft_verdict(_ft_ratios(contact, params, _ft_load(contact, params)), params, method)
+
+
 def ft_stick_margins(contact: ContactLike, params: SlipParams, methods: Sequence[str]) -> list[tuple[bool, float]]:
     """``(stick, margin)`` of each F/T test named in ``methods`` (:data:`FT_TESTS`),
     as in the verdict its own function returns, from one evaluation of the load and the
@@ -288,17 +293,17 @@ _COULOMB_JUDGES = (SolverStatus.OK, SolverStatus.NO_LOAD)
 
 def decoupled(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
     """Decoupled test (Fig. 5d): ``|f_t| ≤ μ f_n`` and ``|τ| ≤ β f_n``."""
-    return _ft_verdict(_ft_ratios(contact, params, _ft_load(contact, params)), params, "decoupled")
+    return _ft_test(contact, params, "decoupled")
 
 
 def linear_ls(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
     """Linear limit surface (5): ``|f_t|/μ + |τ|/β ≤ f_n``."""
-    return _ft_verdict(_ft_ratios(contact, params, _ft_load(contact, params)), params, "linear_ls")
+    return _ft_test(contact, params, "linear_ls")
 
 
 def elliptic_ls(contact: ContactLike, params: SlipParams, warm_start=None) -> SlipVerdict:
     """Elliptical limit surface (6): ``f_t²/μ² + τ²/β² ≤ f_n²``."""
-    return _ft_verdict(_ft_ratios(contact, params, _ft_load(contact, params)), params, "elliptic_ls")
+    return _ft_test(contact, params, "elliptic_ls")
 
 
 _FT_COMBINE: dict[str, Callable[[float, float], float]] = {
