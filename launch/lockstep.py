@@ -30,7 +30,6 @@ descriptors to wait on), and a run with no end (no ``required`` node, no duratio
 
 from __future__ import annotations
 
-import os
 import tempfile
 import time
 from pathlib import Path
@@ -41,7 +40,7 @@ from slipstack.launch.launch_file import SIM_ARG, LaunchFile, load_launch_file
 from slipstack.launch.plan import LaunchPlan, plan_launch, tapped_topics
 from slipstack.nodes.device_driver import DeviceDriver
 from slipstack.nodes.devices.sim_link import SIM_PREFIX, host_side_changes, is_simulated
-from slipstack.nodes.recording.bag_io import RecordingError
+from slipstack.nodes.recording.bag_io import RecordingError, claim_recording_path
 from slipstack.nodes.recording.writer_process import RecordingWriterProcess
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.nodes.runtime.node import Node
@@ -80,15 +79,7 @@ class _Recording:
     in a child process (the MCAP work runs on another core)."""
 
     def __init__(self, path: Path, topics: set[str]) -> None:
-        try:  # the file is made here, so a path that cannot be written fails before the run, not after it
-            path.parent.mkdir(parents=True, exist_ok=True)
-            open(path, "xb").close()  # never overwrite a recording (or write through a link)
-        except OSError as exc:
-            if os.path.lexists(path):
-                raise ConfigError(f"recording {path} exists; pass recording:=NEW.mcap (or path:=NEW.mcap) "
-                                  "or delete it") from None
-            raise ConfigError(f"cannot write the recording {path} ({exc.strerror}); pass recording:=PATH "
-                              "in a folder you may write") from None
+        claim_recording_path(path)  # before the run: an unwritable or existing path fails now
         self.topics = topics
         self.writer = RecordingWriterProcess(path, wall_minus_monotonic_ns=0)
 

@@ -42,7 +42,7 @@ from mcap.reader import SeekingReader
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import MCAP0_MAGIC, CompressionType, Writer
 
-from slipstack.lib.errors import DecodeError, SlipstackError
+from slipstack.lib.errors import ConfigError, DecodeError, SlipstackError
 from slipstack.messages import Message, decode, registry
 from slipstack.messages.base import declared_bounds
 from slipstack.messages.frame import FrameHeader, SeqTracker, peek_header, publisher_key
@@ -51,7 +51,7 @@ from slipstack.nodes.runtime.node import Node
 
 __all__ = [
     "SCHEMA_ENCODING", "MESSAGE_ENCODING", "CLOCK_METADATA", "RecordingError", "RecordedFrame",
-    "RecordingWriter", "read_recording", "TopicInfo", "RecordingInfo", "recording_info",
+    "RecordingWriter", "claim_recording_path", "read_recording", "TopicInfo", "RecordingInfo", "recording_info",
     "message_schema", "clock_offset_ns", "recorded_clock_offset_ns",
     "replay_into", "same_output", "match_outputs",
 ]
@@ -123,6 +123,25 @@ def message_schema(cls: type[Message]) -> dict[str, Any]:
 
 
 # -- writing ------------------------------------------------------------------------------
+
+def claim_recording_path(path: Path) -> None:
+    """Create the empty file ``path`` (and its folders) for a new recording, before anything
+    is recorded, so that a path that cannot be written fails at once rather than after a run.
+
+    Raises:
+        ConfigError: ``path`` exists (a recording is never overwritten, nor written through a
+            link), or cannot be written; the message says what to do.
+    """
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        open(path, "xb").close()
+    except OSError as exc:
+        if os.path.lexists(path):
+            raise ConfigError(f"recording {path} exists; pass recording:=NEW.mcap (or path:=NEW.mcap) "
+                              "or delete it") from None
+        raise ConfigError(f"cannot write the recording {path} ({exc.strerror}); pass recording:=PATH "
+                          "in a folder you may write") from None
+
 
 class RecordingWriter:
     """Write frames to an MCAP file (see the module docstring for the layout).

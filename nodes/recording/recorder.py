@@ -29,7 +29,7 @@ import zmq
 
 from slipstack.lib.errors import ConfigError
 from slipstack.messages.frame import SeqTracker, peek_header, publisher_key
-from slipstack.nodes.recording.bag_io import RecordingWriter
+from slipstack.nodes.recording.bag_io import RecordingWriter, claim_recording_path
 from slipstack.nodes.runtime.curve import secure_connect
 from slipstack.nodes.runtime.graph_info import (RUN_DIR_ENV, find_run_dir, read_graph, time_base_clock,
                                                 topic_endpoints)
@@ -190,8 +190,7 @@ class Recorder(Node):
     def start(self, ctx: Context) -> None:
         p = self.params
         path = Path(p.path) if p.path else default_output_path()
-        if os.path.lexists(path):  # never overwrite a recording (or write through a link)
-            raise ConfigError(f"recording {path} exists; pass recording:=NEW.mcap (or path:=NEW.mcap) or delete it")
+        claim_recording_path(path)  # never overwrites a recording; a path it cannot write fails here
         # stamps are on the graph's time base: wall time = stamp + (wall − graph clock)
         writer = RecordingWriter(path, wall_minus_monotonic_ns=time.time_ns() - ctx.now_ns())
         # Launched: the launcher names our graph in $SLIPSTACK_RUN_DIR and counts us in

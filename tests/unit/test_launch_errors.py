@@ -218,3 +218,11 @@ def test_a_recording_that_exists_is_refused_and_kept(tmp_path):
         Recorder(RecorderParams(path=str(existing))).start(None)
     assert existing.read_bytes() == b"precious"
     assert os.listdir(tmp_path) == ["take1.mcap"]
+
+
+def test_a_recording_the_recorder_cannot_write_is_refused_with_what_to_do(tmp_path):
+    from slipstack.nodes.recording.recorder import Recorder, RecorderParams
+
+    (tmp_path / "a_file").write_text("not a folder")
+    with pytest.raises(ConfigError, match=r"cannot write the recording .*run.mcap .* in a folder you may write"):
+        Recorder(RecorderParams(path=str(tmp_path / "a_file" / "run.mcap"))).start(None)
