@@ -85,6 +85,7 @@ def kernel_input(a: np.ndarray) -> np.ndarray:
         a.flags.writeable = False
     return a
 
+
 _KINK = 1e-13
 """Normalised distance below which an iterate is taken to sit on a point."""
 _ARMIJO = 1e-4
