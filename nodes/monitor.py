@@ -57,7 +57,11 @@ from slipstack.lib.status import SLIP_STATES, SlipState
 from slipstack.messages import Diagnostics, GripCommand, RigTruth, Slip
 from slipstack.nodes.runtime.node import Context, Input, Node
 
-__all__ = ["Monitor", "MonitorParams", "summarise", "check_problems", "format_summary", "status_line"]
+__all__ = ["Monitor", "MonitorParams", "summarise", "check_problems", "format_summary", "status_line",
+           "CALIBRATION_STATUSES"]
+
+CALIBRATION_STATUSES = ("uncalibrated", "calibrated-online", "refused-material")
+"""The slip detector's statuses when no identified material gives its thresholds."""
 
 _LOSS_KEYS = (".rejected", ".lost", ".dropped_hwm")  # ".dropped" is drain-to-latest, on purpose
 FAIL_SAFE = "fail-safe"
@@ -287,7 +291,13 @@ class Monitor(Node):
         cmds, fail_safe = self.commands.count - cmds0, self.commands.fail_safe - fs0
         self._at_status = (now, self.slip_frames, self.commands.count, self.commands.fail_safe)
         ctx.log("STATUS " + status_line(self.last, rate, (fail_safe, cmds), sorted(self.silent_nodes(now)),
-                                        sorted(self.disconnected_nodes())))
+                                        sorted(self.disconnected_nodes()), self.detector_calibration()))
+
+    def detector_calibration(self) -> str | None:
+        """The slip detector's status when its thresholds are not from an identified material
+        (``uncalibrated: ...``, ``calibrated-online: ...``, ``refused-material: ...``); None otherwise."""
+        watch = self.nodes.get("slip_detector")
+        return watch.status if watch is not None and watch.status.split(":")[0] in CALIBRATION_STATUSES else None
 
     def stop(self, ctx: Context) -> None:
         self.episodes.finish()
@@ -320,10 +330,12 @@ def write_json_atomically(path: str, content: dict) -> None:
 
 
 def status_line(last: dict[str, object], rate_hz: float, fail_safe: tuple[int, int] = (0, 0),
-                silent: list[str] | None = None, disconnected: list[str] | None = None) -> str:
+                silent: list[str] | None = None, disconnected: list[str] | None = None,
+                calibration: str | None = None) -> str:
     """One line: state, f_n, command, margin, COR, detector rate; then, when there are
     any, the fail-safe commands ``fail_safe = (held, of commands)`` since the last line,
-    the silent nodes and the nodes whose device is disconnected."""
+    the silent nodes, the nodes whose device is disconnected, and the detector's
+    calibration when no identified material gives its thresholds."""
     slip = last.get("slip")
     grip = last.get("grip")
     parts = [f"state={slip.state if slip else '-':<11}"]
@@ -343,6 +355,8 @@ def status_line(last: dict[str, object], rate_hz: float, fail_safe: tuple[int, i
         parts.append("SILENT " + ",".join(silent))
     if disconnected:
         parts.append("DISCONNECTED " + ",".join(disconnected))
+    if calibration:
+        parts.append(calibration.split(":")[0].upper())
     return "  ".join(parts)
 
 
@@ -409,6 +423,7 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "silent_nodes": silent_now,
         # with a simulated rig, the devices close when its scene ends: only earlier losses count
         "disconnected_nodes": m.disconnected_nodes(truth.header.stamp_ns if truth else None),
+        "detector_calibration": m.detector_calibration(),
         "nodes_that_went_silent": went_silent,
         "nodes_restarted_after_silence": sorted(name for name, w in m.nodes.items() if w.restarted),
         "recording": m.params.recording if m.params.recording and os.path.exists(m.params.recording) else "",
@@ -582,6 +597,8 @@ def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
             f"grip force commanded: mean {num(s['grip_command_mean_n'], '.2f')} N, peak "
             f"{num(s['grip_command_peak_n'], '.2f')} N",
         ]
+    if s["detector_calibration"]:
+        lines.append(f"detector {s['detector_calibration']}"[:100])
     if not s["grip_commands"]:
         lines.append("control path: no grip commands (a detection-only graph, or the controller never ran)")
     else:

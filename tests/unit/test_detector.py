@@ -26,8 +26,10 @@ def pressed(f_x_n: float, f_n: float = 10.0, status: str = "ok") -> PadContact:
 
 
 def test_node_defaults_are_the_material_defaults() -> None:
+    """No material file: the shipped rubber's thresholds, calibrated online from there."""
     node = SlipDetector()
-    assert node.detector.settings == DetectorSettings.from_material(resolve_material("rubber"))
+    rubber = resolve_material("rubber")
+    assert node.detector.settings == DetectorSettings.from_material(rubber, calibrate_from=rubber)
     assert set(FT_TESTS) < set(SLIP_TESTS) and node.detector.settings.also == FT_TESTS
 
 
