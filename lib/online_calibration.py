@@ -34,6 +34,9 @@ from slipstack.lib.material import DetectorThresholds, Material, detector_thresh
 
 __all__ = ["CalibrationSettings", "Learned", "OnlineCalibration", "CalibratedLatch", "MAX_LEVELS"]
 
+_LEAST = 1e-3
+"""Levels are kept in [_LEAST, 1] (a load factor computed from measured data stays under 1)."""
+
 MAX_LEVELS = 64
 """Onset and sliding levels kept (the newest)."""
 
@@ -124,8 +127,8 @@ class OnlineCalibration:
 
     def _learn_episode(self, run: np.ndarray) -> bool:
         smooth = np.convolve(run, np.ones(min(5, run.size)) / min(5, run.size), mode="valid")
-        self._onsets.append(min(float(smooth.max()), 1.0))
-        self._slides.append(float(np.median(run[run.size // 2:])))
+        self._onsets.append(min(max(float(smooth.max()), _LEAST), 1.0))
+        self._slides.append(min(max(float(np.median(run[run.size // 2:])), _LEAST), 1.0))
         seen = replace(self.material, mu_d=self.material.mu_s * min(self._slides), beta_s_m=math.nan,
                        onset_gamma=tuple(self._onsets))
         new = detector_thresholds(seen)

@@ -466,3 +466,14 @@ def test_the_summary_counts_the_ft_samples_fusion_received_carried_and_the_slip_
     assert any("samples not examined (skipped for a newer one, or beyond a batch's depth): none" in line
                for line in logs)
     assert any("F/T samples: 7000 received by fusion, 7000 carried in contacts, 6990 judged" in line for line in logs)
+
+
+def test_the_live_line_says_when_the_detector_runs_without_an_identified_material():
+    from slipstack.nodes.monitor import status_line
+
+    slip = Slip(state="stick", margin=0.5, header=Header(0, 0, 0, {}))
+    assert status_line({"slip": slip}, 500.0).split()[-1] == "Hz"
+    line = status_line({"slip": slip}, 500.0, calibration="uncalibrated: no material file, the shipped rubber")
+    assert line.endswith("UNCALIBRATED"), line
+    line = status_line({"slip": slip}, 500.0, calibration="calibrated-online: from 2 confirmed slip(s)")
+    assert line.endswith("CALIBRATED-ONLINE"), line
