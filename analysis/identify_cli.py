@@ -1,32 +1,24 @@
-"""``slipstack identify RECORDING... -o material.toml``: a material file from Fig. 4 records.
+"""``slipstack identify RECORDING... -o material.toml``: a material file from friction ramps.
 
-Each recording is one friction ramp at constant ``f_n`` (``slipstack launch fig4a`` /
-``fig4b``, or the identification scenes ``ident_force`` / ``ident_torsion``, or the
-same on real hardware with ``bag record``). For each, :func:`identify_recording`
-(``analysis/report.py``) estimates ``μ_s, μ_d`` (a tangential-force ramp) or
-``β_s, β_d`` (a torque ramp), the slip onset taken from the object's slip distance or
-angle after the elastic pre-slip when the recording has ``rig/truth``, else from the
-ratio's drop. Several recordings of one kind are pooled (inverse-variance mean).
+Recordings as a user makes them (``ident_force``, ``ident_torsion``, ``ident_combined``,
+fig4a/b, or ``bag record`` on hardware): presses, ramps past slip, holds, unloads, rests.
+:func:`identify_recording` (``analysis/report.py``) cuts each into loadings and estimates
+``μ_s, μ_d`` per loading of a force ramp, ``β_s, β_d`` of a torque ramp (a combined
+ramp gives onsets only), the onsets from ``rig/truth`` when recorded, else from the
+ratio (docs/math.md §6.1). All loadings of one kind are pooled (inverse-variance mean),
+their spread reported; their scatter enters the model error.
 
-Then the load factor the detector sees, ``γ`` (the exact test of ``lib/limit_set.py``
-on each ``tactile/frame`` paired with the nearest ``ft/wrench`` sample, with the
-identified ``μ_s``; without tactile frames the ratio over its static value), gives
+The detector's load factor γ (the exact test on each ``tactile/frame`` with the nearest
+``ft/wrench`` sample and the identified ``μ_s``; without tactile frames the ratio over
+its static value) gives ``gamma_noise_stick`` (frame-to-frame, over the 300 ms before
+each onset, 20 ms short of it), ``gamma_noise_slide`` (from 100 ms after each onset to
+the end of its slide) and ``onset_gamma`` (the last frame before each gross-slip onset).
+For β, the disagreement with ``μ × r̄`` of the torque ramp's pressure frames
+(``lib/material_fit.beta_from_pressure``) is added to its model error.
 
-- ``gamma_noise_stick``: its frame-to-frame noise over the 300 ms before the first
-  onset (stopping 20 ms short of it), and ``gamma_noise_slide`` while sliding (from
-  100 ms after the onset, only while the truth says gross slip, if it is recorded);
-- ``onset_gamma``: γ of the last frame before each gross-slip onset (every
-  episode of ``rig/truth``, else the estimate's onset).
-
-Each coefficient has a standard error and, apart from it, a model error
-(``lib/identify.py`` step 5, pooled by ``lib/material_fit.pooled_model``); for β the
-disagreement with ``μ × r̄`` of the torque ramp's pressure frames
-(``lib/material_fit.beta_from_pressure``: β_s with μ_s over the stick window, β_d
-with μ_d while sliding) is added to it in quadrature.
-
-``lib/material.py`` turns those into the detector's band and release level. A
-recording without ``ft/wrench`` is an error that names it; one without motion truth
-falls back to the ratio (said in the output).
+:func:`_implausible` says why a result cannot be trusted; then the command refuses to
+write it (exit 2, the reasons and what to record), unless ``--force``, which writes it
+with ``refused`` set. ``lib/material.py`` turns the file into the detector's thresholds.
 """
 
 from __future__ import annotations
@@ -74,11 +66,12 @@ class IdentifiedRecording:
 
     @property
     def torsion(self) -> bool:
-        return self.ident.torque_dominates
+        return self.ident.load == "torque"
 
     @property
     def loadings(self) -> tuple[RampEstimate, ...]:
-        """The estimate of each loading: β for a torque ramp, μ otherwise."""
+        """The estimate of each loading: β for a torque ramp, μ otherwise (a combined
+        ramp's μ only places its loadings)."""
         return self.ident.beta if self.torsion else self.ident.mu
 
 
@@ -229,7 +222,7 @@ def identify_material(paths: list[Path], *, name: str, provenance: str = "",
         say(f"[{i}/{len(paths)}] {path.name}: reading and fitting")
         series = load_series(path).within_scene()
         recs.append(IdentifiedRecording(path, series, identify_recording(series)))
-    forces = [r for r in recs if not r.torsion]
+    forces = [r for r in recs if r.ident.load == "force"]
     torsions = [r for r in recs if r.torsion]
     if not forces:
         raise RecordingError(f"no tangential-force ramp among {', '.join(p.name for p in paths)}: μ_s is needed; "

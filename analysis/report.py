@@ -22,7 +22,7 @@ of a ramp recording (paper Fig. 4, docs/math.md §6; scenes ``fig4a``/``fig4b``)
 rig's gross-slip flags and slip distance (angle) after the elastic pre-slip as the
 slip signals when the recording has them (``slipstack identify`` writes the result as a
 material file), or :func:`~slipstack.lib.identify.identify_beta_loadings` when the torque
-ramp dominates (``max|τ|/L > max|f_t|``, ``L`` = :data:`TORQUE_ARM_M`). It needs no matplotlib.
+ramp dominates (:func:`load_kind`). It needs no matplotlib.
 """
 
 from __future__ import annotations
@@ -58,6 +58,7 @@ __all__ = [
     "format_identification",
     "identify_recording",
     "load_series",
+    "load_kind",
     "plot_report",
     "summarize",
 ]
@@ -178,9 +179,10 @@ def load_series(path: str | Path, progress: Callable[[int], None] | None = None)
 class Identification:
     """Friction identification of one recording.
 
-    mu: the ``|f_t|/f_n`` estimate of each loading (``lib/identify.py``), when the
-    tangential force dominates; beta: the ``|τ|/f_n`` estimates (m) when the torque
-    dominates (the other one is empty); motion_source: ``"rig/truth"`` when the object's true
+    mu: the ``|f_t|/f_n`` estimate of each loading (``lib/identify.py``), unless the
+    torque dominates; beta: the ``|τ|/f_n`` estimates (m) when it does (the other one is
+    empty); load: ``force``, ``torque`` or ``combined`` (:func:`load_kind`; a combined
+    ramp's ratio is neither μ nor β, its loadings give onsets only); motion_source: ``"rig/truth"`` when the object's true
     slip distance/angle (after the elastic pre-slip) was given to the estimators (``onset_source`` of each
     estimate says what set the onset), else ``"none"`` (ratio drop only);
     samples: usable F/T samples; merged: of those, how many shared a stamp with
@@ -190,7 +192,7 @@ class Identification:
 
     mu: tuple[RampEstimate, ...]
     beta: tuple[RampEstimate, ...]
-    torque_dominates: bool
+    load: str
     motion_source: str
     samples: int
     merged: int = 0
@@ -236,14 +238,22 @@ def identify_recording(series: RecordingSeries, config: IdentifyConfig | None = 
         slip = _interp_truth(series, t, "slip_distance_m")
         slip_angle = np.abs(_interp_truth(series, t, "slip_angle_rad"))
         gross = _nearest_truth(series, t, "gross_slip").astype(bool)
-    torque_dominates = float(np.max(np.abs(tau))) / TORQUE_ARM_M > float(np.max(np.hypot(f_t[:, 0], f_t[:, 1])))
+    load = load_kind(f_t, tau)
     config = config or IdentifyConfig()
-    if torque_dominates:
+    if load == "torque":
         mu, beta = (), identify_beta_loadings(t, f_n, tau, gross_slip=gross, slip_rad=slip_angle, config=config)
     else:
         mu, beta = identify_mu_loadings(t, f_n, f_t, gross_slip=gross, slip_m=slip, config=config), ()
-    return Identification(mu, beta, torque_dominates, "rig/truth" if truth else "none",
+    return Identification(mu, beta, load, "rig/truth" if truth else "none",
                           int(keep.sum()), int(keep.sum() - t.size))
+
+
+def load_kind(f_t: np.ndarray, tau: np.ndarray) -> str:
+    """``torque`` when ``max|τ|/L`` is over twice ``max|f_t|`` (``L`` = :data:`TORQUE_ARM_M`),
+    ``force`` when ``max|f_t|`` is over twice ``max|τ|/L``, else ``combined``."""
+    force = float(np.max(np.hypot(f_t[:, 0], f_t[:, 1]))) if f_t.size else 0.0
+    torque = float(np.max(np.abs(tau))) / TORQUE_ARM_M if tau.size else 0.0
+    return "torque" if torque > 2.0 * force else "force" if force > 2.0 * torque else "combined"
 
 
 def _nearest_truth(series: RecordingSeries, t_s: np.ndarray, column: str) -> np.ndarray:
@@ -283,9 +293,10 @@ def _estimate_lines(est: RampEstimate, symbol: str, scale: float, unit: str) -> 
 
 def format_identification(ident: Identification) -> str:
     """The identification as text: estimates ± standard errors, onset, status."""
-    load = "torque" if ident.torque_dominates else "tangential force"
+    load = {"torque": "the torque ramp dominates", "force": "the tangential force ramp dominates",
+            "combined": "force and torque combined (onsets only, no μ or β)"}[ident.load]
     merged = f" ({ident.merged} sharing a stamp averaged)" if ident.merged else ""
-    lines = [f"{ident.samples} F/T samples{merged}; the {load} ramp dominates; slip onset from "
+    lines = [f"{ident.samples} F/T samples{merged}; {load}; slip onset from "
              + ("the ratio drop or the object's true motion (rig/truth)" if ident.motion_source != "none"
                 else "the ratio drop")]
     for ests, title, symbol, scale, unit in ((ident.mu, "friction coefficient μ = |f_t|/f_n", "μ", 1.0, ""),

@@ -9,7 +9,8 @@ with a rising torque ``β(t) = |τ|/f_n`` (m) peaks at ``β_s`` and settles to `
 2. Smooth the ratio with a centred moving average of ``smooth_window_s`` (rounded to
    an odd number of samples, using the median sample spacing) and take its maximum
    ``k*`` as the peak region. With a motion signal the onset comes from the motion and
-   ``k*`` is searched up to it:
+   ``k*`` is searched up to it (a ramp that levels off before ``k*`` — creep, stick–slip —
+   and then clearly drops is read as if it rose):
 
    - ``slip_m`` / ``slip_rad`` (preferred): the object's slip distance or angle *after*
      the elastic pre-slip (zero while the contact sticks, e.g. ``rig/truth``'s
@@ -467,7 +468,8 @@ class _RampFit:
             return self.result(IdentifyStatus.INSUFFICIENT_DATA,
                                f"only {fit_end - fit_start} ramp samples before the peak")
         line = _LineFit(self.t[fit_start:fit_end], self.r[fit_start:fit_end])
-        if not line.slope_t >= self.cfg.min_slope_t:
+        flat = not line.slope_t >= self.cfg.min_slope_t
+        if flat and moved is None and not self._drops_after(k_peak, line):
             return self._knee(float(smooth[k_peak]), f"ratio does not rise before its peak (slope t = "
                               f"{line.slope_t:.2f} < {self.cfg.min_slope_t})")
         onset, lo, source = self._onset(line, fit_end, k_peak, moved)
@@ -503,6 +505,14 @@ class _RampFit:
                                prominence=prominence, **common)
         return self.result(IdentifyStatus.OK, f"peak {prominence / max(line.s_r, 1e-300):.1f} x noise",
                            dynamic=dynamic, dynamic_se=dynamic_se, prominence=prominence, **common)
+
+    def _drops_after(self, k_peak: int, line: "_LineFit") -> bool:
+        """Whether the ratio falls clearly after ``k_peak``: the mean from ``settle_s`` after it
+        on lies under the ramp's line by ``min_prominence_sigma`` × its noise (a ratio that
+        levelled off before its peak, creeping or in stick–slip, and then dropped)."""
+        after = self.r[min(k_peak + self.settle, self.r.size):]
+        return after.size >= _MIN_PLATEAU_SAMPLES and bool(
+            float(line.at(self.t[k_peak])) - float(after.mean()) >= self.cfg.min_prominence_sigma * line.s_r)
 
     def _bend(self, onset: int, static: float) -> float:
         """``|static − the value at the onset of a line over the last half of its window|``."""

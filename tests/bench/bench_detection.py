@@ -49,8 +49,8 @@ import numpy as np
 from slipstack.analysis.identify_cli import IdentificationRefused, identify_material
 from slipstack.lib.detection import DetectorConfig
 from slipstack.lib.detector import ONSET_NS_PER_FRAME
-from slipstack.lib.episodes import detection_quality, find_episodes, MIN_GAP_NS
-from slipstack.lib.limit_set import torsional_coefficient
+from slipstack.lib.episodes import LEAD_NS, MARGIN_NS, MIN_GAP_NS, RELEASE_NS, detection_quality, find_episodes
+from slipstack.lib.limit_set import load_factor, torsional_coefficient
 from slipstack.lib.material import Material, detector_thresholds, load_material, material_toml
 from slipstack.lib.online_calibration import CalibratedLatch
 from slipstack.lib.rig.contact import PressureModel
@@ -164,6 +164,23 @@ def identification_rows(label: str, truth: dict[str, float], files: dict[str, Ma
 
 # -- 2. detection -------------------------------------------------------------------------
 
+def true_load_factors(scene: Scene, truth: list) -> np.ndarray:
+    """γ of the true load on the true pressure at each truth sample (the contact's μ_s).
+
+    The pressure is the scene's model at the applied normal force and the object's pose;
+    the load is the one the contact transmits, at the pad. NaN where no γ.
+    """
+    positions, mu_s = scene.pad.positions, scene.contact.mu_s
+    pressure = PressureModel(scene.contact, scene.pad, scene.object.pose)
+    out = np.full(len(truth), np.nan)
+    for i, tr in enumerate(truth):
+        phi = pressure.phi_uncached(tr.f_n_applied, complex(tr.x, tr.y), tr.theta)
+        r = load_factor(phi, positions, tr.load_f_t, tr.load_tau, mu_s)
+        if r.status.usable:
+            out[i] = r.gamma
+    return out
+
+
 def recorded_scene(scene_file: str, material: str, cache: Path, rates: tuple[float, float]) -> dict[str, np.ndarray]:
     """γ of the launch file's deciding test on every frame at μ = RECORD_MU, and the truth (cached)."""
     path = cache / f"{scene_file}@{material}.npz"
@@ -181,6 +198,7 @@ def recorded_scene(scene_file: str, material: str, cache: Path, rates: tuple[flo
         "gamma": np.array([1.0 - m.margin if m.status == "ok" else np.nan for m in slips], dtype=float),
         "truth_t": np.array([m.header.stamp_ns for m in truth], dtype=np.int64),
         "gross": np.array([m.gross_slip for m in truth]),
+        "true_gamma": true_load_factors(scene, truth),
         "method": np.array(args["method"]),
     }
     cache.mkdir(parents=True, exist_ok=True)
@@ -207,6 +225,7 @@ class Tally:
     stick: int = 0
     false: int = 0
     latch: int = 0
+    sliding_load: int = 0
     by_test: dict[str, list[int]] = field(default_factory=lambda: {"tactile": [0, 0], "ft": [0, 0]})
     delays: list[float] = field(default_factory=list)
     holds_ms: list[float] = field(default_factory=list)
@@ -215,8 +234,12 @@ class Tally:
     later_delays: list[float] = field(default_factory=list)
     hold_scenes: dict[str, list[int]] = field(default_factory=dict)  # kind -> [rises, flagged, frames]
 
-    def add(self, data: dict[str, np.ndarray], f: np.ndarray, period_ns: float) -> None:
+    def add(self, data: dict[str, np.ndarray], f: np.ndarray, period_ns: float, sliding_level: float) -> None:
         q = detection_quality(data["truth_t"], data["gross"], data["t"], f, in_contact=data["contact"])
+        if "true_gamma" in data:  # false alarms while the true load is at or above the sliding level
+            k = np.clip(np.searchsorted(data["truth_t"], data["t"]), 0, data["truth_t"].size - 1)
+            false = f & data["contact"] & ~data["gross"][k] & ~_excused(data, q)
+            self.sliding_load += int(np.count_nonzero(false & (data["true_gamma"][k] >= sliding_level - 0.01)))
         self.episodes += len(q.episodes)
         self.missed += q.missed
         self.stick += q.stick_frames
@@ -243,6 +266,14 @@ class Tally:
         row[2] += f.size
 
 
+def _excused(data: dict[str, np.ndarray], q) -> np.ndarray:
+    """The frames inside some episode's window [onset − 20 ms, end + 25 ms]."""
+    t, out = data["t"], np.zeros(data["t"].shape, dtype=bool)
+    for ep in q.episodes:
+        out |= (t >= ep.start_ns - LEAD_NS) & (t <= ep.end_ns + RELEASE_NS + MARGIN_NS)
+    return out
+
+
 def _pct(values: list[float], q: float, fmt: str = "{:+.1f}") -> str:
     return fmt.format(float(np.percentile(values, q))) if values else "-"
 
@@ -257,28 +288,30 @@ def detection_row(label: str, material: Material, t: Tally, online: bool) -> str
                             for r in (t.hold_scenes.get("95 %", [0, 0, 0]), t.hold_scenes.get("90 % of mu_d", [0, 0, 0])))
     later = (f"{t.later_missed} of {t.later_episodes}, {_pct(t.later_delays, 95)}" if online else "")
     return (f"| {label} | {thr.delta:.3f} / {thr.gamma_release:.3f} | {t.episodes} | {t.missed} | "
-            f"{_pct(t.delays, 50)} / {_pct(t.delays, 95)} | {_share(t.false, t.stick)} ({_share(t.latch, t.stick)}) | "
+            f"{_pct(t.delays, 50)} / {_pct(t.delays, 95)} | {_share(t.false, t.stick)} ({_share(t.latch, t.stick)}; "
+            f"{_share(t.sliding_load, t.stick)}) | "
             f"{_share(*t.by_test['tactile'])} / {_share(*t.by_test['ft'])} | "
             f"{_pct(t.holds_ms, 50, '{:.0f}')} / {_pct(t.holds_ms, 95, '{:.0f}')} | {holds_text} | {later} |")
 
 
 DETECTION_HEADER = [
     "| contact, material file | δ / γ_release | episodes | missed | delay p50 / p95 (samples) | false alarms "
-    "(latch hold) | false alarms: tactile / F/T tests | latch hold p50 / p95 ms | 95 % holds / 90 % μ_d holds: "
+    "(latch hold; true load at the sliding level or above) | false alarms: tactile / F/T tests | latch hold p50 / p95 ms | 95 % holds / 90 % μ_d holds: "
     "alarms (flagged) | online, later episodes: missed, delay p95 |",
     "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
 ]
 
 
 def evaluate(runs: dict[str, dict], hold_kinds: dict[str, str], material: Material, online: bool,
-             period_ns: float, record_mu: float = RECORD_MU) -> Tally:
-    """Every run with ``material`` (``hold_kinds``: scene → its kind of hold, for the holds)."""
+             period_ns: float, sliding_level: float, record_mu: float = RECORD_MU) -> Tally:
+    """Every run with ``material`` (``hold_kinds``: scene → its kind of hold, for the holds;
+    ``sliding_level``: the contact's true μ_d/μ_s)."""
     tally = Tally()
     for scene, data in runs.items():
         f = flags(data, material, online, record_mu)
         if scene in hold_kinds:
             tally.add_hold(hold_kinds[scene], f)
-        tally.add(data, f, period_ns)
+        tally.add(data, f, period_ns, sliding_level)
     return tally
 
 
@@ -313,8 +346,9 @@ def main() -> None:
                                         (f"{m}, its file from the pure ramps", files["pure ramps (truth)"], False),
                                         (f"{m}, **no file**, calibrate off", default, False),
                                         (f"{m}, **no file**, calibrate online", default, True)):
-            det_rows.append(detection_row(label, material, evaluate(runs, hold_kinds, material, online, period_ns),
-                                          online))
+            level = RIG_MATERIALS[m][1] / RIG_MATERIALS[m][0]
+            det_rows.append(detection_row(label, material, evaluate(runs, hold_kinds, material, online, period_ns,
+                                                                    level), online))
     print(f"\nwall time {time.monotonic() - t0:.0f} s (cache {args.cache})\n")
     print("Identification (ident_force, ident_torsion, ident_combined as a user records them; lock-step, F/T "
           f"{args.ft_rate:g} Hz, tactile {args.tactile_rate:g} Hz; ± 2·√(SE² + model²)):\n")

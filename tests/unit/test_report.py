@@ -97,7 +97,7 @@ def test_identify_recovers_mu_and_onset_with_truth(tmp_path):
     write_ramp(path)
     ident = identify_recording(load_series(path))
     (mu,) = ident.mu  # one loading
-    assert mu.ok and ident.beta == () and not ident.torque_dominates
+    assert mu.ok and ident.beta == () and ident.load == "force"
     assert ident.motion_source == "rig/truth" and mu.onset_source == "slip"
     # onset: the last sample before the slip distance grows (the truth's gross-slip onset)
     assert mu.onset_t_s == pytest.approx(ONSET_S, abs=0.005)
@@ -130,7 +130,7 @@ def test_identify_torque_ramp_gives_beta(tmp_path, capsys):
     write_ramp(path, torque=True)
     ident = identify_recording(load_series(path))
     (beta,) = ident.beta
-    assert ident.torque_dominates and ident.mu == () and beta.ok
+    assert ident.load == "torque" and ident.mu == () and beta.ok
     assert beta.onset_source == "slip"
     assert beta.static == pytest.approx(BETA_S, rel=0.02)
     assert beta.dynamic == pytest.approx(BETA_D, rel=0.01)
