@@ -249,11 +249,12 @@ def identify_recording(series: RecordingSeries, config: IdentifyConfig | None = 
 
 
 def load_kind(f_t: np.ndarray, tau: np.ndarray) -> str:
-    """``torque`` when ``max|τ|/L`` is over twice ``max|f_t|`` (``L`` = :data:`TORQUE_ARM_M`),
-    ``force`` when ``max|f_t|`` is over twice ``max|τ|/L``, else ``combined``."""
+    """``torque`` when ``max|τ|/L`` is over ten times ``max|f_t|`` (``L`` = :data:`TORQUE_ARM_M`),
+    ``force`` when ``max|f_t|`` is over ten times ``max|τ|/L``, else ``combined`` (a pure ramp
+    crosses over by a few per cent)."""
     force = float(np.max(np.hypot(f_t[:, 0], f_t[:, 1]))) if f_t.size else 0.0
     torque = float(np.max(np.abs(tau))) / TORQUE_ARM_M if tau.size else 0.0
-    return "torque" if torque > 2.0 * force else "force" if force > 2.0 * torque else "combined"
+    return "torque" if torque > 10.0 * force else "force" if force > 10.0 * torque else "combined"
 
 
 def _nearest_truth(series: RecordingSeries, t_s: np.ndarray, column: str) -> np.ndarray:

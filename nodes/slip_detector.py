@@ -70,7 +70,7 @@ class SlipDetectorParams:
     material: str = field(default="", metadata={
         "help": "material file (launch/materials/ name or path): mu, delta, gamma_release, gamma_resume unless "
                 f"given; '': none, the shipped {DEFAULT_MATERIAL} (reported as uncalibrated)"})
-    calibrate: str = field(default="online", metadata={
+    calibrate: str = field(default="off", metadata={
         "help": "online: learn mu, the band and the release level from the contact's confirmed slips "
                 "(lib/online_calibration.py); off: keep the material's"})
     mu: float = field(default=math.nan, metadata={"help": "static friction coefficient; nan: the material's mu_s"})

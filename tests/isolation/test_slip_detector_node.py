@@ -80,7 +80,7 @@ def test_without_a_material_file_it_says_so_at_start_on_diagnostics_live_and_in_
 def test_online_calibration_says_what_it_learned():
     """No file, calibrate online, a pull beyond the default's μ (γ 1.1 of its capacity):
     μ rises to what the contact carried; a log line and the status say so."""
-    ex = _run_with(SlipDetectorParams(), [0.2 * k for k in range(10)] + [4.0 * 0.4527 * 1.1] * 40)
+    ex = _run_with(SlipDetectorParams(calibrate="online"), [0.2 * k for k in range(10)] + [4.0 * 0.4527 * 1.1] * 40)
     learned = [line for line in ex.logs if "calibrated online from 0 confirmed slip(s) and the loads carried" in line]
     assert learned, ex.logs
     last = [d for d in ex.published["diagnostics"] if d.node == "slip_detector"][-1]
