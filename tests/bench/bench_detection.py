@@ -38,6 +38,7 @@ its first.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 import time
@@ -58,7 +59,12 @@ from slipstack.lib.rig.scene import RIG_MATERIALS, Scene, with_rig_material
 from slipstack.launch.launch_file import load_launch_file
 from slipstack.launch.lockstep import run_launch_file
 from slipstack.nodes.material_param import resolve_material
+from slipstack.messages import decode
+from slipstack.messages.frame import peek_header
+from slipstack.nodes.fusion import Fusion
 from slipstack.nodes.recording.bag_io import RecordingWriter, read_recording
+from slipstack.nodes.runtime.inprocess import InProcessExecutor
+from slipstack.nodes.slip_detector import SlipDetector, SlipDetectorParams
 from slipstack.nodes.rig import load_scene_by_name, with_rates
 
 DETECTION_SCENES = ["fig4a", "fig4b", "fig10", "fig11", "fig12", "fig13", "fig14", "fig15", "default"]
@@ -105,9 +111,9 @@ def true_friction(material: str) -> dict[str, float]:
     return {"mu_s": mu_s, "mu_d": mu_d, "beta_s_m": mu_s * mean_distance, "beta_d_m": mu_d * mean_distance}
 
 
-def without_truth(path: Path) -> Path:
-    """A copy of the recording without ``rig/truth`` (what hardware records)."""
-    out = path.with_name(path.stem + "-no-truth.mcap")
+def without_truth(path: Path, folder: Path | None = None) -> Path:
+    """A copy of the recording without ``rig/truth`` (what hardware records), beside it or in ``folder``."""
+    out = (folder or path.parent) / (path.stem + "-no-truth.mcap")
     if not out.exists():
         writer = RecordingWriter(out)
         for frame in read_recording(path):
@@ -315,6 +321,69 @@ def evaluate(runs: dict[str, dict], hold_kinds: dict[str, str], material: Materi
     return tally
 
 
+# -- 3. the second engine ---------------------------------------------------------------
+
+def engine_run(path: Path, cache: Path) -> dict[str, np.ndarray]:
+    """γ of the exact test on every frame of an engine recording, through the real fusion and
+    slip_detector nodes (μ = RECORD_MU, calibrate off), and its truth (cached)."""
+    out = cache / f"engine-{path.stem}.npz"
+    if out.exists():
+        return dict(np.load(out))
+    frames = list(read_recording(path, ["ft/wrench", "tactile/frame", "rig/truth"]))
+    events = [(head.stamp_ns, f.topic, f.payload) for f in frames if f.topic != "rig/truth"
+              for head in [peek_header(f.payload)] if head is not None]
+    ex = InProcessExecutor([Fusion(), SlipDetector(SlipDetectorParams(mu=RECORD_MU))],
+                           start_ns=min(t for t, _, _ in events))
+    ex.feed(events)
+    ex.run()
+    ex.stop()
+    slips = ex.published["slip"]
+    truth = [decode(f.payload) for f in frames if f.topic == "rig/truth"]
+    data = {"t": np.array([m.header.stamp_ns for m in slips], dtype=np.int64),
+            "contact": np.array([m.state != "no-contact" for m in slips]),
+            "gamma": np.array([1.0 - m.margin if m.status == "ok" else np.nan for m in slips], dtype=float),
+            "truth_t": np.array([m.header.stamp_ns for m in truth], dtype=np.int64),
+            "gross": np.array([m.gross_slip for m in truth], dtype=bool), "method": np.array("exact")}
+    np.savez_compressed(out, **data)
+    return data
+
+
+def engine_tables(folder: Path, cache: Path, default: Material, period_ns: float) -> list[str]:
+    """The identification and detection tables on the engine's recordings (one block per μ)."""
+    scenarios = {p: json.loads(p.with_suffix(".json").read_text())["scenario"] for p in sorted(folder.glob("*.mcap"))
+                 if p.with_suffix(".json").exists()}
+    ident_rows, det_rows = [], []
+    for mu in sorted({sc["mu"] for sc in scenarios.values()}):
+        tag = f"engine μ {mu:g}"
+        own = {p: sc for p, sc in scenarios.items() if sc["mu"] == mu}
+        ident = [p for p, sc in own.items() if sc["name"].startswith(("force_flat", "torque_flat"))]
+        if len(ident) < 2:
+            continue
+        uniform = np.ones(256)
+        r_mean = torsional_coefficient(uniform, load_scene_by_name("ident_force").pad.positions, 1.0).beta_m
+        truth = {"mu_s": mu, "mu_d": mu, "beta_s_m": mu * r_mean, "beta_d_m": mu * r_mean}
+        files = {"identified (truth)": identify_files(ident, tag, cache / f"engine-material-{mu:g}.toml"),
+                 "identified (no truth)": identify_files([without_truth(p, cache) for p in ident], tag,
+                                                         cache / f"engine-material-{mu:g}-no-truth.toml")}
+        ident_rows += identification_rows(tag, truth, files)
+        runs = {p.stem: engine_run(p, cache) for p in own if p not in ident}
+        hold_kinds = {p.stem: "95 %" if sc["name"].startswith("hold95") else "90 % of mu_d"
+                      for p, sc in own.items() if not sc["expect_slip"]}
+        for label, material, online in ((tag, files["identified (truth)"], False),
+                                        (f"{tag}, **no file**, calibrate off", default, False),
+                                        (f"{tag}, **no file**, calibrate online", default, True)):
+            det_rows.append(detection_row(label, material, evaluate(runs, hold_kinds, material, online, period_ns,
+                                                                    1.0), online))
+    return (["", f"Second engine ({folder}): identification from its force_flat and torque_flat sessions (press, "
+             "twice: ramp past slip, hold, unload, rest; β truth: μ × the mean taxel distance of a uniform pressure):", "",
+             "| contact | file | quantity | truth | identified | ± 2 sigma | error |",
+             "| --- | --- | --- | ---: | ---: | ---: | ---: |", *ident_rows, "",
+             "Detection on every other recording (force, torque, combined, pivot ramps on flat, curved, tilted pads, "
+             "grip steps; holds: "
+             "hold95_* under '95 %', the rest of the never-slipping ones under the second column):", "",
+             *DETECTION_HEADER, *det_rows])
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--materials", nargs="+", default=list(RIG_MATERIALS), choices=list(RIG_MATERIALS),
@@ -324,6 +393,8 @@ def main() -> None:
     ap.add_argument("--tactile-rate", type=float, default=250.0, help="tactile rate (Hz), default 250")
     ap.add_argument("--cache", type=Path, default=Path("/tmp/slipstack-bench-detection"),
                     help="recordings, material files and per-scene runs (delete to re-run)")
+    ap.add_argument("--engine", type=Path, help="a folder of the second engine's recordings "
+                    "(tests/bench/engine_mujoco.py writes them, a .json beside each)")
     args = ap.parse_args()
     args.cache.mkdir(parents=True, exist_ok=True)
     rates = (args.ft_rate, args.tactile_rate)
@@ -357,6 +428,8 @@ def main() -> None:
     print(f"\nDetection, controller off, scenes: {', '.join(args.scenes)} and the holds; F/T period "
           f"{period_ns / 1e6:g} ms\n")
     print("\n".join(DETECTION_HEADER + det_rows))
+    if args.engine is not None:
+        print("\n".join(engine_tables(args.engine, args.cache, default, period_ns)))
 
 
 if __name__ == "__main__":

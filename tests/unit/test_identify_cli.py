@@ -173,3 +173,24 @@ def test_identify_names_a_ramp_that_slides_too_briefly(tmp_path: Path, capsys) -
     err = capsys.readouterr().err
     assert "brief.mcap" in err and "ident_force" in err and "slides" in err
     assert not out.exists()
+
+
+ENGINE = Path(__file__).resolve().parents[1] / "data" / "engine"
+"""Recordings of a second physics engine (tests/data/engine/README.md): a Coulomb contact,
+mu_s = mu_d = 0.5, beta 3.8204 mm, ramps recorded as a user records them."""
+
+
+@pytest.mark.parametrize("folder", ["with_truth", "no_truth"])
+def test_identify_reads_the_second_engines_user_style_ramps(tmp_path: Path, folder: str) -> None:
+    """The two failures issue 24 reported, on the engine's own recordings: without truth the
+    file said mu_d 0.0025 (the unload and the rest counted as sliding); with truth identify
+    exited 2 ("onset_gamma entries must lie in (0, 1.5], got 4.98667"). Now mu within 2 %,
+    beta within 5 %, the onsets at the capacity."""
+    out = tmp_path / "engine.toml"
+    paths = [ENGINE / folder / f"ident_{kind}_flat_mu0.50.mcap" for kind in ("force", "torque")]
+    assert main(["identify", *map(str, paths), "-o", str(out), "-q"]) == 0
+    m = load_material(out)
+    assert m.mu_s == pytest.approx(0.5, rel=0.02) and m.mu_d == pytest.approx(0.5, rel=0.02)
+    assert m.beta_s_m == pytest.approx(3.8204e-3, rel=0.05) and m.beta_d_m == pytest.approx(3.8204e-3, rel=0.05)
+    assert len(m.onset_gamma) == 2 and all(0.97 <= g <= 1.02 for g in m.onset_gamma)
+    assert detector_thresholds(m).delta < 0.05  # a Coulomb contact's narrow band
