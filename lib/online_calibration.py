@@ -1,24 +1,12 @@
 """Online calibration: the detector follows the contact at hand (docs/math.md §3.3).
 
-Starts from a material's thresholds (the shipped default without a material file) and
-learns from the detector's own load factors, by three rules that only ever move towards
-fewer flags and never past what a measurement shows:
-
-- *capacity*: a measured load never exceeds what the contact carries, so ``min_frames``
-  valid frames in a row whose mean γ exceeds 1 by more than its noise show that μ is at
-  least ``μ·(mean − 3σ/√m)``: μ rises to that (only rises, at most ``max_scale`` × the start);
-- *onset band*: a *confirmed* episode (the flag up for ``confirm_ns`` without a break)
-  gives the highest load factor it reached, its onset level; the band's edge is then the
-  lower prediction bound of those levels (``lib/material.py``'s rule), and only narrows;
-- *release*: the same episode's sliding level (the median γ of its second half) gives
-  the release level ``min(levels) − 4σ``, which only rises.
-
-:class:`CalibratedLatch` is the detector's latch with it: the deciding test's margin in,
-the slip flag out (``lib/detector.py`` and the detection benchmark use it alike).
-
-A false alarm (a load held inside the band) is confirmed like a slip: its level enters
-the onset levels, so it can narrow the band to just under itself but never widen it, and
-it never lowers μ. Bounded: at most ``MAX_LEVELS`` levels kept (the newest).
+From a material's thresholds (the shipped default without a file) it learns from the
+detector's own load factors: μ rises to any load the contact carried beyond it (capacity
+rule); each confirmed slip (the flag up 50 ms without a break) narrows the band to the
+lower prediction bound of the confirmed onset levels and raises the release level to the
+lowest sliding level less its noise. Only ever towards fewer flags, never past what a
+measurement shows, bounded; a false alarm cannot widen anything. :class:`CalibratedLatch`
+is the detector's latch with it (``lib/detector.py`` and the detection benchmark).
 """
 
 from __future__ import annotations
