@@ -51,7 +51,7 @@ from slipstack.nodes.runtime.node import Node
 
 __all__ = [
     "SCHEMA_ENCODING", "MESSAGE_ENCODING", "ROS2_MESSAGE_ENCODING", "CLOCK_METADATA", "RecordingError", "RecordedFrame",
-    "RecordingWriter", "claim_recording_path", "read_recording", "TopicInfo", "RecordingInfo", "recording_info",
+    "RecordingWriter", "RECORDING_FORMATS", "recording_writer", "claim_recording_path", "read_recording", "TopicInfo", "RecordingInfo", "recording_info",
     "message_schema", "clock_offset_ns", "recorded_clock_offset_ns",
     "replay_into", "same_output", "match_outputs",
 ]
@@ -246,6 +246,19 @@ class RecordingWriter:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+RECORDING_FORMATS = ("slipstack", "ros2")
+"""How a recording is written: :class:`RecordingWriter`'s layout, or rosbag2's (``ros2_bag.py``)."""
+
+
+def recording_writer(path: str | os.PathLike, fmt: str = "slipstack", **kwargs: Any) -> RecordingWriter:
+    """A writer of format ``fmt`` (:data:`RECORDING_FORMATS`); ``kwargs`` as :class:`RecordingWriter`'s."""
+    if fmt == "ros2":
+        from slipstack.nodes.recording.ros2_bag import Ros2RecordingWriter
+
+        return Ros2RecordingWriter(path, **kwargs)
+    return RecordingWriter(path, **kwargs)
 
 
 # -- reading ------------------------------------------------------------------------------
