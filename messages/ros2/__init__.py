@@ -20,7 +20,7 @@ from slipstack.messages import (Contact, Cor, Diagnostics, GripCommand, Header, 
                                 Wrench)
 
 __all__ = ["INSTALL_HINT", "PAD_FRAME_ID", "WRENCH_STAMPED", "IMAGE", "ROS_TYPES", "INFO_TYPES", "INFO_SUFFIX",
-           "RosOut", "Ros2Codec", "codec", "stamp_to_ns"]
+           "RosOut", "Ros2Codec", "ROS_NAMESPACE", "codec", "ros_topic", "stamp_to_ns"]
 
 INSTALL_HINT = "ROS 2 messages need the ros2 extra: pip install 'slipstack[ros2]'"
 PAD_FRAME_ID = "pad"
@@ -51,6 +51,15 @@ class RosOut:
     suffix: str
     ros_type: str
     cdr: bytes
+
+
+ROS_NAMESPACE = "/slipstack"
+"""Where slipstack's topics live in ROS 2: ``slip`` is ``/slipstack/slip``."""
+
+
+def ros_topic(topic: str, namespace: str = ROS_NAMESPACE) -> str:
+    """The ROS 2 name of a slipstack topic: ``ft/wrench`` → ``/slipstack/ft/wrench``."""
+    return f"{namespace.rstrip('/')}/{topic}"
 
 
 def stamp_to_ns(stamp: Any) -> int:

@@ -18,14 +18,12 @@ from mcap.records import Channel, Message as McapMessage, Schema
 from slipstack.lib.errors import DecodeError
 from slipstack.messages import (Contact, Cor, Diagnostics, GripCommand, RigTruth, Slip, TactileFrame, Wrench, decode,
                                 encode)
-from slipstack.messages.ros2 import INFO_SUFFIX, INFO_TYPES, ROS_TYPES, codec
+from slipstack.messages.ros2 import INFO_SUFFIX, INFO_TYPES, ROS_NAMESPACE, ROS_TYPES, codec, ros_topic
 from slipstack.nodes.recording.bag_io import ROS2_MESSAGE_ENCODING, RecordedFrame, RecordingWriter
 
-__all__ = ["ROS_NAMESPACE", "PROFILE", "SCHEMA_ENCODING", "ros_topic", "qos_profiles_yaml",
+__all__ = ["PROFILE", "SCHEMA_ENCODING", "qos_profiles_yaml",
            "Ros2RecordingWriter", "Ros2Frames"]
 
-ROS_NAMESPACE = "/slipstack"
-"""Where slipstack's topics live in ROS 2: ``slip`` is ``/slipstack/slip``."""
 PROFILE, SCHEMA_ENCODING = "ros2", "ros2msg"
 ROSBAG2_METADATA = "rosbag2"
 """The metadata record rosbag2's MCAP storage writes at the end: ``serialized_metadata``, the bag's
@@ -35,11 +33,6 @@ _DEFAULT_TOPICS = {ROS_TYPES[Wrench]: "ft/wrench", ROS_TYPES[TactileFrame]: "tac
                    ROS_TYPES[GripCommand]: "grip/command", ROS_TYPES[RigTruth]: "rig/truth",
                    ROS_TYPES[Diagnostics]: "diagnostics"}
 """The slipstack topic of a ROS 2 type recorded outside :data:`ROS_NAMESPACE` (another lab's bag)."""
-
-
-def ros_topic(topic: str, namespace: str = ROS_NAMESPACE) -> str:
-    """The ROS 2 name of a slipstack topic: ``ft/wrench`` → ``/slipstack/ft/wrench``."""
-    return f"{namespace.rstrip('/')}/{topic}"
 
 
 def qos_profiles_yaml(depth: int = 10) -> str:
