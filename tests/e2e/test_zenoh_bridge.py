@@ -107,15 +107,19 @@ def test_a_ros2_peer_sees_every_slip_at_1khz_on_rmw_zenohs_keys(launch, tmp_path
     decode_slip = generate_dynamic(SLIP, STORE.generate_msgdef(SLIP, ros_version=2)[0])[SLIP]
     recorded = {m.header.seq: m for m in (decode(f.payload) for f in read_recording(rec, ["slip"]))}
     assert len(recorded) > 2500, "the stack ran its slip detector at about 1 kHz for 4 s"
-    seqs = []
+    seqs, received = [], set()
     for payload, raw in got:
         slip = decode_slip(payload)
-        mine = recorded[slip.trace.seq]
+        received.add(slip.trace.seq)
+        seqs.append(_attachment(raw)[0])
+        mine = recorded.get(slip.trace.seq)
+        if mine is None:  # the last verdicts, after the recorder stopped
+            continue
         assert (slip.state, slip.gamma, slip.margin, slip.method) == (mine.state, mine.gamma, mine.margin, mine.method)
         assert slip.header.stamp.sec * 10**9 + slip.header.stamp.nanosec == mine.header.stamp_ns
-        seqs.append(_attachment(raw)[0])
-    assert sorted(s.trace.seq for s in map(decode_slip, (p for p, _ in got))) == sorted(recorded), "a slip was lost"
-    assert seqs == list(range(1, len(recorded) + 1)), "rmw_zenoh's sequence numbers count from 1 without a gap"
+    assert not set(recorded) - received, f"{len(set(recorded) - received)} slips lost"
+    assert len(received) == len(got) and len(got) - len(recorded) < 50
+    assert seqs == list(range(1, len(got) + 1)), "rmw_zenoh's sequence numbers count from 1 without a gap"
     nodes = [t for t in tokens if "/NN/" in t]
     publishers = [t for t in tokens if "/MP/" in t and "%slipstack%slip/" in t]
     assert nodes and nodes[0].endswith("/NN/%/%slipstack/slipstack_bridge"), tokens
