@@ -68,8 +68,8 @@ def test_without_a_material_file_it_says_so_at_start_on_diagnostics_live_and_in_
     last = [d for d in ex.published["diagnostics"] if d.node == "slip_detector"][-1]
     assert last.status.startswith("uncalibrated: no material file"), last.status
     ex.stop()
-    summary = [line for line in ex.logs if line.split("] ", 1)[-1].startswith("detector uncalibrated")]
-    assert summary and len(summary[0].split("] ", 1)[-1]) <= 100, ex.logs
+    summary = [line for line in ex.logs if line.startswith("[monitor] detector: uncalibrated: no material file")]
+    assert summary and len(summary[0]) <= 100, ex.logs
 
     ex = _run_with(SlipDetectorParams(material="rubber"), [0.2] * 10)
     ex.stop()
