@@ -17,10 +17,11 @@ from slipstack.nodes.rig import load_scene_by_name
 
 pytestmark = pytest.mark.e2e
 
-FALSE_ALARM_BOUND = 0.20
+FALSE_ALARM_BOUND = 0.35
 """False-alarm share a detector may have (``lib/episodes.py``: flagged sticking frames
-outside every episode's window): a loose bound on these F/T-test scenes (docs/benchmarks.md
-has the measured shares); a detector stuck on "slip" scores nearly 100 %."""
+outside every episode's window, the loads stuck at their friction after a slip included): a
+loose bound; with the default material these scenes measure 8–18 % (bench_detection.py's
+cache, rubber); a detector stuck on "slip" scores nearly 100 %."""
 
 SCENES = ["fig10", "fig11", "fig12", "fig15"]
 
