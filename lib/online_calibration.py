@@ -145,10 +145,12 @@ class CalibratedLatch:
     def update(self, t_ns: int, margin: float, *, in_contact: bool = True) -> tuple[bool, float]:
         """(slip flag, margin with the learned μ) for one frame's ``margin`` (NaN: no verdict)."""
         cal = self.calibration
+        if cal is None:
+            return self.latch.update(t_ns, margin, in_contact=in_contact), margin
         raw = 1.0 - margin  # γ with the starting μ; NaN stays NaN
-        margin = margin if cal is None else 1.0 - cal.scaled(raw)
+        margin = 1.0 - cal.scaled(raw)
         slipping = self.latch.update(t_ns, margin, in_contact=in_contact)
-        if cal is not None and in_contact and cal.step(t_ns, raw, slipping):
+        if in_contact and cal.step(t_ns, raw, slipping):
             learned = cal.learned
             self.latch.config = replace(self.latch.config, delta=learned.delta, gamma_release=learned.gamma_release,
                                         gamma_resume=learned.gamma_resume)
