@@ -85,3 +85,17 @@ def test_online_calibration_says_what_it_learned():
     assert learned, ex.logs
     last = [d for d in ex.published["diagnostics"] if d.node == "slip_detector"][-1]
     assert last.status.startswith("calibrated-online:") and "mu 0.49" in last.status, last.status
+
+
+def test_a_material_written_by_identify_force_is_reported_as_refused(tmp_path):
+    from dataclasses import replace
+
+    from slipstack.lib.material import material_toml
+    from slipstack.nodes.material_param import resolve_material
+
+    path = tmp_path / "forced.toml"
+    path.write_text(material_toml(replace(resolve_material("rubber"), refused="the band would be its cap")))
+    ex = _run_with(SlipDetectorParams(material=str(path)), [0.2] * 5)
+    last = [d for d in ex.published["diagnostics"] if d.node == "slip_detector"][-1]
+    assert last.status.startswith("refused-material: ") and "identify --force" in last.status, last.status
+    assert any("identify refused it: the band would be its cap" in line for line in ex.logs), ex.logs
