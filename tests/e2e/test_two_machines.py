@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import json
 import os
-import random
 import re
 import signal
 import subprocess
@@ -28,6 +27,7 @@ import numpy as np
 import pytest
 import zmq
 import zmq.auth
+from free_ports import free_port_block
 
 from slipstack.lib.toml_file import resolve_path
 from slipstack.messages import Header, Wrench, decode, encode
@@ -51,7 +51,7 @@ def two_hosts(tmp_path):
     scene = tmp_path / "fig15_short.toml"
     text = resolve_path("fig15", Path.cwd(), "scenes").read_text()
     scene.write_text(text.replace("duration_s = 12.0", f"duration_s = {SCENE_S}", 1))
-    first = random.randrange(20000, 32000, 100)  # below the ephemeral ports (32768-60999)
+    first = free_port_block(100, (ROBOT, WORKSTATION))
     graphs: list[LaunchedGraph] = []
     roots: list[tempfile.TemporaryDirectory] = []
 
@@ -250,7 +250,7 @@ def test_topic_pub_on_one_machine_reaches_a_node_on_the_other_and_both_launchers
     for directory in (keys, stranger):
         subprocess.run([sys.executable, "-m", "slipstack.launch.cli", "keys", str(directory), "--machine", "a",
                         "--machine", "b"], check=True, capture_output=True, timeout=60)
-    first = random.randrange(20000, 32000, 100)
+    first = free_port_block(10, (ROBOT, WORKSTATION))
     launch_file = tmp_path / "inject.toml"
     launch_file.write_text(INJECTION_GRAPH.format(first=first, last=first + 9, keys=keys))
     roots = [tempfile.TemporaryDirectory(prefix="ss-", dir="/tmp") for _ in range(2)]
