@@ -155,7 +155,7 @@ def test_a_bad_parameter_stops_the_launch_naming_the_node(launch, run_root):
     bad = run_root / "bad.toml"
     bad.write_text('[[node]]\nname = "src"\ntype = "wrench_source"\nparams = { rate_hz = "fast" }\n')
     g = launch(str(bad))
-    assert g.proc.wait(30) != 0
+    assert g.wait_exit(30) != 0
     assert "src" in g.log() and "rate_hz" in g.log()
 
 
