@@ -71,6 +71,7 @@ from slipstack.launch.launch_file import load_launch_file
 from slipstack.analysis.identify_cli import identify_material
 from slipstack.launch.lockstep import run_launch_file
 from slipstack.nodes.rig import load_scene_by_name, with_rates
+from _versions import print_versions
 
 DETECTION_SCENES = ["fig4a", "fig4b", "fig10", "fig11", "fig12", "fig13", "fig14", "fig15", "default"]
 NEGATIVE_SCENES = ["hold_force", "hold_torsion"]
@@ -315,6 +316,7 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, default=Path("/tmp/slipstack-bench-detection-materials"),
                     help="recordings, material files and per-scene runs (delete to re-run)")
     args = ap.parse_args()
+    print_versions()
     args.cache.mkdir(parents=True, exist_ok=True)
     rates = (args.ft_rate, args.tactile_rate)
     period_ns = 1e9 / args.ft_rate
