@@ -52,7 +52,7 @@ def _launch_file(tmp_path, security: str):
 
 def test_tcp_without_keys_is_refused_with_what_to_do(launch, tmp_path):
     g = launch(str(_launch_file(tmp_path, "")))
-    assert g.proc.wait(60) != 0
+    assert g.wait_exit(60) != 0
     assert "slipstack keys" in g.log() and "insecure = true" in g.log()
 
 

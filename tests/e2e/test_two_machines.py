@@ -147,8 +147,8 @@ def test_a_machine_whose_launcher_dies_takes_its_nodes_and_is_reported(two_hosts
     pids = [v["pid"] for v in robot_nodes.values() if v.get("machine") == "robot"]
     assert pids and all(pid_alive(p) for p in pids)
     robot.proc.kill()  # no goodbye: the workstation must notice the silence
-    deadline = time.monotonic() + 30
-    while time.monotonic() < deadline and ("went quiet" not in workstation.log() or any(map(pid_alive, pids))):
+    deadline = workstation.deadline(30)
+    while not deadline.expired() and ("went quiet" not in workstation.log() or any(map(pid_alive, pids))):
         time.sleep(0.1)
     assert not any(pid_alive(p) for p in pids), "the robot's nodes outlived their launcher"
     assert "machine robot (127.0.0.1) went quiet" in workstation.log(), workstation.log()
@@ -190,8 +190,8 @@ def test_a_machine_gone_quiet_is_named_the_grip_holds_and_the_loop_resumes(two_h
 
     try:
         before: list[tuple[float, str]] = []
-        deadline = time.monotonic() + 30
-        while time.monotonic() < deadline and not any(reason != "fail-safe" for _, reason in before):
+        deadline = workstation.deadline(30)
+        while not deadline.expired() and not any(reason != "fail-safe" for _, reason in before):
             before += read(0.5)
         assert before, "no grip command before the freeze"
         for pid in robot_pids:
@@ -210,9 +210,9 @@ def test_a_machine_gone_quiet_is_named_the_grip_holds_and_the_loop_resumes(two_h
             os.kill(pid, signal.SIGCONT)
         read(30, until="machine robot (127.0.0.1) is back")
         assert "machine robot (127.0.0.1) is back" in workstation.log(), workstation.log()
-        deadline = time.monotonic() + 30
+        deadline = workstation.deadline(30)
         resumed: list[tuple[float, str]] = []
-        while time.monotonic() < deadline and not any(reason != "fail-safe" for _, reason in resumed):
+        while not deadline.expired() and not any(reason != "fail-safe" for _, reason in resumed):
             resumed = read(0.5)
         assert any(reason != "fail-safe" for _, reason in resumed), resumed
     finally:
