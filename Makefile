@@ -17,7 +17,7 @@ $(VENV)/.installed: pyproject.toml $(LOCK)
 	python3 -m venv $(VENV)
 	$(PIP) install -q --upgrade pip
 	$(PIP) install -q -e '.[test,foxglove]'
-	$(PY) -c 'from slipstack.lib.limit_set import compile_kernels; compile_kernels(); from slipstack.lib.fusion import compile_kernels as fusion; fusion(); import slipstack.lib.protocols.crc; from slipstack.lib.rig.simulator import compile_kernels as rig; rig()'
+	$(PY) -c 'from slipstack.lib.limit_set import compile_kernels; compile_kernels(); from slipstack.lib.fusion import compile_kernels as fusion; fusion(); from slipstack.lib.protocols.crc import compile_kernels as crc; crc(); from slipstack.lib.rig.simulator import compile_kernels as rig; rig()'
 	$(PY) -m compileall -q lib messages nodes launch analysis
 	touch $@
 
