@@ -80,6 +80,11 @@ def _table_crc(data: np.ndarray, table: np.ndarray, crc: int, reflected_update: 
     return crc
 
 
+KERNEL_FROM_BYTES = 16
+"""Shorter data (a request, a constant built at import) takes the loop in Python: about as fast
+as the kernel's call there, and it needs no kernel."""
+
+
 @functools.cache
 def _kernel():
     """:func:`_table_crc` compiled by numba (or loaded from its cache), once per process."""
@@ -114,16 +119,16 @@ class Crc16:
     check: int
     reflected_table: bool | None = None
     _table: np.ndarray = field(init=False, repr=False, compare=False)
+    _table_tuple: tuple[int, ...] = field(init=False, repr=False, compare=False)
     _hqx: bool = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         refl = self.refin if self.reflected_table is None else self.reflected_table
-        object.__setattr__(self, "_table", np.array(_make_table(self.poly, refl), dtype=np.int64))
+        object.__setattr__(self, "_table_tuple", _make_table(self.poly, refl))
+        object.__setattr__(self, "_table", np.array(self._table_tuple, dtype=np.int64))
         # binascii.crc_hqx is the MSB-first 0x1021 CRC in C: use it where it applies
         object.__setattr__(self, "_hqx", self.poly == 0x1021 and not self.refin and not refl)
-        check = np.frombuffer(b"123456789", dtype=np.uint8)  # the loop in Python: no kernel at import
-        got = (binascii.crc_hqx(check, self.init) if self._hqx
-               else _table_crc(check, self._table, self.init, self.refin)) ^ self.xorout
+        got = self(b"123456789")  # shorter than KERNEL_FROM_BYTES: no kernel at import
         if got != self.check:  # a wrong table is a programming error, caught at import
             raise ValueError(f"{self.name}: check value {got:#06x} != {self.check:#06x}")
 
@@ -132,6 +137,8 @@ class Crc16:
         c = self.init if init is None else init
         if self._hqx:
             return binascii.crc_hqx(data, c) ^ self.xorout
+        if len(data) < KERNEL_FROM_BYTES:
+            return _table_crc(bytes(data), self._table_tuple, c, self.refin) ^ self.xorout
         return int(_kernel()(np.frombuffer(data, dtype=np.uint8), self._table, c, self.refin)) ^ self.xorout
 
 
@@ -151,6 +158,7 @@ CRC16_CCITT_FALSE = Crc16("CRC-16/CCITT-FALSE", poly=0x1021, init=0xFFFF, refin=
 def compile_kernels() -> None:
     """Load the CRC kernel for every CRC here (compiled once into numba's cache): a node that
     frames CRCs calls this before it reports ready, so its first frame runs at full speed."""
-    for crc in (CRC16_MODBUS, CRC16_X25, CRC16_DSACON32, CRC16_CCITT_FALSE):
-        if crc(b"123456789") != crc.check:
-            raise ValueError(f"{crc.name}: the compiled kernel disagrees with its check value")
+    data = np.frombuffer(b"123456789" * 4, dtype=np.uint8)
+    for crc in (CRC16_MODBUS, CRC16_X25, CRC16_DSACON32):
+        if _kernel()(data, crc._table, crc.init, crc.refin) != _table_crc(data, crc._table, crc.init, crc.refin):
+            raise ValueError(f"{crc.name}: the compiled kernel disagrees with the loop in Python")
