@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 # reaches pip's build environment too. `make upgrade` writes it anew.
 LOCK := constraints.txt
 PIP := PIP_CONSTRAINT=$(CURDIR)/$(LOCK) $(PY) -m pip
-EXTRAS := test,foxglove,report,bench
+EXTRAS := test,foxglove,report,bench,ros2
 
 .PHONY: run test bench mutation upgrade
 
@@ -16,7 +16,7 @@ EXTRAS := test,foxglove,report,bench
 $(VENV)/.installed: pyproject.toml $(LOCK)
 	python3 -m venv $(VENV)
 	$(PIP) install -q --upgrade pip
-	$(PIP) install -q -e '.[test,foxglove]'
+	$(PIP) install -q -e '.[test,foxglove,ros2]'
 	$(PY) -c 'from slipstack.lib.limit_set import compile_kernels; compile_kernels(); from slipstack.lib.fusion import compile_kernels as fusion; fusion(); from slipstack.lib.protocols.crc import compile_kernels as crc; crc(); from slipstack.lib.rig.simulator import compile_kernels as rig; rig()'
 	$(PY) -m compileall -q lib messages nodes launch analysis
 	touch $@
