@@ -50,7 +50,7 @@ mtime in whole seconds and its size, which two mutants can share.
 Equivalent mutants: ``equivalent.txt`` lists them one per line as ``KEY  # reason``. The
 key names the mutant by content, not by line: the file, the enclosing function, the
 operator, the changed text in «» between up to four tokens of its own logical line on each
-side, and the mutated text (see :attr:`Mutant.key`); edits elsewhere in the file leave it
+side (and the line's first three), and the mutated text (see :attr:`Mutant.key`); edits elsewhere in the file leave it
 as it is. An entry that matches no mutant any more is *stale*: every run names the stale
 entries, and ``--check`` exits 1 on one (re-derive the entry from ``--list``, or drop it).
 """
@@ -59,6 +59,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import bisect
 import gc
 import importlib
 import json
@@ -137,9 +138,9 @@ class Mutant:
     @property
     def key(self) -> str:
         """Content name used in ``equivalent.txt``: ``path scope operator: context -> mutated``,
-        the context being the changed text in «» with its neighbouring tokens, whitespace
-        collapsed and comments left out; `` [k]`` marks the k-th further mutant with the
-        same name in the same function (a line repeated there)."""
+        the context being the changed text in «» with its neighbouring tokens and the start of
+        its line, whitespace collapsed and comments left out; `` [k]`` marks the k-th further
+        mutant with the same name in the same function (a line repeated there)."""
         name = f"{self.path} {self.scope} {self.operator}: {self.context} -> {_collapse(self.mutated)}"
         return name + (f" [{self.occurrence}]" if self.occurrence else "")
 
@@ -149,6 +150,8 @@ class Mutant:
 
 NEIGHBOURS = 4
 """Tokens of the mutant's own logical line kept on each side of it in its key."""
+LEAD = 3
+"""Tokens of the start of the mutant's logical line kept in its key (what the line assigns or returns)."""
 
 
 def _collapse(text: str) -> str:
@@ -176,6 +179,7 @@ class _Tokens:
                 logical += 1
             elif tok.type not in (tokenize.NL, tokenize.INDENT, tokenize.DEDENT, tokenize.ENDMARKER):
                 self.spans.append((start, end, logical))
+        self._starts = [span[0] for span in self.spans]
 
     def offset(self, line: int, col: int) -> int:
         """Character offset of a tokenize position (1-based line, 0-based character column)."""
@@ -192,17 +196,23 @@ class _Tokens:
         return _collapse("".join(parts))
 
     def context(self, start: int, end: int) -> str:
-        """The text ``start:end`` in «», with up to :data:`NEIGHBOURS` tokens of its logical line each side."""
-        inside = [k for k, (s, e, _) in enumerate(self.spans) if s >= start and e <= end]
-        first, last = inside[0], inside[-1]
+        """The text ``start:end`` in «», with up to :data:`NEIGHBOURS` tokens of its logical line
+        each side, and the line's first :data:`LEAD` tokens (``… `` marks the tokens left out)."""
+        first = bisect.bisect_left(self._starts, start)
+        last = bisect.bisect_right(self._starts, end - 1) - 1
         logical = self.spans[first][2]
-        before = first
-        while before > 0 and first - before < NEIGHBOURS and self.spans[before - 1][2] == logical:
-            before -= 1
+        head = first
+        while head > 0 and self.spans[head - 1][2] == logical:
+            head -= 1
+        before = max(head, first - NEIGHBOURS)
+        if before - head <= LEAD:
+            before = head
         after = last
         while after + 1 < len(self.spans) and after - last < NEIGHBOURS and self.spans[after + 1][2] == logical:
             after += 1
         left = self.text(self.spans[before][0], start) if before < first else ""
+        if before > head:
+            left = f"{self.text(self.spans[head][0], self.spans[head + LEAD - 1][1])} … {left}"
         right = self.text(end, self.spans[after][1]) if after > last else ""
         gap_left = " " if left and self.source[start - 1].isspace() else ""
         gap_right = " " if right and self.source[end].isspace() else ""
