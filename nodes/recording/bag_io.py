@@ -146,9 +146,14 @@ def claim_recording_path(path: Path) -> None:
 class RecordingWriter:
     """Write frames to an MCAP file (see the module docstring for the layout).
 
+    A write that fails (a full disk) never raises: :attr:`error` keeps it, nothing more is
+    written, and every frame from the chunk it cut on is counted per topic in
+    :attr:`not_written`; :attr:`counts` are the frames in the file's intact chunks, which
+    :func:`read_recording` reads (the file stays unfinished).
+
     Args:
-        path: output file (parent folders are created).
-        chunk_size: close a chunk above this many bytes.
+        path: output file (its folder must exist: :func:`claim_recording_path`).
+        chunk_size: close a chunk above this many bytes of frames.
         flush_period_s: close and flush a chunk at most this long (s, in log time)
             after its first message, so a crash loses at most that much.
         wall_minus_monotonic_ns: the host's ``time.time_ns() - time.monotonic_ns()``,
@@ -164,19 +169,44 @@ class RecordingWriter:
         wall_minus_monotonic_ns: int | None = None,
     ) -> None:
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
         self._fh = open(self.path, "wb")
-        self._writer = Writer(self._fh, chunk_size=chunk_size, compression=CompressionType.ZSTD)
-        self._writer.start(profile="", library="slipstack")
-        if wall_minus_monotonic_ns is not None:
-            self._writer.add_metadata(CLOCK_METADATA, {"wall_minus_monotonic_ns": str(int(wall_minus_monotonic_ns))})
-            self._fh.flush()
+        # chunks are closed here, never inside add_message: each is then flushed whole or counted lost
+        self._writer = Writer(self._fh, chunk_size=1 << 62, compression=CompressionType.ZSTD)
+        self._chunk_size = chunk_size
         self._flush_period_ns = round(flush_period_s * 1e9)
         self._chunk_opened_ns: int | None = None
+        self._chunk_bytes = 0
         self._schemas: dict[str, int] = {}
         self._channels: dict[tuple[str, str], int] = {}
         self.counts: dict[str, int] = defaultdict(int)
+        self._pending: dict[str, int] = defaultdict(int)
+        self.not_written: dict[str, int] = defaultdict(int)
+        self.error: OSError | None = None
         self.closed = False
+        self._guard(lambda: self._writer.start(profile="", library="slipstack"))
+        if wall_minus_monotonic_ns is not None:
+            self._guard(lambda: self._writer.add_metadata(
+                CLOCK_METADATA, {"wall_minus_monotonic_ns": str(int(wall_minus_monotonic_ns))}))
+        self._guard(self._fh.flush)
+
+    def _guard(self, step: Callable[[], object]) -> bool:
+        """Run one write ``step``; on an OSError keep it in :attr:`error`, count the chunk in
+        progress as not written and write nothing more. True if it succeeded."""
+        if self.error is not None:
+            return False
+        try:
+            step()
+            return True
+        except OSError as exc:
+            self.error = exc
+            for topic, n in self._pending.items():
+                self.not_written[topic] += n
+            self._pending.clear()
+            try:
+                self._fh.close()
+            except OSError:  # its buffer could not be written either
+                pass
+            return False
 
     def _channel(self, topic: str, head: FrameHeader | None) -> int:
         type_name = head.type_name if head else ""
@@ -197,7 +227,11 @@ class RecordingWriter:
         return cid
 
     def write(self, topic: str, payload: bytes, log_time_ns: int) -> None:
-        """Append one frame received at ``log_time_ns`` (wall-clock ns)."""
+        """Append one frame received at ``log_time_ns`` (wall-clock ns); after a failed write
+        it is only counted in :attr:`not_written`."""
+        if self.error is not None:
+            self.not_written[topic] += 1
+            return
         head = peek_header(payload)
         log_time_ns = int(log_time_ns)
         if head is None:
@@ -208,10 +242,11 @@ class RecordingWriter:
             publish_time, sequence = head.pub_ns, head.seq & 0xFFFFFFFF
         self._writer.add_message(cid, log_time_ns, payload if type(payload) is bytes else bytes(payload),
                                  publish_time, sequence)
-        self.counts[topic] += 1
+        self._pending[topic] += 1
+        self._chunk_bytes += len(payload)
         if self._chunk_opened_ns is None:
             self._chunk_opened_ns = log_time_ns
-        if log_time_ns - self._chunk_opened_ns >= self._flush_period_ns:
+        if self._chunk_bytes >= self._chunk_size or log_time_ns - self._chunk_opened_ns >= self._flush_period_ns:
             self.flush()
 
     def tick(self, now_ns: int) -> None:
@@ -221,15 +256,24 @@ class RecordingWriter:
 
     def flush(self) -> None:
         """Close the chunk in progress and hand it to the OS (survives ``kill -9``)."""
-        self._writer.flush()
+        if self._guard(self._writer.flush):
+            for topic, n in self._pending.items():
+                self.counts[topic] += n
+            self._pending.clear()
         self._chunk_opened_ns = None
+        self._chunk_bytes = 0
 
-    def close(self) -> None:
-        """Finish the file: last chunk, summary, indexes, footer. Idempotent."""
-        if not self.closed:
-            self.closed = True
-            self._writer.finish()
-            self._fh.close()
+    def close(self, metadata: dict[str, dict[str, str]] | None = None) -> None:
+        """Finish the file: last chunk, ``metadata`` records (name → key → value), summary,
+        indexes, footer. Idempotent. After a failed write the file is left unfinished."""
+        if self.closed:
+            return
+        self.closed = True
+        self.flush()
+        for name, record in (metadata or {}).items():
+            self._guard(lambda: self._writer.add_metadata(name, record))
+        if self._guard(self._writer.finish):
+            self._guard(self._fh.close)
 
     def __enter__(self) -> "RecordingWriter":
         return self

@@ -164,6 +164,8 @@ def _copy_frames(source: int, path: Path, wall_minus_monotonic_ns: int | None) -
                 at = end
             view.release()
             del pending[:at]
+            if writer.error is not None:  # a full disk: the caller's close() says so
+                raise writer.error
     if pending:
         raise ValueError(f"the frames ended inside a frame after {count} frames ({len(pending)} bytes left over)")
     return count
