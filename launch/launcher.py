@@ -69,6 +69,8 @@ from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.nodes.devices.sim_link import SIM_PREFIX
 from slipstack.launch.quiet_shutdown import WorldEndFilter, WorldLogLevels
 from slipstack.launch.run_log import RunLog, log_path_for
+from slipstack.nodes.monitor import write_json_atomically
+from slipstack.nodes.recording.loss import NUMBERED_REPORT, RECORDING_REPORT, loss_text
 from slipstack.nodes.runtime.logs import LOG_LEVEL_ENV, parse_log_levels
 from slipstack.nodes.runtime.curve import INSECURE_ENV, KEYS_ENV, MACHINE_ENV, GraphKeys, machine_env, use_keys
 from slipstack.nodes.runtime.graph_info import process_start_ticks, write_graph
@@ -83,6 +85,8 @@ READY_TIMEOUT_S = 20.0
 STOP_GRACE_S = 0.4       # per node, after SIGINT, before the next node is told to stop
 TERM_AFTER_S = 1.5       # from the start of shutdown: SIGTERM whoever is left
 KILL_AFTER_S = 2.5       # from the start of shutdown: SIGKILL whoever is left
+FINISH_LIMIT_S = 60.0    # then the recorder and the monitor: time to write what they hold (docs/safety.md)
+FINISH_NOTE_S = 3.0      # said on the terminal once it takes this long
 CLOCK_EXCHANGES = 10     # ping exchanges with the first machine before its clock offset is used
 DRIFT_CHECK_S = 5.0      # how often the clock offset in use is compared with a fresh estimate
 EVENTS_FILE = "launch_events.json"
@@ -168,6 +172,9 @@ class Launcher:
             name: _Process(p.name, p.members, p.spec_path, p.spec) for name, p in self.plan.processes.items()}
         self.order: list[str] = self.plan.order  # process names, in start order
         self._stop_requested = False
+        self._signals = 0
+        self._numbered: dict[str, dict[str, int]] = {}
+        """Node → topic → frames it published, as its process stopped (its stop report)."""
         self.exit_code = 0
         self.start_ticks = process_start_ticks(os.getpid())
         world = {n: tuple(p.node_names) for n, p in self.processes.items() if p.entry.stop_first}
@@ -481,6 +488,7 @@ class Launcher:
 
     def _on_signal(self, signum: int, frame: object) -> None:
         self._stop_requested = True
+        self._signals += 1
 
     # -- the run ------------------------------------------------------------------------------
     def run(self) -> int:
@@ -524,6 +532,7 @@ class Launcher:
                 self.relay.close()
             if self.clock_report is not None:
                 self.clock_report.close()
+        self._report_recording()
         self._report_events()
         if self.launch.check:
             self._report_check()
@@ -555,9 +564,12 @@ class Launcher:
                     return
 
     def _note_ready_reports(self) -> None:
-        """Read the ready reports of respawned nodes; say how long each process was gone."""
+        """Read the ready reports of respawned nodes (say how long each process was gone) and the
+        stop reports (what each node published, for the recorder's count of what it misses)."""
         while self.control.poll(0):
             event = msgpack.unpackb(self.control.recv())
+            if event.get("event") == "stopped" and isinstance(event.get("numbered"), dict):
+                self._numbered[str(event.get("node"))] = event["numbered"]
             if event.get("event") != "ready":
                 continue
             for c in self.processes.values():
@@ -654,8 +666,24 @@ class Launcher:
         self._world_end.world_ending()
         for c in self.processes.values():
             self._dismiss_standby(c)
-        t0 = time.monotonic()
         live = [p for p in self._stop_order(started) if p.proc is not None]
+        self._stop_graph([c for c in live if not c.outlives_graph])
+        self._note_ready_reports()
+        try:  # the recorder counts what its file misses against it
+            write_private_file(self.run_dir, NUMBERED_REPORT, json.dumps(self._numbered))
+        except OSError as exc:
+            self.echo(f"[launch] cannot write {NUMBERED_REPORT} in the run directory ({exc.strerror})")
+        self._let_finish([c for c in live if c.outlives_graph])
+        for c in live:
+            c.proc.wait()
+        self._forward_logs(0.0)
+        closing = self._world_end.closing_line()
+        if closing:
+            self.echo(closing)
+
+    def _stop_graph(self, live: list[_Process]) -> None:
+        """Stop ``live`` in order: SIGINT, then SIGTERM and SIGKILL to whoever is left."""
+        t0 = time.monotonic()
         for c in live:
             if c.proc.poll() is None:
                 c.proc.send_signal(signal.SIGINT)
@@ -670,12 +698,57 @@ class Launcher:
                 if c.proc.poll() is None:
                     self.echo(f"[launch] {c.name} still running; sending {sig.name}")
                     c.proc.send_signal(sig)
-        for c in live:
-            c.proc.wait()
-        self._forward_logs(0.0)
-        closing = self._world_end.closing_line()
-        if closing:
-            self.echo(closing)
+
+    def _let_finish(self, live: list[_Process]) -> None:
+        """Stop the recorder and the monitor once the rest has stopped, and wait while they write
+        what they still hold, up to :data:`FINISH_LIMIT_S` (a further Ctrl-C cuts it short)."""
+        running = [c for c in live if c.proc.poll() is None]
+        for c in running:
+            c.proc.send_signal(signal.SIGINT)
+        t0, signals, said = time.monotonic(), self._signals, False
+        while any(c.proc.poll() is None for c in running):
+            waited = time.monotonic() - t0
+            if waited > FINISH_LIMIT_S or self._signals > signals:
+                break
+            if not said and waited > FINISH_NOTE_S:
+                said = True
+                names = ", ".join(c.name for c in running if c.proc.poll() is None)
+                self.echo(f"[launch] waiting for {names} to finish writing (at most {FINISH_LIMIT_S:g} s; "
+                          "Ctrl-C again to stop now)")
+            self._forward_logs(0.05)
+        for c in running:
+            if c.proc.poll() is None:
+                why = "Ctrl-C again" if self._signals > signals else f"not done after {FINISH_LIMIT_S:g} s"
+                self.echo(f"[launch] {c.name} stopped with SIGKILL ({why}): what it still held is lost"
+                          + (" and its file is unfinished (bag info reads it up to its last chunk; missing ?)"
+                             if any(m.entry.cls.taps_bus for m in c.members) else ""))
+                c.proc.send_signal(signal.SIGKILL)
+
+    def _report_recording(self) -> None:
+        """The recorder's count of what its file misses (its report in the run directory): one
+        line, and ``recording_loss`` in the summary JSON."""
+        try:
+            fd = os.open(self.run_dir / RECORDING_REPORT, os.O_RDONLY | os.O_NOFOLLOW)
+            with os.fdopen(fd, "rb") as fh:
+                report = json.loads(fh.read(CHECK_FILE_MAX_BYTES))
+            loss = report["topics"]
+            line = f"[launch] recording {report['path']}: {loss_text(loss, topics_shown=1)}"
+        except FileNotFoundError:
+            return
+        except (OSError, ValueError, TypeError, KeyError) as exc:
+            self.echo(f"[launch] the recorder's {RECORDING_REPORT} is unreadable ({exc})")
+            return
+        self.echo(line)
+        summary = next((e.params.get("summary_path") for e in self.launch.nodes
+                        if e.type == "monitor" and self.plan.is_local(e) and e.params.get("summary_path")), None)
+        if summary and os.path.isfile(summary):
+            try:
+                with open(summary, encoding="utf-8") as fh:
+                    doc = json.load(fh)
+                doc["recording_loss"] = loss
+                write_json_atomically(summary, doc)
+            except (OSError, ValueError) as exc:
+                self.echo(f"[launch] cannot add the recording's loss to {summary} ({exc})")
 
 
 def monitor_check_problems(launch: LaunchFile, run_dir: Path, machine: str | None = None) -> list[str]:

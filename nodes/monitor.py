@@ -231,6 +231,7 @@ class Monitor(Node):
         "diagnostics": Input("diagnostics", Diagnostics, policy="queue", depth=1000),
     }
     Params = MonitorParams
+    outlives_graph = True  # a launch stops it last and lets it write the summary
 
     def __init__(self, params: MonitorParams | None = None) -> None:
         super().__init__(params)
@@ -411,6 +412,7 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "nodes_that_went_silent": went_silent,
         "nodes_restarted_after_silence": sorted(name for name, w in m.nodes.items() if w.restarted),
         "recording": m.params.recording if m.params.recording and os.path.exists(m.params.recording) else "",
+        "recorders": _recorders(m.nodes),
         "clock_offsets": _clock_offsets(m.nodes),
     }
 
@@ -427,6 +429,12 @@ def _ft_samples(nodes: dict[str, NodeWatch]) -> dict[str, float]:
             totals["carried"] += c["fusion.samples"]
         totals["judged"] += c.get("slip_test.samples_judged", 0)
     return totals
+
+
+def _recorders(nodes: dict[str, NodeWatch]) -> dict[str, dict]:
+    """Each recorder's status and how often it fell behind (its counters ``recorder.*``)."""
+    return {node: {"status": w.status, "fell_behind": w.counters.get("recorder.fell_behind", 0)}
+            for node, w in sorted(nodes.items()) if "recorder.written" in w.counters}
 
 
 def _clock_offsets(nodes: dict[str, NodeWatch]) -> dict[str, dict[str, dict[str, float]]]:
@@ -516,6 +524,19 @@ def behind_problems(s: dict) -> list[str]:
     return problems
 
 
+def recording_problems(s: dict) -> list[str]:
+    """A recorder that cannot write its file (a full disk) or fell behind."""
+    problems = []
+    for node, r in sorted(s.get("recorders", {}).items()):
+        if r["status"].startswith("error: cannot write the recording"):
+            problems.append(f"the recorder cannot write its file ({r['status'].split(': ')[-1]}): the frames since "
+                            "are counted, not recorded (the launch's recording line says how many)")
+        elif r["fell_behind"]:
+            problems.append(f"{node} fell behind {r['fell_behind']:g}x (frames written over 1 s after they were sent):"
+                            " a busy machine; the launch's recording line says what the file misses")
+    return problems
+
+
 def _delay_line(s: dict) -> str:
     """Detection delay over the episodes whose flag rose in their window; those whose flag
     was already up when the window opened are counted apart (no delay is measured)."""
@@ -598,6 +619,7 @@ def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
             f" the sensors started" + (f", {s['fail_safe_after_scene']} after the scene ended" if s["has_truth"] else "")
             + "; " + _late_text(s))
     problems = check_problems(s, p or MonitorParams()) + device_problems(s) + behind_problems(s)
+    problems += recording_problems(s)
     lines.extend(f"HEALTH: {problem}" for problem in problems or ["ok"])
     if s["losses"]:
         for node, counts in sorted(s["losses"].items()):

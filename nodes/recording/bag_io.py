@@ -16,7 +16,8 @@ File layout (one MCAP file per recording, https://mcap.dev/spec):
   publisher's CLOCK_MONOTONIC, not the wall clock).
 * a metadata record :data:`CLOCK_METADATA` written first, holding
   ``wall_minus_monotonic_ns`` of the recording host, so receive times can be put on
-  the stamps' monotonic clock (:func:`replay_into`).
+  the stamps' monotonic clock (:func:`replay_into`); the recorder writes
+  :data:`LOSS_METADATA` last, what the file misses per topic.
 * chunked (zstd) and indexed; the writer closes a chunk when it exceeds
   ``chunk_size`` bytes **or** is older than ``flush_period_s``, and flushes it to the
   OS, so a ``kill -9`` loses at most the chunk in progress. :func:`read_recording`
@@ -50,7 +51,7 @@ from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.nodes.runtime.node import Node
 
 __all__ = [
-    "SCHEMA_ENCODING", "MESSAGE_ENCODING", "CLOCK_METADATA", "RecordingError", "RecordedFrame",
+    "SCHEMA_ENCODING", "MESSAGE_ENCODING", "CLOCK_METADATA", "LOSS_METADATA", "RecordingError", "RecordedFrame",
     "RecordingWriter", "claim_recording_path", "read_recording", "TopicInfo", "RecordingInfo", "recording_info",
     "message_schema", "clock_offset_ns", "recorded_clock_offset_ns",
     "replay_into", "same_output", "match_outputs",
@@ -59,6 +60,9 @@ __all__ = [
 MESSAGE_ENCODING = "msgpack"
 SCHEMA_ENCODING = "slipstack-fields+json"
 CLOCK_METADATA = "slipstack.clock"
+LOSS_METADATA = "slipstack.loss"
+"""Metadata record written as the recorder closes the file: ``{"topics": JSON}``, what the
+file misses per topic (``nodes/recording/loss.py``: ``recorded``, ``missing`` and its parts)."""
 DEFAULT_CHUNK_SIZE = 256 * 1024
 DEFAULT_FLUSH_PERIOD_S = 1.0
 
@@ -417,8 +421,10 @@ class TopicInfo:
     """Per-topic numbers of a recording.
 
     rate_hz: (count − 1) / (last − first receive time). seq_gaps: sequence numbers
-    missing between consecutive frames of each publisher (a restart, where seq goes
-    back, is not a gap).
+    missing between consecutive frames of each publisher in the file (a restart, where
+    seq goes back, is not a gap). missing: every frame sent and not in the file, as the
+    recorder counted it when it closed the file (:data:`LOSS_METADATA`; ``None``: not
+    known, the file was not closed by a recorder), with its parts in ``loss``.
     """
 
     topic: str
@@ -428,6 +434,8 @@ class TopicInfo:
     seq_gaps: int
     first_seq: int
     last_seq: int
+    missing: int | None = None
+    loss: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -473,18 +481,31 @@ def recording_info(path: str | os.PathLike, progress: Callable[[int], None] | No
         seq_first.setdefault(topic, seq)
         seq_last[topic] = seq
         gaps[topic] += seq_tracker.update(seq, publisher_key(topic, m.data, head))
+    loss = _loss_record(state.metadata.get(LOSS_METADATA))
     topics = {
         t: TopicInfo(
             t, tuple(sorted(types[t])), counts[t],
             (counts[t] - 1) / ((last[t] - first[t]) / 1e9) if last[t] > first[t] else 0.0,
             gaps[t], seq_first[t], seq_last[t],
+            loss[t]["missing"] if t in loss else None, loss.get(t, {}),
         )
         for t in sorted(counts)
     }
+    for t in sorted(set(loss) - set(counts)):  # a topic sent and wholly missing
+        topics[t] = TopicInfo(t, (), 0, 0.0, 0, 0, 0, loss[t]["missing"], loss[t])
     return RecordingInfo(
         Path(path), os.path.getsize(path), state.finished, state.chunks, sum(counts.values()),
         min(first.values(), default=0), max(last.values(), default=0), topics, state.error,
     )
+
+
+def _loss_record(record: dict[str, str] | None) -> dict[str, dict[str, Any]]:
+    """Topic → its loss (:data:`LOSS_METADATA`); empty if the file has none or it is unreadable."""
+    try:
+        topics = json.loads((record or {}).get("topics", "{}"))
+        return {str(t): v for t, v in topics.items() if isinstance(v, dict) and isinstance(v.get("missing"), int)}
+    except (ValueError, AttributeError):
+        return {}
 
 
 def clock_offset_ns(path: str | os.PathLike, frames: list[RecordedFrame] | None = None) -> int:

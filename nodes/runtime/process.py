@@ -67,6 +67,7 @@ _INJECT_HWM = 200  # injected frames queued in the node's injection socket: the 
 _OVER_RATE_READS = 64  # frames over the injection rate read (and dropped) per wake-up before a pause
 _INJECT_PAUSE_NS = 10_000_000  # how long a node over its injection rate leaves the injection socket unread
 _TIMER_CATCH_UP = 20  # late ticks of one timer fired per loop turn before ticks are skipped
+_CLOSE_LINGER_MS = 200  # at exit, how long frames still queued for a subscriber may take to leave
 _now_ns = graph_clock()  # monotonic ns, on the reference machine's time base (nodes/runtime/time_base.py)
 
 
@@ -224,13 +225,14 @@ class _Member:
             if self.subscribers_of(t) < n
         }
 
-    def report(self, event: str) -> None:
+    def report(self, event: str, **details: Any) -> None:
+        """Tell the launcher ``event`` (``ready``; ``stopped`` with what it published)."""
         if not self.spec.control:
             return
         sock = bound_socket(self.zctx, zmq.PUSH, sndhwm=10, rcvhwm=10, max_msg_bytes=1024)
         sock.setsockopt(zmq.LINGER, 1000)
         sock.connect(self.spec.control)
-        sock.send(msgpack.packb({"node": self.spec.name, "event": event, "pid": os.getpid()}))
+        sock.send(msgpack.packb({"node": self.spec.name, "event": event, "pid": os.getpid(), **details}))
         sock.close()
 
     def sockets(self) -> list[zmq.Socket]:
@@ -553,9 +555,10 @@ class ProcessExecutor:
             for m in self.members:
                 m.host.call("stop", m.node.stop, m.host)
                 if m.pub is not None:
-                    m.send(DIAGNOSTICS_TOPIC, m.host.diagnostics())
-            for sock in self._sockets():
-                sock.close(linger=0)
+                    m.send(DIAGNOSTICS_TOPIC, m.host.diagnostics(final=True))
+                    m.report("stopped", numbered=m.host.numbered())  # what a recording of it must hold
+            for sock in self._sockets():  # the last frames and diagnostics leave, if their subscribers take them
+                sock.close(linger=_CLOSE_LINGER_MS if sock.type == zmq.XPUB else 0)
         return 0
 
     def _loop(self) -> None:
