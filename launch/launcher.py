@@ -174,6 +174,8 @@ class Launcher:
         self._stop_requested = False
         self._signals = 0
         self._numbered: dict[str, dict[str, int]] = {}
+        self._summary_gap = ""
+        """What the run's summary misses (the monitor died and nothing was recorded); "" if nothing."""
         """Node → topic → frames it published, as its process stopped (its stop report)."""
         self.exit_code = 0
         self.start_ticks = process_start_ticks(os.getpid())
@@ -532,7 +534,9 @@ class Launcher:
                 self.relay.close()
             if self.clock_report is not None:
                 self.clock_report.close()
-        self._report_recording()
+        recording = self._read_recording_report()
+        self._summary_from_recording(recording)
+        self._report_recording(recording)
         self._report_events()
         if self.launch.check:
             self._report_check()
@@ -641,6 +645,8 @@ class Launcher:
         """What failed the run: the monitor's ``check.json`` problems (none expected without a monitor in
         the launch), processes that died and stayed down."""
         problems = monitor_check_problems(self.launch, self.run_dir, self.machine)
+        if self._summary_gap:
+            problems.append(self._summary_gap)
         for c in self.processes.values():
             if c.abandoned:
                 problems.append(f"{c.name} abandoned after {c.restarts} restarts")
@@ -724,21 +730,49 @@ class Launcher:
                              if any(m.entry.cls.taps_bus for m in c.members) else ""))
                 c.proc.send_signal(signal.SIGKILL)
 
-    def _report_recording(self) -> None:
-        """The recorder's count of what its file misses (its report in the run directory): one
-        line, and ``recording_loss`` in the summary JSON."""
+    def _read_recording_report(self) -> dict | None:
+        """The recorder's report in the run directory (its file and what it misses); ``None`` if none."""
         try:
             fd = os.open(self.run_dir / RECORDING_REPORT, os.O_RDONLY | os.O_NOFOLLOW)
             with os.fdopen(fd, "rb") as fh:
                 report = json.loads(fh.read(CHECK_FILE_MAX_BYTES))
-            loss = report["topics"]
-            line = f"[launch] recording {report['path']}: {loss_text(loss, topics_shown=1)}"
+            if isinstance(report.get("topics"), dict) and isinstance(report.get("path"), str):
+                return report
+            raise ValueError("not a recorder's report")
         except FileNotFoundError:
-            return
-        except (OSError, ValueError, TypeError, KeyError) as exc:
+            return None
+        except (OSError, ValueError, AttributeError) as exc:
             self.echo(f"[launch] the recorder's {RECORDING_REPORT} is unreadable ({exc})")
+            return None
+
+    def _summary_from_recording(self, recording: dict | None) -> None:
+        """The monitor died during the run (or did not finish): its summary would cover only the time
+        since it came back, or be missing. Sum the run up from the recording instead, into the same
+        summary and check files; without a recording, say what the summary misses."""
+        monitor = next((c for c in self.processes.values() if any(m.entry.type == "monitor" for m in c.members)), None)
+        if monitor is None or not (monitor.deaths or (monitor.proc is not None and monitor.proc.returncode)):
             return
-        self.echo(line)
+        path = recording["path"] if recording else ""
+        if not path or not os.path.isfile(path):
+            self._summary_gap = (f"the monitor died {monitor.deaths}x and nothing was recorded: its summary covers "
+                                 "only the time since it came back")
+            self.echo(f"[launch] {self._summary_gap}")
+            return
+        self.echo(f"[launch] the monitor died {monitor.deaths}x during the run: the run's summary from the "
+                  f"recording {path}")
+        member = next(m for m in monitor.members if m.entry.type == "monitor")
+        from slipstack.nodes.monitor import summary_from_recording
+
+        summary_from_recording(member.entry.instance(graph_nodes=set(self.children)), path,
+                               lambda line: self.echo(line.replace("[monitor]", "[monitor, from the recording]", 1)))
+
+    def _report_recording(self, report: dict | None) -> None:
+        """The recorder's count of what its file misses: one line, and ``recording_loss`` in the
+        summary JSON."""
+        if report is None:
+            return
+        loss = report["topics"]
+        self.echo(f"[launch] recording {report['path']}: {loss_text(loss, topics_shown=1)}")
         summary = next((e.params.get("summary_path") for e in self.launch.nodes
                         if e.type == "monitor" and self.plan.is_local(e) and e.params.get("summary_path")), None)
         if summary and os.path.isfile(summary):

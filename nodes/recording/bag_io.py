@@ -129,20 +129,24 @@ def message_schema(cls: type[Message]) -> dict[str, Any]:
 # -- writing ------------------------------------------------------------------------------
 
 def claim_recording_path(path: Path) -> None:
-    """Create the empty file ``path`` (and its folders) for a new recording, before anything
-    is recorded, so that a path that cannot be written fails at once rather than after a run.
+    """Create the empty file ``path`` for a new recording, before anything is recorded, so that
+    a path that cannot be written fails at once rather than after a run. Its folder is made if
+    its parent exists (``runs/`` in the current directory), never a whole tree (a typo's).
 
     Raises:
         ConfigError: ``path`` exists (a recording is never overwritten, nor written through a
             link), or cannot be written; the message says what to do.
     """
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
+        path.parent.mkdir(exist_ok=True)
         open(path, "xb").close()
     except OSError as exc:
         if os.path.lexists(path):
             raise ConfigError(f"recording {path} exists; pass recording:=NEW.mcap (or path:=NEW.mcap) "
                               "or delete it") from None
+        if not path.parent.parent.is_dir():
+            raise ConfigError(f"the folder {path.parent.parent} of the recording {path} does not exist; create it "
+                              "(mkdir -p) or pass recording:=PATH in a folder that does") from None
         raise ConfigError(f"cannot write the recording {path} ({exc.strerror}); pass recording:=PATH "
                           "in a folder you may write") from None
 
@@ -542,6 +546,7 @@ def replay_into(
     *,
     timing: str = "receive",
     remap: dict[str, str] | None = None,
+    log: Callable[[str], None] | None = None,
 ) -> dict[str, list[Message]]:
     """Feed a recording's input frames to one node in an :class:`InProcessExecutor`.
 
@@ -555,6 +560,7 @@ def replay_into(
             ``header.stamp_ns`` (sample order). Either way ``ctx.now_ns()`` is on the
             stamps' clock, so ages (now − stamp) stay meaningful.
         remap: the node's default topic → topic (as in its launch entry).
+        log: receives the node's log lines (``[name] text``; default: kept by the executor).
 
     Returns:
         topic → messages the node published (decoded, in publication order).
@@ -582,7 +588,7 @@ def replay_into(
         offset = clock_offset_ns(path, frames)
         events = [(f.log_time_ns - offset, f.topic, f.payload) for f in frames]
     start = min((t for t, _, _ in events), default=0)
-    ex = InProcessExecutor([node], remaps={node.name: remap}, start_ns=start)
+    ex = InProcessExecutor([node], remaps={node.name: remap}, start_ns=start, log=log)
     ex.feed(events)
     ex.run()
     ex.stop()

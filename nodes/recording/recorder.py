@@ -46,6 +46,7 @@ __all__ = ["BusRecorder", "Recorder", "RecorderParams", "default_output_path", "
 
 REFRESH_PERIOD_S = 0.5
 RCVHWM = 100_000  # a recorder must not drop: ~100 s of a 1 kHz topic
+DRAIN_LIMIT = 5000  # frames per drain: ~0.1 s of work, then timers and diagnostics get their turn
 CLOSE_QUIET_S = 0.2
 """On close, frames are written until none came for this long (the last ones of stopped publishers)."""
 BEHIND_AFTER_S = 1.0
@@ -102,11 +103,13 @@ class BusRecorder:
         self.ledger = LossLedger()
         self.lag_ns = 0
         """How long after it was sent the newest frame was written (the graph's clock, ns)."""
+        self.more_waiting = False
+        """The last :meth:`drain` stopped at its limit: more frames may wait."""
         self._clock = clock
         self._next_refresh = 0.0
 
     def fileno(self) -> int:
-        """The socket's ZMQ_FD (readable when frames may be waiting; drain fully)."""
+        """The socket's ZMQ_FD (readable when frames may be waiting; the node's timer drains what one wake-up left)."""
         return self.sock.getsockopt(zmq.FD)
 
     def refresh(self) -> None:
@@ -132,13 +135,17 @@ class BusRecorder:
                     self.endpoints.add(ep)
 
     def drain(self) -> int:
-        """Write every waiting frame; returns how many. Refreshes the graph when due."""
+        """Write the waiting frames, at most :data:`DRAIN_LIMIT` (the node's timer drains the
+        rest: its diagnostics and status go on while it catches up); returns how many.
+        Refreshes the graph when due."""
         n = 0
         head = None
-        while True:
+        self.more_waiting = True
+        for _ in range(DRAIN_LIMIT):
             try:
                 parts = self.sock.recv_multipart(zmq.NOBLOCK)
             except zmq.Again:
+                self.more_waiting = False
                 break
             now = time.time_ns()
             if len(parts) != 2:
@@ -166,6 +173,8 @@ class BusRecorder:
         returned. ``numbered``: node → topic → frames it published, reported as it stopped (the
         graph has stopped: frames are written until none came for :data:`CLOSE_QUIET_S`)."""
         self.drain()
+        while self.more_waiting:
+            self.drain()
         while numbered is not None and (self.drain() or self.sock.poll(round(CLOSE_QUIET_S * 1e3))):
             pass
         if numbered:
