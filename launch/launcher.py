@@ -44,6 +44,7 @@ import json
 import os
 import selectors
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -63,8 +64,8 @@ from slipstack.launch.peers import PeerLinks, launcher_endpoint
 from slipstack.launch.priority import (
     grant_realtime_priority, has_realtime_priority, set_autogroup_nice,
 )
-from slipstack.launch.plan import (PEER_WAIT_S, NodePlan, ProcessPlan, launcher_pub_endpoints, plan_launch,
-                                   relay_endpoint, remote_sources, runs_on)
+from slipstack.launch.plan import (PEER_WAIT_S, NodePlan, ProcessPlan, launcher_pub_endpoints, machine_endpoints,
+                                   plan_launch, relay_endpoint, remote_sources, runs_on)
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.nodes.devices.sim_link import SIM_PREFIX
 from slipstack.launch.quiet_shutdown import WorldEndFilter, WorldLogLevels
@@ -78,6 +79,7 @@ from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.run_dir import finish_run_dir, make_run_dir, remove_run_dir, write_private_file
 from slipstack.nodes.runtime.remote_sources import REMOTE_SOURCES_ENV
 from slipstack.nodes.runtime.time_base import CLOCK_OFFSET_ENV
+from slipstack.nodes.runtime.transport import LISTEN_FDS_ENV, listening_socket
 
 __all__ = ["Launcher", "add_parser", "main_launch"]
 
@@ -189,6 +191,40 @@ class Launcher:
                                          {n for n, p in self.processes.items() if p.runs_device_driver})
         for proc in self.processes.values():
             write_private_file(self.run_dir, proc.spec_path.name, json.dumps(proc.spec, indent=1))
+        self.held_ports: dict[str, socket.socket] = {}
+        """tcp endpoint → the listening socket held for the node that binds it, the whole launch."""
+        self._claim_tcp_ports()
+
+    def _claim_tcp_ports(self) -> None:
+        """Bind every tcp port this machine's nodes publish on before any starts, and hold it for the
+        whole launch: a node's socket takes it over (nodes/runtime/transport.py: listening_socket), so
+        a port stays claimed while its node restarts and nothing else can take it meanwhile."""
+        fixed = set(machine_endpoints(self.launch).values())
+        for c in self.processes.values():
+            for member in c.members:
+                for ep in {member.endpoint, member.remote_endpoint} - {None}:
+                    if not ep.startswith("tcp://") or ep in self.held_ports:
+                        continue
+                    try:
+                        self.held_ports[ep] = listening_socket(ep)
+                    except OSError as exc:
+                        self._release_ports()
+                        where = (f"a port the launch file fixes ([machines.{member.entry.machine}] ports); stop that "
+                                 "process (`ss -ltnp` shows who) or give the machine other ports, on every machine"
+                                 if ep in fixed else "a free port a moment ago; stop that process (`ss -ltnp` shows "
+                                 "who) or start the launch again, which picks another")
+                        raise SlipstackError(f"node {member.entry.name} cannot have {ep} ({exc.strerror}): {where}") \
+                            from None
+
+    def _release_ports(self) -> None:
+        for sock in self.held_ports.values():
+            sock.close()
+        self.held_ports.clear()
+
+    def _listen_fds(self, c: _Process) -> dict[str, int]:
+        """The held listening sockets of ``c``'s members: endpoint → descriptor (inherited by its process)."""
+        return {ep: sock.fileno() for ep, sock in self.held_ports.items()
+                if any(ep in (m.endpoint, m.remote_endpoint) for m in c.members)}
 
     # -- processes --------------------------------------------------------------------------
     def _spawn(self, c: _Process) -> None:
@@ -228,6 +264,9 @@ class Launcher:
         env = dict(os.environ, PYTHONUNBUFFERED="1", SLIPSTACK_RUN_DIR=str(self.run_dir),
                    **{LOG_LEVEL_ENV: self._world_levels.spec_for(c.name)})
         env.update(self._security_env())
+        listen = self._listen_fds(c)
+        if listen:
+            env[LISTEN_FDS_ENV] = json.dumps(listen)
         if self.clock_offset_ns:
             env[CLOCK_OFFSET_ENV] = str(self.clock_offset_ns)
         if self.remote_sources:
@@ -246,7 +285,7 @@ class Launcher:
         proc = subprocess.Popen(
             cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
             stdin=subprocess.PIPE if standby else subprocess.DEVNULL,
-            env=env, preexec_fn=in_child, start_new_session=True,
+            env=env, preexec_fn=in_child, start_new_session=True, pass_fds=tuple(listen.values()),
         )
         os.set_blocking(proc.stdout.fileno(), False)
         self.selector.register(proc.stdout, selectors.EVENT_READ, c)
@@ -538,6 +577,7 @@ class Launcher:
                 self.relay.close()
             if self.clock_report is not None:
                 self.clock_report.close()
+            self._release_ports()
         recording = self._read_recording_report()
         self._summary_from_recording(recording)
         self._report_recording(recording)
