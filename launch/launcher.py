@@ -87,6 +87,7 @@ READY_TIMEOUT_S = 20.0
 STOP_GRACE_S = 0.4       # per node, after SIGINT, before the next node is told to stop
 TERM_AFTER_S = 1.5       # from the start of shutdown: SIGTERM whoever is left
 KILL_AFTER_S = 2.5       # from the start of shutdown: SIGKILL whoever is left
+RESPAWN_PRIORITY = 1     # SCHED_FIFO of a restarting process until it is ready (where the launcher may set it)
 FINISH_LIMIT_S = 60.0    # then the recorder and the monitor: time to write what they hold (docs/safety.md)
 FINISH_NOTE_S = 3.0      # said on the terminal once it takes this long
 CLOCK_EXCHANGES = 10     # ping exchanges with the first machine before its clock offset is used
@@ -639,6 +640,8 @@ class Launcher:
         self.echo(f"[launch] respawning {c.name} (restart {c.budget_used}/{c.entry.respawn_max_retries}) "
                   f"from {how}")
         self._spawn(c)
+        if c.entry.realtime_priority and c.proc is not None:  # the graph waits for it: ahead of other work,
+            grant_realtime_priority(c.proc.pid, RESPAWN_PRIORITY)  # behind the running nodes; its own once ready
         self._write_graph()
 
     def _on_exit(self, c: _Process, now: float) -> bool:
