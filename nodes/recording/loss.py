@@ -19,14 +19,16 @@ So, per topic:
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 
 from slipstack.lib.errors import DecodeError
 from slipstack.messages import Diagnostics, decode
 from slipstack.messages.frame import FrameHeader, publisher_key
+from slipstack.nodes.recording.bag_io import LOSS_METADATA, RecordingWriter
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC as DIAGNOSTICS, STOPPED_COUNTER
 
-__all__ = ["LossLedger", "MAX_STREAMS", "NUMBERED_REPORT", "RECORDING_REPORT", "loss_text"]
+__all__ = ["LossLedger", "MAX_STREAMS", "NUMBERED_REPORT", "RECORDING_REPORT", "loss_text", "written_loss"]
 
 NUMBERED_REPORT = "numbered.json"
 """Written into the run directory by the launcher once the graph's other processes stopped and
@@ -154,6 +156,13 @@ class LossLedger:
                           "sequence_gaps": gaps, "before_first": before, "after_last": after,
                           "not_written": unwritten, "exact": exact}
         return out
+
+
+def written_loss(writer: RecordingWriter) -> dict[str, dict[str, str]]:
+    """The loss record (:data:`~slipstack.nodes.recording.bag_io.LOSS_METADATA`) of a writer that was
+    handed every frame of its run (the lock-step run's): what misses is what it could not write."""
+    ledger = LossLedger()
+    return {LOSS_METADATA: {"topics": json.dumps(ledger.report(dict(writer.counts), dict(writer.not_written)))}}
 
 
 _PARTS = (("sequence_gaps", "gaps"), ("before_first", "before the first"), ("after_last", "after the last"),
