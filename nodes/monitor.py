@@ -659,9 +659,10 @@ def _sensor_problems(s: dict) -> list[Problem]:
     out = []
     for node, seen in sorted(s.get("device_rejects", {}).items()):
         what = ", ".join(f"{SUSPECT_DEVICE_COUNTERS[k]} {v:g}" for k, v in sorted(seen.items()))
-        out.append(Problem(f"{node}: its link carried data no sensor sent",
-                           f"{node}'s device link carried data no sensor sent ({what}): forged, stray or garbage "
-                           "datagrams or bytes; find what else writes to it (docs/drivers.md)", False))
+        out.append(Problem(f"{node}: its link carried invalid data ({what.split(',')[0]})",
+                           f"{node}'s device link carried data that is no valid sample ({what}): forged, stray or "
+                           "garbage datagrams, another program writing to the link, or bytes lost or damaged on "
+                           "it; find what else writes to it (docs/drivers.md)", False))
     ft = s.get("ft_samples") or {}
     if ft.get("implausible"):
         out.append(Problem(f"F/T implausibly low vs the pad in {ft['implausible']:g} samples",

@@ -88,8 +88,8 @@ def test_forged_device_data_and_an_implausible_ft_sensor_are_named(tmp_path):
                 "fusion": {"fusion.samples": 5000, "in.ft/wrench.received": 5000, "fusion.implausible_ft": 2400}}
     s, logs, _ = _run(_graph_reports(10, **counters), tmp_path)
     health = "\n".join(line for line in logs if "HEALTH" in line)
-    assert ("ft_driver's device link carried data no sensor sent (records out of the stream 120, bytes rejected "
-            "595000)") in health, health
+    assert ("ft_driver's device link carried data that is no valid sample (records out of the stream 120, bytes "
+            "rejected 595000): forged") in health, health
     assert "the F/T sensor read implausibly low against the pad in 2400 of 5000 samples" in health, health
     assert s["device_rejects"] == {"ft_driver": {"implausible_records": 120, "rejected_bytes": 595000}}
     assert s["ft_samples"]["implausible"] == 2400
