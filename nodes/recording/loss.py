@@ -1,20 +1,11 @@
 """What a recording misses, per topic: every frame a publisher sent that is not in the file.
 
-A recorder sees each publisher's frames in order, numbered by ``header.seq``, and each
-node's ``diagnostics`` on the same connection, whose ``out.<topic>.published`` counts what
-the node sent; its last ``diagnostics`` (sent as it stops) carries ``stopped``, and a launched
-recorder also reads what each node reported publishing as it stopped (:data:`NUMBERED_REPORT`).
-So, per topic:
-
-- *sequence gaps*: numbers skipped between two frames received (dropped on the way:
-  a queue full at the publisher or the recorder), and the first numbers of a restarted
-  publisher that never came;
-- *before the first*: the numbers before the first frame received (a recorder started late);
-- *after the last*: frames a node says it published beyond the last one received (a
-  recorder stopped before they came) — exact once the node's last count came;
-- *not written*: received but not in the file (the writer failed: a full disk).
-
-``docs/safety.md`` ("Recordings") states the contract this counts for.
+A recorder sees each publisher's frames in order (``header.seq``) and each node's
+``diagnostics`` (``out.<topic>.published``; the last, sent as it stops, carries ``stopped``);
+a launched recorder also reads what each node reported publishing as it stopped
+(:data:`NUMBERED_REPORT`). Missing = sequence gaps (a restarted publisher's first numbers
+too) + before the first frame received + after the last + received but not written (a full
+disk). docs/safety.md, "Availability and evidence", states the contract.
 """
 
 from __future__ import annotations
