@@ -72,9 +72,10 @@ MAX_SUBSCRIPTION_BYTES = 1024
 """Longest frame an XPUB accepts from a peer: a subscription (one byte and a topic prefix)."""
 SUBSCRIPTION_HWM = 1000
 """Queued (un)subscriptions, each direction."""
-HANDSHAKE_MS = 3000
+HANDSHAKE_MS = 10_000
 """A connection whose handshake (ZMTP, CURVE) is not done within this is closed (ZeroMQ's default,
-30 s, let silent connections pile up: 5000 held for 35 s took 2900 descriptors)."""
+30 s, let silent connections pile up: 5000 held for 35 s took 2900 descriptors; 3 s was too
+short for a CURVE handshake with a launcher at nice 5 on a machine at load 13)."""
 LISTEN_FDS_ENV = "SLIPSTACK_LISTEN_FDS"
 """JSON ``{endpoint: descriptor}``: listening tcp sockets a node process inherits from its launcher."""
 LISTEN_BACKLOG = 100  # ZeroMQ's own default
