@@ -30,7 +30,7 @@ except ImportError:  # a bench extra, not a run-time dependency
 
 from slipstack.lib.calibration import Calibration
 from slipstack.lib.fusion import wrench_to_pad
-from slipstack.lib.limit_set import load_factor
+from slipstack.lib.limit_set import load_factor, torsional_coefficient
 from slipstack.lib.pad import PadGeometry
 from slipstack.lib.rig.scene import FingerSpec, FtSpec, TactileSpec
 from slipstack.lib.rig.sensors import FtSensorModel, TactileSensorModel
@@ -238,6 +238,7 @@ class ContactWorld:
         self.finger = FingerSpec()
         self.f_applied = 0.0
         self.scale = math.nan  # L: the load direction at λ = 1
+        self.beta_m = math.nan  # the contact's true β (m) when the load starts
         self._mu = scenario.mu
         self._steps_per_sample = round(SAMPLE_NS * 1e-9 / STEP_S)
 
@@ -320,7 +321,9 @@ class ContactWorld:
                 self._finger_step(command)
                 lam = self._interp(sc.load, t)
                 if lam > 0 and not math.isfinite(self.scale):
-                    self.scale = self._limit_scale(self.contacts()[0])
+                    phi = self.contacts()[0]
+                    self.scale = self._limit_scale(phi)
+                    self.beta_m = torsional_coefficient(phi, PAD.positions, self._mu).beta_m
                 if lam > 0:
                     fx, fy, tau = (lam * self.scale * c for c in sc.direction)
                 else:
@@ -463,7 +466,8 @@ def generate(scenario: Scenario, out: Path, rates: Rates, *, seed: int = 0,
     world = ContactWorld(scenario)
     states = world.run(lambda f: say(f"{scenario.name}: {100 * f:5.1f} %"))
     summary = write_recording(path, scenario, states, rates, seed)
-    summary.update(limit_scale=world.scale, **asdict(rates), seed=seed, cpu_s=time.process_time() - t0, bytes=path.stat().st_size)
+    summary.update(limit_scale=world.scale, beta_true_m=world.beta_m, **asdict(rates), seed=seed,
+                   cpu_s=time.process_time() - t0, bytes=path.stat().st_size)
     path.with_suffix(".json").write_text(json.dumps(summary))
     return Generated(path, summary, summary["cpu_s"])
 
@@ -507,6 +511,51 @@ def write_readme(out: Path) -> Path:
     return readme
 
 
+# -- validation against analytic limits ----------------------------------------------------
+
+CHECKS = (("force", "flat", 0.5, (1.0, 0.0, 0.0), None), ("force", "flat", 0.45, (0.0, 1.0, 0.0), None),
+          ("torque", "flat", 0.5, TORQUE, None), ("torque", "curved", 0.5, TORQUE, None),
+          ("combined", "tilted", 0.45, COMBINED, None), ("force", "curved", 0.45, FORCE, None),
+          ("pivot", "flat", 0.5, TORQUE, PIVOT_M))
+"""Slow ramps through the predicted limit (kind, pad, μ, direction, pivot)."""
+SLOW_RAMP = ((0.0, 0.0), (0.6, 0.0), (0.8, 0.95), (2.8, 1.05), (3.0, 1.05))
+"""λ from 0.95 to 1.05 of the predicted limit in 2 s: 5e-5 per 1 ms sample."""
+
+
+def validate(say: Callable[[str], None]) -> list[str]:
+    """Where gross slip begins on slow ramps, against lib/limit_set.py and the analytic limits."""
+    grid_mean = float(np.mean(np.hypot(*PAD.positions.T)))
+    b = PAD.cols * PAD.pitch_m / 2
+    square_mean = b * (math.sqrt(2) + math.log(1 + math.sqrt(2))) / 3
+    torque_onset = math.nan
+    rows = ["| load | pad | μ | f_n N | limit (lib/limit_set) | analytic | onset λ (engine / limit_set) | "
+            "onset / analytic − 1 |", "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
+    for kind, pad, mu, direction, pivot in CHECKS:
+        sc = Scenario(f"validate_{kind}_{pad}", "slow ramp", pad, mu, direction, SLOW_RAMP,
+                      ((0.0, 0.0), (0.3, 5.0), (3.0, 5.0)), pivot_m=pivot)
+        world = ContactWorld(sc)
+        states = world.run(lambda f: say(f"validate {kind} {pad} μ {mu}: {100 * f:5.1f} %"))
+        eps = episodes_of(states)
+        onset = eps[0][0] if eps else math.nan
+        lam = float(np.interp(onset, *zip(*SLOW_RAMP)))
+        f_n = float(states[round(0.8e9 / SAMPLE_NS)].phi.sum())
+        unit = {"force": "N", "combined": "N of f_x (τ = f_x × 4 mm)"}.get(kind, "N·m")
+        analytic, error = "-", "-"
+        if pad == "flat" and kind in ("force", "torque"):
+            value = mu * f_n * (1.0 if kind == "force" else grid_mean)
+            analytic = f"{value:.6g} {unit} (μ f_n{'' if kind == 'force' else ' r̄, the grid'})"
+            error = f"{100 * (lam * world.scale / value - 1):+.3f} %"
+            if kind == "torque":
+                torque_onset = lam * world.scale / (mu * f_n)  # the engine's lever arm, m
+        rows.append(f"| {kind} | {pad} | {mu:g} | {f_n:.4f} | {world.scale:.6g} {unit} | {analytic} | "
+                    f"{lam:.5f} | {error} |")
+    note = (f"Pure torque on the flat pad, as a lever arm T/(μ f_n): the continuous uniform square "
+            f"b(√2 + ln(1+√2))/3 = {square_mean * 1e3:.4f} mm; the 256-point grid's mean |p_i| = "
+            f"{grid_mean * 1e3:.4f} mm ({100 * (grid_mean / square_mean - 1):+.2f} %); the engine's onset "
+            f"{torque_onset * 1e3:.4f} mm ({100 * (torque_onset / square_mean - 1):+.2f} % from the square).")
+    return rows + ["", note]
+
+
 def _say(msg: str) -> None:
     print(f"\r  {msg:<72}", end="", file=sys.stderr, flush=True)
 
@@ -523,7 +572,13 @@ def main() -> None:
     ap.add_argument("--truth-rate", type=float, default=1000.0,
                     help="rig/truth rate, Hz (1000 / n; default 1000; 0: none, as from hardware)")
     ap.add_argument("--seed", type=int, default=0, help="sensor noise seed (default 0)")
+    ap.add_argument("--validate", action="store_true", help="slow ramps against the analytic limits; print a table")
     args = ap.parse_args()
+    if args.validate:
+        t0 = time.process_time()
+        lines = validate(_say)
+        print(f"\n" + "\n".join(lines) + f"\n\n{time.process_time() - t0:.1f} s CPU")
+        return
     if args.list:
         for s in ALL_SCENARIOS.values():
             print(f"{s.name:<32} {s.duration_s:4.1f} s  {s.description}")
