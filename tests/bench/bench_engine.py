@@ -55,6 +55,21 @@ class Replay:
     period_ns: float
 
 
+def cached_replay(path: Path, launch_args: dict[str, str], cache: Path | None) -> Replay:
+    """:func:`replay`, kept in ``cache`` under the recording's and the arguments' names."""
+    if cache is None:
+        return replay(path, launch_args)
+    key = "-".join(f"{k}={Path(v).stem}" for k, v in sorted(launch_args.items()))
+    file = cache / f"{path.stem}@{key}.npz"
+    if file.exists():
+        data = dict(np.load(file))
+        return Replay(**{k: (v if v.ndim else v.item()) for k, v in data.items()})
+    r = replay(path, launch_args)
+    cache.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(file, **r.__dict__)
+    return r
+
+
 def replay(path: Path, launch_args: dict[str, str]) -> Replay:
     """Feed ``path``'s ft/wrench and tactile/frame to the stack's fusion and slip detector."""
     with tempfile.TemporaryDirectory() as run_dir:
@@ -89,6 +104,7 @@ class Score:
     missed: int = 0
     stick_frames: int = 0
     false_frames: int = 0
+    latch_frames: int = 0  # of the false ones: the latch holding a flag that rose for an episode
     quiet_scenes: int = 0
     quiet_alarming: int = 0
     quiet_alarms: int = 0
@@ -96,7 +112,7 @@ class Score:
     holds_ms: list[float] = field(default_factory=list)
 
     def add(self, other: "Score") -> None:
-        for name in ("episodes", "missed", "stick_frames", "false_frames", "quiet_scenes", "quiet_alarming",
+        for name in ("episodes", "missed", "stick_frames", "false_frames", "latch_frames", "quiet_scenes", "quiet_alarming",
                      "quiet_alarms"):
             setattr(self, name, getattr(self, name) + getattr(other, name))
         self.delays += other.delays
@@ -107,7 +123,7 @@ def score(r: Replay) -> Score:
     """Missed episodes, delays, false-alarm share, latch hold, alarms in scenes that never slip."""
     s = Score()
     episodes = find_episodes(r.truth_t, r.gross, min_gap_ns=EPISODE_GAP_NS)
-    at = np.clip(np.searchsorted(r.truth_t, r.t, side="right") - 1, 0, r.truth_t.size - 1)
+    at = np.clip(np.searchsorted(r.truth_t, r.t), 0, r.truth_t.size - 1)  # the first truth at or after
     sticking = ~r.gross[at] & r.contact
     excused = np.zeros(r.t.size, dtype=bool)
     rises = np.flatnonzero(r.flag & ~np.concatenate([[False], r.flag[:-1]]))
@@ -126,7 +142,15 @@ def score(r: Replay) -> Score:
             down = after[~r.flag[after]]
             s.holds_ms.append(((r.t[down[0]] if down.size else stop) - ep.end_ns) / 1e6)
     s.stick_frames = int(sticking.sum())
-    s.false_frames = int((sticking & r.flag & ~excused).sum())
+    false = sticking & r.flag & ~excused
+    s.false_frames = int(false.sum())
+    in_window = np.zeros(r.t.size, dtype=bool)
+    for ep in episodes:
+        in_window |= (r.t >= ep.start_ns - LEAD_NS) & (r.t <= ep.end_ns)
+    latched = np.zeros(r.t.size, dtype=bool)  # this flag run was up in an episode's window at or before here
+    for a, b in zip(rises, [*rises[1:], r.t.size]):
+        latched[a:b] = np.cumsum(in_window[a:b] & r.flag[a:b]) > 0
+    s.latch_frames = int((false & latched).sum())
     if not episodes:
         s.quiet_scenes = 1
         s.quiet_alarms = int(rises.size)
@@ -140,15 +164,16 @@ def _pct(values: list[float], q: float, fmt: str = "{:+.1f}") -> str:
 
 def row(label: str, s: Score) -> str:
     share = 100.0 * s.false_frames / max(s.stick_frames, 1)
+    latch = 100.0 * s.latch_frames / max(s.stick_frames, 1)
     return (f"| {label} | {s.episodes} | {s.missed} | {_pct(s.delays, 50)} / {_pct(s.delays, 95)} | "
-            f"{_pct(s.delays, 0)} | {share:.2f} % ({s.false_frames} of {s.stick_frames}) | "
+            f"{_pct(s.delays, 0)} | {share:.2f} % ({latch:.2f} %) | "
             f"{_pct(s.holds_ms, 50, '{:.0f}')} / {_pct(s.holds_ms, 95, '{:.0f}')} | "
             f"{s.quiet_alarming} of {s.quiet_scenes} ({s.quiet_alarms}) |")
 
 
 HEADER = ["| contact, material file | episodes | missed | delay p50 / p95 (F/T samples) | earliest | "
-          "false-alarm share (frames) | latch hold after slip p50 / p95 ms | never-slipping scenes that alarm "
-          "(alarms) |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+          "false-alarm share (of it the latch hold) | latch hold after slip p50 / p95 ms | never-slipping scenes "
+          "that alarm (alarms) |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
 
 
 # -- identification, as a user runs it ----------------------------------------------------
@@ -183,6 +208,8 @@ def main() -> None:
     ap.add_argument("--launch-arg", action="append", default=[], metavar="NAME=VALUE",
                     help="a further stack.toml argument for the replay (repeatable)")
     ap.add_argument("--json", type=Path, help="write every scenario's scores here")
+    ap.add_argument("--cache", type=Path, help="keep each replay's flags here (delete it after changing the code)")
+    ap.add_argument("--per-scenario", action="store_true", help="also print one row per recording")
     args = ap.parse_args()
     metas = {p.with_suffix(".mcap"): json.loads(p.read_text()) for p in sorted(args.recordings.glob("*.json"))}
     metas = {p: m for p, m in metas.items() if p.exists() and not p.name.startswith("ident_")
@@ -217,13 +244,15 @@ def main() -> None:
             files[obj] = str(found)
         configs.append(("identified", {p: files[object_of(m)] for p, m in metas.items() if object_of(m) in files}))
     per_scene: dict[str, dict[str, dict]] = {}
-    table = []
+    table, scenario_rows = [], []
     for label, chosen in configs:
         total: dict[str, Score] = {}
         for i, (path, material) in enumerate(chosen.items(), 1):
             print(f"\r  {label}: {i}/{len(chosen)} {path.stem:<40}", end="", file=sys.stderr, flush=True)
-            s = score(replay(path, {"material": material, **extra}))
+            s = score(cached_replay(path, {"material": material, **extra}, args.cache))
             per_scene.setdefault(label, {})[path.stem] = {**s.__dict__, "material": material}
+            if args.per_scenario:
+                scenario_rows.append(row(f"{path.stem}, {label}", s))
             mu = f"μ {metas[path]['scenario']['mu']:g}"
             total.setdefault(mu, Score()).add(s)
         print(file=sys.stderr)
@@ -233,6 +262,8 @@ def main() -> None:
         print("| object | μ_s | μ_d | β_s mm | β_d mm | onset γ |\n| --- | ---: | ---: | ---: | ---: | --- |")
         print("\n".join(ident_lines) + "\n")
     print("\n".join(HEADER + table))
+    if scenario_rows:
+        print("\n" + "\n".join(HEADER + scenario_rows))
     if args.json:
         args.json.write_text(json.dumps(per_scene, indent=1))
 
