@@ -3,7 +3,7 @@
 Each recording of ``engine_mujoco.py`` is replayed through the stack's own fusion and
 slip detector nodes (built from launch/files/stack.toml with the material under test,
 in the in-process executor on the recording's stamps: the path of a lock-step run) and
-the flags are scored against ``rig/truth`` (issue 24's definitions, docs/engine_mujoco.md).
+the flags are scored against ``rig/truth`` (lib/episodes.py, docs/math.md §3.2).
 Materials: the shipped files, and per object (μ, pad) the file ``slipstack identify``
 writes from that object's force and torque sessions, run as a user runs it.
 
@@ -25,18 +25,12 @@ from pathlib import Path
 import numpy as np
 
 from slipstack.launch.launch_file import load_launch_file
-from slipstack.lib.episodes import find_episodes
+from slipstack.lib.episodes import detection_quality
 from slipstack.lib.status import SlipState
 from slipstack.messages import decode
 from slipstack.nodes.recording.bag_io import read_recording
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 
-LEAD_NS = 20_000_000
-"""A flag this long before a true onset still counts for the episode (issue 24)."""
-MARGIN_NS = 5_000_000
-"""Beyond the latch's release dwell after an episode's end, a flag is a false alarm."""
-EPISODE_GAP_NS = 20_000_000
-"""Episodes closer than this are one."""
 REPLAYED = ("fusion", "slip_detector")
 NOT_SLIP = (SlipState.STICK.value, SlipState.NO_CONTACT.value)
 
@@ -120,42 +114,15 @@ class Score:
 
 
 def score(r: Replay) -> Score:
-    """Missed episodes, delays, false-alarm share, latch hold, alarms in scenes that never slip."""
-    s = Score()
-    episodes = find_episodes(r.truth_t, r.gross, min_gap_ns=EPISODE_GAP_NS)
-    at = np.clip(np.searchsorted(r.truth_t, r.t), 0, r.truth_t.size - 1)  # the first truth at or after
-    sticking = ~r.gross[at] & r.contact
-    excused = np.zeros(r.t.size, dtype=bool)
-    rises = np.flatnonzero(r.flag & ~np.concatenate([[False], r.flag[:-1]]))
-    for i, ep in enumerate(episodes):
-        s.episodes += 1
-        excused |= (r.t >= ep.start_ns - LEAD_NS) & (r.t <= ep.end_ns + r.release_ns + MARGIN_NS)
-        hits = np.flatnonzero((r.t >= ep.start_ns - LEAD_NS) & (r.t <= ep.end_ns) & r.flag)
-        if not hits.size:
-            s.missed += 1
-            continue
-        rise = rises[rises <= hits[0]][-1]  # the flag that covers the episode rose here
-        s.delays.append((r.t[rise] - ep.start_ns) / r.period_ns)
-        stop = episodes[i + 1].start_ns if i + 1 < len(episodes) else r.t[-1]
-        after = np.flatnonzero((r.t > ep.end_ns) & (r.t <= stop))
-        if after.size:
-            down = after[~r.flag[after]]
-            s.holds_ms.append(((r.t[down[0]] if down.size else stop) - ep.end_ns) / 1e6)
-    s.stick_frames = int(sticking.sum())
-    false = sticking & r.flag & ~excused
-    s.false_frames = int(false.sum())
-    in_window = np.zeros(r.t.size, dtype=bool)
-    for ep in episodes:
-        in_window |= (r.t >= ep.start_ns - LEAD_NS) & (r.t <= ep.end_ns)
-    latched = np.zeros(r.t.size, dtype=bool)  # this flag run was up in an episode's window at or before here
-    for a, b in zip(rises, [*rises[1:], r.t.size]):
-        latched[a:b] = np.cumsum(in_window[a:b] & r.flag[a:b]) > 0
-    s.latch_frames = int((false & latched).sum())
-    if not episodes:
-        s.quiet_scenes = 1
-        s.quiet_alarms = int(rises.size)
-        s.quiet_alarming = int(rises.size > 0)
-    return s
+    """Missed episodes, delays, false-alarm share, latch hold (lib/episodes.py's one definition),
+    and the alarms of a recording without a true episode."""
+    q = detection_quality(r.truth_t, r.gross, r.t, r.flag, release_ns=r.release_ns, in_contact=r.contact)
+    quiet = not q.episodes
+    rises = int(np.count_nonzero(r.flag & ~np.concatenate([[False], r.flag[:-1]]))) if quiet else 0
+    return Score(episodes=len(q.episodes), missed=q.missed, stick_frames=q.stick_frames,
+                 false_frames=q.false_alarm_frames, latch_frames=q.latch_hold_frames, quiet_scenes=int(quiet),
+                 quiet_alarming=int(rises > 0), quiet_alarms=rises, delays=[d / r.period_ns for d in q.delays_ns],
+                 holds_ms=[h / 1e6 for h in q.holds_ns])
 
 
 def _pct(values: list[float], q: float, fmt: str = "{:+.1f}") -> str:
