@@ -106,8 +106,8 @@ class Score:
     holds_ms: list[float] = field(default_factory=list)
 
     def add(self, other: "Score") -> None:
-        for name in ("episodes", "missed", "stick_frames", "false_frames", "latch_frames", "quiet_scenes", "quiet_alarming",
-                     "quiet_alarms"):
+        for name in ("episodes", "missed", "stick_frames", "false_frames", "latch_frames", "quiet_scenes",
+                     "quiet_alarming", "quiet_alarms"):
             setattr(self, name, getattr(self, name) + getattr(other, name))
         self.delays += other.delays
         self.holds_ms += other.holds_ms

@@ -191,7 +191,8 @@ def _model_xml(pad: PadShape, mu: float, pivot_m: tuple[float, float] | None) ->
         joints = ('<joint name="z" type="slide" axis="0 0 1"/>'
                   f'<joint name="theta" type="hinge" axis="0 0 1" pos="{pivot_m[0]} {pivot_m[1]} 0" damping="{rot}"/>')
     return f"""<mujoco model="slipstack_fingertip">
-  <option timestep="{STEP_S}" gravity="0 0 0" cone="elliptic" impratio="{IMPRATIO}" tolerance="{SOLVER_TOLERANCE}" integrator="implicitfast"/>
+  <option timestep="{STEP_S}" gravity="0 0 0" cone="elliptic" impratio="{IMPRATIO}"
+          tolerance="{SOLVER_TOLERANCE}" integrator="implicitfast"/>
   <default><geom solref="{-k_per_mass!r} {-b_per_mass!r}" solimp="{IMPEDANCE} {IMPEDANCE} 0.001"
                  friction="{mu} 0 0" condim="3"/></default>
   <worldbody>
@@ -284,6 +285,7 @@ class ContactWorld:
         return 1.0 / r.gamma
 
     def state(self, t_ns: int, command: float) -> State:
+        """The contact and the object's motion now (``command``: the grip's command, N)."""
         d = self.data
         phi, tangential, points = self.contacts()
         anchor = d.xanchor[self.hinge][:2].copy()
@@ -300,10 +302,12 @@ class ContactWorld:
         at_cone &= phi > 0
         weights = phi * speed
         total = weights.sum()
-        sliding = float(weights[at_cone].sum() / total) if total > 0 else (float(phi[at_cone].sum()) / f_n if f_n > 0 else 0.0)
+        if total > 0:  # the rig's share: Σ_sliding φ|u| / Σ φ|u|; at rest the share of f_n
+            sliding = float(weights[at_cone].sum() / total)
+        else:
+            sliding = float(phi[at_cone].sum()) / f_n if f_n > 0 else 0.0
         v_com = v_anchor + omega * np.array([-(com[1] - anchor[1]), com[0] - anchor[0]])
-        rel_points = points
-        load_tau = float(np.sum(rel_points[:, 0] * tangential[:, 1] - rel_points[:, 1] * tangential[:, 0]))
+        load_tau = float(np.sum(points[:, 0] * tangential[:, 1] - points[:, 1] * tangential[:, 0]))  # about the origin
         theta = float(d.qpos[self.model.jnt_qposadr[self.hinge]])
         return State(t_ns, phi, tangential.sum(axis=0), load_tau, np.array([*com, theta]), np.array([*v_com, omega]),
                      np.array([*anchor, *v_anchor]), slip_speed, sliding, self.f_applied, command)
