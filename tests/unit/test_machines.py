@@ -20,7 +20,7 @@ import pytest
 import zmq
 import zmq.auth
 
-from slipstack.launch.launch_file import load_launch_file
+from slipstack.launch.launch_file import free_port, load_launch_file
 from slipstack.launch import launcher as launcher_module
 from slipstack.launch import peers as peers_module
 from slipstack.launch.launcher import Launcher
@@ -192,6 +192,31 @@ def test_a_machine_admits_the_graphs_machines_and_no_stranger_while_ipc_stays_pl
                     counts[name] += 1
             time.sleep(0.005)
         assert counts["ipc"] > 20 and counts["member"] > 20 and counts["outsider"] == 0, counts
+    finally:
+        curve.use_keys(None)
+        ctx.destroy(linger=0)
+
+
+def test_one_subscriber_of_publishers_on_both_machines_hears_them_all(tmp_path, keys):
+    """The recorder on machine b taps the graph with one SUB: the tcp publishers of a (CURVE)
+    and the ipc publishers of b (plain), connected in graph.json's order, whichever comes first."""
+    hosts = {"127.0.0.1": "a"}
+    ctx = zmq.Context()
+    try:
+        curve.use_keys(keys[0], "a", hosts)
+        remote = make_pub(ctx, f"ipc://{tmp_path}/a.pub", remote=f"tcp://127.0.0.1:{free_port()}")
+        curve.use_keys(keys[1], "b", hosts)
+        local = [make_pub(ctx, f"ipc://{tmp_path}/b{k}.pub") for k in range(2)]
+        tcp = remote.getsockopt(zmq.LAST_ENDPOINT).decode()
+        tap = make_sub(ctx, [f"ipc://{tmp_path}/b0.pub", tcp, f"ipc://{tmp_path}/b1.pub"], None)
+        heard: set[bytes] = set()
+        end = time.monotonic() + 10.0
+        while time.monotonic() < end and len(heard) < 3:
+            for name, pub in ((b"a", remote), (b"b0", local[0]), (b"b1", local[1])):
+                pub.send_multipart([b"t", name])
+            while tap.poll(5):
+                heard.add(tap.recv_multipart()[1])
+        assert heard == {b"a", b"b0", b"b1"}
     finally:
         curve.use_keys(None)
         ctx.destroy(linger=0)
