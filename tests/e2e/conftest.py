@@ -19,14 +19,14 @@ PY = sys.executable
 class LaunchedGraph:
     """A ``slipstack launch`` subprocess with its own run root; collects its output."""
 
-    def __init__(self, args: list[str], run_root: Path) -> None:
+    def __init__(self, args: list[str], run_root: Path, cwd: Path | None = None) -> None:
         self.env = dict(os.environ, SLIPSTACK_RUN_ROOT=str(run_root), PYTHONUNBUFFERED="1")
         self.run_root = run_root
         self.log_path = run_root / "launch.log"
         self._log = open(self.log_path, "wb")
         self.proc = subprocess.Popen(
             [PY, "-m", "slipstack.launch.cli", "launch", *args],
-            stdout=self._log, stderr=subprocess.STDOUT, env=self.env,
+            stdout=self._log, stderr=subprocess.STDOUT, env=self.env, cwd=cwd,
         )
 
     def wait_ready(self, timeout: float = 60.0) -> dict:
