@@ -412,7 +412,22 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "nodes_restarted_after_silence": sorted(name for name, w in m.nodes.items() if w.restarted),
         "recording": m.params.recording if m.params.recording and os.path.exists(m.params.recording) else "",
         "clock_offsets": _clock_offsets(m.nodes),
+        "injected": {what: sum(w.counters.get(key, 0) for w in m.nodes.values()) for what, key in INJECTED.items()},
     }
+
+
+INJECTED = {"grip_commands": "rig.manual_commands", "slip_verdicts": "grip.injected_verdicts",
+            "finger_reports": "grip.injected_finger_reports"}
+"""What tools injected where the launch allows it (``allow_inject``): summary key → counter."""
+
+
+def injection_problems(s: dict) -> list[str]:
+    """Grip commands the finger took from a tool, slip verdicts and finger reports the controller did not trust."""
+    n = s.get("injected", {})
+    if not any(n.values()):
+        return []
+    return [f"injected by tools: {n['grip_commands']:g} grip commands obeyed, {n['slip_verdicts']:g} verdicts "
+            f"and {n['finger_reports']:g} finger reports not trusted"]
 
 
 def _ft_samples(nodes: dict[str, NodeWatch]) -> dict[str, float]:
@@ -597,7 +612,7 @@ def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
             f" ({s['fail_safe_commands']} of {s['commands_while_running']}), {s['fail_safe_while_starting']} more while"
             f" the sensors started" + (f", {s['fail_safe_after_scene']} after the scene ended" if s["has_truth"] else "")
             + "; " + _late_text(s))
-    problems = check_problems(s, p or MonitorParams()) + device_problems(s) + behind_problems(s)
+    problems = check_problems(s, p or MonitorParams()) + device_problems(s) + behind_problems(s) + injection_problems(s)
     lines.extend(f"HEALTH: {problem}" for problem in problems or ["ok"])
     if s["losses"]:
         for node, counts in sorted(s["losses"].items()):
