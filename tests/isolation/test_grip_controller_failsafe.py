@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from slipstack.lib.defaults import F_MAX_N
-from slipstack.messages import GripState, Header, Slip
+from slipstack.messages import GripState, Header, Slip, decode
 from slipstack.nodes.grip_controller import GripController, GripControllerParams
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 
@@ -158,3 +158,19 @@ def test_without_the_fingers_report_no_command_or_f_hold_after_the_wait():
     longer = [(k * MS, "slip", _slip(k, 0.9, stamp_ns=(k - 30) * MS)) for k in range(31, 141)]
     cmds = _run(longer, until_ms=141, params=dataclasses.replace(DEFAULTS, f_hold_n=12.0))
     assert cmds[0].header.pub_ns == 131 * MS and cmds[0].f_n_desired == 12.0  # 100 ms after the first verdict
+
+
+def test_an_injected_verdict_is_never_trusted_not_even_before_the_first_real_one():
+    ex = InProcessExecutor([GripController(DEFAULTS)])
+    host = ex.host("grip_controller")
+    forged = _slip(1, 0.0, f_n=0.5)  # "ok, no load": the law would release to f_nom
+    host.dispatch("slip", forged, sender="topic_pub-1")
+    assert ex.published["grip/command"] == [] and host.counters["handler_errors"] == 0
+    ex.feed([(k * MS, "slip", _slip(k, 1.8)) for k in range(2, 21)])  # exact law: 8 N
+    ex.run(until_ns=20 * MS)
+    held = ex.published["grip/command"][-1].f_n_desired
+    host.dispatch("slip", _slip(20, 0.0, f_n=0.5), sender="topic_pub-1")
+    last = ex.published["grip/command"][-1]
+    assert (last.f_n_desired, last.reason) == (held, "fail-safe") and held > 7.0  # on its way to 8 N at 200 N/s
+    assert decode(host.diagnostics()).status == "fail-safe: slip verdict injected by topic_pub-1: not trusted"
+    assert host.counters["grip.injected_verdicts"] == 2
