@@ -136,18 +136,25 @@ def test_bad_machine_tables_are_refused_with_what_to_do(tmp_path, change, messag
         _load(tmp_path, **change)
 
 
-def test_after_a_node_of_a_machine_that_is_not_up_names_the_machine(tmp_path, keys, monkeypatch):
-    monkeypatch.setattr(launcher_module, "READY_TIMEOUT_S", 1.0)
+@pytest.mark.parametrize("source, waits_for", [
+    ('after = ["relay"]', "relay"),
+    # the simulated world (stop_first) waits for every node elsewhere: with the control path on
+    # another machine still starting, the rig had run its scene uncontrolled (issue 29)
+    ("stop_first = true", "relay, sink"),
+])
+def test_a_node_that_waits_for_a_machine_that_is_not_up_names_the_machine(tmp_path, keys, monkeypatch, source,
+                                                                           waits_for):
+    monkeypatch.setattr(launcher_module, "PEER_WAIT_S", 1.0)
     lines: list[str] = []
     run_dir = tmp_path / "run"
     run_dir.mkdir(mode=0o700)
-    launcher = Launcher(_load(tmp_path, source='after = ["relay"]'), run_dir, machine="a", echo=lines.append)
+    launcher = Launcher(_load(tmp_path, source=source), run_dir, machine="a", echo=lines.append)
     try:
         assert launcher.run() == 1
     finally:
         curve.use_keys(None)  # the launcher took machine a's keys for its own links
-    assert any("node source (wrench_source) starts after relay on machine b (127.0.0.2), not ready after 1 s: is "
-               "`slipstack launch two.toml --machine b` running there?" in line for line in lines), lines
+    assert any(f"node source (wrench_source) starts after {waits_for} on machine b (127.0.0.2), not ready after 1 s: "
+               "is `slipstack launch two.toml --machine b` running there?" in line for line in lines), lines
 
 
 def test_launch_keys_name_the_directory_of_every_machines_key_directory(tmp_path, keys):
