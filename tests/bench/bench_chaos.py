@@ -7,7 +7,8 @@ its own run root and key directory, on 127.0.0.1 and 127.0.0.2), applies one fau
 issue 29 while the disturbance pulls, and reads the run's recording and log:
 
 - *slid mm*, *turned deg*: the most the object slid and turned over the run (``rig/truth``);
-- *grip before N*: what the finger held to just before the fault (``grip/state``);
+- *grip before N*: what the finger held to just before the fault (``grip/state``; on a
+  build without it, as a baseline, ``rig/truth``'s commanded force);
 - *lowest after N*: the least it held to from the fault until the first grip command on
   valid data after the fault ended (at most 3 s); *lowered*: more than 0.5 N below *before*
   (the faults of the issue dropped 14 N to 2 N);
@@ -303,20 +304,21 @@ def measure(row: Row, stack: Stack, fault: tuple[int, int]) -> Row:
     frames = {"rig/truth": [], "grip/state": [], "grip/command": []}
     for f in read_recording(stack.recording, list(frames)):
         frames[f.topic].append(decode(f.payload))
-    truth, finger, commands = frames["rig/truth"], frames["grip/state"], frames["grip/command"]
+    truth, commands = frames["rig/truth"], frames["grip/command"]
+    # the finger's reports; on a build without them (a baseline), the rig's truth says the same
+    finger = [(s.header.stamp_ns, s.f_n_command) for s in frames["grip/state"] or truth]
     if truth:
         row.slid_mm = max(t.slip_distance_m for t in truth) * 1e3
         row.turned_deg = float(np.degrees(max(abs(t.slip_angle_rad) for t in truth)))
     back = next((c.header.pub_ns for c in commands if c.header.pub_ns > t1 and c.reason != "fail-safe"), None)
     if t0 == t1 == stack.started_ns:  # the launch: from the finger's own grip to its first valid command
-        first = next((s for s in finger if s.mode == "initial"), None)
-        row.before_n = first.f_n_command if first else float("nan")
+        row.before_n = finger[0][1] if finger else float("nan")
         t0 = commands[0].header.pub_ns if commands else t0
     else:
-        prior = [s.f_n_command for s in finger if s.header.stamp_ns < t0]
+        prior = [f for stamp, f in finger if stamp < t0]
         row.before_n = prior[-1] if prior else float("nan")
     end = min(back if back is not None else t1 + RECOVERY_CAP_NS, t1 + RECOVERY_CAP_NS)
-    window = [s.f_n_command for s in finger if t0 <= s.header.stamp_ns <= end]
+    window = [f for stamp, f in finger if t0 <= stamp <= end]
     row.lowest_n = min(window) if window else float("nan")
     log = stack.control.log()
     health = next((line for line in log.splitlines() if "HEALTH:" in line), "no summary")
