@@ -10,7 +10,7 @@ issue 29 while the disturbance pulls, and reads the run's recording and log:
 - *grip before N*: what the finger held to just before the fault (``grip/state``; on a
   build without it, as a baseline, ``rig/truth``'s commanded force);
 - *lowest after N*: the least it held to from the fault until the first grip command on
-  valid data after the fault ended (at most 3 s); *lowered*: more than 0.5 N below *before*
+  valid data after the fault ended (at most 3 s); *lowered*: more than 0.2 N below *before*
   (the faults of the issue dropped 14 N to 2 N);
 - the summary's first ``HEALTH`` line and the check's verdict.
 
@@ -54,7 +54,7 @@ from slipstack.messages import Header, Slip, Wrench, decode, encode  # noqa: E40
 from slipstack.nodes.recording.bag_io import read_recording  # noqa: E402
 
 FAULT_AT_S = 4.5  # into the scene: fig15's step to 1.8 N, the grip near its highest
-LOWERED_BY_N = 0.5
+LOWERED_BY_N = 0.2  # the law itself moved the grip by at most 0.1 N over these windows on valid data
 RECOVERY_CAP_NS = 3_000_000_000
 
 
@@ -205,7 +205,7 @@ def trial_inject_slip(stack: Stack) -> tuple[int, int]:
     t0 = _at_fault_time(stack)
     _write_raw(set(stack.graph()["nodes"]["grip_controller"]["inject"].values()), b"slip",
                lambda k: encode(Slip(status="ok", state="stick", method="exact", gamma=0.0, margin=1.0, f_n=0.5,
-                                     header=_stamped(k))), 1.0, 0.005)
+                                     header=_stamped(k))), 1.0, 0.001)
     return t0, time.monotonic_ns()
 
 
