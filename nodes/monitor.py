@@ -48,6 +48,7 @@ import json
 import math
 import os
 import tempfile
+import dataclasses
 from dataclasses import dataclass, field
 
 from slipstack.lib.episodes import INCIPIENT_SHARE, EpisodeTracker
@@ -55,9 +56,11 @@ from slipstack.lib.errors import ConfigError
 from slipstack.lib.late_ticks import BEHIND_REAL_TIME_ADVICE
 from slipstack.lib.status import SLIP_STATES
 from slipstack.messages import Diagnostics, GripCommand, RigTruth, Slip
+from slipstack.nodes.runtime.logs import DETAIL_PREFIX
 from slipstack.nodes.runtime.node import Context, Input, Node
 
-__all__ = ["Monitor", "MonitorParams", "summarise", "check_problems", "format_summary", "status_line"]
+__all__ = ["Monitor", "MonitorParams", "Problem", "summarise", "health_problems", "check_problems", "format_summary",
+           "format_details", "status_line"]
 
 _LOSS_KEYS = (".rejected", ".lost", ".dropped_hwm")  # ".dropped" is drain-to-latest, on purpose
 FAIL_SAFE = "fail-safe"
@@ -87,6 +90,8 @@ class MonitorParams:
         "help": "check fails if the object turned more (deg; rig only)"})
     check_fail_safe_share: float = field(default=0.01, metadata={
         "help": "check fails if a larger share (0..1) of the grip commands was fail-safe"})
+    verbose: bool = field(default=False, metadata={
+        "help": "print the summary's long form (default: at most 12 short lines; the long form goes to the run log)"})
 
     def __post_init__(self) -> None:
         for name in ("status_period_s", "command_deadline_ms", "silent_after_s", "check_slip_mm", "check_turn_deg"):
@@ -292,13 +297,19 @@ class Monitor(Node):
     def stop(self, ctx: Context) -> None:
         self.episodes.finish()
         summary = summarise(self, ctx.now_ns())
-        for line in format_summary(summary, self.params):
+        for line in format_summary(summary, self.params, verbose=self.params.verbose):
             ctx.log(line)
+        if not self.params.verbose:  # the long form, for the run log (the terminal does not show it)
+            for line in format_summary(summary, self.params, verbose=True):
+                ctx.log(DETAIL_PREFIX + line)
+        problems = health_problems(summary, self.params)
+        summary["health"] = [dataclasses.asdict(x) for x in problems]
         if self.params.summary_path:
             write_json_atomically(self.params.summary_path, summary)
         if self.params.check_path:
-            problems = check_problems(summary, self.params)
-            write_json_atomically(self.params.check_path, {"passed": not problems, "problems": problems})
+            failed = [x for x in problems if x.fails_check]
+            write_json_atomically(self.params.check_path, {"passed": not failed, "problems": [x.text for x in failed],
+                                                           "short": [x.short for x in failed]})
 
 
 def write_json_atomically(path: str, content: dict) -> None:
@@ -421,13 +432,6 @@ INJECTED = {"grip_commands": "rig.manual_commands", "slip_verdicts": "grip.injec
 """What tools injected where the launch allows it (``allow_inject``): summary key → counter."""
 
 
-def injection_problems(s: dict) -> list[str]:
-    """Grip commands the finger took from a tool, slip verdicts and finger reports the controller did not trust."""
-    n = s.get("injected", {})
-    if not any(n.values()):
-        return []
-    return [f"injected by tools: {n['grip_commands']:g} grip commands obeyed, {n['slip_verdicts']:g} verdicts "
-            f"and {n['finger_reports']:g} finger reports not trusted"]
 
 
 def _ft_samples(nodes: dict[str, NodeWatch]) -> dict[str, float]:
@@ -475,60 +479,297 @@ def _losses(counters: dict) -> dict[str, dict[str, float]]:
     return out
 
 
+SUMMARY_WIDTH = 90
+"""Characters of a summary line: within 100 on the terminal behind the launcher's ``[monitor] ``."""
+SUMMARY_MAX_LINES = 12
+TITLE = "==== slipstack run summary ===="
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One thing that went wrong: ``short`` for the summary's HEALTH line, ``text`` with its
+    numbers and what to do (the long form, ``check.json``); ``fails_check``: it fails the run's
+    check (docs/summary.md says which do)."""
+
+    short: str
+    text: str
+    fails_check: bool = True
+
+
+def health_problems(s: dict, p: MonitorParams) -> list[Problem]:
+    """What the HEALTH lines report: first what fails the check (the object slid or turned
+    more than allowed, too many fail-safe commands, missed episodes, a silent node, no
+    valid sensor data at all), then what is only reported (disconnected
+    devices, signs of falling behind, what tools injected)."""
+    return (_check_problems(s, p) + _silence_problems(s) + _device_problems(s) + _behind_problems(s)
+            + _injection_problems(s))
+
+
 def check_problems(s: dict, p: MonitorParams) -> list[str]:
-    """What fails the run's check (``check = true`` in a launch file): the object slid or
-    turned more than allowed (only with a rig's truth), too many fail-safe commands, true
-    slip episodes the detector missed, nodes that went silent. Empty: passed."""
-    problems = []
-    if s["slip_distance_mm"] is not None and s["slip_distance_mm"] > p.check_slip_mm:
-        problems.append(f"the object slid {s['slip_distance_mm']:.2f} mm (allowed {p.check_slip_mm:g} mm)")
-    if s["slip_angle_deg"] is not None and abs(s["slip_angle_deg"]) > p.check_turn_deg:
-        problems.append(f"the object turned {abs(s['slip_angle_deg']):.2f} deg (allowed {p.check_turn_deg:g} deg)")
-    if s["fail_safe_share"] is not None and s["fail_safe_share"] > p.check_fail_safe_share:
-        problems.append(f"{s['fail_safe_share'] * 100:.1f}% of the grip commands were fail-safe"
-                        f" ({s['fail_safe_commands']} of {s['commands_while_running']};"
-                        f" allowed {p.check_fail_safe_share * 100:g}%)")
+    """What fails the run's check (``check = true`` in a launch file), in words; empty: passed."""
+    return [x.text for x in health_problems(s, p) if x.fails_check]
+
+
+def _check_problems(s: dict, p: MonitorParams) -> list[Problem]:
+    out = []
+    slid, turned = s["slip_distance_mm"], s["slip_angle_deg"]
+    if slid is not None and slid > p.check_slip_mm:
+        out.append(Problem(f"object slid {slid:.2f} mm (allowed {p.check_slip_mm:g})",
+                           f"the object slid {slid:.2f} mm (allowed {p.check_slip_mm:g} mm)"))
+    if turned is not None and abs(turned) > p.check_turn_deg:
+        out.append(Problem(f"object turned {abs(turned):.2f} deg (allowed {p.check_turn_deg:g})",
+                           f"the object turned {abs(turned):.2f} deg (allowed {p.check_turn_deg:g} deg)"))
+    share = s["fail_safe_share"]
+    if share is not None and share > p.check_fail_safe_share:
+        out.append(Problem(f"fail-safe {share * 100:.1f}% of commands (allowed {p.check_fail_safe_share * 100:g}%)",
+                           f"{share * 100:.1f}% of the grip commands were fail-safe ({s['fail_safe_commands']} of "
+                           f"{s['commands_while_running']}; allowed {p.check_fail_safe_share * 100:g}%)"))
     if s["missed_episodes"]:
-        problems.append(f"the detector missed {s['missed_episodes']} of {s['true_episodes']} true slip episodes")
-    for node, seconds in sorted(s["silent_nodes"].items()):
-        problems.append(f"node {node} went silent: no diagnostics for the last {seconds:.1f} s (dead or stopped?)")
-    for node, seconds in sorted(s["nodes_that_went_silent"].items()):
-        if node not in s["silent_nodes"]:
-            how = ("as a new process (restarted)" if node in s["nodes_restarted_after_silence"] else
-                   "as the same process (it stalled: a machine too busy, or stopped and continued)")
-            problems.append(f"node {node} went silent for {seconds:.1f} s and came back {how}")
+        out.append(Problem(f"detector missed {s['missed_episodes']} of {s['true_episodes']} slip episodes",
+                           f"the detector missed {s['missed_episodes']} of {s['true_episodes']} true slip episodes"))
     if s["grip_commands"] and s["fail_safe_while_starting"] == s["grip_commands"]:
-        problems.append(f"all {s['grip_commands']} grip commands were fail-safe: the controller never had valid "
-                        "sensor data (are the sensors connected and streaming?)")
-    return problems
+        out.append(Problem("every command fail-safe: no valid sensor data",
+                           f"all {s['grip_commands']} grip commands were fail-safe: the controller never had valid "
+                           "sensor data (are the sensors connected and streaming?)"))
+    return out
+
+
+def _silence_problems(s: dict) -> list[Problem]:
+    """Nodes silent at the end, or silent for a while and back."""
+    out = []
+    for node, seconds in sorted(s["silent_nodes"].items()):
+        out.append(Problem(f"{node} silent for the last {seconds:.1f} s",
+                           f"node {node} went silent: no diagnostics for the last {seconds:.1f} s (dead or stopped?)"))
+    for node, seconds in sorted(s["nodes_that_went_silent"].items()):
+        if node in s["silent_nodes"]:
+            continue
+        restarted = node in s["nodes_restarted_after_silence"]
+        how = ("as a new process (restarted)" if restarted else
+               "as the same process (it stalled: a machine too busy, or stopped and continued)")
+        out.append(Problem(f"{node} silent {seconds:.1f} s, then back ({'restarted' if restarted else 'stalled'})",
+                           f"node {node} went silent for {seconds:.1f} s and came back {how}"))
+    return out
+
+
+def _device_problems(s: dict) -> list[Problem]:
+    """Drivers whose device was disconnected at the end (with a rig: already before its scene ended)."""
+    return [Problem(_clip(f"{node} {status}", 60), f"{node} ended {status} (see docs/drivers.md)", False)
+            for node, status in sorted(s["disconnected_nodes"].items())]
 
 
 def device_problems(s: dict) -> list[str]:
-    """Drivers whose device was disconnected at the end (with a rig: already before its scene ended)."""
-    return [f"{node} ended {status} (see docs/drivers.md)" for node, status in sorted(s["disconnected_nodes"].items())]
+    """Drivers whose device was disconnected at the end, in words."""
+    return [x.text for x in _device_problems(s)]
 
 
-def behind_problems(s: dict) -> list[str]:
-    """Signs that the control path fell behind: late commands, timer ticks skipped, more
-    than :data:`SKIP_WARN_SHARE` of a sensor topic's samples not examined."""
-    problems = []
+def _behind_problems(s: dict) -> list[Problem]:
+    """Signs that the graph fell behind: late commands, timer ticks skipped, more than
+    :data:`SKIP_WARN_SHARE` of a sensor topic's samples not examined."""
+    out = []
     if s["late_commands"]:
-        problems.append(f"{s['late_commands']} of {s['commands_while_running']} grip commands while running "
-                        f"({s['late_share'] * 100:.2g}%) left later than {s['command_deadline_ms']:g} ms after their "
-                        f"sample (worst {s['command_age_ms_max']:.1f} ms): the control path waited for a CPU core; "
-                        "free a core or raise the stack's priority (the launch file's `realtime_priority` or `nice`)")
+        out.append(Problem(
+            f"{s['late_commands']} of {s['commands_while_running']} commands late (over "
+            f"{s['command_deadline_ms']:g} ms, worst {s['command_age_ms_max']:.0f} ms)",
+            f"{s['late_commands']} of {s['commands_while_running']} grip commands while running "
+            f"({s['late_share'] * 100:.2g}%) left later than {s['command_deadline_ms']:g} ms after their sample "
+            f"(worst {s['command_age_ms_max']:.1f} ms): the control path waited for a CPU core; free a core or "
+            "raise the stack's priority (the launch file's `realtime_priority` or `nice`)", False))
     for node, timers in sorted(s["behind_real_time"].items()):
+        skipped = sum(timers.values())
         ticks = ", ".join(f"{k.split('.')[1]} {v:g}" for k, v in sorted(timers.items()))
-        problems.append(f"{node} fell behind real time (timer ticks skipped: {ticks}; its diagnostics say how "
-                        f"late): {BEHIND_REAL_TIME_ADVICE}")
+        out.append(Problem(f"{node} behind real time ({skipped:g} timer ticks skipped)",
+                           f"{node} fell behind real time (timer ticks skipped: {ticks}; its diagnostics say how "
+                           f"late): {BEHIND_REAL_TIME_ADVICE}", False))
     for node, inputs in sorted(s["skipped_for_newer"].items()):
         for topic, n in sorted(inputs.items()):
             share = n["skipped"] / n["received"] if n["received"] else 0.0
             if topic in SENSOR_TOPICS and share > SKIP_WARN_SHARE:
-                problems.append(f"{node} did not examine {share * 100:.0f}% of {topic} (skipped for a newer one, "
-                                "or beyond a batch's depth): it fell behind its input; free a CPU core or raise "
-                                "the stack's priority (the launch file's `realtime_priority` or `nice`)")
-    return problems
+                out.append(Problem(f"{node} skipped {share * 100:.0f}% of {topic}",
+                                   f"{node} did not examine {share * 100:.0f}% of {topic} (skipped for a newer one, "
+                                   "or beyond a batch's depth): it fell behind its input; free a CPU core or raise "
+                                   "the stack's priority (the launch file's `realtime_priority` or `nice`)", False))
+    return out
+
+
+def _injection_problems(s: dict) -> list[Problem]:
+    """Grip commands the finger took from a tool, slip verdicts and finger reports the controller did not trust."""
+    n = s.get("injected", {})
+    if not any(n.values()):
+        return []
+    return [Problem(f"injected by tools: {n['grip_commands']:g} grip commands, {n['slip_verdicts']:g} verdicts",
+                    f"injected by tools (allow_inject): {n['grip_commands']:g} grip commands obeyed (the finger's log "
+                    f"names who sent them), {n['slip_verdicts']:g} verdicts and {n['finger_reports']:g} finger reports "
+                    "not trusted (the grip held)", False)]
+
+
+def behind_problems(s: dict) -> list[str]:
+    """Signs that the graph fell behind, in words."""
+    return [x.text for x in _behind_problems(s)]
+
+
+def _clip(text: str, width: int = SUMMARY_WIDTH) -> str:
+    return text if len(text) <= width else text[: width - 1] + "…"
+
+
+def _num(v: float | None, fmt: str) -> str:
+    return "-" if v is None else format(v, fmt)
+
+
+def _pct(v: float | None) -> str:
+    return "-" if v is None else f"{v * 100:.1f}%"
+
+
+# -- the summary: short (the terminal) and long (verbose:=true, the run log) --------------------------
+def format_summary(s: dict, p: MonitorParams | None = None, *, verbose: bool = False) -> list[str]:
+    """The summary: at most :data:`SUMMARY_MAX_LINES` lines of at most :data:`SUMMARY_WIDTH`
+    characters, one subject a line (docs/summary.md); ``verbose``: the long form, every count
+    with its denominator and a HEALTH line per problem with what to do."""
+    problems = health_problems(s, p or MonitorParams())
+    if verbose:
+        return format_details(s, problems)
+    p = p or MonitorParams()
+    rows = [TITLE, *(_truth_rows(s, p) if s["has_truth"] else _no_truth_rows(s)), _control_row(s), _bus_row(s)]
+    clocks = [f"{peer} {c['offset_ms']:+.3f} ms ± {c['uncertainty_ms']:.3f}"
+              for peers in s.get("clock_offsets", {}).values() for peer, c in sorted(peers.items())]
+    if clocks:
+        rows.append("clocks: " + ", ".join(clocks) + " (other machines' minus ours)")
+    if s["recording"]:
+        rows.append("recording: " + s["recording"])
+    rows = [_clip(row) for row in rows]
+    return rows + _health_rows([x.short for x in problems], max(1, SUMMARY_MAX_LINES - len(rows)))
+
+
+def _truth_rows(s: dict, p: MonitorParams) -> list[str]:
+    slid, turned = s["slip_distance_mm"], s["slip_angle_deg"]
+    held = "held" if slid <= p.check_slip_mm and abs(turned) <= p.check_turn_deg else "MOVED"
+    rows = [f"object: {held}, slid {_num(slid, '.2f')} mm and turned {_num(turned, '.2f')} deg in all"]
+    n, found = s["true_episodes"], s["detected_episodes"]
+    if not n:
+        slip = "no true slip episode"
+    else:
+        slip = f"{found} of {n} true episodes detected ({s['missed_episodes']} missed)"
+        measured = found - s["already_flagged_episodes"]
+        if measured:
+            slip += f", delay p50 {s['detection_delay_ms_p50']:.1f} ms, p95 {s['detection_delay_ms_p95']:.1f} ms"
+        if s["already_flagged_episodes"]:
+            slip += f", {s['already_flagged_episodes']} flagged ahead"
+    rows.append("slip: " + slip)
+    share = s["flag_without_slip_share"]
+    reading = "" if not share else (" (early warnings acted on)" if s["grip_commands"] else " (false alarms)")
+    rows.append(f"flags: {_pct(share) if share is None else f'{share * 100:.2f}%'} of {s['stick_frames']} sticking "
+                f"frames flagged as slip{reading}")
+    rows.append(f"grip: commanded mean {_num(s['grip_command_mean_n'], '.2f')} N, peak "
+                f"{_num(s['grip_command_peak_n'], '.2f')} N; applied mean {_num(s['applied_f_n_mean_n'], '.2f')} N")
+    return rows
+
+
+def _no_truth_rows(s: dict) -> list[str]:
+    return [f"slip: no ground truth (real hardware); slip in {s['slip_verdicts']} of {s['slip_frames']} verdicts",
+            f"grip: commanded mean {_num(s['grip_command_mean_n'], '.2f')} N, peak "
+            f"{_num(s['grip_command_peak_n'], '.2f')} N"]
+
+
+def _control_row(s: dict) -> str:
+    if not s["grip_commands"]:
+        return "control: no grip commands (detection only, or the controller never ran)"
+    row = (f"control: {s['grip_commands']} commands; fail-safe {_pct(s['fail_safe_share'])} "
+           f"({s['fail_safe_commands']} of {s['commands_while_running']}), late {_pct(s['late_share'])}")
+    if s["late_commands"]:
+        row += f" ({s['late_commands']}, worst {s['command_age_ms_max']:.0f} ms)"
+    return row
+
+
+def _bus_row(s: dict) -> str:
+    lost = sorted(((c["lost"], c["of"], node, c["topic"]) for node, counts in s["losses"].items()
+                   for c in counts.values()), reverse=True)
+    if lost:
+        n, of, node, topic = lost[0]
+        row = f"bus: {sum(x[0] for x in lost):g} frames lost ({node} {topic} {n:g} of {of:g}"
+        row += f", +{len(lost) - 1} more)" if len(lost) > 1 else ")"
+    else:
+        row = "bus: no frame lost"
+    skipped = sorted(((n["skipped"] / n["received"], node, topic) for node, inputs in s["skipped_for_newer"].items()
+                      for topic, n in inputs.items()
+                      if topic in SENSOR_TOPICS and n["received"]), reverse=True)
+    if skipped:
+        share, node, topic = skipped[0]
+        return row + f"; {node} skipped {share * 100:.1f}% of {topic}"
+    return row + "; every sensor sample examined"
+
+
+def _health_rows(shorts: list[str], room: int) -> list[str]:
+    """One HEALTH line per problem while they fit in ``room`` lines; else packed, the rest counted."""
+    if not shorts:
+        return ["HEALTH: ok"]
+    if len(shorts) <= room:
+        return [_clip("HEALTH: " + short) for short in shorts]
+    rows: list[str] = []
+    for k, short in enumerate(shorts):
+        more = f"; +{len(shorts) - k} more (verbose:=true)"
+        if rows and len(rows[-1]) + 2 + len(short) <= SUMMARY_WIDTH - (len(more) if len(rows) == room else 0):
+            rows[-1] += "; " + short
+        elif len(rows) < room:
+            rows.append(_clip("HEALTH: " + short))
+        else:
+            rows[-1] = rows[-1][: SUMMARY_WIDTH - len(more)] + more
+            break
+    return rows
+
+
+def format_details(s: dict, problems: list[Problem]) -> list[str]:
+    """The long form: every count with its denominator, a HEALTH line per problem with what to do."""
+    lines = [TITLE]
+    if s["has_truth"]:
+        lines += [
+            f"slip episodes: {s['detected_episodes']} detected of {s['true_episodes']} true, {s['missed_episodes']} missed",
+            _delay_line(s),
+            _flag_without_slip_line(s),
+            f"grip force commanded: mean {_num(s['grip_command_mean_n'], '.2f')} N, peak "
+            f"{_num(s['grip_command_peak_n'], '.2f')} N; applied mean {_num(s['applied_f_n_mean_n'], '.2f')} N",
+            f"object slid {_num(s['slip_distance_mm'], '.2f')} mm and turned {_num(s['slip_angle_deg'], '.2f')} deg in all",
+        ]
+    else:
+        lines += [
+            "slip: no ground truth on this run (no rig/truth topic: real hardware), so no true episodes, missed "
+            f"slips or flags without true slip; the detector said slip in {s['slip_verdicts']} of {s['slip_frames']} verdicts",
+            f"grip force commanded: mean {_num(s['grip_command_mean_n'], '.2f')} N, peak "
+            f"{_num(s['grip_command_peak_n'], '.2f')} N",
+        ]
+    if not s["grip_commands"]:
+        lines.append("control path: no grip commands (a detection-only graph, or the controller never ran)")
+    else:
+        lines.append(
+            f"control path: {s['grip_commands']} grip commands; fail-safe while running {_pct(s['fail_safe_share'])}"
+            f" ({s['fail_safe_commands']} of {s['commands_while_running']}), {s['fail_safe_while_starting']} more while"
+            f" the sensors started" + (f", {s['fail_safe_after_scene']} after the scene ended" if s["has_truth"] else "")
+            + "; " + _late_text(s))
+    lines.extend(f"HEALTH: {problem.text}" for problem in problems)
+    if not problems:
+        lines.append("HEALTH: ok")
+    if s["losses"]:
+        for node, counts in sorted(s["losses"].items()):
+            lines.append(f"frames lost at {node}: " + "; ".join(
+                f"{c['topic']} {c['lost']:g} of {c['of']:g} ({c['how']})" for _, c in sorted(counts.items())))
+    elif problems:
+        lines.append("frames lost on the bus: none reported (no rejected frames, sequence gaps or send-queue drops);"
+                     " see HEALTH for what did go wrong")
+    else:
+        lines.append("frames lost: none (no rejected frames, sequence gaps or send-queue drops reported)")
+    skips = [f"{node} {topic} {n['skipped']:g} of {n['received']:g}"
+             for node, inputs in sorted(s["skipped_for_newer"].items()) for topic, n in sorted(inputs.items())]
+    lines.append("samples not examined (skipped for a newer one, or beyond a batch's depth): "
+                 + ("; ".join(skips) if skips else "none"))
+    ft = s.get("ft_samples")
+    if ft and ft["received"]:
+        lines.append(f"F/T samples: {ft['received']:g} received by fusion, {ft['carried']:g} carried in contacts, "
+                     f"{ft['judged']:g} judged by the slip test (the others had no usable data: grip held)")
+    clocks = [f"{node}: {peer} {c['offset_ms']:+.3f} ms ± {c['uncertainty_ms']:.3f} ms"
+              for node, peers in sorted(s.get("clock_offsets", {}).items()) for peer, c in sorted(peers.items())]
+    if clocks:
+        lines.append("clock offsets between the machines (their clock minus the launcher's): " + "; ".join(clocks))
+    if s["recording"]:
+        lines.append(f"recording: {s['recording']}")
+    return lines
 
 
 def _delay_line(s: dict) -> str:
@@ -577,64 +818,3 @@ def _late_text(s: dict) -> str:
         text += (f"; {s['watchdog_repeats']} watchdog repeat{'s' if s['watchdog_repeats'] != 1 else ''} of the last "
                  "grip while no new verdict came (counted as fail-safe, not late)")
     return text
-
-
-def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
-    """The summary as readable lines, a HEALTH line for whatever went wrong."""
-    def num(v: object, fmt: str) -> str:
-        return "-" if v is None else format(v, fmt)
-
-    def pct(v: float | None) -> str:
-        return "-" if v is None else f"{v * 100:.1f}%"
-
-    lines = ["==== slipstack run summary ===="]
-    if s["has_truth"]:
-        lines += [
-            f"slip episodes: {s['detected_episodes']} detected of {s['true_episodes']} true, {s['missed_episodes']} missed",
-            _delay_line(s),
-            _flag_without_slip_line(s),
-            f"grip force commanded: mean {num(s['grip_command_mean_n'], '.2f')} N, peak "
-            f"{num(s['grip_command_peak_n'], '.2f')} N; applied mean {num(s['applied_f_n_mean_n'], '.2f')} N",
-            f"object slid {num(s['slip_distance_mm'], '.2f')} mm and turned {num(s['slip_angle_deg'], '.2f')} deg in all",
-        ]
-    else:
-        lines += [
-            "slip: no ground truth on this run (no rig/truth topic: real hardware), so no true episodes, missed "
-            f"slips or flags without true slip; the detector said slip in {s['slip_verdicts']} of {s['slip_frames']} verdicts",
-            f"grip force commanded: mean {num(s['grip_command_mean_n'], '.2f')} N, peak "
-            f"{num(s['grip_command_peak_n'], '.2f')} N",
-        ]
-    if not s["grip_commands"]:
-        lines.append("control path: no grip commands (a detection-only graph, or the controller never ran)")
-    else:
-        lines.append(
-            f"control path: {s['grip_commands']} grip commands; fail-safe while running {pct(s['fail_safe_share'])}"
-            f" ({s['fail_safe_commands']} of {s['commands_while_running']}), {s['fail_safe_while_starting']} more while"
-            f" the sensors started" + (f", {s['fail_safe_after_scene']} after the scene ended" if s["has_truth"] else "")
-            + "; " + _late_text(s))
-    problems = check_problems(s, p or MonitorParams()) + device_problems(s) + behind_problems(s) + injection_problems(s)
-    lines.extend(f"HEALTH: {problem}" for problem in problems or ["ok"])
-    if s["losses"]:
-        for node, counts in sorted(s["losses"].items()):
-            lines.append(f"frames lost at {node}: " + "; ".join(
-                f"{c['topic']} {c['lost']:g} of {c['of']:g} ({c['how']})" for _, c in sorted(counts.items())))
-    elif problems:
-        lines.append("frames lost on the bus: none reported (no rejected frames, sequence gaps or send-queue drops);"
-                     " see HEALTH for what did go wrong")
-    else:
-        lines.append("frames lost: none (no rejected frames, sequence gaps or send-queue drops reported)")
-    skips = [f"{node} {topic} {n['skipped']:g} of {n['received']:g}"
-             for node, inputs in sorted(s["skipped_for_newer"].items()) for topic, n in sorted(inputs.items())]
-    lines.append("samples not examined (skipped for a newer one, or beyond a batch's depth): "
-                 + ("; ".join(skips) if skips else "none"))
-    ft = s.get("ft_samples")
-    if ft and ft["received"]:
-        lines.append(f"F/T samples: {ft['received']:g} received by fusion, {ft['carried']:g} carried in contacts, "
-                     f"{ft['judged']:g} judged by the slip test (the others had no usable data: grip held)")
-    clocks = [f"{node}: {peer} {c['offset_ms']:+.3f} ms ± {c['uncertainty_ms']:.3f} ms"
-              for node, peers in sorted(s.get("clock_offsets", {}).items()) for peer, c in sorted(peers.items())]
-    if clocks:
-        lines.append("clock offsets between the machines (their clock minus the launcher's): " + "; ".join(clocks))
-    if s["recording"]:
-        lines.append(f"recording: {s['recording']}")
-    return lines

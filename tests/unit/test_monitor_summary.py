@@ -38,7 +38,9 @@ def fig10_runs() -> dict[bool, list[tuple[int, str, bytes]]]:
 
 
 def monitor_over(events, tmp_path, **params) -> tuple[dict, list[str], Monitor]:
-    """Feed ``events`` to a monitor on the in-process executor; its JSON summary and log."""
+    """Feed ``events`` to a monitor on the in-process executor; its JSON summary and log (by
+    default the summary's long form, which most tests here read: ``verbose=False`` for the short)."""
+    params.setdefault("verbose", True)
     summary_path = tmp_path / "summary.json"
     monitor = Monitor(MonitorParams(summary_path=str(summary_path), **params))
     ex = InProcessExecutor([monitor])
@@ -253,7 +255,7 @@ def test_a_clean_run_says_health_ok_and_passes_its_check(fig10_runs, tmp_path):
     assert s["fail_safe_commands"] == 0 and s["late_commands"] == 0  # lock-step: nothing is late
     assert "HEALTH: ok" in [line.split("] ", 1)[-1] for line in logs]
     assert any("frames lost: none" in line for line in logs)
-    assert json.loads(check.read_text()) == {"passed": True, "problems": []}
+    assert json.loads(check.read_text()) == {"passed": True, "problems": [], "short": []}
 
 
 def _truth(t_ns: int, *, slid_m: float = 0.0, turned_rad: float = 0.0, gross: bool = False) -> RigTruth:
@@ -335,9 +337,11 @@ def test_a_monitor_that_waited_for_a_core_sees_no_silence(tmp_path):
 def test_behind_real_time_and_skipped_samples_reach_the_health_line(tmp_path):
     events = [(t * MS, "rig/truth", _truth(t * MS)) for t in range(100)]
     events.append((60 * MS, "diagnostics", _diag("fusion", 60 * MS, **{"in.ft/wrench.received": 1000,
-                                                                       "in.ft/wrench.dropped": 400})))
+                                                                       "in.ft/wrench.dropped": 400,
+                                                                       "out.contact.published": 600})))
     events.append((70 * MS, "diagnostics", _diag("rig", 70 * MS, **{"in.grip/command.received": 1000,
                                                                     "in.grip/command.dropped": 400,
+                                                                    "out.rig/truth.published": 70,
                                                                     "timer.tick.skipped": 35})))
     s, logs, _ = monitor_over(events, tmp_path)
     assert s["behind_real_time"] == {"rig": {"timer.tick.skipped": 35}}
@@ -434,10 +438,11 @@ def test_format_summary_without_a_rig_leaves_the_rig_numbers_out():
     monitor = Monitor()
     monitor.episodes.finish()
     from slipstack.nodes.monitor import summarise
-    lines = format_summary(summarise(monitor, 0))
-    assert not any(w in line for line in lines for w in ("object slid", "% of sticking", "detected of")), lines
-    assert any(line.startswith("slip: no ground truth on this run") for line in lines), lines
-    assert "HEALTH: ok" in lines
+    for verbose, no_truth in ((True, "slip: no ground truth on this run"), (False, "slip: no ground truth")):
+        lines = format_summary(summarise(monitor, 0), verbose=verbose)
+        assert not any(w in line for line in lines for w in ("object", "sticking", "detected of")), lines
+        assert any(line.startswith(no_truth) for line in lines), lines
+        assert "HEALTH: ok" in lines
 
 
 def test_losses_are_given_with_their_denominators(tmp_path):
@@ -484,3 +489,66 @@ def test_the_summary_counts_the_ft_samples_fusion_received_carried_and_the_slip_
     assert any("samples not examined (skipped for a newer one, or beyond a batch's depth): none" in line
                for line in logs)
     assert any("F/T samples: 7000 received by fusion, 7000 carried in contacts, 6990 judged" in line for line in logs)
+
+
+# -- the short form: what the terminal shows ------------------------------------------------------
+def _troubled_run(seconds: int = 10) -> list:
+    """``seconds`` at 1 kHz with everything wrong at once: slid, turned, half the commands fail-safe
+    and late, a missed episode, three drivers silent, a disconnected device, the rig behind
+    real time, lost frames and skipped samples: more problems than the short form has lines."""
+    events = []
+    for k in range(seconds * 1000):
+        t = k * MS
+        events.append((t, "rig/truth", _truth(t, slid_m=0.9e-3 * k / 9999, turned_rad=math.radians(0.7) * k / 9999,
+                                               gross=5000 <= k < 5100)))
+        events.append((t, "slip", Slip(state="stick", header=Header(t, k, t, {}))))
+        events.append((t, "grip/command", GripCommand(f_n_desired=3.0, reason="fail-safe" if k % 2 else "nominal",
+                                                      header=Header(t, k, t + 30 * MS, {}))))
+    for s in range(1, seconds + 1):
+        t = s * 1_000_000_000 - 1
+        events.append((t, "diagnostics", _diag("rig", t, **{"out.rig/truth.published": 1000.0 * s,
+                                                             "timer.tick.skipped": 35})))
+        events.append((t, "diagnostics", _diag("fusion", t, **{"out.contact.published": 900.0 * s,
+                                                                "in.ft/wrench.received": 1000.0 * s,
+                                                                "in.ft/wrench.dropped": 400.0 * s,
+                                                                "in.ft/wrench.lost": 7.0})))
+        for k, node in enumerate(("ft_driver", "tactile_driver", "extra_driver")):
+            if s <= 1 + k:
+                events.append((t, "diagnostics", Diagnostics(node=node, status="disconnected: robotiq:///dev/ttyX",
+                                                             counters={}, header=Header(t, s, t, {}))))
+    return [(t, topic, encode(m) if not isinstance(m, bytes) else m) for t, topic, m in events]
+
+
+@pytest.mark.parametrize("run", ["clean", "troubled"])
+def test_the_short_summary_is_at_most_twelve_lines_of_100_characters_on_the_terminal(run, fig10_runs, tmp_path):
+    """The terminal shows ``[monitor] `` and a line of the short form; the long form is logged
+    behind ``detail: `` (kept in the run log, not shown) and written whole to the JSON summary."""
+    events = fig10_runs[True] if run == "clean" else _troubled_run()
+    s, logs, _ = monitor_over(events, tmp_path, verbose=False)
+    start = logs.index("[monitor] ==== slipstack run summary ====")
+    shown = [line for line in logs[start:] if not line.startswith("[monitor] detail: ")]
+    details = [line[len("[monitor] detail: "):] for line in logs[start:] if line.startswith("[monitor] detail: ")]
+    assert 4 <= len(shown) <= 12, shown
+    assert max(len(line) for line in shown) <= 100, [line for line in shown if len(line) > 100]
+    assert details[0] == "==== slipstack run summary ====" and len(details) > len(shown) - 3
+    health_lines = [line for line in shown if line.startswith("[monitor] HEALTH:")]
+    if run == "clean":
+        assert health_lines == ["[monitor] HEALTH: ok"]
+        assert any(line.startswith("[monitor] object: held, slid 0.00 mm") for line in shown), shown
+        assert s["health"] == []
+    else:
+        # every problem is named, in its short words, and the long form has each with what to do
+        assert len(s["health"]) >= 10 and all(h["short"] and h["text"] for h in s["health"])
+        assert "+" in health_lines[-1] and "more (verbose:=true)" in health_lines[-1], health_lines
+        assert sum(line.startswith("HEALTH: ") for line in details) == len(s["health"])
+        assert any("MOVED, slid 0.90 mm" in line for line in shown), shown
+
+
+def test_short_health_lines_name_each_problem_in_a_few_words(tmp_path):
+    s, logs, _ = monitor_over(_troubled_run(4), tmp_path, verbose=False)  # 4 s: fewer problems, one a line
+    shown = "\n".join(line for line in logs if not line.startswith("[monitor] detail: "))
+    assert "HEALTH: object slid 0.36 mm" not in shown  # within 0.5 mm after 4 s: no problem
+    assert "HEALTH: fail-safe 50.0% of commands (allowed 1%)" in shown, shown
+    assert "commands late (over 20 ms, worst 30 ms)" in shown, shown
+    assert "control: 4000 commands; fail-safe 50.0% (1999 of 3999), late" in shown, shown
+    assert "bus: 7 frames lost (fusion ft/wrench 7 of " in shown and "fusion skipped 40.0% of ft/wrench" in shown
