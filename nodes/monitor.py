@@ -424,6 +424,7 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "recording": m.params.recording if m.params.recording and os.path.exists(m.params.recording) else "",
         "clock_offsets": _clock_offsets(m.nodes),
         "injected": {what: sum(w.counters.get(key, 0) for w in m.nodes.values()) for what, key in INJECTED.items()},
+        "steps_without_a_start": sum(w.counters.get("grip.waiting_to_start", 0) for w in m.nodes.values()),
     }
 
 
@@ -531,6 +532,11 @@ def _check_problems(s: dict, p: MonitorParams) -> list[Problem]:
         out.append(Problem("every command fail-safe: no valid sensor data",
                            f"all {s['grip_commands']} grip commands were fail-safe: the controller never had valid "
                            "sensor data (are the sensors connected and streaming?)"))
+    if not s["grip_commands"] and s.get("steps_without_a_start"):
+        out.append(Problem("no command: no trusted sensor data, the finger kept its grip",
+                           "the controller sent no grip command: it never had trusted sensor data nor the finger's "
+                           "report (grip/state), so the finger kept its own grip (are the sensors connected and "
+                           "streaming? docs/safety.md, clause 4)"))
     return out
 
 

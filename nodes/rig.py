@@ -169,8 +169,11 @@ class Rig(Node):
         self.watchdog.commanded(ctx.now_ns())
         if ctx.sender:
             self._manual_command(msg, ctx)
-        self._commanded_by = ctx.sender
+        if ctx.sender != self._commanded_by:  # a manual command is reported with its sender at once
+            self._commanded_by = ctx.sender
+            self._next_state_ns = 0
         self._set_finger_mode("following", ctx)
+        self._report_finger(ctx)
 
     def _manual_command(self, msg: GripCommand, ctx: Context) -> None:
         """A command a tool injected (the launch allows it): counted, and its sender named once."""
