@@ -92,7 +92,8 @@ def test_a_launch_that_allows_injection_names_the_sender_and_never_trusts_a_verd
     reports = [decode(f.payload) for f in read_recording(recording, ["grip/state"])]
     assert any(r.commanded_by == sender.group(1) for r in reports)  # the finger says who commanded it
     s = json.loads(summary.read_text())
-    assert s["injected"]["grip_commands"] == 1 and s["injected"]["slip_verdicts"] > 50, s["injected"]
+    # each wake-up hands the controller the newest injected verdict only (a latest-value input)
+    assert s["injected"]["grip_commands"] == 1 and s["injected"]["slip_verdicts"] >= 1, s["injected"]
     assert "injected by tools: 1 grip commands" in log  # on the HEALTH line
     slid_mm, turned_deg = _truth(recording)
     assert slid_mm < 0.1 and turned_deg < 0.1, (slid_mm, turned_deg)

@@ -19,6 +19,7 @@ import os
 import random
 import re
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
@@ -43,6 +44,21 @@ ROBOT, WORKSTATION = "127.0.0.1", "127.0.0.2"
 RUNS = 3  # the documented launch must hold every time, not most times
 
 
+def free_port_range(size: int) -> int:
+    """The first of ``size`` tcp ports free now on both addresses, below the ephemeral ports
+    (32768-60999): other sessions on this machine run these tests too, each on a range of its own."""
+    while True:
+        first = random.randrange(20000, 32000 - size, 100)
+        try:
+            for address in (ROBOT, WORKSTATION):
+                for port in range(first, first + size):
+                    with socket.socket() as probe:
+                        probe.bind((address, port))
+        except OSError:
+            continue
+        return first
+
+
 @pytest.fixture
 def two_hosts(tmp_path):
     """``start(*args)`` → (robot, workstation) launchers of two_hosts.toml with fresh keys and a
@@ -52,7 +68,7 @@ def two_hosts(tmp_path):
     made = subprocess.run([sys.executable, "-m", "slipstack.launch.cli", "keys", str(keys), "--machine", "robot",
                            "--machine", "workstation"], capture_output=True, text=True, timeout=60)
     assert made.returncode == 0, made.stderr
-    first = random.randrange(20000, 32000, 100)  # below the ephemeral ports (32768-60999)
+    first = free_port_range(100)
     graphs: list[LaunchedGraph] = []
     roots: list[tempfile.TemporaryDirectory] = []
 
@@ -127,8 +143,8 @@ def test_the_documented_launch_holds_fig15_with_default_arguments_and_strangers_
             sock.send_multipart([b"ping", (0).to_bytes(8, "big"), b"robot"])
         # the graph's keys are answered and served (generous waits: a busy machine may take seconds
         # over the CURVE handshakes of a node that has just started), then the stranger in the same time
-        assert member.poll(60_000)  # the robot's key pair is answered
-        assert legit.poll(60_000) and count_frames(legit, 1.0) > 10
+        assert member.poll(60_000), workstation.log()[-3000:]  # the robot's key pair is answered
+        assert legit.poll(60_000) and count_frames(legit, 1.0) > 10, robot.log()[-3000:]
         assert count_frames(wrong, 1.0) == 0
         assert not pinger.poll(1000)
     finally:
@@ -268,7 +284,7 @@ def test_topic_pub_on_one_machine_reaches_a_node_on_the_other_and_both_launchers
     for directory in (keys, stranger):
         subprocess.run([sys.executable, "-m", "slipstack.launch.cli", "keys", str(directory), "--machine", "a",
                         "--machine", "b"], check=True, capture_output=True, timeout=60)
-    first = random.randrange(20000, 32000, 100)
+    first = free_port_range(10)
     launch_file = tmp_path / "inject.toml"
     launch_file.write_text(INJECTION_GRAPH.format(first=first, last=first + 9, keys=keys))
     roots = [tempfile.TemporaryDirectory(prefix="ss-", dir="/tmp") for _ in range(2)]
