@@ -47,6 +47,7 @@ import zmq
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from _versions import print_versions  # noqa: E402
 from _stack import StackRun, free_udp_port, long_scene, pid_alive  # noqa: E402
 
 from slipstack.lib.protocols import ati_rdt  # noqa: E402
@@ -425,6 +426,8 @@ def main() -> int:
     ap.add_argument("--duration", type=float, default=24.0, help="--kill-series: scene length, s")
     ap.add_argument("--every", type=float, default=3.0, help="--kill-series: seconds between kills")
     args = ap.parse_args()
+    print_versions()
+
     hogs = [multiprocessing.Process(target=_hog, daemon=True) for _ in range(args.hogs)]
     for h in hogs:
         h.start()
