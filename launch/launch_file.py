@@ -11,6 +11,9 @@ Format::
                               # argument named check
     extends = "stack.toml"    # optional: take the nodes and args of another launch
                               # file; this file's [args] override, its nodes are added
+    allow_inject = []         # topics of grip commands, slip verdicts or the finger's report that
+                              # tools (topic pub, bag play) may inject; otherwise only the graph's
+                              # own nodes publish them (docs/safety.md)
 
     [args]                    # launch arguments, overridden by `name:=value`
     rate_hz = 1000.0          # built in: $(run_dir), this run's private directory, and
@@ -94,7 +97,7 @@ DEFAULT_PORTS = (24700, 24799)
 """tcp ports of a machine without ``ports``: the first for its launcher, then one per node; the
 last two are its launcher's too: its clock offsets on ``diagnostics``, and the injection of tools
 on other machines into its nodes (below Linux's ephemeral ports, 32768-60999, which outgoing connections may hold)."""
-_LAUNCH_KEYS = {"description", "duration_s", "extends", "check", "keys", "insecure"}
+_LAUNCH_KEYS = {"description", "duration_s", "extends", "check", "keys", "insecure", "allow_inject"}
 _NODE_KEYS = {"name", "type", "params", "remap", "respawn", "respawn_delay_s", "respawn_max_retries",
               "respawn_reset_s", "respawn_standby", "required", "transport", "enabled", "after", "nice",
               "realtime_priority", "container", "stop_first", "machine"}
@@ -190,6 +193,8 @@ class LaunchFile:
     """tcp links without CURVE, explicitly allowed."""
     machines: dict[str, Machine] = field(default_factory=dict)
     """The computers the graph spans (empty: all on this one), in file order."""
+    allow_inject: tuple[str, ...] = ()
+    """Topics of a type tools may not inject (``INJECTION_REFUSED``) that this launch lets them inject."""
 
 
 def launch_files_dir() -> Path:
@@ -497,7 +502,20 @@ def load_launch_file(
     keys, insecure = _tcp_security(p, meta, entries, machines)
     duration_s = read_number(meta.get("duration_s", 0), f"{p.name}: duration_s", lo=0)
     return LaunchFile(p, str(meta.get("description", "")), duration_s,
-                      args, entries, read_flag(check, f"{p.name}: [launch] check"), keys, insecure, machines)
+                      args, entries, read_flag(check, f"{p.name}: [launch] check"), keys, insecure, machines,
+                      _allow_inject(p.name, meta.get("allow_inject", []), entries))
+
+
+def _allow_inject(file: str, value: Any, entries: list[NodeEntry]) -> tuple[str, ...]:
+    """``[launch] allow_inject``: topics a node of the launch subscribes to."""
+    subscribed = {t for e in entries for t in e.input_topics(e.instance()).values()}
+    if not (isinstance(value, list) and all(isinstance(t, str) for t in value)):
+        raise ConfigError(f"{file}: [launch] allow_inject must be a list of topic names, got {value!r}")
+    unknown = sorted(set(value) - subscribed)
+    if unknown:
+        raise ConfigError(f"{file}: [launch] allow_inject names {unknown}, which no node of this launch subscribes "
+                          f"to; subscribed: {', '.join(sorted(subscribed))}")
+    return tuple(sorted(set(value)))
 
 
 def _port_range(value: Any, where: str) -> tuple[int, int]:

@@ -515,9 +515,13 @@ class Launcher:
         return False
 
     def _wait_for_peers(self, process: _Process) -> None:
-        """Until the nodes on other machines that ``process``'s members start ``after`` are ready."""
+        """Until the nodes on other machines that ``process``'s members start ``after`` are ready; for the
+        simulated world (``stop_first``), every node of the other machines: it must not run while a
+        controller elsewhere is still coming up (as PEER_WAIT_S allows another machine's launcher)."""
         remote = {a for c in process.members for a in c.entry.after if not self.plan.is_local(self.children[a].entry)}
-        deadline = time.monotonic() + READY_TIMEOUT_S
+        if process.entry.stop_first:
+            remote |= {name for name, c in self.children.items() if not self.plan.is_local(c.entry)}
+        deadline = time.monotonic() + PEER_WAIT_S
         while remote:
             missing = {a for a in remote if a not in self.peers.peers[self.children[a].entry.machine].ready}
             if not missing:
@@ -528,7 +532,7 @@ class Launcher:
                 where = {self.peers.peers[self.children[a].entry.machine].label for a in missing}
                 raise SlipstackError(
                     f"{process.label} starts after {', '.join(sorted(missing))} on {', '.join(sorted(where))}, not "
-                    f"ready after {READY_TIMEOUT_S:.0f} s: is `slipstack launch {self.launch.path.name} --machine "
+                    f"ready after {PEER_WAIT_S:.0f} s: is `slipstack launch {self.launch.path.name} --machine "
                     f"{self.children[sorted(missing)[0]].entry.machine}` running there?")
             self._forward_logs(0.02)
             self._service_peers()

@@ -20,7 +20,8 @@ binds ipc for the nodes of its machine and also its machine's tcp port
 (:attr:`NodePlan.remote_endpoint`, ``pub_remote`` of its run spec); a subscriber
 connects to a publisher of another machine on that tcp endpoint. A node of another
 machine is injected into through its machine's launcher (:func:`relay_endpoint`, the
-machine's last port: ``launch/inject_relay.py``); its launcher publishes its clock
+machine's last port: ``launch/inject_relay.py``); inputs of the types only the graph's own
+nodes publish get no injection endpoint (``INJECTION_REFUSED``, unless ``allow_inject``); its launcher publishes its clock
 offsets on ``diagnostics`` from the next-to-last (:func:`launcher_pub_endpoints`), and
 the plan adds the launchers to the publishers of ``diagnostics`` a node subscribes to. ``after`` a node of
 another machine is the launcher's to wait for, not part of this start order. A plan
@@ -36,6 +37,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.launch.launch_file import LaunchFile, Machine, NodeEntry, free_port
 from slipstack.messages import Diagnostics
 from slipstack.nodes.device_driver import DeviceDriver
+from slipstack.nodes.runtime.graph_info import INJECTION_REFUSED
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.transport import ipc_endpoint, machine_ports, tcp_endpoint
 
@@ -208,10 +210,12 @@ def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -
         child.outputs[DIAGNOSTICS_TOPIC] = Diagnostics.TYPE  # every node publishes it
         child.inputs = {t: nodes[e.name].inputs[n].type.TYPE for n, t in e.input_topics(nodes[e.name]).items()}
         children[e.name] = child
+        injectable = [t for t, kind in child.inputs.items()
+                      if kind not in INJECTION_REFUSED or t in launch.allow_inject]
         if not runs_here:  # another machine's launcher runs it; tools here inject through it
-            child.inject = {t: relay_endpoint(launch.machines[e.machine]) for t in child.inputs}
+            child.inject = {t: relay_endpoint(launch.machines[e.machine]) for t in injectable}
             continue
-        child.inject = {t: ipc_endpoint(run_dir, f"{e.name}.in") for t in child.inputs}
+        child.inject = {t: ipc_endpoint(run_dir, f"{e.name}.in") for t in injectable}
         proc = processes.setdefault(child.process, ProcessPlan(child.process, [], run_dir / f"{child.process}.spec.json"))
         proc.members.append(child)
     publishers: dict[str, list[str]] = {}

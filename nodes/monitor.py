@@ -519,7 +519,16 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "diagnostics_senders_outside_graph": sorted(name for name in m.nodes if not m.in_graph(name)),
         "diagnostics_ignored": m.ignored_diagnostics,
         "clock_offsets": _clock_offsets(m.nodes),
+        "injected": {what: sum(w.counters.get(key, 0) for w in m.nodes.values()) for what, key in INJECTED.items()},
+        "steps_without_a_start": sum(w.counters.get("grip.waiting_to_start", 0) for w in m.nodes.values()),
     }
+
+
+INJECTED = {"grip_commands": "rig.manual_commands", "slip_verdicts": "grip.injected_verdicts",
+            "finger_reports": "grip.injected_finger_reports"}
+"""What tools injected where the launch allows it (``allow_inject``): summary key → counter."""
+
+
 
 
 def _ft_samples(nodes: dict[str, NodeWatch]) -> dict[str, float]:
@@ -605,9 +614,9 @@ def health_problems(s: dict, p: MonitorParams) -> list[Problem]:
     """What the HEALTH lines report: first what fails the check (the object slid or turned
     more than allowed, too many fail-safe commands, missed episodes, a silent node, no
     valid sensor data at all), then what is only reported (disconnected
-    devices, signs of falling behind)."""
+    devices, signs of falling behind, sensor attacks, recording losses, what tools injected)."""
     return (_check_problems(s, p) + _silence_problems(s) + _device_problems(s) + _behind_problems(s)
-            + _sensor_problems(s) + _recording_problems(s))
+            + _sensor_problems(s) + _recording_problems(s) + _injection_problems(s))
 
 
 def check_problems(s: dict, p: MonitorParams) -> list[str]:
@@ -636,6 +645,11 @@ def _check_problems(s: dict, p: MonitorParams) -> list[Problem]:
         out.append(Problem("every command fail-safe: no valid sensor data",
                            f"all {s['grip_commands']} grip commands were fail-safe: the controller never had valid "
                            "sensor data (are the sensors connected and streaming?)"))
+    if not s["grip_commands"] and s.get("steps_without_a_start"):
+        out.append(Problem("no command: no trusted sensor data, the finger kept its grip",
+                           "the controller sent no grip command: it never had trusted sensor data nor the finger's "
+                           "report (grip/state), so the finger kept its own grip (are the sensors connected and "
+                           "streaming? docs/safety.md, clause 4)"))
     return out
 
 
@@ -734,6 +748,17 @@ def _behind_problems(s: dict) -> list[Problem]:
                                    "or beyond a batch's depth): it fell behind its input; free a CPU core or raise "
                                    "the stack's priority (the launch file's `realtime_priority` or `nice`)", False))
     return out
+
+
+def _injection_problems(s: dict) -> list[Problem]:
+    """Grip commands the finger took from a tool, slip verdicts and finger reports the controller did not trust."""
+    n = s.get("injected", {})
+    if not any(n.values()):
+        return []
+    return [Problem(f"injected by tools: {n['grip_commands']:g} grip commands, {n['slip_verdicts']:g} verdicts",
+                    f"injected by tools (allow_inject): {n['grip_commands']:g} grip commands obeyed (the finger's log "
+                    f"names who sent them), {n['slip_verdicts']:g} verdicts and {n['finger_reports']:g} finger reports "
+                    "not trusted (the grip held)", False)]
 
 
 def behind_problems(s: dict) -> list[str]:

@@ -34,7 +34,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.messages import registry
 from slipstack.messages.frame import peek_header, publisher_key, restamp
 from slipstack.nodes.recording.bag_io import RecordedFrame, clock_offset_ns, read_recording
-from slipstack.nodes.runtime.graph_info import find_run_dir, read_graph, time_base_clock
+from slipstack.nodes.runtime.graph_info import INJECTION_REFUSED, find_run_dir, read_graph, time_base_clock
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.node import Context, Node, Output
 from slipstack.nodes.runtime.process import ProcessExecutor, RunSpec
@@ -221,9 +221,12 @@ def play(
                                  start_offset_s=start_offset_s), send=send)
     played = set(player.types)
     injects: list[tuple[str, str]] = []
+    refused: set[str] = set()
     if rd is not None:
         for node in graph_nodes.values():
             injects += [(t, ep) for t, ep in node.get("inject", {}).items() if t in played]
+            refused |= {t for t, kind in node.get("inputs", {}).items()
+                        if t in played and kind in INJECTION_REFUSED and t not in node.get("inject", {})}
     name = tool_name("bag_play")  # one endpoint per player: ipc binds steal
     bus = BusPublisher(rd, name, player.types, endpoint=endpoint, sndhwm=100_000)
     injector = InjectionSender([ep for _, ep in injects], name, sndhwm=100_000)  # one per node, whatever its topics
@@ -235,6 +238,9 @@ def play(
         bus.wait_for_recorders(sum(1 for n in graph_nodes.values() if n.get("type") == "recorder"), wait_s)
         echo(f"playing {path}: {len(player.playback.frames)} frames on {', '.join(sorted(played))} at {rate:g}x "
              f"from {bus.endpoint}, into {len(injects)} subscriber(s)")
+        if refused:
+            echo(f"not into the graph's nodes: {', '.join(sorted(refused))} (only its own nodes publish them; a launch "
+                 f"file allows it with allow_inject under [launch]); on the bus for echo and recorders only")
         ProcessExecutor([(player, RunSpec(name=name))], clock=time_base_clock(graph)).run()  # restamps on the graph's
         echo(f"played {player.playback.sent} frames ({player.playback.passes} loops)")
         return player.playback.sent

@@ -199,9 +199,10 @@ def _tcp_keys(endpoint: str) -> GraphKeys | None:
 
 
 def secure_bind(sock: zmq.Socket, endpoint: str) -> None:
-    """Make ``sock`` a CURVE server before it binds ``endpoint`` (tcp only)."""
+    """Make ``sock`` a CURVE server before it binds ``endpoint`` (tcp only; plain for ipc)."""
     keys = _tcp_keys(endpoint)
     if keys is None:
+        _plain(sock)
         return
     ctx = sock.context
     if id(ctx) not in _authenticators:
@@ -217,10 +218,20 @@ def secure_bind(sock: zmq.Socket, endpoint: str) -> None:
 
 
 def secure_connect(sock: zmq.Socket, endpoint: str) -> None:
-    """Make ``sock`` a CURVE client of the graph before it connects to ``endpoint`` (tcp only)."""
+    """Make ``sock`` a CURVE client of the graph before it connects to ``endpoint`` (tcp only; plain for ipc)."""
     keys = _tcp_keys(endpoint)
     if keys is None:
+        _plain(sock)
         return
     sock.curve_secretkey = keys.secret
     sock.curve_publickey = keys.public
     sock.curve_serverkey = keys.server_key(endpoint)
+
+
+def _plain(sock: zmq.Socket) -> None:
+    """No security mechanism for the socket's next bind or connect. ZeroMQ reads the mechanism
+    at each bind and connect from the socket's options, so one socket that reached a tcp peer
+    with CURVE (a recorder tapping two machines) would otherwise offer CURVE to an ipc peer too,
+    which never answers the handshake; setting ``curve_server`` to 0 resets it to NULL."""
+    if sock.get(zmq.MECHANISM) != zmq.NULL:
+        sock.curve_server = False

@@ -42,10 +42,14 @@ from slipstack.lib.errors import ConfigError
 from slipstack.nodes.runtime.run_dir import CURRENT_LINK, point_current, run_root, write_private_file
 from slipstack.nodes.runtime.time_base import shifted_clock
 
-__all__ = ["GRAPH_FILE", "RUN_DIR_HELP", "write_graph", "read_graph", "find_run_dir", "topic_endpoints", "process_start_ticks",
+__all__ = ["GRAPH_FILE", "INJECTION_REFUSED", "RUN_DIR_HELP", "write_graph", "read_graph", "find_run_dir", "topic_endpoints", "process_start_ticks",
            "register_tool", "time_base_clock"]
 
 GRAPH_FILE = "graph.json"
+INJECTION_REFUSED = ("slipstack/GripCommand", "slipstack/Slip", "slipstack/GripState")
+"""Message types only the graph's own nodes publish: the grip commands, the slip verdicts and the
+finger's report. A node gets no injection endpoint for an input of these types unless the launch
+file names its topic in ``[launch] allow_inject`` (docs/safety.md)."""
 _TOOL_GLOB = "tool-*.json"
 MAX_TOOLS = 32  # live registered tools listed at most (by name)
 RUN_DIR_ENV = "SLIPSTACK_RUN_DIR"

@@ -73,6 +73,10 @@ class Output:
 class Context(Protocol):
     """What an executor gives a handler."""
 
+    sender: str
+    """Who sent the message being handled: "" for the graph's own nodes, else the name the tool
+    that injected it gave (``topic_pub-1234``; "inject" if it gave none)."""
+
     def now_ns(self) -> int:
         """Executor time in integer nanoseconds (monotonic or simulated)."""
 

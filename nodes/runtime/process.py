@@ -320,8 +320,8 @@ class _Member:
         for bucket in (frames, size, work):
             bucket.refill(now_ns)
         t0 = time.perf_counter_ns()
-        newest: dict[str, Message] = {}
-        batches: dict[str, list[Message]] = {}
+        newest: dict[str, tuple[Message, str]] = {}
+        batches: dict[str, tuple[list[Message], str]] = {}
         over_rate = over_bytes = backlog = 0
         flushing, self.inject_backlog = self.inject_backlog, False
         for _ in range(_INJECT_READ_LIMIT):
@@ -350,31 +350,32 @@ class _Member:
                 host.count("in.injected.rejected")
                 host.last_error = (f"injected frame: expected [topic, payload(, origin)] on an input topic, "
                                    f"got {len(parts)} parts")
-            origin = "inject/" + parts[2][:MAX_ORIGIN_BYTES].decode(errors="replace") if len(parts) == 3 else "inject"
+            sender = parts[2][:MAX_ORIGIN_BYTES].decode(errors="replace") if len(parts) == 3 else ""
+            origin = f"inject/{sender}" if sender else "inject"
             for input_name in names:
                 msg = host.receive(input_name, parts[1], origin)
                 if msg is None:
                     continue
                 if input_name in self.queues:
-                    host.dispatch(input_name, msg)
+                    host.dispatch(input_name, msg, sender=sender or "inject")
                 elif input_name in self.batch_inputs:
-                    batches.setdefault(input_name, []).append(msg)
+                    batches.setdefault(input_name, ([], sender))[0].append(msg)
                 else:
                     if input_name in newest:
                         host.count_dropped(input_name, 1)
-                    newest[input_name] = msg
+                    newest[input_name] = (msg, sender)
         if over_rate:
             host.count("inject.dropped_rate", over_rate)
         if over_bytes:
             host.count("inject.dropped_bytes", over_bytes)
         if backlog:
             host.count("inject.dropped_backlog", backlog)
-        for input_name, msg in newest.items():
-            host.dispatch(input_name, msg)
-        for input_name, msgs in batches.items():
+        for input_name, (msg, sender) in newest.items():
+            host.dispatch(input_name, msg, sender=sender or "inject")
+        for input_name, (msgs, sender) in batches.items():
             depth = self.node.inputs[input_name].depth
             host.count_dropped(input_name, max(len(msgs) - depth, 0))
-            host.dispatch(input_name, tuple(msgs[-depth:]))
+            host.dispatch(input_name, tuple(msgs[-depth:]), sender=sender or "inject")
 
     def charge_injected_work(self, work_ns: int, now_ns: int) -> None:
         """Charge ``work_ns`` spent on injected frames (their decode, handlers and hand-overs) to

@@ -35,12 +35,12 @@ import numpy as np
 from slipstack.lib.errors import ConfigError, DecodeError
 from slipstack.messages import Header, Message, encode, registry, validate
 from slipstack.nodes.tools.topic_tools import TopicInfo, load_graph, resolve_topic
-from slipstack.nodes.runtime.graph_info import time_base_clock
+from slipstack.nodes.runtime.graph_info import INJECTION_REFUSED, time_base_clock
 from slipstack.nodes.runtime.stop_signal import stop_on_signals
 from slipstack.nodes.runtime.tool_pub import BusPublisher, InjectionSender, tool_name
 from slipstack.nodes.tools.topic_yaml import parse_flow
 
-__all__ = ["build_message", "split_type_and_values", "Injector", "main_pub"]
+__all__ = ["build_message", "refuse_protected", "split_type_and_values", "Injector", "main_pub"]
 
 
 def build_message(cls: type[Message], values: Any) -> Message:
@@ -108,6 +108,20 @@ class Injector:
         self.sender.close(self._linger_s)
 
 
+def refuse_protected(info: TopicInfo, cls: type[Message]) -> None:
+    """Refuse a topic only the graph's own nodes may publish (``INJECTION_REFUSED``), unless the
+    launch allowed it to one of its subscribers (which then has an injection endpoint).
+
+    Raises:
+        ConfigError: saying so and how a launch file allows it.
+    """
+    if cls.TYPE in INJECTION_REFUSED and info.subscribers and not any(e.address for e in info.subscribers):
+        raise ConfigError(
+            f"the running graph refuses {info.name} from tools: only its own nodes publish grip commands, slip "
+            f"verdicts and the finger's report (docs/safety.md); a launch file that must allow it says "
+            f'allow_inject = ["{info.name}"] under [launch]')
+
+
 def split_type_and_values(info: TopicInfo, items: list[str]) -> tuple[type[Message], str]:
     """The topic's message class and the values text of ``topic pub``'s positionals.
 
@@ -138,6 +152,7 @@ def main_pub(args: argparse.Namespace) -> int:
     run_dir, graph = load_graph(args.run_dir)
     info = resolve_topic(graph, args.topic)
     cls, text = split_type_and_values(info, args.values)
+    refuse_protected(info, cls)
     body = build_message(cls, parse_flow(text))
     if args.rate <= 0:
         raise ConfigError("--rate must be positive")

@@ -28,7 +28,8 @@ from msg_strategies import valid_message
 
 from slipstack.lib.errors import DecodeError
 from slipstack.messages import (
-    Contact, Cor, Diagnostics, GripCommand, Header, Message, RigTruth, Slip, TactileFrame, Wrench, decode, encode,
+    Contact, Cor, Diagnostics, GripCommand, GripState, Header, Message, RigTruth, Slip, TactileFrame, Wrench, decode,
+    encode,
 )
 from slipstack.messages.codec import packb
 from slipstack.nodes.catalog import node_class
@@ -69,6 +70,7 @@ def _nominal_frames() -> dict[type[Message], Message]:
         Slip: Slip(state="stick", margin=0.6, method="exact", verdicts={"exact": [True, 0.6]}, gamma=0.4,
                    f_n=contact.f_n, f_t=contact.f_t, tau=contact.tau),
         GripCommand: GripCommand(f_n_desired=6.0, law="exact", reason="nominal"),
+        GripState: GripState(f_n_command=6.0, mode="following"),
         RigTruth: RigTruth(f_n_applied=6.0, f_n_command=6.0),
         Diagnostics: Diagnostics(node="fusion", counters={"in.contact.received": 10}),
     }
