@@ -609,7 +609,7 @@ class Launcher:
             if code != 0 or c.abandoned:
                 self.exit_code = 1
             return False
-        if c.abandoned and self.launch.check:
+        if c.abandoned and self.launch.check and not c.observes_only:
             self.echo("[launch] check = true: a node was abandoned; stopping the launch")
             self.exit_code = 1
             return False
@@ -631,13 +631,20 @@ class Launcher:
 
     def _check_problems(self) -> list[str]:
         """What failed the run: the monitor's ``check.json`` problems (none expected without a monitor in
-        the launch), processes that died and stayed down."""
+        the launch), processes of the data path that died and stayed down (an observer's death is said,
+        not judged)."""
         problems = monitor_check_problems(self.launch, self.run_dir, self.machine)
         for c in self.processes.values():
             if c.abandoned:
-                problems.append(f"{c.name} abandoned after {c.restarts} restarts")
+                down = f"{c.name} abandoned after {c.restarts} restarts"
             elif c.deaths and c.proc is None:
-                problems.append(f"{c.name} died and was not restarted (respawn = false)")
+                down = f"{c.name} died and was not restarted (respawn = false)"
+            else:
+                continue
+            if c.observes_only:
+                self.echo(f"[launch] {down}: it only observes (publishes no data), so the check does not judge it")
+            else:
+                problems.append(down)
         return problems
 
     def _report_check(self) -> None:

@@ -104,6 +104,12 @@ class ProcessPlan:
     def outputs(self) -> set[str]:
         return {t for c in self.members for t in c.outputs}
 
+    @property
+    def observes_only(self) -> bool:
+        """It publishes nothing but diagnostics (the monitor, the recorder, the Foxglove bridge):
+        the control path does not depend on it, so the run's check does not judge it (docs/summary.md)."""
+        return self.outputs <= {DIAGNOSTICS_TOPIC}
+
 
 @dataclass
 class LaunchPlan:

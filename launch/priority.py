@@ -33,6 +33,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from slipstack.nodes.runtime.scheduling import has_realtime_priority
+
 __all__ = ["AUTOGROUP_PATH", "grant_realtime_priority", "has_realtime_priority", "set_autogroup_nice"]
 
 AUTOGROUP_PATH = Path("/proc/self/autogroup")
@@ -65,10 +67,3 @@ def grant_realtime_priority(pid: int, priority: int) -> bool:
         return False
     return True
 
-
-def has_realtime_priority(pid: int) -> bool:
-    """Whether process ``pid`` runs under ``SCHED_FIFO`` (``False`` if it is gone)."""
-    try:
-        return os.sched_getscheduler(pid) & ~os.SCHED_RESET_ON_FORK == os.SCHED_FIFO
-    except OSError:
-        return False

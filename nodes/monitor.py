@@ -53,7 +53,7 @@ from dataclasses import dataclass, field
 
 from slipstack.lib.episodes import INCIPIENT_SHARE, EpisodeTracker
 from slipstack.lib.errors import ConfigError
-from slipstack.lib.late_ticks import BEHIND_REAL_TIME_ADVICE
+from slipstack.lib.late_ticks import behind_real_time_advice
 from slipstack.lib.status import SLIP_STATES
 from slipstack.messages import Diagnostics, GripCommand, RigTruth, Slip
 from slipstack.nodes.runtime.logs import DETAIL_PREFIX
@@ -207,6 +207,16 @@ class NodeWatch:
     last_seq: int | None = None
     restarted: bool = False
 
+    had_device: bool = False
+    """It reported a device status (``disconnected``): a driver, in the data path even before it publishes."""
+
+    @property
+    def observer(self) -> bool:
+        """It published no data and drives no device (the recorder, the Foxglove bridge, a
+        monitor): the control path does not depend on it."""
+        return not self.had_device and not any(
+            k.startswith("out.") and k.endswith(".published") and v for k, v in self.counters.items())
+
     def report(self, msg: Diagnostics, now_ns: int, silent_after_ns: int) -> None:
         stamp = msg.header.stamp_ns
         if self.last_stamp_ns is not None:
@@ -221,6 +231,7 @@ class NodeWatch:
             self.disconnected_since_ns = None
         elif self.disconnected_since_ns is None:
             self.disconnected_since_ns = stamp
+            self.had_device = True
         self.last_seen_ns = now_ns
         self.last_stamp_ns = stamp
 
@@ -421,6 +432,9 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "disconnected_nodes": m.disconnected_nodes(truth.header.stamp_ns if truth else None),
         "nodes_that_went_silent": went_silent,
         "nodes_restarted_after_silence": sorted(name for name, w in m.nodes.items() if w.restarted),
+        "observers": sorted(name for name, w in m.nodes.items() if w.observer),
+        "behind_while_realtime": sorted(name for name, w in m.nodes.items() if any(
+            k.startswith("timer.") and k.endswith(".skipped_realtime") and v for k, v in w.counters.items())),
         "recording": m.params.recording if m.params.recording and os.path.exists(m.params.recording) else "",
         "clock_offsets": _clock_offsets(m.nodes),
     }
@@ -490,9 +504,9 @@ class Problem:
 
 def health_problems(s: dict, p: MonitorParams) -> list[Problem]:
     """What the HEALTH lines report: first what fails the check (the object slid or turned
-    more than allowed, too many fail-safe commands, missed episodes, a silent node, no
-    valid sensor data at all), then what is only reported (disconnected
-    devices, signs of falling behind)."""
+    more than allowed, too many fail-safe commands, missed episodes, a silent node of the
+    data path, no valid sensor data at all), then what is only reported (an observer's
+    silence, disconnected devices, signs of falling behind)."""
     return _check_problems(s, p) + _silence_problems(s) + _device_problems(s) + _behind_problems(s)
 
 
@@ -526,20 +540,32 @@ def _check_problems(s: dict, p: MonitorParams) -> list[Problem]:
 
 
 def _silence_problems(s: dict) -> list[Problem]:
-    """Nodes silent at the end, or silent for a while and back."""
+    """Nodes silent at the end, or silent for a while and back. A node of the data path fails
+    the check; an observer (it published no data: the recorder, the Foxglove bridge) is
+    reported only, as the control path does not depend on it."""
     out = []
+    observers = set(s["observers"])
     for node, seconds in sorted(s["silent_nodes"].items()):
-        out.append(Problem(f"{node} silent for the last {seconds:.1f} s",
-                           f"node {node} went silent: no diagnostics for the last {seconds:.1f} s (dead or stopped?)"))
+        observer = node in observers
+        out.append(Problem(f"{node} silent for the last {seconds:.1f} s" + (" (observer)" if observer else ""),
+                           f"node {node} went silent: no diagnostics for the last {seconds:.1f} s (dead or stopped?)"
+                           + (_OBSERVER_NOTE if observer else ""), not observer))
     for node, seconds in sorted(s["nodes_that_went_silent"].items()):
         if node in s["silent_nodes"]:
             continue
+        observer = node in observers
         restarted = node in s["nodes_restarted_after_silence"]
         how = ("as a new process (restarted)" if restarted else
                "as the same process (it stalled: a machine too busy, or stopped and continued)")
-        out.append(Problem(f"{node} silent {seconds:.1f} s, then back ({'restarted' if restarted else 'stalled'})",
-                           f"node {node} went silent for {seconds:.1f} s and came back {how}"))
+        out.append(Problem(f"{node} silent {seconds:.1f} s, then back ({'restarted' if restarted else 'stalled'}"
+                           + (", observer)" if observer else ")"),
+                           f"node {node} went silent for {seconds:.1f} s and came back {how}"
+                           + (_OBSERVER_NOTE if observer else ""), not observer))
     return out
+
+
+_OBSERVER_NOTE = ("; it only observes (it publishes no data), so the control path did not depend on it and the "
+                  "check does not judge it")
 
 
 def _device_problems(s: dict) -> list[Problem]:
@@ -555,8 +581,9 @@ def device_problems(s: dict) -> list[str]:
 
 def _behind_problems(s: dict) -> list[Problem]:
     """Signs that the graph fell behind: late commands, timer ticks skipped, more than
-    :data:`SKIP_WARN_SHARE` of a sensor topic's samples not examined."""
+    :data:`SKIP_WARN_SHARE` of a sensor topic's samples not examined by a node of the data path."""
     out = []
+    observers = set(s["observers"])
     if s["late_commands"]:
         out.append(Problem(
             f"{s['late_commands']} of {s['commands_while_running']} commands late (over "
@@ -568,10 +595,18 @@ def _behind_problems(s: dict) -> list[Problem]:
     for node, timers in sorted(s["behind_real_time"].items()):
         skipped = sum(timers.values())
         ticks = ", ".join(f"{k.split('.')[1]} {v:g}" for k, v in sorted(timers.items()))
+        if node in observers:
+            out.append(Problem(f"{node} fell behind ({skipped:g} timer ticks skipped; observer)",
+                               f"{node} fell behind (timer ticks skipped: {ticks}): it is not real-time and "
+                               "waited for a CPU core; what it records or shows lags behind the graph (`slipstack "
+                               "bag info` shows any frames it lost); free a core or record fewer topics", False))
+            continue
         out.append(Problem(f"{node} behind real time ({skipped:g} timer ticks skipped)",
                            f"{node} fell behind real time (timer ticks skipped: {ticks}; its diagnostics say how "
-                           f"late): {BEHIND_REAL_TIME_ADVICE}", False))
+                           f"late): {behind_real_time_advice(node in s['behind_while_realtime'])}", False))
     for node, inputs in sorted(s["skipped_for_newer"].items()):
+        if node in observers:
+            continue
         for topic, n in sorted(inputs.items()):
             share = n["skipped"] / n["received"] if n["received"] else 0.0
             if topic in SENSOR_TOPICS and share > SKIP_WARN_SHARE:
@@ -669,7 +704,7 @@ def _bus_row(s: dict) -> str:
     else:
         row = "bus: no frame lost"
     skipped = sorted(((n["skipped"] / n["received"], node, topic) for node, inputs in s["skipped_for_newer"].items()
-                      for topic, n in inputs.items()
+                      if node not in s["observers"] for topic, n in inputs.items()
                       if topic in SENSOR_TOPICS and n["received"]), reverse=True)
     if skipped:
         share, node, topic = skipped[0]
@@ -747,6 +782,9 @@ def format_details(s: dict, problems: list[Problem]) -> list[str]:
               for node, peers in sorted(s.get("clock_offsets", {}).items()) for peer, c in sorted(peers.items())]
     if clocks:
         lines.append("clock offsets between the machines (their clock minus the launcher's): " + "; ".join(clocks))
+    if s["observers"]:
+        lines.append("observers (they published no data; their silence does not fail the check): "
+                     + ", ".join(s["observers"]))
     if s["recording"]:
         lines.append(f"recording: {s['recording']}")
     return lines

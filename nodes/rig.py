@@ -36,6 +36,7 @@ from slipstack.nodes.devices.emulators import (
 )
 from slipstack.nodes.devices.sim_link import SIM_PREFIX, is_simulated
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
+from slipstack.nodes.runtime.scheduling import runs_realtime
 
 __all__ = ["Rig", "RigParams", "load_scene_by_name", "truth_message", "with_rates"]
 
@@ -174,7 +175,7 @@ class Rig(Node):
         now = ctx.now_ns()
         if self.late_ticks.tick(now):
             ctx.count("rig.late_ticks")
-        report = self.late_ticks.report(now, self._t0)
+        report = self.late_ticks.report(now, self._t0, runs_realtime())
         if report is not None:
             ctx.report_error(report)
 

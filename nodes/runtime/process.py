@@ -51,6 +51,7 @@ from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC, NodeHost
 from slipstack.nodes.runtime.logs import node_log
 from slipstack.nodes.runtime.node import Node
 from slipstack.nodes.runtime.rate_limit import TokenBucket
+from slipstack.nodes.runtime.scheduling import runs_realtime
 from slipstack.nodes.runtime.stage_cpu import StageCpu, stage_cpu_from_env
 from slipstack.nodes.runtime.curve import secure_bind
 from slipstack.nodes.runtime.time_base import graph_clock
@@ -400,6 +401,8 @@ class _Member:
             if now >= due:  # hopelessly behind: skip ahead and say so
                 skipped = (now - due) // period + 1
                 host.count(f"timer.{timer}.skipped", skipped)
+                if runs_realtime():  # raising its priority is then no remedy: the summary's advice differs
+                    host.count(f"timer.{timer}.skipped_realtime", skipped)
                 due += skipped * period
             self.deadlines[timer] = due
         if now >= self.next_diag:

@@ -267,3 +267,36 @@ def test_bag_info_and_export_of_a_large_file_show_progress_on_a_terminal(verb, l
     assert "5000" in proc.stdout, proc.stdout  # the result, unchanged, on stdout
     quiet = slipstack("bag", verb, str(large_recording), *extra)  # not a terminal: no bar
     assert quiet.returncode == 0 and "%|" not in quiet.stderr, quiet.stderr
+
+
+# -- the check judges the control path, not the recorder --------------------------------------
+def _short_scene(folder: Path, seconds: float) -> Path:
+    """The default scene cut to ``seconds``."""
+    import re
+
+    from slipstack.launch.launch_file import launch_files_dir
+
+    text = (launch_files_dir().parent / "scenes" / "default.toml").read_text()
+    scene = folder / "short.toml"
+    scene.write_text(re.sub(r"(?m)^duration_s = .*$", f"duration_s = {seconds}", text, count=1))
+    return scene
+
+
+def test_a_dead_recorder_is_reported_and_does_not_fail_the_check(launch, tmp_path):
+    """The default launch (check on) with its recorder killed 1 s into a 6 s scene: the
+    launch says so and the summary names it, and the check judges only the control path
+    (it used to end with "CHECK FAILED: recorder died and was not restarted")."""
+    import signal
+    import time
+
+    g = launch(f"scene:={_short_scene(tmp_path, 6.0)}", f"recording:={tmp_path / 'r.mcap'}")
+    graph = g.wait_ready()
+    time.sleep(1.0)
+    os.kill(graph["nodes"]["recorder"]["pid"], signal.SIGKILL)
+    code = g.proc.wait(timeout=120)
+    out = g.log()
+    assert "[launch] recorder died and was not restarted (respawn = false): it only observes" in out, out[-3000:]
+    assert "HEALTH: recorder silent for the last" in out and "(observer)" in out, out[-3000:]
+    failed = [ln for ln in out.splitlines() if "CHECK FAILED" in ln]
+    assert not any("recorder" in ln for ln in failed), failed
+    assert code == (1 if failed else 0), (code, failed)  # a busy machine may fail it on the control path
