@@ -649,13 +649,15 @@ class Launcher:
 
     def _report_check(self) -> None:
         problems = self._check_problems()
+        details = f" (details: {self.echo.path})" if self.echo.path is not None else ""
         if problems:
-            self.echo(f"[launch] CHECK FAILED: {'; '.join(problems)}")
+            self.echo(f"[launch] CHECK FAILED: {'; '.join(problems)}{details}")
             self.exit_code = 1
         else:
             elsewhere = sorted({e.machine for e in self.launch.nodes if e.type == "monitor" and not self.plan.is_local(e)})
             self.echo("[launch] check passed" + (f" on this machine; the run's own check is on machine "
-                                                 f"{', '.join(elsewhere)}, where the monitor runs" if elsewhere else ""))
+                                                 f"{', '.join(elsewhere)}, where the monitor runs" if elsewhere else "")
+                      + details)
 
     def _stop_order(self, started: list[str]) -> list[_Process]:
         """Processes marked ``stop_first`` (the simulated world), then the rest in reverse start order."""
@@ -696,7 +698,8 @@ def monitor_check_problems(launch: LaunchFile, run_dir: Path, machine: str | Non
         fd = os.open(run_dir / CHECK_FILE, os.O_RDONLY | os.O_NOFOLLOW)
         with os.fdopen(fd, "rb") as fh:
             doc = json.loads(fh.read(CHECK_FILE_MAX_BYTES))
-        problems = [] if doc["passed"] is True else [str(p) for p in doc.get("problems") or ["not passed"]]
+        words = doc.get("short") or doc.get("problems")  # the HEALTH lines' short phrases, if the monitor wrote them
+        problems = [] if doc["passed"] is True else [str(p) for p in words or ["not passed"]]
     except FileNotFoundError:
         monitored = any(e.type == "monitor" for e in launch.nodes if runs_on(e, machine))
         problems = [f"no {CHECK_FILE} from the monitor (did it not stop cleanly?)"] if monitored else []

@@ -300,3 +300,5 @@ def test_a_dead_recorder_is_reported_and_does_not_fail_the_check(launch, tmp_pat
     failed = [ln for ln in out.splitlines() if "CHECK FAILED" in ln]
     assert not any("recorder" in ln for ln in failed), failed
     assert code == (1 if failed else 0), (code, failed)  # a busy machine may fail it on the control path
+    closing = out.rstrip().splitlines()[-1]  # the verdict, in short words, and where the long form is
+    assert closing.endswith(f"(details: {tmp_path / 'r.log'})") and len(closing) < 200, closing
