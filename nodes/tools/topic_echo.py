@@ -39,6 +39,7 @@ __all__ = ["MessagePrinter", "main_echo"]
 BATCH = 500  # frames read from one publisher before the output is written
 REFRESH_PERIOD_S = 0.5  # how often the graph is re-read for new publishers (tools that publish)
 MAX_PUBLISHERS = 256  # publishers of one topic listened to at most
+MISSING_NOTE_AFTER = 20  # messages without the --field's map key before saying so
 _FILTER_BUILTINS = {f.__name__: f for f in (abs, all, any, len, max, min, round, sum, float, int, bool, str)}
 
 
@@ -141,7 +142,7 @@ def main_echo(args: argparse.Namespace) -> int:
     connect_new(info)
     next_refresh = time.monotonic() + REFRESH_PERIOD_S
     out, err = sys.stdout, sys.stderr
-    printed = rejected = 0
+    printed = rejected = missing = 0
     deadline = None if args.timeout is None else time.monotonic() + args.timeout
     stop_on_signals()
     try:
@@ -200,6 +201,11 @@ def main_echo(args: argparse.Namespace) -> int:
                             ) from None
                     text = printer.format(msg)
                     if text is None:
+                        missing += 1
+                        if missing == MISSING_NOTE_AFTER and not printed:
+                            notes.append(f"topic echo: {missing} messages so far have no {args.field} (a key of a "
+                                         "map, which another message may have); still waiting: check the spelling "
+                                         "(`--once` prints the whole message), or Ctrl-C")
                         continue
                     chunks.append(text)
                     printed += 1

@@ -220,11 +220,21 @@ def test_rate_stats_match_hand_values():
 
 # -- echo exits on what can never print, and --timeout is a total deadline ----
 @pytest.mark.parametrize("field,words", [("force.5", "force is an array of 3 value(s)"),
-                                         ("status.0", "status is a single value")])
+                                         ("status.0", "status is a single value"),
+                                         # a misspelt header field printed nothing and never exited, even --once
+                                         ("header.stampns", "header has no field 'stampns'; its fields: stamp_ns")])
 def test_echo_a_field_no_message_can_have_is_a_clear_error(demo, field, words):
-    out = demo.cli("topic", "echo", "ft/wrench", "--field", field, "--once")
+    out = demo.cli("topic", "echo", "ft/wrench", "--field", field, "--once", timeout=60)
     assert out.returncode == 2, out
     assert words in out.stderr and "Traceback" not in out.stderr, out.stderr
+
+
+def test_echo_says_when_no_message_has_a_map_key(demo):
+    """A key below a map (``header.sources``) may come with a later message: echo waits, and
+    says so once many have come without it (it used to wait in silence)."""
+    out = demo.cli("topic", "echo", "ft/wrench", "--field", "header.sources.nosuch", "--once", "--timeout", "5")
+    assert out.returncode == 1, out
+    assert "messages so far have no header.sources.nosuch" in out.stderr and "check the spelling" in out.stderr
 
 
 def test_echo_a_filter_that_raises_is_a_clear_error(demo):
