@@ -45,6 +45,7 @@ from slipstack.lib.episodes import find_episodes
 from slipstack.lib.errors import DecodeError
 from slipstack.lib.limit_set import load_factor
 from slipstack.lib.material import Material, detector_thresholds, material_toml
+from slipstack.lib.output_file import output_file
 from slipstack.lib.material_fit import (beta_from_pressure, frame_noise, interval_half_width, onset_levels,
                                          pooled, pooled_model)
 from slipstack.lib.pad import PadGeometry
@@ -255,7 +256,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        "constant grip. Pass one tangential-force ramp (fig4a, ident_force) and, for beta, one "
                        "torque ramp (fig4b, ident_torsion); then run the stack with material:=FILE.")
     p.add_argument("recordings", nargs="+", metavar="RECORDING", help=".mcap recordings of friction ramps")
-    p.add_argument("-o", "--output", metavar="MATERIAL.toml", required=True, help="the material file to write")
+    p.add_argument("-o", "--output", metavar="MATERIAL.toml", required=True,
+                   help="the material file to write (an existing one is refused unless --force)")
+    p.add_argument("--force", action="store_true", help="overwrite MATERIAL.toml if it exists")
     p.add_argument("--name", help="material name (default: the output file's stem)")
     p.add_argument("--provenance", default="", help="where the object and the records come from (written to the file)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
@@ -272,11 +275,12 @@ def main_identify(args: argparse.Namespace) -> int:
     progress = None if args.quiet else (lambda msg: print(f"\ridentify: {msg:<70}", end="", file=sys.stderr, flush=True))
     stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     provenance = args.provenance or f"slipstack identify {' '.join(p.name for p in paths)} ({stamp})"
-    material, lines = identify_material(paths, name=args.name or out.stem, provenance=provenance, progress=progress)
-    if progress is not None:
-        print(file=sys.stderr)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(material_toml(material, f"Written by slipstack identify, {stamp}."), encoding="utf-8")
+    with output_file(out, force=args.force):  # refused before the fit, removed if the fit fails
+        material, lines = identify_material(paths, name=args.name or out.stem, provenance=provenance,
+                                            progress=progress)
+        if progress is not None:
+            print(file=sys.stderr)
+        out.write_text(material_toml(material, f"Written by slipstack identify, {stamp}."), encoding="utf-8")
     print("\n".join(lines))
     print(f"wrote {out}; use it with: slipstack launch FILE material:={out}")
     return 0

@@ -45,6 +45,7 @@ from slipstack.lib.identify import (
     identify_beta,
     identify_mu,
 )
+from slipstack.lib.output_file import claim_output, output_file
 from slipstack.lib.progress import file_progress
 from slipstack.messages import STATUS_OK, Message, decode
 from slipstack.nodes.recording.bag_io import RecordingError, read_recording
@@ -501,12 +502,15 @@ def main_report(args: argparse.Namespace) -> int:
         except ImportError:
             print(f"slipstack report: {MATPLOTLIB_HINT}", file=sys.stderr)
             return 2
+    if not args.identify:
+        claim_output(out, force=True)  # before the recording is read: a path it cannot write fails now
     with file_progress(path, "report") as progress:
         series = load_series(path, progress)
     if args.identify:
         print(format_identification(identify_recording(series)))
         return 0
-    panels = plot_report(series, out, title=args.title, mu=args.mu)
+    with output_file(out, force=True):  # a figure is replaced; a path it cannot write fails here
+        panels = plot_report(series, out, title=args.title, mu=args.mu)
     print(out)
     print(summarize(series))
     print(f"  panels: {', '.join(panels)}")

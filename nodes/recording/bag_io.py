@@ -42,7 +42,8 @@ from mcap.reader import SeekingReader
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import MCAP0_MAGIC, CompressionType, Writer
 
-from slipstack.lib.errors import ConfigError, DecodeError, SlipstackError
+from slipstack.lib.errors import DecodeError, SlipstackError
+from slipstack.lib.output_file import claim_output
 from slipstack.messages import Message, decode, registry
 from slipstack.messages.base import declared_bounds
 from slipstack.messages.frame import FrameHeader, SeqTracker, peek_header, publisher_key
@@ -126,21 +127,13 @@ def message_schema(cls: type[Message]) -> dict[str, Any]:
 
 def claim_recording_path(path: Path) -> None:
     """Create the empty file ``path`` (and its folders) for a new recording, before anything
-    is recorded, so that a path that cannot be written fails at once rather than after a run.
+    is recorded (:func:`~slipstack.lib.output_file.claim_output`).
 
     Raises:
         ConfigError: ``path`` exists (a recording is never overwritten, nor written through a
             link), or cannot be written; the message says what to do.
     """
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        open(path, "xb").close()
-    except OSError as exc:
-        if os.path.lexists(path):
-            raise ConfigError(f"recording {path} exists; pass recording:=NEW.mcap (or path:=NEW.mcap) "
-                              "or delete it") from None
-        raise ConfigError(f"cannot write the recording {path} ({exc.strerror}); pass recording:=PATH "
-                          "in a folder you may write") from None
+    claim_output(path, what="the recording", change="pass recording:=NEW.mcap (or path:=NEW.mcap)", force_option=None)
 
 
 class RecordingWriter:
@@ -349,7 +342,7 @@ def _chunks_after(fh: Any, offset: int, state: _ScanState) -> Iterator[McapMessa
 
 def read_recording(
     path: str | os.PathLike, topics: Iterable[str] | None = None, *, tolerant: bool = True,
-    progress: Callable[[int], None] | None = None,
+    progress: Callable[[int], None] | None = None, on_damage: Callable[[str], None] | None = None,
 ) -> Iterator[RecordedFrame]:
     """Iterate the recorded frames in file (= receive) order.
 
@@ -359,6 +352,7 @@ def read_recording(
         tolerant: read an unfinished file (no summary, e.g. after ``kill -9``) up to
             its last intact chunk; ``False`` raises :class:`RecordingError` instead.
         progress: called with the bytes of the file read so far, after each chunk.
+        on_damage: called once at the end with what was damaged, if anything was (tolerant).
     """
     wanted = None if topics is None else set(topics)
     state = _ScanState()
@@ -366,6 +360,8 @@ def read_recording(
         topic = state.channels[m.channel_id].topic
         if wanted is None or topic in wanted:
             yield RecordedFrame(m.log_time, topic, m.data, m.publish_time, m.sequence)
+    if state.error and on_damage is not None:
+        on_damage(state.error)
 
 
 @dataclass(frozen=True)

@@ -34,6 +34,7 @@ import numpy as np
 from mcap.writer import CompressionType, Writer
 
 from slipstack.lib.errors import DecodeError
+from slipstack.lib.output_file import output_file
 from slipstack.messages import Cor, TactileFrame, Wrench, decode
 from slipstack.messages.json_schema import TIME_SCHEMA, json_schema, to_json, wall_time
 from slipstack.nodes.recording.foxglove_scene import PAD_FRAME, SCENE_TOPIC, SCENE_UPDATE_SCHEMA, ContactScene
@@ -128,27 +129,30 @@ class _McapJson:
 
 
 def export_recording(path: str | os.PathLike, out: str | os.PathLike, fmt: str = "mcap-json",
-                     progress: Callable[[int], None] | None = None) -> int:
+                     progress: Callable[[int], None] | None = None, *, force: bool = False,
+                     on_damage: Callable[[str], None] | None = None) -> int:
     """Export a recording (see the module docstring); returns the number of messages exported.
 
     fmt ``mcap-json``: MCAP for Foxglove. ``jsonl``: one line per message,
     ``{"log_time_ns", "topic", "type", "message"}`` (the message as in the MCAP export).
     progress: called with the source file's bytes read so far, now and then.
+    force: replace an existing output (else it is refused). on_damage: called with what was
+    damaged in the recording, if anything (what could be read is exported all the same).
 
     Raises:
         RecordingError: unknown format, the output is the input, the input is no recording.
+        ConfigError: the output exists (without ``force``) or cannot be written.
     """
     if fmt not in EXPORT_FORMATS:
         raise RecordingError(f"unknown export format {fmt!r}; use mcap-json or jsonl")
     if Path(out).resolve() == Path(path).resolve():
         raise RecordingError(f"export output {out} is the recording itself; choose another path")
-    frames = read_recording(path, progress=progress)
+    frames = read_recording(path, progress=progress, on_damage=on_damage)
     first = next(frames, None)  # an unreadable input raises here, before the output exists
     recorded = recorded_clock_offset_ns(path)
     offset = recorded if recorded is not None else clock_offset_ns(path)
-    Path(out).parent.mkdir(parents=True, exist_ok=True)
     n = 0
-    with open(out, "wb") as fh:
+    with output_file(Path(out), force=force), open(out, "wb") as fh:
         mcap = _McapJson(fh, path, offset, recorded is not None) if fmt == "mcap-json" else None
         for frame in itertools.chain([first] if first is not None else [], frames):
             try:

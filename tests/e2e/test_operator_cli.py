@@ -302,3 +302,52 @@ def test_a_dead_recorder_is_reported_and_does_not_fail_the_check(launch, tmp_pat
     assert code == (1 if failed else 0), (code, failed)  # a busy machine may fail it on the control path
     closing = out.rstrip().splitlines()[-1]  # the verdict, in short words, and where the long form is
     assert closing.endswith(f"(details: {tmp_path / 'r.log'})") and len(closing) < 200, closing
+
+
+# -- outputs: a path that cannot be written, one that exists, a damaged input ------------------
+@pytest.mark.parametrize("command", [["bag", "export", "{rec}", "-o", "{out}.mcap"], ["report", "{rec}", "-o", "{out}.png"],
+                                     ["identify", "{rec}", "-o", "{out}.toml"],
+                                     ["reproduce", "--quick", "--only", "fig4a", "--out", "{out}"]])
+def test_an_output_that_cannot_be_written_is_one_clear_line(command, recording, tmp_path):
+    """The output's folder is a file (a path nobody can write, root included): each command used
+    to end in a traceback (FileNotFoundError, NotADirectoryError, PermissionError)."""
+    blocker = tmp_path / "afile"
+    blocker.write_text("")
+    args = [a.format(rec=recording, out=blocker / "out") for a in command]
+    out = slipstack(*args, timeout=120)
+    assert out.returncode == 2, out
+    assert "Traceback" not in out.stderr and len(out.stderr.strip().splitlines()) == 1, out.stderr
+    assert f"{blocker} is a file, not a folder" in out.stderr and "you may write" in out.stderr, out.stderr
+
+
+@pytest.mark.parametrize("command", [["bag", "export", "{rec}", "-o", "{out}"], ["identify", "{rec}", "-o", "{out}"]])
+def test_export_and_identify_never_overwrite_unless_forced(command, recording, tmp_path):
+    """Like ``bag record``: an existing output is refused (they used to overwrite it); ``--force`` replaces it."""
+    existing = tmp_path / ("old.jsonl" if command[0] == "bag" else "old.toml")
+    existing.write_text("keep me\n")
+    out = slipstack(*[a.format(rec=recording, out=existing) for a in command])
+    assert out.returncode == 2, out
+    assert f"{existing} exists" in out.stderr and "--force" in out.stderr, out.stderr
+    assert existing.read_text() == "keep me\n"
+    if command[0] == "bag":
+        forced = slipstack(*[a.format(rec=recording, out=existing) for a in command], "--force")
+        assert forced.returncode == 0, forced.stderr
+        assert existing.read_text().count("\n") == 50  # the recording's 50 messages, one a line
+
+
+def test_a_failed_identification_leaves_no_material_file(recording, tmp_path):
+    out = slipstack("identify", str(recording), "-o", str(tmp_path / "mine.toml"))
+    assert out.returncode == 2, out  # the recording has no friction ramp
+    assert not (tmp_path / "mine.toml").exists()
+
+
+def test_exporting_a_damaged_recording_says_so_and_exits_1(recording, tmp_path):
+    """A recording cut short (as by kill -9): what can be read is exported, and the command
+    says what was damaged and exits 1 (it used to exit 0 without a word)."""
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(recording.read_bytes()[: recording.stat().st_size - 200])
+    out = slipstack("bag", "export", str(cut), "-o", str(tmp_path / "cut.jsonl"))
+    assert out.returncode == 1, out
+    assert f"{cut} is damaged (" in out.stderr and "`slipstack bag info`" in out.stderr, out.stderr
+    written = int(out.stdout.split(": ")[1].split()[0])
+    assert (tmp_path / "cut.jsonl").read_text().count("\n") == written
