@@ -500,6 +500,7 @@ class Launcher:
                     self._wait_for_peers(self.processes[name])
                 self._spawn(self.processes[name])
                 started.append(name)
+                self._write_graph("starting")  # its pid: `node list` shows it up while the others start
                 self._wait_ready(self.processes[name], READY_TIMEOUT_S)
                 self._prepare_standby(self.processes[name])
                 if self.peers is not None:

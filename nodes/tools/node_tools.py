@@ -41,9 +41,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=main_info)
 
 
-def _alive(entry: dict[str, Any]) -> str:
+def _alive(entry: dict[str, Any], graph_state: str = "running") -> str:
     pid = entry.get("pid")
-    return "running" if pid is not None and process_start_ticks(int(pid)) is not None else "down"
+    if pid is None:
+        return "not started yet" if graph_state == "starting" else "down"
+    return "running" if process_start_ticks(int(pid)) is not None else "down"
 
 
 def main_list(args: argparse.Namespace) -> int:
@@ -57,12 +59,17 @@ def main_list(args: argparse.Namespace) -> int:
             clock = (f", clock {peer['offset_ns'] / 1e6:+.3f} ms ± {peer['uncertainty_ns'] / 1e6:.3f} ms from ours"
                      if "offset_ns" in peer else "")
             print(f"machine {name}: {peer['state']}{' (quiet)' if peer.get('quiet') else ''}{clock}")
+    state = graph.get("state", "running")
+    if state != "running":
+        print(f"graph {state}")
     for name, entry in sorted(graph["nodes"].items()):
         kind = "tool" if entry.get("tool") else entry.get("type", "?")
         if entry.get("machine", here) != here:  # run by another machine's launcher: no pid here
             print(f"{name}  [{kind}] on machine {entry['machine']} ({entry['pub']})")
             continue
-        print(f"{name}  [{kind}] pid {entry.get('pid')} {_alive(entry)}, restarts {entry.get('restarts', 0)}")
+        pid = entry.get("pid")
+        print(f"{name}  [{kind}] pid {'-' if pid is None else pid} {_alive(entry, state)}, "
+              f"restarts {entry.get('restarts', 0)}")
     return 0
 
 

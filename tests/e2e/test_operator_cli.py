@@ -6,6 +6,7 @@ Each test is one thing a new user does: the command, its exit code and the words
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -272,8 +273,6 @@ def test_bag_info_and_export_of_a_large_file_show_progress_on_a_terminal(verb, l
 # -- the check judges the control path, not the recorder --------------------------------------
 def _short_scene(folder: Path, seconds: float) -> Path:
     """The default scene cut to ``seconds``."""
-    import re
-
     from slipstack.launch.launch_file import launch_files_dir
 
     text = (launch_files_dir().parent / "scenes" / "default.toml").read_text()
@@ -351,3 +350,28 @@ def test_exporting_a_damaged_recording_says_so_and_exits_1(recording, tmp_path):
     assert f"{cut} is damaged (" in out.stderr and "`slipstack bag info`" in out.stderr, out.stderr
     written = int(out.stdout.split(": ")[1].split()[0])
     assert (tmp_path / "cut.jsonl").read_text().count("\n") == written
+
+
+# -- node list while the graph starts -------------------------------------------------------------
+def test_node_list_shows_the_nodes_already_up_while_the_graph_starts(launch):
+    """The default graph starts its processes one after another (seconds, numba kernels
+    loading) and the first already publish. ``node list`` used to show every node as
+    ``pid None down`` until the last was ready."""
+    import time
+
+    g = launch()
+    graph = g.run_root / "current" / "graph.json"
+    listings = []
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and g.proc.poll() is None:
+        if graph.exists():
+            out = g.cli("node", "list", timeout=30)
+            listings.append(out.stdout)
+            if out.returncode == 0 and not out.stdout.startswith("graph starting"):
+                break
+        time.sleep(0.05)
+    starting = [text for text in listings if text.startswith("graph starting")]
+    assert starting, listings  # it was seen while starting
+    assert any(re.search(r"monitor  \[monitor\] pid \d+ running", text) for text in starting), starting
+    assert all("None" not in text and "down" not in text for text in starting), starting
+    assert "not started yet" in starting[0], starting[0]
