@@ -17,7 +17,7 @@ __all__ = ["main", "build_parser"]
 # being run is imported: ``slipstack --help`` and ``slipstack topic list`` start without
 # numpy, scipy or the node types.
 COMMANDS = {
-    "launch": ("slipstack.launch.launcher", "run a graph (default: the simulated rig and the full stack)"),
+    "launch": ("slipstack.launch.launch_command", "run a graph (default: the simulated rig and the full stack)"),
     "run": ("slipstack.launch.run_node", "run one node as a process"),
     "topic": ("slipstack.nodes.tools.topic_tools", "inspect and poke the running graph's topics"),
     "node": ("slipstack.nodes.tools.node_tools", "list the running graph's nodes, or one node's state"),

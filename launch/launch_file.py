@@ -4,7 +4,7 @@ Format::
 
     [launch]
     description = "what this graph does"
-    duration_s = 0            # stop by itself after this long (0: run until Ctrl-C)
+    duration_s = 0            # stop by itself after this long (0 or inf: run until Ctrl-C)
     check = false             # true: exit 1 unless the run passed (<run_dir>/check.json,
                               # written by the monitor, and no node died and stayed down); `check:=true`
                               # sets it from the command line unless the file declares an
@@ -68,23 +68,24 @@ current directory on the command line and to the including file for ``extends``.
 
 from __future__ import annotations
 
+import math
 import re
 import socket
 import time
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from slipstack.lib.config import read_flag, read_number
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.toml_file import resolve_path
-from slipstack.nodes.runtime.curve import GraphKeys
-from slipstack.nodes.catalog import node_class
-from slipstack.nodes.runtime.node import Node, make_params
+
+if TYPE_CHECKING:  # the node types are imported when a launch is loaded: `launch --help` and completion start lean
+    from slipstack.nodes.runtime.node import Node
 
 __all__ = ["NodeEntry", "LaunchFile", "load_launch_file", "default_launch_file", "launch_files_dir", "free_port",
-           "CHECK_ARG", "SIM_ARG", "arg_comments"]
+           "CHECK_ARG", "SIM_ARG", "arg_comments", "declared_args"]
 
 _SUBST = re.compile(r"\$\((\w+)\)")
 _IDENTIFIER = re.compile(r"[A-Za-z0-9_-]+")
@@ -148,6 +149,8 @@ class NodeEntry:
 
     def instance(self) -> Node:
         """Build the node object (validates the parameters)."""
+        from slipstack.nodes.runtime.node import make_params
+
         return self.cls(make_params(self.cls.Params, self.params, self.name))
 
     def output_topics(self, node: Node) -> dict[str, str]:
@@ -247,8 +250,9 @@ def _resolve_args(args: dict[str, Any], file: str) -> dict[str, Any]:
     return {name: resolve(name, ()) for name in args}
 
 
-def _typed_override(default: Any, text: str, name: str) -> Any:
-    """A launch argument given as ``name:=text``, read as the type of its declared ``default``."""
+def _typed_override(default: Any, text: str, name: str, endless: bool = False) -> Any:
+    """A launch argument given as ``name:=text``, read as the type of its declared ``default``
+    (finite, unless ``endless``: the argument is the launch's duration, which may be inf)."""
     where = f"launch argument {name}"
     if isinstance(default, bool):
         return read_flag(text, where)
@@ -256,7 +260,7 @@ def _typed_override(default: Any, text: str, name: str) -> Any:
         items = text.strip().removeprefix("[").removesuffix("]")
         return [item.strip().strip("'\"") for item in items.split(",") if item.strip()]
     if isinstance(default, (int, float)):
-        return read_number(text, where, type(default))
+        return read_number(text, where, type(default), finite=not endless)
     return text
 
 
@@ -386,6 +390,11 @@ def _read_with_base(p: Path, seen: tuple[Path, ...]) -> dict[str, Any]:
     }
 
 
+def declared_args(path: Path) -> dict[str, Any]:
+    """The ``[args]`` of a launch file and the files it extends, as written (not substituted)."""
+    return dict(_read_with_base(path, seen=()).get("args", {}))
+
+
 def _check_containers(file: str, entries: list[NodeEntry]) -> None:
     """A container's members share one process, so they must agree on its settings."""
     names = {e.name for e in entries}
@@ -406,6 +415,8 @@ def _check_containers(file: str, entries: list[NodeEntry]) -> None:
 
 def _node_entry(raw: dict[str, Any], where: str) -> NodeEntry | None:
     """The entry of one substituted ``[[node]]`` table; None if it is not enabled."""
+    from slipstack.nodes.catalog import node_class
+
     if not read_flag(raw.get("enabled", True), f"{where}.enabled"):
         return None
     if "type" not in raw:
@@ -457,10 +468,11 @@ def load_launch_file(
     args = dict(data.get("args", {}))
     overrides = dict(overrides or {})
     check_override = overrides.pop(CHECK_ARG) if CHECK_ARG in overrides and CHECK_ARG not in args else None
+    duration = _SUBST.fullmatch(str(data.get("launch", {}).get("duration_s", "")))
     for name, text in overrides.items():
         if name not in args:
             raise ConfigError(f"{p.name}: no launch argument {name!r}; declared: {', '.join(sorted(args)) or 'none'}")
-        args[name] = _typed_override(args[name], text, name)
+        args[name] = _typed_override(args[name], text, name, endless=duration is not None and duration[1] == name)
     args.update({"free_udp_port": free_port(socket.SOCK_DGRAM), "stamp": time.strftime("%Y%m%d-%H%M%S"),
                  SIM_ARG: "", **(builtins or {})})
     # an argument may refer to others ("rdt://127.0.0.1:$(rdt_port)", "$(run_dir)/ft.tty"),
@@ -495,7 +507,9 @@ def load_launch_file(
     _check_containers(p.name, entries)
     check = meta.get("check", False) if check_override is None else _typed_override(False, check_override, CHECK_ARG)
     keys, insecure = _tcp_security(p, meta, entries, machines)
-    duration_s = read_number(meta.get("duration_s", 0), f"{p.name}: duration_s", lo=0)
+    duration_s = read_number(meta.get("duration_s", 0), f"{p.name}: duration_s", lo=0, finite=False)
+    if math.isnan(duration_s):
+        raise ConfigError(f"{p.name}: duration_s must be a number of seconds >= 0 or inf, got nan")
     return LaunchFile(p, str(meta.get("description", "")), duration_s,
                       args, entries, read_flag(check, f"{p.name}: [launch] check"), keys, insecure, machines)
 
@@ -581,6 +595,8 @@ def _tcp_security(p: Path, meta: dict[str, Any], entries: list[NodeEntry],
                               "or insecure = true to let anyone who reaches those ports connect")
         return keys, insecure
     if keys is not None:
+        from slipstack.nodes.runtime.curve import GraphKeys
+
         GraphKeys.load(keys)  # fail now with how to make them
     tcp = [e.name for e in entries if e.transport == "tcp"]
     if tcp and keys is None and not insecure:

@@ -39,7 +39,6 @@ matter on the simulated clock); it refuses ``--machine``.
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import selectors
@@ -56,7 +55,7 @@ import zmq
 
 from slipstack.lib.errors import ConfigError, SlipstackError
 from slipstack.messages import Diagnostics
-from slipstack.launch.launch_file import SIM_ARG, LaunchFile, arg_comments, load_launch_file
+from slipstack.launch.launch_file import LaunchFile
 from slipstack.launch.clock_report import REPORT_PERIOD_S, ClockReport, launcher_node
 from slipstack.launch.inject_relay import InjectionRelay
 from slipstack.launch.peers import PeerLinks, launcher_endpoint
@@ -65,19 +64,18 @@ from slipstack.launch.priority import (
 )
 from slipstack.launch.plan import (PEER_WAIT_S, NodePlan, ProcessPlan, launcher_pub_endpoints, plan_launch,
                                    relay_endpoint, remote_sources, runs_on)
-from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
-from slipstack.nodes.devices.sim_link import SIM_PREFIX
+from slipstack.launch.run_node import set_parent_death_signal
 from slipstack.launch.quiet_shutdown import WorldEndFilter, WorldLogLevels
-from slipstack.launch.run_log import RunLog, log_path_for
-from slipstack.nodes.runtime.logs import DETAIL_PREFIX, LOG_LEVEL_ENV, parse_log_levels
+from slipstack.launch.run_log import RunLog
+from slipstack.nodes.runtime.logs import DETAIL_PREFIX, LOG_LEVEL_ENV
 from slipstack.nodes.runtime.curve import INSECURE_ENV, KEYS_ENV, MACHINE_ENV, GraphKeys, machine_env, use_keys
 from slipstack.nodes.runtime.graph_info import process_start_ticks, write_graph
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
-from slipstack.nodes.runtime.run_dir import finish_run_dir, make_run_dir, remove_run_dir, write_private_file
+from slipstack.nodes.runtime.run_dir import finish_run_dir, write_private_file
 from slipstack.nodes.runtime.remote_sources import REMOTE_SOURCES_ENV
 from slipstack.nodes.runtime.time_base import CLOCK_OFFSET_ENV
 
-__all__ = ["Launcher", "add_parser", "main_launch"]
+__all__ = ["Launcher", "run_lockstep", "monitor_check_problems"]
 
 READY_TIMEOUT_S = 20.0
 STOP_GRACE_S = 0.4       # per node, after SIGINT, before the next node is told to stop
@@ -725,73 +723,6 @@ def _check_machine(launch: LaunchFile, machine: str | None) -> str | None:
     if keys is not None:  # fail now, with how to make them
         GraphKeys.load(keys, machine, {m.address: m.name for m in launch.machines.values()})
     return machine
-
-
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "launch", help="run a graph (default: the simulated rig and the full stack)",
-        description="Run a graph of nodes from a TOML launch file; name:=value sets launch arguments.",
-    )
-    p.add_argument("file", nargs="?", help="launch file (path or shipped name); default: the default graph"
-                   ).completer = _shipped_launch_files  # type: ignore[attr-defined]
-    p.add_argument("assignments", nargs="*", metavar="name:=value", help="launch argument overrides")
-    p.add_argument("--show-args", action="store_true",
-                   help="print the launch arguments with their values and comments, and exit")
-    p.add_argument("--lockstep", action="store_true",
-                   help="run every node in this process on the simulated clock, the rig in lock-step with the "
-                        "stack: faster than real time and repeatable bit for bit (simulated devices only; "
-                        "a graph over machines runs every machine's nodes here)")
-    p.add_argument("--machine", metavar="NAME",
-                   help="run the share of machine NAME of a graph with [machines.NAME] tables (run the "
-                        "same file and arguments on every machine, each with its own NAME)")
-    p.add_argument("--log-level", metavar="LEVEL[,NODE=LEVEL]", default="",
-                   help="least level of the node log lines shown and kept: debug, info (default), warning, "
-                        "error; for every node, then per node, e.g. warning,ft_driver=debug")
-    p.add_argument("--log-file", metavar="PATH",
-                   help="keep every line printed here (default: beside the recording, runs/<stamp>.log; "
-                        "none when nothing is recorded)")
-    p.set_defaults(func=main_launch)
-
-
-def _shipped_launch_files(**_: object) -> list[str]:
-    """Shell completion of the launch file: the shipped ones, by name (``fig15``)."""
-    from slipstack.launch.launch_file import launch_files_dir
-
-    return sorted(p.stem for p in launch_files_dir().glob("*.toml"))
-
-
-def main_launch(args: argparse.Namespace) -> int:
-    parse_log_levels(args.log_level)  # a bad level fails before anything starts
-    if args.log_level:
-        os.environ[LOG_LEVEL_ENV] = args.log_level  # the node processes inherit it
-    positional = list(args.assignments)
-    file = args.file
-    if file is not None and ":=" in file:  # `slipstack launch name:=value` with the default file
-        positional.insert(0, file)
-        file = None
-    run_dir = make_run_dir()
-    try:
-        builtins = {"run_dir": str(run_dir), SIM_ARG: SIM_PREFIX if args.lockstep else ""}
-        launch = load_launch_file(file, parse_assignments(positional), builtins=builtins)
-        if args.show_args:
-            comments = arg_comments(launch.path)
-            for name, value in launch.args.items():
-                if name not in ("run_dir", "free_udp_port", "stamp", SIM_ARG):
-                    note = f"  # {comments[name]}" if name in comments else ""
-                    print(f"{name} := {value!r}{note}")
-            remove_run_dir(run_dir)
-            return 0
-        if args.lockstep:
-            if args.machine is not None:
-                raise ConfigError("--lockstep runs every machine's nodes in this one process; "
-                                  "drop --machine (or drop --lockstep to run one machine's share)")
-            return run_lockstep(launch, run_dir)
-        launcher = Launcher(launch, run_dir, log_file=Path(args.log_file) if args.log_file else log_path_for(launch),
-                            machine=args.machine)
-    except BaseException:  # a bad launch file leaves no run directory behind
-        remove_run_dir(run_dir)
-        raise
-    return launcher.run()
 
 
 def run_lockstep(launch: LaunchFile, run_dir: Path, echo: Callable[[str], None] | None = None) -> int:

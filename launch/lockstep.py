@@ -30,6 +30,7 @@ descriptors to wait on), and a run with no end (no ``required`` node, no duratio
 
 from __future__ import annotations
 
+import math
 import tempfile
 import time
 from pathlib import Path
@@ -69,6 +70,9 @@ def check_lockstep(launch: LaunchFile) -> None:
         if own_io and not issubclass(e.cls, DeviceDriver) and not getattr(e.cls, "taps_bus", False):
             raise ConfigError(f"{name}: node {e.name} ({e.type}) does I/O of its own and cannot run in lock-step; "
                               f"leave it out of this launch (its enabled argument) or launch without --lockstep")
+    if math.isinf(launch.duration_s):
+        raise ConfigError("--lockstep runs as fast as the CPU on the simulated clock: give a finite duration_s "
+                          "(duration_s:=inf keeps a real-time launch up until Ctrl-C)")
     if not any(e.required for e in launch.nodes) and launch.duration_s <= 0:
         raise ConfigError(f"{name}: a lock-step run needs an end: a required node that finishes (the simulated rig) "
                           "or a duration (duration_s:=SECONDS if the file declares it)")

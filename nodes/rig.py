@@ -73,7 +73,9 @@ class RigParams:
     tick_ms: float = field(default=1.0, metadata={"help": "real-time step of the rig node (ms)"})
     wait_for_drivers_s: float = field(default=30.0, metadata={
         "help": "the scene starts when every emulated sensor is streaming to a driver, or after this long (s)"})
-    exit_at_end: bool = field(default=True, metadata={"help": "stop the node when the scene ends"})
+    run_s: float = field(default=0.0, metadata={
+        "help": "how long the rig runs from the scene's start (s): 0: until the scene ends; longer: the world goes "
+                "on after the scene, holding its last load; inf: until stopped (interactive use)"})
     command_timeout_ms: float = field(default=100.0, metadata={
         "help": "finger watchdog: no grip/command for this long after the first one -> hold and raise (ms); 0: off"})
     watchdog_grip_n: float = field(default=0.0, metadata={
@@ -208,7 +210,7 @@ class Rig(Node):
                     ctx.count("rig.tactile_not_sent")
             else:
                 ctx.publish("truth", truth_message(sample), stamp_ns=self._t0 + sample.stamp_ns)
-        if sim.done and self.params.exit_at_end:
+        if sim.done and (ctx.now_ns() - self._t0) / 1e9 >= self.params.run_s:
             ctx.log(f"scene {self.scene.name} finished")
             ctx.shutdown()
 
