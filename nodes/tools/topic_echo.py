@@ -20,6 +20,7 @@ import io
 import os
 import sys
 import time
+from pathlib import Path
 from typing import Any, Callable, TextIO
 
 import numpy as np
@@ -31,7 +32,7 @@ from slipstack.messages.frame import SeqTracker
 from slipstack.nodes.tools.topic_format import as_tree, check_field, csv_cell, flatten, pick, render_yaml
 from slipstack.nodes.runtime.graph_info import read_graph
 from slipstack.nodes.runtime.stop_signal import stop_on_signals
-from slipstack.nodes.tools.topic_tools import TopicInfo, load_graph, resolve_topic
+from slipstack.nodes.tools.topic_tools import TopicInfo, graph_topics, load_graph, resolve_topic
 from slipstack.nodes.runtime.transport import make_sub
 
 __all__ = ["MessagePrinter", "main_echo"]
@@ -104,6 +105,31 @@ def _write(stream: TextIO, text: str) -> None:
         stream.flush()
 
 
+def _published(run_dir: Path, graph: dict[str, Any], topic: str, deadline: float | None) -> TopicInfo | None:
+    """The topic once a publisher of it is in the graph (a node not started yet, a tool such as
+    ``bag play`` or ``topic pub``, a machine coming up): said once on stderr and waited for, as
+    ros2 does, re-reading the graph; ``None`` if ``deadline`` passed first."""
+    said = False
+    while True:
+        try:
+            info = resolve_topic(graph, topic)
+            if any(e.address for e in info.publishers):
+                return info
+            why = "subscribed but not published yet"
+        except ConfigError:
+            why = f"not in the graph yet; its topics: {', '.join(graph_topics(graph)) or 'none'}"
+        if not said:
+            print(f"topic echo: waiting for {topic} ({why})", file=sys.stderr, flush=True)
+            said = True
+        if deadline is not None and time.monotonic() >= deadline:
+            return None
+        time.sleep(REFRESH_PERIOD_S)
+        try:
+            graph = read_graph(run_dir)
+        except (OSError, ValueError):
+            pass  # the graph file is being rewritten: read it next time
+
+
 def main_echo(args: argparse.Namespace) -> int:
     """Run ``topic echo``; returns 0, or 1 if ``--timeout`` passed without any message printed.
 
@@ -111,14 +137,15 @@ def main_echo(args: argparse.Namespace) -> int:
         ConfigError: a field path no message can have, or a ``--filter`` that raises.
     """
     run_dir, graph = load_graph(args.run_dir)
-    info = resolve_topic(graph, args.topic)
+    keep = _compile_filter(args.filter)
+    deadline = None if args.timeout is None else time.monotonic() + args.timeout
+    info = _published(run_dir, graph, args.topic, deadline)
+    if info is None:
+        print(f"topic echo: {args.topic} was not published within {args.timeout:g} s", file=sys.stderr)
+        return 1
     cls = info.message_type()
     if args.field:
         check_field(cls, args.field)
-    keep = _compile_filter(args.filter)
-    publishers = [e for e in info.publishers if e.address]
-    if not publishers:
-        raise ConfigError(f"topic {info.name} has no publisher in this graph")
     limit = 1 if args.once else args.count
     printer = MessagePrinter(field=args.field, csv_mode=args.csv, no_arr=args.no_arr, truncate=args.truncate_length)
 
@@ -143,7 +170,6 @@ def main_echo(args: argparse.Namespace) -> int:
     next_refresh = time.monotonic() + REFRESH_PERIOD_S
     out, err = sys.stdout, sys.stderr
     printed = rejected = missing = 0
-    deadline = None if args.timeout is None else time.monotonic() + args.timeout
     stop_on_signals()
     try:
         while limit is None or printed < limit:

@@ -212,8 +212,8 @@ def _add_echo(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p = verbs.add_parser(
         "echo", help="print a topic's messages",
         description="Print the messages of TOPIC as YAML-ish text (one message per block, "
-                    "separated by '---'), or as CSV. Lost messages (sequence gaps, per publisher) "
-                    "and rejected frames are reported on stderr.",
+                    "separated by '---'), or as CSV. A topic not published yet is waited for. Lost "
+                    "messages (sequence gaps, per publisher) and rejected frames are reported on stderr.",
     )
     _topic_argument(p)
     p.add_argument("--once", action="store_true", help="print one message and exit")
