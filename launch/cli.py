@@ -30,6 +30,24 @@ COMMANDS = {
 }
 
 
+class _Version(argparse.Action):
+    """``--version``: the installed package's version, looked up only when asked."""
+
+    def __init__(self, option_strings: list[str], dest: str = argparse.SUPPRESS, help: str | None = None) -> None:
+        super().__init__(option_strings, dest=dest, default=argparse.SUPPRESS, nargs=0, help=help)
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: object,
+                 option_string: str | None = None) -> None:
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            text = version("slipstack")
+        except PackageNotFoundError:  # a source tree that was never installed
+            text = "(not installed)"
+        print(f"slipstack {text}")
+        parser.exit()
+
+
 def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     """The ``slipstack`` parser; the command named in ``argv`` gets its full parser, the
     others only their name and help (``argv`` ``None``: every command in full)."""
@@ -37,6 +55,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
         prog="slipstack",
         description="Slip detection and control as a ZeroMQ node graph (after Melchiorri 2000).",
     )
+    parser.add_argument("--version", action=_Version, help="print the installed version and exit")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     words = [a for a in (argv or []) if not a.startswith("-")]
     chosen = set(COMMANDS) if argv is None else {w for w in words[:1] if w in COMMANDS}

@@ -420,3 +420,10 @@ def test_lockstep_refuses_an_endless_duration():
     out = slipstack("launch", "--lockstep", "duration_s:=inf")
     assert out.returncode == 2, out
     assert "give a finite duration_s" in out.stderr
+
+
+def test_version_says_the_installed_one():
+    from importlib.metadata import version
+
+    out = slipstack("--version")
+    assert out.returncode == 0 and out.stdout == f"slipstack {version('slipstack')}\n", out
