@@ -21,6 +21,7 @@ COMMANDS = {
     "run": ("slipstack.launch.run_node", "run one node as a process"),
     "topic": ("slipstack.nodes.tools.topic_tools", "inspect and poke the running graph's topics"),
     "node": ("slipstack.nodes.tools.node_tools", "list the running graph's nodes, or one node's state"),
+    "param": ("slipstack.nodes.tools.param_tools", "a running node's parameters: list, get, set (restarts its process)"),
     "bag": ("slipstack.nodes.tools.bag_tools", "record, play, inspect and export recordings (MCAP)"),
     "report": ("slipstack.analysis.report", "paper-style figure or friction identification of a recording"),
     "identify": ("slipstack.analysis.identify_cli", "a material file (friction and thresholds) from friction ramps"),

@@ -69,7 +69,7 @@ from slipstack.launch.quiet_shutdown import WorldEndFilter, WorldLogLevels
 from slipstack.launch.run_log import RunLog
 from slipstack.nodes.runtime.logs import DETAIL_PREFIX, LOG_LEVEL_ENV
 from slipstack.nodes.runtime.curve import INSECURE_ENV, KEYS_ENV, MACHINE_ENV, GraphKeys, machine_env, use_keys
-from slipstack.nodes.runtime.graph_info import process_start_ticks, write_graph
+from slipstack.nodes.runtime.graph_info import PARAM_REPLY, process_start_ticks, write_graph
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.run_dir import finish_run_dir, write_private_file
 from slipstack.nodes.runtime.remote_sources import REMOTE_SOURCES_ENV
@@ -110,6 +110,8 @@ class _Process(ProcessPlan):
     buffer: bytes = b""
     realtime_refused_said: bool = False
     """The log has said that its ``realtime_priority`` was not granted (once per launch)."""
+    restarting_for: str = ""
+    """A parameter change it was stopped for (``slipstack param set``): restarted at once, not a death."""
 
 
 class Console:
@@ -303,10 +305,7 @@ class Launcher:
         while pending:
             if self._stop_requested:
                 raise SlipstackError("interrupted while starting")
-            while self.control.poll(0):
-                event = msgpack.unpackb(self.control.recv())
-                if event.get("event") == "ready":
-                    pending.discard(event.get("node"))
+            self._read_control(pending)
             proc = process.proc
             if proc is not None and proc.poll() is not None:
                 self._forward_logs(0.05)
@@ -327,6 +326,7 @@ class Launcher:
             "launch_file": str(self.launch.path),
             "keys": str(keys) if keys else "",
             "state": state,
+            "control": self.control_ep,
             "started_ns": time.time_ns(),
             "nodes": {name: self._graph_node(c) for name, c in self.children.items()},
         }
@@ -546,7 +546,7 @@ class Launcher:
             self._report_clocks()
             if self._required_peer_stopped():
                 return
-            self._note_ready_reports()
+            self._read_control()
             now = time.monotonic()
             for c in self.processes.values():
                 if c.respawn_at is not None and now >= c.respawn_at:
@@ -557,11 +557,24 @@ class Launcher:
                 if not self._on_exit(c, now):
                     return
 
-    def _note_ready_reports(self) -> None:
-        """Read the ready reports of respawned nodes; say how long each process was gone."""
+    def _read_control(self, starting: set[str] | None = None) -> None:
+        """Read the ready reports (of the nodes in ``starting`` while the graph starts; of
+        respawned nodes, saying how long each process was gone) and the parameter changes
+        ``slipstack param set`` asks for."""
         while self.control.poll(0):
-            event = msgpack.unpackb(self.control.recv())
+            try:
+                event = msgpack.unpackb(self.control.recv())
+            except ValueError:
+                continue
+            if not isinstance(event, dict):
+                continue
+            if event.get("event") == "set_param":
+                self._set_param(event, starting is not None)
+                continue
             if event.get("event") != "ready":
+                continue
+            if starting is not None:
+                starting.discard(event.get("node"))
                 continue
             for c in self.processes.values():
                 if event.get("node") in c.not_ready:
@@ -573,12 +586,55 @@ class Launcher:
                         c.died_at = None
                         self._prepare_standby(c)
 
+    def _set_param(self, event: dict, graph_starting: bool = False) -> None:
+        """``{"node", "name", "value"}``: write the new value into the node's run spec and restart
+        its process (the node's own start: a grip controller starts from the force the pad
+        measures), if the launch file lets it restart (``respawn``) and the value is valid."""
+        node, name, value = event.get("node"), event.get("name"), event.get("value")
+        plan = self.children.get(node) if isinstance(node, str) else None
+        c = self.processes.get(plan.process) if plan is not None and self.plan.is_local(plan.entry) else None
+        why = ("the graph is still starting: set it once `slipstack node list` shows it up" if graph_starting else
+               "no such node on this machine" if c is None or not isinstance(name, str) else
+               "its process may not be restarted (respawn = false in the launch file)" if not c.entry.respawn else
+               "it is restarting already" if c.proc is None or c.respawn_at is not None or c.restarting_for else "")
+        if not why:
+            params = {**plan.entry.params, name: value}
+            try:
+                from slipstack.nodes.runtime.node import make_params
+
+                make_params(plan.entry.cls.Params, params, node)
+            except SlipstackError as exc:
+                why = str(exc)
+        reply = event.get("reply")
+        answer = (lambda ok, text: write_private_file(self.run_dir, f"{PARAM_REPLY}{reply}.json",
+                                                      json.dumps({"ok": ok, "message": text}))
+                  ) if isinstance(reply, int) else (lambda ok, text: None)
+        if why:
+            self.echo(f"[launch] param set {node} {name} refused: {why}")
+            answer(False, why)
+            return
+        plan.entry.params[name] = value
+        for member in c.spec.get("members", [c.spec]):
+            if member.get("name") == node:
+                member["params"] = dict(plan.entry.params)
+        write_private_file(self.run_dir, c.spec_path.name, json.dumps(c.spec, indent=1))
+        c.restarting_for = f"{node} {name} := {value!r}"
+        self.echo(f"[launch] param set: {c.restarting_for}; restarting {c.label}")
+        answer(True, f"restarting {c.label}")
+        c.proc.send_signal(signal.SIGINT)
+
     def _respawn(self, c: _Process) -> None:
         c.respawn_at = None
         c.restarts += 1
-        c.budget_used += 1
         c.not_ready = set(c.node_names)
         how = "its warm standby" if c.standby is not None and c.standby.poll() is None else "a new process"
+        if c.restarting_for:
+            c.restarting_for = ""
+            self.echo(f"[launch] restarting {c.name} with its new parameter from {how}")
+            self._spawn(c)
+            self._write_graph()
+            return
+        c.budget_used += 1
         self.echo(f"[launch] respawning {c.name} (restart {c.budget_used}/{c.entry.respawn_max_retries}) "
                   f"from {how}")
         self._spawn(c)
@@ -587,6 +643,11 @@ class Launcher:
     def _on_exit(self, c: _Process, now: float) -> bool:
         """Handle the exit of ``c`` (respawn it, abandon it); False if the launch must end."""
         code = c.proc.returncode
+        if c.restarting_for and code == 0:  # stopped for a parameter change: back at once, no restart used
+            self._forward_logs(0.0)
+            c.respawn_at, c.died_at = now, now
+            return True
+        c.restarting_for = ""
         if code != 0:
             c.deaths += 1
         self._forward_logs(0.0)

@@ -6,6 +6,7 @@
      /proc/PID/stat: with the pid, names the launcher process even if the pid is reused),
      "started_ns": int, "launch_file": str,
      "state": "starting" (endpoints known, nodes coming up) | "running" (all ready),
+     "control": the launcher's control endpoint (ready reports; `slipstack param set`),
      "keys": key directory of the tcp links ("" if none),
      "nodes": {name: {"type": str, "pid": int | null, "pub": endpoint,
                       "inputs": {topic: message type}, "outputs": {topic: message type},
@@ -46,6 +47,9 @@ __all__ = ["GRAPH_FILE", "RUN_DIR_HELP", "write_graph", "read_graph", "find_run_
            "register_tool", "time_base_clock"]
 
 GRAPH_FILE = "graph.json"
+PARAM_REPLY = "param-reply-"
+"""``<run_dir>/param-reply-<tool pid>.json``: the launcher's answer to ``slipstack param set``,
+``{"ok": bool, "message": str}``."""
 _TOOL_GLOB = "tool-*.json"
 MAX_TOOLS = 32  # live registered tools listed at most (by name)
 RUN_DIR_ENV = "SLIPSTACK_RUN_DIR"

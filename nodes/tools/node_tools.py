@@ -17,7 +17,7 @@ from typing import Any
 from slipstack.lib.errors import ConfigError
 from slipstack.nodes.runtime.graph_info import RUN_DIR_HELP, find_run_dir, process_start_ticks, read_graph
 
-__all__ = ["add_parser", "node_params"]
+__all__ = ["add_parser", "node_params", "newest_diagnostics"]
 
 _SPEC_GLOB = "*.spec.json"
 
@@ -86,7 +86,7 @@ def node_params(run_dir: Path, name: str) -> dict[str, Any] | None:
     return None
 
 
-def _newest_diagnostics(endpoint: str, name: str, timeout_s: float) -> Any:
+def newest_diagnostics(endpoint: str, name: str, timeout_s: float) -> Any:
     import zmq
 
     from slipstack.lib.errors import DecodeError
@@ -131,7 +131,7 @@ def main_info(args: argparse.Namespace) -> int:
     print("  parameters:" + ("" if params else " (defaults)"))
     for key, value in sorted((params or {}).items()):
         print(f"    {key}: {value!r}")
-    diag = _newest_diagnostics(entry["pub"], args.name, args.timeout) if entry.get("pub") else None
+    diag = newest_diagnostics(entry["pub"], args.name, args.timeout) if entry.get("pub") else None
     if diag is None:
         print(f"  diagnostics: none within {args.timeout:g} s")
         return 0

@@ -283,6 +283,7 @@ def test_bag_info_and_export_of_a_large_file_show_progress_on_a_terminal(verb, l
     assert proc.returncode == 0, terminal
     assert f"bag {verb}:" in terminal and "%" in terminal, terminal  # the bar, with its label
     assert "5000" in proc.stdout, proc.stdout  # the result, unchanged, on stdout
+    extra = ["-o", str(tmp_path / "quiet.mcap")] if verb == "export" else []  # an export never overwrites
     quiet = slipstack("bag", verb, str(large_recording), *extra)  # not a terminal: no bar
     assert quiet.returncode == 0 and "%|" not in quiet.stderr, quiet.stderr
 
@@ -427,3 +428,34 @@ def test_version_says_the_installed_one():
 
     out = slipstack("--version")
     assert out.returncode == 0 and out.stdout == f"slipstack {version('slipstack')}\n", out
+
+
+# -- a running node's parameters ------------------------------------------------------------------
+def test_param_get_and_set_on_a_running_node(launch):
+    """ros2's ``param get/set``: the value in effect, and a new one the node's process restarts
+    with (the launcher writes it into the run spec); refused, with why, where it cannot be."""
+    g = launch("demo")
+    g.wait_ready()
+    assert g.cli("param", "get", "source", "rate_hz").stdout == "1000.0\n"
+    listing = g.cli("param", "list", "source").stdout
+    assert "rate_hz = 1000.0  # publish rate (Hz)" in listing and "f_n = 10.0" in listing, listing
+    out = g.cli("param", "set", "source", "rate_hz", "250")
+    assert out.returncode == 0, out.stderr
+    assert "source: rate_hz := 250; restarting node source (wrench_source)" in out.stdout, out.stdout
+    assert "source is back: ok" in out.stdout, out.stdout
+    assert g.cli("param", "get", "source", "rate_hz").stdout == "'250'\n"
+    assert g.graph()["nodes"]["source"]["restarts"] == 1
+    wrong = g.cli("param", "set", "source", "rate_hz", "fast")
+    assert wrong.returncode == 2 and "source.rate_hz: must be a number, got 'fast'" in wrong.stderr, wrong.stderr
+    assert "param set: source rate_hz := '250'" in g.log() and "rate_hz := 'fast'" not in g.log()
+
+
+def test_param_set_is_refused_for_a_process_that_may_not_restart(launch):
+    g = launch("demo", "respawn:=false")
+    g.wait_ready()
+    out = g.cli("param", "set", "relay", "nosuch", "1")
+    assert out.returncode == 2 and "unknown parameter(s) nosuch" in out.stderr, out.stderr
+    out = g.cli("param", "set", "source", "rate_hz", "250")
+    assert out.returncode == 2, out
+    assert "its process may not be restarted (respawn = false in the launch file)" in out.stderr, out.stderr
+    assert g.graph()["nodes"]["source"]["restarts"] == 0
