@@ -25,11 +25,59 @@ def slipstack(*args: str, timeout: float = 60.0, env: dict | None = None) -> sub
 
 
 # -- slipstack run NODE ----------------------------------------------------------------
-def test_run_without_pub_says_what_to_do_in_one_line():
-    out = slipstack("run", "wrench_source")
-    assert out.returncode == 2, out
-    assert "Traceback" not in out.stderr and len(out.stderr.splitlines()) == 1, out.stderr
-    assert "--pub ipc://" in out.stderr and "ft/wrench" in out.stderr
+def test_run_without_pub_and_without_a_graph_publishes_on_a_default_endpoint(tmp_path):
+    """``slipstack run wrench_source`` with no graph running: it refused to start without --pub;
+    it publishes on an endpoint in the run root and says which, for a consumer's --sub."""
+    import signal
+
+    import zmq
+
+    root = tmp_path / "root"
+    root.mkdir(mode=0o700)
+    env = dict(os.environ, SLIPSTACK_RUN_ROOT=str(root))
+    proc = subprocess.Popen([PY, "-m", "slipstack.launch.cli", "run", "wrench_source"], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        said = proc.stderr.readline()
+        assert said.startswith(f"wrench_source-{proc.pid}: no running graph; publishing ft/wrench, diagnostics on "
+                               f"ipc://{root}/wrench_source-{proc.pid}.pub"), said
+        sub = zmq.Context.instance().socket(zmq.SUB)
+        sub.connect(f"ipc://{root}/wrench_source-{proc.pid}.pub")
+        sub.setsockopt(zmq.SUBSCRIBE, b"ft/wrench")
+        assert sub.poll(30_000), "no ft/wrench on the default endpoint"
+        assert sub.recv_multipart()[0] == b"ft/wrench"
+        sub.close(linger=0)
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(30) == 0, proc.stderr.read()
+    finally:
+        proc.kill()
+        proc.wait()
+
+
+def test_run_without_pub_attaches_to_the_running_graph(launch):
+    """``slipstack run relay --name relay2`` beside the demo graph: it subscribes to the graph's
+    ft/wrench and its ft/relayed is seen by the graph's tools; its registration goes when it stops."""
+    import signal
+
+    g = launch("demo")
+    graph = g.wait_ready()
+    proc = subprocess.Popen([PY, "-m", "slipstack.launch.cli", "run", "relay", "--name", "relay2"], env=g.env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        said = proc.stderr.readline()
+        assert said.startswith(f"relay2: the graph in {graph['run_dir']}; publishing ft/relayed, diagnostics on "), said
+        assert said.rstrip().endswith("; inputs from ft/wrench"), said
+        info = g.cli("topic", "info", "ft/relayed", "-v").stdout
+        assert "Publisher count: 2" in info and "Node name: relay2" in info, info
+        out = g.cli("topic", "echo", "diagnostics", "--once", "--field", "counters.in.ft/wrench.received",
+                    "--filter", "m.node == 'relay2'", "--timeout", "30")
+        assert out.returncode == 0 and float(out.stdout.split()[0]) > 0, out  # it receives the graph's samples
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(30) == 0, proc.stderr.read()
+    finally:
+        proc.kill()
+        proc.wait()
+    assert "relay2" not in g.cli("node", "list").stdout
 
 
 def test_run_driver_without_url_names_the_missing_parameter():
