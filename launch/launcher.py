@@ -173,6 +173,8 @@ class Launcher:
         self.order: list[str] = self.plan.order  # process names, in start order
         self._stop_requested = False
         self.exit_code = 0
+        self.error = ""
+        """Why the launch failed to run (its start failed), if it did."""
         self.start_ticks = process_start_ticks(os.getpid())
         world = {n: tuple(p.node_names) for n, p in self.processes.items() if p.entry.stop_first}
         self._world_levels = WorldLogLevels(os.environ.get(LOG_LEVEL_ENV, ""), world)
@@ -516,6 +518,7 @@ class Launcher:
         except SlipstackError as exc:
             self.echo(f"[launch] error: {exc}")
             self.exit_code = 1
+            self.error = str(exc)
         finally:
             self._shutdown(started)
             for s, h in old.items():
@@ -694,6 +697,8 @@ class Launcher:
         the launch), processes of the data path that died and stayed down (an observer's death is said,
         not judged)."""
         problems = monitor_check_problems(self.launch, self.run_dir, self.machine)
+        if self.error:  # the monitor may have seen nothing wrong: nothing ran
+            problems.insert(0, f"the launch failed ({self.error})")
         for c in self.processes.values():
             if c.abandoned:
                 down = f"{c.name} abandoned after {c.restarts} restarts"

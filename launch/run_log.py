@@ -14,6 +14,8 @@ from pathlib import Path
 from typing import Callable
 
 from slipstack.launch.launch_file import LaunchFile
+from slipstack.lib.errors import ConfigError
+from slipstack.lib.output_file import why_unwritable
 
 __all__ = ["RunLog", "log_path_for", "MAX_LOG_BYTES"]
 
@@ -38,8 +40,13 @@ class RunLog:
         self._fh = None
         self._written = 0
         if path is not None:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            self._fh = open(path, "a", encoding="utf-8", errors="replace")
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                self._fh = open(path, "a", encoding="utf-8", errors="replace")
+            except OSError as exc:
+                raise ConfigError(f"cannot write the run's log file {path} ({why_unwritable(path, exc)}); pass "
+                                  "recording:=PATH (the log goes beside it) or --log-file PATH in a folder you may "
+                                  "write") from None
 
     def __call__(self, line: str) -> None:
         self.echo(line)

@@ -10,7 +10,7 @@ from typing import Iterator
 
 from slipstack.lib.errors import ConfigError
 
-__all__ = ["claim_output", "output_file", "writable_folder"]
+__all__ = ["claim_output", "output_file", "writable_folder", "why_unwritable"]
 
 
 def claim_output(path: Path, *, what: str = "the output", change: str = "choose another -o path",
@@ -36,7 +36,8 @@ def claim_output(path: Path, *, what: str = "the output", change: str = "choose 
         if os.path.lexists(path):
             instead = f", or {force_option} to overwrite it" if force_option and not path.is_dir() else " or delete it"
             raise ConfigError(f"{what} {path} exists; {change}{instead}") from None
-        raise ConfigError(f"cannot write {what} {path} ({_why(path, exc)}); {change} in a folder you may write") from None
+        raise ConfigError(f"cannot write {what} {path} ({why_unwritable(path, exc)}); {change} in a folder you may "
+                          "write") from None
 
 
 @contextmanager
@@ -51,7 +52,7 @@ def output_file(path: Path, **claim: object) -> Iterator[Path]:
         raise
 
 
-def _why(path: Path, exc: OSError) -> str:
+def why_unwritable(path: Path, exc: OSError) -> str:
     """Why ``path`` cannot be written, in words (a file where a folder should be, not "File exists")."""
     for folder in path.parents:
         if os.path.lexists(folder):
@@ -71,5 +72,5 @@ def writable_folder(folder: Path, option: str) -> None:
         open(probe, "xb").close()
         probe.unlink()
     except OSError as exc:
-        raise ConfigError(f"cannot write into {folder} ({_why(folder / 'x', exc)}); choose an {option} folder "
+        raise ConfigError(f"cannot write into {folder} ({why_unwritable(folder / 'x', exc)}); choose an {option} folder "
                           "you may write") from None

@@ -44,18 +44,21 @@ by :class:`~slipstack.lib.episodes.EpisodeTracker`, one counter map per node.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
 import tempfile
-import dataclasses
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from slipstack.lib.episodes import INCIPIENT_SHARE, EpisodeTracker
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.late_ticks import behind_real_time_advice
 from slipstack.lib.status import SLIP_STATES
 from slipstack.messages import Diagnostics, GripCommand, RigTruth, Slip
+from slipstack.nodes.runtime.graph_info import GRAPH_FILE, RUN_DIR_ENV
+from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.logs import DETAIL_PREFIX
 from slipstack.nodes.runtime.node import Context, Input, Node
 
@@ -262,6 +265,11 @@ class Monitor(Node):
         self._deadline_ns = round(self.params.command_deadline_ms * 1e6)
         self._silent_after_ns = round(self.params.silent_after_s * 1e9)
         self._at_status = (0, 0, 0, 0)  # time, slip frames, commands, fail-safe commands at the last STATUS
+        self.declared: dict[str, bool] | None = None
+        """Node name → whether it only observes, as the running graph declares it (None: no graph file)."""
+
+    def start(self, ctx: Context) -> None:
+        self.declared = declared_observers()
 
     def on_slip(self, msg: Slip, ctx: Context) -> None:
         self.slip_frames += 1
@@ -321,6 +329,19 @@ class Monitor(Node):
             failed = [x for x in problems if x.fails_check]
             write_json_atomically(self.params.check_path, {"passed": not failed, "problems": [x.text for x in failed],
                                                            "short": [x.short for x in failed]})
+
+
+def declared_observers() -> dict[str, bool] | None:
+    """Node name → whether it publishes nothing but diagnostics, from the running graph's
+    ``graph.json`` (in ``$SLIPSTACK_RUN_DIR``, which the launcher gives every node); ``None``
+    without one (a lock-step run, a monitor run by hand: the counters tell, :class:`NodeWatch`)."""
+    run_dir = os.environ.get(RUN_DIR_ENV)
+    try:
+        nodes = json.loads((Path(run_dir) / GRAPH_FILE).read_text())["nodes"] if run_dir else None
+        return None if nodes is None else {
+            name: set(entry.get("outputs", {})) <= {DIAGNOSTICS_TOPIC} for name, entry in nodes.items()}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None
 
 
 def write_json_atomically(path: str, content: dict) -> None:
@@ -432,7 +453,8 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "disconnected_nodes": m.disconnected_nodes(truth.header.stamp_ns if truth else None),
         "nodes_that_went_silent": went_silent,
         "nodes_restarted_after_silence": sorted(name for name, w in m.nodes.items() if w.restarted),
-        "observers": sorted(name for name, w in m.nodes.items() if w.observer),
+        "observers": sorted(name for name, w in m.nodes.items()
+                            if (m.declared or {}).get(name, w.observer)),
         "behind_while_realtime": sorted(name for name, w in m.nodes.items() if any(
             k.startswith("timer.") and k.endswith(".skipped_realtime") and v for k, v in w.counters.items())),
         "recording": m.params.recording if m.params.recording and os.path.exists(m.params.recording) else "",

@@ -507,3 +507,22 @@ def test_param_set_is_refused_for_a_process_that_may_not_restart(launch):
     assert out.returncode == 2, out
     assert "its process may not be restarted (respawn = false in the launch file)" in out.stderr, out.stderr
     assert g.graph()["nodes"]["source"]["restarts"] == 0
+
+
+def test_a_launch_that_failed_to_start_does_not_pass_its_check(launch, tmp_path):
+    """The recorder cannot write its recording, so the graph never runs. The monitor saw nothing
+    wrong in its empty run, and the launch used to end with "[launch] check passed"."""
+    blocker = tmp_path / "afile"
+    blocker.write_text("")
+    g = launch(f"recording:={blocker / 'r.mcap'}", "--log-file", str(tmp_path / "run.log"))
+    assert g.proc.wait(timeout=120) == 1, g.log()[-3000:]
+    closing = g.log().rstrip().splitlines()[-1]
+    assert closing.startswith("[launch] CHECK FAILED: the launch failed (node recorder (recorder) exited with code")
+
+
+def test_a_run_log_that_cannot_be_written_is_one_clear_line(tmp_path):
+    blocker = tmp_path / "afile"
+    blocker.write_text("")
+    out = slipstack("launch", f"recording:={blocker / 'r.mcap'}", env=dict(os.environ, SLIPSTACK_RUN_ROOT=str(tmp_path)))
+    assert out.returncode == 2 and "Traceback" not in out.stderr, out.stderr
+    assert f"cannot write the run's log file {blocker / 'r.log'} ({blocker} is a file, not a folder)" in out.stderr

@@ -598,3 +598,23 @@ def test_behind_real_time_advice_fits_the_node(tmp_path):
     assert "already runs with real-time priority" in advice["rig"] and "realtime:=10" not in advice["rig"]
     assert "`realtime:=10`" in advice["ft_driver"]
     assert "not real-time" in advice["recorder"] and "realtime" not in advice["recorder"].replace("real-time", "")
+
+
+def test_the_graph_file_says_who_observes(tmp_path, monkeypatch):
+    """In a launched graph the monitor takes the observers from ``graph.json``: a rig that stops
+    before its scene starts has published no data yet, and was taken for an observer."""
+    (tmp_path / "graph.json").write_text(json.dumps({"nodes": {
+        "rig": {"outputs": {"rig/truth": "slipstack/RigTruth", "diagnostics": "slipstack/Diagnostics"}},
+        "recorder": {"outputs": {"diagnostics": "slipstack/Diagnostics"}}}}))
+    monkeypatch.setenv("SLIPSTACK_RUN_DIR", str(tmp_path))
+    events = []
+    for s in range(1, 11):
+        t = s * 1_000_000_000 - 1
+        if s <= 1:
+            events += [(t, "diagnostics", _diag("rig", t)), (t, "diagnostics", _diag("recorder", t))]
+        events.append((t, "diagnostics", _diag("control", t, **{"out.grip/command.published": 500.0 * s})))
+    check = tmp_path / "check.json"
+    s, _, _ = monitor_over(events, tmp_path, check_path=str(check))
+    assert s["observers"] == ["recorder"]
+    assert json.loads(check.read_text())["problems"] == ["node rig went silent: no diagnostics for the last 9.0 s "
+                                                         "(dead or stopped?)"]
