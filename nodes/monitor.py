@@ -717,21 +717,21 @@ def _control_row(s: dict) -> str:
 
 
 def _bus_row(s: dict) -> str:
+    """Frames lost (the most at one node and topic, if it fits) and the largest share of a sensor
+    topic a node of the data path skipped."""
     lost = sorted(((c["lost"], c["of"], node, c["topic"]) for node, counts in s["losses"].items()
                    for c in counts.values()), reverse=True)
-    if lost:
-        n, of, node, topic = lost[0]
-        row = f"bus: {sum(x[0] for x in lost):g} frames lost ({node} {topic} {n:g} of {of:g}"
-        row += f", +{len(lost) - 1} more)" if len(lost) > 1 else ")"
-    else:
-        row = "bus: no frame lost"
     skipped = sorted(((n["skipped"] / n["received"], node, topic) for node, inputs in s["skipped_for_newer"].items()
                       if node not in s["observers"] for topic, n in inputs.items()
                       if topic in SENSOR_TOPICS and n["received"]), reverse=True)
-    if skipped:
-        share, node, topic = skipped[0]
-        return row + f"; {node} skipped {share * 100:.1f}% of {topic}"
-    return row + "; every sensor sample examined"
+    skip = (f"; {skipped[0][1]} skipped {skipped[0][0] * 100:.1f}% of {skipped[0][2]}" if skipped
+            else "; every sensor sample examined")
+    if not lost:
+        return "bus: no frame lost" + skip
+    n, of, node, topic = lost[0]
+    total = f"bus: {sum(x[0] for x in lost):g} frames lost"
+    most = f" (most: {node} {topic} {n:g} of {of:g}" + (f", +{len(lost) - 1} more)" if len(lost) > 1 else ")")
+    return total + most + skip if len(total + most + skip) <= SUMMARY_WIDTH else total + skip
 
 
 def _health_rows(shorts: list[str], room: int) -> list[str]:

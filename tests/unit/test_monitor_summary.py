@@ -552,7 +552,7 @@ def test_short_health_lines_name_each_problem_in_a_few_words(tmp_path):
     assert "HEALTH: fail-safe 50.0% of commands (allowed 1%)" in shown, shown
     assert "commands late (over 20 ms, worst 30 ms)" in shown, shown
     assert "control: 4000 commands; fail-safe 50.0% (1999 of 3999), late" in shown, shown
-    assert "bus: 7 frames lost (fusion ft/wrench 7 of " in shown and "fusion skipped 40.0% of ft/wrench" in shown
+    assert "bus: 7 frames lost (most: fusion ft/wrench 7 of " in shown and "fusion skipped 40.0% of ft/wrench" in shown
 
 
 # -- the check judges the control path; advice fits the node ------------------------------------
