@@ -14,7 +14,7 @@ __all__ = ["claim_output", "output_file", "writable_folder", "why_unwritable"]
 
 
 def claim_output(path: Path, *, what: str = "the output", change: str = "choose another -o path",
-                 force: bool = False, force_option: str | None = "--force") -> None:
+                 force: bool = False, force_option: str | None = "--overwrite") -> None:
     """Create the empty file ``path`` (and its folders), so that a path that cannot be written
     fails before the work, not after it.
 

@@ -69,13 +69,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                                       "format follows the output's suffix; "
                                       "other suffixes (.csv ...) are refused: for CSV use "
                                       "`slipstack topic echo TOPIC --csv` on a played recording. An existing OUT is "
-                                      "refused unless --force. A damaged recording is exported as far as it can be "
+                                      "refused unless --overwrite. A damaged recording is exported as far as it can be "
                                       "read, and the command says what was damaged and exits 1.")
     ex.add_argument("path", help="recording (.mcap)")
     ex.add_argument("-o", "--output", required=True, help="OUT.mcap or OUT.jsonl")
     ex.add_argument("--to", "--format", dest="format", choices=EXPORT_FORMATS,
                     help="mcap-json, jsonl or ros2; default: from the output suffix (.mcap, .jsonl)")
-    ex.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
+    ex.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
     ex.set_defaults(func=_main_export)
 
 
@@ -149,7 +149,7 @@ def _main_export(args: argparse.Namespace) -> int:
 
     damage: list[str] = []
     with file_progress(args.path, "bag export") as progress:
-        n = export_recording(args.path, args.output, fmt, progress=progress, force=args.force, on_damage=damage.append)
+        n = export_recording(args.path, args.output, fmt, progress=progress, force=args.overwrite, on_damage=damage.append)
     print(f"wrote {args.output}: {n} messages ({fmt})")
     if damage:
         print(f"slipstack bag export: {args.path} is damaged ({damage[0]}); {args.output} holds the {n} messages that "

@@ -386,16 +386,16 @@ def test_an_output_that_cannot_be_written_is_one_clear_line(command, recording, 
 
 
 @pytest.mark.parametrize("command", [["bag", "export", "{rec}", "-o", "{out}"], ["identify", "{rec}", "-o", "{out}"]])
-def test_export_and_identify_never_overwrite_unless_forced(command, recording, tmp_path):
-    """Like ``bag record``: an existing output is refused (they used to overwrite it); ``--force`` replaces it."""
+def test_export_and_identify_never_overwrite_unless_asked(command, recording, tmp_path):
+    """Like ``bag record``: an existing output is refused (they used to overwrite it); ``--overwrite`` replaces it."""
     existing = tmp_path / ("old.jsonl" if command[0] == "bag" else "old.toml")
     existing.write_text("keep me\n")
     out = slipstack(*[a.format(rec=recording, out=existing) for a in command])
     assert out.returncode == 2, out
-    assert f"{existing} exists" in out.stderr and "--force" in out.stderr, out.stderr
+    assert f"{existing} exists" in out.stderr and "--overwrite" in out.stderr, out.stderr
     assert existing.read_text() == "keep me\n"
     if command[0] == "bag":
-        forced = slipstack(*[a.format(rec=recording, out=existing) for a in command], "--force")
+        forced = slipstack(*[a.format(rec=recording, out=existing) for a in command], "--overwrite")
         assert forced.returncode == 0, forced.stderr
         assert existing.read_text().count("\n") == 50  # the recording's 50 messages, one a line
 
