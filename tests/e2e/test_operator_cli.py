@@ -202,8 +202,8 @@ def test_run_node_help_shows_that_nodes_parameters_only():
     assert described == ["rig"] and "watchdog_grip_n (float" in out.stdout, out.stdout
 
 
-def test_run_dir_help_names_both_variables_like_the_readme():
-    readme = (Path(__file__).parents[2] / "README.md").read_text()
+def test_run_dir_help_names_both_variables_like_the_docs():
+    readme = (Path(__file__).parents[2] / "docs" / "operating.md").read_text()
     for args in (["topic", "list", "--help"], ["bag", "record", "--help"]):
         text = " ".join(slipstack(*args).stdout.split())
         assert "$SLIPSTACK_RUN_DIR" in text and "$SLIPSTACK_RUN_ROOT/current" in text, text
