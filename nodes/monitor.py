@@ -686,7 +686,8 @@ def format_summary(s: dict, p: MonitorParams | None = None, *, verbose: bool = F
     if clocks:
         rows.append("clocks: " + ", ".join(clocks) + " (other machines' minus ours)")
     if s["detector_calibration"]:
-        rows.append("detector: " + s["detector_calibration"])
+        row = "detector: " + s["detector_calibration"]
+        rows.append(row if len(row) <= SUMMARY_WIDTH else row.split(" (")[0])  # its numbers: the long form
     if s["recording"]:
         rows.append("recording: " + s["recording"])
     rows = [_clip(row) for row in rows]
