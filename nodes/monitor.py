@@ -1,45 +1,13 @@
 """The monitor: a live one-line status and, on exit, the run's summary and its health.
 
-Listens to ``slip`` (which carries the load it judged and its COR), ``grip/command``,
-``rig/truth`` and every node's ``diagnostics`` — not to the 1 kHz ``contact``/``cor``
-streams, to keep its share of the CPU small. Every ``status_period_s`` it logs one
-``STATUS`` line (the launcher redraws it in place on a terminal). On stop it logs the
-summary: slip episodes detected versus true, detection delay, false alarms and the latch
-hold after slip (one definition: ``lib/episodes.py``, docs/math.md §3.2), grip force used, the
-control path's health, dropped frames and the recording's path; with ``summary_path``
-it also writes them as JSON, and with ``check_path`` a pass/fail verdict (see
-:func:`check_problems`).
-
-Health (one ``HEALTH:`` line per problem, or ``HEALTH: ok``; the fail-safe share and
-silent nodes also on the live line):
-
-- *fail-safe share*: grip commands whose reason is ``fail-safe`` (the controller held
-  the grip because its inputs were missing, stale or invalid);
-- *late commands*: commands computed from a new sample while the stack ran whose age at
-  publish, ``pub_ns − stamp_ns`` of their header (the sensor sample they derive from to
-  the moment they left), exceeded ``command_deadline_ms`` (those while the sensors
-  started and after the scene, and the watchdog's repeats, are counted apart: see
-  :class:`CommandStats`);
-- *samples not examined*: ``in.<topic>.dropped`` over ``in.<topic>.received`` of each
-  node's inputs: skipped for a newer one by a latest-value input, or beyond the depth of
-  a batch input (fusion takes every F/T sample of a wake-up as one batch, so it skips
-  none unless it falls 1 000 samples, its batch depth, behind), on the HEALTH line for sensor topics above
-  :data:`SKIP_WARN_SHARE`; and the F/T samples fusion received, carried in contacts and
-  the slip test judged (``fusion.samples``, ``slip_test.samples_judged``);
-- *behind real time*: ``timer.<name>.skipped`` ticks of a timer-paced node (the rig
-  skips simulator ticks it could not make up);
-- *silent nodes*: a node whose ``diagnostics`` (every 1 s) stopped for longer than
-  ``silent_after_s`` — dead, stopped or starved — whether it came back or not;
-- *disconnected devices*: a driver whose ``diagnostics`` status is ``disconnected: …``
-  (also on the live line, while it lasts); and a run whose every grip command was
-  fail-safe (the sensors never streamed).
-
-Counts are given with their denominators (``frames lost at fusion: ft/wrench 497 of
-30004 (sequence gaps, of those sent)``). Without ``rig/truth`` (real hardware) there is no ground
-truth: the summary says so instead of printing episode counts and flags without true slip.
-
-Memory is bounded: running sums and counts per message, the detection quality streamed
-by :class:`~slipstack.lib.episodes.EpisodeTracker`, one counter map per node.
+It listens to ``slip``, ``grip/command``, ``rig/truth`` and every node's ``diagnostics``, not to
+the 1 kHz ``contact`` stream, to keep its share of the CPU small. It logs a ``STATUS`` line every
+``status_period_s``. When it stops, it logs the summary's short form (at most 12 lines), then the
+long form as ``detail:`` lines for the run log. It writes the summary as JSON (``summary_path``)
+and the check's verdict (``check_path``). docs/summary.md gives the layout, what each count
+means (false alarms by the one definition of docs/math.md §3.2) and what fails the check.
+Memory stays bounded: running sums and counts, the detection quality streamed by
+EpisodeTracker, one counter map per node.
 """
 
 from __future__ import annotations
