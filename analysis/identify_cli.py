@@ -1,24 +1,6 @@
 """``slipstack identify RECORDING... -o material.toml``: a material file from friction ramps.
 
-Recordings as a user makes them (``ident_force``, ``ident_torsion``, ``ident_combined``,
-fig4a/b, or ``bag record`` on hardware): presses, ramps past slip, holds, unloads, rests.
-:func:`identify_recording` (``analysis/report.py``) cuts each into loadings and estimates
-``μ_s, μ_d`` per loading of a force ramp, ``β_s, β_d`` of a torque ramp (a combined
-ramp gives onsets only), the onsets from ``rig/truth`` when recorded, else from the
-ratio (docs/math.md §6.1). All loadings of one kind are pooled (inverse-variance mean),
-their spread reported; their scatter enters the model error.
-
-The detector's load factor γ (the exact test on each ``tactile/frame`` with the nearest
-``ft/wrench`` sample and the identified ``μ_s``; without tactile frames the ratio over
-its static value) gives ``gamma_noise_stick`` (frame-to-frame, over the 300 ms before
-each onset, 20 ms short of it), ``gamma_noise_slide`` (from 100 ms after each onset to
-the end of its slide) and ``onset_gamma`` (the last frame before each gross-slip onset).
-For β, the disagreement with ``μ × r̄`` of the torque ramp's pressure frames
-(``lib/material_fit.beta_from_pressure``) is added to its model error.
-
-:func:`_implausible` says why a result cannot be trusted; then the command refuses to
-write it (exit 2, the reasons and what to record), unless ``--force``, which writes it
-with ``refused`` set. ``lib/material.py`` turns the file into the detector's thresholds.
+More in docs/modules.md, `analysis/identify_cli.py`.
 """
 
 from __future__ import annotations

@@ -1,19 +1,6 @@
 """``slipstack reproduce``: the paper's §V experiments, figure by figure.
 
-Runs every experiment of :data:`~slipstack.analysis.runs.EXPERIMENTS` in lock-step
-(deterministic: the same output every time), draws each of the paper's figures
-(:mod:`slipstack.analysis.figures`) and the figures beyond the paper
-(:mod:`slipstack.analysis.beyond`) as a PNG, and writes ``index.html`` and
-``report.md`` beside them: each figure with what the paper shows, what slipstack
-shows (its numbers) and where they differ and why. The HTML is self-contained
-(relative image links): open it from disk.
-
-``--quick`` shortens every scene to 3 s (for CI: checks that everything runs and
-draws, not the paper's numbers).
-
-Beside the figures: ``digests.json`` (per experiment, the SHA-256 of every message
-payload it published: two runs with equal digests were byte-identical), the Fig. 4
-recordings, the material file identified from them and the identification's log.
+More in docs/modules.md, `analysis/reproduce.py`.
 """
 
 from __future__ import annotations

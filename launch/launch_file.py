@@ -2,66 +2,7 @@
 
 Format::
 
-    [launch]
-    description = "what this graph does"
-    duration_s = 0            # stop by itself after this long (0 or inf: run until Ctrl-C)
-    check = false             # true: exit 1 unless the run passed (<run_dir>/check.json,
-                              # written by the monitor, and no node died and stayed down); `check:=true`
-                              # sets it from the command line unless the file declares an
-                              # argument named check
-    extends = "stack.toml"    # optional: take the nodes and args of another launch
-                              # file; this file's [args] override, its nodes are added
-
-    [args]                    # launch arguments, overridden by `name:=value`
-    rate_hz = 1000.0          # built in: $(run_dir), this run's private directory, and
-                              # $(free_udp_port), a UDP port free on 127.0.0.1 now,
-                              # $(stamp), the date-time the launch started,
-                              # $(sim), "sim:" with --lockstep (simulated devices), else ""
-
-    [[node]]
-    name = "source"           # instance name (unique; letters, digits, _ and -)
-    type = "wrench_source"    # a node type from `slipstack run --help`
-    params = { rate_hz = "$(rate_hz)" }   # "$(arg)" is replaced by a launch argument
-    remap = { "ft/wrench" = "ft/raw" }    # default topic -> topic in this graph
-    respawn = false           # restart it when it dies
-    respawn_delay_s = 0.05    # before the first restart; doubles with each further one
-    respawn_max_retries = 3
-    respawn_reset_s = 10.0    # a process that stayed up this long gets its full budget back
-    respawn_standby = true    # keep a warm standby process (modules loaded) for a ~0.1 s
-                              # restart; false saves its memory (30-200 MB)
-    required = false          # when it exits, the whole launch stops
-    transport = "ipc"         # or "tcp" (binds 127.0.0.1 on a free port)
-    enabled = true            # may be "$(arg)": leave a node out of this run
-    after = ["rig"]           # start only once these nodes are ready (besides the
-                              # topic order: subscribers before publishers)
-    nice = -5                 # scheduling priority, also of the node's autogroup (needs
-                              # the privilege to raise it; without it the node runs at
-                              # normal priority)
-    realtime_priority = 10    # SCHED_FIFO priority 1-99 (0: normal scheduling by nice), where
-                              # the launcher may set it (root, CAP_SYS_NICE or `ulimit -r`);
-                              # otherwise the node runs by its nice and the launcher says so
-    machine = "robot"         # the [machines] entry whose launcher runs it (default: the first)
-
-    [machines.robot]          # a graph over several computers: one table per machine
-    address = "10.0.0.2"      # its IP address (or host name); its tcp endpoints bind there
-    ports = [24700, 24799]    # tcp ports its launcher (the first, the last two) and its nodes use,
-                              # in order of node name: every launcher computes every endpoint
-    keys = "keys/robot"       # its key directory (DIR/robot after `slipstack keys DIR --machine
-                              # robot ...`); default: DIR/robot for [launch] keys = "DIR"
-    nodes = ["rig"]           # nodes of a file this one extends that run here (a node's own
-                              # `machine` key says the same for a node of this file)
-
-With machines, each computer runs ``slipstack launch FILE --machine NAME``: it starts
-the nodes placed on NAME; links to nodes of other machines are tcp with CURVE on
-their machine's address, links on one machine stay ipc (or in-process).
-
-A value that is exactly ``"$(name)"`` takes the argument's type; inside a longer
-string it is substituted as text. Flags (``enabled``, ``respawn``, ``required``,
-``stop_first``) take a boolean or the strings "true"/"false".
-
-A name is looked up in the shipped folder first (``fig15``, ``stack.toml``); a file
-of your own is named as a path (``./my.toml``, ``configs/my.toml``), relative to the
-current directory on the command line and to the including file for ``extends``.
+More in docs/modules.md, `launch/launch_file.py`.
 """
 
 

@@ -4,18 +4,7 @@ Serves ``ws://HOST:PORT`` with the Foxglove SDK (``pip install 'slipstack[foxglo
 subprotocol ``foxglove.sdk.v1``, or ``foxglove.websocket.v1``: :mod:`.foxglove_front`)
 and, per received message (latest value per input; a viewer never slows the graph):
 
-* every input topic as JSON with the JSON Schema of its message declaration
-  (``/slipstack/<topic>``: slip state, γ, margin, grip force ... plottable by field);
-* ``/pad/pressure``: the tactile frame as a ``foxglove.RawImage``, encoding ``32FC1``,
-  one pixel per taxel, row 0 first, values in Pa (a heat map in the Image panel);
-* ``/pad/scene``: a ``foxglove.SceneUpdate`` (JSON) in frame ``pad`` (the pad frame F,
-  m): the force of ``ft/wrench`` as an arrow from the pad origin (length 1 cm per N)
-  and the centre of rotation from ``cor`` as a sphere
-  (:mod:`slipstack.nodes.recording.foxglove_scene`, which ``bag export`` writes too).
-
-Log times are wall-clock ns: each message's ``stamp_ns`` (CLOCK_MONOTONIC) plus the
-host's wall − monotonic offset read at start. ``docs/foxglove_layout.json`` is a
-layout with these panels.
+More in docs/modules.md, `nodes/foxglove_bridge.py`.
 """
 
 from __future__ import annotations

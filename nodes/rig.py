@@ -1,18 +1,6 @@
 """rig: the simulated laboratory rig behind real device protocols.
 
-Runs a scene (``launch/scenes/*.toml``) in real time: every tick it advances the
-simulator to the wall-clock time elapsed since start, sends each F/T and tactile
-sample as bytes through a device emulator (ATI RDT on loopback UDP, Robotiq or Bota
-on a pseudo-terminal; DSACON32, M1616 or the framed format on a pseudo-terminal), and
-publishes ``rig/truth``. ``grip/command`` sets the finger's normal force; the finger's
-command watchdog (``command_timeout_ms``) holds the grip, and raises it towards
-``watchdog_grip_n``, when commands stop (docs/safety.md). The detector only ever sees
-what the drivers decode from those bytes. A tick handed over more than 10 ms late (its
-process waited for a core) is counted (``rig.late_ticks``) and told on ``diagnostics``
-and in the log, how late and what to do, at most every 10 s (:mod:`slipstack.lib.late_ticks`).
-
-The tactile calibration table of the simulated rubber is written to
-``calibration_out`` at start, for the tactile driver to load.
+More in docs/modules.md, `nodes/rig.py`.
 """
 
 from __future__ import annotations

@@ -2,23 +2,7 @@
 
 The MCAP export (``mcap-json``) holds:
 
-* one channel per (topic, message type), named ``/slipstack/<topic>`` as the live
-  ``foxglove`` node names them (so ``docs/foxglove_layout.json`` fits both), message
-  encoding ``json``, schema encoding ``jsonschema``: the schema of :mod:`slipstack.messages.json_schema` (every field
-  required, types, units, declared bounds and enumerations);
-* ``/pad/pressure``: every tactile frame again as a ``foxglove.RawImage`` (encoding
-  ``32FC1``: one float32 pixel per taxel in Pa, row 0 first, frame ``pad``), which
-  Foxglove's Image panel shows as a heat map;
-* ``/pad/scene``: at every pad-frame wrench and every COR, a ``foxglove.SceneUpdate``
-  with the force arrow and the COR in the pad frame (:mod:`.foxglove_scene`, as live);
-* one clock: ``log_time`` is the recorder's receive time and ``publish_time`` the
-  publisher's ``pub_ns``, both on the wall clock (ns since the Unix epoch); inside
-  each message ``header.stamp`` is the sample time on the wall clock and
-  ``header.stamp_ns`` etc. stay on the recording host's CLOCK_MONOTONIC, as on the bus;
-* the recording's clock metadata (``wall_minus_monotonic_ns``, the offset used) as
-  recorded, and ``slipstack.export`` naming the source and how the offset was found.
-
-Frames that do not decode are skipped and not counted.
+More in docs/modules.md, `nodes/recording/export.py`.
 """
 
 from __future__ import annotations

@@ -1,35 +1,7 @@
 """The process executor: one node — or a container of nodes — in one OS process,
 ZeroMQ PUB/SUB, monotonic clock.
 
-Life cycle: bind the XPUB, connect the SUBs, call ``node.start``, report *ready* to
-the launcher, then hold all data flow (timers, device I/O, handlers) until every
-subscriber the launch graph expects has subscribed — so nobody misses the first
-message — and run the loop until SIGINT/SIGTERM. Timers are paced by absolute
-deadlines; inputs are drained to the newest frame (``latest``), queued
-(``queue``) or handed over as one tuple of what the wake-up found (``batch``); every
-drop and rejected frame is counted and published on ``diagnostics``.
-
-Work per wake-up is bounded. A ``latest`` input reads what is waiting (at most
-:data:`_DRAIN_LIMIT` frames) and decodes only from the newest back to the first
-valid frame, so a backlog costs a read per frame, not a decode and a handler call.
-Frames injected by tools pass a token bucket per node (``RunSpec.inject_rate_hz``)
-and go to ``latest`` inputs newest only too; one wake-up reads at most
-:data:`_INJECT_READ_LIMIT` of them. A flood costs the node a bounded share of its
-time whatever its rate: once :data:`_OVER_RATE_READS` frames of one wake-up found
-the bucket empty (counted as ``inject.dropped_rate``), the node stops reading
-injected frames for :data:`_INJECT_PAUSE_NS` (``inject.pauses``); meanwhile the
-socket's high-water mark makes ZeroMQ drop the excess, uncounted, at the sender.
-
-A *container* (ROS 2's component container) runs several nodes in one process and
-one loop. Each member keeps its own publish endpoint, so every tool and recorder
-sees the same graph; a message one member publishes to another is also handed over
-in-process — the same object with its header, no encode/decode, no socket hop, no
-wake-up of another process — right after the publishing handler returns (the
-launcher leaves those publishers out of the member's SUB sockets: ``RunSpec.local``);
-a ``latest`` input handed several at once handles the newest, a ``batch`` input all
-of them in one call. A publication no
-subscriber outside the process wants is not encoded nor sent (the XPUB is polled for
-(un)subscriptions, so a tool that subscribes gets the next one).
+More in docs/modules.md, `nodes/runtime/process.py`.
 """
 
 from __future__ import annotations

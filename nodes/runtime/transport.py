@@ -5,10 +5,7 @@ XPUB socket (verbose, so it sees every subscription and can wait for its
 subscribers: the readiness handshake against slow joiners); each input connects
 one SUB socket to every endpoint that publishes its topic.
 
-Every socket is bounded: both high-water marks are set explicitly, and a peer that
-sends a frame longer than the socket's maximum message size is disconnected by
-ZeroMQ before the frame is buffered (data: :data:`~slipstack.messages.codec.MAX_PAYLOAD_BYTES`;
-the subscriptions an XPUB receives: :data:`MAX_SUBSCRIPTION_BYTES`).
+More in docs/modules.md, `nodes/runtime/transport.py`.
 """
 
 from __future__ import annotations

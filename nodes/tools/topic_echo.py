@@ -1,15 +1,6 @@
 """``slipstack topic echo``: print a topic's messages as they arrive.
 
-One SUB socket per publisher (from ``graph.json``, re-read every
-:data:`REFRESH_PERIOD_S` for tools that publish, such as ``topic pub``), so sequence gaps are counted
-per publisher (``diagnostics`` has one publisher per node); a sequence number that
-does not go up is a restart (a respawned node starts again at 0), not a loss.
-Frames are drained in batches and printed with one buffered write per batch, which
-keeps up with a 1 kHz topic. A slow terminal never blocks the graph: the SUB
-queues are bounded (``--qos-depth``); when they fill, the publisher drops frames for
-this subscriber only, and the gap shows up here as lost messages on stderr.
-A frame that fails to decode is reported on stderr with the decoder's reason and
-skipped.
+More in docs/modules.md, `nodes/tools/topic_echo.py`.
 """
 
 from __future__ import annotations

@@ -6,15 +6,7 @@ F/T driver, the control container (fusion, COR estimator, slip detector and grip
 controller). For each kill it reports, from the run's recording (CLOCK_MONOTONIC
 stamps, the same clock as this script):
 
-- *respawn*: kill → the new process is alive (the launcher's restart);
-- *recovery*: the new process is alive → the first grip command on valid data
-  (reason other than ``fail-safe``) — the target is ≤ 500 ms;
-- the grip before the kill and the lowest grip commanded until the recovery (the
-  contract: never lower, docs/safety.md), and the slip added over that window.
-
-``--hogs N`` runs N busy-loop processes beside the stack (a loaded machine)::
-
-    .venv/bin/python tests/bench/bench_chaos.py --hogs 2
+More in docs/modules.md, `tests/bench/bench_chaos.py`.
 """
 
 from __future__ import annotations
