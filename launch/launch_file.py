@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from slipstack.lib.config import read_flag, read_number
 from slipstack.lib.errors import ConfigError
-from slipstack.lib.toml_file import resolve_path
+from slipstack.lib.toml_file import loads as toml_loads, resolve_path
 
 if TYPE_CHECKING:  # the node types are imported when a launch is loaded: `launch --help` and completion start lean
     from slipstack.nodes.runtime.node import Node
@@ -88,11 +88,11 @@ class NodeEntry:
                 self.respawn_standby, self.required, self.transport, self.nice, self.realtime_priority, self.stop_first,
                 self.machine)
 
-    def instance(self) -> Node:
-        """Build the node object (validates the parameters)."""
+    def instance(self, **options: Any) -> Node:
+        """Build the node object (validates the parameters); ``options``: the node class's own keywords."""
         from slipstack.nodes.runtime.node import make_params
 
-        return self.cls(make_params(self.cls.Params, self.params, self.name))
+        return self.cls(make_params(self.cls.Params, self.params, self.name), **options)
 
     def output_topics(self, node: Node) -> dict[str, str]:
         return {n: self.remap.get(o.topic, o.topic) for n, o in node.outputs.items()}
@@ -252,7 +252,7 @@ def arg_comments(path: Path) -> dict[str, str]:
                 comments[m.group(1)] = inline or " ".join(above)
         above = []
     try:
-        base_name = tomllib.loads(text).get("launch", {}).get("extends")
+        base_name = toml_loads(text).get("launch", {}).get("extends")
     except tomllib.TOMLDecodeError:
         base_name = None
     if isinstance(base_name, str):
@@ -266,7 +266,7 @@ def arg_comments(path: Path) -> dict[str, str]:
 def _parses(toml_line: str) -> bool:
     """True if ``toml_line`` is a whole ``key = value`` (so a ``#`` after it starts a comment)."""
     try:
-        tomllib.loads(toml_line)
+        toml_loads(toml_line)
     except tomllib.TOMLDecodeError:
         return False
     return True
@@ -287,7 +287,7 @@ def _parse_toml(p: Path) -> dict[str, Any]:
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{p}: cannot read it ({exc})") from None
     try:
-        return tomllib.loads(text)
+        return toml_loads(text)
     except tomllib.TOMLDecodeError as exc:
         message = str(exc)
         at = re.search(r" \(at line (\d+), column (\d+)\)$", message)

@@ -1,5 +1,6 @@
 """A command's output file, claimed before the work that fills it: made at once, never
-overwritten unless asked, or refused with what to do; removed again if the work fails."""
+overwritten unless asked, or refused with what to do; removed again if the work fails.
+Its folder is made if that folder's parent exists, never a whole tree (a typo's)."""
 
 from __future__ import annotations
 
@@ -15,8 +16,8 @@ __all__ = ["claim_output", "output_file", "writable_folder", "why_unwritable"]
 
 def claim_output(path: Path, *, what: str = "the output", change: str = "choose another -o path",
                  force: bool = False, force_option: str | None = "--overwrite") -> None:
-    """Create the empty file ``path`` (and its folders), so that a path that cannot be written
-    fails before the work, not after it.
+    """Create the empty file ``path`` (and its folder, one level), so that a path that cannot be
+    written fails before the work, not after it.
 
     Args:
         what: how the message names the file (``the recording``).
@@ -28,7 +29,7 @@ def claim_output(path: Path, *, what: str = "the output", change: str = "choose 
         ConfigError: ``path`` exists (and not ``force``) or cannot be written; says what to do.
     """
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
+        path.parent.mkdir(exist_ok=True)
         if force and (path.is_symlink() or path.is_file()):
             path.unlink()
         open(path, "xb").close()
@@ -36,6 +37,9 @@ def claim_output(path: Path, *, what: str = "the output", change: str = "choose 
         if os.path.lexists(path):
             instead = f", or {force_option} to overwrite it" if force_option and not path.is_dir() else " or delete it"
             raise ConfigError(f"{what} {path} exists; {change}{instead}") from None
+        if not os.path.lexists(path.parent.parent):
+            raise ConfigError(f"the folder {path.parent.parent} of {what} {path} does not exist; create it "
+                              f"(mkdir -p) or {change} in a folder that does") from None
         raise ConfigError(f"cannot write {what} {path} ({why_unwritable(path, exc)}); {change} in a folder you may "
                           "write") from None
 
@@ -61,13 +65,13 @@ def why_unwritable(path: Path, exc: OSError) -> str:
 
 
 def writable_folder(folder: Path, option: str) -> None:
-    """Make ``folder`` (and its parents) and prove it writable, before the work that fills it.
+    """Make ``folder`` (one level) and prove it writable, before the work that fills it.
 
     Raises:
         ConfigError: it cannot be made or written; says what to do.
     """
     try:
-        folder.mkdir(parents=True, exist_ok=True)
+        folder.mkdir(exist_ok=True)
         probe = folder / f".slipstack-write-test-{os.getpid()}"
         open(probe, "xb").close()
         probe.unlink()

@@ -39,6 +39,7 @@ from slipstack.nodes.recording.bag_io import RecordingWriter, read_recording
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.nodes.slip_detector import SlipDetector, SlipDetectorParams
 from slipstack.nodes.rig import load_scene_by_name, with_rates
+from _versions import print_versions
 
 DETECTION_SCENES = ["fig4a", "fig4b", "fig10", "fig11", "fig12", "fig13", "fig14", "fig15", "default"]
 IDENT_SCENES = ["ident_force", "ident_torsion", "ident_combined"]
@@ -377,6 +378,7 @@ def main() -> None:
     ap.add_argument("--engine", type=Path, help="a folder of the second engine's recordings "
                     "(tests/bench/engine_mujoco.py writes them, a .json beside each)")
     args = ap.parse_args()
+    print_versions()
     args.cache.mkdir(parents=True, exist_ok=True)
     rates = (args.ft_rate, args.tactile_rate)
     period_ns = 1e9 / args.ft_rate

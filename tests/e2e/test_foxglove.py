@@ -9,7 +9,6 @@ Foxglove WebSocket protocol (subprotocol ``foxglove.sdk.v1``, or its older name
 from __future__ import annotations
 
 import json
-import socket
 import struct
 import subprocess
 import sys
@@ -18,6 +17,7 @@ import time
 import numpy as np
 import pytest
 import zmq
+from free_ports import free_port
 
 pytest.importorskip("foxglove", reason="the foxglove extra is not installed")
 sync_client = pytest.importorskip("websockets.sync.client", reason="websockets (a WebSocket client) is not installed")
@@ -29,12 +29,6 @@ pytestmark = pytest.mark.e2e
 
 SUBPROTOCOLS = ("foxglove.sdk.v1", "foxglove.websocket.v1")  # the SDK's name, and older clients'
 MESSAGE_DATA = 0x01
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _frames(k: int) -> list[tuple[str, bytes]]:
@@ -50,7 +44,7 @@ def _frames(k: int) -> list[tuple[str, bytes]]:
 
 def _start_node(tmp_path, endpoint: str) -> tuple[subprocess.Popen, int, object]:
     """``slipstack run foxglove`` on a free port, subscribed to ``endpoint``; (process, port, log file)."""
-    port = _free_port()
+    port = free_port()
     log = open(tmp_path / "foxglove.log", "wb")
     proc = subprocess.Popen(
         [sys.executable, "-m", "slipstack.launch.cli", "run", "foxglove", f"port:={port}",

@@ -525,4 +525,4 @@ def test_a_run_log_that_cannot_be_written_is_one_clear_line(tmp_path):
     blocker.write_text("")
     out = slipstack("launch", f"recording:={blocker / 'r.mcap'}", env=dict(os.environ, SLIPSTACK_RUN_ROOT=str(tmp_path)))
     assert out.returncode == 2 and "Traceback" not in out.stderr, out.stderr
-    assert f"cannot write the run's log file {blocker / 'r.log'} ({blocker} is a file, not a folder)" in out.stderr
+    assert f"cannot write the run's log {blocker / 'r.log'} ({blocker} is a file, not a folder)" in out.stderr
