@@ -1,41 +1,6 @@
 """``slipstack launch``: start a graph of node processes and supervise it.
 
-Each node runs in a process of its own, or with the other nodes of its ``container``
-in one process (their messages to each other then skip the bus; see
-``nodes/runtime/process.py``). Starts processes subscribers-first (reverse topological order
-of the topic graph, so a publisher's subscribers exist before its data flows), waits
-for each to report ready, forwards every log line prefixed with ``[node]``, respawns
-crashed nodes per their policy, and on SIGINT/SIGTERM stops them in reverse start
-order with SIGINT → SIGTERM → SIGKILL escalation (nodes marked ``stop_first``, the
-simulated rig, go first: the simulated world must not run on without its controller).
-Children get a parent-death signal, so even a SIGKILLed launcher leaves no orphans
-behind.
-
-Respawn: a process that may be respawned has a warm standby (unless ``respawn_standby
-= false``), a second process that has imported its modules and waits on stdin (it
-binds nothing); a restart wakes it, so the node is back without paying the interpreter
-start and the imports again. The standbys are prepared once every node of the launch is
-ready (their imports would slow its start), a new one once a restarted process is
-ready. The first restart follows ``respawn_delay_s`` after the exit, each further one waits twice as
-long; ``respawn_max_retries`` restarts in a row use up the budget, which a process
-that stays up ``respawn_reset_s`` gets back. A process whose budget is used up is
-*abandoned*: said loudly, and the launch ends with exit 1 if the node is ``required``
-or the launch has ``check = true``. Deaths, restarts and abandonments are printed in
-the closing lines and written to ``<run_dir>/launch_events.json`` (the run directory
-keeps that file and ``check.json`` after the launch; the newest ``KEEP_FINISHED_RUNS``
-finished ones are kept). With ``check = true`` the launch ends with ``[launch] check
-passed`` or ``[launch] CHECK FAILED: ...`` (exit 1) from the monitor's ``check.json``
-and the processes that died and stayed down.
-
-Machines: a launch file with ``[machines.NAME]`` tables is run by one launcher per
-machine, ``slipstack launch FILE --machine NAME``; each starts the nodes placed on its
-machine (the plan of its share, ``launch/plan.py``, where every endpoint is computed
-from the file alike on every machine) and talks to the other launchers
-(``launch/peers.py``): ``after`` waits for nodes on other machines, a machine that goes
-quiet or stops is reported, and the launchers of machines other than the first start
-their nodes on the first machine's clock (``nodes/runtime/time_base.py``).
-``--lockstep`` runs the nodes of every machine in one process (placement does not
-matter on the simulated clock); it refuses ``--machine``.
+More in docs/modules.md, `launch/launcher.py`.
 """
 
 from __future__ import annotations

@@ -2,26 +2,7 @@
 
 File layout (one MCAP file per recording, https://mcap.dev/spec):
 
-* message_encoding ``msgpack``: every message's data is the frame payload exactly as
-  it travelled on the bus (``messages/codec.py`` wire format), so a replay decodes
-  the very bytes a node received.
-* one channel per (topic, message type); channel metadata ``{"type", "version"}``.
-* schema encoding :data:`SCHEMA_ENCODING` (a slipstack-specific name, allowed by the
-  MCAP spec for custom encodings): a JSON document describing the type's wire
-  layout and fields (name, wire type, dtype, shape, units) — see
-  :func:`message_schema`. A payload whose type is unknown gets schema id 0.
-* ``log_time``: receive time at the recorder, **wall clock** ns since the Unix epoch
-  (the MCAP convention, ``time.time_ns``); ``publish_time`` = ``header.pub_ns`` and
-  ``sequence`` = ``header.seq`` (both from the publisher: ``pub_ns`` is on the
-  publisher's CLOCK_MONOTONIC, not the wall clock).
-* a metadata record :data:`CLOCK_METADATA` written first, holding
-  ``wall_minus_monotonic_ns`` of the recording host, so receive times can be put on
-  the stamps' monotonic clock (:func:`replay_into`); the recorder writes
-  :data:`LOSS_METADATA` last, what the file misses per topic.
-* chunked (zstd) and indexed; the writer closes a chunk when it exceeds
-  ``chunk_size`` bytes **or** is older than ``flush_period_s``, and flushes it to the
-  OS, so a ``kill -9`` loses at most the chunk in progress. :func:`read_recording`
-  reads such an unfinished file up to its last intact chunk.
+More in docs/modules.md, `nodes/recording/bag_io.py`.
 """
 
 from __future__ import annotations
