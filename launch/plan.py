@@ -7,25 +7,7 @@ in which order processes start and stop. ``launch/launcher.py`` supervises proce
 from a plan; ``launch/lockstep.py`` runs the same plan's nodes in one process on the
 simulated clock.
 
-Start order: subscribers before publishers (reverse topological order of the topic
-graph, so a publisher's subscribers exist before its data flows), then every node's
-``after`` list. Stop order: nodes marked ``stop_first`` (the simulated rig), then the
-others in reverse start order.
-
-Machines (``[machines.NAME]``): the plan of one machine's share lists every node of
-the graph, but only that machine's nodes get processes, injection endpoints and run
-specs. Every machine's launcher computes the same endpoints from the same file: a node
-binds ipc for the nodes of its machine and also its machine's tcp port
-(``transport.py: machine_ports``) for subscribers and tools elsewhere
-(:attr:`NodePlan.remote_endpoint`, ``pub_remote`` of its run spec); a subscriber
-connects to a publisher of another machine on that tcp endpoint. A node of another
-machine is injected into through its machine's launcher (:func:`relay_endpoint`, the
-machine's last port: ``launch/inject_relay.py``); inputs of the types only the graph's own
-nodes publish get no injection endpoint (``INJECTION_REFUSED``, unless ``allow_inject``); its launcher publishes its clock
-offsets on ``diagnostics`` from the next-to-last (:func:`launcher_pub_endpoints`), and
-the plan adds the launchers to the publishers of ``diagnostics`` a node subscribes to. ``after`` a node of
-another machine is the launcher's to wait for, not part of this start order. A plan
-with no machine named runs every node on this computer (the lock-step run).
+More in docs/modules.md, `launch/plan.py`.
 """
 
 from __future__ import annotations
@@ -110,6 +92,12 @@ class ProcessPlan:
     @property
     def outputs(self) -> set[str]:
         return {t for c in self.members for t in c.outputs}
+
+    @property
+    def observes_only(self) -> bool:
+        """It publishes nothing but diagnostics (the monitor, the recorder, the Foxglove bridge):
+        the control path does not depend on it, so the run's check does not judge it (docs/summary.md)."""
+        return self.outputs <= {DIAGNOSTICS_TOPIC}
 
 
 @dataclass

@@ -3,28 +3,7 @@
 Every law maps one control step's load to a desired normal force ``f_n`` (N) on the
 pad, bounded to ``[f_nom, f_max]``:
 
-========================  ================================================================
-registry name             law
-========================  ================================================================
-``"linear"``              §V-A: ``f_n = |f_t| / (σ μ)``
-``"ft13"``                (13): ``f_n = |f_t|/μ + |τ|/β + k``  (paper: ``k = 2 N``)
-``"ft13_sigma"``          Fig. 12 variant of (13): ``f_n = (|f_t|/μ + |τ|/β) / σ``
-``"tactile14"``           (14): raise ``f_n`` by ``δf_n`` while the tactile test (11) fails
-``"exact"``               ``f_n = γ f_n / σ`` with ``γ`` the load factor of docs/math.md §4.1
-========================  ================================================================
-
-each followed by ``min(max(·, f_nom), f_max)``. Loads are in the pad frame ``F``
-(docs/math.md §1): ``f_t = (f_x, f_y)`` in N, ``τ`` about ``z`` through the pad origin in
-N·m, ``β`` in m (``τ/f_n`` at slip), ``μ`` and ``σ`` dimensionless, ``σ ≤ 1`` the
-safety factor (paper: ``σ = 0.5``, ``μ = 0.45``).
-
-A law is stateless: it never raises on bad data. A required input that is NaN/Inf
-gives reason ``"fail-safe"`` with ``f_n_desired = f_max`` (the only never-release
-answer without memory). :class:`GripGovernor` is what a controller runs: it adds the
-memory a law lacks — where to start (docs/safety.md, the start contract), staleness and
-sensor status checks, holding the last commanded force in fail-safe (never lower), and
-the actuator rate limit (:class:`RateLimiter`). Time is passed in (integer ns stamps,
-float s steps); nothing here reads a clock.
+More in docs/modules.md, `lib/grip_laws.py`.
 """
 
 from __future__ import annotations

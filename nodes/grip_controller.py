@@ -1,18 +1,6 @@
 """grip_controller: the grip-force law of docs/math.md §5 behind a fail-safe governor.
 
-Inputs: ``slip`` (triggers a step; it carries the load it judged and γ) and the
-finger's report ``grip/state``; law (14) also needs the contact mask and the COR, so
-only then ``contact`` and ``cor`` (newest values) are subscribed.
-Output: ``grip/command``. The safety contract is docs/safety.md: a verdict that is
-not valid (its ``status`` is not ``ok``: a sensor stale, missing, unpaired or
-implausible), or injected by a tool, stale or future-stamped inputs, and a watchdog
-deadline without a new verdict all hold the last grip with reason ``fail-safe``; held
-for longer than ``blind_grace_ms`` with a loaded contact, the grip rises at
-``blind_rise_n_per_s``. A (re)started controller starts from what the finger holds:
-the trusted measured force or the finger's report, else ``f_hold_n``; never from ``f_nom``.
-In a graph over several machines, a fail-safe on stale inputs names the machines their
-data comes from (``$SLIPSTACK_REMOTE_SOURCES``, nodes/runtime/remote_sources.py), e.g.
-``fail-safe: input age 180.000 ms > timeout 20.000 ms (from machine robot, 127.0.0.1)``.
+More in docs/modules.md, `nodes/grip_controller.py`.
 """
 
 from __future__ import annotations

@@ -1,20 +1,6 @@
 """rig: the simulated laboratory rig behind real device protocols.
 
-Runs a scene (``launch/scenes/*.toml``) in real time: every tick it advances the
-simulator to the wall-clock time elapsed since start, sends each F/T and tactile
-sample as bytes through a device emulator (ATI RDT on loopback UDP, Robotiq or Bota
-on a pseudo-terminal; DSACON32, M1616 or the framed format on a pseudo-terminal), and
-publishes ``rig/truth``. ``grip/command`` sets the finger's normal force; the finger's
-command watchdog (``command_timeout_ms``) holds the grip, and raises it towards
-``watchdog_grip_n``, when commands stop (docs/safety.md). The finger reports the force it
-holds to on ``grip/state`` (a (re)started controller starts from it; a command a tool
-injected is logged with its sender). The detector only ever sees
-what the drivers decode from those bytes. A tick handed over more than 10 ms late (its
-process waited for a core) is counted (``rig.late_ticks``) and told on ``diagnostics``
-and in the log, how late and what to do, at most every 10 s (:mod:`slipstack.lib.late_ticks`).
-
-The tactile calibration table of the simulated rubber is written to
-``calibration_out`` at start, for the tactile driver to load.
+More in docs/modules.md, `nodes/rig.py`.
 """
 
 from __future__ import annotations
@@ -40,6 +26,7 @@ from slipstack.nodes.devices.emulators import (
 )
 from slipstack.nodes.devices.sim_link import SIM_PREFIX, is_simulated
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
+from slipstack.nodes.runtime.scheduling import runs_realtime
 
 __all__ = ["Rig", "RigParams", "load_scene_by_name", "truth_message", "with_rates"]
 
@@ -78,7 +65,9 @@ class RigParams:
     tick_ms: float = field(default=1.0, metadata={"help": "real-time step of the rig node (ms)"})
     wait_for_drivers_s: float = field(default=30.0, metadata={
         "help": "the scene starts when every emulated sensor is streaming to a driver, or after this long (s)"})
-    exit_at_end: bool = field(default=True, metadata={"help": "stop the node when the scene ends"})
+    run_s: float = field(default=0.0, metadata={
+        "help": "how long the rig runs from the scene's start (s): 0: until the scene ends; longer: the world goes "
+                "on after the scene, holding its last load; inf: until stopped (interactive use)"})
     command_timeout_ms: float = field(default=100.0, metadata={
         "help": "finger watchdog: no grip/command for this long after the first one -> hold and raise (ms); 0: off"})
     watchdog_grip_n: float = field(default=0.0, metadata={
@@ -221,7 +210,7 @@ class Rig(Node):
         now = ctx.now_ns()
         if self.late_ticks.tick(now):
             ctx.count("rig.late_ticks")
-        report = self.late_ticks.report(now, self._t0)
+        report = self.late_ticks.report(now, self._t0, runs_realtime())
         if report is not None:
             ctx.report_error(report)
 
@@ -255,7 +244,7 @@ class Rig(Node):
                     ctx.count("rig.tactile_not_sent")
             else:
                 ctx.publish("truth", truth_message(sample), stamp_ns=self._t0 + sample.stamp_ns)
-        if sim.done and self.params.exit_at_end:
+        if sim.done and (ctx.now_ns() - self._t0) / 1e9 >= self.params.run_s:
             ctx.log(f"scene {self.scene.name} finished")
             ctx.shutdown()
 

@@ -1,25 +1,6 @@
 """The player: publish a recording on the bus with its original timing.
 
-Frames are sent at the recorder's receive times, relative to the first played frame,
-divided by ``rate``. Payloads go out exactly as recorded — original headers, stamps
-and sequence numbers — unless *restamp* is on: then every frame's ``stamp_ns``,
-``pub_ns`` and each ``sources`` stamp are shifted by one offset Δ (per pass of the
-loop) chosen so the first frame's receive time maps to "now" on the player's clock;
-``seq``, bodies and spacing of the stamps stay as recorded (at ``rate`` ≠ 1 the
-stamps keep the recorded spacing, not the played one).
-
-One player, the ``player`` node (:class:`Player`, on :class:`Playback`), two ways:
-
-* ``slipstack bag play`` (:func:`play`) runs it in its own process, sending on its own endpoint
-  (``--endpoint``), registered in the run directory so ``topic echo`` and the
-  recorders see the frames, and injects them into the running nodes that subscribe
-  to the played topics (their *inject* endpoints in ``graph.json``), each frame named
-  after the recorded publisher it came from, so the nodes track sequence gaps per
-  recorded publisher (:mod:`slipstack.nodes.runtime.tool_pub`);
-* the ``player`` node type in a launch file: outputs are the recording's topics, so
-  the launcher wires subscribers to it. Those outputs are known only once the node is
-  built with its ``path`` (they are not a property of the node type), which is why the
-  launch plan builds every node and reads the outputs off the instance.
+More in docs/modules.md, `nodes/recording/player.py`.
 """
 
 from __future__ import annotations

@@ -1,26 +1,6 @@
 """ZeroMQ CURVE on every tcp link: only holders of the graph's keys publish, receive or inject.
 
-A graph that uses ``transport = "tcp"`` names a key directory (``[launch] keys``,
-made by ``slipstack keys DIR``). It holds the graph's key pair (``graph.key``,
-``graph.key_secret``) and the public keys (``*.key``) of everyone allowed to connect.
-Every socket that *binds* a tcp endpoint is a CURVE server: a ZAP authenticator
-(``zmq.auth``) admits only clients whose public key is in the directory. Every socket
-that *connects* to one is a CURVE client that checks the server's key, so a process
-that grabs a freed port cannot pass itself off as a node. ipc endpoints are guarded by
-the run directory's permissions (owner only, 0700) and stay as they are.
-
-A graph over several machines (``[machines.NAME]``) gives each machine a key pair of
-its own: ``slipstack keys DIR --machine robot --machine workstation`` makes
-``DIR/robot/`` with ``robot.key_secret`` and the public keys ``robot.key`` and
-``workstation.key``, and ``DIR/workstation/`` alike; each machine keeps only its own
-directory. Its sockets serve with its own pair and admit the public keys in that
-directory; a socket connecting to a machine's address checks that machine's public key.
-
-The launcher passes the directory to its processes in ``$SLIPSTACK_KEYS`` (and, with
-machines, ``$SLIPSTACK_MACHINE``: this machine's name and every machine's address);
-tools that attach to a graph read both from ``graph.json``. ``insecure = true`` in the
-launch file (``$SLIPSTACK_INSECURE=1`` for the processes) allows tcp without keys,
-explicitly.
+More in docs/modules.md, `nodes/runtime/curve.py`.
 """
 
 from __future__ import annotations

@@ -6,17 +6,7 @@ Handlers read time only from ``ctx.now_ns()``.
 
 Declaring a node::
 
-    class Relay(Node):
-        '''Republish wrenches unchanged.'''
-        name = "relay"
-        inputs = {"wrench": Input("ft/wrench", Wrench)}
-        outputs = {"out": Output("ft/relayed", Wrench)}
-
-        def on_wrench(self, msg: Wrench, ctx: Context) -> None:
-            ctx.publish("out", msg, stamp_ns=msg.header.stamp_ns)
-
-Timers are inputs too: ``timers = {"tick": 0.001}`` calls ``on_timer_tick(ctx)``
-every millisecond of executor time, paced by absolute deadlines.
+More in docs/modules.md, `nodes/runtime/node.py`.
 """
 
 from __future__ import annotations

@@ -1,34 +1,7 @@
 """The process executor: one node — or a container of nodes — in one OS process,
 ZeroMQ PUB/SUB, monotonic clock.
 
-Life cycle: bind the XPUB, connect the SUBs, call ``node.start``, report *ready* to
-the launcher, then hold all data flow (timers, device I/O, handlers) until every
-subscriber the launch graph expects has subscribed — so nobody misses the first
-message — and run the loop until SIGINT/SIGTERM. Timers are paced by absolute
-deadlines; inputs are drained to the newest frame (``latest``), queued
-(``queue``) or handed over as one tuple of what the wake-up found (``batch``); every
-drop and rejected frame is counted and published on ``diagnostics``.
-
-Work per wake-up is bounded. A ``latest`` input reads what is waiting (at most
-:data:`_DRAIN_LIMIT` frames) and decodes only from the newest back to the first
-valid frame, so a backlog costs a read per frame, not a decode and a handler call.
-Frames injected by tools pass three token buckets per node, of frames, bytes and work
-(``RunSpec.inject_*``; a container's members share the one of work), and go to ``latest``
-inputs newest only too; one wake-up reads at most :data:`_INJECT_READ_LIMIT` of them. A
-frame over budget is dropped before it is decoded; work over its share pauses their
-reading, and what queued meanwhile is dropped, so a flood takes a bounded share of the
-node's time and its effect ends with it (docs/safety.md, "Floods"; ``inject.*`` counters).
-
-A *container* (ROS 2's component container) runs several nodes in one process and
-one loop. Each member keeps its own publish endpoint, so every tool and recorder
-sees the same graph; a message one member publishes to another is also handed over
-in-process — the same object with its header, no encode/decode, no socket hop, no
-wake-up of another process — right after the publishing handler returns (the
-launcher leaves those publishers out of the member's SUB sockets: ``RunSpec.local``);
-a ``latest`` input handed several at once handles the newest, a ``batch`` input all
-of them in one call. A publication no
-subscriber outside the process wants is not encoded nor sent (the XPUB is polled for
-(un)subscriptions, so a tool that subscribes gets the next one).
+More in docs/modules.md, `nodes/runtime/process.py`.
 """
 
 from __future__ import annotations
@@ -51,6 +24,7 @@ from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC, NodeHost
 from slipstack.nodes.runtime.logs import node_log
 from slipstack.nodes.runtime.node import Node
 from slipstack.nodes.runtime.rate_limit import TokenBucket
+from slipstack.nodes.runtime.scheduling import runs_realtime
 from slipstack.nodes.runtime.stage_cpu import StageCpu, stage_cpu_from_env
 from slipstack.nodes.runtime.curve import secure_bind
 from slipstack.nodes.runtime.time_base import graph_clock
@@ -444,6 +418,8 @@ class _Member:
             if now >= due:  # hopelessly behind: skip ahead and say so
                 skipped = (now - due) // period + 1
                 host.count(f"timer.{timer}.skipped", skipped)
+                if runs_realtime():  # raising its priority is then no remedy: the summary's advice differs
+                    host.count(f"timer.{timer}.skipped_realtime", skipped)
                 due += skipped * period
             self.deadlines[timer] = due
         if now >= self.next_diag:

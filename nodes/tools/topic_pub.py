@@ -1,24 +1,6 @@
 """``slipstack topic pub``: publish messages by hand into the running graph.
 
-Mechanism: the graph's subscribers never connect to new publishers, but each
-node's SUB socket also *binds* an injection endpoint per input (``inject`` in
-``graph.json``). ``topic pub`` connects one XPUB socket to the injection endpoints
-of every subscriber of the topic, waits until each has subscribed (verbose XPUB:
-no slow-joiner loss), then publishes with its own header sequence from 0 and
-``stamp_ns = pub_ns`` on the graph's time base (the executors' clock: this machine's
-``CLOCK_MONOTONIC``, shifted to the first machine's in a graph over machines). A
-subscriber on another machine of the graph is reached through that machine's launcher,
-over tcp with CURVE (``launch/inject_relay.py``). Several ``topic
-pub`` processes can inject at once: ZeroMQ lets many peers connect to one bound SUB,
-and each frame names its sender, so the nodes count sequence gaps per sender. The
-same frames go on the bus from the tool's own registered endpoint
-(:mod:`slipstack.nodes.runtime.tool_pub`): ``topic echo`` and the recorders see them; the
-recorder nodes of the graph are waited for, a listener that attaches later misses
-the frames sent before it joined.
-
-Values are YAML flow text (:mod:`slipstack.nodes.tools.topic_yaml`), e.g.
-``'{f_n_desired: 12.0, law: manual}'``; fields left out keep their defaults, and the
-message is validated exactly as a subscriber would before it is sent.
+More in docs/modules.md, `nodes/tools/topic_pub.py`.
 """
 
 from __future__ import annotations

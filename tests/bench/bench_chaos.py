@@ -6,22 +6,7 @@ on) in each user configuration, ``one`` machine (``slipstack launch fig15``) and
 its own run root and key directory, on 127.0.0.1 and 127.0.0.2), applies one fault of
 issue 29 while the disturbance pulls, and reads the run's recording and log:
 
-- *slid mm*, *turned deg*: the most the object slid and turned over the run (``rig/truth``);
-- *grip before N*: what the finger held to just before the fault (``grip/state``; on a
-  build without it, as a baseline, ``rig/truth``'s commanded force);
-- *lowest after N*: the least it held to from the fault until the first grip command on
-  valid data after the fault ended (at most 3 s); *lowered*: more than 0.2 N below *before*
-  (the faults of the issue dropped 14 N to 2 N);
-- the summary's first ``HEALTH`` line and the check's verdict.
-
-Every row must read 0.00 mm, 0.00 deg, not lowered. Trials marked ``safety-b`` fault what
-that branch fixes (full disk, heavy frames, killed monitor, forged RDT datagrams); run them
-once it is merged (``--trial NAME``, or ``--all``). The older series of kills with respawn
-and recovery times is ``--kill-series``. Faults need the privileges a user has, except
-``full_disk``, which mounts a small tmpfs (root)::
-
-    .venv/bin/python tests/bench/bench_chaos.py                       # this branch's trials, both configs
-    .venv/bin/python tests/bench/bench_chaos.py --all --config one    # every trial on one machine
+More in docs/modules.md, `tests/bench/bench_chaos.py`.
 """
 
 from __future__ import annotations

@@ -4,10 +4,8 @@ fig15 runs in real time with every process real. While its disturbance pulls on 
 object, the test SIGKILLs the tactile driver, freezes the F/T driver (SIGSTOP, then
 SIGCONT), SIGKILLs the whole control container, freezes the monitor and SIGKILLs the
 recorder. The launcher respawns what died; the controller holds and escalates while
-blind, a respawned controller starts from the applied force, and the finger's
-watchdog holds while no command comes (docs/safety.md). The object may slip a little
-while the stack is blind, but the slip stays bounded and the stack comes back.
-A second test sends one RDT BIAS datagram to the F/T sensor and then kills the control
+blind, a respawned controller starts from the applied force, the finger's watchdog
+holds while no command comes (docs/safety.md): the slip stays bounded. A second test sends one RDT BIAS datagram to the F/T sensor and then kills the control
 container (issue 29): the restarted controller must hold what the finger holds.
 """
 

@@ -35,7 +35,7 @@ def slipstack(*args: str, env: dict | None = None, timeout: float = 120.0) -> su
     return run([PY, "-m", "slipstack.launch.cli", *args], timeout, env=env or dict(os.environ))
 
 
-LOG_LEVELS = "warning,monitor=info"  # the README's example: the recorder's and the rig's info lines not shown
+LOG_LEVELS = "warning,monitor=info"  # docs/operating.md's example: the recorder's and the rig's info lines not shown
 
 
 @pytest.fixture(scope="module")

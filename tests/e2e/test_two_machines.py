@@ -3,13 +3,11 @@
 ``launch/files/two_hosts.toml`` puts the rig and the drivers on ``robot`` (127.0.0.1)
 and the control path, the monitor and the recorder on ``workstation`` (127.0.0.2), each
 launched by its own ``slipstack launch two_hosts --machine NAME`` with its own run root
-and key directory, as the README documents it: default arguments (the recorder on, the
-check on, the whole of Fig. 15), only the port range chosen free. The closed loop must
-hold Fig. 15's object three runs out of three, measured on the recorded ``rig/truth``.
-Tools on the workstation must see and record the robot's topics, and a peer holding a
-key pair the graph does not know must get nothing and get no answer. Another test
-freezes the robot (its launcher and nodes stopped, as a dropped link looks from the
-workstation) and lets it go again; another kills the robot's launcher.
+and key directory, as documented: default arguments, only the port range chosen free.
+The closed loop must hold Fig. 15's object three runs of three (recorded ``rig/truth``).
+Tools on the workstation see and record the robot's topics; a peer with a key pair the
+graph does not know gets nothing. Other tests freeze the robot (its launcher and nodes
+stopped, as a dropped link looks from the workstation) and kill the robot's launcher.
 """
 
 from __future__ import annotations

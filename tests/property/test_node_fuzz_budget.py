@@ -2,13 +2,7 @@
 in-process executor: valid frames (any values the declarations allow) and hostile
 ones (random bytes, corrupted payloads, the wrong type, resource bombs).
 
-For each frame: no exception escapes and no handler raises (``handler_errors``
-stays 0); the frame is either handled or rejected and counted
-(``in.<topic>.rejected``); and its cost stays within a budget of
-:data:`CPU_FACTOR` × the node's nominal per-frame CPU time (process time, so a
-loaded machine does not count against it) and :data:`MEMORY_FACTOR` × its nominal
-allocation peak (tracemalloc), each with a small floor for clock and allocator
-granularity.
+More in docs/modules.md, `tests/property/test_node_fuzz_budget.py`.
 """
 
 from __future__ import annotations
