@@ -187,6 +187,27 @@ def true_load_factors(scene: Scene, truth: list) -> np.ndarray:
     return out
 
 
+def verdicts(slips: list) -> dict[str, np.ndarray]:
+    """Per ``slip`` message: stamp, contact, γ (NaN without a valid verdict), the load it
+    judged (f_n N, f_t N, τ N·m) and the COR of impending slip (m; NaN if none)."""
+    ok = [m.status == "ok" for m in slips]
+    return {"t": np.array([m.header.stamp_ns for m in slips], dtype=np.int64),
+            "contact": np.array([m.state != "no-contact" for m in slips], dtype=bool),
+            "gamma": np.array([1.0 - m.margin if good else np.nan for m, good in zip(slips, ok)], dtype=float),
+            "f_n": np.array([m.f_n for m in slips], dtype=float),
+            "f_t": np.array([m.f_t for m in slips], dtype=float).reshape(-1, 2),
+            "tau": np.array([m.tau for m in slips], dtype=float),
+            "p_c": np.array([m.p_c if m.p_c_valid else (np.nan, np.nan) for m in slips], dtype=float).reshape(-1, 2)}
+
+
+def truths(truth: list) -> dict[str, np.ndarray]:
+    """Per ``rig/truth`` message: stamp, gross slip, the slip share, the applied f_n (N)."""
+    return {"truth_t": np.array([m.header.stamp_ns for m in truth], dtype=np.int64),
+            "gross": np.array([m.gross_slip for m in truth], dtype=bool),
+            "slip_share": np.array([m.sliding_fraction for m in truth], dtype=float),
+            "true_f_n": np.array([m.f_n_applied for m in truth], dtype=float)}
+
+
 def recorded_scene(scene_file: str, material: str, cache: Path, rates: tuple[float, float]) -> dict[str, np.ndarray]:
     """γ of the launch file's deciding test on every frame at μ = RECORD_MU, and the truth (cached)."""
     path = cache / f"{scene_file}@{material}.npz"
@@ -198,15 +219,8 @@ def recorded_scene(scene_file: str, material: str, cache: Path, rates: tuple[flo
     tactile = bool(args["tactile"]) and scene.tactile.enabled
     published = _run(base, scene_file, scene, material, {"tactile": str(tactile).lower(), "record": "false"}, rates)
     slips, truth = published["slip"], published["rig/truth"]
-    data = {
-        "t": np.array([m.header.stamp_ns for m in slips], dtype=np.int64),
-        "contact": np.array([m.state != "no-contact" for m in slips]),
-        "gamma": np.array([1.0 - m.margin if m.status == "ok" else np.nan for m in slips], dtype=float),
-        "truth_t": np.array([m.header.stamp_ns for m in truth], dtype=np.int64),
-        "gross": np.array([m.gross_slip for m in truth]),
-        "true_gamma": true_load_factors(scene, truth),
-        "method": np.array(args["method"]),
-    }
+    data = {**verdicts(slips), **truths(truth), "true_gamma": true_load_factors(scene, truth),
+            "method": np.array(args["method"])}
     cache.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(path, **data)
     return data
@@ -345,13 +359,8 @@ def engine_run(path: Path, cache: Path) -> dict[str, np.ndarray]:
     ex.feed(events)
     ex.run()
     ex.stop()
-    slips = ex.published["slip"]
     truth = [decode(f.payload) for f in frames if f.topic == "rig/truth"]
-    data = {"t": np.array([m.header.stamp_ns for m in slips], dtype=np.int64),
-            "contact": np.array([m.state != "no-contact" for m in slips]),
-            "gamma": np.array([1.0 - m.margin if m.status == "ok" else np.nan for m in slips], dtype=float),
-            "truth_t": np.array([m.header.stamp_ns for m in truth], dtype=np.int64),
-            "gross": np.array([m.gross_slip for m in truth], dtype=bool), "method": np.array("exact")}
+    data = {**verdicts(ex.published["slip"]), **truths(truth), "method": np.array("exact")}
     np.savez_compressed(out, **data)
     return data
 
