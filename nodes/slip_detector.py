@@ -54,7 +54,8 @@ from slipstack.lib.limit_set import compile_kernels
 from slipstack.lib.slip_tests import SLIP_TESTS
 from slipstack.messages import Contact, Slip
 from slipstack.lib.errors import ConfigError
-from slipstack.lib.material import Material
+from slipstack.lib.material import Material, detector_thresholds
+from slipstack.lib.onset_band import OnsetBand
 from slipstack.lib.online_calibration import Learned
 from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material, resolve_material
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
@@ -70,6 +71,10 @@ class SlipDetectorParams:
     material: str = field(default="", metadata={
         "help": "material file (launch/materials/ name or path): mu, delta, gamma_release, gamma_resume unless "
                 f"given; '': none, the shipped {DEFAULT_MATERIAL} (reported as uncalibrated)"})
+    band: str = field(default="path", metadata={
+        "help": "path: the onset band of each load's path and pressure spread where the material identified "
+                "onsets of that kind (else delta), and a slip is released when the load proves the contact "
+                "sticks (lib/onset_band.py); fixed: delta for every load, released only below gamma_release"})
     calibrate: str = field(default="off", metadata={
         "help": "online: learn mu, the band and the release level from the contact's confirmed slips "
                 "(lib/online_calibration.py); off: keep the material's"})
@@ -96,12 +101,16 @@ class SlipDetectorParams:
     def __post_init__(self) -> None:
         if self.calibrate not in CALIBRATE:
             raise ConfigError(f"slip_detector calibrate must be one of {CALIBRATE}, got {self.calibrate!r}")
+        if self.band not in BANDS:
+            raise ConfigError(f"slip_detector band must be one of {BANDS}, got {self.band!r}")
         fill_from_material(self, mu="mu_s", delta="delta", gamma_release="gamma_release",
                            gamma_resume="gamma_resume")
 
 
 CALIBRATE = ("online", "off")
 """The values of ``calibrate``."""
+BANDS = ("path", "fixed")
+"""The values of ``band``."""
 _UNCALIBRATED = "uncalibrated"
 """The node's status while it runs on the default material and has learned nothing."""
 
@@ -126,11 +135,16 @@ class SlipDetector(Node):
         super().__init__(params)
         p = self.params
         material = resolve_material(p.material)
+        path = {}
+        if p.band == "path":
+            thresholds = detector_thresholds(material)
+            path = {"onset_band": OnsetBand.of(material), "sliding_level": thresholds.sliding_level,
+                    "stuck_margin": thresholds.stuck_margin}
         self.detector = Detector(DetectorSettings(
             mu=p.mu, delta=p.delta, gamma_release=p.gamma_release, method=p.method, also=tuple(p.also),
             beta_m=p.beta_m, release_ns=round(p.release_ms * 1e6), pool=p.pool, gamma_resume=p.gamma_resume,
             onset_frames=p.onset_frames, known_cor_m=self._known_cor(p),
-            calibrate_from=material if p.calibrate == "online" else None))
+            calibrate_from=material if p.calibrate == "online" else None, **path))
         self._said_without_tactile = False
         self._revision = 0
         self._said = (0, self.detector.settings.mu)  # (episodes, mu) of the last calibration line

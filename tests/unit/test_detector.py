@@ -8,6 +8,7 @@ import pytest
 
 from slipstack.lib.detector import FT_TESTS, Detector, DetectorSettings, PadContact
 from slipstack.lib.errors import ConfigError
+from slipstack.lib.material import Material
 from slipstack.lib.slip_tests import SLIP_TESTS
 from slipstack.nodes.material_param import resolve_material
 from slipstack.nodes.slip_detector import SlipDetector, SlipDetectorParams
@@ -79,3 +80,22 @@ def test_a_tactile_test_without_a_pressure_frame_is_not_valid_an_ft_test_is() ->
 def test_bad_settings_are_config_errors(bad: dict) -> None:
     with pytest.raises(ConfigError):
         Detector(DetectorSettings(**{"mu": MU, "delta": DELTA, "gamma_release": GAMMA_RELEASE, **bad}))
+
+
+def test_a_pull_held_on_a_flat_pad_is_quiet_and_the_same_load_on_a_curved_tip_is_flagged() -> None:
+    """The band of the load's own path and pressure spread (lib/onset_band.py): the material's
+    pulls on a flat pad let go at 0.99, a force off a curved tip's centre at 0.81. A pull held
+    at γ 0.95 on the flat pad is not at its limit; on a curved tip (no pull identified there)
+    the band falls back to the lowest onset and flags it."""
+    material = Material("m", mu_s=MU, mu_d=0.36, beta_s_m=1.3e-3, beta_d_m=1.07e-3, gamma_noise_stick=0.005,
+                        gamma_noise_slide=0.005, onset_gamma=(0.99, 0.99, 0.81), onset_path=(0.0, 0.01, 0.34),
+                        onset_spread=(0.05, 0.05, 0.39))
+    settings = DetectorSettings.from_material(material, onset_frames=1)
+    flat = Detector(settings)
+    assert not any(flat.step(pressed(0.95 * 4.5), k * 1_000_000).slipping for k in range(50))
+    assert flat.step(pressed(0.99 * 4.5), 50_000_000).slipping
+    r = np.hypot(*(np.indices((ROWS, COLS)) - 7.5)) * PITCH_M  # a Hertzian tip of radius 5 mm
+    phi = np.sqrt(np.clip(1.0 - (r / 5e-3) ** 2, 0.0, None)).ravel()
+    tip = PadContact(f_n=10.0, f_t=np.array([0.95 * 4.5, 0.0]), tau=0.0, phi=10.0 * phi / phi.sum(), rows=ROWS,
+                     cols=COLS, pitch_m=PITCH_M)
+    assert Detector(settings).step(tip, 0).slipping
