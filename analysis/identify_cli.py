@@ -14,7 +14,8 @@ its static value) gives ``gamma_noise_stick`` (frame-to-frame, over the 300 ms b
 each onset, 20 ms short of it), ``gamma_noise_slide`` (from 100 ms after each onset to
 the end of its slide) and ``onset_gamma`` (the last frame before each gross-slip onset),
 with that frame's load path and pressure spread (``onset_path``, ``onset_spread``:
-``lib/onset_band.py``).
+``lib/onset_band.py``). The F/T's own frame-to-frame noise over the same sticking
+stretches gives ``force_noise_n`` (of each tangential component) and ``torque_noise_nm``.
 For β, the disagreement with ``μ × r̄`` of the torque ramp's pressure frames
 (``lib/material_fit.beta_from_pressure``) is added to its model error.
 
@@ -253,6 +254,7 @@ def identify_material(paths: list[Path], *, name: str, provenance: str = "",
     mu_s, mu_d = _pool(force_ests)
     beta_s, beta_d = _pool(torsion_ests) if torsion_ests else (_Pooled(math.nan, math.nan),) * 2
     stick, slide, onset_gamma, onset_path, onset_spread, lines = [], [], [], [], [], []
+    force_noise, torque_noise = [], []
     beta_s_routes, beta_d_routes = [], []
     for i, rec in enumerate(recs, 1):
         say(f"[{i}/{len(recs)}] {rec.path.name}: load factor per frame")
@@ -262,9 +264,14 @@ def identify_material(paths: list[Path], *, name: str, provenance: str = "",
         at_onset = onset_frames(stamps, gamma, onsets)
         levels = [float(gamma[k]) for k in at_onset]
         sliding = _sliding_mask(rec, stamps)
+        wrench = rec.series["ft/wrench"]
         for onset in onsets:
             before = (stamps >= onset - _STICK_WINDOW_NS) & (stamps <= onset - _STICK_GUARD_NS)
             stick.append(frame_noise(gamma[before]))
+            w = wrench["usable"].astype(bool) & (wrench["stamp_ns"] >= onset - _STICK_WINDOW_NS) \
+                & (wrench["stamp_ns"] <= onset - _STICK_GUARD_NS)
+            force_noise.append(float(np.mean([frame_noise(wrench["f_t"][w, i].astype(float)) for i in (0, 1)])))
+            torque_noise.append(frame_noise(wrench["tau"][w].astype(float)))
         slide.append(frame_noise(gamma[sliding]))
         if onsets and rec.torsion and source.startswith("exact"):
             before = (stamps >= onsets[0] - _STICK_WINDOW_NS) & (stamps <= onsets[0] - _STICK_GUARD_NS)
@@ -286,6 +293,7 @@ def identify_material(paths: list[Path], *, name: str, provenance: str = "",
         mu_d_se=mu_d.se, beta_s_m=beta_s.value, beta_s_se_m=beta_s.se, beta_d_m=beta_d.value,
         beta_d_se_m=beta_d.se, mu_s_model=mu_s.model, mu_d_model=mu_d.model, beta_s_model_m=beta_s.model,
         beta_d_model_m=beta_d.model, gamma_noise_stick=_median(stick), gamma_noise_slide=_median(slide),
+        force_noise_n=_median(force_noise), torque_noise_nm=_median(torque_noise),
         **_onsets_in_range(onset_gamma, onset_path, onset_spread))
     t = detector_thresholds(material)
     lines += [f"material {name} (± standard error, ± model error; the ± 2-sigma interval in % of the value):",
@@ -293,7 +301,8 @@ def identify_material(paths: list[Path], *, name: str, provenance: str = "",
               f"  beta_s {beta_s.text(1e3, ' mm')}", f"  beta_d {beta_d.text(1e3, ' mm')}",
               f"  force ramps: {_spread(force_ests, 1.0, '')}",
               *([f"  torque ramps: {_spread(torsion_ests, 1e3, ' mm')}"] if torsion_ests else []),
-              f"  gamma noise stick {material.gamma_noise_stick:.4f}, slide {material.gamma_noise_slide:.4f}; "
+              f"  F/T noise {material.force_noise_n:.4g} N, {material.torque_noise_nm:.3g} N·m; "
+              f"gamma noise stick {material.gamma_noise_stick:.4f}, slide {material.gamma_noise_slide:.4f}; "
               f"detector delta {t.delta:.4f}, gamma_release {t.gamma_release:.4f}, gamma_resume {t.gamma_resume:.4f}"]
     reasons += _implausible(material, {"mu_s": mu_s, "mu_d": mu_d, "beta_s": beta_s, "beta_d": beta_d},
                             force_ests, torsion_ests)

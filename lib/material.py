@@ -13,6 +13,8 @@ A material file (TOML, written by ``slipstack identify``; shipped ones in
                          # mu_s_model, mu_d_model, beta_s_model_m, beta_d_model_m
     gamma_noise_stick = 0.004   # std of the detector's load factor γ while sticking
     gamma_noise_slide = 0.008   # ... and while sliding (frame-to-frame, detrended)
+    force_noise_n = 0.01        # the F/T's noise: of each tangential force component (N)
+    torque_noise_nm = 2e-5      # ... and of the torque (N·m), frame-to-frame while sticking
     onset_gamma = [0.95, 0.97]  # γ at which each identified gross-slip episode began
     onset_path = [0.0, 1.0]     # ... the load's path there (lib/onset_band.py; nan: unknown)
     onset_spread = [0.0, 0.38]  # ... and its pressure's spread (nan: no pressure frame)
@@ -89,6 +91,8 @@ class Material:
     beta_d_model_m: float = math.nan
     gamma_noise_stick: float = math.nan
     gamma_noise_slide: float = math.nan
+    force_noise_n: float = math.nan
+    torque_noise_nm: float = math.nan
     onset_gamma: tuple[float, ...] = field(default_factory=tuple)
     onset_path: tuple[float, ...] = field(default_factory=tuple)
     onset_spread: tuple[float, ...] = field(default_factory=tuple)
@@ -161,7 +165,8 @@ def detector_thresholds(material: Material) -> DetectorThresholds:
 
 
 _FLOATS = ("mu_s", "mu_d", "mu_s_se", "mu_d_se", "beta_s_m", "beta_s_se_m", "beta_d_m", "beta_d_se_m",
-           "mu_s_model", "mu_d_model", "beta_s_model_m", "beta_d_model_m", "gamma_noise_stick", "gamma_noise_slide")
+           "mu_s_model", "mu_d_model", "beta_s_model_m", "beta_d_model_m", "gamma_noise_stick", "gamma_noise_slide",
+           "force_noise_n", "torque_noise_nm")
 _LISTS = ("onset_gamma", "onset_path", "onset_spread")
 
 

@@ -198,3 +198,5 @@ def test_identify_reads_the_second_engines_user_style_ramps(tmp_path: Path, fold
     # spread only where the tactile frames give it
     assert m.onset_path == pytest.approx((0.0, 1.0), abs=0.02)
     assert len(m.onset_spread) == 2 and all(0.0 <= k < 0.2 for k in m.onset_spread)
+    # the F/T's own noise (the engine adds 0.01 N per force component), for the noise guard
+    assert m.force_noise_n == pytest.approx(0.01, rel=0.2) and 0.0 < m.torque_noise_nm < 1e-4
