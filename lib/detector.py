@@ -34,7 +34,9 @@ status, the verdict's validity status and every side test's ``[stick, margin]``.
 
 Validity (docs/safety.md): ``status`` is ``ok`` only when the verdict judged valid
 data; otherwise it is the contact's status, ``tactile_<why>`` for a tactile test
-without a paired pressure frame, or the solver's status. A frame without a valid
+without a paired pressure frame, the solver's status, or ``below_noise`` for a capacity
+the F/T's noise swamps (``force_noise_n``, ``torque_noise_nm`` given: ``μ f_n`` or the
+frame's torsional capacity ``β f_n`` under :data:`NOISE_CAPACITY` times the noise). A frame without a valid
 verdict keeps the latch as it is (a sensor hiccup never releases it) and restarts its
 release dwell; only a real loss of contact clears it.
 
@@ -62,6 +64,8 @@ from slipstack.lib.slip_tests import FT_TESTS, SlipParams, SlipVerdict, ft_beta,
 from slipstack.lib.status import SAMPLE_NO_CONTACT, SAMPLE_OK, SLIP_STATES, SlipState, SolverStatus
 
 __all__ = [
+    "BELOW_NOISE",
+    "NOISE_CAPACITY",
     "FT_TESTS",
     "VALID",
     "CONTACT_LOST",
@@ -80,6 +84,14 @@ CONTACT_LOST = SolverStatus.NO_CONTACT.value
 
 _UNUSABLE = "unusable"
 """Validity status of an earlier sample of a batch whose data were not usable."""
+
+BELOW_NOISE = "below_noise"
+"""The status of a verdict on a capacity the F/T's noise swamps."""
+
+NOISE_CAPACITY = 10.0
+"""A verdict is judged only on a capacity of at least this many times the F/T's noise: below,
+the noise alone moves γ by more than 0.1 (pressing or letting go: f_n of some tenths of a
+newton, or a pressure frame with one taxel pressed, whose torsional capacity is 0)."""
 
 ONSET_NS_PER_FRAME = 900_000
 """Time an onset frame stands for, ns: the paper's 1 kHz F/T period less 10 % for the
@@ -141,6 +153,7 @@ class DetectorSettings:
         for every sample).
     sliding_level, stuck_margin: release a slip that reached the sliding level when γ
         stays ``stuck_margin`` above it (``lib/detection.py``; NaN: no such release).
+    force_noise_n, torque_noise_nm: the F/T's noise (N, N·m; NaN: no noise guard).
     """
 
     mu: float
@@ -158,6 +171,8 @@ class DetectorSettings:
     onset_band: OnsetBand | None = None
     sliding_level: float = math.nan
     stuck_margin: float = math.nan
+    force_noise_n: float = math.nan
+    torque_noise_nm: float = math.nan
 
     def __post_init__(self) -> None:
         if (self.method == KNOWN_COR_METHOD) != (self.known_cor_m is not None):
@@ -176,7 +191,8 @@ class DetectorSettings:
         thresholds = detector_thresholds(material)
         derived = {"mu": material.mu_s, "delta": thresholds.delta, "gamma_release": thresholds.gamma_release,
                    "gamma_resume": thresholds.gamma_resume, "onset_band": OnsetBand.of(material),
-                   "sliding_level": thresholds.sliding_level, "stuck_margin": thresholds.stuck_margin}
+                   "sliding_level": thresholds.sliding_level, "stuck_margin": thresholds.stuck_margin,
+                   "force_noise_n": material.force_noise_n, "torque_noise_nm": material.torque_noise_nm}
         return cls(**{**derived, **overrides})
 
 
@@ -226,6 +242,8 @@ class Detector:
         self._params = SlipParams(mu=s.mu, beta_m=s.beta_m or None, delta=s.delta)
         self._ft_params = self._params  # with β_s of the current pressure frame when beta_m is 0
         self._beta_frame: object = None
+        self._frame_beta: float | None = None  # β_s of the last pressure frame (0: a point contact)
+        self._torsion_beta: float | None = None  # β of the current contact's torsional capacity, m
         onset_ns = (s.onset_frames - 1) * ONSET_NS_PER_FRAME if isinstance(s.onset_frames, int) else 0
         self._latch = CalibratedLatch(DetectorConfig(s.delta, s.gamma_release, s.release_ns, s.gamma_resume,
                                                      s.onset_frames, onset_ns, s.sliding_level, s.stuck_margin),
@@ -257,7 +275,7 @@ class Detector:
         v = self._test(view, params, self._warm)
         if v.p_c is not None:
             self._warm = v.p_c
-        status = self._verdict_status(contact.status, contact, v)
+        status = self._guard(self._verdict_status(contact.status, contact, v), view.f_n)
         slipping, in_contact, margin = self._advance(t_ns, v, status, contact_lost=contact.status == CONTACT_LOST,
                                                      delta=self._delta(view.f_t, view.tau, spread))
         verdicts = {v.method: (v.stick, v.margin)}
@@ -309,7 +327,7 @@ class Detector:
             if v.p_c is not None:
                 self._warm = v.p_c
             sample_status = VALID if code == SAMPLE_OK else CONTACT_LOST if code == SAMPLE_NO_CONTACT else _UNUSABLE
-            status = self._verdict_status(sample_status, contact, v)
+            status = self._guard(self._verdict_status(sample_status, contact, v), f_n)
             if status == VALID and view.phi.size and phi_sum <= 0.0 and not self._deciding_ft:
                 status = _UNUSABLE  # a pressure frame with nothing to scale: no verdict for a tactile test
             self._advance(t_ns, v, status, contact_lost=code == SAMPLE_NO_CONTACT,
@@ -318,12 +336,29 @@ class Detector:
     def _params_for_ft_tests(self, view: ContactView, frame: object) -> SlipParams:
         """SlipParams with β fixed: the configured one, or β_s of this pressure frame."""
         if self._params.beta_m is not None or not view.phi.size:
+            self._torsion_beta = self._params.beta_m
             return self._params
         if frame != self._beta_frame:
             beta = ft_beta(view, self._params)  # β_s: the configured β is None on this path
             self._ft_params = replace(self._params, beta_m=beta) if beta else self._params
             self._beta_frame = frame
+            self._frame_beta = beta
+        self._torsion_beta = self._frame_beta
         return self._ft_params
+
+    def _guard(self, status: str, f_n: float) -> str:
+        """``below_noise`` for a valid verdict on a capacity under :data:`NOISE_CAPACITY` times
+        the F/T's noise (the force's ``μ f_n``; the torque's ``β f_n`` with the configured β,
+        else β_s of the pressure frame, 0 for a point contact), else ``status``."""
+        s = self.settings
+        if status != VALID:
+            return status
+        if s.force_noise_n > 0.0 and s.mu * f_n < NOISE_CAPACITY * s.force_noise_n:
+            return BELOW_NOISE
+        beta = self._torsion_beta
+        if beta is not None and s.torque_noise_nm > 0.0 and beta * f_n < NOISE_CAPACITY * s.torque_noise_nm:
+            return BELOW_NOISE
+        return status
 
     def _verdict_status(self, sample_status: str, contact: FusedContact, v: SlipVerdict) -> str:
         """``ok`` when the verdict judged valid data; otherwise the sample's status (the

@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from slipstack.lib.detection import DetectorConfig
-from slipstack.lib.detector import CONTACT_LOST, FT_TESTS, VALID, Detector, DetectorSettings
+from slipstack.lib.detector import BELOW_NOISE, CONTACT_LOST, FT_TESTS, NOISE_CAPACITY, VALID, Detector, DetectorSettings
 from slipstack.lib.known_cor import KNOWN_COR_METHOD
 from slipstack.lib.limit_set import compile_kernels
 from slipstack.lib.slip_tests import SLIP_TESTS
@@ -144,11 +144,13 @@ class SlipDetector(Node):
             mu=p.mu, delta=p.delta, gamma_release=p.gamma_release, method=p.method, also=tuple(p.also),
             beta_m=p.beta_m, release_ns=round(p.release_ms * 1e6), pool=p.pool, gamma_resume=p.gamma_resume,
             onset_frames=p.onset_frames, known_cor_m=self._known_cor(p),
-            calibrate_from=material if p.calibrate == "online" else None, **path))
+            calibrate_from=material if p.calibrate == "online" else None, force_noise_n=material.force_noise_n,
+            torque_noise_nm=material.torque_noise_nm, **path))
         self._said_without_tactile = False
         self._revision = 0
         self._said = (0, self.detector.settings.mu)  # (episodes, mu) of the last calibration line
         self._status = self._calibration_status(material)
+        self._below_noise = False  # the last verdict's capacity was under the F/T's noise
 
     @staticmethod
     def _known_cor(p: SlipDetectorParams) -> tuple[float, float] | None:
@@ -177,7 +179,9 @@ class SlipDetector(Node):
         mu = self.detector.settings.mu * learned.mu_scale
         text = (f"from {learned.episodes} confirmed slip(s) and the loads carried: mu {mu:.3f}, band delta "
                 f"{learned.delta:.3f}, release {learned.gamma_release:.3f}")
-        ctx.set_status("calibrated-online", text)
+        self._status = ("calibrated-online", text, "")
+        if not self._below_noise:
+            ctx.set_status("calibrated-online", text)
         said_episodes, said_mu = self._said
         if learned.episodes != said_episodes or abs(mu - said_mu) >= 0.01 * said_mu:
             self._said = (learned.episodes, mu)
@@ -189,6 +193,16 @@ class SlipDetector(Node):
         ctx.set_status(status, detail)
         if status != "ok":
             ctx.log(f"{status}: {detail}. {advice}")
+
+    def _say_below_noise(self, below: bool, f_n: float, ctx: Context) -> None:
+        """Status ``below-noise`` while the contact's capacity is under the F/T's noise (no
+        verdict: the grip controller holds the grip), the calibration status again after."""
+        self._below_noise = below
+        if below:
+            ctx.set_status("below-noise", f"f_n {f_n:.2f} N: a friction capacity under {NOISE_CAPACITY:g} x the F/T's "
+                           "noise is not judged; the grip is held")
+        else:
+            ctx.set_status(*self._status[:2])
 
     def on_contact(self, msgs: tuple[Contact, ...], ctx: Context) -> None:
         detector = self.detector
@@ -206,6 +220,10 @@ class SlipDetector(Node):
         status = held if held is not None and v.status in _JUDGED else v.status
         if not v.solver_status.usable:
             ctx.count(f"slip.{v.solver_status.value}")
+        if v.status == BELOW_NOISE:
+            ctx.count("slip.below_noise")
+        if (v.status == BELOW_NOISE) != self._below_noise:
+            self._say_below_noise(v.status == BELOW_NOISE, msg.f_n, ctx)
         if v.status == _WITHOUT_TACTILE and not self._said_without_tactile:
             self._said_without_tactile = True
             ctx.report_error(f"method {self.params.method} needs the tactile pad, but fusion runs F/T-only "

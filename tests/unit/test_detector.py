@@ -99,3 +99,27 @@ def test_a_pull_held_on_a_flat_pad_is_quiet_and_the_same_load_on_a_curved_tip_is
     tip = PadContact(f_n=10.0, f_t=np.array([0.95 * 4.5, 0.0]), tau=0.0, phi=10.0 * phi / phi.sum(), rows=ROWS,
                      cols=COLS, pitch_m=PITCH_M)
     assert Detector(settings).step(tip, 0).slipping
+
+
+def test_a_capacity_under_ten_times_the_ft_noise_is_not_judged_and_keeps_the_latch() -> None:
+    """Noise 0.01 N, 20 µN·m: μ f_n = 0.45 × 0.2 = 0.09 N < 0.1 N is not judged (a pull of
+    0.2 N would read γ 2.2); at 0.23 N (0.1035 N) it is. A one-taxel frame has no torsional
+    capacity (β_s 0): any torque reads γ = inf without the guard, ``below_noise`` with it.
+    A latched slip stays latched through such frames (an invalid verdict never releases)."""
+    ms = 1_000_000
+    quiet = DetectorSettings(mu=MU, delta=DELTA, gamma_release=GAMMA_RELEASE, onset_frames=1,
+                             force_noise_n=0.01, torque_noise_nm=2e-5)
+    det = Detector(quiet)
+    v = det.step(pressed(0.2, f_n=0.2), 0, tactile_frame=0)
+    assert (v.status, v.slipping) == ("below_noise", False)
+    v = det.step(pressed(0.01, f_n=0.23), 1 * ms, tactile_frame=1)
+    assert (v.status, v.slipping) == ("ok", False) and v.gamma == pytest.approx(0.01 / (MU * 0.23), rel=1e-6)
+    phi = np.zeros(ROWS * COLS)
+    phi[8 * COLS + 8] = 1.0
+    one_taxel = PadContact(f_n=5.0, f_t=np.zeros(2), tau=1e-4, phi=phi, rows=ROWS, cols=COLS, pitch_m=PITCH_M,
+                           status="ok")
+    assert Detector(SETTINGS).step(one_taxel, 0).slipping  # judged: γ = inf
+    assert det.step(one_taxel, 2 * ms, tactile_frame=2).status == "below_noise"
+    assert det.step(pressed(4.4), 3 * ms, tactile_frame=3).slipping
+    v = det.step(pressed(0.0, f_n=0.1), 40 * ms, tactile_frame=4)
+    assert (v.status, v.slipping) == ("below_noise", True)
