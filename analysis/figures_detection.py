@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from slipstack.analysis.figures import FigureText, flag_strip, plt, save_png
-from slipstack.analysis.replay import latch_config, latch_flags, replay_gammas
+from slipstack.analysis.replay import gammas, latch_config, latch_flags
 from slipstack.analysis.runs import Run
 
 __all__ = ["fig13", "fig14", "cor_median"]
@@ -90,7 +90,7 @@ def fig14(run: Run, out: Path) -> FigureText:
     s = run["slip"]
     tr = run["rig/truth"]
     cor = run["cor"]
-    paper = replay_gammas(run, "tactile_cor")  # the paper's Fig. 7 iteration for the COR, then (11)
+    paper = gammas(run, "tactile_cor")  # the paper's Fig. 7 iteration for the COR, then (11)
     paper_t = paper.t_ns * 1e-9
     paper_plain = paper.gamma > 1.0
     paper_band = latch_flags(paper, latch_config(run))

@@ -69,10 +69,12 @@ def replay_gammas(run, method: str, *, pool: int = 1, beta_m: float | None = Non
 
 def gammas(run, method: str) -> FrameGammas:
     """``method``'s load factors on the run: the published ``slip`` verdicts where the run's
-    detector decided with it (untimed: cost NaN), else a replay."""
+    detector decided with it (untimed: cost NaN), else a replay, made once per run."""
     p = run.detector
     if method != p.method or p.pool != 1:
-        return replay_gammas(run, method)
+        if method not in run.replays:
+            run.replays[method] = replay_gammas(run, method)
+        return run.replays[method]
     s = run["slip"]
     ok = s["status"] == "ok"
     return FrameGammas(method, np.round(s["t"] * 1e9).astype(np.int64), np.where(ok, s["gamma"], math.nan).astype(float),

@@ -131,6 +131,7 @@ class Run:
     digest: str = ""  # :func:`payload_digest` of everything the run published
     detector: Any = None  # the slip detector's parameters as the run resolved them (SlipDetectorParams)
     contacts: list = field(default_factory=list)  # the ``contact`` messages as published, for replays
+    replays: dict = field(default_factory=dict, repr=False)  # test → its replay (analysis/replay.py), computed once
 
     def __getitem__(self, topic: str) -> dict[str, np.ndarray]:
         return self.topics.get(topic, {})
@@ -222,11 +223,18 @@ def scene_variant(scene: str, seed: int | None, noise_scale: float, folder: Path
 
 def payload_digest(published: dict[str, list]) -> str:
     """SHA-256 (hex) over every topic's name and its messages' encoded payloads, in order."""
+    return raw_digest((topic, encode(m)) for topic, messages in published.items() for m in messages)
+
+
+def raw_digest(frames) -> str:
+    """:func:`payload_digest` of the ``(topic, payload)`` frames as published (each topic's in order)."""
+    by_topic: dict[str, list[bytes]] = {}
+    for topic, payload in frames:
+        by_topic.setdefault(topic, []).append(payload)
     h = hashlib.sha256()
-    for topic in sorted(published):
+    for topic in sorted(by_topic):
         h.update(topic.encode() + b"\0")
-        for m in published[topic]:
-            payload = encode(m)
+        for payload in by_topic[topic]:
             h.update(len(payload).to_bytes(8, "little") + payload)
     return h.hexdigest()
 
@@ -253,4 +261,5 @@ def run_experiment(exp: Experiment, *, duration_s: float | None = None,
     tactile = [c for c in ex.published.get("contact", []) if c.has_tactile and c.phi.size]
     detector = ex.host("slip_detector").node.params
     return Run(exp, scene, topics, tactile[len(tactile) // 2].phi if tactile else None,
-               payload_digest(ex.published), detector, list(ex.published.get("contact", [])))
+               raw_digest((topic, payload) for _, topic, payload in ex.raw), detector,
+               list(ex.published.get("contact", [])))
