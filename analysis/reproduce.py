@@ -1,20 +1,12 @@
 """``slipstack reproduce``: the paper's §V experiments, figure by figure.
 
-Runs every experiment of :data:`~slipstack.analysis.runs.EXPERIMENTS` in lock-step
-(deterministic: the same output every time), draws each of the paper's figures
-(:mod:`slipstack.analysis.figures`) and the figures beyond the paper
-(:mod:`slipstack.analysis.beyond`) as a PNG, and writes ``index.html`` and
-``report.md`` beside them: each figure with what the paper shows, what slipstack
-shows (its numbers) and where they differ and why. The HTML is self-contained
-(relative image links): open it from disk.
-
-``--quick`` shortens every scene to 3 s (for CI: checks that everything runs and
-draws, not the paper's numbers). The experiments run in parallel processes, one per core
-(``--jobs``), with a progress bar over all of them.
-
-Beside the figures: ``digests.json`` (per experiment, the SHA-256 of every message
-payload it published: two runs with equal digests were byte-identical), the Fig. 4
-recordings, the material file identified from them and the identification's log.
+Runs every experiment (:mod:`slipstack.analysis.runs`) in lock-step (deterministic), in
+parallel processes, one per core, with one progress bar; draws each figure
+(:mod:`slipstack.analysis.catalogue`) as a PNG and writes ``index.html`` (self-contained)
+and ``report.md``: what the paper shows, what slipstack shows (its numbers) and where they
+differ and why. ``--quick`` cuts every scene to 3 s (CI: everything runs and draws). Beside
+them: ``digests.json`` (per experiment, the SHA-256 of every payload: equal digests, equal
+runs), the Fig. 4 recordings and the material identified from them, with its log.
 """
 
 from __future__ import annotations

@@ -11,8 +11,7 @@ registry name             law
 ``"ft13_sigma"``          Fig. 12 variant of (13): ``f_n = (|f_t|/μ + |τ|/β) / σ``
 ``"tactile14"``           (14): raise ``f_n`` by ``δf_n`` while the tactile test (11) fails
 ``"exact"``               ``f_n = γ f_n / σ`` with ``γ`` the load factor of docs/math.md §4.1
-``"cone_margin"``         the paper's ref. [9] (its Fig. 9): nearest ``f_nom`` at a distance
-                          ``d`` from the friction cone: ``f_n = (|f_t| + √(1+μ²) d) / μ``
+``"cone_margin"``         ref. [9] (Fig. 9), ``d`` inside the cone: ``f_n = (|f_t| + √(1+μ²)·d)/μ``
 ========================  ================================================================
 
 each followed by ``min(max(·, f_nom), f_max)``. Loads are in the pad frame ``F``
