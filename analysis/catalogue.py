@@ -13,7 +13,7 @@ from collections.abc import Callable
 from slipstack.analysis import beyond, figures, figures_control, figures_detection, measured, sensitivity
 from slipstack.analysis.figure_keys import FIGURE_KEYS
 
-__all__ = ["FIGURES"]
+__all__ = ["FIGURES", "PREPARE"]
 
 
 def _drawing_function(key: str) -> Callable:
@@ -27,3 +27,7 @@ def _drawing_function(key: str) -> Callable:
 FIGURES = {key: _drawing_function(key) for key in FIGURE_KEYS}
 """Figure key → function(*runs, out_dir), in the report's order; the runs are
 :func:`slipstack.analysis.figure_keys.figure_runs`."""
+
+PREPARE = {"measured": measured.prepare, "sensitivity": sensitivity.prepare, "pareto": sensitivity.prepare}
+"""Figure key → function(run) that does the figure's costly work on a run (its replays) in
+the process that ran the experiment, keeping the result on the run."""

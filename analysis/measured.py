@@ -22,7 +22,7 @@ from slipstack.analysis.replay import (LEAD_NS, NO_EPISODES, FrameGammas, Qualit
 from slipstack.analysis.runs import Run
 from slipstack.lib.episodes import MIN_GAP_NS, find_episodes
 
-__all__ = ["MethodOnRun", "paper_test", "measured"]
+__all__ = ["MethodOnRun", "paper_test", "prepare", "measured"]
 
 BANDED = (("(11), onset band", None), ("exact, onset band", "exact"), ("(5) F/T, onset band", "linear_ls"),
           ("(7) F/T, onset band", "coulomb"))
@@ -48,6 +48,12 @@ class MethodOnRun:
 
 def _truth_ns(run: Run) -> np.ndarray:
     return np.round(run["rig/truth"]["t"] * 1e9).astype(np.int64)
+
+
+def prepare(run: Run) -> None:
+    """In the process that ran it: the replays this section needs, kept on the run."""
+    for test in (paper_test(run), *(t for _, t in BANDED if t)):
+        gammas(run, test)
 
 
 def _methods(run: Run) -> list[MethodOnRun]:

@@ -43,9 +43,11 @@ def _start_worker(progress_queue: Any) -> None:
     _progress_queue = progress_queue
 
 
-def _run_job(exp, duration: float | None, record: Path | None) -> Any:
-    """One experiment (in a worker or in this process): its :class:`~slipstack.analysis.runs.Run`,
-    or for a sensitivity variant only what the sensitivity keeps of it (replayed there)."""
+def _run_job(exp, duration: float | None, record: Path | None, prepare: tuple[str, ...]) -> Any:
+    """One experiment (in a worker or in this process) and the costly work of the figures
+    ``prepare`` on it: its :class:`~slipstack.analysis.runs.Run`, or for a sensitivity variant
+    only what the sensitivity keeps of it."""
+    from slipstack.analysis.catalogue import PREPARE
     from slipstack.analysis.runs import run_experiment
 
     def step(fraction: float) -> None:
@@ -53,11 +55,9 @@ def _run_job(exp, duration: float | None, record: Path | None) -> Any:
             _progress_queue.put((exp.key, fraction))
 
     run = run_experiment(exp, duration_s=duration, progress=step, record=record)
-    if parse_variant(exp.key) is None:
-        return run
-    from slipstack.analysis.sensitivity import replay_variant
-
-    return replay_variant(run, all_settings=exp.noise_scale == 1.0)
+    for function in dict.fromkeys(PREPARE[key] for key in prepare):
+        function(run)
+    return run if parse_variant(exp.key) is None else run.replays["sensitivity"]
 
 
 def default_jobs() -> int:
@@ -99,7 +99,8 @@ def reproduce(out_dir: Path, *, quick: bool = False, only: list[str] | None = No
         exp = experiment(key)
         if key in USES_IDENTIFIED_FRICTION:
             exp = with_friction(exp, friction)
-        return exp, duration, out_dir / f"{key}.mcap" if key in IDENTIFICATION else None
+        prepare = tuple(f for f in keys if f in catalogue.PREPARE and key in figure_runs(f, quick))
+        return exp, duration, out_dir / f"{key}.mcap" if key in IDENTIFICATION else None, prepare
 
     workers = max(1, min(jobs or default_jobs(), len(runs_needed)))
     if workers == 1:

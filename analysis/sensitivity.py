@@ -27,7 +27,7 @@ from slipstack.analysis.runs import Run, contact_beta_s
 from slipstack.lib.detection import DetectorConfig
 
 __all__ = ["DetectorSetting", "DETECTOR_SETTINGS", "SENSITIVITY_METHODS", "DELTAS", "ERRORS", "ReplayedRun",
-           "replay_variant", "Score", "score", "dominated", "sensitivity", "pareto"]
+           "replay_variant", "prepare", "Score", "score", "dominated", "sensitivity", "pareto"]
 
 
 @dataclass(frozen=True)
@@ -49,6 +49,8 @@ DETECTOR_SETTINGS: tuple[DetectorSetting, ...] = (
 """Every deciding test the detector offers on a free object (``tactile_cor_known`` needs a
 fixed pivot, which fig14 and fig15 do not have), and pooling 2 for the tactile ones but the
 paper's iteration, whose cost (a millisecond a frame) pooling does not change in kind."""
+PAPER_ITERATION = "tactile_cor"
+"""Replayed on the scenes' own runs only (not on the seeded variants): a millisecond a frame."""
 
 SENSITIVITY_METHODS = ("coulomb", "linear_ls", "tactile_cor_robust", "exact")
 """The tests the sensitivity follows: (7), (5), (11) at the COR of (12) solved robustly (the
@@ -84,17 +86,22 @@ class ReplayedRun:
                            self.latch.release_ns)
 
 
-def replay_variant(run: Run, *, all_settings: bool) -> ReplayedRun:
-    """Replay ``run`` for the sensitivity: :data:`SENSITIVITY_METHODS`, every setting of
-    :data:`DETECTOR_SETTINGS` if ``all_settings``, and :data:`BETA_METHOD` with each β error."""
+def replay_variant(run: Run) -> ReplayedRun:
+    """Replay ``run`` for the sensitivity: :data:`SENSITIVITY_METHODS`, at the scene's noise every
+    setting of :data:`DETECTOR_SETTINGS` (:data:`PAPER_ITERATION` on the scene's own run only),
+    and :data:`BETA_METHOD` with each β error. A replay the run already has is taken as it is."""
     exp = run.experiment
     truth = run["rig/truth"]
-    out = ReplayedRun(exp.key, exp.key.split("@")[0], exp.seed or run.scene.seed, exp.noise_scale,
+    out = ReplayedRun(exp.key, exp.key.split("@")[0], run.scene.seed, exp.noise_scale,
                       np.round(truth["t"] * 1e9).astype(np.int64), truth["gross_slip"].astype(bool),
                       latch_config(run))
-    settings = DETECTOR_SETTINGS if all_settings else [DetectorSetting(m) for m in SENSITIVITY_METHODS]
+    if exp.noise_scale != 1.0:
+        settings = [DetectorSetting(m) for m in SENSITIVITY_METHODS]
+    else:
+        settings = [s for s in DETECTOR_SETTINGS if s.method != PAPER_ITERATION or exp.seed is None]
     for s in settings:
-        out.frames[s.label] = replay_gammas(run, s.method, pool=s.pool)
+        done = run.replays.get(s.method) if s.pool == 1 else None
+        out.frames[s.label] = done or replay_gammas(run, s.method, pool=s.pool)
     own = out.frames.get(DetectorSetting(run.detector.method, run.detector.pool).label)
     if own is not None:
         published = run["slip"]["state"]
@@ -107,13 +114,25 @@ def replay_variant(run: Run, *, all_settings: bool) -> ReplayedRun:
     return out
 
 
+def prepare(run: Run) -> None:
+    """In the process that ran it: the run's replays for the sensitivity, kept on the run."""
+    run.replays["sensitivity"] = replay_variant(run)
+
+
+def _replayed(runs) -> list[ReplayedRun]:
+    """The sensitivity's replays of the runs given (a scene's own run carries them)."""
+    return [r.replays["sensitivity"] if isinstance(r, Run) else r for r in runs]
+
+
 @dataclass(frozen=True)
 class Score:
-    """One setting over many runs: its label, mean cost per frame (µs), and the pooled quality."""
+    """One setting over many runs: its label, mean cost per frame (µs), the pooled quality, and
+    over how many runs."""
 
     label: str
     us_per_frame: float
     quality: Quality
+    runs: int = 0
 
     @property
     def lateness_p50_ms(self) -> float:
@@ -131,10 +150,12 @@ def _pooled(qualities) -> Quality:
 
 
 def score(runs: list[ReplayedRun], label: str, **vary) -> Score:
-    """Setting ``label`` over ``runs``, with ``vary`` passed to :meth:`ReplayedRun.quality`."""
+    """Setting ``label`` over those of ``runs`` that replayed it, with ``vary`` passed to
+    :meth:`ReplayedRun.quality`."""
+    runs = [r for r in runs if label in r.frames]
     frames = [r.frames[label] for r in runs]
     return Score(label, float(np.mean([f.us_per_frame for f in frames])),
-                 _pooled(r.quality(f, **vary) for r, f in zip(runs, frames)))
+                 _pooled(r.quality(f, **vary) for r, f in zip(runs, frames)), len(runs))
 
 
 def dominated(a: Score, scores: list[Score]) -> bool:
@@ -167,15 +188,17 @@ _HEADER = ("| test | {what} | episodes | missed | delay p50 / p95 (ms) | false a
 
 def sensitivity(*runs_and_out) -> FigureText:
     """Delay and false alarms of four tests against δ, the sensor noise and an error of μ or β."""
-    *runs, out = runs_and_out
+    *given, out = runs_and_out
+    runs = _replayed(given)
     nominal = [r for r in runs if r.noise == 1.0]
     material_delta = nominal[0].latch.delta
     deltas = sorted({*DELTAS, round(material_delta, 4)})
     noises = sorted({r.noise for r in runs})
     noise_seeds = sorted({r.seed for r in runs if r.noise != 1.0}) or sorted({r.seed for r in nominal})
+    noise_runs = [r for r in runs if r.seed in noise_seeds]
     by_delta = {m: [score(nominal, m, config=_with_delta(nominal[0].latch, d)).quality for d in deltas]
                 for m in SENSITIVITY_METHODS}
-    by_noise = {m: [score([r for r in runs if r.noise == n and r.seed in noise_seeds], m).quality for n in noises]
+    by_noise = {m: [score([r for r in noise_runs if r.noise == n], m).quality for n in noises]
                 for m in SENSITIVITY_METHODS}
     by_mu = {m: [score(nominal, m, mu_error=e).quality for e in ERRORS] for m in SENSITIVITY_METHODS}
     by_beta = [_pooled(r.quality(r.beta_frames[e]) for r in nominal) for e in ERRORS]
@@ -258,8 +281,8 @@ def _beta_points(qs: list[Quality]) -> tuple[list[float], list[list[float]]]:
 
 def pareto(*runs_and_out) -> FigureText:
     """Cost per frame against accuracy of every detector setting, over the nominal-noise variant runs."""
-    *runs, out = runs_and_out
-    nominal = [r for r in runs if r.noise == 1.0 and DETECTOR_SETTINGS[0].label in r.frames]
+    *given, out = runs_and_out
+    nominal = [r for r in _replayed(given) if r.noise == 1.0]
     load = os.getloadavg()
     scores = [score(nominal, s.label) for s in DETECTOR_SETTINGS]
     fig, axes = plt.subplot_mosaic([["cost", "delay"], ["legend", "legend"]], figsize=(13, 6.8),
@@ -270,7 +293,8 @@ def pareto(*runs_and_out) -> FigureText:
         q = s.quality
         marker = "o" if setting.pool == 1 else "s"
         style = {"color": f"C{k % 10}", "ms": 9, "mfc": f"C{k % 10}" if front else "none", "mew": 1.8}
-        label = f"{s.label}: missed {q.missed}/{q.episodes}{' (Pareto front)' if front else ''}"
+        runs_note = f", {s.runs} of the {len(nominal)} runs" if s.runs != len(nominal) else ""
+        label = f"{s.label}: missed {q.missed}/{q.episodes}{runs_note}{' (Pareto front)' if front else ''}"
         ax0.plot(s.us_per_frame, q.false_alarm_share * 100, marker, label=label, **style)
         if q.delays_ns:
             d = np.asarray(q.delays_ns) / 1e6
@@ -292,15 +316,16 @@ def pareto(*runs_and_out) -> FigureText:
     axes["legend"].axis("off")
     axes["legend"].legend(*ax0.get_legend_handles_labels(), fontsize=8, loc="center", ncol=3)
     png = save_png(fig, out, "pareto")
-    table = ("| setting | µs per frame | episodes | missed | delay p50 / p95 (ms) | median lateness (ms) | "
+    table = ("| setting | runs | µs per frame | episodes | missed | delay p50 / p95 (ms) | median lateness (ms) | "
              "false alarms (%) | of which latch hold (%) | Pareto front |\n"
-             "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | :---: |\n" + "\n".join(
-                 f"| {s.label} | {s.us_per_frame:.0f} | {s.quality.episodes} | {s.quality.missed} | "
-                 f"{_delay_text(s.quality)} | {s.lateness_p50_ms:.1f} | {s.quality.false_alarm_share * 100:.2f} | "
+             "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | :---: |\n" + "\n".join(
+                 f"| {s.label} | {s.runs} | {s.us_per_frame:.0f} | {s.quality.episodes} | {s.quality.missed} | "
+                 f"{_delay_text(s.quality)} | {'–' if math.isnan(s.lateness_p50_ms) else f'{s.lateness_p50_ms:.1f}'} | "
+                 f"{s.quality.false_alarm_share * 100:.2f} | "
                  f"{s.quality.latch_hold_share * 100:.2f} | {'yes' if not dominated(s, scores) else ''} |"
                  for s in scores))
     front = " | ".join(s.label for s in scores if not dominated(s, scores))
-    agreement = min(r.agreement for r in nominal)
+    agreement = min(r.agreement for r in nominal if not math.isnan(r.agreement))
     frames = sum(len(r.frames[DETECTOR_SETTINGS[0].label].t_ns) for r in nominal)
     return FigureText("pareto", "Beyond the paper — cost and accuracy of every slip test", png,
                       "The paper compares the tests (7), (5), (6) and (11)/(12) by their limit curves, not by what "
@@ -310,7 +335,9 @@ def pareto(*runs_and_out) -> FigureText:
                       f"average {load[0]:.1f} / {load[1]:.1f} over 1 / 5 min on {len(os.sched_getaffinity(0))} "
                       f"cores), scored as the sensitivity is. The front is computed over cost, missed share, false "
                       f"alarms and the median lateness max(delay, 0): a flag that rose before the onset counts as "
-                      f"on time, not better, and pays for rising early in false alarms. Not dominated: {front}. "
+                      f"on time, not better, and pays for rising early in false alarms. The paper's iteration "
+                      f"({PAPER_ITERATION}, a millisecond a frame) is replayed on the scenes' own runs only. "
+                      f"Not dominated: {front}. "
                       f"The replay of each run's own setting flags as the run's detector did in at least "
                       f"{agreement * 100:.1f} % of the frames.",
                       "Costs are wall time on a shared machine (the load above): compare the settings with each "
