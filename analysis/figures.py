@@ -71,14 +71,15 @@ def save_png(fig, out_dir: Path, key: str) -> str:
     return path.name
 
 
-def tidy_3d(ax, view: tuple[float, float] = (22, -58)) -> None:
+def tidy_3d(ax, view: tuple[float, float] = (22, -58), zoom: float = 1.1) -> None:
     """A 3-D axes whose tick labels do not run together: at most four ticks an axis, small
-    labels, the axis titles set off from them."""
+    labels, the axis titles set off from them; the box ``zoom`` times its default size."""
     for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
         axis.set_major_locator(matplotlib.ticker.MaxNLocator(4))
         axis.labelpad = 9
     ax.tick_params(labelsize=7, pad=1)
     ax.view_init(*view)
+    ax.set_box_aspect(None, zoom=zoom)
 
 
 def slip_spans(ax, t: np.ndarray, flag: np.ndarray, color: str, label: str) -> None:
