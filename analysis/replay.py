@@ -5,7 +5,7 @@ over a run's ``contact`` messages with another test, and keeps each frame's load
 and validity; :func:`latch_flags` runs the detector's latch over them with any band δ
 (and, since every test's γ is inversely proportional to μ, any error of μ) without
 stepping the test again. :func:`score_flags` scores flags by the one detection definition
-of docs/benchmarks.md, "The paper, measured"; the sensitivity and the first section of the report use both.
+(``lib/episodes.py``, docs/math.md §3.2); the sensitivity and the report's first section use both.
 """
 
 from __future__ import annotations
@@ -19,17 +19,12 @@ import numpy as np
 
 from slipstack.lib.detection import DetectorConfig, SlipLatch
 from slipstack.lib.detector import ONSET_NS_PER_FRAME
-from slipstack.lib.episodes import MIN_GAP_NS, find_episodes
+from slipstack.lib.episodes import LEAD_NS, MARGIN_NS, DetectionQuality, detection_quality
 from slipstack.lib.status import SlipState
 from slipstack.nodes.slip_detector import SlipDetector
 
 __all__ = ["FrameGammas", "Quality", "replay_gammas", "gammas", "latch_config", "latch_flags", "score_flags",
            "LEAD_NS", "MARGIN_NS", "NO_EPISODES"]
-
-LEAD_NS = 20_000_000
-"""A flag up to this long before an onset still detects it (ns)."""
-MARGIN_NS = 5_000_000
-"""After an episode and the latch's release dwell, how long a flag is still the episode's (ns)."""
 
 
 @dataclass(frozen=True)
@@ -99,11 +94,10 @@ def latch_flags(frames: FrameGammas, config: DetectorConfig, *, mu_error: float 
 
 @dataclass(frozen=True)
 class Quality:
-    """Flags against the truth (docs/benchmarks.md, "The paper, measured"): episodes; missed (no flag from ``LEAD_NS``
-    before the onset to the end); delays_ns (per detected episode, the rise of the flag that
-    detected it minus the onset; negative: a warning); false_alarm_frames (flagged sticking
-    frames outside every window [onset − lead, end + release + margin]), latch_hold_frames
-    (those of them on a flag that rose for an episode), stick_frames (all sticking frames)."""
+    """:class:`~slipstack.lib.episodes.DetectionQuality` summed over runs: episodes (a count),
+    missed, delays_ns (flag rise − onset per detected episode; negative: a warning),
+    false_alarm_frames, latch_hold_frames (those of them on a flag that rose for an episode)
+    and stick_frames, as ``lib/episodes.py`` defines them (docs/math.md §3.2)."""
 
     episodes: int
     missed: int
@@ -111,6 +105,10 @@ class Quality:
     false_alarm_frames: int
     latch_hold_frames: int
     stick_frames: int
+
+    @classmethod
+    def of(cls, q: DetectionQuality) -> Quality:
+        return cls(len(q.episodes), q.missed, q.delays_ns, q.false_alarm_frames, q.latch_hold_frames, q.stick_frames)
 
     @property
     def false_alarm_share(self) -> float:
@@ -131,35 +129,7 @@ NO_EPISODES = Quality(0, 0, (), 0, 0, 0)
 
 def score_flags(truth_ns: np.ndarray, gross_slip: np.ndarray, t_ns: np.ndarray, flags: np.ndarray,
                 in_contact: np.ndarray, release_ns: int) -> Quality:
-    """Score ``flags`` (one per frame stamped ``t_ns``) against the truth's gross slip; a frame
-    is judged by the first truth sample at or after it; frames without contact are not sticking."""
-    episodes = find_episodes(truth_ns, gross_slip, min_gap_ns=MIN_GAP_NS)
-    t = np.asarray(t_ns, dtype=np.int64)
-    flags = np.asarray(flags, dtype=bool)
-    rise = np.flatnonzero(flags & ~np.r_[False, flags[:-1]])  # the first frame of each flag run
-    run_start = np.zeros(t.size, dtype=np.int64)
-    if rise.size:
-        run_start = rise[np.clip(np.searchsorted(rise, np.arange(t.size), side="right") - 1, 0, None)]
-    excused = np.zeros(t.size, dtype=bool)
-    detecting = np.zeros(t.size, dtype=bool)
-    delays, missed = [], 0
-    for ep in episodes:
-        window = (t >= ep.start_ns - LEAD_NS) & (t <= ep.end_ns)
-        detecting |= window
-        excused |= (t >= ep.start_ns - LEAD_NS) & (t <= ep.end_ns + release_ns + MARGIN_NS)
-        hits = np.flatnonzero(window & flags)
-        if hits.size:
-            delays.append(int(t[run_start[hits[0]]] - ep.start_ns))
-        else:
-            missed += 1
-    # a flag run that was up in a detection window, from there on: the latch holding for that episode
-    in_window = np.cumsum(flags & detecting)
-    before_run = np.where(run_start > 0, in_window[np.maximum(run_start - 1, 0)], 0)
-    held = flags & (in_window > before_run)
-    truth_t = np.asarray(truth_ns, dtype=np.int64)
-    sticking = np.asarray(in_contact, dtype=bool).copy()
-    if truth_t.size:
-        sticking &= ~np.asarray(gross_slip, dtype=bool)[np.clip(np.searchsorted(truth_t, t), 0, truth_t.size - 1)]
-    false = flags & sticking & ~excused
-    return Quality(len(episodes), missed, tuple(delays), int(false.sum()), int((false & held).sum()),
-                   int(sticking.sum()))
+    """Score ``flags`` (one per frame stamped ``t_ns``) against the truth's gross slip with the
+    latch's release dwell ``release_ns`` (:func:`slipstack.lib.episodes.detection_quality`)."""
+    return Quality.of(detection_quality(truth_ns, gross_slip, t_ns, flags, release_ns=release_ns,
+                                        in_contact=in_contact))

@@ -5,7 +5,7 @@ the detection-only scenes run again with other seeds and noise (``analysis/figur
 Each variant run is replayed once per test (:func:`replay_variant`, in the process that ran
 it); the band, μ and the latch are then varied over the kept load factors
 (:func:`slipstack.analysis.replay.latch_flags`) and every setting is scored by the one
-detection definition (docs/benchmarks.md, "The paper, measured"): missed episodes, delay of the flag's rise
+detection definition (docs/math.md §3.2): missed episodes, delay of the flag's rise
 (negative: a warning), and the share of sticking frames flagged outside every episode's
 window (false alarms: the controller is off), the latch's hold after slip apart.
 """
@@ -260,7 +260,7 @@ def sensitivity(*runs_and_out) -> FigureText:
         f"Over {len(nominal)} runs of {scenes} at the scenes' noise ({per_scene} seeds each, {episodes} true "
         f"gross-slip episodes), and at each other noise the runs with seed {', '.join(map(str, noise_seeds))} "
         f"(the same noise drawn, scaled; {by_noise['exact'][0].episodes} episodes), every test's load factors "
-        f"replayed once and its latch run again for each setting. Detection as docs/benchmarks.md, 'The paper, measured' defines it: "
+        f"replayed once and its latch run again for each setting. Detection as docs/math.md §3.2 defines it: "
         f"missed = no flag from {LEAD_NS / 1e6:g} ms before the onset to the end; delay = the flag's rise − the "
         f"onset (negative: a warning); false alarms = sticking frames flagged outside every window [onset − "
         f"{LEAD_NS / 1e6:g} ms, end + the release dwell + {MARGIN_NS / 1e6:g} ms], over all sticking frames. "

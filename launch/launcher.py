@@ -14,8 +14,9 @@ behind.
 Respawn: a process that may be respawned has a warm standby (unless ``respawn_standby
 = false``), a second process that has imported its modules and waits on stdin (it
 binds nothing); a restart wakes it, so the node is back without paying the interpreter
-start and the imports again, and a new standby is prepared once it is ready. The first
-restart follows ``respawn_delay_s`` after the exit, each further one waits twice as
+start and the imports again. The standbys are prepared once every node of the launch is
+ready (their imports would slow its start), a new one once a restarted process is
+ready. The first restart follows ``respawn_delay_s`` after the exit, each further one waits twice as
 long; ``respawn_max_retries`` restarts in a row use up the budget, which a process
 that stays up ``respawn_reset_s`` gets back. A process whose budget is used up is
 *abandoned*: said loudly, and the launch ends with exit 1 if the node is ``required``
@@ -501,10 +502,11 @@ class Launcher:
                 self._spawn(self.processes[name])
                 started.append(name)
                 self._wait_ready(self.processes[name], READY_TIMEOUT_S)
-                self._prepare_standby(self.processes[name])
                 if self.peers is not None:
                     self.peers.ready = sorted(n for p in started for n in self.processes[p].node_names)
             self._write_graph()
+            for name in started:  # once the graph runs: their imports do not delay its start
+                self._prepare_standby(self.processes[name])
             ready = [f"{n} ({', '.join(c.entry.name for c in self.processes[n].members)})"
                      if self.processes[n].is_container else n for n in started]
             where = f" on machine {self.machine}" if self.machine is not None else ""

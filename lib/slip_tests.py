@@ -177,8 +177,9 @@ def _load(contact: ContactLike, mu: float) -> tuple[float, float, float, float] 
 
 
 def _stick_margin(gamma: float, params: SlipParams, usable: bool) -> tuple[bool, float]:
-    """``(stick, margin)`` of a load factor γ computed with a status that is ``usable`` or not."""
-    margin = 1.0 - gamma
+    """``(stick, margin)`` of a load factor γ computed with a status that is ``usable`` or not
+    (Python bool and float also where γ is a numpy scalar: a kernel run with numba's JIT off)."""
+    margin = 1.0 - float(gamma)
     return usable and margin >= params.delta, margin
 
 

@@ -4,8 +4,8 @@ Listens to ``slip`` (which carries the load it judged and its COR), ``grip/comma
 ``rig/truth`` and every node's ``diagnostics`` — not to the 1 kHz ``contact``/``cor``
 streams, to keep its share of the CPU small. Every ``status_period_s`` it logs one
 ``STATUS`` line (the launcher redraws it in place on a terminal). On stop it logs the
-summary: slip episodes detected versus true, detection delay, flags without true slip
-(README.md, "Quick start", says how to read them), grip force used, the
+summary: slip episodes detected versus true, detection delay, false alarms and the latch
+hold after slip (one definition: ``lib/episodes.py``, docs/math.md §3.2), grip force used, the
 control path's health, dropped frames and the recording's path; with ``summary_path``
 it also writes them as JSON, and with ``check_path`` a pass/fail verdict (see
 :func:`check_problems`).
@@ -51,16 +51,19 @@ import tempfile
 import dataclasses
 from dataclasses import dataclass, field
 
-from slipstack.lib.episodes import INCIPIENT_SHARE, EpisodeTracker
+from slipstack.lib.episodes import EpisodeTracker
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.late_ticks import BEHIND_REAL_TIME_ADVICE
-from slipstack.lib.status import SLIP_STATES
+from slipstack.lib.status import SLIP_STATES, SlipState
 from slipstack.messages import Diagnostics, GripCommand, RigTruth, Slip
 from slipstack.nodes.runtime.logs import DETAIL_PREFIX
 from slipstack.nodes.runtime.node import Context, Input, Node
 
 __all__ = ["Monitor", "MonitorParams", "Problem", "summarise", "health_problems", "check_problems", "format_summary",
-           "format_details", "status_line"]
+           "format_details", "status_line", "CALIBRATION_STATUSES"]
+
+CALIBRATION_STATUSES = ("uncalibrated", "calibrated-online", "refused-material")
+"""The slip detector's statuses when no identified material gives its thresholds."""
 
 _LOSS_KEYS = (".rejected", ".lost", ".dropped_hwm")  # ".dropped" is drain-to-latest, on purpose
 FAIL_SAFE = "fail-safe"
@@ -256,7 +259,7 @@ class Monitor(Node):
         self.slip_frames += 1
         slipping = msg.state in SLIP_STATES
         self.slip_verdicts += slipping
-        self.episodes.add_verdict(msg.header.stamp_ns, slipping)
+        self.episodes.add_verdict(msg.header.stamp_ns, slipping, msg.state != SlipState.NO_CONTACT)
         self.last["slip"] = msg
 
     def on_grip(self, msg: GripCommand, ctx: Context) -> None:
@@ -266,7 +269,7 @@ class Monitor(Node):
     def on_truth(self, msg: RigTruth, ctx: Context) -> None:
         self.truth_frames += 1
         self.applied_f_n_sum += msg.f_n_applied
-        self.episodes.add_truth(msg.header.stamp_ns, msg.gross_slip, msg.sliding_fraction >= INCIPIENT_SHARE)
+        self.episodes.add_truth(msg.header.stamp_ns, msg.gross_slip)
         self.last["truth"] = msg
         self.commands.truth_seen()
 
@@ -292,7 +295,13 @@ class Monitor(Node):
         cmds, fail_safe = self.commands.count - cmds0, self.commands.fail_safe - fs0
         self._at_status = (now, self.slip_frames, self.commands.count, self.commands.fail_safe)
         ctx.log("STATUS " + status_line(self.last, rate, (fail_safe, cmds), sorted(self.silent_nodes(now)),
-                                        sorted(self.disconnected_nodes())))
+                                        sorted(self.disconnected_nodes()), self.detector_calibration()))
+
+    def detector_calibration(self) -> str | None:
+        """The slip detector's status when its thresholds are not from an identified material
+        (``uncalibrated: ...``, ``calibrated-online: ...``, ``refused-material: ...``); None otherwise."""
+        watch = self.nodes.get("slip_detector")
+        return watch.status if watch is not None and watch.status.split(":")[0] in CALIBRATION_STATUSES else None
 
     def stop(self, ctx: Context) -> None:
         self.episodes.finish()
@@ -331,10 +340,12 @@ def write_json_atomically(path: str, content: dict) -> None:
 
 
 def status_line(last: dict[str, object], rate_hz: float, fail_safe: tuple[int, int] = (0, 0),
-                silent: list[str] | None = None, disconnected: list[str] | None = None) -> str:
+                silent: list[str] | None = None, disconnected: list[str] | None = None,
+                calibration: str | None = None) -> str:
     """One line: state, f_n, command, margin, COR, detector rate; then, when there are
     any, the fail-safe commands ``fail_safe = (held, of commands)`` since the last line,
-    the silent nodes and the nodes whose device is disconnected."""
+    the silent nodes, the nodes whose device is disconnected, and the detector's
+    calibration when no identified material gives its thresholds."""
     slip = last.get("slip")
     grip = last.get("grip")
     parts = [f"state={slip.state if slip else '-':<11}"]
@@ -354,6 +365,8 @@ def status_line(last: dict[str, object], rate_hz: float, fail_safe: tuple[int, i
         parts.append("SILENT " + ",".join(silent))
     if disconnected:
         parts.append("DISCONNECTED " + ",".join(disconnected))
+    if calibration:
+        parts.append(calibration.split(":")[0].upper())
     return "  ".join(parts)
 
 
@@ -385,13 +398,14 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "slip_frames": m.slip_frames,
         "true_episodes": m.episodes.episode_count if truth else None,
         "detected_episodes": m.episodes.detected if truth else None,
-        "already_flagged_episodes": m.episodes.already_flagged if truth else None,
         "missed_episodes": m.episodes.missed if truth else None,
-        "detection_lead_ms": m.episodes.lead_ns / 1e6,
         "detection_delay_ms_p50": q.delay_percentile_ms(50) if q.delays_ns and truth else None,
         "detection_delay_ms_p95": q.delay_percentile_ms(95) if q.delays_ns and truth else None,
+        "latch_hold_ms_p50": q.hold_percentile_ms(50) if q.holds_ns and truth else None,
+        "latch_hold_ms_p95": q.hold_percentile_ms(95) if q.holds_ns and truth else None,
         "stick_frames": q.stick_frames if truth else None,
-        "flag_without_slip_share": q.flag_without_slip_share if truth else None,
+        "false_alarm_share": q.false_alarm_share if truth else None,
+        "latch_hold_share": q.latch_hold_share if truth else None,
         "slip_verdicts": m.slip_verdicts,
         "grip_commands": cmd.count,
         "grip_command_mean_n": cmd.f_n_sum / cmd.count if cmd.count else None,
@@ -419,6 +433,7 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "silent_nodes": silent_now,
         # with a simulated rig, the devices close when its scene ends: only earlier losses count
         "disconnected_nodes": m.disconnected_nodes(truth.header.stamp_ns if truth else None),
+        "detector_calibration": m.detector_calibration(),
         "nodes_that_went_silent": went_silent,
         "nodes_restarted_after_silence": sorted(name for name, w in m.nodes.items() if w.restarted),
         "recording": m.params.recording if m.params.recording and os.path.exists(m.params.recording) else "",
@@ -613,6 +628,8 @@ def format_summary(s: dict, p: MonitorParams | None = None, *, verbose: bool = F
               for peers in s.get("clock_offsets", {}).values() for peer, c in sorted(peers.items())]
     if clocks:
         rows.append("clocks: " + ", ".join(clocks) + " (other machines' minus ours)")
+    if s["detector_calibration"]:
+        rows.append("detector: " + s["detector_calibration"])
     if s["recording"]:
         rows.append("recording: " + s["recording"])
     rows = [_clip(row) for row in rows]
@@ -628,16 +645,13 @@ def _truth_rows(s: dict, p: MonitorParams) -> list[str]:
         slip = "no true slip episode"
     else:
         slip = f"{found} of {n} true episodes detected ({s['missed_episodes']} missed)"
-        measured = found - s["already_flagged_episodes"]
-        if measured:
+        if found:
             slip += f", delay p50 {s['detection_delay_ms_p50']:.1f} ms, p95 {s['detection_delay_ms_p95']:.1f} ms"
-        if s["already_flagged_episodes"]:
-            slip += f", {s['already_flagged_episodes']} flagged ahead"
     rows.append("slip: " + slip)
-    share = s["flag_without_slip_share"]
+    share = s["false_alarm_share"]
     reading = "" if not share else (" (early warnings acted on)" if s["grip_commands"] else " (false alarms)")
     rows.append(f"flags: {_pct(share) if share is None else f'{share * 100:.2f}%'} of {s['stick_frames']} sticking "
-                f"frames flagged as slip{reading}")
+                f"frames flagged outside slip{reading}")
     rows.append(f"grip: commanded mean {_num(s['grip_command_mean_n'], '.2f')} N, peak "
                 f"{_num(s['grip_command_peak_n'], '.2f')} N; applied mean {_num(s['applied_f_n_mean_n'], '.2f')} N")
     return rows
@@ -703,7 +717,7 @@ def format_details(s: dict, problems: list[Problem]) -> list[str]:
         lines += [
             f"slip episodes: {s['detected_episodes']} detected of {s['true_episodes']} true, {s['missed_episodes']} missed",
             _delay_line(s),
-            _flag_without_slip_line(s),
+            _false_alarm_line(s),
             f"grip force commanded: mean {_num(s['grip_command_mean_n'], '.2f')} N, peak "
             f"{_num(s['grip_command_peak_n'], '.2f')} N; applied mean {_num(s['applied_f_n_mean_n'], '.2f')} N",
             f"object slid {_num(s['slip_distance_mm'], '.2f')} mm and turned {_num(s['slip_angle_deg'], '.2f')} deg in all",
@@ -715,6 +729,8 @@ def format_details(s: dict, problems: list[Problem]) -> list[str]:
             f"grip force commanded: mean {_num(s['grip_command_mean_n'], '.2f')} N, peak "
             f"{_num(s['grip_command_peak_n'], '.2f')} N",
         ]
+    if s["detector_calibration"]:
+        lines.append(f"detector {s['detector_calibration']}")
     if not s["grip_commands"]:
         lines.append("control path: no grip commands (a detection-only graph, or the controller never ran)")
     else:
@@ -753,34 +769,26 @@ def format_details(s: dict, problems: list[Problem]) -> list[str]:
 
 
 def _delay_line(s: dict) -> str:
-    """Detection delay over the episodes whose flag rose in their window; those whose flag
-    was already up when the window opened are counted apart (no delay is measured)."""
-    early = s["already_flagged_episodes"]
-    measured = s["detected_episodes"] - early
+    """Detection delay (flag rise − true onset; negative: a warning) over the detected episodes."""
     if not s["true_episodes"]:
         return "detection delay: - (no true slip episode)"
     if not s["detected_episodes"]:
         return "detection delay: - (no episode detected)"
-    if not measured:
-        return (f"detection delay: none to measure: on {'all ' if early > 1 else ''}{early} detected episode"
-                f"{'s' if early != 1 else ''} the flag was already up {s['detection_lead_ms']:g} ms before the onset "
-                "(early warning)")
-    line = (f"detection delay: p50 {s['detection_delay_ms_p50']:.1f} ms, p95 {s['detection_delay_ms_p95']:.1f} ms"
-            f" over {measured} episode{'s' if measured != 1 else ''}")
-    if early:
-        line += (f"; {early} more with the flag already up {s['detection_lead_ms']:g} ms before the onset "
-                 "(early warning, no delay measured)")
-    return line
+    n = s["detected_episodes"]
+    return (f"detection delay: p50 {s['detection_delay_ms_p50']:.1f} ms, p95 {s['detection_delay_ms_p95']:.1f} ms"
+            f" over {n} episode{'s' if n != 1 else ''} (negative: a warning before the onset)")
 
 
-def _flag_without_slip_line(s: dict) -> str:
-    """The share of truly sticking frames the detector flagged as slip, read for what it is:
-    with the controller on, mostly the early warnings it acted on (so no gross slip
-    followed); with no grip commands, false alarms."""
+def _false_alarm_line(s: dict) -> str:
+    """The share of truly sticking frames flagged outside every episode's window, read for
+    what it is: with the controller on, mostly the early warnings it acted on (so no gross
+    slip followed); with no grip commands, false alarms. The latch hold after slip apart."""
     reading = ("controller on: mostly early warnings it acted on, so no gross slip followed" if s["grip_commands"]
                else "no grip commands: false alarms")
-    share = s["flag_without_slip_share"]
+    share = s["false_alarm_share"]
+    hold = s["latch_hold_share"]
     return (f"slip flag without true slip: {share * 100:.2f}% of {s['stick_frames']} sticking frames"
+            + (f", {hold * 100:.2f}% of them the latch held after a slip" if hold else "")
             + (f" ({reading})" if share else ""))
 
 

@@ -29,6 +29,7 @@ from slipstack.lib.rig.actuator import CommandWatchdog
 from slipstack.lib.rig.scene import Scene, load_scene, with_rig_material
 from slipstack.lib.samples import FtSample, TactileSample
 from slipstack.lib.rig.simulator import Simulator, Truth, compile_kernels as compile_rig_kernels
+from slipstack.lib.protocols.crc import compile_kernels as compile_crc_kernels
 from slipstack.lib.toml_file import resolve_path
 from slipstack.messages import GripCommand, RigTruth
 from slipstack.nodes.devices.emulators import (
@@ -117,6 +118,7 @@ class Rig(Node):
     def start(self, ctx: Context) -> None:
         p, scene = self.params, self.scene
         compile_rig_kernels()  # loaded before the scene starts, not on its first slip or re-shape
+        compile_crc_kernels()  # the device emulators frame CRCs from the first sample on
         self.sim = Simulator(scene)
         if scene.ft.enabled:
             self.ft_dev = {

@@ -23,6 +23,7 @@ from hypothesis import HealthCheck, settings
 
 from slipstack.lib.fusion import compile_kernels as compile_fusion_kernels
 from slipstack.lib.limit_set import compile_kernels
+from slipstack.lib.protocols.crc import compile_kernels as compile_crc_kernels
 from slipstack.lib.rig.simulator import compile_kernels as compile_rig_kernels
 
 _COMMON = {"deadline": None, "suppress_health_check": [HealthCheck.too_slow]}
@@ -33,3 +34,4 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE") or ("ci" if os.enviro
 compile_kernels()
 compile_fusion_kernels()
 compile_rig_kernels()
+compile_crc_kernels()

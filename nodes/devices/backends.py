@@ -55,6 +55,7 @@ import numpy as np
 from slipstack.lib.config import ConfigTable
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.protocols import ati_rdt, bota, dsacon32, m1616, robotiq
+from slipstack.lib.protocols.crc import compile_kernels as compile_crc_kernels
 from slipstack.lib.protocols.framed import FramedCodec, FramedFormat
 from slipstack.lib.protocols.stream import Deframer
 from slipstack.lib.samples import FtSample, TactileSample
@@ -183,6 +184,7 @@ class _SerialBackend(Backend):
 
     def __init__(self, url: str, path: str, params: ConfigTable) -> None:
         super().__init__(url, params)
+        compile_crc_kernels()  # the serial protocols frame CRCs: loaded before the first frame
         baud = params.integer("baud", self.default_baud, lo=1)
         self._link = SerialLink(path, baudrate=baud, stale_after_s=self.stale_after_s,
                                 backoff_min_s=self.backoff_min_s, backoff_max_s=self.backoff_max_s,

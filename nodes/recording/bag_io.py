@@ -53,7 +53,7 @@ __all__ = [
     "SCHEMA_ENCODING", "MESSAGE_ENCODING", "ROS2_MESSAGE_ENCODING", "CLOCK_METADATA", "RecordingError", "RecordedFrame",
     "RecordingWriter", "RECORDING_FORMATS", "recording_writer", "claim_recording_path", "read_recording", "TopicInfo", "RecordingInfo", "recording_info",
     "message_schema", "clock_offset_ns", "recorded_clock_offset_ns",
-    "replay_into", "same_output", "match_outputs",
+    "replay_into", "FLOAT_RTOL", "FLOAT_ATOL", "same_value", "same_output", "match_outputs",
 ]
 
 MESSAGE_ENCODING = "msgpack"
@@ -560,12 +560,51 @@ def replay_into(
     return dict(ex.published)
 
 
+FLOAT_RTOL = 1e-9
+"""Relative tolerance of :func:`same_output` for float64 values (float32: 8 of its ulps, 9.5e-7);
+docs/portability.md §1 says why replays compare floats with one."""
+FLOAT_ATOL = 1e-12
+"""Absolute floor of that tolerance, in the field's SI unit (for values that cancel to ~0)."""
+
+
+def _float_rtol(dtype: np.dtype) -> float:
+    return max(FLOAT_RTOL, 8 * float(np.finfo(dtype).eps))
+
+
+def same_value(x: Any, y: Any) -> bool:
+    """True if ``x`` and ``y`` are the same field value: floats within :data:`FLOAT_RTOL` /
+    :data:`FLOAT_ATOL` (NaN equal to NaN, infinities exact); integers, strings, booleans and
+    array dtypes and shapes exact; dicts, lists and tuples item by item."""
+    if isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
+        if not (isinstance(x, np.ndarray) and isinstance(y, np.ndarray)) or x.dtype != y.dtype or x.shape != y.shape:
+            return False
+        if x.dtype.kind not in "fc":
+            return bool(np.array_equal(x, y))
+        return bool(np.isclose(x, y, rtol=_float_rtol(x.dtype), atol=FLOAT_ATOL, equal_nan=True).all())
+    if (isinstance(x, float) or isinstance(y, float)) and _is_number(x) and _is_number(y):
+        x, y = float(x), float(y)
+        if math.isnan(x) or math.isnan(y):
+            return math.isnan(x) and math.isnan(y)
+        return x == y or (math.isfinite(x) and math.isfinite(y)
+                          and abs(x - y) <= FLOAT_ATOL + FLOAT_RTOL * max(abs(x), abs(y)))
+    if isinstance(x, dict) and isinstance(y, dict):
+        return x.keys() == y.keys() and all(same_value(x[k], y[k]) for k in x)
+    if isinstance(x, (list, tuple)) and isinstance(y, (list, tuple)):
+        return len(x) == len(y) and all(same_value(a, b) for a, b in zip(x, y))
+    return bool(x == y)
+
+
+def _is_number(x: Any) -> bool:
+    return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, (bool, np.bool_))
+
+
 def same_output(a: Message, b: Message, *, check_seq: bool = False) -> str | None:
     """``None`` if ``a`` and ``b`` are the same output, else the first differing field.
 
     Same means: same type, equal ``header.stamp_ns`` and ``header.sources`` (and
-    ``header.seq`` if ``check_seq``), and equal body fields (arrays: same dtype, shape
-    and values, NaN equal to NaN). ``header.pub_ns`` is ignored: it is executor time.
+    ``header.seq`` if ``check_seq``), and body fields that are :func:`same_value` (floats
+    within the stated tolerance, everything else exact). ``header.pub_ns`` is ignored:
+    it is executor time.
     """
     if type(a) is not type(b):
         return f"type ({a.TYPE} vs {b.TYPE})"
@@ -577,11 +616,8 @@ def same_output(a: Message, b: Message, *, check_seq: bool = False) -> str | Non
         return f"header.seq ({a.header.seq} vs {b.header.seq})"
     for name in a._body_fields:  # type: ignore[attr-defined]
         x, y = getattr(a, name), getattr(b, name)
-        if isinstance(x, np.ndarray):
-            if x.dtype != y.dtype or x.shape != y.shape or not np.array_equal(x, y, equal_nan=x.dtype.kind == "f"):
-                return name
-        elif x != y and not (isinstance(x, float) and math.isnan(x) and isinstance(y, float) and math.isnan(y)):
-            return f"{name} ({x!r} vs {y!r})"
+        if not same_value(x, y):
+            return name if isinstance(x, np.ndarray) else f"{name} ({x!r} vs {y!r})"
     return None
 
 

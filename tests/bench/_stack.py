@@ -166,7 +166,7 @@ class StackRun:
         return self.proc.poll() is None
 
     def log(self) -> str:
-        self._log.flush()
+        """What the launcher wrote (it writes the file itself: nothing to flush here)."""
         return self.log_path.read_text(errors="replace")
 
     def stop(self, timeout_s: float = 15.0) -> list[int]:

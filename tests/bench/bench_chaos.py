@@ -32,6 +32,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from _versions import print_versions  # noqa: E402
 from _stack import StackRun, free_udp_port, long_scene, pid_alive  # noqa: E402
 
 from slipstack.messages import decode  # noqa: E402
@@ -90,6 +91,7 @@ def main() -> int:
     ap.add_argument("--every", type=float, default=3.0, help="seconds between kills")
     ap.add_argument("--hogs", type=int, default=0, help="busy-loop processes beside the stack")
     args = ap.parse_args()
+    print_versions()
 
     hogs = [multiprocessing.Process(target=_hog, daemon=True) for _ in range(args.hogs)]
     for h in hogs:

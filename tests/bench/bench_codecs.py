@@ -36,6 +36,7 @@ from slipstack.messages import (
     handed_over,
 )
 from slipstack.nodes.devices.emulators import Dsacon32Emulator, M1616Emulator, RdtUdpServer
+from _versions import print_versions
 
 
 def _per_call_us(fn, n: int) -> float:
@@ -206,6 +207,7 @@ def main() -> None:
     ap.add_argument("--messages", action="store_true", help="only the messages' hand-over, encoding and decoding")
     ap.add_argument("--calls", type=int, default=10000, help="calls per message measurement (the best of 7 runs)")
     args = ap.parse_args()
+    print_versions()
 
     print(f"{'message':14s} {'hand-over':>9s} {'encode':>7s} {'both':>6s} {'decode':>7s}  (CPU µs per message)")
     rows = bench_messages(args.calls)

@@ -45,6 +45,7 @@ import zmq
 
 from slipstack.messages import decode
 from slipstack.nodes.devices.emulators import Dsacon32Emulator, M1616Emulator, RdtUdpServer
+from _versions import print_versions
 
 CLK_TCK = os.sysconf("SC_CLK_TCK")
 
@@ -194,6 +195,7 @@ def main() -> None:
     ap.add_argument("--tight", type=int, metavar="N", default=0,
                     help="instead: the driver's on_readable CPU per sample in this process, no bus, N samples")
     args = ap.parse_args()
+    print_versions()
     if args.tight:
         for name in args.case or ["rdt", "m1616", "dsacon32"]:
             print(f"{name:<10}{tight_loop_us(name, args.tight):8.1f} us CPU per sample (on_readable, median of 5)")

@@ -24,6 +24,7 @@ from slipstack.lib.fusion import fuse
 from slipstack.lib.pad import PadGeometry
 from slipstack.lib.slip_tests import SLIP_TESTS, SlipParams
 from slipstack.lib.status import SolverStatus
+from _versions import print_versions
 
 PADS = [PadGeometry(4, 4, 2e-3), PadGeometry(8, 8, 1.25e-3), PadGeometry(16, 16, 1.25e-3)]
 
@@ -86,6 +87,7 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=100_000, help="number of random frames (default 1e5)")
     ap.add_argument("--seed", type=int, default=7, help="random seed")
     args = ap.parse_args()
+    print_versions()
     rng = np.random.default_rng(args.seed)
     params = SlipParams(mu=0.5)
     failures: Counter = Counter()

@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from _versions import print_versions
 from _stack import ProcSampler, StackRun, free_udp_port, long_scene
 from bench_stack_latency import LIGHT_TOPICS, Dist, Tap, _counter_window, _ms, _table, split_watchdog_repeats
 
@@ -152,6 +153,7 @@ def _start_flood(args: argparse.Namespace, graph_path: Path, kind: str) -> subpr
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    print_versions()
     if args.worker:
         flood(args.graph, args.worker, args.rate, args.big_mb, args.payload, args.phase)
         return 0

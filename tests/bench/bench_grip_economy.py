@@ -59,6 +59,7 @@ from slipstack.launch.launch_file import load_launch_file
 from slipstack.launch.lockstep import run_launch_file
 from slipstack.analysis.grip_oracle import oracle_series
 from slipstack.nodes.rig import load_scene_by_name
+from _versions import print_versions
 
 DEFAULT_SCENES = ["fig12", "fig14", "fig15", "default"]
 DEFAULT_LAWS = ["ft13", "tactile14", "tactile14:delta=0.25", "exact"]
@@ -258,6 +259,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--png-scene", help="scene for --png (default: fig15 if run, else the first)")
     parser.add_argument("--cache", type=Path, help="directory to cache runs in (re-used when parameters match)")
     args = parser.parse_args(argv)
+    print_versions()
 
     prepared = {name: prepare(name) for name in args.scenes}
     runs = [(sc, beta, law) for sc, beta in prepared.values() for law in args.laws if runnable(law, sc)]

@@ -29,6 +29,7 @@ from slipstack.lib.limit_set import load_factor, torsional_coefficient
 from slipstack.lib.pad import PadGeometry
 from slipstack.lib.slip_tests import SLIP_TESTS, SlipParams
 from slipstack.lib.weber import solve_weber
+from _versions import print_versions
 
 MU = 0.5
 
@@ -238,6 +239,7 @@ def main() -> None:
     ap.add_argument("--crosscheck", type=int, default=1000, help="brute-force cases at 16x16 (default 1000)")
     ap.add_argument("--seed", type=int, default=1, help="random seed")
     args = ap.parse_args()
+    print_versions()
     rng = np.random.default_rng(args.seed)
     rows, agree = timing_table(args.sizes, args.frames, rng)
     print_timing(rows, agree)

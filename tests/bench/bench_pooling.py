@@ -20,6 +20,7 @@ import numpy as np
 
 from slipstack.lib.limit_set import load_factor
 from slipstack.lib.pad import PadGeometry
+from _versions import print_versions
 
 MU = 0.45
 PAD = PadGeometry()
@@ -59,6 +60,7 @@ def main() -> None:
     ap.add_argument("--loads", type=int, default=400, help="loads per field (default 400)")
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args()
+    print_versions()
     rng = np.random.default_rng(args.seed)
     print("| field | pool | taxels | p50 µs | p99 µs | γ err p95 | γ err worst | false stick | false slip |")
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")

@@ -26,6 +26,7 @@ import slipstack.launch
 from slipstack.lib.rig.scene import Scene, load_scene
 from slipstack.lib.samples import FtSample, TactileSample
 from slipstack.lib.rig.simulator import Simulator, Truth
+from _versions import print_versions
 
 SCENES_DIR = Path(slipstack.launch.__file__).parent / "scenes"
 
@@ -72,6 +73,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--check", action="store_true",
                         help="also run at [expect] holds_at_N and verify the stated outcomes")
     args = parser.parse_args(argv)
+    print_versions()
     paths = [Path(s) if s.endswith(".toml") else SCENES_DIR / f"{s}.toml" for s in args.scenes]
     paths = paths or sorted(SCENES_DIR.glob("*.toml"))
 

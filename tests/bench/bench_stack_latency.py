@@ -60,6 +60,7 @@ import msgpack
 import numpy as np
 import zmq
 
+from _versions import print_versions
 from _stack import ProcSampler, StackRun, free_udp_port, long_scene
 from slipstack.nodes.runtime.stage_cpu import STAGE_CPU_ENV
 
@@ -586,6 +587,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    print_versions()
     report = Report()
     with tempfile.TemporaryDirectory(prefix="ssb-scene-", dir="/tmp") as tmp:
         scene = long_scene(args.scene, args.warmup + args.duration + 30.0, Path(tmp) / "long.toml")

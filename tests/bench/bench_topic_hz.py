@@ -22,6 +22,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from _versions import print_versions
 
 import numpy as np
 
@@ -56,6 +57,7 @@ def main() -> None:
     ap.add_argument("--settle", type=float, default=2.0, help="seconds left out of the CPU figure (default 2)")
     ap.add_argument("--window", type=int, default=1000, help="hz window in messages (default 1000)")
     args = ap.parse_args()
+    print_versions()
     with tempfile.TemporaryDirectory(prefix="bh-", dir="/tmp") as root:
         env = dict(os.environ, SLIPSTACK_RUN_ROOT=root, PYTHONUNBUFFERED="1")
         cli = [sys.executable, "-m", "slipstack.launch.cli"]

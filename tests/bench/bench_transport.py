@@ -45,6 +45,7 @@ import numpy as np
 
 from slipstack.messages import Header, Message, TactileFrame, Wrench, decode, encode
 from slipstack.nodes.runtime.node import Input, Node, Output
+from _versions import print_versions
 
 WARMUP = 200  # first messages left out of the statistics
 
@@ -429,6 +430,7 @@ def main() -> None:
     ap.add_argument("--profile", action="store_true",
                     help="print per-step codec costs and the receive path's cost per wake-up, and exit")
     args = ap.parse_args()
+    print_versions()
     if args.profile:
         profile()
         receive_path()

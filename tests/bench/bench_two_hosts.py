@@ -41,6 +41,7 @@ from pathlib import Path
 import msgpack
 import numpy as np
 
+from _versions import print_versions
 from _stack import StackRun, free_udp_port, long_scene
 
 from slipstack.launch.launch_file import launch_files_dir
@@ -155,6 +156,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--hops", type=int, default=5000, help="frames per transport in the one-hop part (default 5000)")
     p.add_argument("--json", metavar="FILE", help="also write the rows as JSON")
     args = p.parse_args(argv)
+    print_versions()
     with tempfile.TemporaryDirectory(prefix="ssb2-") as tmp_dir:
         tmp = Path(tmp_dir)
         keys = tmp / "keys"

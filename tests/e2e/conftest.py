@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
+from progress_deadline import ProgressDeadline, process_tree
 
 PY = sys.executable
 
@@ -29,10 +30,14 @@ class LaunchedGraph:
             stdout=self._log, stderr=subprocess.STDOUT, env=self.env,
         )
 
+    def deadline(self, budget_s: float) -> ProgressDeadline:
+        """``budget_s`` of the time the launcher and its processes could run (not wall time)."""
+        return ProgressDeadline(budget_s, lambda: process_tree(self.proc.pid))
+
     def wait_ready(self, timeout: float = 60.0) -> dict:
         graph = self.run_root / "current" / "graph.json"
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
+        deadline = self.deadline(timeout)
+        while not deadline.expired():
             if self.proc.poll() is not None:
                 raise AssertionError(f"launcher exited early ({self.proc.returncode}):\n{self.log()}")
             if graph.exists():
@@ -40,7 +45,15 @@ class LaunchedGraph:
                 if content.get("state") == "running":
                     return content
             time.sleep(0.05)
-        raise AssertionError(f"graph not ready after {timeout} s:\n{self.log()}")
+        raise AssertionError(f"graph not ready after {deadline}:\n{self.log()}")
+
+    def wait_exit(self, timeout: float) -> int:
+        """The launcher's exit code, once it exits within ``timeout`` s of run time."""
+        deadline = self.deadline(timeout)
+        while self.proc.poll() is None:
+            assert not deadline.expired(), f"launcher still running after {deadline}:\n{self.log()}"
+            time.sleep(0.05)
+        return self.proc.returncode
 
     def graph(self) -> dict:
         return json.loads((self.run_root / "current" / "graph.json").read_text())
@@ -53,7 +66,7 @@ class LaunchedGraph:
         )
 
     def log(self) -> str:
-        self._log.flush()
+        """What the launcher wrote (it writes the file itself: nothing to flush here)."""
         return self.log_path.read_text(errors="replace")
 
     def stop(self, sig: int = signal.SIGINT, timeout: float = 10.0) -> int:

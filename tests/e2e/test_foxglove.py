@@ -9,7 +9,6 @@ subscribes, and decodes what arrives.
 from __future__ import annotations
 
 import json
-import socket
 import struct
 import subprocess
 import sys
@@ -18,6 +17,7 @@ import time
 import numpy as np
 import pytest
 import zmq
+from free_ports import free_port
 
 pytest.importorskip("foxglove", reason="the foxglove extra is not installed")
 sync_client = pytest.importorskip("websockets.sync.client", reason="websockets (a WebSocket client) is not installed")
@@ -29,12 +29,6 @@ pytestmark = pytest.mark.e2e
 
 SUBPROTOCOL = "foxglove.sdk.v1"  # the SDK's name for the Foxglove WebSocket protocol
 MESSAGE_DATA = 0x01
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _frames(k: int) -> list[tuple[str, bytes]]:
@@ -51,7 +45,7 @@ def _frames(k: int) -> list[tuple[str, bytes]]:
 def test_a_websocket_client_subscribes_and_decodes_the_live_graph(tmp_path):
     endpoint = f"ipc://{tmp_path}/bus.pub"
     pub = make_pub(zmq.Context.instance(), endpoint)
-    port = _free_port()
+    port = free_port()
     log = open(tmp_path / "foxglove.log", "wb")
     proc = subprocess.Popen(
         [sys.executable, "-m", "slipstack.launch.cli", "run", "foxglove", f"port:={port}",

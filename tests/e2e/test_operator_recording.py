@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mcap.reader import make_reader
+from progress_deadline import run
 
 from slipstack.launch.launch_file import launch_files_dir
 from slipstack.messages import TactileFrame, decode
@@ -30,8 +31,8 @@ PY = sys.executable
 
 
 def slipstack(*args: str, env: dict | None = None, timeout: float = 120.0) -> subprocess.CompletedProcess:
-    return subprocess.run([PY, "-m", "slipstack.launch.cli", *args], capture_output=True, text=True,
-                          timeout=timeout, env=env or dict(os.environ))
+    """``slipstack ARGS``, given ``timeout`` s of the time its processes could run (not wall time)."""
+    return run([PY, "-m", "slipstack.launch.cli", *args], timeout, env=env or dict(os.environ))
 
 
 LOG_LEVELS = "warning,monitor=info"  # the README's example: the recorder's and the rig's info lines not shown

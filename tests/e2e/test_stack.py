@@ -17,10 +17,11 @@ from slipstack.nodes.rig import load_scene_by_name
 
 pytestmark = pytest.mark.e2e
 
-FLAG_WITHOUT_SLIP_BOUND = 0.20
-"""Share of truly sticking frames a detector may flag as slip: the README's detection
-table gives 0.8–14.8 % for the tests these scenes use (6.6 % for the default exact test
-at δ = 0.18) over every scene; a detector stuck on "slip" scores 100 %."""
+FALSE_ALARM_BOUND = 0.35
+"""False-alarm share a detector may have (``lib/episodes.py``: flagged sticking frames
+outside every episode's window, the loads stuck at their friction after a slip included): a
+loose bound; with the default material these scenes measure 8–18 % (bench_detection.py's
+cache, rubber); a detector stuck on "slip" scores nearly 100 %."""
 
 SCENES = ["fig10", "fig11", "fig12", "fig15"]
 
@@ -31,7 +32,7 @@ def _run(launch, run_root, scene: str, controller: bool) -> dict:
     # for more than 1 % of its commands, which a busy machine can cause; these tests judge the
     # outcome themselves (the check's verdicts are tested in test_launcher.py)
     g = launch(scene, f"controller:={str(controller).lower()}", "record:=false", f"summary:={summary}", "check:=false")
-    code = g.proc.wait(100)  # well within the 120 s test timeout, so a hang shows its log
+    code = g.wait_exit(100)  # in run time: a hang shows its log before the test's timeout
     assert code == 0, g.log()
     assert summary.exists(), g.log()
     return json.loads(summary.read_text())
@@ -90,4 +91,4 @@ def test_without_controller_every_gross_slip_episode_is_flagged(launch, run_root
     assert s["missed_episodes"] == 0 and s["detected_episodes"] == s["true_episodes"], _why(s)
     # ... and not by calling slip everywhere: few truly sticking frames flagged
     assert s["stick_frames"] >= 100, _why(s)
-    assert s["flag_without_slip_share"] <= FLAG_WITHOUT_SLIP_BOUND, _why(s)
+    assert s["false_alarm_share"] <= FALSE_ALARM_BOUND, _why(s)

@@ -4,16 +4,19 @@ The golden recordings (``golden/*.mcap``, described in ``golden_config.py``) hol
 every topic of the whole stack run in lock-step from simulated time 0. Each node is
 built fresh with the recording's parameters, fed its input topics from the file
 (``replay_into``: each frame at its recorded publication time, in recorded order) and
-must reproduce every recorded output exactly — as :func:`match_outputs` compares
-them, and byte for byte on the wire (header seq and pub_ns included), since the
-replay starts where the recording did.
+must reproduce every recorded output as :func:`match_outputs` compares them: integers,
+strings, states and counts exactly (header seq and pub_ns too, since the replay starts
+where the recording did), floats within the stated tolerance of ``same_output`` — a
+CPU with other vector units or another BLAS rounds the last bits differently
+(docs/portability.md §1).
 
 Regenerate after an intended behaviour change (and review the diff it causes)::
 
     .venv/bin/python tests/isolation/make_golden.py
 
 ``test_golden_files_are_fresh`` regenerates them into a temporary folder and compares
-frame by frame (``make_golden.py --check`` does the same from the command line).
+frame by frame by the same rule (``make_golden.py --check`` does the same from the
+command line).
 
 A golden file only says that the code still does what it did when the file was
 written. So each recording is also checked against what must hold whatever the code
@@ -37,7 +40,7 @@ from golden_config import GOLDENS, NODES, Golden, build_node
 from make_golden import compare_recordings, write_golden
 
 from slipstack.lib.pad import PadGeometry
-from slipstack.messages import Message, decode, encode
+from slipstack.messages import Message, decode
 from slipstack.nodes.recording.bag_io import RecordingWriter, match_outputs, read_recording, replay_into
 
 CASES = [(g, n) for g in GOLDENS for n in NODES if g.tactile or n != "cor_estimator"]
@@ -54,7 +57,7 @@ def test_node_reproduces_recorded_outputs(golden: Golden, node_name: str) -> Non
         result = match_outputs(recorded, mine)
         assert result.mismatches == [], result.mismatches[:5]
         assert result.matched == len(recorded) == len(mine) > 50, result
-        assert [encode(m) for m in mine] == [f.payload for f in frames]
+        assert [(m.header.seq, m.header.pub_ns) for m in mine] == [(m.header.seq, m.header.pub_ns) for m in recorded]
 
 
 def test_goldens_cover_slip_onset_and_the_grip_reaction() -> None:
