@@ -122,24 +122,28 @@ def reproduce(out_dir: Path, *, quick: bool = False, only: list[str] | None = No
         with ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker,
                                  initargs=(progress_queue,)) as pool:
             pending: dict[Future, str] = {pool.submit(_run_job, *job(k)): k for k in ready}
-            while pending:
-                finished, _ = wait(pending, timeout=0.5, return_when=FIRST_COMPLETED)
-                while True:
-                    try:
-                        key, fraction = progress_queue.get_nowait()
-                    except queue.Empty:
-                        break
-                    done[key] = max(done[key], min(fraction, 0.99))
-                for future in finished:
-                    key = pending.pop(future)
-                    results[key] = future.result()
-                    done[key] = 1.0
-                if waiting and all(k in results for k in IDENTIFICATION if k in runs_needed):
-                    friction = identify_friction([out_dir / f"{k}.mcap" for k in IDENTIFICATION], out_dir)
-                    pending.update({pool.submit(_run_job, *job(k)): k for k in waiting})
-                    waiting = []
-                running = [k for k in pending.values() if 0.0 < done[k] < 1.0]
-                report(", ".join(running[:3]) if running else "")
+            try:
+                while pending:
+                    finished, _ = wait(pending, timeout=0.5, return_when=FIRST_COMPLETED)
+                    while True:
+                        try:
+                            key, fraction = progress_queue.get_nowait()
+                        except queue.Empty:
+                            break
+                        done[key] = max(done[key], min(fraction, 0.99))
+                    for future in finished:
+                        key = pending.pop(future)
+                        results[key] = future.result()
+                        done[key] = 1.0
+                    if waiting and all(k in results for k in IDENTIFICATION if k in runs_needed):
+                        friction = identify_friction([out_dir / f"{k}.mcap" for k in IDENTIFICATION], out_dir)
+                        pending.update({pool.submit(_run_job, *job(k)): k for k in waiting})
+                        waiting = []
+                    running = [k for k in pending.values() if 0.0 < done[k] < 1.0]
+                    report(", ".join(running[:3]) if running else "")
+            except BaseException:  # Ctrl-C (the workers get it too) or a failed run: start nothing more
+                pool.shutdown(wait=False, cancel_futures=True)
+                raise
     if progress:
         progress("figures", 1.0)
     texts = [catalogue.FIGURES[key](*[results[k] for k in figure_runs(key, quick)], out_dir) for key in keys]
