@@ -146,7 +146,7 @@ def measured(*runs_and_out) -> FigureText:
         f"An F/T sensor measures the friction the contact transmits, and friction never transmits more than it can: "
         f"on measured data γ ≤ 1 up to noise (docs/math.md §3.1). Over {len(runs)} detection-only runs "
         f"({', '.join(keys)}) the largest γ of (11) is {max(gamma_max.values()):.3f}; at the {len(onsets)} true "
-        f"onsets with a verdict it lies between {_span(onsets)}. (11) on its own detects "
+        f"onsets with a verdict it lies in {_span(onsets)}. (11) on its own detects "
         f"{plain.episodes - plain.missed} of {plain.episodes} episodes{where}. The onset band flags when the contact "
         f"is at its limit, γ ≥ 1 − δ, and the latch holds the flag through the drop to sliding friction: with it "
         f"(11) misses {band.missed}, median delay {_p(band, 50)} ms (negative: before the onset), false alarms "

@@ -237,10 +237,10 @@ def sensitivity(*runs_and_out) -> FigureText:
     for ax in axes[:, 0]:
         ax.yaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
     axes[0, 2].legend(fontsize=8)
-    scenes = ", ".join(sorted({r.scene for r in runs}))
-    per_scene = len(nominal) // max(len({r.scene for r in nominal}), 1)
-    fig.suptitle(f"Detection against the band, the sensor noise and μ / β errors: {scenes}, {per_scene} seeds "
-                 f"each (controller off; dotted: the material's δ = {material_delta:.3f})", fontsize=10)
+    scenes = ", ".join(f"{scene} ×{sum(r.scene == scene for r in nominal)}"
+                       for scene in dict.fromkeys(r.scene for r in nominal))
+    fig.suptitle(f"Detection against the band, the sensor noise and μ / β errors; runs (seeds) at the scenes' noise: "
+                 f"{scenes} (controller off; dotted: the material's δ = {material_delta:.3f})", fontsize=10)
     png = save_png(fig, out, "sensitivity")
     tables = "\n\n".join([
         _HEADER.format(what="band δ") + "\n" + "\n".join(
@@ -257,8 +257,8 @@ def sensitivity(*runs_and_out) -> FigureText:
         "sensitivity", "Beyond the paper — detection against δ, sensor noise and μ or β errors", png,
         "The paper shows its tests on one recorded run each and does not vary its thresholds, its sensors' noise or "
         "its μ and β.",
-        f"Over {len(nominal)} runs of {scenes} at the scenes' noise ({per_scene} seeds each, {episodes} true "
-        f"gross-slip episodes), and at each other noise the runs with seed {', '.join(map(str, noise_seeds))} "
+        f"Over {len(nominal)} runs at the scenes' noise ({scenes} seeds; {episodes} true gross-slip episodes), "
+        f"and at each other noise the runs with seed {', '.join(map(str, noise_seeds))} "
         f"(the same noise drawn, scaled; {by_noise['exact'][0].episodes} episodes), every test's load factors "
         f"replayed once and its latch run again for each setting. Detection as docs/math.md §3.2 defines it: "
         f"missed = no flag from {LEAD_NS / 1e6:g} ms before the onset to the end; delay = the flag's rise − the "
