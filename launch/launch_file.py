@@ -78,7 +78,7 @@ from typing import Any, Callable
 
 from slipstack.lib.config import read_flag, read_number
 from slipstack.lib.errors import ConfigError
-from slipstack.lib.toml_file import resolve_path
+from slipstack.lib.toml_file import loads as toml_loads, resolve_path
 from slipstack.nodes.runtime.curve import GraphKeys
 from slipstack.nodes.catalog import node_class
 from slipstack.nodes.runtime.node import Node, make_params
@@ -146,9 +146,9 @@ class NodeEntry:
                 self.respawn_standby, self.required, self.transport, self.nice, self.realtime_priority, self.stop_first,
                 self.machine)
 
-    def instance(self) -> Node:
-        """Build the node object (validates the parameters)."""
-        return self.cls(make_params(self.cls.Params, self.params, self.name))
+    def instance(self, **options: Any) -> Node:
+        """Build the node object (validates the parameters); ``options``: the node class's own keywords."""
+        return self.cls(make_params(self.cls.Params, self.params, self.name), **options)
 
     def output_topics(self, node: Node) -> dict[str, str]:
         return {n: self.remap.get(o.topic, o.topic) for n, o in node.outputs.items()}
@@ -307,7 +307,7 @@ def arg_comments(path: Path) -> dict[str, str]:
                 comments[m.group(1)] = inline or " ".join(above)
         above = []
     try:
-        base_name = tomllib.loads(text).get("launch", {}).get("extends")
+        base_name = toml_loads(text).get("launch", {}).get("extends")
     except tomllib.TOMLDecodeError:
         base_name = None
     if isinstance(base_name, str):
@@ -321,7 +321,7 @@ def arg_comments(path: Path) -> dict[str, str]:
 def _parses(toml_line: str) -> bool:
     """True if ``toml_line`` is a whole ``key = value`` (so a ``#`` after it starts a comment)."""
     try:
-        tomllib.loads(toml_line)
+        toml_loads(toml_line)
     except tomllib.TOMLDecodeError:
         return False
     return True
@@ -342,7 +342,7 @@ def _parse_toml(p: Path) -> dict[str, Any]:
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{p}: cannot read it ({exc})") from None
     try:
-        return tomllib.loads(text)
+        return toml_loads(text)
     except tomllib.TOMLDecodeError as exc:
         message = str(exc)
         at = re.search(r" \(at line (\d+), column (\d+)\)$", message)

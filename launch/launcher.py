@@ -45,6 +45,7 @@ import json
 import os
 import selectors
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -64,12 +65,14 @@ from slipstack.launch.peers import PeerLinks, launcher_endpoint
 from slipstack.launch.priority import (
     grant_realtime_priority, has_realtime_priority, set_autogroup_nice,
 )
-from slipstack.launch.plan import (PEER_WAIT_S, NodePlan, ProcessPlan, launcher_pub_endpoints, plan_launch,
-                                   relay_endpoint, remote_sources, runs_on)
+from slipstack.launch.plan import (PEER_WAIT_S, NodePlan, ProcessPlan, launcher_pub_endpoints, machine_endpoints,
+                                   plan_launch, relay_endpoint, remote_sources, runs_on)
 from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.nodes.devices.sim_link import SIM_PREFIX
 from slipstack.launch.quiet_shutdown import WorldEndFilter, WorldLogLevels
 from slipstack.launch.run_log import RunLog, log_path_for
+from slipstack.nodes.monitor import write_json_atomically
+from slipstack.nodes.recording.loss import NUMBERED_REPORT, RECORDING_REPORT, loss_text
 from slipstack.nodes.runtime.logs import DETAIL_PREFIX, LOG_LEVEL_ENV, parse_log_levels
 from slipstack.nodes.runtime.curve import INSECURE_ENV, KEYS_ENV, MACHINE_ENV, GraphKeys, machine_env, use_keys
 from slipstack.nodes.runtime.graph_info import process_start_ticks, write_graph
@@ -77,6 +80,7 @@ from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.run_dir import finish_run_dir, make_run_dir, remove_run_dir, write_private_file
 from slipstack.nodes.runtime.remote_sources import REMOTE_SOURCES_ENV
 from slipstack.nodes.runtime.time_base import CLOCK_OFFSET_ENV
+from slipstack.nodes.runtime.transport import LISTEN_FDS_ENV, listening_socket
 
 __all__ = ["Launcher", "add_parser", "main_launch"]
 
@@ -84,6 +88,9 @@ READY_TIMEOUT_S = 20.0
 STOP_GRACE_S = 0.4       # per node, after SIGINT, before the next node is told to stop
 TERM_AFTER_S = 1.5       # from the start of shutdown: SIGTERM whoever is left
 KILL_AFTER_S = 2.5       # from the start of shutdown: SIGKILL whoever is left
+RESPAWN_PRIORITY = 1     # SCHED_FIFO of a restarting process until it is ready (where the launcher may set it)
+FINISH_LIMIT_S = 60.0    # then the recorder and the monitor: time to write what they hold (docs/safety.md)
+FINISH_NOTE_S = 3.0      # said on the terminal once it takes this long
 CLOCK_EXCHANGES = 10     # ping exchanges with the first machine before its clock offset is used
 DRIFT_CHECK_S = 5.0      # how often the clock offset in use is compared with a fresh estimate
 EVENTS_FILE = "launch_events.json"
@@ -173,6 +180,11 @@ class Launcher:
             name: _Process(p.name, p.members, p.spec_path, p.spec) for name, p in self.plan.processes.items()}
         self.order: list[str] = self.plan.order  # process names, in start order
         self._stop_requested = False
+        self._signals = 0
+        self._numbered: dict[str, dict[str, int]] = {}
+        self._summary_gap = ""
+        """What the run's summary misses (the monitor died and nothing was recorded); "" if nothing."""
+        """Node → topic → frames it published, as its process stopped (its stop report)."""
         self.exit_code = 0
         self.start_ticks = process_start_ticks(os.getpid())
         world = {n: tuple(p.node_names) for n, p in self.processes.items() if p.entry.stop_first}
@@ -181,6 +193,40 @@ class Launcher:
                                          {n for n, p in self.processes.items() if p.runs_device_driver})
         for proc in self.processes.values():
             write_private_file(self.run_dir, proc.spec_path.name, json.dumps(proc.spec, indent=1))
+        self.held_ports: dict[str, socket.socket] = {}
+        """tcp endpoint → the listening socket held for the node that binds it, the whole launch."""
+        self._claim_tcp_ports()
+
+    def _claim_tcp_ports(self) -> None:
+        """Bind every tcp port this machine's nodes publish on before any starts, and hold it for the
+        whole launch: a node's socket takes it over (nodes/runtime/transport.py: listening_socket), so
+        a port stays claimed while its node restarts and nothing else can take it meanwhile."""
+        fixed = set(machine_endpoints(self.launch).values())
+        for c in self.processes.values():
+            for member in c.members:
+                for ep in {member.endpoint, member.remote_endpoint} - {None}:
+                    if not ep.startswith("tcp://") or ep in self.held_ports:
+                        continue
+                    try:
+                        self.held_ports[ep] = listening_socket(ep)
+                    except OSError as exc:
+                        self._release_ports()
+                        where = (f"a port the launch file fixes ([machines.{member.entry.machine}] ports); stop that "
+                                 "process (`ss -ltnp` shows who) or give the machine other ports, on every machine"
+                                 if ep in fixed else "a free port a moment ago; stop that process (`ss -ltnp` shows "
+                                 "who) or start the launch again, which picks another")
+                        raise SlipstackError(f"node {member.entry.name} cannot have {ep} ({exc.strerror}): {where}") \
+                            from None
+
+    def _release_ports(self) -> None:
+        for sock in self.held_ports.values():
+            sock.close()
+        self.held_ports.clear()
+
+    def _listen_fds(self, c: _Process) -> dict[str, int]:
+        """The held listening sockets of ``c``'s members: endpoint → descriptor (inherited by its process)."""
+        return {ep: sock.fileno() for ep, sock in self.held_ports.items()
+                if any(ep in (m.endpoint, m.remote_endpoint) for m in c.members)}
 
     # -- processes --------------------------------------------------------------------------
     def _spawn(self, c: _Process) -> None:
@@ -220,6 +266,9 @@ class Launcher:
         env = dict(os.environ, PYTHONUNBUFFERED="1", SLIPSTACK_RUN_DIR=str(self.run_dir),
                    **{LOG_LEVEL_ENV: self._world_levels.spec_for(c.name)})
         env.update(self._security_env())
+        listen = self._listen_fds(c)
+        if listen:
+            env[LISTEN_FDS_ENV] = json.dumps(listen)
         if self.clock_offset_ns:
             env[CLOCK_OFFSET_ENV] = str(self.clock_offset_ns)
         if self.remote_sources:
@@ -238,7 +287,7 @@ class Launcher:
         proc = subprocess.Popen(
             cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
             stdin=subprocess.PIPE if standby else subprocess.DEVNULL,
-            env=env, preexec_fn=in_child, start_new_session=True,
+            env=env, preexec_fn=in_child, start_new_session=True, pass_fds=tuple(listen.values()),
         )
         os.set_blocking(proc.stdout.fileno(), False)
         self.selector.register(proc.stdout, selectors.EVENT_READ, c)
@@ -486,6 +535,7 @@ class Launcher:
 
     def _on_signal(self, signum: int, frame: object) -> None:
         self._stop_requested = True
+        self._signals += 1
 
     # -- the run ------------------------------------------------------------------------------
     def run(self) -> int:
@@ -530,6 +580,10 @@ class Launcher:
                 self.relay.close()
             if self.clock_report is not None:
                 self.clock_report.close()
+            self._release_ports()
+        recording = self._read_recording_report()
+        self._summary_from_recording(recording)
+        self._report_recording(recording)
         self._report_events()
         if self.launch.check:
             self._report_check()
@@ -561,9 +615,12 @@ class Launcher:
                     return
 
     def _note_ready_reports(self) -> None:
-        """Read the ready reports of respawned nodes; say how long each process was gone."""
+        """Read the ready reports of respawned nodes (say how long each process was gone) and the
+        stop reports (what each node published, for the recorder's count of what it misses)."""
         while self.control.poll(0):
             event = msgpack.unpackb(self.control.recv())
+            if event.get("event") == "stopped" and isinstance(event.get("numbered"), dict):
+                self._numbered[str(event.get("node"))] = event["numbered"]
             if event.get("event") != "ready":
                 continue
             for c in self.processes.values():
@@ -585,6 +642,8 @@ class Launcher:
         self.echo(f"[launch] respawning {c.name} (restart {c.budget_used}/{c.entry.respawn_max_retries}) "
                   f"from {how}")
         self._spawn(c)
+        if c.entry.realtime_priority and c.proc is not None:  # the graph waits for it: ahead of other work,
+            grant_realtime_priority(c.proc.pid, RESPAWN_PRIORITY)  # behind the running nodes; its own once ready
         self._write_graph()
 
     def _on_exit(self, c: _Process, now: float) -> bool:
@@ -635,6 +694,8 @@ class Launcher:
         """What failed the run: the monitor's ``check.json`` problems (none expected without a monitor in
         the launch), processes that died and stayed down."""
         problems = monitor_check_problems(self.launch, self.run_dir, self.machine)
+        if self._summary_gap:
+            problems.append(self._summary_gap)
         for c in self.processes.values():
             if c.abandoned:
                 problems.append(f"{c.name} abandoned after {c.restarts} restarts")
@@ -660,8 +721,24 @@ class Launcher:
         self._world_end.world_ending()
         for c in self.processes.values():
             self._dismiss_standby(c)
-        t0 = time.monotonic()
         live = [p for p in self._stop_order(started) if p.proc is not None]
+        self._stop_graph([c for c in live if not c.outlives_graph])
+        self._note_ready_reports()
+        try:  # the recorder counts what its file misses against it
+            write_private_file(self.run_dir, NUMBERED_REPORT, json.dumps(self._numbered))
+        except OSError as exc:
+            self.echo(f"[launch] cannot write {NUMBERED_REPORT} in the run directory ({exc.strerror})")
+        self._let_finish([c for c in live if c.outlives_graph])
+        for c in live:
+            c.proc.wait()
+        self._forward_logs(0.0)
+        closing = self._world_end.closing_line()
+        if closing:
+            self.echo(closing)
+
+    def _stop_graph(self, live: list[_Process]) -> None:
+        """Stop ``live`` in order: SIGINT, then SIGTERM and SIGKILL to whoever is left."""
+        t0 = time.monotonic()
         for c in live:
             if c.proc.poll() is None:
                 c.proc.send_signal(signal.SIGINT)
@@ -676,12 +753,85 @@ class Launcher:
                 if c.proc.poll() is None:
                     self.echo(f"[launch] {c.name} still running; sending {sig.name}")
                     c.proc.send_signal(sig)
-        for c in live:
-            c.proc.wait()
-        self._forward_logs(0.0)
-        closing = self._world_end.closing_line()
-        if closing:
-            self.echo(closing)
+
+    def _let_finish(self, live: list[_Process]) -> None:
+        """Stop the recorder and the monitor once the rest has stopped, and wait while they write
+        what they still hold, up to :data:`FINISH_LIMIT_S` (a further Ctrl-C cuts it short)."""
+        running = [c for c in live if c.proc.poll() is None]
+        for c in running:
+            c.proc.send_signal(signal.SIGINT)
+        t0, signals, said = time.monotonic(), self._signals, False
+        while any(c.proc.poll() is None for c in running):
+            waited = time.monotonic() - t0
+            if waited > FINISH_LIMIT_S or self._signals > signals:
+                break
+            if not said and waited > FINISH_NOTE_S:
+                said = True
+                names = ", ".join(c.name for c in running if c.proc.poll() is None)
+                self.echo(f"[launch] waiting for {names} to finish writing (at most {FINISH_LIMIT_S:g} s; "
+                          "Ctrl-C again to stop now)")
+            self._forward_logs(0.05)
+        for c in running:
+            if c.proc.poll() is None:
+                why = "Ctrl-C again" if self._signals > signals else f"not done after {FINISH_LIMIT_S:g} s"
+                self.echo(f"[launch] {c.name} stopped with SIGKILL ({why}): what it still held is lost"
+                          + (" and its file is unfinished (bag info reads it up to its last chunk; missing ?)"
+                             if any(m.entry.cls.taps_bus for m in c.members) else ""))
+                c.proc.send_signal(signal.SIGKILL)
+
+    def _read_recording_report(self) -> dict | None:
+        """The recorder's report in the run directory (its file and what it misses); ``None`` if none."""
+        try:
+            fd = os.open(self.run_dir / RECORDING_REPORT, os.O_RDONLY | os.O_NOFOLLOW)
+            with os.fdopen(fd, "rb") as fh:
+                report = json.loads(fh.read(CHECK_FILE_MAX_BYTES))
+            if isinstance(report.get("topics"), dict) and isinstance(report.get("path"), str):
+                return report
+            raise ValueError("not a recorder's report")
+        except FileNotFoundError:
+            return None
+        except (OSError, ValueError, AttributeError) as exc:
+            self.echo(f"[launch] the recorder's {RECORDING_REPORT} is unreadable ({exc})")
+            return None
+
+    def _summary_from_recording(self, recording: dict | None) -> None:
+        """The monitor died during the run (or did not finish): its summary would cover only the time
+        since it came back, or be missing. Sum the run up from the recording instead, into the same
+        summary and check files; without a recording, say what the summary misses."""
+        monitor = next((c for c in self.processes.values() if any(m.entry.type == "monitor" for m in c.members)), None)
+        if monitor is None or not (monitor.deaths or (monitor.proc is not None and monitor.proc.returncode)):
+            return
+        path = recording["path"] if recording else ""
+        if not path or not os.path.isfile(path):
+            self._summary_gap = (f"the monitor died {monitor.deaths}x and nothing was recorded: its summary covers "
+                                 "only the time since it came back")
+            self.echo(f"[launch] {self._summary_gap}")
+            return
+        self.echo(f"[launch] the monitor died {monitor.deaths}x during the run: the run's summary from the "
+                  f"recording {path}")
+        member = next(m for m in monitor.members if m.entry.type == "monitor")
+        from slipstack.nodes.monitor import summary_from_recording
+
+        summary_from_recording(member.entry.instance(graph_nodes=set(self.children)), path,
+                               lambda line: self.echo(line.replace("[monitor]", "[monitor, from the recording]", 1)))
+
+    def _report_recording(self, report: dict | None) -> None:
+        """The recorder's count of what its file misses: one line, and ``recording_loss`` in the
+        summary JSON."""
+        if report is None:
+            return
+        loss = report["topics"]
+        self.echo(f"[launch] recording {report['path']}: {loss_text(loss, topics_shown=1)}")
+        summary = next((e.params.get("summary_path") for e in self.launch.nodes
+                        if e.type == "monitor" and self.plan.is_local(e) and e.params.get("summary_path")), None)
+        if summary and os.path.isfile(summary):
+            try:
+                with open(summary, encoding="utf-8") as fh:
+                    doc = json.load(fh)
+                doc["recording_loss"] = loss
+                write_json_atomically(summary, doc)
+            except (OSError, ValueError) as exc:
+                self.echo(f"[launch] cannot add the recording's loss to {summary} ({exc})")
 
 
 def monitor_check_problems(launch: LaunchFile, run_dir: Path, machine: str | None = None) -> list[str]:

@@ -84,6 +84,11 @@ class ProcessPlan:
         return any(issubclass(m.entry.cls, DeviceDriver) for m in self.members)
 
     @property
+    def outlives_graph(self) -> bool:
+        """A member records or sums up the others (``Node.outlives_graph``): stopped last, given time to finish."""
+        return any(m.entry.cls.outlives_graph for m in self.members)
+
+    @property
     def is_container(self) -> bool:
         return bool(self.entry.container)
 

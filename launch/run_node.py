@@ -127,7 +127,7 @@ def _executor(members: list[tuple[Node, RunSpec]]) -> ProcessExecutor:
         names = ", ".join(spec.name for _, spec in members)
         raise SlipstackError(
             f"{names}: cannot bind its socket: {exc}. Another process holds that address: stop it (`ss -ltnp` "
-            "shows who), or restart the launch, which picks a free port"
+            "shows who) or give another address"
         ) from None
 
 

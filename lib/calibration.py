@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ConfigError
+from .toml_file import loads as toml_loads
 
 __all__ = ["Calibration", "CalibratedFrame", "load_calibration", "save_calibration"]
 
@@ -126,7 +127,7 @@ class Calibration:
     def from_toml(cls, text: str) -> Calibration:
         """Parse TOML text; ConfigError names the problem."""
         try:
-            d = tomllib.loads(text)
+            d = toml_loads(text)
         except tomllib.TOMLDecodeError as e:
             raise ConfigError(f"calibration: not valid TOML: {e}") from e
         unknown = set(d) - {"counts", "pressure_pa", "gain", "dead", "saturation_counts"}

@@ -44,6 +44,7 @@ from slipstack.nodes.runtime.node import Context, IoSource, Node
 
 __all__ = ["DeviceDriver"]
 
+_STARTING = "starting"  # not a link status: the first poll reports whatever it finds
 _LINK_OK = LinkStatus.OK.value  # looked up once: next_deadline_ns runs between every two simulated instants
 _COUNTER_SYNC_NS = 50_000_000  # mirror back-end counters at most every 50 ms (and at stop)
 
@@ -75,7 +76,7 @@ class DeviceDriver(Node):
             raise ConfigError(f"{self.name}: {p.url!r} is a {self.backend.kind} device; use one of {wanted}")
         self.status_period_ns = round(p.stale_status_period_ms * 1e6)
         self.sample_period_s = 1.0 / self.backend.rate_hz
-        self.status = "starting"  # not a link status: the first poll reports whatever it finds
+        self.status = _STARTING
         self._reported_error = ""
         self._last_status_pub_ns: int | None = None
         self._sources: list[IoSource] = []
@@ -98,8 +99,7 @@ class DeviceDriver(Node):
 
     # -- node interface --------------------------------------------------------------------
     def start(self, ctx: Context) -> None:
-        self.backend.open(ctx.now_ns())
-        self._after_poll(ctx)
+        self.backend.open(ctx.now_ns())  # its status is published at the first deadline, once subscribers are in
 
     def stop(self, ctx: Context) -> None:
         self.backend.close()
@@ -126,6 +126,8 @@ class DeviceDriver(Node):
         return due
 
     def on_deadline(self, ctx: Context) -> None:
+        if self.status == _STARTING:
+            self._after_poll(ctx)
         now = ctx.now_ns()
         deadline = self.backend.next_deadline_ns()
         if deadline is not None and now >= deadline:

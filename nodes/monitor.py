@@ -50,17 +50,20 @@ import os
 import tempfile
 import dataclasses
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
 
 from slipstack.lib.episodes import EpisodeTracker
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.late_ticks import BEHIND_REAL_TIME_ADVICE
 from slipstack.lib.status import SLIP_STATES, SlipState
 from slipstack.messages import Diagnostics, GripCommand, RigTruth, Slip
+from slipstack.nodes.runtime.graph_info import RUN_DIR_ENV, read_graph
 from slipstack.nodes.runtime.logs import DETAIL_PREFIX
 from slipstack.nodes.runtime.node import Context, Input, Node
 
 __all__ = ["Monitor", "MonitorParams", "Problem", "summarise", "health_problems", "check_problems", "format_summary",
-           "format_details", "status_line", "CALIBRATION_STATUSES"]
+           "format_details", "status_line", "summary_from_recording", "CALIBRATION_STATUSES"]
 
 CALIBRATION_STATUSES = ("uncalibrated", "calibrated-online", "refused-material")
 """The slip detector's statuses when no identified material gives its thresholds."""
@@ -75,6 +78,17 @@ of a latest-value input is reported on the HEALTH line (at the paper rates fusio
 path is falling behind). Other skips (the rig acting on the newest grip command) are
 only listed."""
 SENSOR_TOPICS = ("ft/wrench", "tactile/frame")
+MAX_OTHER_NODES = 32
+"""Senders of diagnostics outside the graph (tools, other names) the monitor watches; frames of
+further ones are counted and dropped (a flood of made-up names must not grow it)."""
+MAX_KEPT_COUNTERS = 512
+MAX_COUNTER_NAME = 160
+"""Counters kept per node, and the longest name kept (characters)."""
+SILENT_SHOWN = 5
+"""Silent nodes named on the live line; the rest are counted."""
+SUSPECT_DEVICE_COUNTERS = {"rejected_bytes": "bytes rejected", "crc_errors": "frames failing their check",
+                           "implausible_records": "records out of the stream", "bad_frames": "inconsistent frames"}
+"""Driver counters (``device.<name>``, nodes/devices/backends.py) that mean the link carried what no sensor sent."""
 
 
 @dataclass(frozen=True)
@@ -103,6 +117,15 @@ class MonitorParams:
                 raise ConfigError(f"monitor: {name} must be a finite number > 0, got {value!r}")
         if not (0.0 <= self.check_fail_safe_share <= 1.0):
             raise ConfigError(f"monitor: check_fail_safe_share must be in [0, 1], got {self.check_fail_safe_share!r}")
+        for name in ("summary_path", "check_path"):
+            path = getattr(self, name)
+            if path and os.path.isdir(path):
+                raise ConfigError(f"monitor: {name} {path} is a directory; give a file in it "
+                                  f"(summary:={os.path.join(path, 'summary.json')})")
+        folder = os.path.dirname(os.path.abspath(self.summary_path))
+        if self.summary_path and not os.path.isdir(folder):
+            raise ConfigError(f"monitor: the folder of summary_path {self.summary_path} does not exist; create it "
+                              "or give a path in a folder that does")
 
 
 @dataclass
@@ -218,7 +241,7 @@ class NodeWatch:
             self.silences += gap > silent_after_ns
             self.restarted |= gap > silent_after_ns and self.last_seq is not None and msg.header.seq <= self.last_seq
         self.last_seq = msg.header.seq
-        self.counters = msg.counters
+        self.counters = _kept(msg.counters)
         self.status = msg.status
         if not msg.status.startswith(DISCONNECTED):
             self.disconnected_since_ns = None
@@ -226,6 +249,20 @@ class NodeWatch:
             self.disconnected_since_ns = stamp
         self.last_seen_ns = now_ns
         self.last_stamp_ns = stamp
+
+
+def _kept(counters: dict) -> dict:
+    """The counters of one report the monitor keeps: at most :data:`MAX_KEPT_COUNTERS`, names of
+    at most :data:`MAX_COUNTER_NAME` characters (a node's own are far fewer and shorter)."""
+    if len(counters) <= MAX_KEPT_COUNTERS and all(len(k) <= MAX_COUNTER_NAME for k in counters):
+        return counters
+    kept = {}
+    for key, value in counters.items():
+        if len(key) <= MAX_COUNTER_NAME:
+            kept[key] = value
+            if len(kept) == MAX_KEPT_COUNTERS:
+                break
+    return kept
 
 
 class Monitor(Node):
@@ -239,9 +276,15 @@ class Monitor(Node):
         "diagnostics": Input("diagnostics", Diagnostics, policy="queue", depth=1000),
     }
     Params = MonitorParams
+    outlives_graph = True  # a launch stops it last and lets it write the summary
 
-    def __init__(self, params: MonitorParams | None = None) -> None:
+    def __init__(self, params: MonitorParams | None = None, *, graph_nodes: set[str] | None = None) -> None:
+        """``graph_nodes``: the names of the graph's nodes, whose silence the monitor judges
+        (``None``: read from the run's ``graph.json`` at start, if launched; else every sender)."""
         super().__init__(params)
+        self.graph_nodes = graph_nodes
+        self.ignored_diagnostics = 0
+        """Diagnostics frames from senders beyond :data:`MAX_OTHER_NODES` outside the graph, not watched."""
         self.timers = {"status": self.params.status_period_s}
         self.episodes = EpisodeTracker()
         self.commands = CommandStats()
@@ -273,13 +316,32 @@ class Monitor(Node):
         self.last["truth"] = msg
         self.commands.truth_seen()
 
+    def start(self, ctx: Context) -> None:
+        if self.graph_nodes is None and os.environ.get(RUN_DIR_ENV):
+            try:
+                self.graph_nodes = set(read_graph(Path(os.environ[RUN_DIR_ENV]))["nodes"])
+            except (OSError, ValueError, KeyError, TypeError):
+                ctx.log("warning: cannot read the graph's node list; every sender of diagnostics is judged")
+
     def on_diagnostics(self, msg: Diagnostics, ctx: Context) -> None:
-        self.nodes.setdefault(msg.node, NodeWatch()).report(msg, ctx.now_ns(), self._silent_after_ns)
+        watch = self.nodes.get(msg.node)
+        if watch is None:
+            others = sum(not self.in_graph(name) for name in self.nodes)
+            if not self.in_graph(msg.node) and others >= MAX_OTHER_NODES:
+                self.ignored_diagnostics += 1
+                return
+            watch = self.nodes[msg.node] = NodeWatch()
+        watch.report(msg, ctx.now_ns(), self._silent_after_ns)
+
+    def in_graph(self, name: str) -> bool:
+        """A node of the graph (every sender when the graph's node list is not known)."""
+        return self.graph_nodes is None or name in self.graph_nodes
 
     def silent_nodes(self, now_ns: int) -> dict[str, float]:
-        """Nodes silent now (longer than ``silent_after_s``): name → seconds since their last report."""
+        """Nodes of the graph silent now (longer than ``silent_after_s``): name → seconds since
+        their last report (a tool that ended, or a forged name, is no silent node)."""
         return {name: (now_ns - w.last_seen_ns) / 1e9 for name, w in self.nodes.items()
-                if now_ns - w.last_seen_ns > self._silent_after_ns}
+                if now_ns - w.last_seen_ns > self._silent_after_ns and self.in_graph(name)}
 
     def disconnected_nodes(self, since_before_ns: int | None = None) -> dict[str, str]:
         """Nodes whose latest diagnostics say ``disconnected``: name → that status; with
@@ -313,12 +375,26 @@ class Monitor(Node):
                 ctx.log(DETAIL_PREFIX + line)
         problems = health_problems(summary, self.params)
         summary["health"] = [dataclasses.asdict(x) for x in problems]
-        if self.params.summary_path:
-            write_json_atomically(self.params.summary_path, summary)
+        files = [(self.params.summary_path, summary)] if self.params.summary_path else []
         if self.params.check_path:
             failed = [x for x in problems if x.fails_check]
-            write_json_atomically(self.params.check_path, {"passed": not failed, "problems": [x.text for x in failed],
-                                                           "short": [x.short for x in failed]})
+            files.append((self.params.check_path, {"passed": not failed, "problems": [x.text for x in failed],
+                                                   "short": [x.short for x in failed]}))
+        for path, content in files:
+            try:
+                write_json_atomically(path, content)
+            except OSError as exc:  # a full disk: the lines above are the summary
+                ctx.report_error(f"cannot write {path} ({exc.strerror})")
+
+
+def summary_from_recording(monitor: Monitor, path: str, log: Callable[[str], None]) -> None:
+    """Run ``monitor`` over the recording ``path`` (its inputs, each at the time the recorder
+    received it): its summary goes to ``log`` (the live STATUS lines left out) and to its
+    summary and check files, as at the end of a run. The launch does this when its monitor
+    died during the run, which would otherwise sum up only the time since it came back."""
+    from slipstack.nodes.recording.bag_io import replay_into
+
+    replay_into(monitor, path, log=lambda line: None if "] STATUS " in line else log(line))
 
 
 def write_json_atomically(path: str, content: dict) -> None:
@@ -362,7 +438,8 @@ def status_line(last: dict[str, object], rate_hz: float, fail_safe: tuple[int, i
     if held:
         parts.append(f"FAIL-SAFE {held / commands * 100:.0f}% ({held} of {commands} commands)")
     if silent:
-        parts.append("SILENT " + ",".join(silent))
+        more = f" +{len(silent) - SILENT_SHOWN}" if len(silent) > SILENT_SHOWN else ""
+        parts.append("SILENT " + ",".join(silent[:SILENT_SHOWN]) + more)
     if disconnected:
         parts.append("DISCONNECTED " + ",".join(disconnected))
     if calibration:
@@ -389,7 +466,7 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         for node, w in m.nodes.items()
     }
     silent_now = m.silent_nodes(now_ns)
-    went_silent = {name: w.longest_silence_ns / 1e9 for name, w in m.nodes.items() if w.silences}
+    went_silent = {name: w.longest_silence_ns / 1e9 for name, w in m.nodes.items() if w.silences and m.in_graph(name)}
     truth = m.last.get("truth")
     judged, judged_fail_safe = cmd.judged(with_rig=truth is not None)
     late, age_max_ns = cmd.late_while_running(with_rig=truth is not None)
@@ -437,6 +514,10 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "nodes_that_went_silent": went_silent,
         "nodes_restarted_after_silence": sorted(name for name, w in m.nodes.items() if w.restarted),
         "recording": m.params.recording if m.params.recording and os.path.exists(m.params.recording) else "",
+        "recorders": _recorders(m.nodes),
+        "device_rejects": _device_rejects(m.nodes),
+        "diagnostics_senders_outside_graph": sorted(name for name in m.nodes if not m.in_graph(name)),
+        "diagnostics_ignored": m.ignored_diagnostics,
         "clock_offsets": _clock_offsets(m.nodes),
     }
 
@@ -445,14 +526,31 @@ def _ft_samples(nodes: dict[str, NodeWatch]) -> dict[str, float]:
     """F/T samples over the run: ``received`` by fusion (its ``ft/wrench`` input), ``carried``
     in its contacts, ``judged`` by the slip test (a verdict on valid data or a loss of
     contact; the rest had no usable data and held the grip)."""
-    totals = {"received": 0.0, "carried": 0.0, "judged": 0.0}
+    totals = {"received": 0.0, "carried": 0.0, "judged": 0.0, "implausible": 0.0}
     for w in nodes.values():
         c = w.counters
         if "fusion.samples" in c:
             totals["received"] += c.get("in.ft/wrench.received", 0)
             totals["carried"] += c["fusion.samples"]
+            totals["implausible"] += c.get("fusion.implausible_ft", 0)
         totals["judged"] += c.get("slip_test.samples_judged", 0)
     return totals
+
+
+def _device_rejects(nodes: dict[str, NodeWatch]) -> dict[str, dict[str, float]]:
+    """Per driver, its device counters that say the link carried what no sensor sent."""
+    out = {}
+    for node, w in sorted(nodes.items()):
+        seen = {k: w.counters[f"device.{k}"] for k in SUSPECT_DEVICE_COUNTERS if w.counters.get(f"device.{k}")}
+        if seen:
+            out[node] = seen
+    return out
+
+
+def _recorders(nodes: dict[str, NodeWatch]) -> dict[str, dict]:
+    """Each recorder's status and how often it fell behind (its counters ``recorder.*``)."""
+    return {node: {"status": w.status, "fell_behind": w.counters.get("recorder.fell_behind", 0)}
+            for node, w in sorted(nodes.items()) if "recorder.written" in w.counters}
 
 
 def _clock_offsets(nodes: dict[str, NodeWatch]) -> dict[str, dict[str, dict[str, float]]]:
@@ -508,7 +606,8 @@ def health_problems(s: dict, p: MonitorParams) -> list[Problem]:
     more than allowed, too many fail-safe commands, missed episodes, a silent node, no
     valid sensor data at all), then what is only reported (disconnected
     devices, signs of falling behind)."""
-    return _check_problems(s, p) + _silence_problems(s) + _device_problems(s) + _behind_problems(s)
+    return (_check_problems(s, p) + _silence_problems(s) + _device_problems(s) + _behind_problems(s)
+            + _sensor_problems(s) + _recording_problems(s))
 
 
 def check_problems(s: dict, p: MonitorParams) -> list[str]:
@@ -566,6 +665,46 @@ def _device_problems(s: dict) -> list[Problem]:
 def device_problems(s: dict) -> list[str]:
     """Drivers whose device was disconnected at the end, in words."""
     return [x.text for x in _device_problems(s)]
+
+
+def _sensor_problems(s: dict) -> list[Problem]:
+    """Sensors under attack or off: device links that carried what no sensor sends (forged,
+    stray or garbage data), an F/T sensor reading implausibly low against the pad (biased,
+    tared under load, or spoofed); diagnostics from made-up senders beyond the bound."""
+    out = []
+    for node, seen in sorted(s.get("device_rejects", {}).items()):
+        what = ", ".join(f"{SUSPECT_DEVICE_COUNTERS[k]} {v:g}" for k, v in sorted(seen.items()))
+        out.append(Problem(f"{node}: its link carried invalid data ({what.split(',')[0]})",
+                           f"{node}'s device link carried data that is no valid sample ({what}): forged, stray or "
+                           "garbage datagrams, another program writing to the link, or bytes lost or damaged on "
+                           "it; find what else writes to it (docs/drivers.md)", False))
+    ft = s.get("ft_samples") or {}
+    if ft.get("implausible"):
+        out.append(Problem(f"F/T implausibly low vs the pad in {ft['implausible']:g} samples",
+                           f"the F/T sensor read implausibly low against the pad in {ft['implausible']:g} of "
+                           f"{ft['received']:g} samples (biased, tared under load, or spoofed): the grip was held; "
+                           "tare it unloaded (docs/safety.md, clause 7)", False))
+    if s.get("diagnostics_ignored"):
+        out.append(Problem(f"{s['diagnostics_ignored']:g} diagnostics from unknown senders ignored",
+                           f"{s['diagnostics_ignored']:g} diagnostics frames from more than {MAX_OTHER_NODES} senders "
+                           "outside the graph were ignored (made-up node names on the bus?)", False))
+    return out
+
+
+def _recording_problems(s: dict) -> list[Problem]:
+    """A recorder that cannot write its file (a full disk) or fell behind."""
+    out = []
+    for node, r in sorted(s.get("recorders", {}).items()):
+        if r["status"].startswith("error: cannot write the recording"):
+            why = r["status"].split(": ")[-1]
+            out.append(Problem(f"recorder cannot write its file ({why})",
+                               f"the recorder cannot write its file ({why}): the frames since are counted, not "
+                               "recorded (the launch's recording line says how many)", False))
+        elif r["fell_behind"]:
+            out.append(Problem(f"{node} fell behind {r['fell_behind']:g}x",
+                               f"{node} fell behind {r['fell_behind']:g}x (frames written over 1 s after they were "
+                               "sent): a busy machine; the launch's recording line says what the file misses", False))
+    return out
 
 
 def _behind_problems(s: dict) -> list[Problem]:

@@ -27,7 +27,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.lib.late_ticks import LateTicks
 from slipstack.lib.rig.actuator import CommandWatchdog
 from slipstack.lib.rig.scene import Scene, load_scene, with_rig_material
-from slipstack.lib.samples import FtSample, TactileSample
+from slipstack.lib.samples import MAX_SAMPLE_RATE_HZ, FtSample, TactileSample
 from slipstack.lib.rig.simulator import Simulator, Truth, compile_kernels as compile_rig_kernels
 from slipstack.lib.protocols.crc import compile_kernels as compile_crc_kernels
 from slipstack.lib.toml_file import resolve_path
@@ -225,7 +225,14 @@ def load_scene_by_name(name: str) -> Scene:
 
 
 def with_rates(scene: Scene, ft_hz: float = 0.0, tactile_hz: float = 0.0, truth_hz: float = 0.0) -> Scene:
-    """``scene`` with its sensor and truth rates (Hz) replaced where the value is > 0."""
+    """``scene`` with its sensor and truth rates (Hz) replaced where the value is > 0.
+
+    Raises:
+        ConfigError: a rate above :data:`~slipstack.lib.samples.MAX_SAMPLE_RATE_HZ`, or not a number.
+    """
+    for name, hz in (("ft_rate_hz", ft_hz), ("tactile_rate_hz", tactile_hz), ("truth_rate_hz", truth_hz)):
+        if not 0.0 <= hz <= MAX_SAMPLE_RATE_HZ:
+            raise ConfigError(f"rig {name} must be 0 (the scene's) up to {MAX_SAMPLE_RATE_HZ:g} Hz, got {hz:g}")
     if ft_hz > 0:
         scene = replace(scene, ft=replace(scene.ft, rate_hz=ft_hz))
     if tactile_hz > 0:

@@ -36,6 +36,7 @@ from slipstack.lib.config import REQUIRED, ConfigTable
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.toml_file import read_toml
 from slipstack.lib.pad import PadGeometry
+from slipstack.lib.samples import MAX_SAMPLE_RATE_HZ
 
 __all__ = [
     "MAX_SUBSAMPLES",
@@ -456,6 +457,10 @@ def _pos(t: ConfigTable, name: str, default: Any) -> float:
     return t.real(name, default, lo=0.0, lo_open=True)
 
 
+def _rate(t: ConfigTable, name: str, default: Any) -> float:
+    return t.real(name, default, lo=0.0, lo_open=True, hi=MAX_SAMPLE_RATE_HZ)
+
+
 def _nonneg(t: ConfigTable, name: str, default: Any) -> float:
     return t.real(name, default, lo=0.0)
 
@@ -480,7 +485,7 @@ def _dead(t: ConfigTable, name: str, default: Any) -> tuple[tuple[int, int], ...
 
 def _ft(t: ConfigTable) -> FtSpec:
     return _simple(t, FtSpec, {
-        "enabled": _flag, "rate_hz": _pos, "origin_m": _vec3,
+        "enabled": _flag, "rate_hz": _rate, "origin_m": _vec3,
         "yaw_rad": lambda t, n, d: t.real(n, d),
         "noise_force_N": _nonneg, "noise_torque_Nm": _nonneg,
         "bias_force_N": _vec3, "bias_torque_Nm": _vec3,
@@ -492,7 +497,7 @@ def _ft(t: ConfigTable) -> FtSpec:
 
 def _tactile(t: ConfigTable) -> TactileSpec:
     return _simple(t, TactileSpec, {
-        "enabled": _flag, "rate_hz": _pos, "p0_Pa": _pos,
+        "enabled": _flag, "rate_hz": _rate, "p0_Pa": _pos,
         "full_scale_counts": lambda t, n, d: t.integer(n, d, lo=1),
         "baseline_counts": _nonneg,
         "gain_spread": lambda t, n, d: t.real(n, d, lo=0.0, hi=0.5),
@@ -539,7 +544,7 @@ def parse_scene(data: Mapping[str, Any], *, source: str = "<scene>") -> Scene:
     sim_t = top.table("sim")
     sim = SimSpec(
         step_us=sim_t.integer("step_us", SimSpec.step_us, lo=1),
-        truth_rate_hz=sim_t.real("truth_rate_hz", SimSpec.truth_rate_hz, lo=0.0, lo_open=True),
+        truth_rate_hz=_rate(sim_t, "truth_rate_hz", SimSpec.truth_rate_hz),
     )
     sim_t.finish()
     sensors = top.table("sensors")

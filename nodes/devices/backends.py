@@ -58,7 +58,7 @@ from slipstack.lib.protocols import ati_rdt, bota, dsacon32, m1616, robotiq
 from slipstack.lib.protocols.crc import compile_kernels as compile_crc_kernels
 from slipstack.lib.protocols.framed import FramedCodec, FramedFormat
 from slipstack.lib.protocols.stream import Deframer
-from slipstack.lib.samples import FtSample, TactileSample
+from slipstack.lib.samples import MAX_SAMPLE_RATE_HZ, FtSample, TactileSample
 from slipstack.lib.sequence import SeqTracker
 
 from . import Freshness, LinkStatus
@@ -91,7 +91,7 @@ class Backend(ABC):
 
     def __init__(self, url: str, params: ConfigTable) -> None:
         self.url = url
-        self.rate_hz = params.real("rate_hz", float(self.default_rate_hz), lo=0.0, lo_open=True)
+        self.rate_hz = params.real("rate_hz", float(self.default_rate_hz), lo=0.0, lo_open=True, hi=MAX_SAMPLE_RATE_HZ)
         default_stale_ms = max(DEFAULT_STALE_PERIODS * 1e3 / self.rate_hz, MIN_DEFAULT_STALE_MS)
         self.stale_after_s = params.real("stale_ms", default_stale_ms) / 1e3
         self.backoff_min_s = params.real("backoff_ms", 50.0) / 1e3

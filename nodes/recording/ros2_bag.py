@@ -80,6 +80,8 @@ class Ros2RecordingWriter(RecordingWriter):
 
     def write(self, topic: str, payload: bytes, log_time_ns: int) -> None:
         """Append one bus frame received at ``log_time_ns`` (wall-clock ns) as its ROS 2 message(s)."""
+        if self._failed(topic):
+            return
         try:
             msg = decode(payload)
             outs = self._codec.to_ros(msg)
@@ -97,13 +99,11 @@ class Ros2RecordingWriter(RecordingWriter):
             self._ros_counts[(name + out.suffix, out.ros_type)] += 1
         self._first_ns = log_time_ns if self._first_ns is None else min(self._first_ns, log_time_ns)
         self._last_ns = max(self._last_ns, log_time_ns)
-        self._written(topic, log_time_ns)
+        self._written(topic, log_time_ns, sum(len(out.cdr) for out in outs))
 
-    def close(self) -> None:
-        """Write rosbag2's metadata record, then finish the file as :meth:`RecordingWriter.close`."""
-        if not self.closed:
-            self._writer.add_metadata(ROSBAG2_METADATA, {"serialized_metadata": self._bag_metadata()})
-        super().close()
+    def close(self, metadata: dict[str, dict[str, str]] | None = None) -> None:
+        """Finish the file as :meth:`RecordingWriter.close`, with rosbag2's metadata record too."""
+        super().close({ROSBAG2_METADATA: {"serialized_metadata": self._bag_metadata()}, **(metadata or {})})
 
     def _bag_metadata(self) -> str:
         start = self._first_ns or 0

@@ -6,7 +6,8 @@ recording (the MCAP records, the chunk index, zstd) cost about a tenth of that c
 the caller appends each frame to a buffer and sends the buffer down the child's stdin
 every :data:`BATCH_BYTES`; the child writes the frames with
 :class:`~slipstack.nodes.recording.bag_io.RecordingWriter`, so the file is, byte for
-byte, the one an in-process writer makes of the same frames.
+byte, the one an in-process writer makes of the same frames, with the same loss record
+(``nodes/recording/loss.py: written_loss``).
 
 Bounds and failures:
 
@@ -149,6 +150,7 @@ def _copy_frames(source: int, path: Path, wall_minus_monotonic_ns: int | None, f
     """Write every frame read from the descriptor ``source`` until its end to ``path`` (format
     ``fmt``); the frame count. It reads what the pipe holds, up to :data:`PIPE_BYTES` at a time."""
     from slipstack.nodes.recording.bag_io import recording_writer
+    from slipstack.nodes.recording.loss import written_loss
 
     count = 0
     pending = bytearray()
@@ -167,6 +169,9 @@ def _copy_frames(source: int, path: Path, wall_minus_monotonic_ns: int | None, f
                 at = end
             view.release()
             del pending[:at]
+            if writer.error is not None:  # a full disk: the caller's close() says so
+                raise writer.error
+        writer.close(written_loss(writer))  # every frame of the run was handed over: what misses was not written
     if pending:
         raise ValueError(f"the frames ended inside a frame after {count} frames ({len(pending)} bytes left over)")
     return count

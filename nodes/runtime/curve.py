@@ -28,8 +28,10 @@ from __future__ import annotations
 import json
 import os
 import shutil
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Iterator
 
 import zmq
 import zmq.auth
@@ -92,11 +94,33 @@ def make_keys(directory: str | Path) -> tuple[Path, Path]:
     d = Path(directory).expanduser()
     if (d / f"{KEY_NAME}.key_secret").exists():
         raise ConfigError(f"{d} already holds a key pair; remove it first to make a new one")
-    d.mkdir(mode=0o700, parents=True, exist_ok=True)
-    os.chmod(d, 0o700)
-    public, secret = zmq.auth.create_certificates(str(d), KEY_NAME)
-    os.chmod(secret, 0o600)
+    with _keys_written(d):
+        _private_dir(d)
+        public, secret = zmq.auth.create_certificates(str(d), KEY_NAME)
+        os.chmod(secret, 0o600)
     return Path(public), Path(secret)
+
+
+@contextmanager
+def _keys_written(directory: Path) -> Iterator[None]:
+    """Key files written into ``directory``: a folder that cannot take them is a ConfigError."""
+    try:
+        yield
+    except OSError as exc:
+        raise ConfigError(f"cannot make keys in {directory} ({exc.strerror}); give a new directory of yours, "
+                          "e.g. `slipstack keys ~/.slipstack/keys`") from None
+
+
+def _private_dir(d: Path) -> None:
+    """``d`` made with mode 0700 (its parents too); an existing one must be an empty directory of
+    this user's (never a folder of other files, whose mode this would change)."""
+    if d.is_dir() and not d.is_symlink() and d.stat().st_uid == os.getuid() and not any(d.iterdir()):
+        os.chmod(d, 0o700)
+        return
+    if os.path.lexists(d):
+        raise ConfigError(f"{d} exists and is not an empty directory of yours; keys go into a directory of their "
+                          "own: give a new one")
+    d.mkdir(mode=0o700, parents=True)
 
 
 def make_machine_keys(directory: str | Path, machines: list[str]) -> list[Path]:
@@ -114,15 +138,17 @@ def make_machine_keys(directory: str | Path, machines: list[str]) -> list[Path]:
     for sub, name in zip(dirs, machines):
         if (sub / f"{name}.key_secret").exists():
             raise ConfigError(f"{sub} already holds a key pair; remove it first to make new ones")
-    for sub, name in zip(dirs, machines):
-        sub.mkdir(mode=0o700, parents=True, exist_ok=True)
-        os.chmod(sub, 0o700)
-        _, secret = zmq.auth.create_certificates(str(sub), name)
-        os.chmod(secret, 0o600)
-    for sub in dirs:
-        for other, name in zip(dirs, machines):
-            if other != sub:
-                shutil.copyfile(other / f"{name}.key", sub / f"{name}.key")
+    with _keys_written(d):
+        if not d.is_dir() or d.is_symlink():
+            _private_dir(d)
+        for sub, name in zip(dirs, machines):
+            _private_dir(sub)
+            _, secret = zmq.auth.create_certificates(str(sub), name)
+            os.chmod(secret, 0o600)
+        for sub in dirs:
+            for other, name in zip(dirs, machines):
+                if other != sub:
+                    shutil.copyfile(other / f"{name}.key", sub / f"{name}.key")
     return dirs
 
 

@@ -123,6 +123,9 @@ class Node:
     """True for a timer-paced source (the rig): sleep to the exact tick, deaf to input
     for under a millisecond; otherwise the executor rounds timer wake-ups up to the
     next millisecond and never stops listening."""
+    outlives_graph: ClassVar[bool] = False
+    """True for a node that records or sums up the others (recorder, monitor): a launch stops
+    it after every other process, and gives it time to finish (launch/launcher.py)."""
     Params: ClassVar[type] = NoParams
 
     def __init__(self, params: Any = None) -> None:

@@ -41,11 +41,14 @@ def _check_private_dir(path: Path) -> None:
         raise ConfigError(f"run root {path} cannot be used ({exc.strerror}); remove it, "
                           f"or set ${RUN_ROOT_ENV} to a private directory") from None
     uid = os.getuid()
+    link = os.lstat(path)
     problem = None
     if not stat.S_ISDIR(st.st_mode):
         problem = "not a directory"
-    elif st.st_uid != uid or os.lstat(path).st_uid != uid:
+    elif st.st_uid != uid:
         problem = f"owned by uid {st.st_uid}, not by you (uid {uid})"
+    elif link.st_uid != uid:
+        problem = f"a symbolic link owned by uid {link.st_uid}, not by you (uid {uid})"
     elif st.st_mode & 0o077:
         problem = f"open to other users (mode {stat.S_IMODE(st.st_mode):04o})"
     if problem:

@@ -120,8 +120,20 @@ def format_info(info) -> str:  # noqa: ANN001 — a bag_io.RecordingInfo
     width = max((len(t) for t in info.topics), default=5)
     for t in info.topics.values():
         lines.append(f"  {t.topic:<{width}}  {t.count:>8} msgs  {t.rate_hz:9.1f} Hz  seq {t.first_seq}..{t.last_seq}  "
-                     f"gaps {t.seq_gaps:<5} {', '.join(t.types)}")
+                     f"gaps {t.seq_gaps:<5} missing {_missing(t):<8} {', '.join(t.types)}")
+    if any(t.missing is None for t in info.topics.values()):
+        lines.append("missing ?: not known: the recorder did not close the file (killed, or an older recording); "
+                     "frames sent after its end are not counted")
+    if any(not t.loss.get("exact", True) for t in info.topics.values()):
+        lines.append("missing ≥N: at least; a publisher's last diagnostics (what it sent) never reached the recorder")
     return "\n".join(lines)
+
+
+def _missing(t) -> str:  # noqa: ANN001 — a bag_io.TopicInfo
+    """Frames sent and not in the file: ``0``, ``N`` (exact), ``≥N`` (at least) or ``?`` (not known)."""
+    if t.missing is None:
+        return "?"
+    return f"{'' if t.loss.get('exact', True) else '≥'}{t.missing}"
 
 
 def _main_info(args: argparse.Namespace) -> int:

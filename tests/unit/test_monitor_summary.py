@@ -466,7 +466,7 @@ def test_the_summary_counts_the_ft_samples_fusion_received_carried_and_the_slip_
                                                                        "fusion.samples": 7000})))
     events.append((61 * MS, "diagnostics", _diag("slip_detector", 61 * MS, **{"slip_test.samples_judged": 6990})))
     s, logs, _ = monitor_over(events, tmp_path)
-    assert s["ft_samples"] == {"received": 7000, "carried": 7000, "judged": 6990}
+    assert s["ft_samples"] == {"received": 7000, "carried": 7000, "judged": 6990, "implausible": 0}
     assert s["skipped_for_newer"] == {}
     assert any("samples not examined (skipped for a newer one, or beyond a batch's depth): none" in line
                for line in logs)
