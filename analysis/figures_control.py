@@ -225,7 +225,7 @@ def _projection(fig, ax, run: Run, sp: SetPoints, mu: float, beta: float, law, l
     ax.plot(xs, xs, color="k", ls="--", lw=1, label="limit (5): f_n = |f_t|/μ + |τ|/β")
     if law is not None:
         ax.plot(xs, law(xs), color="C3", lw=1.2, label=law_label)
-    ax.legend(fontsize=7, loc="upper left")
+    ax.legend(fontsize=7, loc="lower right")  # below the limit line: no set point there
     return x
 
 
@@ -285,7 +285,7 @@ def fig15(run: Run, out: Path) -> FigureText:
     twin.set(ylabel="deg", ylim=(min(0.0, float(angle.min())) * 1.2, max(1.0, 1.2 * float(angle.max()))))
     ax1.set(xlabel="time (s)", ylabel="N·mm", title="disturbance torque and slip angle")
     lines = ax1.get_legend_handles_labels()[0] + twin.get_legend_handles_labels()[0]
-    ax1.legend(lines, [h.get_label() for h in lines], fontsize=7, loc="upper left")
+    ax1.legend(lines, [h.get_label() for h in lines], fontsize=7, loc="lower left")
     ax2 = fig.add_subplot(grid[:, 1], projection="3d")
     _set_points_3d(fig, ax2, run, sp, c.mu_s, beta_s, "Fig. 15b: set points {|f_t|, |τ|, f_n}")
     ax3 = fig.add_subplot(grid[:, 2])

@@ -313,7 +313,7 @@ def pareto(*runs_and_out) -> FigureText:
             title="cost against false alarms (filled: on the Pareto front)")
     ax1.axhline(0, color="0.4", lw=0.8)
     ax1.set(xlabel="cost per frame (µs)", ylabel="flag rise − true onset (ms)",
-            title="cost against detection delay (median; bar: 5 to 95 %; below 0: a warning)")
+            title="cost against detection delay\n(median; bar: 5 to 95 %; below 0: a warning)")
     scenes = ", ".join(sorted({r.scene for r in nominal}))
     fig.suptitle(f"Every slip test replayed over {len(nominal)} runs of {scenes} (controller off)", fontsize=11)
     axes["legend"].axis("off")
