@@ -1,5 +1,6 @@
 # Quick start: `make run` (the default stack on the simulated rig) and `make test`.
-# Both create ./.venv and install slipstack into it on first use.
+# Both create ./.venv and install slipstack into it on first use. ARGS='name:=value ...'
+# passes launch arguments to `make run` (e.g. ARGS=verbose:=true).
 VENV ?= .venv
 PY := $(VENV)/bin/python
 # Every install takes the exact versions of the lock file (docs/portability.md §3); PIP_CONSTRAINT
@@ -22,7 +23,7 @@ $(VENV)/.installed: pyproject.toml $(LOCK)
 	touch $@
 
 run: $(VENV)/.installed
-	$(VENV)/bin/slipstack launch
+	$(VENV)/bin/slipstack launch $(ARGS)
 
 test: $(VENV)/.installed
 	$(PY) -m pytest -q

@@ -2,10 +2,7 @@
 (6) are from the exact limit set (the cost and accuracy of each slip test is
 :mod:`slipstack.analysis.sensitivity`).
 
-- :func:`grip_economy`: the commanded f_n of each grip law on fig15 against the oracle
-  (:mod:`slipstack.analysis.grip_oracle`, as ``tests/bench/bench_grip_economy.py``).
-- :func:`limit_errors`: the load factor the F/T limit surfaces (5) and (6) give against
-  the exact one (``lib/limit_set.py``) for a uniform, a Hertzian and an off-centre pressure.
+More in docs/modules.md, `analysis/beyond.py`.
 """
 
 from __future__ import annotations

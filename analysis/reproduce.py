@@ -1,12 +1,6 @@
 """``slipstack reproduce``: the paper's §V experiments, figure by figure.
 
-Runs every experiment (:mod:`slipstack.analysis.runs`) in lock-step (deterministic), in
-parallel processes, one per core, with one progress bar; draws each figure
-(:mod:`slipstack.analysis.catalogue`) as a PNG and writes ``index.html`` (self-contained)
-and ``report.md``: what the paper shows, what slipstack shows (its numbers) and where they
-differ and why. ``--quick`` cuts every scene to 3 s (CI: everything runs and draws). Beside
-them: ``digests.json`` (per experiment, the SHA-256 of every payload: equal digests, equal
-runs), the Fig. 4 recordings and the material identified from them, with its log.
+More in docs/modules.md, `analysis/reproduce.py`.
 """
 
 from __future__ import annotations
@@ -24,6 +18,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from slipstack.analysis.figure_keys import FIGURE_KEYS, figure_runs, parse_variant
+from slipstack.lib.output_file import writable_folder
 
 __all__ = ["add_parser", "main_reproduce", "reproduce"]
 
@@ -79,7 +74,7 @@ def reproduce(out_dir: Path, *, quick: bool = False, only: list[str] | None = No
     from slipstack.analysis.friction import identify_friction, with_friction
     from slipstack.analysis.runs import experiment
 
-    out_dir.mkdir(parents=True, exist_ok=True)
+    writable_folder(out_dir, "--out")
     keys = [k for k in catalogue.FIGURES if not only or k in only]
     runs_needed = list(dict.fromkeys(k for key in keys for k in figure_runs(key, quick)))
     if any(k in USES_IDENTIFIED_FRICTION for k in runs_needed):
@@ -244,6 +239,7 @@ def main_reproduce(args: argparse.Namespace) -> int:
         print(f"slipstack reproduce: --jobs must be 0 (one per core) or more, got {args.jobs}", file=sys.stderr)
         return 2
     out = Path(args.out)
+    writable_folder(out, "--out")  # before minutes of runs
     texts = reproduce(out, quick=args.quick, only=args.only, progress=progress, jobs=args.jobs or None)
     figures = f"{len(texts)} figure{'s' if len(texts) != 1 else ''}"
     print(f"\nwrote {figures}, {out / 'index.html'} and {out / 'report.md'} in {time.monotonic() - t0:.0f} s",

@@ -15,8 +15,9 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from slipstack.lib.errors import ConfigError
 from slipstack.launch.launch_file import LaunchFile
+from slipstack.lib.errors import ConfigError
+from slipstack.lib.output_file import why_unwritable
 
 __all__ = ["RunLog", "log_path_for", "MAX_LOG_BYTES"]
 
@@ -45,7 +46,7 @@ class RunLog:
                 path.parent.mkdir(exist_ok=True)  # runs/ beside the recording, never a whole tree
                 self._fh = open(path, "a", encoding="utf-8", errors="replace")
             except OSError as exc:
-                raise ConfigError(f"cannot write the run's log {path} ({exc.strerror}): it goes beside the "
+                raise ConfigError(f"cannot write the run's log {path} ({why_unwritable(path, exc)}): it goes beside the "
                                   "recording, in a folder that exists and you may write; pass recording:=PATH "
                                   "(or --log-file PATH) there") from None
 

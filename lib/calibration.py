@@ -4,21 +4,7 @@ The model, per taxel i with raw count c_i::
 
     p_i = table(g_i · c_i)        (Pa)
 
-``table`` is the monotone piecewise-linear interpolation through the points
-(``counts[k]``, ``pressure_pa[k]``), held constant beyond its ends; ``g_i`` is an
-optional per-taxel gain (flat-field correction in count space, default 1). A taxel
-is *saturated* when its raw count is ≥ ``saturation_counts``; its pressure is then a
-lower bound. A *dead* taxel reports 0 Pa and is flagged, so that fusion can skip it.
-
-File format (TOML)::
-
-    counts = [0, 100, 1000, 4095]             # strictly increasing raw counts
-    pressure_pa = [0.0, 500.0, 8000.0, 4e4]   # non-decreasing, same length, >= 0
-    gain = [1.0, 1.02, ...]                   # optional, one per taxel (row-major)
-    dead = [17, 200]                          # optional, taxel indices (row-major)
-    saturation_counts = 4095                  # optional
-
-Taxel indices are row-major: i = row·cols + col.
+More in docs/modules.md, `lib/calibration.py`.
 """
 
 from __future__ import annotations

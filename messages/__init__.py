@@ -5,10 +5,10 @@
 
 from slipstack.messages.base import Header, Message, decode, encode, registry, validate, handed_over
 from slipstack.messages.types import (
-    STATUS_OK, TACTILE_PAIRING, Contact, Cor, Diagnostics, GripCommand, RigTruth, Slip, TactileFrame, Wrench,
+    STATUS_OK, TACTILE_PAIRING, Contact, Cor, Diagnostics, GripCommand, GripState, RigTruth, Slip, TactileFrame, Wrench,
 )
 
 __all__ = [
     "Header", "Message", "decode", "encode", "registry", "validate", "handed_over", "STATUS_OK", "TACTILE_PAIRING",
-    "Contact", "Cor", "Diagnostics", "GripCommand", "RigTruth", "Slip", "TactileFrame", "Wrench",
+    "Contact", "Cor", "Diagnostics", "GripCommand", "GripState", "RigTruth", "Slip", "TactileFrame", "Wrench",
 ]

@@ -3,32 +3,7 @@
 A :class:`DeviceDriver` owns one back-end chosen by URL
 (:func:`slipstack.nodes.devices.backends.backend_from_url`). It never blocks:
 
-- the back-end's descriptor is watched (:meth:`io_sources`, re-read every loop turn
-  because a reconnect changes it) and every readable event runs one ``poll``; a
-  simulated device (``sim:`` URL, ``nodes/devices/sim_link.py``) has no descriptor
-  and makes its bytes due at once through the deadline instead;
-- the node's deadline (:meth:`next_deadline_ns`) is the back-end's own (stale
-  limit, reconnect back-off, handshake timeout), the next status republish and the
-  next counter sync, whichever comes first; the executor wakes the node exactly
-  then, so staleness and reconnects happen without input and without a periodic
-  timer (with the default stale limit of 2.5 sample periods, at least 2.5 ms, the
-  first status message follows the last sample within 3 sample periods or 3 ms,
-  up to the executor's wake-up jitter);
-- while the back-end is not ``ok`` the driver publishes a *status message* (the
-  subclass's last good values with status ``stale`` / ``disconnected``) at once on
-  the change and then every ``stale_status_period_ms``, so consumers can hold;
-- samples decoded in one read get stamps stepped back from the read's time by the
-  nominal sample period (strictly increasing), not one shared stamp;
-- the back-end's counters are mirrored into ``diagnostics`` as ``device.<name>``
-  (``device.frames``, ``device.crc_errors``, ``device.rejected_bytes``,
-  ``device.reconnects``, …), and the node status is the link status;
-- a device that cannot be opened or is lost is said at once: one log line per new
-  error (the terminal of ``slipstack run`` / ``launch``), ``last_error`` on
-  ``diagnostics``, status ``disconnected: URL: error``; retries follow the
-  back-off without a busy loop.
-
-Subclasses set ``kind`` ("ft" or "tactile") and implement :meth:`on_sample` and
-:meth:`publish_status`.
+More in docs/modules.md, `nodes/device_driver.py`.
 """
 
 from __future__ import annotations

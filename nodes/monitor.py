@@ -1,64 +1,33 @@
 """The monitor: a live one-line status and, on exit, the run's summary and its health.
 
-Listens to ``slip`` (which carries the load it judged and its COR), ``grip/command``,
-``rig/truth`` and every node's ``diagnostics`` — not to the 1 kHz ``contact``/``cor``
-streams, to keep its share of the CPU small. Every ``status_period_s`` it logs one
-``STATUS`` line (the launcher redraws it in place on a terminal). On stop it logs the
-summary: slip episodes detected versus true, detection delay, false alarms and the latch
-hold after slip (one definition: ``lib/episodes.py``, docs/math.md §3.2), grip force used, the
-control path's health, dropped frames and the recording's path; with ``summary_path``
-it also writes them as JSON, and with ``check_path`` a pass/fail verdict (see
-:func:`check_problems`).
-
-Health (one ``HEALTH:`` line per problem, or ``HEALTH: ok``; the fail-safe share and
-silent nodes also on the live line):
-
-- *fail-safe share*: grip commands whose reason is ``fail-safe`` (the controller held
-  the grip because its inputs were missing, stale or invalid);
-- *late commands*: commands computed from a new sample while the stack ran whose age at
-  publish, ``pub_ns − stamp_ns`` of their header (the sensor sample they derive from to
-  the moment they left), exceeded ``command_deadline_ms`` (those while the sensors
-  started and after the scene, and the watchdog's repeats, are counted apart: see
-  :class:`CommandStats`);
-- *samples not examined*: ``in.<topic>.dropped`` over ``in.<topic>.received`` of each
-  node's inputs: skipped for a newer one by a latest-value input, or beyond the depth of
-  a batch input (fusion takes every F/T sample of a wake-up as one batch, so it skips
-  none unless it falls 1 000 samples, its batch depth, behind), on the HEALTH line for sensor topics above
-  :data:`SKIP_WARN_SHARE`; and the F/T samples fusion received, carried in contacts and
-  the slip test judged (``fusion.samples``, ``slip_test.samples_judged``);
-- *behind real time*: ``timer.<name>.skipped`` ticks of a timer-paced node (the rig
-  skips simulator ticks it could not make up);
-- *silent nodes*: a node whose ``diagnostics`` (every 1 s) stopped for longer than
-  ``silent_after_s`` — dead, stopped or starved — whether it came back or not;
-- *disconnected devices*: a driver whose ``diagnostics`` status is ``disconnected: …``
-  (also on the live line, while it lasts); and a run whose every grip command was
-  fail-safe (the sensors never streamed).
-
-Counts are given with their denominators (``frames lost at fusion: ft/wrench 497 of
-30004 (sequence gaps, of those sent)``). Without ``rig/truth`` (real hardware) there is no ground
-truth: the summary says so instead of printing episode counts and flags without true slip.
-
-Memory is bounded: running sums and counts per message, the detection quality streamed
-by :class:`~slipstack.lib.episodes.EpisodeTracker`, one counter map per node.
+It listens to ``slip``, ``grip/command``, ``rig/truth`` and every node's ``diagnostics``, not to
+the 1 kHz ``contact`` stream, to keep its share of the CPU small. It logs a ``STATUS`` line every
+``status_period_s``. When it stops, it logs the summary's short form (at most 12 lines), then the
+long form as ``detail:`` lines for the run log. It writes the summary as JSON (``summary_path``)
+and the check's verdict (``check_path``). docs/summary.md gives the layout, what each count
+means (false alarms by the one definition of docs/math.md §3.2) and what fails the check.
+Memory stays bounded: running sums and counts, the detection quality streamed by
+EpisodeTracker, one counter map per node.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
 import tempfile
-import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
 from slipstack.lib.episodes import EpisodeTracker
 from slipstack.lib.errors import ConfigError
-from slipstack.lib.late_ticks import BEHIND_REAL_TIME_ADVICE
+from slipstack.lib.late_ticks import behind_real_time_advice
 from slipstack.lib.status import SLIP_STATES, SlipState
 from slipstack.messages import Diagnostics, GripCommand, RigTruth, Slip
 from slipstack.nodes.runtime.graph_info import RUN_DIR_ENV, read_graph
+from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.logs import DETAIL_PREFIX
 from slipstack.nodes.runtime.node import Context, Input, Node
 
@@ -233,6 +202,16 @@ class NodeWatch:
     last_seq: int | None = None
     restarted: bool = False
 
+    had_device: bool = False
+    """It reported a device status (``disconnected``): a driver, in the data path even before it publishes."""
+
+    @property
+    def observer(self) -> bool:
+        """It published no data and drives no device (the recorder, the Foxglove bridge, a
+        monitor): the control path does not depend on it."""
+        return not self.had_device and not any(
+            k.startswith("out.") and k.endswith(".published") and v for k, v in self.counters.items())
+
     def report(self, msg: Diagnostics, now_ns: int, silent_after_ns: int) -> None:
         stamp = msg.header.stamp_ns
         if self.last_stamp_ns is not None:
@@ -247,6 +226,7 @@ class NodeWatch:
             self.disconnected_since_ns = None
         elif self.disconnected_since_ns is None:
             self.disconnected_since_ns = stamp
+            self.had_device = True
         self.last_seen_ns = now_ns
         self.last_stamp_ns = stamp
 
@@ -297,6 +277,9 @@ class Monitor(Node):
         self._deadline_ns = round(self.params.command_deadline_ms * 1e6)
         self._silent_after_ns = round(self.params.silent_after_s * 1e9)
         self._at_status = (0, 0, 0, 0)  # time, slip frames, commands, fail-safe commands at the last STATUS
+        self.declared: dict[str, bool] | None = None
+        """Node name → whether it only observes (publishes nothing but diagnostics), as the running
+        graph declares it (None: no graph file; the counters tell, :class:`NodeWatch`)."""
 
     def on_slip(self, msg: Slip, ctx: Context) -> None:
         self.slip_frames += 1
@@ -319,8 +302,11 @@ class Monitor(Node):
     def start(self, ctx: Context) -> None:
         if self.graph_nodes is None and os.environ.get(RUN_DIR_ENV):
             try:
-                self.graph_nodes = set(read_graph(Path(os.environ[RUN_DIR_ENV]))["nodes"])
-            except (OSError, ValueError, KeyError, TypeError):
+                nodes = read_graph(Path(os.environ[RUN_DIR_ENV]))["nodes"]
+                self.graph_nodes = set(nodes)
+                self.declared = {name: set(entry.get("outputs", {})) <= {DIAGNOSTICS_TOPIC}
+                                 for name, entry in nodes.items()}
+            except (OSError, ValueError, KeyError, TypeError, AttributeError):
                 ctx.log("warning: cannot read the graph's node list; every sender of diagnostics is judged")
 
     def on_diagnostics(self, msg: Diagnostics, ctx: Context) -> None:
@@ -513,13 +499,26 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "detector_calibration": m.detector_calibration(),
         "nodes_that_went_silent": went_silent,
         "nodes_restarted_after_silence": sorted(name for name, w in m.nodes.items() if w.restarted),
+        "observers": sorted(name for name, w in m.nodes.items()
+                            if (m.declared or {}).get(name, w.observer)),
+        "behind_while_realtime": sorted(name for name, w in m.nodes.items() if any(
+            k.startswith("timer.") and k.endswith(".skipped_realtime") and v for k, v in w.counters.items())),
         "recording": m.params.recording if m.params.recording and os.path.exists(m.params.recording) else "",
         "recorders": _recorders(m.nodes),
         "device_rejects": _device_rejects(m.nodes),
         "diagnostics_senders_outside_graph": sorted(name for name in m.nodes if not m.in_graph(name)),
         "diagnostics_ignored": m.ignored_diagnostics,
         "clock_offsets": _clock_offsets(m.nodes),
+        "injected": {what: sum(w.counters.get(key, 0) for w in m.nodes.values()) for what, key in INJECTED.items()},
+        "steps_without_a_start": sum(w.counters.get("grip.waiting_to_start", 0) for w in m.nodes.values()),
     }
+
+
+INJECTED = {"grip_commands": "rig.manual_commands", "slip_verdicts": "grip.injected_verdicts",
+            "finger_reports": "grip.injected_finger_reports"}
+"""What tools injected where the launch allows it (``allow_inject``): summary key → counter."""
+
+
 
 
 def _ft_samples(nodes: dict[str, NodeWatch]) -> dict[str, float]:
@@ -603,11 +602,12 @@ class Problem:
 
 def health_problems(s: dict, p: MonitorParams) -> list[Problem]:
     """What the HEALTH lines report: first what fails the check (the object slid or turned
-    more than allowed, too many fail-safe commands, missed episodes, a silent node, no
-    valid sensor data at all), then what is only reported (disconnected
-    devices, signs of falling behind)."""
+    more than allowed, too many fail-safe commands, missed episodes, a silent node of the
+    data path, no valid sensor data at all), then what is only reported (an observer's
+    silence, disconnected devices, signs of falling behind, sensor attacks, the recording's
+    loss, what tools injected)."""
     return (_check_problems(s, p) + _silence_problems(s) + _device_problems(s) + _behind_problems(s)
-            + _sensor_problems(s) + _recording_problems(s))
+            + _sensor_problems(s) + _recording_problems(s) + _injection_problems(s))
 
 
 def check_problems(s: dict, p: MonitorParams) -> list[str]:
@@ -636,24 +636,41 @@ def _check_problems(s: dict, p: MonitorParams) -> list[Problem]:
         out.append(Problem("every command fail-safe: no valid sensor data",
                            f"all {s['grip_commands']} grip commands were fail-safe: the controller never had valid "
                            "sensor data (are the sensors connected and streaming?)"))
+    if not s["grip_commands"] and s.get("steps_without_a_start"):
+        out.append(Problem("no command: no trusted sensor data, the finger kept its grip",
+                           "the controller sent no grip command: it never had trusted sensor data nor the finger's "
+                           "report (grip/state), so the finger kept its own grip (are the sensors connected and "
+                           "streaming? docs/safety.md, clause 4)"))
     return out
 
 
 def _silence_problems(s: dict) -> list[Problem]:
-    """Nodes silent at the end, or silent for a while and back."""
+    """Nodes silent at the end, or silent for a while and back. A node of the data path fails
+    the check; an observer (it published no data: the recorder, the Foxglove bridge) is
+    reported only, as the control path does not depend on it."""
     out = []
+    observers = set(s["observers"])
     for node, seconds in sorted(s["silent_nodes"].items()):
-        out.append(Problem(f"{node} silent for the last {seconds:.1f} s",
-                           f"node {node} went silent: no diagnostics for the last {seconds:.1f} s (dead or stopped?)"))
+        observer = node in observers
+        out.append(Problem(f"{node} silent for the last {seconds:.1f} s" + (" (observer)" if observer else ""),
+                           f"node {node} went silent: no diagnostics for the last {seconds:.1f} s (dead or stopped?)"
+                           + (_OBSERVER_NOTE if observer else ""), not observer))
     for node, seconds in sorted(s["nodes_that_went_silent"].items()):
         if node in s["silent_nodes"]:
             continue
+        observer = node in observers
         restarted = node in s["nodes_restarted_after_silence"]
         how = ("as a new process (restarted)" if restarted else
                "as the same process (it stalled: a machine too busy, or stopped and continued)")
-        out.append(Problem(f"{node} silent {seconds:.1f} s, then back ({'restarted' if restarted else 'stalled'})",
-                           f"node {node} went silent for {seconds:.1f} s and came back {how}"))
+        out.append(Problem(f"{node} silent {seconds:.1f} s, then back ({'restarted' if restarted else 'stalled'}"
+                           + (", observer)" if observer else ")"),
+                           f"node {node} went silent for {seconds:.1f} s and came back {how}"
+                           + (_OBSERVER_NOTE if observer else ""), not observer))
     return out
+
+
+_OBSERVER_NOTE = ("; it only observes (it publishes no data), so the control path did not depend on it and the "
+                  "check does not judge it")
 
 
 def _device_problems(s: dict) -> list[Problem]:
@@ -709,8 +726,9 @@ def _recording_problems(s: dict) -> list[Problem]:
 
 def _behind_problems(s: dict) -> list[Problem]:
     """Signs that the graph fell behind: late commands, timer ticks skipped, more than
-    :data:`SKIP_WARN_SHARE` of a sensor topic's samples not examined."""
+    :data:`SKIP_WARN_SHARE` of a sensor topic's samples not examined by a node of the data path."""
     out = []
+    observers = set(s["observers"])
     if s["late_commands"]:
         out.append(Problem(
             f"{s['late_commands']} of {s['commands_while_running']} commands late (over "
@@ -722,10 +740,18 @@ def _behind_problems(s: dict) -> list[Problem]:
     for node, timers in sorted(s["behind_real_time"].items()):
         skipped = sum(timers.values())
         ticks = ", ".join(f"{k.split('.')[1]} {v:g}" for k, v in sorted(timers.items()))
+        if node in observers:
+            out.append(Problem(f"{node} fell behind ({skipped:g} timer ticks skipped; observer)",
+                               f"{node} fell behind (timer ticks skipped: {ticks}): it is not real-time and "
+                               "waited for a CPU core; what it records or shows lags behind the graph (`slipstack "
+                               "bag info` shows any frames it lost); free a core or record fewer topics", False))
+            continue
         out.append(Problem(f"{node} behind real time ({skipped:g} timer ticks skipped)",
                            f"{node} fell behind real time (timer ticks skipped: {ticks}; its diagnostics say how "
-                           f"late): {BEHIND_REAL_TIME_ADVICE}", False))
+                           f"late): {behind_real_time_advice(node in s['behind_while_realtime'])}", False))
     for node, inputs in sorted(s["skipped_for_newer"].items()):
+        if node in observers:
+            continue
         for topic, n in sorted(inputs.items()):
             share = n["skipped"] / n["received"] if n["received"] else 0.0
             if topic in SENSOR_TOPICS and share > SKIP_WARN_SHARE:
@@ -734,6 +760,17 @@ def _behind_problems(s: dict) -> list[Problem]:
                                    "or beyond a batch's depth): it fell behind its input; free a CPU core or raise "
                                    "the stack's priority (the launch file's `realtime_priority` or `nice`)", False))
     return out
+
+
+def _injection_problems(s: dict) -> list[Problem]:
+    """Grip commands the finger took from a tool, slip verdicts and finger reports the controller did not trust."""
+    n = s.get("injected", {})
+    if not any(n.values()):
+        return []
+    return [Problem(f"injected by tools: {n['grip_commands']:g} grip commands, {n['slip_verdicts']:g} verdicts",
+                    f"injected by tools (allow_inject): {n['grip_commands']:g} grip commands obeyed (the finger's log "
+                    f"names who sent them), {n['slip_verdicts']:g} verdicts and {n['finger_reports']:g} finger reports "
+                    "not trusted (the grip held)", False)]
 
 
 def behind_problems(s: dict) -> list[str]:
@@ -768,7 +805,8 @@ def format_summary(s: dict, p: MonitorParams | None = None, *, verbose: bool = F
     if clocks:
         rows.append("clocks: " + ", ".join(clocks) + " (other machines' minus ours)")
     if s["detector_calibration"]:
-        rows.append("detector: " + s["detector_calibration"])
+        row = "detector: " + s["detector_calibration"]
+        rows.append(row if len(row) <= SUMMARY_WIDTH else row.split(" (")[0])  # its numbers: the long form
     if s["recording"]:
         rows.append("recording: " + s["recording"])
     rows = [_clip(row) for row in rows]
@@ -813,21 +851,21 @@ def _control_row(s: dict) -> str:
 
 
 def _bus_row(s: dict) -> str:
+    """Frames lost (the most at one node and topic, if it fits) and the largest share of a sensor
+    topic a node of the data path skipped."""
     lost = sorted(((c["lost"], c["of"], node, c["topic"]) for node, counts in s["losses"].items()
                    for c in counts.values()), reverse=True)
-    if lost:
-        n, of, node, topic = lost[0]
-        row = f"bus: {sum(x[0] for x in lost):g} frames lost ({node} {topic} {n:g} of {of:g}"
-        row += f", +{len(lost) - 1} more)" if len(lost) > 1 else ")"
-    else:
-        row = "bus: no frame lost"
     skipped = sorted(((n["skipped"] / n["received"], node, topic) for node, inputs in s["skipped_for_newer"].items()
-                      for topic, n in inputs.items()
+                      if node not in s["observers"] for topic, n in inputs.items()
                       if topic in SENSOR_TOPICS and n["received"]), reverse=True)
-    if skipped:
-        share, node, topic = skipped[0]
-        return row + f"; {node} skipped {share * 100:.1f}% of {topic}"
-    return row + "; every sensor sample examined"
+    skip = (f"; {skipped[0][1]} skipped {skipped[0][0] * 100:.1f}% of {skipped[0][2]}" if skipped
+            else "; every sensor sample examined")
+    if not lost:
+        return "bus: no frame lost" + skip
+    n, of, node, topic = lost[0]
+    total = f"bus: {sum(x[0] for x in lost):g} frames lost"
+    most = f" (most: {node} {topic} {n:g} of {of:g}" + (f", +{len(lost) - 1} more)" if len(lost) > 1 else ")")
+    return total + most + skip if len(total + most + skip) <= SUMMARY_WIDTH else total + skip
 
 
 def _health_rows(shorts: list[str], room: int) -> list[str]:
@@ -902,6 +940,9 @@ def format_details(s: dict, problems: list[Problem]) -> list[str]:
               for node, peers in sorted(s.get("clock_offsets", {}).items()) for peer, c in sorted(peers.items())]
     if clocks:
         lines.append("clock offsets between the machines (their clock minus the launcher's): " + "; ".join(clocks))
+    if s["observers"]:
+        lines.append("observers (they published no data; their silence does not fail the check): "
+                     + ", ".join(s["observers"]))
     if s["recording"]:
         lines.append(f"recording: {s['recording']}")
     return lines

@@ -1,18 +1,6 @@
 """rig: the simulated laboratory rig behind real device protocols.
 
-Runs a scene (``launch/scenes/*.toml``) in real time: every tick it advances the
-simulator to the wall-clock time elapsed since start, sends each F/T and tactile
-sample as bytes through a device emulator (ATI RDT on loopback UDP, Robotiq or Bota
-on a pseudo-terminal; DSACON32, M1616 or the framed format on a pseudo-terminal), and
-publishes ``rig/truth``. ``grip/command`` sets the finger's normal force; the finger's
-command watchdog (``command_timeout_ms``) holds the grip, and raises it towards
-``watchdog_grip_n``, when commands stop (docs/safety.md). The detector only ever sees
-what the drivers decode from those bytes. A tick handed over more than 10 ms late (its
-process waited for a core) is counted (``rig.late_ticks``) and told on ``diagnostics``
-and in the log, how late and what to do, at most every 10 s (:mod:`slipstack.lib.late_ticks`).
-
-The tactile calibration table of the simulated rubber is written to
-``calibration_out`` at start, for the tactile driver to load.
+More in docs/modules.md, `nodes/rig.py`.
 """
 
 from __future__ import annotations
@@ -31,12 +19,14 @@ from slipstack.lib.samples import MAX_SAMPLE_RATE_HZ, FtSample, TactileSample
 from slipstack.lib.rig.simulator import Simulator, Truth, compile_kernels as compile_rig_kernels
 from slipstack.lib.protocols.crc import compile_kernels as compile_crc_kernels
 from slipstack.lib.toml_file import resolve_path
-from slipstack.messages import GripCommand, RigTruth
+from slipstack.messages import GripCommand, GripState, RigTruth
+from slipstack.messages.types import MAX_GRIP_FORCE_N
 from slipstack.nodes.devices.emulators import (
     BotaEmulator, Dsacon32Emulator, M1616Emulator, RdtSimServer, RdtUdpServer, RobotiqEmulator,
 )
 from slipstack.nodes.devices.sim_link import SIM_PREFIX, is_simulated
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
+from slipstack.nodes.runtime.scheduling import runs_realtime
 
 __all__ = ["Rig", "RigParams", "load_scene_by_name", "truth_message", "with_rates"]
 
@@ -45,6 +35,8 @@ _LATE_TICK_MS = 10
 """A tick later than this (ms) after its due time is reported: half the grip controller's timeout."""
 _LATE_REPORT_EVERY_S = 10
 """At most one "fell behind real time" report per this long (s)."""
+_MAX_NAMED_SENDERS = 16
+"""Senders of manual commands named in the log (one line each); more are only counted."""
 
 FT_PROTOCOLS = ("rdt", "robotiq", "bota")
 TACTILE_PROTOCOLS = ("dsacon32", "m1616")
@@ -73,12 +65,16 @@ class RigParams:
     tick_ms: float = field(default=1.0, metadata={"help": "real-time step of the rig node (ms)"})
     wait_for_drivers_s: float = field(default=30.0, metadata={
         "help": "the scene starts when every emulated sensor is streaming to a driver, or after this long (s)"})
-    exit_at_end: bool = field(default=True, metadata={"help": "stop the node when the scene ends"})
+    run_s: float = field(default=0.0, metadata={
+        "help": "how long the rig runs from the scene's start (s): 0: until the scene ends; longer: the world goes "
+                "on after the scene, holding its last load; inf: until stopped (interactive use)"})
     command_timeout_ms: float = field(default=100.0, metadata={
         "help": "finger watchdog: no grip/command for this long after the first one -> hold and raise (ms); 0: off"})
     watchdog_grip_n: float = field(default=0.0, metadata={
         "help": "the watchdog raises the command towards this safe grip (N); 0: it only holds"})
     watchdog_rise_n_per_s: float = field(default=10.0, metadata={"help": "the watchdog's raise rate (N/s)"})
+    grip_state_rate_hz: float = field(default=100.0, metadata={
+        "help": "rate of the finger's report on grip/state (Hz; and at once when its mode changes)"})
 
 
 class Rig(Node):
@@ -86,7 +82,7 @@ class Rig(Node):
 
     name = "rig"
     inputs = {"grip": Input("grip/command", GripCommand)}
-    outputs = {"truth": Output("rig/truth", RigTruth)}
+    outputs = {"truth": Output("rig/truth", RigTruth), "finger": Output("grip/state", GripState)}
     Params = RigParams
     precise_timers = True  # sensor samples leave on the simulated tick, not up to 1 ms late
 
@@ -109,6 +105,13 @@ class Rig(Node):
         self._t0: int | None = None
         self.late_ticks = LateTicks(round(p.tick_ms * 1e6), _LATE_TICK_MS * _NS_PER_MS,
                                     _LATE_REPORT_EVERY_S * 1000 * _NS_PER_MS)
+        if not p.grip_state_rate_hz > 0:
+            raise ConfigError(f"rig grip_state_rate_hz must be > 0 Hz, got {p.grip_state_rate_hz!r}")
+        self._state_period_ns = round(1e9 / p.grip_state_rate_hz)
+        self._next_state_ns = 0
+        self._finger_mode = "initial"
+        self._commanded_by = ""
+        self._named_senders: set[str] = set()
         try:
             self.watchdog = CommandWatchdog(round(p.command_timeout_ms * 1e6), p.watchdog_grip_n,
                                             p.watchdog_rise_n_per_s)
@@ -151,10 +154,40 @@ class Rig(Node):
     def on_grip(self, msg: GripCommand, ctx: Context) -> None:
         if self._t0 is None:
             return
-        if self.sim.command_normal_force(msg.f_n_desired):
-            self.watchdog.commanded(ctx.now_ns())
-        else:
+        if not self.sim.command_normal_force(msg.f_n_desired):
             ctx.count("rig.rejected_commands")
+            return
+        self.watchdog.commanded(ctx.now_ns())
+        if ctx.sender:
+            self._manual_command(msg, ctx)
+        if ctx.sender != self._commanded_by:  # a manual command is reported with its sender at once
+            self._commanded_by = ctx.sender
+            self._next_state_ns = 0
+        self._set_finger_mode("following", ctx)
+        self._report_finger(ctx)
+
+    def _manual_command(self, msg: GripCommand, ctx: Context) -> None:
+        """A command a tool injected (the launch allows it): counted, and its sender named once."""
+        ctx.count("rig.manual_commands")
+        if ctx.sender not in self._named_senders and len(self._named_senders) < _MAX_NAMED_SENDERS:
+            self._named_senders.add(ctx.sender)
+            ctx.log(f"manual grip/command from {ctx.sender}: {msg.f_n_desired:.2f} N (injected by a tool; "
+                    f"the launch file allows it in [launch] allow_inject)")
+
+    def _set_finger_mode(self, mode: str, ctx: Context) -> None:
+        if mode != self._finger_mode:
+            self._finger_mode = mode
+            self._next_state_ns = 0  # a change is reported at once
+
+    def _report_finger(self, ctx: Context) -> None:
+        """``grip/state`` when due: the force the finger holds to, its mode and who commanded it."""
+        now = ctx.now_ns()
+        if now < self._next_state_ns:
+            return
+        self._next_state_ns = now + self._state_period_ns
+        sender = "".join(c if c.isalnum() or c in "_.+-" else "_" for c in self._commanded_by)[:64]
+        ctx.publish("finger", GripState(f_n_command=min(self.sim.normal_force_command, MAX_GRIP_FORCE_N),
+                                        mode=self._finger_mode, commanded_by=sender), stamp_ns=now)
 
     def _guard_finger(self, ctx: Context) -> None:
         """The finger's command watchdog: hold, or raise towards the safe grip, without commands."""
@@ -163,6 +196,7 @@ class Rig(Node):
         if command is not None:
             self.sim.command_normal_force(command)
             ctx.count("rig.watchdog_ticks")
+            self._set_finger_mode("watchdog", ctx)
             if not was_expired:
                 ctx.log(f"finger watchdog: no grip/command for {self.params.command_timeout_ms:g} ms; "
                         f"holding {command:.2f} N" + (f", raising towards {self.watchdog.safe_grip_n:g} N"
@@ -176,7 +210,7 @@ class Rig(Node):
         now = ctx.now_ns()
         if self.late_ticks.tick(now):
             ctx.count("rig.late_ticks")
-        report = self.late_ticks.report(now, self._t0)
+        report = self.late_ticks.report(now, self._t0, runs_realtime())
         if report is not None:
             ctx.report_error(report)
 
@@ -190,6 +224,7 @@ class Rig(Node):
         for dev in (self.ft_dev, self.tactile_dev):
             if dev is not None:
                 dev.service()
+        self._report_finger(ctx)
         if self._t0 is None:  # the experiment starts once the drivers read the sensors
             waited = (ctx.now_ns() - self._powered_ns) / 1e9
             if not self._sensors_streaming() and waited < self.params.wait_for_drivers_s:
@@ -209,7 +244,7 @@ class Rig(Node):
                     ctx.count("rig.tactile_not_sent")
             else:
                 ctx.publish("truth", truth_message(sample), stamp_ns=self._t0 + sample.stamp_ns)
-        if sim.done and self.params.exit_at_end:
+        if sim.done and (ctx.now_ns() - self._t0) / 1e9 >= self.params.run_s:
             ctx.log(f"scene {self.scene.name} finished")
             ctx.shutdown()
 

@@ -3,30 +3,7 @@
 One implementation, parameterised in the Rocksoft/Williams style (polynomial,
 initial value, bit order, final XOR) plus one extra switch that the DSACON32 needs:
 
-=================  ======  ======  ========  ========  ======  ==========================
-name               poly    init    refin     table     xorout  check("123456789")
-=================  ======  ======  ========  ========  ======  ==========================
-CRC-16/MODBUS      0x8005  0xFFFF  yes       reflected 0x0000  0x4B37 (Robotiq FT 300)
-CRC-16/X-25        0x1021  0xFFFF  yes       reflected 0xFFFF  0x906E (Bota serial)
-DSACON32           0x1021  0xFFFF  yes       MSB-first 0x0000  0x6EB4 (Weiss DSACON32)
-CRC-16/CCITT-FALSE 0x1021  0xFFFF  no        MSB-first 0x0000  0x29B1 (``framed`` option)
-=================  ======  ======  ========  ========  ======  ==========================
-
-*refin* selects the register update: reflected (LSB-first)
-``crc = (crc >> 8) ^ T[(crc ^ byte) & 0xFF]`` or MSB-first
-``crc = ((crc << 8) & 0xFFFF) ^ T[((crc >> 8) ^ byte) & 0xFF]``. *table* selects how the
-256-entry table is built: from the bit-reversed polynomial shifted right (reflected,
-what every Rocksoft-model reflected CRC uses) or from the normal polynomial shifted
-left (MSB-first). The DSACON32 firmware (SCHUNK SDHLibrary ``dsa.cpp``) combines an
-MSB-first CCITT table with the reflected update; that is not any catalogued CRC (it is
-*not* CCITT-FALSE, whose check value is 0x29B1), and it is the only combination that
-reproduces both the check value 0x6EB4 and the packet CRCs printed in docs/protocols.md §6
-(``AA AA AA 0B 01 00 00 CB FB``).
-
-The table loop is a numba kernel (about 1 µs for a 520-byte DSACON32 frame; the
-pure-Python loop it replaced took 60 ns per byte), loaded by :func:`compile_kernels` or at
-the first CRC, not at import: a process that frames no CRC (an F/T driver on RDT) starts
-without numba. MSB-first 0x1021 CRCs (CCITT-FALSE) use ``binascii.crc_hqx``, which is C.
+More in docs/modules.md, `lib/protocols/crc.py`.
 """
 
 from __future__ import annotations

@@ -7,23 +7,7 @@ in the pad frame ``F`` of docs/math.md §1. The loader is strict: an unknown key
 type or an out-of-range value raises :class:`ConfigError` naming the key, e.g.
 ``fig10.toml: contact.mu_d: must be <= contact.mu_s (0.45), got 0.5``.
 
-Layout of a scene file (every table but ``[object]``, ``[contact]``, ``[dof]`` and
-``[disturbance]`` is optional; defaults are the dataclass defaults below)::
-
-    name, description, seed, duration_s
-    [pad]            rows, cols, pitch_m
-    [sim]            step_us, truth_rate_hz
-    [object]         mass_kg, inertia_kgm2, pose = [x_m, y_m, theta_rad]
-    [contact]        model = "flat" | "hertz" | "offset" | "edge", material (RIG_MATERIALS), friction and bristle
-                     parameters, and the pressure model's geometry (see ContactSpec)
-    [dof]            free = ["x", "y", "theta"] (any non-empty subset), pivot_m
-    [finger]         f_initial_N, bandwidth_hz, rate_N_per_s, f_max_N
-    [disturbance]    mode = "wrench" | "drag", point_m, damping, stiffness,
-                     [[disturbance.segments]] kind = "hold" | "step" | "ramp" | "sine"
-    [support]        force_N, torque_Nm (Coulomb friction under the object)
-    [sensors.ft]     rate, frame offset, noise, bias, resolution, range
-    [sensors.tactile] rate, rubber curve, gain spread, noise, dead taxels, crosstalk
-    [expect]         slips_at_initial, holds_at_N (documentation, checked by the bench)
+More in docs/modules.md, `lib/rig/scene.py`.
 """
 
 from __future__ import annotations

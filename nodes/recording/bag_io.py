@@ -2,26 +2,7 @@
 
 File layout (one MCAP file per recording, https://mcap.dev/spec):
 
-* message_encoding ``msgpack``: every message's data is the frame payload exactly as
-  it travelled on the bus (``messages/codec.py`` wire format), so a replay decodes
-  the very bytes a node received.
-* one channel per (topic, message type); channel metadata ``{"type", "version"}``.
-* schema encoding :data:`SCHEMA_ENCODING` (a slipstack-specific name, allowed by the
-  MCAP spec for custom encodings): a JSON document describing the type's wire
-  layout and fields (name, wire type, dtype, shape, units) — see
-  :func:`message_schema`. A payload whose type is unknown gets schema id 0.
-* ``log_time``: receive time at the recorder, **wall clock** ns since the Unix epoch
-  (the MCAP convention, ``time.time_ns``); ``publish_time`` = ``header.pub_ns`` and
-  ``sequence`` = ``header.seq`` (both from the publisher: ``pub_ns`` is on the
-  publisher's CLOCK_MONOTONIC, not the wall clock).
-* a metadata record :data:`CLOCK_METADATA` written first, holding
-  ``wall_minus_monotonic_ns`` of the recording host, so receive times can be put on
-  the stamps' monotonic clock (:func:`replay_into`); the recorder writes
-  :data:`LOSS_METADATA` last, what the file misses per topic.
-* chunked (zstd) and indexed; the writer closes a chunk when it exceeds
-  ``chunk_size`` bytes **or** is older than ``flush_period_s``, and flushes it to the
-  OS, so a ``kill -9`` loses at most the chunk in progress. :func:`read_recording`
-  reads such an unfinished file up to its last intact chunk.
+More in docs/modules.md, `nodes/recording/bag_io.py`.
 """
 
 from __future__ import annotations
@@ -43,7 +24,8 @@ from mcap.reader import SeekingReader
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import MCAP0_MAGIC, CompressionType, Writer
 
-from slipstack.lib.errors import ConfigError, DecodeError, SlipstackError
+from slipstack.lib.errors import DecodeError, SlipstackError
+from slipstack.lib.output_file import claim_output
 from slipstack.messages import Message, decode, registry
 from slipstack.messages.base import declared_bounds
 from slipstack.messages.frame import FrameHeader, SeqTracker, peek_header, publisher_key
@@ -140,18 +122,7 @@ def claim_recording_path(path: Path) -> None:
         ConfigError: ``path`` exists (a recording is never overwritten, nor written through a
             link), or cannot be written; the message says what to do.
     """
-    try:
-        path.parent.mkdir(exist_ok=True)
-        open(path, "xb").close()
-    except OSError as exc:
-        if os.path.lexists(path):
-            raise ConfigError(f"recording {path} exists; pass recording:=NEW.mcap (or path:=NEW.mcap) "
-                              "or delete it") from None
-        if not path.parent.parent.is_dir():
-            raise ConfigError(f"the folder {path.parent.parent} of the recording {path} does not exist; create it "
-                              "(mkdir -p) or pass recording:=PATH in a folder that does") from None
-        raise ConfigError(f"cannot write the recording {path} ({exc.strerror}); pass recording:=PATH "
-                          "in a folder you may write") from None
+    claim_output(path, what="the recording", change="pass recording:=NEW.mcap (or path:=NEW.mcap)", force_option=None)
 
 
 class RecordingWriter:
@@ -432,7 +403,7 @@ def _chunks_after(fh: Any, offset: int, state: _ScanState) -> Iterator[McapMessa
 
 def read_recording(
     path: str | os.PathLike, topics: Iterable[str] | None = None, *, tolerant: bool = True,
-    progress: Callable[[int], None] | None = None,
+    progress: Callable[[int], None] | None = None, on_damage: Callable[[str], None] | None = None,
 ) -> Iterator[RecordedFrame]:
     """Iterate the recorded frames in file (= receive) order.
 
@@ -445,6 +416,7 @@ def read_recording(
         tolerant: read an unfinished file (no summary, e.g. after ``kill -9``) up to
             its last intact chunk; ``False`` raises :class:`RecordingError` instead.
         progress: called with the bytes of the file read so far, after each chunk.
+        on_damage: called once at the end with what was damaged, if anything was (tolerant).
     """
     wanted = None if topics is None else set(topics)
     state = _ScanState()
@@ -461,6 +433,8 @@ def read_recording(
             yield RecordedFrame(m.log_time, channel.topic, m.data, m.publish_time, m.sequence)
     if ros2 is not None:
         yield from ros2.flush()
+    if state.error and on_damage is not None:
+        on_damage(state.error)
 
 
 @dataclass(frozen=True)

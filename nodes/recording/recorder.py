@@ -5,15 +5,7 @@ in a launch file (params ``topics``, ``path``) it records its own graph;
 ``slipstack bag record`` (:func:`record`) runs the same node in its own process,
 attached to a running graph.
 
-Discovery: publishers are found in the graph's ``graph.json`` (``nodes/graph_info``),
-re-read every :data:`REFRESH_PERIOD_S`, so nodes added later are picked up; a
-respawned node binds the same endpoint and ZeroMQ reconnects to it by itself. The
-recorder subscribes with its own SUB socket; it is not in the launcher's readiness
-handshake, so frames published before it connected are not recorded (the first
-recorded sequence number shows how many).
-
-Frames are written raw (the bus bytes) with log_time = receive time,
-``time.time_ns()`` (wall clock, the MCAP convention); see ``nodes/recording/bag_io.py``.
+More in docs/modules.md, `nodes/recording/recorder.py`.
 """
 
 from __future__ import annotations

@@ -16,8 +16,8 @@ import yaml
 from mcap.records import Channel, Message as McapMessage, Schema
 
 from slipstack.lib.errors import DecodeError
-from slipstack.messages import (Contact, Cor, Diagnostics, GripCommand, RigTruth, Slip, TactileFrame, Wrench, decode,
-                                encode)
+from slipstack.messages import (Contact, Cor, Diagnostics, GripCommand, GripState, RigTruth, Slip, TactileFrame, Wrench,
+                                decode, encode)
 from slipstack.messages.ros2 import INFO_SUFFIX, INFO_TYPES, ROS_NAMESPACE, ROS_TYPES, codec, ros_topic
 from slipstack.nodes.recording.bag_io import ROS2_MESSAGE_ENCODING, RecordedFrame, RecordingWriter
 
@@ -30,7 +30,8 @@ ROSBAG2_METADATA = "rosbag2"
 ``metadata.yaml`` (version 9), from which ``ros2 bag info`` reads the file."""
 _DEFAULT_TOPICS = {ROS_TYPES[Wrench]: "ft/wrench", ROS_TYPES[TactileFrame]: "tactile/frame",
                    ROS_TYPES[Contact]: "contact", ROS_TYPES[Cor]: "cor", ROS_TYPES[Slip]: "slip",
-                   ROS_TYPES[GripCommand]: "grip/command", ROS_TYPES[RigTruth]: "rig/truth",
+                   ROS_TYPES[GripCommand]: "grip/command", ROS_TYPES[GripState]: "grip/state",
+                   ROS_TYPES[RigTruth]: "rig/truth",
                    ROS_TYPES[Diagnostics]: "diagnostics"}
 """The slipstack topic of a ROS 2 type recorded outside :data:`ROS_NAMESPACE` (another lab's bag)."""
 

@@ -1,26 +1,6 @@
 """ZeroMQ CURVE on every tcp link: only holders of the graph's keys publish, receive or inject.
 
-A graph that uses ``transport = "tcp"`` names a key directory (``[launch] keys``,
-made by ``slipstack keys DIR``). It holds the graph's key pair (``graph.key``,
-``graph.key_secret``) and the public keys (``*.key``) of everyone allowed to connect.
-Every socket that *binds* a tcp endpoint is a CURVE server: a ZAP authenticator
-(``zmq.auth``) admits only clients whose public key is in the directory. Every socket
-that *connects* to one is a CURVE client that checks the server's key, so a process
-that grabs a freed port cannot pass itself off as a node. ipc endpoints are guarded by
-the run directory's permissions (owner only, 0700) and stay as they are.
-
-A graph over several machines (``[machines.NAME]``) gives each machine a key pair of
-its own: ``slipstack keys DIR --machine robot --machine workstation`` makes
-``DIR/robot/`` with ``robot.key_secret`` and the public keys ``robot.key`` and
-``workstation.key``, and ``DIR/workstation/`` alike; each machine keeps only its own
-directory. Its sockets serve with its own pair and admit the public keys in that
-directory; a socket connecting to a machine's address checks that machine's public key.
-
-The launcher passes the directory to its processes in ``$SLIPSTACK_KEYS`` (and, with
-machines, ``$SLIPSTACK_MACHINE``: this machine's name and every machine's address);
-tools that attach to a graph read both from ``graph.json``. ``insecure = true`` in the
-launch file (``$SLIPSTACK_INSECURE=1`` for the processes) allows tcp without keys,
-explicitly.
+More in docs/modules.md, `nodes/runtime/curve.py`.
 """
 
 from __future__ import annotations
@@ -199,9 +179,10 @@ def _tcp_keys(endpoint: str) -> GraphKeys | None:
 
 
 def secure_bind(sock: zmq.Socket, endpoint: str) -> None:
-    """Make ``sock`` a CURVE server before it binds ``endpoint`` (tcp only)."""
+    """Make ``sock`` a CURVE server before it binds ``endpoint`` (tcp only; plain for ipc)."""
     keys = _tcp_keys(endpoint)
     if keys is None:
+        _plain(sock)
         return
     ctx = sock.context
     if id(ctx) not in _authenticators:
@@ -217,10 +198,20 @@ def secure_bind(sock: zmq.Socket, endpoint: str) -> None:
 
 
 def secure_connect(sock: zmq.Socket, endpoint: str) -> None:
-    """Make ``sock`` a CURVE client of the graph before it connects to ``endpoint`` (tcp only)."""
+    """Make ``sock`` a CURVE client of the graph before it connects to ``endpoint`` (tcp only; plain for ipc)."""
     keys = _tcp_keys(endpoint)
     if keys is None:
+        _plain(sock)
         return
     sock.curve_secretkey = keys.secret
     sock.curve_publickey = keys.public
     sock.curve_serverkey = keys.server_key(endpoint)
+
+
+def _plain(sock: zmq.Socket) -> None:
+    """No security mechanism for the socket's next bind or connect. ZeroMQ reads the mechanism
+    at each bind and connect from the socket's options, so one socket that reached a tcp peer
+    with CURVE (a recorder tapping two machines) would otherwise offer CURVE to an ipc peer too,
+    which never answers the handshake; setting ``curve_server`` to 0 resets it to NULL."""
+    if sock.get(zmq.MECHANISM) != zmq.NULL:
+        sock.curve_server = False

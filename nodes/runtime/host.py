@@ -100,6 +100,8 @@ class NodeHost:
         self.last_error = ""
         self._diag_seq = 0
         self.shutdown_requested = False
+        self.sender = ""
+        """Who sent the message being handled: "" for the graph's own nodes, else the injecting tool."""
         self._measure = measure_handlers
         self._durations: deque[int] = deque(maxlen=2000)
         self._logged_errors: set[tuple[str, str, str]] = set()
@@ -297,10 +299,19 @@ class NodeHost:
             self._log(f"error in {label} (logged once; repeats count as handler_errors on diagnostics):\n"
                       f"{traceback.format_exc().rstrip()}")
 
-    def dispatch(self, input_name: str, msg: Message) -> None:
-        """Run the input's handler; exceptions are counted and logged, never raised."""
+    def dispatch(self, input_name: str, msg: Message, *, sender: str = "") -> None:
+        """Run the input's handler; exceptions are counted and logged, never raised.
+        ``sender``: the tool that injected ``msg`` ("" for the graph's own publishers), the
+        handler's ``ctx.sender``."""
         label, handler = self._handlers[input_name]
-        self._guarded(label, handler, msg, self)
+        if not sender:  # the graph's own: the hot path
+            self._guarded(label, handler, msg, self)
+            return
+        self.sender = sender
+        try:
+            self._guarded(label, handler, msg, self)
+        finally:
+            self.sender = ""
 
     def fire_timer(self, timer: str) -> None:
         label, handler = self._timer_handlers[timer]

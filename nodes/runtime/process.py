@@ -1,34 +1,7 @@
 """The process executor: one node — or a container of nodes — in one OS process,
 ZeroMQ PUB/SUB, monotonic clock.
 
-Life cycle: bind the XPUB, connect the SUBs, call ``node.start``, report *ready* to
-the launcher, then hold all data flow (timers, device I/O, handlers) until every
-subscriber the launch graph expects has subscribed — so nobody misses the first
-message — and run the loop until SIGINT/SIGTERM. Timers are paced by absolute
-deadlines; inputs are drained to the newest frame (``latest``), queued
-(``queue``) or handed over as one tuple of what the wake-up found (``batch``); every
-drop and rejected frame is counted and published on ``diagnostics``.
-
-Work per wake-up is bounded. A ``latest`` input reads what is waiting (at most
-:data:`_DRAIN_LIMIT` frames) and decodes only from the newest back to the first
-valid frame, so a backlog costs a read per frame, not a decode and a handler call.
-Frames injected by tools pass three token buckets per node, of frames, bytes and work
-(``RunSpec.inject_*``; a container's members share the one of work), and go to ``latest``
-inputs newest only too; one wake-up reads at most :data:`_INJECT_READ_LIMIT` of them. A
-frame over budget is dropped before it is decoded; work over its share pauses their
-reading, and what queued meanwhile is dropped, so a flood takes a bounded share of the
-node's time and its effect ends with it (docs/safety.md, "Floods"; ``inject.*`` counters).
-
-A *container* (ROS 2's component container) runs several nodes in one process and
-one loop. Each member keeps its own publish endpoint, so every tool and recorder
-sees the same graph; a message one member publishes to another is also handed over
-in-process — the same object with its header, no encode/decode, no socket hop, no
-wake-up of another process — right after the publishing handler returns (the
-launcher leaves those publishers out of the member's SUB sockets: ``RunSpec.local``);
-a ``latest`` input handed several at once handles the newest, a ``batch`` input all
-of them in one call. A publication no
-subscriber outside the process wants is not encoded nor sent (the XPUB is polled for
-(un)subscriptions, so a tool that subscribes gets the next one).
+More in docs/modules.md, `nodes/runtime/process.py`.
 """
 
 from __future__ import annotations
@@ -51,6 +24,7 @@ from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC, NodeHost
 from slipstack.nodes.runtime.logs import node_log
 from slipstack.nodes.runtime.node import Node
 from slipstack.nodes.runtime.rate_limit import TokenBucket
+from slipstack.nodes.runtime.scheduling import runs_realtime
 from slipstack.nodes.runtime.stage_cpu import StageCpu, stage_cpu_from_env
 from slipstack.nodes.runtime.curve import secure_bind
 from slipstack.nodes.runtime.time_base import graph_clock
@@ -320,8 +294,8 @@ class _Member:
         for bucket in (frames, size, work):
             bucket.refill(now_ns)
         t0 = time.perf_counter_ns()
-        newest: dict[str, Message] = {}
-        batches: dict[str, list[Message]] = {}
+        newest: dict[str, tuple[Message, str]] = {}
+        batches: dict[str, tuple[list[Message], str]] = {}
         over_rate = over_bytes = backlog = 0
         flushing, self.inject_backlog = self.inject_backlog, False
         for _ in range(_INJECT_READ_LIMIT):
@@ -350,31 +324,32 @@ class _Member:
                 host.count("in.injected.rejected")
                 host.last_error = (f"injected frame: expected [topic, payload(, origin)] on an input topic, "
                                    f"got {len(parts)} parts")
-            origin = "inject/" + parts[2][:MAX_ORIGIN_BYTES].decode(errors="replace") if len(parts) == 3 else "inject"
+            sender = parts[2][:MAX_ORIGIN_BYTES].decode(errors="replace") if len(parts) == 3 else ""
+            origin = f"inject/{sender}" if sender else "inject"
             for input_name in names:
                 msg = host.receive(input_name, parts[1], origin)
                 if msg is None:
                     continue
                 if input_name in self.queues:
-                    host.dispatch(input_name, msg)
+                    host.dispatch(input_name, msg, sender=sender or "inject")
                 elif input_name in self.batch_inputs:
-                    batches.setdefault(input_name, []).append(msg)
+                    batches.setdefault(input_name, ([], sender))[0].append(msg)
                 else:
                     if input_name in newest:
                         host.count_dropped(input_name, 1)
-                    newest[input_name] = msg
+                    newest[input_name] = (msg, sender)
         if over_rate:
             host.count("inject.dropped_rate", over_rate)
         if over_bytes:
             host.count("inject.dropped_bytes", over_bytes)
         if backlog:
             host.count("inject.dropped_backlog", backlog)
-        for input_name, msg in newest.items():
-            host.dispatch(input_name, msg)
-        for input_name, msgs in batches.items():
+        for input_name, (msg, sender) in newest.items():
+            host.dispatch(input_name, msg, sender=sender or "inject")
+        for input_name, (msgs, sender) in batches.items():
             depth = self.node.inputs[input_name].depth
             host.count_dropped(input_name, max(len(msgs) - depth, 0))
-            host.dispatch(input_name, tuple(msgs[-depth:]))
+            host.dispatch(input_name, tuple(msgs[-depth:]), sender=sender or "inject")
 
     def charge_injected_work(self, work_ns: int, now_ns: int) -> None:
         """Charge ``work_ns`` spent on injected frames (their decode, handlers and hand-overs) to
@@ -443,6 +418,8 @@ class _Member:
             if now >= due:  # hopelessly behind: skip ahead and say so
                 skipped = (now - due) // period + 1
                 host.count(f"timer.{timer}.skipped", skipped)
+                if runs_realtime():  # raising its priority is then no remedy: the summary's advice differs
+                    host.count(f"timer.{timer}.skipped_realtime", skipped)
                 due += skipped * period
             self.deadlines[timer] = due
         if now >= self.next_diag:

@@ -5,13 +5,7 @@ XPUB socket (verbose, so it sees every subscription and can wait for its
 subscribers: the readiness handshake against slow joiners); each input connects
 one SUB socket to every endpoint that publishes its topic.
 
-Every socket is bounded: both high-water marks are set explicitly, a peer that
-sends a frame longer than the socket's maximum message size is disconnected by
-ZeroMQ before the frame is buffered (data: :data:`~slipstack.messages.codec.MAX_PAYLOAD_BYTES`;
-the subscriptions an XPUB receives: :data:`MAX_SUBSCRIPTION_BYTES`), and a connection
-that has not finished its handshake within :data:`HANDSHAKE_MS` is closed. A tcp port
-the launcher holds for a node (:func:`listening_socket`, ``$SLIPSTACK_LISTEN_FDS``) is
-taken over by the node's socket, so it stays claimed while the node restarts.
+More in docs/modules.md, `nodes/runtime/transport.py`.
 """
 
 from __future__ import annotations

@@ -11,6 +11,7 @@ The file layout (encodings, clocks, chunking) is described in ``nodes/recording/
 from __future__ import annotations
 
 import argparse
+import sys
 from datetime import datetime
 from pathlib import Path
 
@@ -67,11 +68,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                                       "PlotJuggler read it; needs the ros2 extra; docs/ros2.md). Without --to the "
                                       "format follows the output's suffix; "
                                       "other suffixes (.csv ...) are refused: for CSV use "
-                                      "`slipstack topic echo TOPIC --csv` on a played recording.")
+                                      "`slipstack topic echo TOPIC --csv` on a played recording. An existing OUT is "
+                                      "refused unless --overwrite. A damaged recording is exported as far as it can be "
+                                      "read, and the command says what was damaged and exits 1.")
     ex.add_argument("path", help="recording (.mcap)")
     ex.add_argument("-o", "--output", required=True, help="OUT.mcap or OUT.jsonl")
     ex.add_argument("--to", "--format", dest="format", choices=EXPORT_FORMATS,
                     help="mcap-json, jsonl or ros2; default: from the output suffix (.mcap, .jsonl)")
+    ex.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
     ex.set_defaults(func=_main_export)
 
 
@@ -155,7 +159,12 @@ def _main_export(args: argparse.Namespace) -> int:
                           "for Foxglove) or OUT.jsonl (JSON lines), or give --to (ros2: MCAP as rosbag2 writes it); CSV is not an export format")
     from slipstack.lib.progress import file_progress
 
+    damage: list[str] = []
     with file_progress(args.path, "bag export") as progress:
-        n = export_recording(args.path, args.output, fmt, progress=progress)
+        n = export_recording(args.path, args.output, fmt, progress=progress, force=args.overwrite, on_damage=damage.append)
     print(f"wrote {args.output}: {n} messages ({fmt})")
+    if damage:
+        print(f"slipstack bag export: {args.path} is damaged ({damage[0]}); {args.output} holds the {n} messages that "
+              "could be read. `slipstack bag info` shows what is left", file=sys.stderr)
+        return 1
     return 0

@@ -1,14 +1,6 @@
 """Robustness sweep: random extreme frames through fusion and every slip test.
 
-Each frame draws a pad size, a pressure field (sparse, single taxel, empty, uneven,
-with NaN/Inf/negative taxels), a force scale 1e-9…1e4 N, and a load (none, pure
-force, pure torque, through the centre of pressure, on the Coulomb boundary,
-random). The frame goes through :func:`fuse` and every registered slip test. A
-*failure* is an exception, a NaN anywhere in a verdict, a status that is not a
-``SolverStatus``, an infinite value other than the documented point-contact
-``γ = +inf``, or a non-finite COR. The count must be zero.
-
-Run: ``.venv/bin/python tests/bench/bench_extremes.py [--frames 100000] [--seed 7]``.
+More in docs/modules.md, `tests/bench/bench_extremes.py`.
 """
 
 from __future__ import annotations

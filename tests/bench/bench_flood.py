@@ -5,33 +5,7 @@ Launches the default graph (as ``bench_stack_latency.py`` does, no recorder, no
 monitor), taps ``grip/command`` and ``diagnostics`` and runs these phases of
 ``--phase`` seconds each, in order:
 
-1. ``baseline``: no flood;
-2. ``rate flood``: a separate process injects ``--rate`` frames/s (default 20 kHz) of
-   garbage (``--payload garbage``: random bytes, rejected on decode) or of valid
-   stale-stamped wrenches (``--payload stale``) into every ``ft/wrench`` subscriber's
-   injection endpoint — what ``topic pub`` and ``bag play`` reach;
-3. ``recovery``: no flood;
-4. ``big-frame flood``: the same process sends ``--big-mb`` MB frames (default 10) as
-   fast as ZeroMQ takes them.
-
-``--floods heavy`` runs floods of heavy *legal* frames instead, each followed by a
-recovery phase: ``heavy flood``, ``--rate`` (default here 1 kHz) wrenches of ~70 KB
-(``--sources`` header sources, default 8000) into every ``ft/wrench`` subscriber; and
-``contact flood``, ``--contact-rate`` (50 Hz) contacts of a 256×256 pad, stamped now,
-into every ``contact`` subscriber (the slip detector, the COR estimator, the controller).
-
-For each phase: commands derived from a new F/T sample (watchdog repeats and
-commands derived from injected samples left out; the latter counted, with the
-time of the last one), their rate, the largest gap between two of them (ms), the
-latency ``pub_ns − sources['ft']`` p50 / p99 (ms), the p99 over the
-baseline's (ratio), the fail-safe share, the injection counters of the
-``ft/wrench`` subscribers (``inject.dropped_rate``, ``in.ft/wrench.rejected``), and
-the CPU of the control container, of the flooding process and of the machine. The
-machine's load average before and after is printed (read the ratio against it).
-
-    python tests/bench/bench_flood.py                 # 4 phases of 10 s
-    python tests/bench/bench_flood.py --phase 5 --payload stale
-    python tests/bench/bench_flood.py --floods heavy --rate 1000   # heavy legal frames, 5 phases
+More in docs/modules.md, `tests/bench/bench_flood.py`.
 """
 
 from __future__ import annotations

@@ -1,15 +1,6 @@
 """Every F/T sample in the recording, or counted missing: a long default run beside busy loops.
 
-Launches the default graph (recorder on, default arguments) on the default scene made
-``--minutes`` long, beside ``--hogs`` busy loops (``python3 -c 'while True: pass'``) at the nice
-value a user's programs run at. A tap of this bench's own reads the F/T driver's diagnostics from
-the bus: the truth of how many samples the driver published (its last diagnostics, sent as it
-stops). After the run it compares, for ``ft/wrench``: published by the driver; in the recording
-(frames read back); missing per the file (``bag info``'s loss record); missing per the JSON
-summary (``recording_loss``); whether in the file + missing = published, exactly. Also the
-recorder's lines (fell behind, caught up), how long the launch waited for it, and the load.
-
-    python tests/bench/bench_recording_busy.py --minutes 10 --hogs 2
+More in docs/modules.md, `tests/bench/bench_recording_busy.py`.
 """
 
 from __future__ import annotations

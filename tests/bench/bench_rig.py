@@ -8,10 +8,7 @@ episodes and slip distance with the grip fixed at f_initial. ``--check`` re-runs
 scene with the grip commanded to its ``[expect] holds_at_N`` and verifies the
 scene's stated outcome (slips at f_initial, holds at holds_at_N).
 
-Examples:
-    .venv/bin/python tests/bench/bench_rig.py
-    .venv/bin/python tests/bench/bench_rig.py --sensor-rate 1000 fig14 default
-    .venv/bin/python tests/bench/bench_rig.py --check
+More in docs/modules.md, `tests/bench/bench_rig.py`.
 """
 
 from __future__ import annotations

@@ -1,17 +1,6 @@
 """Start-up: from ``slipstack launch`` to the stack's first grip command, quiet or beside busy loops.
 
-Each run launches the default stack (default arguments, its scene cut to 2 s, the grip
-commands recorded) and reads the receive time of the first ``grip/command`` from the
-recording (wall time from the command's start), and of the first one on valid data (not
-fail-safe: the drivers stream and a verdict went through fusion and the detector). Also
-shown: when the launcher said every node was ready (its log file), and the CPU the launch's
-processes had used by the first valid command (sampled every 20 ms): the work of the start,
-which a busy host stretches into wall time.
-
-    .venv/bin/python tests/bench/bench_startup.py --runs 5
-    .venv/bin/python tests/bench/bench_startup.py --runs 5 --hogs 2   # two `while True: pass` beside it
-
-Run it with another venv's python to time another install of slipstack (same script).
+More in docs/modules.md, `tests/bench/bench_startup.py`.
 """
 
 from __future__ import annotations

@@ -6,9 +6,7 @@ reads the tool's CPU time (utime + stime from ``/proc/<pid>/stat``) over the ste
 part of the run (after the first ``--settle`` seconds of imports and connecting).
 The same is measured for ``topic echo ft/wrench > /dev/null`` (the YAML printer).
 
-Targets: hz reports 1000 ± 2 Hz and uses < 15 % of one core.
-
-    python tests/bench/bench_topic_hz.py --duration 20
+More in docs/modules.md, `tests/bench/bench_topic_hz.py`.
 """
 
 from __future__ import annotations

@@ -5,12 +5,7 @@ Run from the repository root::
     .venv/bin/python tests/isolation/make_golden.py            # rewrite the golden files
     .venv/bin/python tests/isolation/make_golden.py --check    # exit 1 if they are stale
 
-Each recording (``golden_config.GOLDENS``) is a shipped launch file run in lock-step
-(``slipstack launch FILE --lockstep``, ``launch/lockstep.py``) on a short scene, every
-topic recorded as it was published: log_time = ``header.pub_ns`` (the in-process
-executor's clock, ns from the run's start) and ``wall_minus_monotonic_ns = 0``, so
-``replay_into`` feeds each frame at the very time, and in the very order, the live
-node received it.
+More in docs/modules.md, `tests/isolation/make_golden.py`.
 """
 
 from __future__ import annotations

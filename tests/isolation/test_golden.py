@@ -1,30 +1,6 @@
 """Every processing node against recorded inputs and recorded expected outputs.
 
-The golden recordings (``golden/*.mcap``, described in ``golden_config.py``) hold
-every topic of the whole stack run in lock-step from simulated time 0. Each node is
-built fresh with the recording's parameters, fed its input topics from the file
-(``replay_into``: each frame at its recorded publication time, in recorded order) and
-must reproduce every recorded output as :func:`match_outputs` compares them: integers,
-strings, states and counts exactly (header seq and pub_ns too, since the replay starts
-where the recording did), floats within the stated tolerance of ``same_output`` — a
-CPU with other vector units or another BLAS rounds the last bits differently
-(docs/portability.md §1).
-
-Regenerate after an intended behaviour change (and review the diff it causes)::
-
-    .venv/bin/python tests/isolation/make_golden.py
-
-``test_golden_files_are_fresh`` regenerates them into a temporary folder and compares
-frame by frame by the same rule (``make_golden.py --check`` does the same from the
-command line).
-
-A golden file only says that the code still does what it did when the file was
-written. So each recording is also checked against what must hold whatever the code
-does (``test_recorded_*``): the contact's taxel forces add up to the measured normal
-force, γ agrees with a brute-force maximisation over twist directions (the one of
-``tests/unit/test_limit_set.py``, which never uses the COR), the COR's ratio
-``|n(p_c)|/T(p_c)`` computed here from the contact reaches that maximum, and the grip
-command stays within its bounds and slew limit and never falls without a new input.
+More in docs/modules.md, `tests/isolation/test_golden.py`.
 """
 
 from __future__ import annotations

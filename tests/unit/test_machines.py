@@ -139,18 +139,25 @@ def test_bad_machine_tables_are_refused_with_what_to_do(tmp_path, change, messag
         _load(tmp_path, **change)
 
 
-def test_after_a_node_of_a_machine_that_is_not_up_names_the_machine(tmp_path, keys, monkeypatch):
-    monkeypatch.setattr(launcher_module, "READY_TIMEOUT_S", 1.0)
+@pytest.mark.parametrize("source, waits_for", [
+    ('after = ["relay"]', "relay"),
+    # the simulated world (stop_first) waits for every node elsewhere: with the control path on
+    # another machine still starting, the rig had run its scene uncontrolled (issue 29)
+    ("stop_first = true", "relay, sink"),
+])
+def test_a_node_that_waits_for_a_machine_that_is_not_up_names_the_machine(tmp_path, keys, monkeypatch, source,
+                                                                           waits_for):
+    monkeypatch.setattr(launcher_module, "PEER_WAIT_S", 1.0)
     lines: list[str] = []
     run_dir = tmp_path / "run"
     run_dir.mkdir(mode=0o700)
-    launcher = Launcher(_load(tmp_path, source='after = ["relay"]'), run_dir, machine="a", echo=lines.append)
+    launcher = Launcher(_load(tmp_path, source=source), run_dir, machine="a", echo=lines.append)
     try:
         assert launcher.run() == 1
     finally:
         curve.use_keys(None)  # the launcher took machine a's keys for its own links
-    assert any("node source (wrench_source) starts after relay on machine b (127.0.0.2), not ready after 1 s: is "
-               "`slipstack launch two.toml --machine b` running there?" in line for line in lines), lines
+    assert any(f"node source (wrench_source) starts after {waits_for} on machine b (127.0.0.2), not ready after 1 s: "
+               "is `slipstack launch two.toml --machine b` running there?" in line for line in lines), lines
 
 
 def test_launch_keys_name_the_directory_of_every_machines_key_directory(tmp_path, keys):
@@ -196,6 +203,31 @@ def test_a_machine_admits_the_graphs_machines_and_no_stranger_while_ipc_stays_pl
                     counts[name] += 1
             time.sleep(0.005)
         assert counts["ipc"] > 20 and counts["member"] > 20 and counts["outsider"] == 0, counts
+    finally:
+        curve.use_keys(None)
+        ctx.destroy(linger=0)
+
+
+def test_one_subscriber_of_publishers_on_both_machines_hears_them_all(tmp_path, keys):
+    """The recorder on machine b taps the graph with one SUB: the tcp publishers of a (CURVE)
+    and the ipc publishers of b (plain), connected in graph.json's order, whichever comes first."""
+    hosts = {"127.0.0.1": "a"}
+    ctx = zmq.Context()
+    try:
+        curve.use_keys(keys[0], "a", hosts)
+        remote = make_pub(ctx, f"ipc://{tmp_path}/a.pub", remote=f"tcp://127.0.0.1:{free_port()}")
+        curve.use_keys(keys[1], "b", hosts)
+        local = [make_pub(ctx, f"ipc://{tmp_path}/b{k}.pub") for k in range(2)]
+        tcp = remote.getsockopt(zmq.LAST_ENDPOINT).decode()
+        tap = make_sub(ctx, [f"ipc://{tmp_path}/b0.pub", tcp, f"ipc://{tmp_path}/b1.pub"], None)
+        heard: set[bytes] = set()
+        end = time.monotonic() + 10.0
+        while time.monotonic() < end and len(heard) < 3:
+            for name, pub in ((b"a", remote), (b"b0", local[0]), (b"b1", local[1])):
+                pub.send_multipart([b"t", name])
+            while tap.poll(5):
+                heard.add(tap.recv_multipart()[1])
+        assert heard == {b"a", b"b0", b"b1"}
     finally:
         curve.use_keys(None)
         ctx.destroy(linger=0)
