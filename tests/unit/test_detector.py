@@ -33,6 +33,11 @@ def test_node_defaults_are_the_material_defaults() -> None:
     online = SlipDetector(SlipDetectorParams(calibrate="online")).detector.settings
     assert online == DetectorSettings.from_material(rubber, calibrate_from=rubber)
     assert set(FT_TESTS) < set(SLIP_TESTS) and online.also == FT_TESTS
+    # the shipped files carry the rig's F/T noise (identify on their ramps), so the default guards too
+    for name in ("rubber", "coulomb", "weakening"):
+        m = resolve_material(name)
+        assert m.force_noise_n == pytest.approx(0.01, rel=0.1) and m.torque_noise_nm == pytest.approx(5e-5, rel=0.1)
+    assert SlipDetector().detector.settings.force_noise_n == rubber.force_noise_n
 
 
 def test_a_pulled_pad_slips_latches_through_a_stale_frame_and_releases_after_the_dwell() -> None:
