@@ -1,15 +1,11 @@
 """Write the rig's holds at 95 % of where their own load path lets go (launch/scenes/hold95path_*).
 
-For each rig material and load path (a pull on the flat pad, a twist of the Hertzian tip, a
-force 5 mm off the centre of that tip), a probe (the hold's scene with its ramp carried on
-past slip at the same rate, then held 3.5 s) runs on the simulator; the truth's first
-gross-slip onset gives the load the contact carried there (a contact that only creeps at its
-limit, never in gross slip by the truth: the most it carried), and the hold ramps to 95 % of
-it in 1.5 s and keeps it 3.5 s.
-tests/bench/bench_detection.py checks that none of them slips and that the detector stays
-quiet on them (docs/benchmarks.md). Re-run after a change of the rig's physics:
-
-    python tests/bench/make_path_holds.py
+Per rig material and load path (a pull on the flat pad, a twist of the Hertzian tip, a force
+5 mm off its centre) a probe (the ramp carried on past slip, then held) runs on the simulator;
+the truth's first gross-slip onset gives the load carried there (or the most carried, if the
+contact only creeps), and the hold ramps to 95 % of it in 1.5 s and keeps it 3.5 s.
+tests/bench/bench_detection.py scores the detector on them. Re-run after a change of the
+rig's physics: ``python tests/bench/make_path_holds.py [--materials ...] [--paths ...]``.
 """
 
 from __future__ import annotations
