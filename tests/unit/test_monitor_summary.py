@@ -547,7 +547,7 @@ def test_a_silent_observer_is_reported_and_does_not_fail_the_check(tmp_path):
     for s in range(1, 11):
         t = s * 1_000_000_000 - 1
         events.append((t, "diagnostics", _diag("control", t, **{"in.ft/wrench.received": 500.0 * s,
-                                                                 "out.grip/command.published": 500.0 * s})))
+                                                                 "out.contact.published": 500.0 * s})))
         if s <= 2 or s >= 6:
             events.append((t, "diagnostics", Diagnostics(node="recorder", counters={"recorder.written": 500.0 * s},
                                                          header=Header(t, s, t, {}))))
@@ -594,7 +594,7 @@ def test_the_graph_file_says_who_observes(tmp_path, monkeypatch):
         t = s * 1_000_000_000 - 1
         if s <= 1:
             events += [(t, "diagnostics", _diag("rig", t)), (t, "diagnostics", _diag("recorder", t))]
-        events.append((t, "diagnostics", _diag("control", t, **{"out.grip/command.published": 500.0 * s})))
+        events.append((t, "diagnostics", _diag("control", t, **{"out.contact.published": 500.0 * s})))
     check = tmp_path / "check.json"
     s, _, _ = monitor_over(events, tmp_path, check_path=str(check))
     assert s["observers"] == ["recorder"]
