@@ -237,7 +237,7 @@ def test_a_clean_run_says_health_ok_and_passes_its_check(fig10_runs, tmp_path):
     assert s["fail_safe_commands"] == 0 and s["late_commands"] == 0  # lock-step: nothing is late
     assert "HEALTH: ok" in [line.split("] ", 1)[-1] for line in logs]
     assert any("frames lost: none" in line for line in logs)
-    assert json.loads(check.read_text()) == {"passed": True, "problems": [], "short": []}
+    assert json.loads(check.read_text()) == {"passed": True, "problems": [], "short": [], "judged_whole": True}
 
 
 def _truth(t_ns: int, *, slid_m: float = 0.0, turned_rad: float = 0.0, gross: bool = False) -> RigTruth:
