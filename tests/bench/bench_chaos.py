@@ -195,9 +195,8 @@ def trial_inject_slip(stack: Stack) -> tuple[int, int]:
     return t0, time.monotonic_ns()
 
 
-# safety-b's items: the faults as the issue describes them; run after merging that branch
 def trial_full_disk(stack: Stack) -> tuple[int, int]:
-    """Item 3 (safety-b): the launch's run log on a full file system (set up by ``launch_config``'s
+    """Item 3: the launch's run log on a full file system (set up by ``launch_config``'s
     caller: see ``TRIALS``); the fault is the disk filling while the scene runs."""
     t0 = _at_fault_time(stack)
     filler = stack.recording.parent / "disk" / "filler"
@@ -211,7 +210,7 @@ def trial_full_disk(stack: Stack) -> tuple[int, int]:
 
 
 def trial_heavy_frames(stack: Stack) -> tuple[int, int]:
-    """Item 4 (safety-b): 70 KB wrench frames (8000 header sources) at 500 Hz for 3 s into fusion."""
+    """Item 4: 70 KB wrench frames (8000 header sources) at 500 Hz for 3 s into fusion."""
     t0 = _at_fault_time(stack)
     sources = {f"s{i}": i for i in range(8000)}
     _write_raw({stack.graph()["nodes"]["fusion"]["inject"]["ft/wrench"]}, b"ft/wrench",
@@ -222,14 +221,14 @@ def trial_heavy_frames(stack: Stack) -> tuple[int, int]:
 
 
 def trial_killed_monitor(stack: Stack) -> tuple[int, int]:
-    """Item 6 (safety-b): the monitor SIGKILLed; the summary must still come."""
+    """Item 6: the monitor SIGKILLed; the summary must still come."""
     t0 = _at_fault_time(stack)
     os.kill(stack.pid("monitor"), signal.SIGKILL)
     return t0, time.monotonic_ns()
 
 
 def trial_forged_rdt(stack: Stack) -> tuple[int, int]:
-    """Item 7 (safety-b): 2 s of garbage and forged RDT datagrams to the F/T sensor's port; the
+    """Item 7: 2 s of garbage and forged RDT datagrams to the F/T sensor's port; the
     summary must name the attack."""
     t0 = _at_fault_time(stack)
     rng = np.random.default_rng(7)
@@ -246,7 +245,6 @@ class Trial:
     run: Callable[[Stack], tuple[int, int]]
     item: str
     configs: tuple[str, ...] = ("one", "two")
-    owner: str = ""  # "safety-b": faults that branch fixes; not run by default here
 
 
 TRIALS = {
@@ -255,10 +253,10 @@ TRIALS = {
     "bias_then_crash": Trial(trial_bias_then_crash, "2"),
     "inject_grip_command": Trial(trial_inject_grip_command, "8"),
     "inject_slip": Trial(trial_inject_slip, "8"),
-    "full_disk": Trial(trial_full_disk, "3", owner="safety-b"),
-    "heavy_frames": Trial(trial_heavy_frames, "4", owner="safety-b"),
-    "killed_monitor": Trial(trial_killed_monitor, "6", owner="safety-b"),
-    "forged_rdt": Trial(trial_forged_rdt, "7", owner="safety-b"),
+    "full_disk": Trial(trial_full_disk, "3"),
+    "heavy_frames": Trial(trial_heavy_frames, "4"),
+    "killed_monitor": Trial(trial_killed_monitor, "6"),
+    "forged_rdt": Trial(trial_forged_rdt, "7"),
 }
 
 
@@ -304,7 +302,8 @@ def measure(row: Row, stack: Stack, fault: tuple[int, int]) -> Row:
         prior = [f for stamp, f in finger if stamp < t0]
         row.before_n = prior[-1] if prior else float("nan")
     end = min(back if back is not None else t1 + RECOVERY_CAP_NS, t1 + RECOVERY_CAP_NS)
-    window = [f for stamp, f in finger if t0 <= stamp <= end]
+    # the finger reports at 100 Hz: a fault the control path rides through can end between two reports
+    window = [f for stamp, f in finger if t0 <= stamp <= end] or [f for stamp, f in finger if stamp >= t0][:1]
     row.lowest_n = min(window) if window else float("nan")
     log = stack.control.log()
     health = next((line for line in log.splitlines() if "HEALTH:" in line), "no summary")
@@ -404,7 +403,6 @@ def kill_series(args: argparse.Namespace) -> int:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--trial", action="append", choices=sorted(TRIALS), help="run only these (repeatable)")
-    ap.add_argument("--all", action="store_true", help="also the trials of faults safety-b fixes")
     ap.add_argument("--config", action="append", choices=("one", "two"), help="only these configurations")
     ap.add_argument("--hogs", type=int, default=0, help="busy-loop processes beside the stack")
     ap.add_argument("--kill-series", action="store_true", help="the older series of kills instead (one machine)")
@@ -419,7 +417,7 @@ def main() -> int:
     try:
         if args.kill_series:
             return kill_series(args)
-        names = args.trial or [n for n, t in TRIALS.items() if args.all or not t.owner]
+        names = args.trial or list(TRIALS)
         rows = []
         for name in names:
             for config in args.config or TRIALS[name].configs:
