@@ -293,3 +293,17 @@ def test_a_node_never_publishes_a_frame_over_the_transport_limit():
     assert len(sent) == 1
     assert host.counters["out.diagnostics.oversized"] == 1
     assert "diagnostics: a frame of" in host.last_error and "not sent" in host.last_error
+
+
+def test_the_unpackers_own_limits_are_their_documented_numbers():
+    """msgpack's limits (docs: twice what a field allows, so the field's check names it first),
+    written as numbers: 2 * 4 * 4096 bytes of text, no raw bytes, lists of 1024, maps of
+    2 * 4096; one more is a DecodeError before any field is looked at. The frame: 2 MiB."""
+    from slipstack.messages.codec import unpackb
+
+    assert MAX_PAYLOAD_BYTES == 2 * 1024 * 1024
+    fits = [packb("s" * 32768), packb(list(range(1024))), packb({f"k{i}": 0 for i in range(8192)})]
+    assert [len(x) for x in map(unpackb, fits)] == [32768, 1024, 8192]
+    for over in (packb("s" * 32769), packb(b"x"), packb(list(range(1025))), packb({f"k{i}": 0 for i in range(8193)})):
+        with pytest.raises(DecodeError, match="payload: not a valid MessagePack frame"):
+            unpackb(over)
