@@ -56,7 +56,7 @@ import zmq
 
 from slipstack.lib.errors import ConfigError, SlipstackError
 from slipstack.messages import Diagnostics
-from slipstack.launch.launch_file import SIM_ARG, LaunchFile, arg_comments, load_launch_file
+from slipstack.launch.launch_file import PORT_ARGS, SIM_ARG, LaunchFile, arg_comments, load_launch_file
 from slipstack.launch.clock_report import REPORT_PERIOD_S, ClockReport, launcher_node
 from slipstack.launch.inject_relay import InjectionRelay
 from slipstack.launch.peers import PeerLinks, launcher_endpoint
@@ -761,7 +761,7 @@ def main_launch(args: argparse.Namespace) -> int:
         if args.show_args:
             comments = arg_comments(launch.path)
             for name, value in launch.args.items():
-                if name not in ("run_dir", "free_udp_port", "stamp", SIM_ARG):
+                if name not in ("run_dir", "stamp", SIM_ARG, *PORT_ARGS):
                     note = f"  # {comments[name]}" if name in comments else ""
                     print(f"{name} := {value!r}{note}")
             remove_run_dir(run_dir)

@@ -27,6 +27,7 @@ class FtSample:
     status: device status word, 0 = no flag (RDT status, Bota status bits).
     saturated: some axis hit its range and the value is clipped (the simulated
         sensor says so here; a device says so in ``status``).
+    finger: which finger's sensor (0, or 1 on the simulated gripper's second finger).
     """
 
     stamp_ns: int
@@ -36,6 +37,7 @@ class FtSample:
     device_time_s: float | None = None
     status: int = 0
     saturated: bool = False
+    finger: int = 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -47,6 +49,7 @@ class TactileSample:
     device_seq: the frame counter (the simulated sensor counts from 0; no tactile
         protocol has one), or None.
     status: device flags, 0 = none.
+    finger: which finger's pad (0, or 1 on the simulated gripper's second finger).
     """
 
     stamp_ns: int
@@ -54,3 +57,4 @@ class TactileSample:
     device_time_s: float | None = None
     device_seq: int | None = None
     status: int = 0
+    finger: int = 0
