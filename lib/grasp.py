@@ -11,17 +11,32 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
+from slipstack.lib.grip_laws import GripInput, GripLaw
 from slipstack.lib.limit_set import load_factor
 from slipstack.lib.status import SolverStatus
 
 __all__ = [
-    "least_squeeze", "load_shares", "to_finger0", "combined_contact", "TurnPrediction", "predict_turn",
+    "SqueezeLaw", "least_squeeze", "load_shares", "to_finger0", "combined_contact", "TurnPrediction", "predict_turn",
     "PadPose", "pad_pose", "ObjectMotion", "MotionEstimator", "ModeOutput", "TrackGains", "PIVOT_GAINS",
     "SLIDE_GAINS", "TrackControl", "TextureOdometer",
 ]
+
+
+@dataclass(frozen=True, kw_only=True)
+class SqueezeLaw(GripLaw):
+    """The grasp node's squeeze as a grip law: the demand it computed (``GripInput.demand_n``,
+    N), so :class:`~slipstack.lib.grip_laws.GripGovernor` bounds it, limits its rate and holds
+    it on data it cannot trust, exactly as for one finger."""
+
+    name: ClassVar[str] = "squeeze"
+    needs: ClassVar[tuple[str, ...]] = ("demand_n",)
+
+    def demand(self, inp: GripInput, dt_s: float) -> float:
+        return inp.demand_n
 
 
 def least_squeeze(gammas: tuple[float, float], f_ns: tuple[float, float]) -> float:

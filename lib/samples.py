@@ -1,5 +1,5 @@
-"""Sensor samples: one F/T reading, one tactile frame — as a device back-end decodes
-them and as the simulated rig's sensor models produce them.
+"""Sensor samples: one F/T reading, one tactile frame, one gripper force reading — as a
+device back-end decodes them and as the simulated rig's sensor models produce them.
 
 ``stamp_ns`` is the time of the sample on the clock of whoever made it: the
 simulated time for the rig's sensor models, the caller's clock at the ``poll()`` that
@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FtSample", "TactileSample"]
+__all__ = ["FtSample", "TactileSample", "GripperSample"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,3 +58,19 @@ class TactileSample:
     device_seq: int | None = None
     status: int = 0
     finger: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class GripperSample:
+    """One reading of a gripper's grasping force.
+
+    stamp_ns: time of the sample (ns, see the module docstring).
+    force_n: the grasping force the gripper measures (N).
+    force_limit_n: the force limit it was last told, and acknowledged (N; NaN before any).
+    state: its grasping state (``holding``, ``idle``, ...; lib/protocols/wsg.py).
+    """
+
+    stamp_ns: int
+    force_n: float
+    force_limit_n: float
+    state: str

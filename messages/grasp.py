@@ -12,7 +12,7 @@ import numpy as np
 from slipstack.messages.base import Message, array, bounded, message
 from slipstack.messages.types import MAX_GRIP_FORCE_N, NAME_PATTERN, STATUS_OK
 
-__all__ = ["GraspGoal", "GraspState", "GraspTruth", "GRASP_MODES", "MAX_PIVOT_RAD", "MAX_SLIDE_M"]
+__all__ = ["GraspGoal", "GraspState", "GraspTruth", "GripperState", "GRASP_MODES", "MAX_PIVOT_RAD", "MAX_SLIDE_M"]
 
 GRASP_MODES = ("hold", "pivot", "slide")
 """``hold``: the least squeeze that keeps both contacts inside their limit sets; ``pivot``:
@@ -91,3 +91,23 @@ class GraspTruth(Message):
     tau: np.ndarray = array("<f8", (2,), doc="N·m")
     weight: np.ndarray = array("<f8", (2,), doc="N")
     mass_kg: float = bounded(0.0, ge=0.0, doc="kg")
+
+
+@message("slipstack/GripperState")
+class GripperState(Message):
+    """``gripper/state``: what the gripper driver knows of its gripper.
+
+    force_n: the grasping force the gripper measures (N); force_limit_n: the force limit
+    it last acknowledged (N); commanded_n: the squeeze the driver wants it to apply now
+    (N: the newest ``grip/command``, or its watchdog's hold); state: the gripper's grasping
+    state (``holding``, ``idle``, ...); watchdog: no ``grip/command`` came for the
+    driver's timeout and it holds, then raises the squeeze; status: the link's (``ok``,
+    ``stale``, ``disconnected``).
+    """
+
+    force_n: float = bounded(0.0, doc="N")
+    force_limit_n: float = bounded(0.0, ge=0.0, le=MAX_GRIP_FORCE_N, doc="N")
+    commanded_n: float = bounded(0.0, ge=0.0, le=MAX_GRIP_FORCE_N, doc="N")
+    state: str = bounded("unknown", pattern=NAME_PATTERN, max_len=32)
+    watchdog: bool = False
+    status: str = bounded(STATUS_OK, max_len=256)

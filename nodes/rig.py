@@ -14,7 +14,9 @@ and in the log, how late and what to do, at most every 10 s (:mod:`slipstack.lib
 The tactile calibration table of the simulated rubber is written to
 ``calibration_out`` at start, for the tactile driver to load. A gripper scene
 (``[gripper]``) has a second finger with its own F/T and tactile devices (``finger1_*``)
-and publishes each finger's true load on ``rig/grasp``.
+and publishes each finger's true load on ``rig/grasp``; with ``gripper`` it serves
+an emulated WSG 50 there and squeezes with the force the gripper is told (its driver's
+watchdog then guards it), and the scene starts once the gripper holds the part.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ from slipstack.lib.rig.simulator import Simulator, Truth, compile_kernels as com
 from slipstack.lib.toml_file import resolve_path
 from slipstack.messages import GraspTruth, GripCommand, RigTruth
 from slipstack.nodes.devices.emulators import (
-    BotaEmulator, Dsacon32Emulator, M1616Emulator, RdtSimServer, RdtUdpServer, RobotiqEmulator,
+    BotaEmulator, Dsacon32Emulator, M1616Emulator, RdtSimServer, RdtUdpServer, RobotiqEmulator, WsgEmulator,
 )
 from slipstack.nodes.devices.sim_link import SIM_PREFIX, is_simulated
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
@@ -86,6 +88,12 @@ class RigParams:
         "help": "a gripper scene: pty link of finger 1's serial F/T emulator; sim:PATH in lock-step runs"})
     finger1_tactile_link: str = field(default="", metadata={
         "help": "a gripper scene: pty link of finger 1's tactile emulator; sim:PATH in lock-step runs"})
+    gripper: bool = field(default=False, metadata={
+        "help": "a gripper scene: serve an emulated WSG 50 at gripper_address and squeeze as it is told; "
+                "false: the squeeze follows grip/command"})
+    gripper_address: str = field(default="127.0.0.1:1000", metadata={
+        "help": "TCP HOST:PORT of the emulated gripper (sim:HOST:PORT: the simulated device table, lock-step runs)"})
+    part_width_mm: float = field(default=20.0, metadata={"help": "the emulated gripper finds the part at this width (mm)"})
 
 
 class Rig(Node):
@@ -112,6 +120,11 @@ class Rig(Node):
         self.sim: Simulator | None = None
         self.ft_devs: list = []  # per finger
         self.tactile_devs: list = []
+        self.gripper: WsgEmulator | None = None
+        if p.gripper:
+            if self.scene.fingers != 2:
+                raise ConfigError(f"rig: gripper = true needs a gripper scene ([gripper]); {self.scene.name} has one finger")
+            self.inputs = {}  # the squeeze comes from the emulated gripper, not from grip/command
         self._powered_ns = 0
         self._t0: int | None = None
         self.late_ticks = LateTicks(round(p.tick_ms * 1e6), _LATE_TICK_MS * _NS_PER_MS,
@@ -131,6 +144,8 @@ class Rig(Node):
             devices.append((p.finger1_rdt_port, p.finger1_ft_link, p.finger1_tactile_link, "finger1_"))
         if scene.ft.enabled:
             self.ft_devs = [self._ft_device(port, link, prefix) for port, link, _, prefix in devices]
+        if p.gripper:
+            self.gripper = WsgEmulator(p.gripper_address, part_width_mm=p.part_width_mm)
         if scene.tactile.enabled and p.tactile:
             self.tactile_devs = [self._tactile_device(link, prefix) for _, _, link, prefix in devices]
             if p.calibration_out:
@@ -204,13 +219,24 @@ class Rig(Node):
         return [*self.ft_devs, *self.tactile_devs]
 
     def _sensors_streaming(self) -> bool:
-        """Every emulated sensor has been started by its driver (M1616 pushes unasked)."""
-        return all(getattr(d, "acquiring", getattr(d, "streaming", True)) for d in self._devices())
+        """Every emulated sensor has been started by its driver (M1616 pushes unasked), and the
+        emulated gripper holds the part."""
+        held = self.gripper is None or (self.gripper.holding and self.gripper.stream_period_ns > 0)
+        return held and all(getattr(d, "acquiring", getattr(d, "streaming", True)) for d in self._devices())
+
+    def _serve_gripper(self, ctx: Context) -> None:
+        """The emulated gripper answers its driver and streams the squeeze; the fingers squeeze as it says."""
+        gripper, sim = self.gripper, self.sim
+        gripper.tick(ctx.now_ns(), sim.normal_force_applied if self._t0 is not None else 0.0)
+        if self._t0 is not None and gripper.squeeze_n != sim.normal_force_command:
+            sim.command_normal_force(gripper.squeeze_n)
 
     def on_timer_tick(self, ctx: Context) -> None:
         sim = self.sim
         for dev in self._devices():
             dev.service()
+        if self.gripper is not None:
+            self._serve_gripper(ctx)
         if self._t0 is None:  # the experiment starts once the drivers read the sensors
             waited = (ctx.now_ns() - self._powered_ns) / 1e9
             if not self._sensors_streaming() and waited < self.params.wait_for_drivers_s:
@@ -220,7 +246,8 @@ class Rig(Node):
             self._t0 = ctx.now_ns()
             ctx.log(f"sensors streaming; scene {self.scene.name} starts")
         self._tell_if_late(ctx)
-        self._guard_finger(ctx)
+        if self.gripper is None:
+            self._guard_finger(ctx)
         for sample in sim.step_until(ctx.now_ns() - self._t0):
             if isinstance(sample, FtSample):
                 if self.ft_devs and not self.ft_devs[sample.finger].send_ft(sample.force_n, sample.torque_nm):
@@ -240,6 +267,8 @@ class Rig(Node):
     def stop(self, ctx: Context) -> None:
         for dev in self._devices():
             dev.close()
+        if self.gripper is not None:
+            self.gripper.close()
 
 
 def load_scene_by_name(name: str) -> Scene:

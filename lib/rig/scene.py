@@ -22,7 +22,7 @@ Layout of a scene file (every table but ``[object]``, ``[contact]``, ``[dof]`` a
                      [[disturbance.segments]] kind = "hold" | "step" | "ramp" | "sine"
     [support]        force_N, torque_Nm (Coulomb friction under the object)
     [gripper]        a second finger on the opposite face: gravity_m_s2, weight_on_s,
-                     [gripper.contact] (finger 1's contact), [[gripper.added_mass]] at_s, mass_kg
+                     [gripper.contact] (finger 1's contact), [[gripper.added_mass]] at_s, mass_kg, over_s
     [sensors.ft]     rate, frame offset, noise, bias, resolution, range
     [sensors.tactile] rate, rubber curve, gain spread, noise, dead taxels, crosstalk
     [expect]         slips_at_initial, holds_at_N (documentation, checked by the bench)
@@ -311,10 +311,20 @@ class ExpectSpec:
 
 @dataclass(frozen=True)
 class MassStep:
-    """Mass added to the object at its centre of mass at ``at_s`` (s): ``mass_kg`` (kg)."""
+    """Mass added to the object at its centre of mass: ``mass_kg`` (kg) from ``at_s`` (s), at
+    a steady rate over ``over_s`` (s; 0: at once)."""
 
     at_s: float
     mass_kg: float
+    over_s: float = 0.0
+
+    def added(self, t_s: float) -> float:
+        """The mass this step has added by ``t_s`` (kg)."""
+        if t_s < self.at_s:
+            return 0.0
+        if self.over_s <= 0.0 or t_s >= self.at_s + self.over_s:
+            return self.mass_kg
+        return self.mass_kg * (t_s - self.at_s) / self.over_s
 
 
 @dataclass(frozen=True)
@@ -443,7 +453,8 @@ def _gripper(t: ConfigTable, finger0: ContactSpec) -> GripperSpec:
     steps = []
     for i, item in enumerate(raw):
         step_t = t.child(item, f"added_mass[{i}]")
-        steps.append(MassStep(at_s=step_t.real("at_s", lo=0.0), mass_kg=step_t.real("mass_kg", lo=0.0, lo_open=True)))
+        steps.append(MassStep(at_s=step_t.real("at_s", lo=0.0), mass_kg=step_t.real("mass_kg", lo=0.0, lo_open=True),
+                              over_s=step_t.real("over_s", 0.0, lo=0.0)))
         step_t.finish()
     weight_on = t.vector("weight_on_s", 2, (0.0, 0.0), lo=0.0)
     if weight_on[1] < weight_on[0]:

@@ -290,6 +290,11 @@ class Simulator:
         return self._finger.rejected
 
     @property
+    def normal_force_applied(self) -> float:
+        """The normal force the finger (a gripper: each finger) applies now, N."""
+        return self._finger.force
+
+    @property
     def normal_force_command(self) -> float:
         """The finger's present normal-force command, N."""
         return self._finger.command_N
@@ -488,11 +493,12 @@ class Simulator:
         share of the weight the support no longer carries (docs/math.md §9)."""
         gripper, body = self._gripper, self._body
         t = self._t_ns * 1e-9
-        while self._mass_steps and self._mass_steps[0].at_s <= t:
-            added = self._mass_steps.pop(0).mass_kg
-            body.inertia *= (body.mass + added) / body.mass
-            body.mass += added
-            self._plant_constants = self._bristles.plant_constants(body.mass, body.inertia, body.free_mask)
+        if self._mass_steps:
+            mass = self.scene.object.mass_kg + sum(step.added(t) for step in self._mass_steps)
+            if mass != body.mass:
+                body.inertia *= mass / body.mass
+                body.mass = mass
+                self._plant_constants = self._bristles.plant_constants(body.mass, body.inertia, body.free_mask)
         start, end = gripper.weight_on_s
         share = 1.0 if t >= end else 0.0 if t <= start else (t - start) / (end - start)
         self._weight = share * body.mass * complex(*gripper.gravity_m_s2)
