@@ -152,13 +152,14 @@ class ObjectMotion:
 
     angle: turned (rad, counter-clockwise positive); rate: its rate (rad/s);
     shift: the translation of the object point that was on the grasp axis (m, (x, y));
-    speed: its rate along the slide direction (m/s, ``nan`` before one is known);
+    speed: how fast that point moves (m/s);
     sees_angle: both pads see an elongated footprint (otherwise ``angle`` is 0).
     """
 
     angle: float
     rate: float
     shift: tuple[float, float]
+    speed: float
     sees_angle: bool
 
 
@@ -177,16 +178,20 @@ class MotionEstimator:
         self.window_ns = window_ns
         self.min_elongation = min_elongation
         self._history: deque[tuple[int, float]] = deque(maxlen=max_frames)
+        self._shifts: tuple[deque[tuple[int, float]], deque[tuple[int, float]]] = (
+            deque(maxlen=max_frames), deque(maxlen=max_frames))
         self._ref: tuple[PadPose, PadPose] | None = None
         self._last_angles = (0.0, 0.0)
         self._unwrapped = (0.0, 0.0)
-        self.motion = ObjectMotion(0.0, 0.0, (0.0, 0.0), False)
+        self.motion = ObjectMotion(0.0, 0.0, (0.0, 0.0), 0.0, False)
 
     def reset(self) -> None:
         """Forget the reference: the next frames start a new one."""
         self._ref = None
         self._history.clear()
-        self.motion = ObjectMotion(0.0, 0.0, (0.0, 0.0), False)
+        for h in self._shifts:
+            h.clear()
+        self.motion = ObjectMotion(0.0, 0.0, (0.0, 0.0), 0.0, False)
 
     def update(self, t_ns: int, poses: tuple[PadPose, PadPose]) -> ObjectMotion:
         """Take both pads' poses at ``t_ns`` (finger 1's in its own frame); the motion now."""
@@ -213,10 +218,12 @@ class MotionEstimator:
             sy = pose.centroid[1] - (sa * c0x + ca * c0y)
             shifts.append((sx, sy) if k == 0 else (-sx, sy))
         shift = (0.5 * (shifts[0][0] + shifts[1][0]), 0.5 * (shifts[0][1] + shifts[1][1]))
-        self._history.append((t_ns, angle))
-        while self._history and t_ns - self._history[0][0] > self.window_ns:
-            self._history.popleft()
-        self.motion = ObjectMotion(angle, _slope(self._history), shift, sees)
+        for history, value in zip((self._history, *self._shifts), (angle, *shift)):
+            history.append((t_ns, value))
+            while history and t_ns - history[0][0] > self.window_ns:
+                history.popleft()
+        speed = math.hypot(_slope(self._shifts[0]), _slope(self._shifts[1]))
+        self.motion = ObjectMotion(angle, _slope(self._history), shift, speed, sees)
         return self.motion
 
 

@@ -36,6 +36,8 @@ from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
 __all__ = ["Grasp", "GraspParams"]
 
+_MOVING_M_S, _MOVING_RAD_S = 2e-3, 0.05
+"""The pads see the object move faster than these (m/s, rad/s): it slides (their noise: ~0.5 mm/s, 0.5°/s)."""
 _SETTLE_NS = 300_000_000
 """After a pivot or slide ends, the regrip squeeze is kept this long before the hold law takes over."""
 
@@ -102,7 +104,8 @@ class Grasp(Node):
         self._regrip_n = 0.0
         self._regrip_until_ns = 0
         self._frames: list[int | None] = [None, None]  # the tactile stamps of the pads' newest frames
-        self._motion: MotionEstimator | TextureOdometer | None = None
+        self._motion: MotionEstimator | TextureOdometer | None = None  # a mode's
+        self._watch = MotionEstimator()  # the pads' view of the object, for the hold
         self._progress = (0.0, 0.0)
         self._last_state_ns: int | None = None
         self._last_publish_ns = 0
@@ -159,7 +162,7 @@ class Grasp(Node):
         s0, s1 = self.slips
         stamps = [s.header.stamp_ns for s in (s0, s1) if s is not None]
         ok = not verdict_missing and s0 is not None and s1 is not None and s0.status == "ok" and s1.status == "ok"
-        least = least_squeeze((s0.gamma, s1.gamma), (s0.f_n, s1.f_n)) if s0 is not None and s1 is not None else math.nan
+        least = self._least(s0, s1) if s0 is not None and s1 is not None else math.nan
         if self.control is not None:
             c0, c1 = self.contacts
             stamps += [c.header.stamp_ns for c in (c0, c1) if c is not None]
@@ -189,10 +192,32 @@ class Grasp(Node):
             self._publish_verdict(s0, s1, stamp, sources, ctx)
         self._publish_state(ctx, least=least)
 
+    def _least(self, s0: Slip, s1: Slip) -> float:
+        """The least squeeze that holds both contacts (:func:`~slipstack.lib.grasp.least_squeeze`)."""
+        return least_squeeze((s0.gamma, s1.gamma), (s0.f_n, s1.f_n))
+
+    def _sliding(self, now: int, least: float) -> None:
+        """While the pads see the object move and a finger's verdict is slip, that contact
+        transmits only its sliding friction: the load to hold is ``μ_s/μ_d`` times the one it
+        carries (docs/math.md §9). The squeeze is raised to hold that, and kept there
+        ``_SETTLE_NS`` (else it would follow a sliding contact's falling load down, and drop
+        again as soon as the object stopped)."""
+        s0, s1 = self.slips
+        motion = self._watch.motion
+        if not (motion.speed > _MOVING_M_S or abs(motion.rate) > _MOVING_RAD_S):
+            return
+        if not any(s.state in SLIP_STATES for s in (s0, s1)):
+            return
+        p = self.params
+        self._regrip_n = max(self._regrip_n if now < self._regrip_until_ns else 0.0, least * p.mu / p.mu_d / p.sigma)
+        self._regrip_until_ns = now + _SETTLE_NS
+        self._phase = "regrip"
+
     def _demand(self, now: int, least: float) -> float:
         """The squeeze the mode asks for now (N), before the governor."""
         hold = least / self.params.sigma
         if self.control is None:
+            self._sliding(now, least)
             return max(hold, self._regrip_n) if now < self._regrip_until_ns else hold
         progress, rate = self._progress
         out = self.control.step(now, self.sense * progress, self.sense * rate, least)
@@ -271,9 +296,10 @@ class Grasp(Node):
         self.mode = "hold"
 
     def _take_contact(self, k: int, msg: Contact, ctx: Context) -> None:
-        """Keep finger ``k``'s contact; once both pads have a new pressure frame, update the motion."""
+        """Keep finger ``k``'s contact; once both pads have a new pressure frame, update what
+        the pads see of the object's motion."""
         self.contacts[k] = msg
-        if self.control is None or not msg.has_tactile:
+        if not msg.has_tactile:
             return
         frame = msg.header.sources.get("tactile")
         if frame == self._frames[k]:
@@ -284,12 +310,15 @@ class Grasp(Node):
             return  # finger 1's frame completes the pair (both pads are sampled together)
         c0, c1 = self.contacts
         now = ctx.now_ns()
+        positions = pad_positions(c0.rows, c0.cols, c0.pitch_m)
+        poses = (pad_pose(c0.phi, positions), pad_pose(c1.phi, positions))
+        if poses[0] is None or poses[1] is None:
+            self._watch.reset()
+            return
+        self._watch.update(now, poses)
         if isinstance(self._motion, MotionEstimator):
-            positions = pad_positions(c0.rows, c0.cols, c0.pitch_m)
-            poses = (pad_pose(c0.phi, positions), pad_pose(c1.phi, positions))
-            if poses[0] is not None and poses[1] is not None:
-                motion = self._motion.update(now, poses)
-                self._progress = (motion.angle, motion.rate)
+            motion = self._motion.update(now, poses)
+            self._progress = (motion.angle, motion.rate)
         elif isinstance(self._motion, TextureOdometer):
             self._progress = self._motion.update(now, (c0.phi, c1.phi))
 

@@ -527,6 +527,7 @@ class WsgBackend(Backend):
         self._sent_force = math.nan
         self._wanted_force: float | None = None
         self._timeouts = 0
+        self._polled_ns = 0
         self.command_error = ""
 
     @property
@@ -573,12 +574,17 @@ class WsgBackend(Backend):
         self._own["commands_sent"] += 1
 
     def _timer_ns(self) -> int | None:
-        return None if self._waiting is None or not self._link.is_open else self._waiting[1]
+        if not self._link.is_open:
+            return None
+        if not getattr(self._link, "connected", True):  # a TCP connect under way: look again in a millisecond
+            return self._polled_ns + 1_000_000
+        return None if self._waiting is None else self._waiting[1]
 
     def _goodbye(self) -> None:
         self._link.write(wsg.encode_message(wsg.Command.DISCONNECT), 0)
 
     def _poll(self, now_ns: int) -> list[Sample]:
+        self._polled_ns = now_ns
         out: list[Sample] = []
         for message in self._deframer.feed(self._link.read(now_ns)):
             sample = self._handle(message, now_ns)

@@ -104,13 +104,14 @@ class TcpLink(ReconnectingLink[_Connection]):
         return data
 
     def write(self, data: bytes, now_ns: int) -> int:
-        """Queue ``data``; bytes accepted (0 if closed, or the pending buffer is full)."""
+        """Queue ``data`` and send what the socket takes now; bytes accepted (0 if closed, or
+        the pending buffer is full)."""
         conn = self._handle
         if conn is None or len(conn.pending) + len(data) > MAX_PENDING_BYTES:
             self.write_shortfall += len(data)
             return 0
         conn.pending += data
-        if conn.connected:
+        if self._ready(now_ns) is conn:
             self._flush(conn, now_ns)
         return len(data)
 

@@ -8,8 +8,10 @@ node) on each scene and reports, from the rig's truth:
 - holds (grasp_rising, grasp_pickup, grasp_add_mass): gross slip (mm, deg), the time-mean
   squeeze applied, the oracle's least holding squeeze (``analysis/grip_oracle.py:
   grasp_oracle_series``: the larger of the two fingers' least squeezes for their true loads,
-  true pressure and ``μ_s``) and their ratio; beside it the squeeze a controller assuming an
-  even split of the load would have used (the least for half the total load on each finger);
+  true pressure and ``μ_s``) and their ratio, also with the oracle floored at the gripper's
+  least force (5 N: with no load the oracle is 0, no gripper squeezes less); beside it the
+  squeeze a controller assuming an even split of the load would have used (the least for
+  half the total load on each finger);
 - pivots (grasp_pivot, ``goal:=pivot``) by 30°, 60°, 90° at 20, 40, 60 °/s: the final angle
   error (the bar's true turn from the goal to the end of the run, minus the target), the
   rate error (the mean rate from the moment it turned 0.5° to the moment it reached its
@@ -39,6 +41,8 @@ HOLDS = ("grasp_rising", "grasp_pickup", "grasp_add_mass")
 PIVOTS = [(angle, rate) for angle in (30, 60, 90) for rate in (20, 40, 60)]
 SLIDES = [(20, 10), (20, 20)]
 GOAL_AT_S = 1.5
+F_NOM_N = 5.0
+"""The launch file's least squeeze (the WSG 50's least force limit): no gripper squeezes less."""
 LIMITS = {"ratio": 1.3, "angle_deg": 2.0, "rate": 0.2, "translation_mm": 1.0, "slide_mm": 2.0}
 
 
@@ -71,9 +75,11 @@ def hold_metrics(r: dict) -> dict:
     half_t, half_tau = 0.5 * total_t, 0.5 * total_tau
     even = grasp_oracle_series(r["scene"], r["x"], r["y"], r["theta"], r["f"],
                                (half_t, half_t * np.array([-1.0, 1.0])), (half_tau, -half_tau)).least
+    floored = np.maximum(oracle[ok], F_NOM_N)
     return {"slip_mm": 1e3 * float(r["slip_m"][-1]), "slip_deg": math.degrees(abs(float(r["slip_rad"][-1]))),
             "mean_n": float(r["f"][ok].mean()), "oracle_n": float(oracle[ok].mean()),
-            "ratio": float(r["f"][ok].mean() / oracle[ok].mean()), "even_split_n": float(np.nanmean(even)),
+            "ratio": float(r["f"][ok].mean() / oracle[ok].mean()), "oracle_floored_n": float(floored.mean()),
+            "ratio_floored": float(r["f"][ok].mean() / floored.mean()), "even_split_n": float(np.nanmean(even)),
             "oracle_nan": int((~ok).sum()), "wall_s": r["wall_s"]}
 
 
@@ -109,7 +115,8 @@ def main() -> int:
             m = hold_metrics(run(scene, rates))
             results["holds"][scene] = m
             print(f"{scene}: slip {m['slip_mm']:.3f} mm {m['slip_deg']:.3f}°, mean squeeze {m['mean_n']:.2f} N, oracle "
-                  f"{m['oracle_n']:.2f} N, ratio {m['ratio']:.3f} (an even split would use {m['even_split_n']:.2f} N;"
+                  f"{m['oracle_n']:.2f} N, ratio {m['ratio']:.3f} (oracle ≥ {F_NOM_N:g} N: {m['oracle_floored_n']:.2f} N, "
+                  f"ratio {m['ratio_floored']:.3f}; an even split would use {m['even_split_n']:.2f} N;"
                   f" {m['wall_s']:.0f} s)", flush=True)
     if "pivots" in args.only:
         for angle, rate in PIVOTS:
