@@ -261,7 +261,7 @@ class TrackGains:
 
 
 PIVOT_GAINS = TrackGains(k_p=60.0, k_d=6.0, k_i=120.0, release_n_per_s=40.0, accel=30.0, moving=0.004,
-                         overspeed_min=2.0)
+                         lead_s=0.09, overspeed_min=2.0)
 """The pivot's gains (per rad), tuned in lock-step on the shipped pivot scene (docs/benchmarks.md)."""
 SLIDE_GAINS = TrackGains(k_p=800.0, k_d=40.0, k_i=1600.0, release_n_per_s=10.0, accel=0.5, moving=3e-4,
                          overspeed_min=0.1)

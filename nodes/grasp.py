@@ -60,6 +60,8 @@ class GraspParams:
     ridge_period_m: float = field(default=0.0, metadata={
         "help": "period of the ridges on the object's face the pads see (m); a slide needs them; 0: none"})
     state_period_ms: float = field(default=10.0, metadata={"help": "grasp/state at most this often (ms)"})
+    hold_fall_n_per_s: float = field(default=20.0, metadata={
+        "help": "hold: the squeeze follows a falling load down at most this fast (N/s); a rising one at once"})
 
     def __post_init__(self) -> None:
         fill_from_material(self, mu="mu_s", mu_d="mu_d")
@@ -111,6 +113,7 @@ class Grasp(Node):
         self._last_publish_ns = 0
         self._phase = "hold"
         self._fail_safe = False
+        self._hold_n, self._hold_ns = math.nan, 0  # the hold's demand at the last step (N, ns)
 
     def start(self, ctx: Context) -> None:
         compile_kernels()  # before the node reports ready: its first prediction runs at full speed
@@ -214,11 +217,17 @@ class Grasp(Node):
         self._phase = "regrip"
 
     def _demand(self, now: int, least: float) -> float:
-        """The squeeze the mode asks for now (N), before the governor."""
+        """The squeeze the mode asks for now (N), before the governor. In hold it follows a
+        rising load at once and a falling one at ``hold_fall_n_per_s`` (a vibrating object's
+        load dips for a few milliseconds; following the dips down lets it slip)."""
         hold = least / self.params.sigma
         if self.control is None:
             self._sliding(now, least)
+            fall = self.params.hold_fall_n_per_s * max(now - self._hold_ns, 0) * 1e-9
+            hold = max(hold, self._hold_n - fall) if self._hold_n == self._hold_n else hold
+            self._hold_n, self._hold_ns = hold, now
             return max(hold, self._regrip_n) if now < self._regrip_until_ns else hold
+        self._hold_n = math.nan
         progress, rate = self._progress
         out = self.control.step(now, self.sense * progress, self.sense * rate, least)
         self._phase = out.phase

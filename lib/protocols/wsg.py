@@ -29,7 +29,7 @@ from .crc import CRC16_DSACON32
 __all__ = ["PREAMBLE", "DEFAULT_PORT", "FORCE_RANGE_N", "Command", "Status", "GraspingState", "Message",
            "MessageCodec", "encode_message", "encode_reply", "reply_status", "f32", "set_force_limit", "grasp",
            "release", "ack_fast_stop", "get_force_limit", "get_grasping_state", "get_force", "ACK_PAYLOAD",
-           "AUTO_UPDATE"]
+           "AUTO_UPDATE", "MAX_PAYLOAD"]
 
 PREAMBLE = b"\xaa\xaa\xaa"
 DEFAULT_PORT = 1000
@@ -41,7 +41,10 @@ AUTO_UPDATE = 0x01
 """Flag b0 of a get-value command: send the value every period (ms), not just once."""
 _HEADER = struct.Struct("<3sBH")
 _F32 = struct.Struct("<f")
-_MAX_PAYLOAD = 1024
+MAX_PAYLOAD = 64
+"""Payload bytes a message may announce, at most: the commands used here and their replies
+carry at most 9 (a loop's echo is bounded by it too). A false preamble in garbage announcing
+more costs one byte at once instead of stalling the stream until that many bytes came."""
 
 
 class Command(IntEnum):
@@ -169,13 +172,13 @@ class MessageCodec:
 
     Every message carries a CRC, even one without payload, so a false preamble in
     garbage passes only with a 2⁻¹⁶ collision; ``max_payload`` bounds the size a header
-    may announce.
+    may announce (:data:`MAX_PAYLOAD`).
     """
 
     sync = PREAMBLE
     header_length = _HEADER.size
 
-    def __init__(self, max_payload: int = _MAX_PAYLOAD) -> None:
+    def __init__(self, max_payload: int = MAX_PAYLOAD) -> None:
         self.max_length = _HEADER.size + max_payload + 2
 
     def frame_length(self, header: bytes) -> int:

@@ -41,7 +41,8 @@ from slipstack.lib.rig.scene import Scene
 from slipstack.lib.rig.sensors import FtSensorModel, TactileSensorModel
 from slipstack.lib.samples import FtSample, TactileSample
 
-__all__ = ["Truth", "TaxelState", "Sample", "Simulator", "GROSS_SLIP_FRACTION", "MAX_OMEGA_DT", "compile_kernels"]
+__all__ = ["Truth", "TaxelState", "Sample", "Simulator", "GROSS_SLIP_FRACTION", "MAX_OMEGA_DT", "MAX_DAMPING_DT",
+           "compile_kernels"]
 
 GROSS_SLIP_FRACTION = 0.95
 """Gross slip ⇔ slipping taxels account for at least this share of the frictional
@@ -51,6 +52,10 @@ rotation (they barely move), so the share never reaches exactly 1 there; below t
 threshold the contact is in partial slip (edges slipping, core sticking)."""
 MAX_OMEGA_DT = 1.0
 """Accuracy guard: the stiffest contact mode ``ω_c`` must satisfy ``ω_c·dt ≤ 1``."""
+MAX_DAMPING_DT = 4.0
+"""Stability guard: the fastest contact damping rate ``c ω_c²/k`` times ``dt`` at most (the
+mid-point rule's factor ``(1 − x/2)/(1 + x/2)`` stays above −1/3: a contact damped harder
+than the step resolves chatters)."""
 _COR_MIN_OMEGA = 1e-4
 """Below this rate (rad/s) the motion is reported as a translation: no COR."""
 _COR_MAX_DISTANCE = 1.0
@@ -266,6 +271,17 @@ class Simulator:
                 f"(stiffest mode {self.contact_mode_rad_s:.0f} rad/s, ω·dt = "
                 f"{self.contact_mode_rad_s * self._dt:.2f} > {MAX_OMEGA_DT}); use step_us <= "
                 f"{limit_us} or a softer contact.stiffness_N_per_m3")
+        # the same geometry damps as it stiffens: the fastest damping rate is c·ω²/k; the mid-point
+        # rule multiplies a damped velocity by (1 − x/2)/(1 + x/2) a step, x = rate·dt: beyond
+        # MAX_DAMPING_DT it flips sign and barely decays (the contact chatters)
+        damping_rate = self._bristles.c * self.contact_mode_rad_s ** 2 / self._bristles.k
+        if damping_rate * self._dt > MAX_DAMPING_DT:
+            raise ConfigError(
+                f"contact.damping_Ns_per_m3: {scene.contact.damping_Ns_per_m3:g} damps the object faster than "
+                f"the step resolves ({damping_rate:.0f} 1/s, rate·dt = {damping_rate * self._dt:.2f} > "
+                f"{MAX_DAMPING_DT:g}: the contact would chatter); use damping_Ns_per_m3 <= "
+                f"{scene.contact.damping_Ns_per_m3 * MAX_DAMPING_DT / (damping_rate * self._dt):.3g} or a "
+                "shorter sim.step_us")
 
     # ------------------------------------------------------------------ public API
 

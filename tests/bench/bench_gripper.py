@@ -14,10 +14,10 @@ node) on each scene and reports, from the rig's truth:
   half the total load on each finger);
 - pivots (grasp_pivot, ``goal:=pivot``) by 30°, 60°, 90° at 20, 40, 60 °/s: the final angle
   error (the bar's true turn from the goal to the end of the run, minus the target), the
-  rate error (the mean rate from the moment it turned 0.5° to the moment it reached its
-  final angle within 0.5°, against the rate asked), the translational slip while pivoting
+  rate error (the mean rate from the moment it had turned 0.5° to the moment the grasp node
+  ended the pivot, against the rate asked), the translational slip while pivoting
   (the rig's gross-slip path length of the point on the grasp axis), and whether it was
-  dropped (moving at the end of the run);
+  dropped (it moved on by more than 2° or 2 mm in the run's last second);
 - slides (grasp_slide, ``goal:=slide``) by 20 mm at 10 and 20 mm/s: the final distance error.
 
     python tests/bench/bench_gripper.py                       # everything, default rates (~10 min)
@@ -62,6 +62,8 @@ def run(scene: str, rates: dict[str, str], **args: str) -> dict:
         "tau": (np.array([m.tau[0] for m in grasp]), np.array([m.tau[1] for m in grasp])),
         "scene": ex.host("rig").node.scene, "wall_s": time.perf_counter() - t0,
         "ended": [m.ended for m in ex.published.get("grasp/state", []) if m.ended][-1:],
+        "ended_s": next(((m.header.stamp_ns * 1e-9 - t[0]) for m in ex.published.get("grasp/state", []) if m.ended),
+                        math.nan),
     }
     return out
 
@@ -92,11 +94,13 @@ def motion_metrics(r: dict, target: float, rate: float, angular: bool) -> dict:
     else:
         moved = 1e3 * np.hypot(r["x"] - r["x"][goal], r["y"] - r["y"][goal])
     threshold = 0.5
-    start = int(np.argmax(moved > threshold))
+    start = goal + int(np.argmax(moved[goal:] > threshold))
     final = float(moved[-1])
-    reach = int(np.argmax(moved >= final - threshold))
-    mean_rate = (moved[reach] - moved[start]) / (t[reach] - t[start]) if reach > start else math.nan
-    moving_at_end = (np.degrees(abs(r["omega"][-1])) > 1.0) if angular else (1e3 * r["speed"][-1] > 1.0)
+    end = int(np.searchsorted(t, r["ended_s"])) if math.isfinite(r["ended_s"]) else len(t) - 1
+    end = min(end, len(t) - 1)
+    mean_rate = (moved[end] - moved[start]) / (t[end] - t[start]) if end > start else math.nan
+    last_second = np.searchsorted(t, t[-1] - 1.0)
+    moving_at_end = bool(moved[-1] - moved[last_second] > 2.0)  # still turning (°) or moving (mm): not held
     return {"target": target, "rate": rate, "final": final, "error": final - target, "mean_rate": float(mean_rate),
             "rate_error": float(mean_rate / rate - 1.0), "translation_mm": 1e3 * float(r["slip_m"][-1] - r["slip_m"][goal]),
             "dropped": bool(moving_at_end), "ended": r["ended"], "wall_s": r["wall_s"]}
