@@ -22,7 +22,7 @@ from slipstack.lib.status import SolverStatus
 __all__ = [
     "SqueezeLaw", "least_squeeze", "load_shares", "to_finger0", "combined_contact", "TurnPrediction", "predict_turn",
     "PadPose", "pad_pose", "ObjectMotion", "MotionEstimator", "ModeOutput", "TrackGains", "PIVOT_GAINS",
-    "SLIDE_GAINS", "TrackControl", "TextureOdometer",
+    "SLIDE_GAINS", "BREAKAWAY_SHARE", "TrackControl", "TextureOdometer",
 ]
 
 
@@ -260,7 +260,10 @@ class TrackGains:
     overspeed_min: float = 0.0
 
 
-PIVOT_GAINS = TrackGains(k_p=60.0, k_d=6.0, k_i=120.0, release_n_per_s=40.0, accel=30.0, moving=0.004,
+BREAKAWAY_SHARE = 0.9
+"""The object broke away once the load the contacts carry fell below this share of its
+value at the mode's start (sliding friction carries ``μ_d/μ_s``, 0.8 on rubber)."""
+PIVOT_GAINS = TrackGains(k_p=100.0, k_d=6.0, k_i=120.0, release_n_per_s=20.0, accel=30.0, moving=0.015,
                          lead_s=0.09, overspeed_min=2.0)
 """The pivot's gains (per rad), tuned in lock-step on the shipped pivot scene (docs/benchmarks.md)."""
 SLIDE_GAINS = TrackGains(k_p=800.0, k_d=40.0, k_i=1600.0, release_n_per_s=10.0, accel=0.5, moving=3e-4,
@@ -272,7 +275,7 @@ class TrackControl:
     """Move the object by ``target`` at ``rate`` (a pivot: rad, rad/s; a slide: m, m/s), then grip.
 
     Phases: ``release`` (from just above the predicted breakaway squeeze, lower it until the
-    object moves), ``track`` (follow a reference that accelerates to the rate, with the squeeze
+    object moves, or the load the contacts carry falls: it broke away), ``track`` (follow a reference that accelerates to the rate, with the squeeze
     of :class:`TrackGains` around the predicted kinetic squeeze), ``regrip`` (once the object,
     at its rate, would reach the target within ``lead_s``: the larger of the least holding and
     the kinetic squeeze times ``regrip_margin``). Guards (the object is never dropped): the
@@ -293,39 +296,47 @@ class TrackControl:
         self._t_release = now_ns
         self._t_track: int | None = None
         self._offset = 0.0  # progress when tracking began
+        self._start_rate = 0.0  # and the rate then (at most the one asked)
         self._integral = 0.0
         self._last_ns = now_ns
         self._at_floor_ns: int | None = None
 
     def reference(self, t_ns: int) -> tuple[float, float]:
-        """The reference (from where tracking began) and its rate at ``t_ns``: accelerate to the
-        rate, then keep it (the mode ends on the progress, not on the reference: a reference
-        that stopped would brake an object lagging behind it)."""
-        a, v = self.gains.accel, self.rate
+        """The reference (from where tracking began) and its rate at ``t_ns``: from the rate the
+        object had then, accelerate to the rate asked, then keep it (the mode ends on the
+        progress, not on the reference: a reference that stopped would brake an object lagging
+        behind it)."""
+        a, v, v0 = self.gains.accel, self.rate, self._start_rate
         t = 0.0 if self._t_track is None else (t_ns - self._t_track) * 1e-9
-        t_ramp = v / a
+        t_ramp = (v - v0) / a
         if t < t_ramp:
-            return 0.5 * a * t * t, a * t
-        return 0.5 * a * t_ramp * t_ramp + v * (t - t_ramp), v
+            return v0 * t + 0.5 * a * t * t, v0 + a * t
+        return v0 * t_ramp + 0.5 * a * t_ramp * t_ramp + v * (t - t_ramp), v
 
-    def step(self, now_ns: int, progress: float, rate: float, hold_n: float) -> ModeOutput:
+    def step(self, now_ns: int, progress: float, rate: float, hold_n: float, load_share: float = 1.0) -> ModeOutput:
         """One step: ``progress`` and ``rate`` of the object in the load's sense, ``hold_n`` the
-        least holding squeeze now (N)."""
+        least holding squeeze now (N), ``load_share`` the load the contacts carry now over the
+        one they carried when the mode began (the F/T sensors see the breakaway first: the load
+        a contact carries falls to its sliding friction the moment it slides)."""
         dt = max(now_ns - self._last_ns, 0) * 1e-9
         self._last_ns = now_ns
         g = self.gains
         if self.phase in ("release", "track") and rate > max(g.overspeed * self.rate, g.overspeed_min):
             return self._end(f"drop-guard: moving at {rate / self.rate:.1f} times the rate asked; gripped", hold_n)
         if self.phase == "release":
-            if progress < g.moving:
+            if progress < g.moving and load_share > BREAKAWAY_SHARE:
                 demand = self.start_n * 1.02 - g.release_n_per_s * (now_ns - self._t_release) * 1e-9
                 return self._floored(demand, now_ns, hold_n)
             self.phase, self._t_track, self._offset = "track", now_ns, progress
+            self._start_rate = min(max(rate, 0.0), self.rate)
         if self.phase == "track":
             if progress + min(max(rate, 0.0), self.rate) * g.lead_s < self.target:
                 ref, ref_rate = self.reference(now_ns)
                 error = ref - (progress - self._offset)
-                self._integral += error * dt
+                # the integral may move the squeeze by at most a third of the kinetic squeeze: an
+                # object that sticks for a while must not wind it up into a plunge
+                limit = self.kinetic_n / (3.0 * g.k_i) if g.k_i > 0.0 else 0.0
+                self._integral = min(max(self._integral + error * dt, -limit), limit)
                 demand = self.kinetic_n - g.k_p * error - g.k_d * (ref_rate - rate) - g.k_i * self._integral
                 return self._floored(demand, now_ns, hold_n)
             self.phase, self.ended = "regrip", "reached"

@@ -36,8 +36,8 @@ from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
 __all__ = ["Grasp", "GraspParams"]
 
-_MOVING_M_S, _MOVING_RAD_S = 2e-3, 0.05
-"""The pads see the object move faster than these (m/s, rad/s): it slides (their noise: ~0.5 mm/s, 0.5°/s)."""
+_MOVING_M_S, _MOVING_RAD_S = 4e-3, 0.15
+"""The pads see the object move faster than these (m/s, rad/s): it slides (their noise reaches ~1 mm/s, 3°/s)."""
 _SETTLE_NS = 300_000_000
 """After a pivot or slide ends, the regrip squeeze is kept this long before the hold law takes over."""
 
@@ -114,6 +114,7 @@ class Grasp(Node):
         self._phase = "hold"
         self._fail_safe = False
         self._hold_n, self._hold_ns = math.nan, 0  # the hold's demand at the last step (N, ns)
+        self._load_at_start = math.nan  # the mode's load when it began (N·m or N)
 
     def start(self, ctx: Context) -> None:
         compile_kernels()  # before the node reports ready: its first prediction runs at full speed
@@ -171,7 +172,8 @@ class Grasp(Node):
             stamps += [c.header.stamp_ns for c in (c0, c1) if c is not None]
             ok = ok and c0 is not None and c1 is not None and c0.has_tactile and c1.has_tactile
         demand = self._demand(now, least) if ok else math.nan
-        f_n = 0.5 * (s0.f_n + s1.f_n) if s0 is not None and s1 is not None else math.nan
+        known = [s.f_n for s in (s0, s1) if s is not None]
+        f_n = sum(known) / len(known) if known else math.nan  # both pads feel the one squeeze
         loaded = any(s is not None and s.state != SlipState.NO_CONTACT for s in (s0, s1))
         decision = self.governor.step(GripInput(demand_n=demand, f_n=f_n), now_ns=now, stamps_ns=stamps or [],
                                       status_ok=ok, loaded=loaded)
@@ -229,7 +231,7 @@ class Grasp(Node):
             return max(hold, self._regrip_n) if now < self._regrip_until_ns else hold
         self._hold_n = math.nan
         progress, rate = self._progress
-        out = self.control.step(now, self.sense * progress, self.sense * rate, least)
+        out = self.control.step(now, self.sense * progress, self.sense * rate, least, self._load_share())
         self._phase = out.phase
         if out.ended:
             self._regrip_n, self._regrip_until_ns = out.demand_n, now + _SETTLE_NS
@@ -237,6 +239,21 @@ class Grasp(Node):
             self.control = None
             self.mode = "hold"
         return out.demand_n
+
+    def _mode_load(self) -> float:
+        """The load a pivot (the torque) or a slide (the force) turns on, both fingers' in finger
+        0's frame (N·m or N; NaN without both verdicts)."""
+        s0, s1 = self.slips
+        if s0 is None or s1 is None:
+            return math.nan
+        (f1x, f1y), tau1 = to_finger0((float(s1.f_t[0]), float(s1.f_t[1])), s1.tau)
+        if self.mode == "pivot":
+            return abs(s0.tau + tau1)
+        return math.hypot(s0.f_t[0] + f1x, s0.f_t[1] + f1y)
+
+    def _load_share(self) -> float:
+        load = self._mode_load()
+        return load / self._load_at_start if self._load_at_start > 0.0 and load == load else 1.0
 
     def _phase_now(self, now: int) -> str:
         if self._fail_safe:
@@ -292,6 +309,7 @@ class Grasp(Node):
             self.sense = 1
             self._motion = odometer
         self.goal, self.mode, self.ended = goal, goal.mode, ""
+        self._load_at_start = self._mode_load()
         self._frames = [c0.header.sources.get("tactile"), c1.header.sources.get("tactile")]
         self._progress = (0.0, 0.0)
         return ""
