@@ -15,7 +15,9 @@ on hardware, the first usable F/T sample):
    where ``slip.state`` is a slip state and the rig's true gross-slip spans;
 4. object motion from ``rig/truth``: slip distance (mm) and slip angle (deg).
 
-Panels whose topics are missing (no truth on real hardware) are left out.
+Panels whose topics are missing (no truth on real hardware) are left out. A two-finger
+recording (``launch/files/gripper.toml``) gets the grasp's figure instead
+(``analysis/grasp_report.py``).
 
 ``--identify`` runs :func:`slipstack.lib.identify.identify_mu` on the F/T data of a
 ramp recording (paper Fig. 4, docs/math.md §6; scenes ``fig4a``/``fig4b``), with the
@@ -39,6 +41,7 @@ import numpy as np
 from slipstack.lib.episodes import find_episodes
 from slipstack.lib.errors import ConfigError, DecodeError
 from slipstack.lib.status import SLIP_STATES, SlipState
+from slipstack.analysis.grasp_report import is_grasp_recording, load_grasp_series, plot_grasp_report
 from slipstack.lib.identify import (
     IdentifyConfig,
     RampEstimate,
@@ -501,6 +504,13 @@ def main_report(args: argparse.Namespace) -> int:
         except ImportError:
             print(f"slipstack report: {MATPLOTLIB_HINT}", file=sys.stderr)
             return 2
+    if not args.identify:
+        grasp = load_grasp_series(path)
+        if is_grasp_recording({topic for topic, msgs in grasp.messages.items() if msgs}):
+            panels = plot_grasp_report(grasp, out, title=args.title)
+            print(out)
+            print(f"  panels: {', '.join(panels)}")
+            return 0
     with file_progress(path, "report") as progress:
         series = load_series(path, progress)
     if args.identify:

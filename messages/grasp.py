@@ -83,7 +83,8 @@ class GraspTruth(Message):
     f_x, f_y (2,) N, tau (2,) N·m: the load each finger's contact transmits, in that
     finger's own pad frame (what its ideal F/T sensor reads, docs/math.md §1).
     weight (2,) N: the object's weight the grasp carries now (the support's share
-    taken off), in finger 0's frame; mass_kg: the object's mass now.
+    taken off), in finger 0's frame; mass_kg: the object's mass now; scene: the scene the
+    rig runs, as it was named to it (the oracle of ``slipstack report`` reads its contacts).
     """
 
     f_x: np.ndarray = array("<f8", (2,), doc="N")
@@ -91,6 +92,7 @@ class GraspTruth(Message):
     tau: np.ndarray = array("<f8", (2,), doc="N·m")
     weight: np.ndarray = array("<f8", (2,), doc="N")
     mass_kg: float = bounded(0.0, ge=0.0, doc="kg")
+    scene: str = bounded("", max_len=256)
 
 
 @message("slipstack/GripperState")

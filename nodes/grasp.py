@@ -111,6 +111,7 @@ class Grasp(Node):
         self._progress = (0.0, 0.0)
         self._last_state_ns: int | None = None
         self._last_publish_ns = 0
+        self._last_stamp_ns = -1  # the newest sample stamp a command was published for
         self._phase = "hold"
         self._fail_safe = False
         self._hold_n, self._hold_ns = math.nan, 0  # the hold's demand at the last step (N, ns)
@@ -186,13 +187,15 @@ class Grasp(Node):
         else:
             ctx.set_status("ok")
         stamp = max(stamps) if stamps else now
-        sources = {f"slip{k}": s.header.stamp_ns for k, s in enumerate((s0, s1)) if s is not None}
-        for s in (s0, s1):
-            if s is not None:
-                sources.update(s.header.sources)
-        ctx.publish("command", GripCommand(f_n_desired=float(decision.f_n_desired), law="grasp",
-                                           reason=decision.reason.value), stamp_ns=stamp, sources=sources)
-        self._last_publish_ns = now
+        if verdict_missing or stamp > self._last_stamp_ns:  # both fingers' verdicts of one instant: one command
+            sources = {f"slip{k}": s.header.stamp_ns for k, s in enumerate((s0, s1)) if s is not None}
+            for s in (s0, s1):
+                if s is not None:
+                    sources.update(s.header.sources)
+            sources["slip"] = max(sources[k] for k in ("slip0", "slip1") if k in sources) if sources else stamp
+            ctx.publish("command", GripCommand(f_n_desired=float(decision.f_n_desired), law="grasp",
+                                               reason=decision.reason.value), stamp_ns=stamp, sources=sources)
+            self._last_publish_ns, self._last_stamp_ns = now, stamp
         if s0 is not None and s1 is not None:
             self._publish_verdict(s0, s1, stamp, sources, ctx)
         self._publish_state(ctx, least=least)

@@ -259,7 +259,7 @@ class Rig(Node):
                 stamp = self._t0 + sample.stamp_ns
                 ctx.publish("truth", truth_message(sample), stamp_ns=stamp)
                 if sample.finger_loads:
-                    ctx.publish("grasp", grasp_truth_message(sample), stamp_ns=stamp)
+                    ctx.publish("grasp", grasp_truth_message(sample, self.params.scene), stamp_ns=stamp)
         if sim.done and self.params.exit_at_end:
             ctx.log(f"scene {self.scene.name} finished")
             ctx.shutdown()
@@ -298,8 +298,8 @@ def truth_message(t: Truth) -> RigTruth:
     )
 
 
-def grasp_truth_message(t: Truth) -> GraspTruth:
-    """The ``rig/grasp`` message of a gripper's :class:`Truth` sample (its per-finger loads)."""
+def grasp_truth_message(t: Truth, scene: str) -> GraspTruth:
+    """The ``rig/grasp`` message of a gripper's :class:`Truth` sample (its per-finger loads) of ``scene``."""
     loads = np.array(t.finger_loads, dtype=float)
     return GraspTruth(f_x=loads[:, 0].copy(), f_y=loads[:, 1].copy(), tau=loads[:, 2].copy(),
-                      weight=np.array(t.weight, dtype=float), mass_kg=t.mass_kg)
+                      weight=np.array(t.weight, dtype=float), mass_kg=t.mass_kg, scene=scene)
