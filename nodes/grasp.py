@@ -112,6 +112,7 @@ class Grasp(Node):
         self._last_state_ns: int | None = None
         self._last_publish_ns = 0
         self._last_stamp_ns = -1  # the newest sample stamp a command was published for
+        self._judged_ns = [-1, -1]  # each finger's newest verdict stamp judged
         self._phase = "hold"
         self._fail_safe = False
         self._hold_n, self._hold_ns = math.nan, 0  # the hold's demand at the last step (N, ns)
@@ -129,11 +130,11 @@ class Grasp(Node):
 
     def on_slip0(self, msg: Slip, ctx: Context) -> None:
         self.slips[0] = msg
-        self._step(ctx)
+        self._step(ctx, finger=0)
 
     def on_slip1(self, msg: Slip, ctx: Context) -> None:
         self.slips[1] = msg
-        self._step(ctx)
+        self._step(ctx, finger=1)
 
     def on_goal(self, msg: GraspGoal, ctx: Context) -> None:
         ctx.count("grasp.goals")
@@ -162,7 +163,7 @@ class Grasp(Node):
         self._step(ctx, verdict_missing=True)
 
     # -- the step ----------------------------------------------------------------------------------
-    def _step(self, ctx: Context, *, verdict_missing: bool = False) -> None:
+    def _step(self, ctx: Context, *, verdict_missing: bool = False, finger: int | None = None) -> None:
         now = ctx.now_ns()
         s0, s1 = self.slips
         stamps = [s.header.stamp_ns for s in (s0, s1) if s is not None]
@@ -187,15 +188,22 @@ class Grasp(Node):
         else:
             ctx.set_status("ok")
         stamp = max(stamps) if stamps else now
-        if verdict_missing or stamp > self._last_stamp_ns:  # both fingers' verdicts of one instant: one command
-            sources = {f"slip{k}": s.header.stamp_ns for k, s in enumerate((s0, s1)) if s is not None}
-            for s in (s0, s1):
-                if s is not None:
-                    sources.update(s.header.sources)
-            sources["slip"] = max(sources[k] for k in ("slip0", "slip1") if k in sources) if sources else stamp
+        sources = {}  # each finger's verdict and the samples it derives from: slip0, ft0, tactile0, ..., slip1, ...
+        for k, s in enumerate((s0, s1)):
+            if s is not None:
+                sources[f"slip{k}"] = s.header.stamp_ns
+                sources.update({f"{key}{k}": v for key, v in s.header.sources.items()})
+        sources["slip"] = max((s.header.stamp_ns for s in (s0, s1) if s is not None), default=stamp)
+        # A command for every verdict on a sample not judged yet: each finger's sensor has its own
+        # clock, so a verdict may be older than the other finger's last one and still be new. Both
+        # fingers' verdicts of one instant (one stamp: lock-step) make one command, not two.
+        own = self.slips[finger].header.stamp_ns if finger is not None else -1
+        if verdict_missing or stamp > self._last_stamp_ns or (own > self._judged_ns[finger] and own != self._last_stamp_ns):
             ctx.publish("command", GripCommand(f_n_desired=float(decision.f_n_desired), law="grasp",
                                                reason=decision.reason.value), stamp_ns=stamp, sources=sources)
-            self._last_publish_ns, self._last_stamp_ns = now, stamp
+            self._last_publish_ns, self._last_stamp_ns = now, max(stamp, self._last_stamp_ns)
+        if finger is not None:
+            self._judged_ns[finger] = max(own, self._judged_ns[finger])
         if s0 is not None and s1 is not None:
             self._publish_verdict(s0, s1, stamp, sources, ctx)
         self._publish_state(ctx, least=least)

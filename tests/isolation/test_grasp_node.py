@@ -79,3 +79,30 @@ def test_a_stale_verdict_of_one_finger_holds():
     cmds, _ = _run(events, until_ms=60)
     after = [c for c in cmds if c.header.pub_ns >= 31 * MS]
     assert after and all(c.reason == "fail-safe" and c.f_n_desired >= 3.0 / MU / 0.8 - 1e-9 for c in after)
+
+
+def test_every_new_verdict_gets_a_command_and_one_instant_gets_one():
+    # lock-step: both fingers' verdicts of an instant share a stamp → one command per instant, no error
+    node = Grasp(GraspParams(mu=MU, mu_d=0.36, sigma=0.8))
+    ex = InProcessExecutor([node])
+    ex.feed([e for k in range(1, 11) for e in _both(k, -3.0, -1.0)])
+    ex.run(until_ns=11 * MS)
+    assert len(ex.published["grip/command"]) == 10 and len(ex.published["slip"]) == 19  # the first pair: one verdict
+    assert not ex.logs  # no handler failed
+    # real time: each sensor stamps its own samples; finger 1's verdict on a sample older than finger 0's
+    # newest is still a new sample: it gets its command at once, not with finger 0's next one
+    events = []
+    for k in range(1, 11):
+        events += [(k * MS, "finger0/slip", _slip(k, -3.0, stamp_ns=k * MS + 300_000)),
+                   (k * MS + 100_000, "finger1/slip", _slip(k, -1.0, stamp_ns=k * MS + 200_000))]
+    node = Grasp(GraspParams(mu=MU, mu_d=0.36, sigma=0.8))
+    ex = InProcessExecutor([node])
+    ex.feed(events)
+    ex.run(until_ns=11 * MS)
+    cmds = ex.published["grip/command"]
+    assert not ex.logs
+    assert len(cmds) == 20
+    first = {}
+    for c in cmds:
+        first.setdefault(c.header.sources.get("slip1"), c.header.pub_ns)
+    assert [first[k * MS + 200_000] for k in range(1, 11)] == [k * MS + 100_000 for k in range(1, 11)]
