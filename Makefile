@@ -11,7 +11,7 @@ PY := $(VENV)/bin/python
 $(VENV)/.installed: pyproject.toml
 	python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[test,foxglove]'
+	$(PY) -m pip install -q -e '.[test,foxglove,ros2]'
 	$(PY) -c 'from slipstack.lib.limit_set import compile_kernels; compile_kernels(); from slipstack.lib.fusion import compile_kernels as fusion; fusion(); import slipstack.lib.protocols.crc; from slipstack.lib.rig.simulator import compile_kernels as rig; rig()'
 	$(PY) -m compileall -q lib messages nodes launch analysis
 	touch $@

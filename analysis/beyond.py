@@ -27,7 +27,7 @@ import numpy as np
 from slipstack.analysis.figures import FigureText, plt, save_png
 from slipstack.analysis.grip_oracle import oracle_series
 from slipstack.analysis.runs import Run
-from slipstack.lib.episodes import GRACE_NS, INCIPIENT_SHARE, LEAD_NS, detection_quality
+from slipstack.lib.episodes import LEAD_NS, MARGIN_NS, RELEASE_NS, detection_quality
 from slipstack.lib.limit_set import load_factor, torsional_coefficient
 from slipstack.lib.pad import PadGeometry
 from slipstack.nodes.slip_detector import SlipDetector
@@ -62,10 +62,10 @@ class SettingScore:
     """One setting's cost and accuracy over the replayed runs.
 
     us_per_frame: mean wall time of one ``Detector.step`` (µs); episodes, missed: true
-    gross-slip episodes and those with no flag in their window; flag_without_slip_share: flagged
-    frames among the truly sticking ones; delays_ms: the rising flag's stamp minus onset per
-    episode whose flag rose in its window (ms, negative: before); already_flagged: episodes
-    whose flag was already up when their window opened (no delay measured); agreement: for the runs' own setting, the share of
+    gross-slip episodes and those with no flag in their window; false_alarm_share: flagged
+    sticking frames outside every episode's window among all sticking ones; delays_ms: the
+    rise of the flag minus the onset per detected episode (ms, negative: before; all as
+    ``lib/episodes.py`` defines them); agreement: for the runs' own setting, the share of
     frames where the replay's latched state equals the published one (NaN otherwise).
     """
 
@@ -73,10 +73,9 @@ class SettingScore:
     us_per_frame: float
     episodes: int
     missed: int
-    flag_without_slip_share: float
+    false_alarm_share: float
     delays_ms: tuple[float, ...]
     agreement: float = math.nan
-    already_flagged: int = 0
 
     @property
     def delay_p50_ms(self) -> float:
@@ -90,7 +89,7 @@ def _truth_ns(run: Run) -> np.ndarray:
 def score_setting(runs: list[Run], setting: DetectorSetting) -> SettingScore:
     """Replay every run's contacts through a fresh ``slip_detector`` node's detector with
     ``setting`` (the run's other detector parameters), timed, and score the flags."""
-    episodes = missed = already_flagged = flag_without_slip_frames = stick_frames = 0
+    episodes = missed = false_alarm_frames = stick_frames = 0
     delays: list[float] = []
     elapsed_ns = frames = same = own = 0
     for run in runs:
@@ -110,25 +109,20 @@ def score_setting(runs: list[Run], setting: DetectorSetting) -> SettingScore:
             same += int(np.sum((published[:n] != "stick") & (published[:n] != "no-contact") == flags[:n]))
             own += n
         truth = run["rig/truth"]
-        q = detection_quality(_truth_ns(run), truth["gross_slip"].astype(bool), stamps, flags,
-                              incipient=truth["sliding_fraction"] >= INCIPIENT_SHARE)
+        q = detection_quality(_truth_ns(run), truth["gross_slip"].astype(bool), stamps, flags)
         episodes += len(q.episodes)
         missed += q.missed
-        already_flagged += q.already_flagged
-        flag_without_slip_frames += q.flag_without_slip_frames
+        false_alarm_frames += q.false_alarm_frames
         stick_frames += q.stick_frames
         delays += [d / 1e6 for d in q.delays_ns]
     return SettingScore(setting, elapsed_ns / 1e3 / max(frames, 1), episodes, missed,
-                        flag_without_slip_frames / max(stick_frames, 1), tuple(delays), same / own if own else math.nan,
-                        already_flagged)
+                        false_alarm_frames / max(stick_frames, 1), tuple(delays), same / own if own else math.nan)
 
 
 def _dominated(a: SettingScore, scores: list[SettingScore]) -> bool:
     """Whether another setting is at least as cheap and as accurate in every respect, and better in one."""
     def key(s: SettingScore) -> tuple[float, ...]:
-        # a flag already up when every window opened is as early as this scoring can see
-        delay = s.delay_p50_ms if s.delays_ms else -LEAD_NS / 1e6 if s.already_flagged else math.inf
-        return s.us_per_frame, s.missed, s.flag_without_slip_share, delay
+        return s.us_per_frame, s.missed, s.false_alarm_share, s.delay_p50_ms if s.delays_ms else math.inf
 
     ka = key(a)
     return any(all(x <= y for x, y in zip(key(b), ka)) and key(b) != ka for b in scores if b is not a)
@@ -146,9 +140,8 @@ def pareto(*runs_and_out) -> FigureText:
         front = not _dominated(s, scores)
         marker = "o" if s.setting.pool == 1 else "s"
         style = {"color": f"C{k % 10}", "ms": 9, "mfc": f"C{k % 10}" if front else "none", "mew": 1.8}
-        early = f", {s.already_flagged} flagged before" if s.already_flagged else ""
-        label = f"{s.setting.label}: missed {s.missed}/{s.episodes}{early}{' (Pareto front)' if front else ''}"
-        ax0.plot(s.us_per_frame, s.flag_without_slip_share * 100, marker, label=label, **style)
+        label = f"{s.setting.label}: missed {s.missed}/{s.episodes}{' (Pareto front)' if front else ''}"
+        ax0.plot(s.us_per_frame, s.false_alarm_share * 100, marker, label=label, **style)
         if s.delays_ms:
             ax1.plot(s.us_per_frame, s.delay_p50_ms, marker, **style)
             ax1.vlines(s.us_per_frame, min(s.delays_ms), max(s.delays_ms), color=f"C{k % 10}", lw=1)
@@ -157,22 +150,20 @@ def pareto(*runs_and_out) -> FigureText:
         ax.xaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
         ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         ax.grid(alpha=0.3, which="both")
-    ax0.set(xlabel="cost per frame (µs, Detector.step, this machine)", ylabel="flags without true slip (% of sticking frames)",
-            title="cost against flags without true slip (filled: on the Pareto front)")
+    ax0.set(xlabel="cost per frame (µs, Detector.step, this machine)", ylabel="false alarms (% of sticking frames)",
+            title="cost against false alarms (filled: on the Pareto front)")
     ax1.axhline(0, color="0.4", lw=0.8)
     ax1.set_yscale("symlog", linthresh=LEAD_NS / 1e6)  # linear within ± the lead, logarithmic beyond
     ax1.yaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
     ax1.set(xlabel="cost per frame (µs)", ylabel="flag raised − true onset (ms)",
-            title="cost against detection delay (median; bar: min to max)\n"
-                  f"episodes flagged before: the flag was already up {LEAD_NS / 1e6:g} ms before the onset")
+            title="cost against detection delay (median; bar: min to max)")
     scenes = ", ".join(r.experiment.key for r in runs)
     fig.suptitle(f"Every slip test replayed over the contacts of {scenes} (controller off)", fontsize=11)
     axes["legend"].axis("off")
     axes["legend"].legend(*ax0.get_legend_handles_labels(), fontsize=8, loc="center", ncol=3)
     png = save_png(fig, out, "pareto")
     rows = "; ".join(f"{s.setting.label} {s.us_per_frame:.0f} µs, missed {s.missed}/{s.episodes}, "
-                     f"{s.already_flagged} flagged before, false "
-                     f"{s.flag_without_slip_share * 100:.1f} %, " + (f"delay {s.delay_p50_ms:+.0f} ms" if s.delays_ms else
+                     f"false alarms {s.false_alarm_share * 100:.1f} %, " + (f"delay {s.delay_p50_ms:+.0f} ms" if s.delays_ms else
                                                           "no episode detected") for s in scores)
     own = next((s for s in scores if not math.isnan(s.agreement)), None)
     check = (f" The replay of the runs' own setting ({own.setting.label}) agrees with the published slip state in "
@@ -185,12 +176,10 @@ def pareto(*runs_and_out) -> FigureText:
                       f"through the slip detector node's Detector, timed per frame in this run (load average "
                       f"{load[0]:.1f} / {load[1]:.1f} over 1 / 5 min on {len(os.sched_getaffinity(0))} cores), and "
                       f"is scored "
-                      f"against the rig's truth as the monitor scores it (episode window −{LEAD_NS / 1e6:g} ms / "
-                      f"+{GRACE_NS / 1e6:g} ms; a flag without true slip (a false alarm: the controller is off) is a flag on a truly "
-                      f"sticking frame outside every "
-                      f"window, partial slip with at least {INCIPIENT_SHARE:.0%} of the capacity sliding counting as "
-                      f"neither; an episode whose flag was already up when its window opened is counted as "
-                      f"flagged before, with no delay). "
+                      f"against the rig's truth as the monitor scores it (missed: no flag from {LEAD_NS / 1e6:g} ms "
+                      f"before the onset to the end; delay: the flag's rise minus the onset; false alarms: flagged "
+                      f"sticking frames outside every episode's window, {LEAD_NS / 1e6:g} ms before it to "
+                      f"{(RELEASE_NS + MARGIN_NS) / 1e6:g} ms after, over all sticking frames; the controller is off). "
                       f"{rows}.{check} "
                       f"Not dominated: {front}.",
                       "Costs are wall time on a shared machine (the load above): compare the settings with each "

@@ -1,32 +1,24 @@
-"""``slipstack identify RECORDING... -o material.toml``: a material file from Fig. 4 records.
+"""``slipstack identify RECORDING... -o material.toml``: a material file from friction ramps.
 
-Each recording is one friction ramp at constant ``f_n`` (``slipstack launch fig4a`` /
-``fig4b``, or the identification scenes ``ident_force`` / ``ident_torsion``, or the
-same on real hardware with ``bag record``). For each, :func:`identify_recording`
-(``analysis/report.py``) estimates ``μ_s, μ_d`` (a tangential-force ramp) or
-``β_s, β_d`` (a torque ramp), the slip onset taken from the object's slip distance or
-angle after the elastic pre-slip when the recording has ``rig/truth``, else from the
-ratio's drop. Several recordings of one kind are pooled (inverse-variance mean).
+Recordings as a user makes them (``ident_force``, ``ident_torsion``, ``ident_combined``,
+fig4a/b, or ``bag record`` on hardware): presses, ramps past slip, holds, unloads, rests.
+:func:`identify_recording` (``analysis/report.py``) cuts each into loadings and estimates
+``μ_s, μ_d`` per loading of a force ramp, ``β_s, β_d`` of a torque ramp (a combined
+ramp gives onsets only), the onsets from ``rig/truth`` when recorded, else from the
+ratio (docs/math.md §6.1). All loadings of one kind are pooled (inverse-variance mean),
+their spread reported; their scatter enters the model error.
 
-Then the load factor the detector sees, ``γ`` (the exact test of ``lib/limit_set.py``
-on each ``tactile/frame`` paired with the nearest ``ft/wrench`` sample, with the
-identified ``μ_s``; without tactile frames the ratio over its static value), gives
+The detector's load factor γ (the exact test on each ``tactile/frame`` with the nearest
+``ft/wrench`` sample and the identified ``μ_s``; without tactile frames the ratio over
+its static value) gives ``gamma_noise_stick`` (frame-to-frame, over the 300 ms before
+each onset, 20 ms short of it), ``gamma_noise_slide`` (from 100 ms after each onset to
+the end of its slide) and ``onset_gamma`` (the last frame before each gross-slip onset).
+For β, the disagreement with ``μ × r̄`` of the torque ramp's pressure frames
+(``lib/material_fit.beta_from_pressure``) is added to its model error.
 
-- ``gamma_noise_stick``: its frame-to-frame noise over the 300 ms before the first
-  onset (stopping 20 ms short of it), and ``gamma_noise_slide`` while sliding (from
-  100 ms after the onset, only while the truth says gross slip, if it is recorded);
-- ``onset_gamma``: γ of the last frame before each gross-slip onset (every
-  episode of ``rig/truth``, else the estimate's onset).
-
-Each coefficient has a standard error and, apart from it, a model error
-(``lib/identify.py`` step 5, pooled by ``lib/material_fit.pooled_model``); for β the
-disagreement with ``μ × r̄`` of the torque ramp's pressure frames
-(``lib/material_fit.beta_from_pressure``: β_s with μ_s over the stick window, β_d
-with μ_d while sliding) is added to it in quadrature.
-
-``lib/material.py`` turns those into the detector's band and release level. A
-recording without ``ft/wrench`` is an error that names it; one without motion truth
-falls back to the ratio (said in the output).
+:func:`_implausible` says why a result cannot be trusted; then the command refuses to
+write it (exit 2, the reasons and what to record), unless ``--force``, which writes it
+with ``refused`` set. ``lib/material.py`` turns the file into the detector's thresholds.
 """
 
 from __future__ import annotations
@@ -35,7 +27,7 @@ import argparse
 import datetime
 import math
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable
 
@@ -44,7 +36,8 @@ import numpy as np
 from slipstack.lib.episodes import find_episodes
 from slipstack.lib.errors import DecodeError
 from slipstack.lib.limit_set import load_factor
-from slipstack.lib.material import Material, detector_thresholds, material_toml
+from slipstack.lib.identify import RampEstimate
+from slipstack.lib.material import DELTA_MAX, Material, detector_thresholds, material_toml
 from slipstack.lib.material_fit import (beta_from_pressure, frame_noise, interval_half_width, onset_levels,
                                          pooled, pooled_model)
 from slipstack.lib.pad import PadGeometry
@@ -52,7 +45,7 @@ from slipstack.messages import decode
 from slipstack.nodes.recording.bag_io import RecordingError, read_recording
 from slipstack.analysis.report import Identification, RecordingSeries, format_identification, identify_recording, load_series
 
-__all__ = ["IdentifiedRecording", "identify_material", "add_parser", "main_identify"]
+__all__ = ["IdentifiedRecording", "IdentificationRefused", "identify_material", "add_parser", "main_identify"]
 
 _STICK_WINDOW_NS = 300_000_000
 _STICK_GUARD_NS = 20_000_000
@@ -73,19 +66,23 @@ class IdentifiedRecording:
 
     @property
     def torsion(self) -> bool:
-        return self.ident.torque_dominates
+        return self.ident.load == "torque"
+
+    @property
+    def loadings(self) -> tuple[RampEstimate, ...]:
+        """The estimate of each loading: β for a torque ramp, μ otherwise (a combined
+        ramp's μ only places its loadings)."""
+        return self.ident.beta if self.torsion else self.ident.mu
 
 
 def _onsets_ns(rec: IdentifiedRecording) -> list[int]:
+    """Every gross-slip onset: the truth's episodes, else each loading's estimated onset."""
     series = rec.series
     if series.has("rig/truth"):
         truth = series["rig/truth"]
         return [e.start_ns for e in find_episodes(truth["stamp_ns"], truth["gross_slip"].astype(bool),
                                                   min_gap_ns=_EPISODE_GAP_NS)]
-    est = rec.ident.beta if rec.torsion else rec.ident.mu
-    if est is None or not math.isfinite(est.onset_t_s):
-        return []
-    return [series.t0_ns + round(est.onset_t_s * 1e9)]
+    return [series.t0_ns + round(e.onset_t_s * 1e9) for e in rec.loadings if math.isfinite(e.onset_t_s)]
 
 
 def _tactile_frames(path: Path) -> list:
@@ -123,13 +120,21 @@ def _gamma_series(rec: IdentifiedRecording, mu_s: float, beta_s_m: float) -> tup
     return ft_ns, np.hypot(f_t[:, 0], f_t[:, 1]) / f_n / mu_s, "ratio (F/T only)"
 
 
-def _sliding_mask(rec: IdentifiedRecording, stamps_ns: np.ndarray, first_onset_ns: int) -> np.ndarray:
-    after = stamps_ns >= first_onset_ns + _SLIDE_SETTLE_NS
-    if not rec.series.has("rig/truth"):
-        return after
-    truth = rec.series["rig/truth"]
-    k = np.clip(np.searchsorted(truth["stamp_ns"], stamps_ns), 0, truth["stamp_ns"].size - 1)
-    return after & truth["gross_slip"].astype(bool)[k]
+def _sliding_mask(rec: IdentifiedRecording, stamps_ns: np.ndarray) -> np.ndarray:
+    """Frames sliding for good: from 100 ms after each gross-slip onset to the slip's end
+    (the truth's episodes, else each loading's onset to the end of its plateau)."""
+    if rec.series.has("rig/truth"):
+        truth = rec.series["rig/truth"]
+        spans = [(e.start_ns, e.end_ns) for e in find_episodes(truth["stamp_ns"], truth["gross_slip"].astype(bool),
+                                                               min_gap_ns=_EPISODE_GAP_NS)]
+    else:
+        t0 = rec.series.t0_ns
+        spans = [(t0 + round(e.onset_t_s * 1e9), t0 + round(e.end_t_s * 1e9)) for e in rec.loadings
+                 if math.isfinite(e.onset_t_s) and math.isfinite(e.end_t_s)]
+    mask = np.zeros(stamps_ns.shape, dtype=bool)
+    for start, end in spans:
+        mask |= (stamps_ns >= start + _SLIDE_SETTLE_NS) & (stamps_ns <= end)
+    return mask
 
 
 @dataclass(frozen=True)
@@ -155,13 +160,27 @@ class _Pooled:
                 f"{unit} [± 2 sigma: {share}]")
 
 
-def _pool(recs: list[IdentifiedRecording], quantity: str) -> tuple[_Pooled, _Pooled]:
-    ests = [r.ident.beta if quantity == "beta" else r.ident.mu for r in recs]
-    ests = [e for e in ests if e is not None and math.isfinite(e.static)]
+def _estimates(recs: list[IdentifiedRecording]) -> list[RampEstimate]:
+    """The loadings of ``recs`` that gave both a static and a dynamic value."""
+    return [e for r in recs for e in r.loadings if math.isfinite(e.static) and math.isfinite(e.dynamic)]
+
+
+def _pool(ests: list[RampEstimate]) -> tuple[_Pooled, _Pooled]:
     static = pooled([e.static for e in ests], [e.static_se for e in ests])
     dynamic = pooled([e.dynamic for e in ests], [e.dynamic_se for e in ests])
     return (_Pooled(*static, pooled_model([e.static for e in ests], [e.static_model for e in ests])),
             _Pooled(*dynamic, pooled_model([e.dynamic for e in ests], [e.dynamic_model for e in ests])))
+
+
+def _spread(ests: list[RampEstimate], scale: float, unit: str) -> str:
+    """The loadings' static and dynamic values, min–max, and their sliding levels."""
+    if len(ests) < 2:
+        return f"{len(ests)} loading"
+    st = [e.static * scale for e in ests]
+    dy = [e.dynamic * scale for e in ests]
+    lv = [e.dynamic / e.static for e in ests]
+    return (f"{len(ests)} loadings: static {min(st):.4f}–{max(st):.4f}{unit}, dynamic {min(dy):.4f}–"
+            f"{max(dy):.4f}{unit}, dynamic/static {min(lv):.3f}–{max(lv):.3f}")
 
 
 def _pressure_frames(rec: IdentifiedRecording, stamps_ns: np.ndarray, keep: np.ndarray) -> list[np.ndarray]:
@@ -171,14 +190,31 @@ def _pressure_frames(rec: IdentifiedRecording, stamps_ns: np.ndarray, keep: np.n
             for m in _tactile_frames(rec.path) if m.status == "ok" and m.header.stamp_ns in wanted]
 
 
+_RECORD_FORCE = ("record one with `slipstack launch scene:=ident_force controller:=false recording:=force.mcap` "
+                 "(on hardware: press, pull until the object slides for a second, hold, let go)")
+_RECORD_TORQUE = ("record one with `slipstack launch scene:=ident_torsion controller:=false recording:=torsion.mcap` "
+                  "(on hardware: press, twist until the object turns for a second, hold, let go)")
+
+
+class IdentificationRefused(RecordingError):
+    """The recordings give an implausible material; ``material`` and ``lines`` are what
+    they give (``--force`` writes it, marked), ``reasons`` why it is refused."""
+
+    def __init__(self, reasons: list[str], material: Material, lines: list[str]) -> None:
+        super().__init__("the identification is refused: " + "; ".join(reasons)
+                         + " (--force writes it anyway, marked as refused)")
+        self.reasons, self.material, self.lines = reasons, material, lines
+
+
 def identify_material(paths: list[Path], *, name: str, provenance: str = "",
                       progress: Progress | None = None) -> tuple[Material, list[str]]:
     """The material of the recordings and the report lines (one block per recording).
 
     Raises:
-        RecordingError: a recording cannot be read, has no usable ``ft/wrench``,
-            none of the recordings is a force ramp (``μ_s`` is needed for the rest), or
-            none of the force ramps slides (no onset: no ``μ_s``, ``μ_d``).
+        RecordingError: a recording cannot be read or has no usable ``ft/wrench``, none of
+            the recordings is a force ramp (``μ_s`` is needed for the rest), or none of the
+            force ramps slides (no onset: no ``μ_s``, ``μ_d``).
+        IdentificationRefused: the result is implausible (:func:`_implausible`).
     """
     say = progress or (lambda _msg: None)
     recs = []
@@ -186,18 +222,18 @@ def identify_material(paths: list[Path], *, name: str, provenance: str = "",
         say(f"[{i}/{len(paths)}] {path.name}: reading and fitting")
         series = load_series(path).within_scene()
         recs.append(IdentifiedRecording(path, series, identify_recording(series)))
-    forces = [r for r in recs if not r.torsion]
+    forces = [r for r in recs if r.ident.load == "force"]
     torsions = [r for r in recs if r.torsion]
     if not forces:
-        raise RecordingError(f"no tangential-force ramp among {', '.join(p.name for p in paths)}: μ_s is needed "
-                             "(record `slipstack launch fig4a` or the ident_force scene and pass it too)")
-    if not any(math.isfinite(r.ident.mu.static) and math.isfinite(r.ident.mu.dynamic) for r in forces):
-        found = "; ".join(f"{r.path.name}: {r.ident.mu.status.value} ({r.ident.mu.message})" for r in forces)
+        raise RecordingError(f"no tangential-force ramp among {', '.join(p.name for p in paths)}: μ_s is needed; "
+                             + _RECORD_FORCE)
+    force_ests, torsion_ests = _estimates(forces), _estimates(torsions)
+    if not force_ests:
+        found = "; ".join(f"{r.path.name}: {e.status.value} ({e.message})" for r in forces for e in r.loadings)
         raise RecordingError(f"no slip onset in the tangential-force ramps ({found}): μ_s and μ_d need a ramp "
-                             "that slides; record one with `slipstack launch scene:=ident_force controller:=false "
-                             "recording:=force.mcap` (or fig4a; on hardware pull until the object slides)")
-    mu_s, mu_d = _pool(forces, "mu")
-    beta_s, beta_d = _pool(torsions, "beta") if torsions else (_Pooled(math.nan, math.nan),) * 2
+                             "that slides; " + _RECORD_FORCE)
+    mu_s, mu_d = _pool(force_ests)
+    beta_s, beta_d = _pool(torsion_ests) if torsion_ests else (_Pooled(math.nan, math.nan),) * 2
     stick, slide, onset_gamma, lines = [], [], [], []
     beta_s_routes, beta_d_routes = [], []
     for i, rec in enumerate(recs, 1):
@@ -205,35 +241,75 @@ def identify_material(paths: list[Path], *, name: str, provenance: str = "",
         stamps, gamma, source = _gamma_series(rec, mu_s.value, beta_s.value)
         onsets = _onsets_ns(rec)
         levels = onset_levels(stamps, gamma, onsets)
-        if onsets:
-            first = onsets[0]
-            before = (stamps >= first - _STICK_WINDOW_NS) & (stamps <= first - _STICK_GUARD_NS)
-            sliding = _sliding_mask(rec, stamps, first)
+        sliding = _sliding_mask(rec, stamps)
+        for onset in onsets:
+            before = (stamps >= onset - _STICK_WINDOW_NS) & (stamps <= onset - _STICK_GUARD_NS)
             stick.append(frame_noise(gamma[before]))
-            slide.append(frame_noise(gamma[sliding]))
-            if rec.torsion and source.startswith("exact"):
-                positions = _pad_positions(rec)
-                beta_s_routes.append(beta_from_pressure(_pressure_frames(rec, stamps, before), positions, mu_s.value))
-                beta_d_routes.append(beta_from_pressure(_pressure_frames(rec, stamps, sliding), positions,
-                                                        mu_d.value))
+        slide.append(frame_noise(gamma[sliding]))
+        if onsets and rec.torsion and source.startswith("exact"):
+            before = (stamps >= onsets[0] - _STICK_WINDOW_NS) & (stamps <= onsets[0] - _STICK_GUARD_NS)
+            positions = _pad_positions(rec)
+            beta_s_routes.append(beta_from_pressure(_pressure_frames(rec, stamps, before), positions, mu_s.value))
+            beta_d_routes.append(beta_from_pressure(_pressure_frames(rec, stamps, sliding), positions, mu_d.value))
         onset_gamma += levels
         lines += [f"== {rec.path}", format_identification(rec.ident),
                   f"load factor {source}: {len(onsets)} gross-slip onsets, γ there "
                   + (", ".join(f"{g:.3f}" for g in levels) or "-")]
     beta_s, beta_d = beta_s.with_route(_median(beta_s_routes)), beta_d.with_route(_median(beta_d_routes))
+    reasons = [f"the load factor at a gross-slip onset is {g:.3f}, outside (0, 1.5]: μ_s = {mu_s.value:.4f} does "
+               "not fit these recordings (a ramp cut before it slides, or recordings of different contacts)"
+               for g in onset_gamma if not 0 < g <= 1.5]
     material = Material(
         name=name, provenance=provenance, mu_s=mu_s.value, mu_s_se=mu_s.se, mu_d=min(mu_d.value, mu_s.value),
         mu_d_se=mu_d.se, beta_s_m=beta_s.value, beta_s_se_m=beta_s.se, beta_d_m=beta_d.value,
         beta_d_se_m=beta_d.se, mu_s_model=mu_s.model, mu_d_model=mu_d.model, beta_s_model_m=beta_s.model,
         beta_d_model_m=beta_d.model, gamma_noise_stick=_median(stick), gamma_noise_slide=_median(slide),
-        onset_gamma=tuple(round(g, 5) for g in onset_gamma))
+        onset_gamma=tuple(round(g, 5) for g in onset_gamma if 0 < g <= 1.5))
     t = detector_thresholds(material)
     lines += [f"material {name} (± standard error, ± model error; the ± 2-sigma interval in % of the value):",
               f"  mu_s   {mu_s.text()}", f"  mu_d   {mu_d.text()}",
               f"  beta_s {beta_s.text(1e3, ' mm')}", f"  beta_d {beta_d.text(1e3, ' mm')}",
+              f"  force ramps: {_spread(force_ests, 1.0, '')}",
+              *([f"  torque ramps: {_spread(torsion_ests, 1e3, ' mm')}"] if torsion_ests else []),
               f"  gamma noise stick {material.gamma_noise_stick:.4f}, slide {material.gamma_noise_slide:.4f}; "
               f"detector delta {t.delta:.4f}, gamma_release {t.gamma_release:.4f}, gamma_resume {t.gamma_resume:.4f}"]
+    reasons += _implausible(material, {"mu_s": mu_s, "mu_d": mu_d, "beta_s": beta_s, "beta_d": beta_d},
+                            force_ests, torsion_ests)
+    if reasons:
+        raise IdentificationRefused(reasons, material, lines)
     return material, lines
+
+
+_MAX_LEVEL_SPREAD = 0.1
+"""Largest difference of the loadings' sliding levels (dynamic/static) that one contact gives."""
+
+
+def _implausible(material: Material, values: dict[str, _Pooled], force_ests: list[RampEstimate],
+                 torsion_ests: list[RampEstimate]) -> list[str]:
+    """Why the material cannot be trusted, each with what to record instead (empty: plausible).
+
+    An interval (± 2·√(SE² + model²)) as wide as its value; a band δ at its cap (the data
+    say the contact can let go at half its capacity); loadings whose sliding levels differ by
+    more than :data:`_MAX_LEVEL_SPREAD` (the same contact keeps one sliding level)."""
+    reasons = []
+    for key, v in values.items():
+        record = _RECORD_TORQUE if key.startswith("beta") else _RECORD_FORCE
+        half = interval_half_width(v.se, v.model)
+        if math.isfinite(v.value) and not half < abs(v.value):
+            reasons.append(f"{key} = {v.value:.4g} ± {half:.2g} (2 sigma): the interval is wider than the value; "
+                           + record)
+    if detector_thresholds(material).delta >= DELTA_MAX:
+        reasons.append(f"the detector's band would be its cap, delta = {DELTA_MAX} (sliding level mu_d/mu_s = "
+                       f"{material.mu_d / material.mu_s:.3f}, lowest onset load factor "
+                       f"{min(material.onset_gamma, default=math.nan):.3f}): no contact lets go at half its capacity; "
+                       "a plateau that reaches into an unload or a rest reads so; " + _RECORD_FORCE)
+    for ests, record in ((force_ests, _RECORD_FORCE), (torsion_ests, _RECORD_TORQUE)):
+        levels = [e.dynamic / e.static for e in ests]
+        if len(levels) >= 2 and max(levels) - min(levels) > _MAX_LEVEL_SPREAD:
+            reasons.append(f"the loadings' sliding levels (dynamic/static) range {min(levels):.3f}–{max(levels):.3f}, "
+                           f"more than {_MAX_LEVEL_SPREAD} apart: not one contact, or a loading that did not slide "
+                           "for long; " + record)
+    return reasons
 
 
 def _pad_positions(rec: IdentifiedRecording) -> np.ndarray:
@@ -259,6 +335,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--name", help="material name (default: the output file's stem)")
     p.add_argument("--provenance", default="", help="where the object and the records come from (written to the file)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
+    p.add_argument("--force", action="store_true",
+                   help="write the file even when the identification is refused (marked as such in the file)")
     p.set_defaults(func=main_identify)
 
 
@@ -272,11 +350,22 @@ def main_identify(args: argparse.Namespace) -> int:
     progress = None if args.quiet else (lambda msg: print(f"\ridentify: {msg:<70}", end="", file=sys.stderr, flush=True))
     stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     provenance = args.provenance or f"slipstack identify {' '.join(p.name for p in paths)} ({stamp})"
-    material, lines = identify_material(paths, name=args.name or out.stem, provenance=provenance, progress=progress)
-    if progress is not None:
+    try:
+        material, lines = identify_material(paths, name=args.name or out.stem, provenance=provenance,
+                                            progress=progress)
+    except IdentificationRefused as refused:
+        if progress is not None:
+            print(file=sys.stderr)
+        print("\n".join(refused.lines))
+        if not args.force:
+            raise
+        material, lines = replace(refused.material, refused="; ".join(refused.reasons)), []
+        print(f"identify: refused, written anyway (--force): {material.refused}", file=sys.stderr)
+    if progress is not None and lines:
         print(file=sys.stderr)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(material_toml(material, f"Written by slipstack identify, {stamp}."), encoding="utf-8")
-    print("\n".join(lines))
+    if lines:
+        print("\n".join(lines))
     print(f"wrote {out}; use it with: slipstack launch FILE material:={out}")
     return 0

@@ -19,12 +19,12 @@ Panels whose topics are missing (no truth on real hardware) are left out. A two-
 recording (``launch/files/gripper.toml``) gets the grasp's figure instead
 (``analysis/grasp_report.py``).
 
-``--identify`` runs :func:`slipstack.lib.identify.identify_mu` on the F/T data of a
-ramp recording (paper Fig. 4, docs/math.md §6; scenes ``fig4a``/``fig4b``), with the
-rig's slip distance (angle) after the elastic pre-slip as the slip-onset signal when the
-recording has it (``slipstack identify`` writes the result as a material file), and
-:func:`~slipstack.lib.identify.identify_beta` as well when the torque ramp dominates
-(``max|τ|/L > max|f_t|``, ``L`` = :data:`TORQUE_ARM_M`). It needs no matplotlib.
+``--identify`` runs :func:`slipstack.lib.identify.identify_mu_loadings` on the F/T data
+of a ramp recording (paper Fig. 4, docs/math.md §6; scenes ``fig4a``/``fig4b``), with the
+rig's gross-slip flags and slip distance (angle) after the elastic pre-slip as the
+slip signals when the recording has them (``slipstack identify`` writes the result as a
+material file), or :func:`~slipstack.lib.identify.identify_beta_loadings` when the torque
+ramp dominates (:func:`load_kind`). It needs no matplotlib.
 """
 
 from __future__ import annotations
@@ -45,8 +45,8 @@ from slipstack.analysis.grasp_report import is_grasp_recording, load_grasp_serie
 from slipstack.lib.identify import (
     IdentifyConfig,
     RampEstimate,
-    identify_beta,
-    identify_mu,
+    identify_beta_loadings,
+    identify_mu_loadings,
 )
 from slipstack.lib.progress import file_progress
 from slipstack.messages import STATUS_OK, Message, decode
@@ -61,6 +61,7 @@ __all__ = [
     "format_identification",
     "identify_recording",
     "load_series",
+    "load_kind",
     "plot_report",
     "summarize",
 ]
@@ -179,10 +180,12 @@ def load_series(path: str | Path, progress: Callable[[int], None] | None = None)
 
 @dataclass(frozen=True)
 class Identification:
-    """Friction identification of one ramp recording.
+    """Friction identification of one recording.
 
-    mu: the ``|f_t|/f_n`` estimate; beta: the ``|τ|/f_n`` estimate (m), only when the
-    torque ramp dominates; motion_source: ``"rig/truth"`` when the object's true
+    mu: the ``|f_t|/f_n`` estimate of each loading (``lib/identify.py``), unless the
+    torque dominates; beta: the ``|τ|/f_n`` estimates (m) when it does (the other one is
+    empty); load: ``force``, ``torque`` or ``combined`` (:func:`load_kind`; a combined
+    ramp's ratio is neither μ nor β, its loadings give onsets only); motion_source: ``"rig/truth"`` when the object's true
     slip distance/angle (after the elastic pre-slip) was given to the estimators (``onset_source`` of each
     estimate says what set the onset), else ``"none"`` (ratio drop only);
     samples: usable F/T samples; merged: of those, how many shared a stamp with
@@ -190,9 +193,9 @@ class Identification:
     Times are s from :attr:`RecordingSeries.t0_ns`.
     """
 
-    mu: RampEstimate
-    beta: RampEstimate | None
-    torque_dominates: bool
+    mu: tuple[RampEstimate, ...]
+    beta: tuple[RampEstimate, ...]
+    load: str
     motion_source: str
     samples: int
     merged: int = 0
@@ -219,8 +222,10 @@ def _merge_ties(t_s: np.ndarray, *columns: np.ndarray) -> tuple[np.ndarray, ...]
 
 
 def identify_recording(series: RecordingSeries, config: IdentifyConfig | None = None) -> Identification:
-    """Run the ramp estimators on the usable F/T samples of ``series`` (``config``:
-    estimator settings, default :class:`IdentifyConfig`).
+    """Run the ramp estimator on each loading of the usable F/T samples of ``series``
+    (``config``: estimator settings, default :class:`IdentifyConfig`): ``|τ|/f_n`` if the
+    torque dominates, else ``|f_t|/f_n``; with ``rig/truth``, its gross-slip flags cut
+    the loadings and its slip distance or angle gives the onsets.
 
     Raises:
         RecordingError: the recording has no usable ``ft/wrench`` samples.
@@ -231,16 +236,35 @@ def identify_recording(series: RecordingSeries, config: IdentifyConfig | None = 
     keep = w["usable"].astype(bool)
     t, f_n, f_t, tau = _merge_ties(w["t_s"][keep], w["f_n"][keep], w["f_t"][keep], w["tau"][keep])
     truth = series.has("rig/truth")
-    slip = slip_angle = None
+    slip = slip_angle = gross = None
     if truth:  # slip after the elastic pre-slip: the onset without the elastic twist
         slip = _interp_truth(series, t, "slip_distance_m")
         slip_angle = np.abs(_interp_truth(series, t, "slip_angle_rad"))
-    torque_dominates = float(np.max(np.abs(tau))) / TORQUE_ARM_M > float(np.max(np.hypot(f_t[:, 0], f_t[:, 1])))
+        gross = _nearest_truth(series, t, "gross_slip").astype(bool)
+    load = load_kind(f_t, tau)
     config = config or IdentifyConfig()
-    mu = identify_mu(t, f_n, f_t, slip_m=slip, config=config)
-    beta = identify_beta(t, f_n, tau, slip_rad=slip_angle, config=config) if torque_dominates else None
-    return Identification(mu, beta, torque_dominates, "rig/truth" if truth else "none",
+    if load == "torque":
+        mu, beta = (), identify_beta_loadings(t, f_n, tau, gross_slip=gross, slip_rad=slip_angle, config=config)
+    else:
+        mu, beta = identify_mu_loadings(t, f_n, f_t, gross_slip=gross, slip_m=slip, config=config), ()
+    return Identification(mu, beta, load, "rig/truth" if truth else "none",
                           int(keep.sum()), int(keep.sum() - t.size))
+
+
+def load_kind(f_t: np.ndarray, tau: np.ndarray) -> str:
+    """``torque`` when ``max|τ|/L`` is over ten times ``max|f_t|`` (``L`` = :data:`TORQUE_ARM_M`),
+    ``force`` when ``max|f_t|`` is over ten times ``max|τ|/L``, else ``combined`` (a pure ramp
+    crosses over by a few per cent)."""
+    force = float(np.max(np.hypot(f_t[:, 0], f_t[:, 1]))) if f_t.size else 0.0
+    torque = float(np.max(np.abs(tau))) / TORQUE_ARM_M if tau.size else 0.0
+    return "torque" if torque > 10.0 * force else "force" if force > 10.0 * torque else "combined"
+
+
+def _nearest_truth(series: RecordingSeries, t_s: np.ndarray, column: str) -> np.ndarray:
+    """A truth column at times ``t_s``: the newest truth sample at or before each (the first before any)."""
+    truth = series["rig/truth"]
+    k = np.clip(np.searchsorted(truth["t_s"], t_s, side="right") - 1, 0, truth["t_s"].size - 1)
+    return truth[column][k]
 
 
 def _value_se(value: float, se: float) -> str:
@@ -273,16 +297,17 @@ def _estimate_lines(est: RampEstimate, symbol: str, scale: float, unit: str) -> 
 
 def format_identification(ident: Identification) -> str:
     """The identification as text: estimates ± standard errors, onset, status."""
-    load = "torque" if ident.torque_dominates else "tangential force"
+    load = {"torque": "the torque ramp dominates", "force": "the tangential force ramp dominates",
+            "combined": "force and torque combined (onsets only, no μ or β)"}[ident.load]
     merged = f" ({ident.merged} sharing a stamp averaged)" if ident.merged else ""
-    lines = [f"{ident.samples} F/T samples{merged}; the {load} ramp dominates; slip onset from "
+    lines = [f"{ident.samples} F/T samples{merged}; {load}; slip onset from "
              + ("the ratio drop or the object's true motion (rig/truth)" if ident.motion_source != "none"
                 else "the ratio drop")]
-    lines.append("friction coefficient μ = |f_t|/f_n:")
-    lines += _estimate_lines(ident.mu, "μ", 1.0, "")
-    if ident.beta is not None:
-        lines.append("torsional coefficient β = |τ|/f_n:")
-        lines += _estimate_lines(ident.beta, "β", 1e3, "mm")
+    for ests, title, symbol, scale, unit in ((ident.mu, "friction coefficient μ = |f_t|/f_n", "μ", 1.0, ""),
+                                             (ident.beta, "torsional coefficient β = |τ|/f_n", "β", 1e3, "mm")):
+        for k, est in enumerate(ests, 1):
+            lines.append(f"{title}, loading {k} of {len(ests)}:")
+            lines += _estimate_lines(est, symbol, scale, unit)
     return "\n".join(lines)
 
 

@@ -69,7 +69,7 @@ from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
 from slipstack.nodes.devices.sim_link import SIM_PREFIX
 from slipstack.launch.quiet_shutdown import WorldEndFilter, WorldLogLevels
 from slipstack.launch.run_log import RunLog, log_path_for
-from slipstack.nodes.runtime.logs import LOG_LEVEL_ENV, parse_log_levels
+from slipstack.nodes.runtime.logs import DETAIL_PREFIX, LOG_LEVEL_ENV, parse_log_levels
 from slipstack.nodes.runtime.curve import INSECURE_ENV, KEYS_ENV, MACHINE_ENV, GraphKeys, machine_env, use_keys
 from slipstack.nodes.runtime.graph_info import process_start_ticks, write_graph
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
@@ -115,7 +115,8 @@ class _Process(ProcessPlan):
 
 
 class Console:
-    """Prints log lines; on a terminal, ``STATUS`` lines are redrawn in place on one line."""
+    """Prints log lines; on a terminal, ``STATUS`` lines are redrawn in place on one line.
+    Detail lines (``detail: …``, the summary's long form) are left to the run's log file."""
 
     def __init__(self, stream=None) -> None:
         self.stream = stream or sys.stdout
@@ -123,7 +124,10 @@ class Console:
         self._status_shown = False
 
     def __call__(self, line: str) -> None:
-        is_status = line.split("] ", 1)[-1].startswith("STATUS ")
+        text = line.split("] ", 1)[-1]
+        if text.startswith(DETAIL_PREFIX):  # for the run's log file only
+            return
+        is_status = text.startswith("STATUS ")
         if self.live and is_status:
             self.stream.write("\r\x1b[K" + line)
             self._status_shown = True

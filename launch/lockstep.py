@@ -78,10 +78,10 @@ class _Recording:
     """The plan's recorder: every frame of its topics, as it is published, to a writer
     in a child process (the MCAP work runs on another core)."""
 
-    def __init__(self, path: Path, topics: set[str]) -> None:
+    def __init__(self, path: Path, topics: set[str], fmt: str) -> None:
         claim_recording_path(path)  # before the run: an unwritable or existing path fails now
         self.topics = topics
-        self.writer = RecordingWriterProcess(path, wall_minus_monotonic_ns=0)
+        self.writer = RecordingWriterProcess(path, wall_minus_monotonic_ns=0, fmt=fmt)
 
     def __call__(self, t_ns: int, topic: str, payload: bytes) -> None:
         if not self.topics or topic in self.topics:
@@ -112,7 +112,7 @@ class LockstepRun:
                 node = entry.instance()
                 tapped = tapped_topics(node)
                 if tapped is not None:
-                    self.recordings.append(_Recording(Path(node.params.path), tapped))
+                    self.recordings.append(_Recording(Path(node.params.path), tapped, node.params.format))
                     echo(f"[{name}] recording to {node.params.path}")
                     continue
                 nodes.append(node)

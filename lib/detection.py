@@ -16,25 +16,15 @@ Fig. 4). So :class:`SlipLatch`
   between the two does not.
 
 The thresholds belong to the contact, not to this module: ``lib/material.py`` derives
-all three from the user's material file (``slipstack identify``), by a rule written
-there. In short, with ``σ`` the identified frame-to-frame noise of γ:
-
-- the band's edge ``1 − δ`` sits ``3σ_stick`` below the lowest load factor at which
-  the identified gross slips began, and never above the sliding level ``μ_d/μ_s``
-  (a slip-weakening contact can let go anywhere down to it): a Coulomb contact gets a
-  narrow band (the rig's: δ ≈ 0.03), a strongly weakening one a wide one (δ ≈ 0.4);
-- ``γ_release = μ_d/μ_s − 4σ_slide`` is the *kinetic-friction floor* less the noise:
-  while the contact slides every sliding patch carries at least ``μ_d φ_i`` (friction
-  weakens from μ_s down to μ_d with the distance slid, never below), so the measured γ
-  stays at or above ``μ_d/μ_s`` up to noise; clearly below it, the object sticks again;
-- ``γ_resume = μ_d/μ_s − 2σ_slide``: a sliding contact reads above it on almost every
-  frame, so it restarts the dwell at once, while a load falling slowly through the
-  release level is let go one dwell after it is clearly below it, not held on by
-  single frames that the noise lifts just above the level.
+all three from the user's material file (``slipstack identify``) by the rule of
+docs/math.md §3.1: the band's edge is a lower prediction bound of the identified onset
+load factors less 3σ of the frame noise (without onsets, the sliding level less 3σ),
+the release level the lowest sliding level less 4σ, the resume level less 2σ.
+``lib/online_calibration.py`` moves them while the detector runs (``calibrate:=online``).
 
 The module's defaults (δ = 0.18, γ_release = 0.76, no resume margin) are the latch's
-own, for tests and offline use without a material; the nodes always take the
-material's (``launch/materials/rubber.toml`` unless told otherwise).
+own, for tests and offline use without a material; the nodes always take a material's
+(the shipped ``launch/materials/rubber.toml`` when none is given, and they say so).
 
 What force data cannot tell: after the object re-sticks, the load can stay at or above
 ``μ_d/μ_s`` (a load held just under the sliding friction, or re-loading towards the

@@ -25,6 +25,9 @@ status, the verdict's validity status and every side test's ``[stick, margin]``.
   deciding test judged.
 - ``method = "tactile_cor_known"`` with ``known_cor_m`` evaluates test (11) about
   that fixed pivot instead of solving for the COR (``lib/known_cor.py``, Fig. 13).
+- ``calibrate_from``: online calibration (``lib/online_calibration.py``) from that
+  material: the deciding test's γ is taken with the learned μ, and the latch's band and
+  release levels follow what it learns; ``calibration`` says what that is.
 
 Validity (docs/safety.md): ``status`` is ``ok`` only when the verdict judged valid
 data; otherwise it is the contact's status, ``tactile_<why>`` for a tactile test
@@ -46,10 +49,11 @@ from typing import Any
 import numpy as np
 
 from slipstack.lib.contact_view import ContactView, FusedContact
-from slipstack.lib.detection import DetectorConfig, SlipLatch
+from slipstack.lib.detection import DetectorConfig
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.known_cor import KNOWN_COR_METHOD, known_cor_test
 from slipstack.lib.material import Material, detector_thresholds
+from slipstack.lib.online_calibration import CalibratedLatch
 from slipstack.lib.slip_tests import FT_TESTS, SlipParams, SlipVerdict, ft_beta, ft_stick_margins, get_slip_test
 from slipstack.lib.status import SAMPLE_NO_CONTACT, SAMPLE_OK, SLIP_STATES, SlipState, SolverStatus
 
@@ -127,6 +131,8 @@ class DetectorSettings:
         about seven times as many samples.
     known_cor_m: (x, y) of a fixed pivot in the pad frame, m; only with
         ``method = "tactile_cor_known"``, which needs it.
+    calibrate_from: the material whose μ and thresholds these are, to calibrate online
+        from (None: no online calibration).
     """
 
     mu: float
@@ -140,6 +146,7 @@ class DetectorSettings:
     gamma_resume: float = math.nan
     onset_frames: int = DetectorConfig.onset_frames
     known_cor_m: tuple[float, float] | None = None
+    calibrate_from: Material | None = None
 
     def __post_init__(self) -> None:
         if (self.method == KNOWN_COR_METHOD) != (self.known_cor_m is not None):
@@ -208,8 +215,10 @@ class Detector:
         self._ft_params = self._params  # with β_s of the current pressure frame when beta_m is 0
         self._beta_frame: object = None
         onset_ns = (s.onset_frames - 1) * ONSET_NS_PER_FRAME if isinstance(s.onset_frames, int) else 0
-        self._latch = SlipLatch(DetectorConfig(s.delta, s.gamma_release, s.release_ns, s.gamma_resume, s.onset_frames,
-                                               onset_ns))
+        self._latch = CalibratedLatch(DetectorConfig(s.delta, s.gamma_release, s.release_ns, s.gamma_resume,
+                                                     s.onset_frames, onset_ns), s.calibrate_from)
+        self.calibration = self._latch.calibration
+        """The online calibration (None: off); its ``learned`` is what the latch uses."""
         self._warm: tuple[float, float] | None = None
         self._kind = SlipState.TRANSLATION  # the latest slip kind, reported while the latch holds
         self.samples_judged = 0
@@ -234,7 +243,7 @@ class Detector:
         if v.p_c is not None:
             self._warm = v.p_c
         status = self._verdict_status(contact.status, contact, v)
-        slipping, in_contact = self._advance(t_ns, v, status, contact_lost=contact.status == CONTACT_LOST)
+        slipping, in_contact, margin = self._advance(t_ns, v, status, contact_lost=contact.status == CONTACT_LOST)
         verdicts = {v.method: (v.stick, v.margin)}
         ft_judged = iter(ft_stick_margins(view, ft_params, self._ft_others) if self._ft_others else ())
         for name, test in self._others:
@@ -249,19 +258,20 @@ class Detector:
             state = self._kind
         else:
             state = SlipState.STICK
-        return DetectorVerdict(t_ns=t_ns, state=state, slipping=slipping, kind=v.kind, gamma=v.gamma,
-                               margin=v.margin, method=v.method, p_c=v.p_c, solver_status=v.status,
+        return DetectorVerdict(t_ns=t_ns, state=state, slipping=slipping, kind=v.kind, gamma=1.0 - margin,
+                               margin=margin, method=v.method, p_c=v.p_c, solver_status=v.status,
                                status=status, verdicts=verdicts)
 
-    def _advance(self, t_ns: int, v: SlipVerdict, status: str, *, contact_lost: bool) -> tuple[bool, bool]:
-        """Feed one sample's verdict (its validity ``status``) to the latch: (slipping, in contact)."""
+    def _advance(self, t_ns: int, v: SlipVerdict, status: str, *, contact_lost: bool) -> tuple[bool, bool, float]:
+        """Feed one sample's verdict (its validity ``status``) to the latch: (slipping, in
+        contact, the deciding margin, with the learned μ when calibrating online)."""
         fresh = status == VALID
         self.samples_judged += fresh or contact_lost
         in_contact = v.kind != SlipState.NO_CONTACT if fresh else not contact_lost
-        slipping = self._latch.update(t_ns, v.margin if fresh else math.nan, in_contact=in_contact)
+        slipping, margin = self._latch.update(t_ns, v.margin if fresh else math.nan, in_contact=in_contact)
         if slipping and in_contact and v.kind in SLIP_STATES:
             self._kind = v.kind
-        return slipping, in_contact
+        return slipping, in_contact, v.margin if math.isnan(margin) else margin
 
     def _step_earlier(self, contact: Any, view: ContactView, params: SlipParams) -> None:
         """The deciding test and the latch over the contact's earlier samples, oldest first,

@@ -1,26 +1,13 @@
 """Slip episodes and detection quality: true slip (from the rig's truth) versus verdicts.
 
-Used by the monitor's summary (streamed: :class:`EpisodeTracker`, bounded memory) and
-by the detection-quality benchmark (whole recordings: :func:`detection_quality`). Times
-are integer nanoseconds on one clock (the sensor sample stamps).
-
-Definitions:
-- an *episode* is a maximal run of samples with ``gross_slip`` true; onset = its first stamp;
-- an episode is *detected* if a slip verdict occurs in ``[onset − lead, end + grace]``;
-  the *delay* is the stamp of the verdict that raised the flag in that window minus the
-  onset (negative: the detector warned before gross slip, which incipient-slip
-  detection may do);
-- an episode is *already flagged* if the first verdict of its window is a slip verdict:
-  the flag was up before the window opened, so no delay is measured (it would only be
-  the window's cut-off, −lead); it counts as detected, apart from the delays;
-- a *flag without true slip* is a slip verdict on a frame whose nearest truth sample
-  says stick and that lies in no episode's window; their share of the sticking frames is
-  judged so. With the controller off these are false alarms; with it on they are mostly
-  the early warnings it acts on (it grips harder, so the slip they announced never
-  comes). Frames the truth marks *incipient* (partial slip: a large share of the
-  contact's friction capacity, :data:`INCIPIENT_SHARE` as the callers use it, already
-  sliding, not yet gross slip) are neither sticking nor slipping: a verdict there is an
-  early warning and is not counted.
+One definition (docs/math.md §3.2), used by the monitor's summary (streamed:
+:class:`EpisodeTracker`, bounded memory), the detection benchmark and the figures
+(whole recordings: :func:`detection_quality`): an *episode* is a stretch of true gross
+slip; *missed*: no flag from ``lead`` before its onset to its end; *delay*: rise of that
+flag minus the onset (negative: a warning); *false alarms*: sticking frames flagged
+outside every episode's window ``[onset − lead, end + release + margin]``, over all
+sticking frames, the *latch hold* (a flag that rose for an episode and stays up after
+it) counted apart among them. Times are integer ns on one clock.
 """
 
 from __future__ import annotations
@@ -30,18 +17,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Episode", "DetectionQuality", "EpisodeTracker", "find_episodes", "detection_quality", "INCIPIENT_SHARE"]
+__all__ = ["Episode", "DetectionQuality", "EpisodeTracker", "find_episodes", "detection_quality",
+           "LEAD_NS", "RELEASE_NS", "MARGIN_NS", "MIN_GAP_NS"]
 
-LEAD_NS = 100_000_000
-"""How early a verdict may come and still count for an episode (ns)."""
-GRACE_NS = 50_000_000
-"""How long after an episode's end a verdict still counts for it (ns)."""
+LEAD_NS = 20_000_000
+"""How early a flag may rise and still count for an episode (ns)."""
+RELEASE_NS = 20_000_000
+"""The latch's release dwell (``lib/detection.py``'s default), ns: the window after an episode."""
+MARGIN_NS = 5_000_000
+"""Beyond the release dwell, how long after an episode a flag is still its latch (ns)."""
 MIN_GAP_NS = 20_000_000
 """Episodes closer than this are one episode (stick–slip chatter), ns."""
-
-INCIPIENT_SHARE = 0.25
-"""Partial slip counts as incipient when sliding taxels carry at least this share of the
-contact's friction capacity (the rig's ``sliding_fraction``)."""
 
 
 @dataclass(frozen=True)
@@ -56,35 +42,47 @@ class Episode:
 class DetectionQuality:
     """How verdicts match true episodes.
 
-    delays_ns: one entry per episode whose flag rose in its window (verdict stamp − onset).
-    already_flagged: episodes whose flag was up on the first verdict of their window
-    (detected, no delay measured).
-    missed: episodes with no slip verdict in their window.
-    flag_without_slip_frames / stick_frames: slip verdicts on truly sticking frames outside
-    every window / all frames judged while truly sticking.
+    delays_ns: per detected episode, the rise of its flag minus its onset.
+    holds_ns: per detected episode, how long the flag stayed up after its end (0: down by then).
+    missed: episodes with no flag from ``lead`` before their onset to their end.
+    false_alarm_frames / stick_frames: flagged sticking frames outside every episode's
+    window / all sticking frames; latch_hold_frames: those of them whose flag was up inside
+    an episode's window before (the latch holding on after the slip).
     """
 
     episodes: tuple[Episode, ...]
     delays_ns: tuple[int, ...]
-    already_flagged: int
+    holds_ns: tuple[int, ...]
     missed: int
-    flag_without_slip_frames: int
+    false_alarm_frames: int
+    latch_hold_frames: int
     stick_frames: int
 
     @property
     def detected(self) -> int:
-        return len(self.delays_ns) + self.already_flagged
+        return len(self.delays_ns)
 
     @property
-    def flag_without_slip_share(self) -> float:
-        """Flags without true slip over the frames judged while truly sticking (0 if none)."""
-        return self.flag_without_slip_frames / self.stick_frames if self.stick_frames else 0.0
+    def false_alarm_share(self) -> float:
+        """False-alarm frames over all sticking frames (0 without any)."""
+        return self.false_alarm_frames / self.stick_frames if self.stick_frames else 0.0
+
+    @property
+    def latch_hold_share(self) -> float:
+        """The latch-hold part of :attr:`false_alarm_share`."""
+        return self.latch_hold_frames / self.stick_frames if self.stick_frames else 0.0
 
     def delay_percentile_ms(self, q: float) -> float:
         """``q``-th percentile of the detection delay in ms (NaN if nothing was detected)."""
-        if not self.delays_ns:
-            return float("nan")
-        return float(np.percentile(np.asarray(self.delays_ns, dtype=float), q)) / 1e6
+        return _percentile_ms(self.delays_ns, q)
+
+    def hold_percentile_ms(self, q: float) -> float:
+        """``q``-th percentile of the latch hold after an episode in ms (NaN if none detected)."""
+        return _percentile_ms(self.holds_ns, q)
+
+
+def _percentile_ms(values: tuple[int, ...], q: float) -> float:
+    return float(np.percentile(np.asarray(values, dtype=float), q)) / 1e6 if values else float("nan")
 
 
 def find_episodes(stamps_ns: np.ndarray, gross_slip: np.ndarray, *, min_gap_ns: int = 0) -> list[Episode]:
@@ -111,48 +109,66 @@ def detection_quality(
     verdict_slip: np.ndarray,
     *,
     lead_ns: int = LEAD_NS,
-    grace_ns: int = GRACE_NS,
+    release_ns: int = RELEASE_NS,
+    margin_ns: int = MARGIN_NS,
     min_gap_ns: int = MIN_GAP_NS,
-    incipient: np.ndarray | None = None,
+    in_contact: np.ndarray | None = None,
 ) -> DetectionQuality:
-    """Match slip verdicts to true episodes (see the module docstring).
+    """Match slip verdicts to true episodes (module docstring).
 
     Args:
-        truth_ns, gross_slip: the rig's truth stream (stamps, flags).
+        truth_ns, gross_slip: the truth stream (stamps, flags); a verdict is judged by the
+            first truth sample at or after its stamp.
         verdict_ns, verdict_slip: the detector's stream (sample stamps, slip flags).
-        lead_ns: how early a verdict may come and still count for an episode.
-        grace_ns: how long after an episode's end a verdict still counts for it.
-        min_gap_ns: episodes closer than this are one episode (stick–slip chatter).
-        incipient: optional flags on the truth stream: partial slip, excluded from the
-            sticking frames.
+        lead_ns, release_ns, margin_ns, min_gap_ns: the windows (module constants).
+        in_contact: optional per-verdict flags; frames without contact are not sticking frames.
     """
     episodes = find_episodes(truth_ns, gross_slip, min_gap_ns=min_gap_ns)
     vt = np.asarray(verdict_ns, dtype=np.int64)
     vs = np.asarray(verdict_slip, dtype=bool)
-    in_window = np.zeros(vt.shape, dtype=bool)
+    n = vt.size
+    index = np.arange(n)
+    run_start = np.maximum.accumulate(np.where(vs & ~np.concatenate([[False], vs[:-1]]), index, 0)) if n else index
+    excused = np.zeros(n, dtype=bool)
+    detecting = np.zeros(n, dtype=bool)
     delays: list[int] = []
-    missed = already_flagged = 0
+    holds: list[int] = []
+    missed = 0
     for ep in episodes:
-        win = (vt >= ep.start_ns - lead_ns) & (vt <= ep.end_ns + grace_ns)
-        in_window |= win
-        hits = np.flatnonzero(win & vs)
+        window = (vt >= ep.start_ns - lead_ns) & (vt <= ep.end_ns)
+        excused |= (vt >= ep.start_ns - lead_ns) & (vt <= ep.end_ns + release_ns + margin_ns)
+        detecting |= window
+        hits = np.flatnonzero(window & vs)
         if not hits.size:
             missed += 1
-        elif hits[0] == np.argmax(win):
-            already_flagged += 1  # the window's first verdict: the flag rose before the window
-        else:
-            delays.append(int(vt[hits[0]] - ep.start_ns))
-    stick = ~in_window
+            continue
+        delays.append(int(vt[run_start[hits[0]]] - ep.start_ns))
+        holds.append(_hold_ns(vt, vs, ep.end_ns))
+    sticking = np.ones(n, dtype=bool)
     if len(truth_ns):
         tt = np.asarray(truth_ns, dtype=np.int64)
-        idx = np.clip(np.searchsorted(tt, vt), 0, tt.size - 1)
-        stick &= ~np.asarray(gross_slip, dtype=bool)[idx]
-        if incipient is not None:
-            stick &= ~np.asarray(incipient, dtype=bool)[idx]
-    return DetectionQuality(
-        episodes=tuple(episodes), delays_ns=tuple(delays), already_flagged=already_flagged, missed=missed,
-        flag_without_slip_frames=int(np.count_nonzero(stick & vs)), stick_frames=int(np.count_nonzero(stick)),
-    )
+        sticking &= ~np.asarray(gross_slip, dtype=bool)[np.clip(np.searchsorted(tt, vt), 0, tt.size - 1)]
+    if in_contact is not None:
+        sticking &= np.asarray(in_contact, dtype=bool)
+    seen = np.cumsum(vs & detecting)  # flagged frames inside a window, so far
+    before_run = np.where(run_start > 0, seen[np.maximum(run_start - 1, 0)], 0)
+    latch = (seen - before_run) > 0  # this flag run had a frame in a window, at or before this one
+    false = vs & sticking & ~excused
+    return DetectionQuality(episodes=tuple(episodes), delays_ns=tuple(delays), holds_ns=tuple(holds),
+                            missed=missed, false_alarm_frames=int(np.count_nonzero(false)),
+                            latch_hold_frames=int(np.count_nonzero(false & latch)),
+                            stick_frames=int(np.count_nonzero(sticking)))
+
+
+def _hold_ns(vt: np.ndarray, vs: np.ndarray, end_ns: int) -> int:
+    """How long after ``end_ns`` the flag stays up: the first unflagged verdict after it,
+    or the last verdict if it never falls; 0 if the last verdict up to ``end_ns`` is down."""
+    last = int(np.searchsorted(vt, end_ns, side="right")) - 1
+    if last < 0 or not vs[last]:
+        return 0
+    down = np.flatnonzero(~vs[last + 1:])
+    fall = vt[last + 1 + down[0]] if down.size else vt[-1]
+    return max(int(fall - end_ns), 0)
 
 
 _MAX_OPEN = 1000
@@ -161,17 +177,17 @@ _MAX_OPEN = 1000
 
 
 class _OpenEpisode:
-    """An episode whose window may still gain a verdict or whose end may still move."""
+    """An episode whose windows may still gain a verdict or whose end may still move."""
 
-    __slots__ = ("start_ns", "end_ns", "ongoing", "delay_ns", "verdicts_seen", "already_flagged")
+    __slots__ = ("start_ns", "end_ns", "ongoing", "delay_ns", "hold_ns", "up_at_end")
 
     def __init__(self, start_ns: int) -> None:
         self.start_ns = start_ns
         self.end_ns = start_ns
         self.ongoing = True
         self.delay_ns: int | None = None
-        self.verdicts_seen = False
-        self.already_flagged = False
+        self.hold_ns: int | None = None
+        self.up_at_end = False  # the flag of the newest verdict up to the end
 
 
 class EpisodeTracker:
@@ -187,30 +203,36 @@ class EpisodeTracker:
     their stamp + ``lead_ns``; at most ``max_pending``, beyond which the oldest is
     judged on the truth seen so far), truth samples from the oldest pending verdict on
     (at most ``horizon_ns`` of them), the episodes whose window is still open (at most
-    1000), and the latest ``max_kept`` finished episodes and delays (the counts
-    ``episode_count``, ``detected``, ``already_flagged``, ``missed`` cover all of them).
+    1000), and the latest ``max_kept`` finished episodes, delays and holds (the counts
+    ``episode_count``, ``detected``, ``missed`` cover all of them).
     """
 
-    def __init__(self, *, lead_ns: int = LEAD_NS, grace_ns: int = GRACE_NS, min_gap_ns: int = MIN_GAP_NS,
-                 horizon_ns: int = 10_000_000_000, max_pending: int = 100_000, max_kept: int = 10_000) -> None:
-        self.lead_ns, self.grace_ns, self.min_gap_ns, self.horizon_ns = lead_ns, grace_ns, min_gap_ns, horizon_ns
+    def __init__(self, *, lead_ns: int = LEAD_NS, release_ns: int = RELEASE_NS, margin_ns: int = MARGIN_NS,
+                 min_gap_ns: int = MIN_GAP_NS, horizon_ns: int = 10_000_000_000, max_pending: int = 100_000,
+                 max_kept: int = 10_000) -> None:
+        self.lead_ns, self.min_gap_ns, self.horizon_ns = lead_ns, min_gap_ns, horizon_ns
+        self.after_ns = release_ns + margin_ns
         self.max_pending = max_pending
-        self._truth: deque[tuple[int, bool, bool]] = deque()  # (stamp, gross slip, incipient)
+        self._truth: deque[tuple[int, bool]] = deque()  # (stamp, gross slip)
         self._truth_end: int | None = None
         self._in_slip = False
         self._open: deque[_OpenEpisode] = deque()
-        self._pending: deque[tuple[int, bool]] = deque()
+        self._pending: deque[tuple[int, bool, bool]] = deque()  # (stamp, slip, in contact)
         self._last_judged_ns: int | None = None
+        self._flag_up = False
+        self._rise_ns = 0  # stamp of the newest flag rise
+        self._run_detected = False  # the current flag run had a frame inside an episode's window
         self.finished: deque[Episode] = deque(maxlen=max_kept)
         self.delays_ns: deque[int] = deque(maxlen=max_kept)
+        self.holds_ns: deque[int] = deque(maxlen=max_kept)
         self.episode_count = 0
         self.detected = 0
-        self.already_flagged = 0
         self.missed = 0
         self.stick_frames = 0
-        self.flag_without_slip_frames = 0
+        self.false_alarm_frames = 0
+        self.latch_hold_frames = 0
 
-    def add_truth(self, stamp_ns: int, gross_slip: bool, incipient: bool = False) -> None:
+    def add_truth(self, stamp_ns: int, gross_slip: bool) -> None:
         """One truth sample (stamps increasing)."""
         if gross_slip:
             last = self._open[-1] if self._open else None
@@ -223,15 +245,15 @@ class EpisodeTracker:
         elif self._in_slip:
             self._open[-1].ongoing = False
         self._in_slip = gross_slip
-        self._truth.append((stamp_ns, gross_slip, incipient))
+        self._truth.append((stamp_ns, gross_slip))
         self._truth_end = stamp_ns
         while self._truth[0][0] < stamp_ns - self.horizon_ns:
             self._truth.popleft()
         self._judge_ready()
 
-    def add_verdict(self, stamp_ns: int, slip: bool) -> None:
+    def add_verdict(self, stamp_ns: int, slip: bool, in_contact: bool = True) -> None:
         """One verdict of the detector (stamps increasing)."""
-        self._pending.append((stamp_ns, slip))
+        self._pending.append((stamp_ns, slip, in_contact))
         while len(self._pending) > self.max_pending:
             self._judge(*self._pending.popleft())
         self._judge_ready()
@@ -246,10 +268,11 @@ class EpisodeTracker:
         self._close_episodes(final=True)
 
     def quality(self) -> DetectionQuality:
-        """The numbers so far (the kept episodes and delays: the latest ``max_kept``)."""
+        """The numbers so far (the kept episodes, delays and holds: the latest ``max_kept``)."""
         return DetectionQuality(episodes=tuple(self.finished), delays_ns=tuple(self.delays_ns),
-                                already_flagged=self.already_flagged, missed=self.missed,
-                                flag_without_slip_frames=self.flag_without_slip_frames, stick_frames=self.stick_frames)
+                                holds_ns=tuple(self.holds_ns), missed=self.missed,
+                                false_alarm_frames=self.false_alarm_frames,
+                                latch_hold_frames=self.latch_hold_frames, stick_frames=self.stick_frames)
 
     def _judge_ready(self) -> None:
         pending = self._pending
@@ -257,24 +280,33 @@ class EpisodeTracker:
             self._judge(*pending.popleft())
         self._close_episodes(final=False)
 
-    def _judge(self, t: int, slip: bool) -> None:
-        in_window = False
+    def _judge(self, t: int, slip: bool, in_contact: bool) -> None:
+        if slip and not self._flag_up:
+            self._rise_ns, self._run_detected = t, False
+        self._flag_up = slip
+        excused = False
         for ep in self._open:
-            if ep.start_ns - self.lead_ns <= t and (ep.ongoing or t <= ep.end_ns + self.grace_ns):
-                in_window = True
-                if not ep.verdicts_seen:
-                    ep.verdicts_seen = True
-                    ep.already_flagged = slip  # up on the window's first verdict: raised before it
-                elif slip and ep.delay_ns is None and not ep.already_flagged:
-                    ep.delay_ns = t - ep.start_ns
+            if t < ep.start_ns - self.lead_ns:
+                continue
+            if ep.ongoing or t <= ep.end_ns:
+                if slip:
+                    self._run_detected = True
+                    if ep.delay_ns is None:
+                        ep.delay_ns = self._rise_ns - ep.start_ns
+                ep.up_at_end = slip
+                excused = True
+            else:
+                if ep.hold_ns is None and ep.delay_ns is not None:
+                    ep.hold_ns = t - ep.end_ns if ep.up_at_end and not slip else 0 if not ep.up_at_end else None
+                excused |= t <= ep.end_ns + self.after_ns
         truth = self._truth
         while len(truth) > 1 and truth[0][0] < t:
             truth.popleft()  # the first sample at or after t is the one that judges it
-        if not in_window:
-            sticking = not truth or not (truth[0][1] or truth[0][2])
-            if sticking:
-                self.stick_frames += 1
-                self.flag_without_slip_frames += slip
+        if in_contact and not (truth and truth[0][1]):
+            self.stick_frames += 1
+            if slip and not excused:
+                self.false_alarm_frames += 1
+                self.latch_hold_frames += self._run_detected
         self._last_judged_ns = t if self._last_judged_ns is None else max(self._last_judged_ns, t)
 
     def _close_episodes(self, *, final: bool) -> None:
@@ -283,16 +315,18 @@ class EpisodeTracker:
             if not final and len(self._open) <= _MAX_OPEN:
                 if ep.ongoing or self._truth_end is None or self._truth_end < ep.end_ns + self.min_gap_ns:
                     return  # it may still go on or merge with the next run
-                if self._last_judged_ns is None or self._last_judged_ns <= ep.end_ns + self.grace_ns:
+                if self._last_judged_ns is None or self._last_judged_ns <= ep.end_ns + self.after_ns:
                     return  # a verdict in its window may still come
+                if ep.delay_ns is not None and ep.hold_ns is None:
+                    return  # its flag is still up: the hold goes on
             self._open.popleft()
             self.episode_count += 1
             self.finished.append(Episode(ep.start_ns, ep.end_ns))
-            if ep.already_flagged:
-                self.detected += 1
-                self.already_flagged += 1
-            elif ep.delay_ns is None:
+            if ep.delay_ns is None:
                 self.missed += 1
             else:
                 self.detected += 1
                 self.delays_ns.append(ep.delay_ns)
+                if ep.hold_ns is None:  # never fell: up to the last verdict
+                    ep.hold_ns = max((self._last_judged_ns or 0) - ep.end_ns, 0) if ep.up_at_end else 0
+                self.holds_ns.append(ep.hold_ns)

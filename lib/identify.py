@@ -1,4 +1,4 @@
-"""Friction identification from a ramp recording (docs/math.md §6, the paper's Fig. 4).
+"""Friction identification from ramp recordings (docs/math.md §6, the paper's Fig. 4).
 
 At (nearly) constant ``f_n`` with a slowly rising tangential load the ratio
 ``μ(t) = |f_t|/f_n`` rises, peaks at ``μ_s`` when slip starts and settles to ``μ_d``;
@@ -9,7 +9,8 @@ with a rising torque ``β(t) = |τ|/f_n`` (m) peaks at ``β_s`` and settles to `
 2. Smooth the ratio with a centred moving average of ``smooth_window_s`` (rounded to
    an odd number of samples, using the median sample spacing) and take its maximum
    ``k*`` as the peak region. With a motion signal the onset comes from the motion and
-   ``k*`` is searched up to it:
+   ``k*`` is searched up to it (a ramp that levels off before ``k*`` — creep, stick–slip —
+   and then clearly drops is read as if it rose):
 
    - ``slip_m`` / ``slip_rad`` (preferred): the object's slip distance or angle *after*
      the elastic pre-slip (zero while the contact sticks, e.g. ``rig/truth``'s
@@ -46,6 +47,17 @@ with a rising torque ``β(t) = |τ|/f_n`` (m) peaks at ``β_s`` and settles to `
 The peak's *prominence* is ``min(static, max smoothed ratio) − dynamic`` (the smoothed
 maximum guards against a line extrapolated past a knee).
 
+A recording made as a user makes it holds more than one ramp: pressing, ramps past slip,
+holds, unloads, rests, repeated. :func:`identify_mu_loadings` and
+:func:`identify_beta_loadings` cut it into *loadings* first (docs/math.md §6.1): with
+the truth's gross-slip flags, runs of slip less than ``fit_window_s`` apart are one
+loading (stick–slip on one ramp); without them, a stretch where the smoothed ratio is
+at least ``active_fraction`` of its largest value, its sliding plateau ending where the
+ratio falls away from the plateau's level (the unload). Each loading's window runs from
+the end of the previous one to the end of its own sliding, and the estimator above runs
+on it: a plateau never reaches into an unload or a rest. Samples with ``f_n`` under
+``grip_fraction`` of the grip (its 90th percentile) are left out (pressing, releasing).
+
 Statuses: ``ok``; ``no-clear-peak`` (prominence ``< min_prominence_sigma · s_r``: the
 drop is not resolved, ``μ_s ≈ μ_d``, estimates given but flagged; when the ratio
 levels off at a knee — best fit of ``a + b·min(t − t_k, 0)`` — the knee gives the
@@ -53,14 +65,15 @@ onset and ``static = dynamic``);
 ``no-onset`` (the ratio is still rising at the end, the ramp does not rise, or the
 displacement never crosses its threshold: ``static`` is then the largest smoothed
 ratio seen, a lower bound); ``insufficient-data``; ``bad-input`` (shapes, time not
-increasing). Nothing here raises on data; :class:`IdentifyConfig` raises
+increasing). With a motion signal, a ratio without a drop is ``ok`` (``μ_s ≈ μ_d``: the
+motion gives the onset). Nothing here raises on data; :class:`IdentifyConfig` raises
 :class:`ConfigError` on bad settings.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import Enum
 
 import numpy as np
@@ -69,7 +82,8 @@ from scipy.ndimage import uniform_filter1d
 
 from slipstack.lib.errors import ConfigError
 
-__all__ = ["IdentifyStatus", "IdentifyConfig", "RampEstimate", "identify_mu", "identify_beta"]
+__all__ = ["IdentifyStatus", "IdentifyConfig", "RampEstimate", "identify_mu", "identify_beta",
+           "identify_mu_loadings", "identify_beta_loadings"]
 
 _NAN = float("nan")
 _MIN_FIT_SAMPLES = 5
@@ -107,6 +121,10 @@ class IdentifyConfig:
         sliding_fraction: with a motion signal, the dynamic level is taken only over the
             samples where it moves faster than this fraction of its mean rate after
             the onset (sliding, not the stuck phases of stick–slip); dimensionless.
+        grip_fraction: loadings only: samples with ``f_n`` under this share of the grip
+            (the 90th percentile of ``f_n``) are left out; dimensionless.
+        active_fraction: loadings without slip flags: where the smoothed ratio is at
+            least this share of its largest value; dimensionless.
     """
 
     smooth_window_s: float = 0.02
@@ -122,11 +140,13 @@ class IdentifyConfig:
     static_window_s: float = 0.05
     min_normal_force_n: float = 1e-3
     sliding_fraction: float = 0.5
+    grip_fraction: float = 0.5
+    active_fraction: float = 0.5
 
     def __post_init__(self) -> None:
         for name in ("smooth_window_s", "fit_window_s", "drop_sigma", "min_prominence_sigma",
                      "slip_threshold_m", "slip_threshold_rad", "min_normal_force_n", "sliding_fraction",
-                     "slip_start_m", "slip_start_rad", "static_window_s"):
+                     "slip_start_m", "slip_start_rad", "static_window_s", "grip_fraction", "active_fraction"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ConfigError(f"identify setting {name} must be a finite number > 0, got {value!r}")
@@ -157,6 +177,7 @@ class RampEstimate:
         noise_std: residual std ``s_r`` of the ratio on the ramp (same unit).
         n_used: samples used; ``n_rejected``: samples rejected in step 1.
         smooth_window: moving-average window, samples.
+        end_t_s: for a loading, its window's last sample (the end of its sliding), s; NaN otherwise.
     """
 
     quantity: str
@@ -177,6 +198,7 @@ class RampEstimate:
     n_used: int = 0
     n_rejected: int = 0
     smooth_window: int = 0
+    end_t_s: float = _NAN
 
     @property
     def ok(self) -> bool:
@@ -221,6 +243,26 @@ def identify_beta(t_s: ArrayLike, f_n_n: ArrayLike, tau_nm: ArrayLike, *,
     if slip_rad is not None:
         return _identify("beta", t_s, f_n_n, tau_nm, slip_rad, config.slip_start_rad, config, from_slip=True)
     return _identify("beta", t_s, f_n_n, tau_nm, rotation_rad, config.slip_threshold_rad, config)
+
+
+def identify_mu_loadings(t_s: ArrayLike, f_n_n: ArrayLike, f_t_n: ArrayLike, *,
+                         gross_slip: ArrayLike | None = None, slip_m: ArrayLike | None = None,
+                         config: IdentifyConfig = IdentifyConfig()) -> tuple[RampEstimate, ...]:
+    """:func:`identify_mu` on each loading of a whole recording (module docstring).
+
+    Args are those of :func:`identify_mu`, and ``gross_slip``: optional per-sample flags
+    of true gross slip, shape ``(N,)``. Returns one estimate per loading, in time order
+    (``onset_index`` into the input arrays); without any loading, one estimate of the
+    whole record (its status says why: ``no-onset`` for a load that never slips).
+    """
+    return _loadings("mu", t_s, f_n_n, f_t_n, gross_slip, slip_m, config.slip_start_m, config)
+
+
+def identify_beta_loadings(t_s: ArrayLike, f_n_n: ArrayLike, tau_nm: ArrayLike, *,
+                           gross_slip: ArrayLike | None = None, slip_rad: ArrayLike | None = None,
+                           config: IdentifyConfig = IdentifyConfig()) -> tuple[RampEstimate, ...]:
+    """:func:`identify_beta` on each loading of a whole recording (see :func:`identify_mu_loadings`)."""
+    return _loadings("beta", t_s, f_n_n, tau_nm, gross_slip, slip_rad, config.slip_start_rad, config)
 
 
 # ---------------------------------------------------------------- implementation
@@ -284,6 +326,96 @@ def _identify(quantity: str, t_raw: ArrayLike, fn_raw: ArrayLike, load_raw: Arra
                         index, n_rejected, step, cfg, from_slip).run()
 
 
+def _loadings(quantity: str, t_raw: ArrayLike, fn_raw: ArrayLike, load_raw: ArrayLike, gross_raw: ArrayLike | None,
+              slip_raw: ArrayLike | None, slip_start: float, cfg: IdentifyConfig) -> tuple[RampEstimate, ...]:
+    """The estimator on each loading's window, ``f_n`` under the grip left out (module docstring)."""
+    try:
+        t = np.asarray(t_raw, dtype=float)
+        fn = np.asarray(fn_raw, dtype=float)
+        load = _magnitude(np.asarray(load_raw, dtype=float), t.shape[0] if t.ndim == 1 else -1)
+        gross = None if gross_raw is None else np.asarray(gross_raw, dtype=bool)
+        slip = None if slip_raw is None else np.asarray(slip_raw, dtype=float)
+    except (TypeError, ValueError) as exc:
+        return (RampEstimate(quantity, IdentifyStatus.BAD_INPUT, f"inputs are not numeric arrays: {exc}"),)
+    n = t.shape[0] if t.ndim == 1 else -1
+    if (n < 0 or fn.shape != (n,) or load is None or (gross is not None and gross.shape != (n,))
+            or (slip is not None and slip.shape[:1] != (n,))):
+        return (_identify(quantity, t, fn, load_raw, slip, slip_start, cfg, from_slip=True),)
+    with np.errstate(all="ignore"):
+        usable = np.isfinite(fn) & (fn >= cfg.min_normal_force_n) & np.isfinite(load) & np.isfinite(t)
+        grip = float(np.percentile(fn[usable], 90)) if usable.any() else 0.0
+        loaded = usable & (fn >= cfg.grip_fraction * grip)
+        fn_loaded = np.where(loaded, fn, np.nan)
+        ratio = load / np.where(loaded, fn, 1.0)
+    if gross is not None:
+        windows = _slip_windows(t, gross & loaded, cfg)
+    else:
+        windows = _ratio_windows(t, ratio, loaded, cfg)
+    whole = (0, n)
+    ests = []
+    for a, b in windows or [whole]:
+        est = _identify(quantity, t[a:b], fn_loaded[a:b], load[a:b], None if slip is None else slip[a:b],
+                        slip_start, cfg, from_slip=True)
+        ests.append(replace(est, onset_index=est.onset_index + a if est.onset_index >= 0 else -1,
+                            end_t_s=float(t[b - 1]) if windows else _NAN))
+    return tuple(ests)
+
+
+def _slip_windows(t: np.ndarray, gross: np.ndarray, cfg: IdentifyConfig) -> list[tuple[int, int]]:
+    """``[start, stop)`` per loading from true gross-slip flags: runs of slip less than
+    ``fit_window_s`` apart are one loading; each window ends at its last sliding sample."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[False], gross, [False]]).astype(np.int8)))
+    runs: list[list[int]] = []
+    for a, b in zip(edges[::2], edges[1::2]):
+        if runs and t[a] - t[runs[-1][1] - 1] < cfg.fit_window_s:
+            runs[-1][1] = int(b)
+        else:
+            runs.append([int(a), int(b)])
+    starts = [0] + [b for _, b in runs[:-1]]
+    return [(start, b) for start, (_, b) in zip(starts, runs)]
+
+
+def _ratio_windows(t: np.ndarray, ratio: np.ndarray, loaded: np.ndarray,
+                   cfg: IdentifyConfig) -> list[tuple[int, int]]:
+    """``[start, stop)`` per loading from the ratio alone (module docstring): a stretch
+    where the smoothed ratio is at least ``active_fraction`` of its largest value (dips
+    shorter than ``fit_window_s`` bridged), ending where its plateau ends: from
+    ``settle_s`` after its top (the first sample within 3 noise of it) to where the ratio falls under half that share, the knee
+    of a level followed by a straight fall (:func:`_hinge` on the reversed stretch), if
+    the fall is significant (t ≥ ``min_slope_t``), so that the unload is left out."""
+    index = np.flatnonzero(loaded & np.isfinite(ratio))
+    if index.size < 2 * _MIN_FIT_SAMPLES or not np.all(np.diff(t[index]) > 0):
+        return []
+    r, tt = ratio[index], t[index]
+    step = float(np.median(np.diff(tt)))
+    w = 2 * int(round(cfg.smooth_window_s / step / 2.0)) + 1
+    smooth = uniform_filter1d(r, w, mode="nearest")
+    active = smooth >= cfg.active_fraction * float(smooth.max())
+    edges = np.flatnonzero(np.diff(np.concatenate([[False], active, [False]]).astype(np.int8)))
+    runs: list[list[int]] = []
+    for a, b in zip(edges[::2], edges[1::2]):
+        if runs and tt[a] - tt[runs[-1][1] - 1] < cfg.fit_window_s:
+            runs[-1][1] = int(b)  # a dip shorter than a ramp: the same loading
+        else:
+            runs.append([int(a), int(b)])
+    settle = int(round(cfg.settle_s / step))
+    low = smooth < cfg.active_fraction / 2.0 * float(smooth.max())
+    windows, start = [], 0
+    noise = float(np.std(np.diff(r)) / math.sqrt(2.0 * w))  # of the smoothed ratio
+    for i, (a, b) in enumerate(runs):
+        peak = a + int(np.argmax(smooth[a:b] >= smooth[a:b].max() - 3.0 * noise))  # a flat top: its start
+        rest = np.flatnonzero(low[b:runs[i + 1][0] if i + 1 < len(runs) else r.size])
+        end = b + int(rest[0]) + 1 if rest.size else (runs[i + 1][0] if i + 1 < len(runs) else r.size)
+        stop, first = b, peak + settle
+        if end - first > 2 * _MIN_FIT_SAMPLES:
+            k, t_stat = _hinge(-tt[first:end][::-1], r[first:end][::-1])
+            if t_stat >= cfg.min_slope_t:
+                stop = min(end - k, b)
+        windows.append((start, int(index[stop - 1]) + 1))
+        start = int(index[stop - 1]) + 1
+    return windows
+
+
 class _RampFit:
     """One estimation on clean, sorted samples; ``index`` maps back to the input."""
 
@@ -336,7 +468,8 @@ class _RampFit:
             return self.result(IdentifyStatus.INSUFFICIENT_DATA,
                                f"only {fit_end - fit_start} ramp samples before the peak")
         line = _LineFit(self.t[fit_start:fit_end], self.r[fit_start:fit_end])
-        if not line.slope_t >= self.cfg.min_slope_t:
+        flat = not line.slope_t >= self.cfg.min_slope_t
+        if flat and moved is None and not self._drops_after(k_peak, line):
             return self._knee(float(smooth[k_peak]), f"ratio does not rise before its peak (slope t = "
                               f"{line.slope_t:.2f} < {self.cfg.min_slope_t})")
         onset, lo, source = self._onset(line, fit_end, k_peak, moved)
@@ -359,6 +492,10 @@ class _RampFit:
         common.update(static_model=static_model, dynamic_model=drift)
         prominence = min(static, float(smooth[k_peak])) - dynamic
         if not prominence >= self.cfg.min_prominence_sigma * line.s_r:
+            if moved is not None:  # the motion gives the onset: a contact without a drop
+                return self.result(IdentifyStatus.OK, f"no drop (static ~ dynamic): static - dynamic = "
+                                   f"{prominence:.3g}, onset from the motion", dynamic=dynamic,
+                                   dynamic_se=dynamic_se, prominence=prominence, **common)
             knee = self._knee(float(smooth[k_peak]), "no drop")
             if knee.status is IdentifyStatus.NO_CLEAR_PEAK:  # a ramp that levels off
                 return knee
@@ -368,6 +505,14 @@ class _RampFit:
                                prominence=prominence, **common)
         return self.result(IdentifyStatus.OK, f"peak {prominence / max(line.s_r, 1e-300):.1f} x noise",
                            dynamic=dynamic, dynamic_se=dynamic_se, prominence=prominence, **common)
+
+    def _drops_after(self, k_peak: int, line: "_LineFit") -> bool:
+        """Whether the ratio falls clearly after ``k_peak``: the mean from ``settle_s`` after it
+        on lies under the ramp's line by ``min_prominence_sigma`` × its noise (a ratio that
+        levelled off before its peak, creeping or in stick–slip, and then dropped)."""
+        after = self.r[min(k_peak + self.settle, self.r.size):]
+        return after.size >= _MIN_PLATEAU_SAMPLES and bool(
+            float(line.at(self.t[k_peak])) - float(after.mean()) >= self.cfg.min_prominence_sigma * line.s_r)
 
     def _bend(self, onset: int, static: float) -> float:
         """``|static − the value at the onset of a line over the last half of its window|``."""
@@ -417,10 +562,9 @@ class _RampFit:
         if not below.any():  # no resolved drop: the peak of the smoothed ratio
             return k_peak, max(fit_end, k_peak - self.w // 2), "ratio"
         first = int(span[np.argmax(below)])
-        onset = max(first - 1, fit_end)
         on_line = np.flatnonzero(self.r[fit_end:first] >= line.at(self.t[fit_end:first]) - line.s_r)
         earliest = fit_end + int(on_line[-1]) if on_line.size else fit_end
-        return onset, min(earliest, onset), "ratio"
+        return earliest, earliest, "ratio"
 
 
 class _LineFit:

@@ -20,30 +20,16 @@ A standard error (``*_se``) is the noise's share of the uncertainty; the model e
 estimator's assumptions miss, as a standard uncertainty. A coefficient's ± 2-sigma
 interval is ``value ± 2·√(se² + model²)``.
 
-**The rule** (:func:`detector_thresholds`): measured loads never exceed the capacity,
-so the detector flags slip in a band ``γ ≥ 1 − δ`` below 1 and latches it down to a
-release level (``lib/detection.py``). Both come from the material:
-
-- band: the band's edge sits ``3·σ_stick`` below the lowest load factor at which gross
-  slip can begin, ``1 − δ = min(min(onset_gamma), μ_d/μ_s) − 3·σ_stick``, so every
-  onset is inside the band even with a noisy frame. A contact that slips at its full
-  capacity (Coulomb, ``μ_d = μ_s``) gets a band as narrow as its identified onsets allow.
-  A slip-weakening contact can let go anywhere down to its sliding level: its edges
-  slide and weaken to ``μ_d`` before the core lets go, and how far depends on the load's
-  path (a combined force and torque on a curved fingertip slips at ``γ ≈ μ_d/μ_s``, a
-  pure pull on a flat face near 1), which a few identification ramps cannot cover; so
-  its band reaches ``μ_d/μ_s``. What such a contact carries for certain is its sliding
-  friction, and a load held above that is inside its band by necessity.
-- release: while the contact slides its friction stays at or above ``μ_d``, so the
-  measured γ stays at or above ``μ_d/μ_s``; below that by more than the sliding noise
-  the contact sticks again: ``γ_release = μ_d/μ_s − 4·σ_slide``, never above the
-  band's edge ``1 − δ``.
-- resume: ``γ_resume = μ_d/μ_s − 2·σ_slide`` (between ``γ_release`` and ``1 − δ``):
-  a sliding contact reads above it on almost every frame, and only a frame that high
-  restarts the release dwell; one above ``γ_release`` by the noise alone does not.
-
-``σ`` below ``NOISE_FLOOR`` is raised to it (a noise-free record would otherwise give a
-band of zero width). δ is kept in ``[DELTA_MIN, DELTA_MAX]``.
+**The rule** (:func:`detector_thresholds`, derived in docs/math.md §3.1): the band's edge
+is a lower prediction bound of the next onset's load factor from the identified ones,
+``1 − δ = min(onset_gamma) − R/(n + 1) − 3·σ_stick`` (``n`` onsets spanning ``R``); only
+without any onset the worst case a slip-weakening contact allows, its sliding level less
+the noise, ``min(μ_d/μ_s, β_d/β_s) − 3·σ_stick``. The
+release level is the lowest identified sliding level less the sliding noise,
+``γ_release = min(μ_d/μ_s, β_d/β_s) − 4·σ_slide``, never above ``1 − δ``, and
+``γ_resume`` the same with ``2·σ_slide``. ``σ`` below ``NOISE_FLOOR`` is raised to it; δ
+is kept in ``[DELTA_MIN, DELTA_MAX]``. ``refused``: why ``slipstack identify`` refused the
+file when ``--force`` wrote it anyway (empty: not refused).
 
 The grip laws take ``μ_s`` and ``β_s`` from the file. Nothing here imports zmq; a
 missing key, a wrong type or an out-of-range value raises :class:`ConfigError` naming
@@ -98,6 +84,7 @@ class Material:
     gamma_noise_stick: float = math.nan
     gamma_noise_slide: float = math.nan
     onset_gamma: tuple[float, ...] = field(default_factory=tuple)
+    refused: str = ""
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.mu_s) and self.mu_s > 0):
@@ -110,8 +97,10 @@ class Material:
 
     @property
     def sliding_level(self) -> float:
-        """``μ_d/μ_s``: the load factor a sliding contact keeps (dimensionless)."""
-        return min(1.0, self.mu_d / self.mu_s)
+        """The lowest load factor a sliding contact keeps: ``μ_d/μ_s``, or ``β_d/β_s`` if
+        identified and lower (dimensionless)."""
+        torsion = self.beta_d_m / self.beta_s_m if self.beta_s_m > 0 else math.nan
+        return min(1.0, self.mu_d / self.mu_s, torsion if math.isfinite(torsion) else 1.0)
 
 
 @dataclass(frozen=True)
@@ -130,8 +119,12 @@ def _noise(value: float) -> float:
 
 def detector_thresholds(material: Material) -> DetectorThresholds:
     """Band and release level from a material, by the rule of the module docstring."""
-    lowest_onset = min((*material.onset_gamma, material.sliding_level))
-    edge = min(lowest_onset, 1.0) - _BAND_SIGMAS * _noise(material.gamma_noise_stick)
+    stick = _noise(material.gamma_noise_stick)
+    onsets = material.onset_gamma
+    edge = material.sliding_level - _BAND_SIGMAS * stick  # the worst case, without onsets
+    if onsets:
+        below_lowest = (max(onsets) - min(onsets)) / (len(onsets) + 1)
+        edge = min(min(onsets), 1.0) - below_lowest - _BAND_SIGMAS * stick
     delta = min(max(1.0 - edge, DELTA_MIN), DELTA_MAX)
     release = material.sliding_level - _RELEASE_SIGMAS * _noise(material.gamma_noise_slide)
     release = min(max(release, 1e-3), 1.0 - delta)
@@ -163,17 +156,19 @@ def parse_material(data: dict[str, Any], *, source: str = "<material>") -> Mater
             raise ConfigError(f"{source}: material.{key}: missing required key")
     name = table.pop("name", Path(source).stem)
     provenance = table.pop("provenance", "")
+    refused = table.pop("refused", "")
     onset = table.pop("onset_gamma", [])
-    if not isinstance(name, str) or not isinstance(provenance, str):
-        raise ConfigError(f"{source}: material.name and material.provenance must be strings")
+    if not isinstance(name, str) or not isinstance(provenance, str) or not isinstance(refused, str):
+        raise ConfigError(f"{source}: material.name, material.provenance and material.refused must be strings")
     if not isinstance(onset, list) or any(isinstance(g, bool) or not isinstance(g, (int, float)) for g in onset):
         raise ConfigError(f"{source}: material.onset_gamma: must be a list of numbers, got {onset!r}")
     values = {key: _number(table, key, source) for key in _FLOATS}
     if table:
         raise ConfigError(f"{source}: material.{sorted(table)[0]}: unknown key (known: name, provenance, "
-                          f"onset_gamma, {', '.join(_FLOATS)})")
+                          f"refused, onset_gamma, {', '.join(_FLOATS)})")
     try:
-        return Material(name=name, provenance=provenance, onset_gamma=tuple(float(g) for g in onset), **values)
+        return Material(name=name, provenance=provenance, refused=refused,
+                        onset_gamma=tuple(float(g) for g in onset), **values)
     except ConfigError as exc:
         raise ConfigError(f"{source}: {exc}") from None
 
@@ -202,6 +197,6 @@ def material_toml(material: Material, comment: str = "") -> str:
     lines.append(f"# derived detector thresholds (lib/material.py): delta = {t.delta:.4f}, "
                  f"gamma_release = {t.gamma_release:.4f}, gamma_resume = {t.gamma_resume:.4f}")
     lines.append("[material]")
-    for key in ("name", "provenance", *_FLOATS, "onset_gamma"):
+    for key in ("name", "provenance", *(("refused",) if material.refused else ()), *_FLOATS, "onset_gamma"):
         lines.append(f"{key} = {_toml_value(getattr(material, key))}")
     return "\n".join(lines) + "\n"

@@ -27,6 +27,7 @@ NODE_TYPES: dict[str, str] = {
     "ft_driver": "slipstack.nodes.ft_driver:FtDriver",
     "tactile_driver": "slipstack.nodes.tactile_driver:TactileDriver",
     "foxglove": "slipstack.nodes.foxglove_bridge:FoxgloveBridge",
+    "zenoh_bridge": "slipstack.nodes.zenoh_bridge:ZenohBridge",
 }
 
 

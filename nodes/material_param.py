@@ -1,7 +1,8 @@
 """The ``material`` parameter of the nodes that need friction: fills what was not given.
 
 A node's parameter dataclass names a material file (``material``: a shipped name in
-``launch/materials/``, e.g. ``rubber``, or a path) and leaves the friction-derived
+``launch/materials/``, e.g. ``rubber``, or a path; ``""``: none given, the shipped
+:data:`DEFAULT_MATERIAL`, which the slip detector reports as uncalibrated) and leaves the friction-derived
 parameters at NaN ("from the material"). :func:`fill_from_material` replaces each NaN
 one by the material's value (``lib/material.py`` states the rule for ``delta`` and
 ``gamma_release``); a value given explicitly is kept. Loaded files are cached (at most
@@ -21,7 +22,8 @@ from slipstack.lib.toml_file import resolve_path
 __all__ = ["DEFAULT_MATERIAL", "resolve_material", "fill_from_material"]
 
 DEFAULT_MATERIAL = "rubber"
-"""The shipped default (``launch/materials/rubber.toml``; its provenance is in the file)."""
+"""What a run without a material file uses (``launch/materials/rubber.toml``, the simulated
+rig's rubber; its provenance is in the file)."""
 
 _CACHE_SIZE = 16
 
@@ -32,12 +34,13 @@ def _load(path: Path) -> Material:
 
 
 def resolve_material(name: str) -> Material:
-    """The material ``name`` (a path, or a shipped name with or without ``.toml``).
+    """The material ``name`` (a path, or a shipped name with or without ``.toml``; ``""``:
+    :data:`DEFAULT_MATERIAL`).
 
     Raises:
         ConfigError: no such file, or an invalid one (naming the key).
     """
-    return _load(resolve_path(name, Path.cwd(), "materials"))
+    return _load(resolve_path(name or DEFAULT_MATERIAL, Path.cwd(), "materials"))
 
 
 def _value(material: Material, source: str) -> float:

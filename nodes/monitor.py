@@ -4,8 +4,8 @@ Listens to ``slip`` (which carries the load it judged and its COR), ``grip/comma
 ``rig/truth`` and every node's ``diagnostics`` — not to the 1 kHz ``contact``/``cor``
 streams, to keep its share of the CPU small. Every ``status_period_s`` it logs one
 ``STATUS`` line (the launcher redraws it in place on a terminal). On stop it logs the
-summary: slip episodes detected versus true, detection delay, flags without true slip
-(README.md, "Quick start", says how to read them), grip force used, the
+summary: slip episodes detected versus true, detection delay, false alarms and the latch
+hold after slip (one definition: ``lib/episodes.py``, docs/math.md §3.2), grip force used, the
 control path's health, dropped frames and the recording's path; with ``summary_path``
 it also writes them as JSON, and with ``check_path`` a pass/fail verdict (see
 :func:`check_problems`).
@@ -48,16 +48,22 @@ import json
 import math
 import os
 import tempfile
+import dataclasses
 from dataclasses import dataclass, field
 
-from slipstack.lib.episodes import INCIPIENT_SHARE, EpisodeTracker
+from slipstack.lib.episodes import EpisodeTracker
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.late_ticks import BEHIND_REAL_TIME_ADVICE
-from slipstack.lib.status import SLIP_STATES
+from slipstack.lib.status import SLIP_STATES, SlipState
 from slipstack.messages import Diagnostics, GripCommand, RigTruth, Slip
+from slipstack.nodes.runtime.logs import DETAIL_PREFIX
 from slipstack.nodes.runtime.node import Context, Input, Node
 
-__all__ = ["Monitor", "MonitorParams", "summarise", "check_problems", "format_summary", "status_line"]
+__all__ = ["Monitor", "MonitorParams", "Problem", "summarise", "health_problems", "check_problems", "format_summary",
+           "format_details", "status_line", "CALIBRATION_STATUSES"]
+
+CALIBRATION_STATUSES = ("uncalibrated", "calibrated-online", "refused-material")
+"""The slip detector's statuses when no identified material gives its thresholds."""
 
 _LOSS_KEYS = (".rejected", ".lost", ".dropped_hwm")  # ".dropped" is drain-to-latest, on purpose
 FAIL_SAFE = "fail-safe"
@@ -87,6 +93,8 @@ class MonitorParams:
         "help": "check fails if the object turned more (deg; rig only)"})
     check_fail_safe_share: float = field(default=0.01, metadata={
         "help": "check fails if a larger share (0..1) of the grip commands was fail-safe"})
+    verbose: bool = field(default=False, metadata={
+        "help": "print the summary's long form (default: at most 12 short lines; the long form goes to the run log)"})
 
     def __post_init__(self) -> None:
         for name in ("status_period_s", "command_deadline_ms", "silent_after_s", "check_slip_mm", "check_turn_deg"):
@@ -251,7 +259,7 @@ class Monitor(Node):
         self.slip_frames += 1
         slipping = msg.state in SLIP_STATES
         self.slip_verdicts += slipping
-        self.episodes.add_verdict(msg.header.stamp_ns, slipping)
+        self.episodes.add_verdict(msg.header.stamp_ns, slipping, msg.state != SlipState.NO_CONTACT)
         self.last["slip"] = msg
 
     def on_grip(self, msg: GripCommand, ctx: Context) -> None:
@@ -261,7 +269,7 @@ class Monitor(Node):
     def on_truth(self, msg: RigTruth, ctx: Context) -> None:
         self.truth_frames += 1
         self.applied_f_n_sum += msg.f_n_applied
-        self.episodes.add_truth(msg.header.stamp_ns, msg.gross_slip, msg.sliding_fraction >= INCIPIENT_SHARE)
+        self.episodes.add_truth(msg.header.stamp_ns, msg.gross_slip)
         self.last["truth"] = msg
         self.commands.truth_seen()
 
@@ -287,18 +295,30 @@ class Monitor(Node):
         cmds, fail_safe = self.commands.count - cmds0, self.commands.fail_safe - fs0
         self._at_status = (now, self.slip_frames, self.commands.count, self.commands.fail_safe)
         ctx.log("STATUS " + status_line(self.last, rate, (fail_safe, cmds), sorted(self.silent_nodes(now)),
-                                        sorted(self.disconnected_nodes())))
+                                        sorted(self.disconnected_nodes()), self.detector_calibration()))
+
+    def detector_calibration(self) -> str | None:
+        """The slip detector's status when its thresholds are not from an identified material
+        (``uncalibrated: ...``, ``calibrated-online: ...``, ``refused-material: ...``); None otherwise."""
+        watch = self.nodes.get("slip_detector")
+        return watch.status if watch is not None and watch.status.split(":")[0] in CALIBRATION_STATUSES else None
 
     def stop(self, ctx: Context) -> None:
         self.episodes.finish()
         summary = summarise(self, ctx.now_ns())
-        for line in format_summary(summary, self.params):
+        for line in format_summary(summary, self.params, verbose=self.params.verbose):
             ctx.log(line)
+        if not self.params.verbose:  # the long form, for the run log (the terminal does not show it)
+            for line in format_summary(summary, self.params, verbose=True):
+                ctx.log(DETAIL_PREFIX + line)
+        problems = health_problems(summary, self.params)
+        summary["health"] = [dataclasses.asdict(x) for x in problems]
         if self.params.summary_path:
             write_json_atomically(self.params.summary_path, summary)
         if self.params.check_path:
-            problems = check_problems(summary, self.params)
-            write_json_atomically(self.params.check_path, {"passed": not problems, "problems": problems})
+            failed = [x for x in problems if x.fails_check]
+            write_json_atomically(self.params.check_path, {"passed": not failed, "problems": [x.text for x in failed],
+                                                           "short": [x.short for x in failed]})
 
 
 def write_json_atomically(path: str, content: dict) -> None:
@@ -320,10 +340,12 @@ def write_json_atomically(path: str, content: dict) -> None:
 
 
 def status_line(last: dict[str, object], rate_hz: float, fail_safe: tuple[int, int] = (0, 0),
-                silent: list[str] | None = None, disconnected: list[str] | None = None) -> str:
+                silent: list[str] | None = None, disconnected: list[str] | None = None,
+                calibration: str | None = None) -> str:
     """One line: state, f_n, command, margin, COR, detector rate; then, when there are
     any, the fail-safe commands ``fail_safe = (held, of commands)`` since the last line,
-    the silent nodes and the nodes whose device is disconnected."""
+    the silent nodes, the nodes whose device is disconnected, and the detector's
+    calibration when no identified material gives its thresholds."""
     slip = last.get("slip")
     grip = last.get("grip")
     parts = [f"state={slip.state if slip else '-':<11}"]
@@ -343,6 +365,8 @@ def status_line(last: dict[str, object], rate_hz: float, fail_safe: tuple[int, i
         parts.append("SILENT " + ",".join(silent))
     if disconnected:
         parts.append("DISCONNECTED " + ",".join(disconnected))
+    if calibration:
+        parts.append(calibration.split(":")[0].upper())
     return "  ".join(parts)
 
 
@@ -374,13 +398,14 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "slip_frames": m.slip_frames,
         "true_episodes": m.episodes.episode_count if truth else None,
         "detected_episodes": m.episodes.detected if truth else None,
-        "already_flagged_episodes": m.episodes.already_flagged if truth else None,
         "missed_episodes": m.episodes.missed if truth else None,
-        "detection_lead_ms": m.episodes.lead_ns / 1e6,
         "detection_delay_ms_p50": q.delay_percentile_ms(50) if q.delays_ns and truth else None,
         "detection_delay_ms_p95": q.delay_percentile_ms(95) if q.delays_ns and truth else None,
+        "latch_hold_ms_p50": q.hold_percentile_ms(50) if q.holds_ns and truth else None,
+        "latch_hold_ms_p95": q.hold_percentile_ms(95) if q.holds_ns and truth else None,
         "stick_frames": q.stick_frames if truth else None,
-        "flag_without_slip_share": q.flag_without_slip_share if truth else None,
+        "false_alarm_share": q.false_alarm_share if truth else None,
+        "latch_hold_share": q.latch_hold_share if truth else None,
         "slip_verdicts": m.slip_verdicts,
         "grip_commands": cmd.count,
         "grip_command_mean_n": cmd.f_n_sum / cmd.count if cmd.count else None,
@@ -408,6 +433,7 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "silent_nodes": silent_now,
         # with a simulated rig, the devices close when its scene ends: only earlier losses count
         "disconnected_nodes": m.disconnected_nodes(truth.header.stamp_ns if truth else None),
+        "detector_calibration": m.detector_calibration(),
         "nodes_that_went_silent": went_silent,
         "nodes_restarted_after_silence": sorted(name for name, w in m.nodes.items() if w.restarted),
         "recording": m.params.recording if m.params.recording and os.path.exists(m.params.recording) else "",
@@ -460,145 +486,262 @@ def _losses(counters: dict) -> dict[str, dict[str, float]]:
     return out
 
 
+SUMMARY_WIDTH = 90
+"""Characters of a summary line: within 100 on the terminal behind the launcher's ``[monitor] ``."""
+SUMMARY_MAX_LINES = 12
+TITLE = "==== slipstack run summary ===="
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One thing that went wrong: ``short`` for the summary's HEALTH line, ``text`` with its
+    numbers and what to do (the long form, ``check.json``); ``fails_check``: it fails the run's
+    check (docs/summary.md says which do)."""
+
+    short: str
+    text: str
+    fails_check: bool = True
+
+
+def health_problems(s: dict, p: MonitorParams) -> list[Problem]:
+    """What the HEALTH lines report: first what fails the check (the object slid or turned
+    more than allowed, too many fail-safe commands, missed episodes, a silent node, no
+    valid sensor data at all), then what is only reported (disconnected
+    devices, signs of falling behind)."""
+    return _check_problems(s, p) + _silence_problems(s) + _device_problems(s) + _behind_problems(s)
+
+
 def check_problems(s: dict, p: MonitorParams) -> list[str]:
-    """What fails the run's check (``check = true`` in a launch file): the object slid or
-    turned more than allowed (only with a rig's truth), too many fail-safe commands, true
-    slip episodes the detector missed, nodes that went silent. Empty: passed."""
-    problems = []
-    if s["slip_distance_mm"] is not None and s["slip_distance_mm"] > p.check_slip_mm:
-        problems.append(f"the object slid {s['slip_distance_mm']:.2f} mm (allowed {p.check_slip_mm:g} mm)")
-    if s["slip_angle_deg"] is not None and abs(s["slip_angle_deg"]) > p.check_turn_deg:
-        problems.append(f"the object turned {abs(s['slip_angle_deg']):.2f} deg (allowed {p.check_turn_deg:g} deg)")
-    if s["fail_safe_share"] is not None and s["fail_safe_share"] > p.check_fail_safe_share:
-        problems.append(f"{s['fail_safe_share'] * 100:.1f}% of the grip commands were fail-safe"
-                        f" ({s['fail_safe_commands']} of {s['commands_while_running']};"
-                        f" allowed {p.check_fail_safe_share * 100:g}%)")
+    """What fails the run's check (``check = true`` in a launch file), in words; empty: passed."""
+    return [x.text for x in health_problems(s, p) if x.fails_check]
+
+
+def _check_problems(s: dict, p: MonitorParams) -> list[Problem]:
+    out = []
+    slid, turned = s["slip_distance_mm"], s["slip_angle_deg"]
+    if slid is not None and slid > p.check_slip_mm:
+        out.append(Problem(f"object slid {slid:.2f} mm (allowed {p.check_slip_mm:g})",
+                           f"the object slid {slid:.2f} mm (allowed {p.check_slip_mm:g} mm)"))
+    if turned is not None and abs(turned) > p.check_turn_deg:
+        out.append(Problem(f"object turned {abs(turned):.2f} deg (allowed {p.check_turn_deg:g})",
+                           f"the object turned {abs(turned):.2f} deg (allowed {p.check_turn_deg:g} deg)"))
+    share = s["fail_safe_share"]
+    if share is not None and share > p.check_fail_safe_share:
+        out.append(Problem(f"fail-safe {share * 100:.1f}% of commands (allowed {p.check_fail_safe_share * 100:g}%)",
+                           f"{share * 100:.1f}% of the grip commands were fail-safe ({s['fail_safe_commands']} of "
+                           f"{s['commands_while_running']}; allowed {p.check_fail_safe_share * 100:g}%)"))
     if s["missed_episodes"]:
-        problems.append(f"the detector missed {s['missed_episodes']} of {s['true_episodes']} true slip episodes")
-    for node, seconds in sorted(s["silent_nodes"].items()):
-        problems.append(f"node {node} went silent: no diagnostics for the last {seconds:.1f} s (dead or stopped?)")
-    for node, seconds in sorted(s["nodes_that_went_silent"].items()):
-        if node not in s["silent_nodes"]:
-            how = ("as a new process (restarted)" if node in s["nodes_restarted_after_silence"] else
-                   "as the same process (it stalled: a machine too busy, or stopped and continued)")
-            problems.append(f"node {node} went silent for {seconds:.1f} s and came back {how}")
+        out.append(Problem(f"detector missed {s['missed_episodes']} of {s['true_episodes']} slip episodes",
+                           f"the detector missed {s['missed_episodes']} of {s['true_episodes']} true slip episodes"))
     if s["grip_commands"] and s["fail_safe_while_starting"] == s["grip_commands"]:
-        problems.append(f"all {s['grip_commands']} grip commands were fail-safe: the controller never had valid "
-                        "sensor data (are the sensors connected and streaming?)")
-    return problems
+        out.append(Problem("every command fail-safe: no valid sensor data",
+                           f"all {s['grip_commands']} grip commands were fail-safe: the controller never had valid "
+                           "sensor data (are the sensors connected and streaming?)"))
+    return out
+
+
+def _silence_problems(s: dict) -> list[Problem]:
+    """Nodes silent at the end, or silent for a while and back."""
+    out = []
+    for node, seconds in sorted(s["silent_nodes"].items()):
+        out.append(Problem(f"{node} silent for the last {seconds:.1f} s",
+                           f"node {node} went silent: no diagnostics for the last {seconds:.1f} s (dead or stopped?)"))
+    for node, seconds in sorted(s["nodes_that_went_silent"].items()):
+        if node in s["silent_nodes"]:
+            continue
+        restarted = node in s["nodes_restarted_after_silence"]
+        how = ("as a new process (restarted)" if restarted else
+               "as the same process (it stalled: a machine too busy, or stopped and continued)")
+        out.append(Problem(f"{node} silent {seconds:.1f} s, then back ({'restarted' if restarted else 'stalled'})",
+                           f"node {node} went silent for {seconds:.1f} s and came back {how}"))
+    return out
+
+
+def _device_problems(s: dict) -> list[Problem]:
+    """Drivers whose device was disconnected at the end (with a rig: already before its scene ended)."""
+    return [Problem(_clip(f"{node} {status}", 60), f"{node} ended {status} (see docs/drivers.md)", False)
+            for node, status in sorted(s["disconnected_nodes"].items())]
 
 
 def device_problems(s: dict) -> list[str]:
-    """Drivers whose device was disconnected at the end (with a rig: already before its scene ended)."""
-    return [f"{node} ended {status} (see docs/drivers.md)" for node, status in sorted(s["disconnected_nodes"].items())]
+    """Drivers whose device was disconnected at the end, in words."""
+    return [x.text for x in _device_problems(s)]
 
 
-def behind_problems(s: dict) -> list[str]:
-    """Signs that the control path fell behind: late commands, timer ticks skipped, more
-    than :data:`SKIP_WARN_SHARE` of a sensor topic's samples not examined."""
-    problems = []
+def _behind_problems(s: dict) -> list[Problem]:
+    """Signs that the graph fell behind: late commands, timer ticks skipped, more than
+    :data:`SKIP_WARN_SHARE` of a sensor topic's samples not examined."""
+    out = []
     if s["late_commands"]:
-        problems.append(f"{s['late_commands']} of {s['commands_while_running']} grip commands while running "
-                        f"({s['late_share'] * 100:.2g}%) left later than {s['command_deadline_ms']:g} ms after their "
-                        f"sample (worst {s['command_age_ms_max']:.1f} ms): the control path waited for a CPU core; "
-                        "free a core or raise the stack's priority (the launch file's `realtime_priority` or `nice`)")
+        out.append(Problem(
+            f"{s['late_commands']} of {s['commands_while_running']} commands late (over "
+            f"{s['command_deadline_ms']:g} ms, worst {s['command_age_ms_max']:.0f} ms)",
+            f"{s['late_commands']} of {s['commands_while_running']} grip commands while running "
+            f"({s['late_share'] * 100:.2g}%) left later than {s['command_deadline_ms']:g} ms after their sample "
+            f"(worst {s['command_age_ms_max']:.1f} ms): the control path waited for a CPU core; free a core or "
+            "raise the stack's priority (the launch file's `realtime_priority` or `nice`)", False))
     for node, timers in sorted(s["behind_real_time"].items()):
+        skipped = sum(timers.values())
         ticks = ", ".join(f"{k.split('.')[1]} {v:g}" for k, v in sorted(timers.items()))
-        problems.append(f"{node} fell behind real time (timer ticks skipped: {ticks}; its diagnostics say how "
-                        f"late): {BEHIND_REAL_TIME_ADVICE}")
+        out.append(Problem(f"{node} behind real time ({skipped:g} timer ticks skipped)",
+                           f"{node} fell behind real time (timer ticks skipped: {ticks}; its diagnostics say how "
+                           f"late): {BEHIND_REAL_TIME_ADVICE}", False))
     for node, inputs in sorted(s["skipped_for_newer"].items()):
         for topic, n in sorted(inputs.items()):
             share = n["skipped"] / n["received"] if n["received"] else 0.0
             if topic in SENSOR_TOPICS and share > SKIP_WARN_SHARE:
-                problems.append(f"{node} did not examine {share * 100:.0f}% of {topic} (skipped for a newer one, "
-                                "or beyond a batch's depth): it fell behind its input; free a CPU core or raise "
-                                "the stack's priority (the launch file's `realtime_priority` or `nice`)")
-    return problems
+                out.append(Problem(f"{node} skipped {share * 100:.0f}% of {topic}",
+                                   f"{node} did not examine {share * 100:.0f}% of {topic} (skipped for a newer one, "
+                                   "or beyond a batch's depth): it fell behind its input; free a CPU core or raise "
+                                   "the stack's priority (the launch file's `realtime_priority` or `nice`)", False))
+    return out
 
 
-def _delay_line(s: dict) -> str:
-    """Detection delay over the episodes whose flag rose in their window; those whose flag
-    was already up when the window opened are counted apart (no delay is measured)."""
-    early = s["already_flagged_episodes"]
-    measured = s["detected_episodes"] - early
-    if not s["true_episodes"]:
-        return "detection delay: - (no true slip episode)"
-    if not s["detected_episodes"]:
-        return "detection delay: - (no episode detected)"
-    if not measured:
-        return (f"detection delay: none to measure: on {'all ' if early > 1 else ''}{early} detected episode"
-                f"{'s' if early != 1 else ''} the flag was already up {s['detection_lead_ms']:g} ms before the onset "
-                "(early warning)")
-    line = (f"detection delay: p50 {s['detection_delay_ms_p50']:.1f} ms, p95 {s['detection_delay_ms_p95']:.1f} ms"
-            f" over {measured} episode{'s' if measured != 1 else ''}")
-    if early:
-        line += (f"; {early} more with the flag already up {s['detection_lead_ms']:g} ms before the onset "
-                 "(early warning, no delay measured)")
-    return line
+def behind_problems(s: dict) -> list[str]:
+    """Signs that the graph fell behind, in words."""
+    return [x.text for x in _behind_problems(s)]
 
 
-def _flag_without_slip_line(s: dict) -> str:
-    """The share of truly sticking frames the detector flagged as slip, read for what it is:
-    with the controller on, mostly the early warnings it acted on (so no gross slip
-    followed); with no grip commands, false alarms."""
-    reading = ("controller on: mostly early warnings it acted on, so no gross slip followed" if s["grip_commands"]
-               else "no grip commands: false alarms")
-    share = s["flag_without_slip_share"]
-    return (f"slip flag without true slip: {share * 100:.2f}% of {s['stick_frames']} sticking frames"
-            + (f" ({reading})" if share else ""))
+def _clip(text: str, width: int = SUMMARY_WIDTH) -> str:
+    return text if len(text) <= width else text[: width - 1] + "…"
 
 
-def _late_text(s: dict) -> str:
-    """Late commands (computed from a new sample, more than the deadline after it) per
-    stretch, and the watchdog repeats, whose age is the data's and not the control path's."""
-    pct = "-" if s["late_share"] is None else f"{s['late_share'] * 100:.1f}%"
-    text = f"late (over {s['command_deadline_ms']:g} ms from sample to command) while running {pct} ({s['late_commands']})"
-    if s["late_while_starting"]:
-        text += (f", {s['late_while_starting']} more while the sensors started (worst "
-                 f"{s['command_age_ms_max_while_starting']:.0f} ms: a stall before the stack ran, the grip held)")
-    if s["late_after_scene"]:
-        text += f", {s['late_after_scene']} after the scene ended"
-    if s["watchdog_repeats"]:
-        text += (f"; {s['watchdog_repeats']} watchdog repeat{'s' if s['watchdog_repeats'] != 1 else ''} of the last "
-                 "grip while no new verdict came (counted as fail-safe, not late)")
-    return text
+def _num(v: float | None, fmt: str) -> str:
+    return "-" if v is None else format(v, fmt)
 
 
-def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
-    """The summary as readable lines, a HEALTH line for whatever went wrong."""
-    def num(v: object, fmt: str) -> str:
-        return "-" if v is None else format(v, fmt)
+def _pct(v: float | None) -> str:
+    return "-" if v is None else f"{v * 100:.1f}%"
 
-    def pct(v: float | None) -> str:
-        return "-" if v is None else f"{v * 100:.1f}%"
 
-    lines = ["==== slipstack run summary ===="]
+# -- the summary: short (the terminal) and long (verbose:=true, the run log) --------------------------
+def format_summary(s: dict, p: MonitorParams | None = None, *, verbose: bool = False) -> list[str]:
+    """The summary: at most :data:`SUMMARY_MAX_LINES` lines of at most :data:`SUMMARY_WIDTH`
+    characters, one subject a line (docs/summary.md); ``verbose``: the long form, every count
+    with its denominator and a HEALTH line per problem with what to do."""
+    problems = health_problems(s, p or MonitorParams())
+    if verbose:
+        return format_details(s, problems)
+    p = p or MonitorParams()
+    rows = [TITLE, *(_truth_rows(s, p) if s["has_truth"] else _no_truth_rows(s)), _control_row(s), _bus_row(s)]
+    clocks = [f"{peer} {c['offset_ms']:+.3f} ms ± {c['uncertainty_ms']:.3f}"
+              for peers in s.get("clock_offsets", {}).values() for peer, c in sorted(peers.items())]
+    if clocks:
+        rows.append("clocks: " + ", ".join(clocks) + " (other machines' minus ours)")
+    if s["detector_calibration"]:
+        rows.append("detector: " + s["detector_calibration"])
+    if s["recording"]:
+        rows.append("recording: " + s["recording"])
+    rows = [_clip(row) for row in rows]
+    return rows + _health_rows([x.short for x in problems], max(1, SUMMARY_MAX_LINES - len(rows)))
+
+
+def _truth_rows(s: dict, p: MonitorParams) -> list[str]:
+    slid, turned = s["slip_distance_mm"], s["slip_angle_deg"]
+    held = "held" if slid <= p.check_slip_mm and abs(turned) <= p.check_turn_deg else "MOVED"
+    rows = [f"object: {held}, slid {_num(slid, '.2f')} mm and turned {_num(turned, '.2f')} deg in all"]
+    n, found = s["true_episodes"], s["detected_episodes"]
+    if not n:
+        slip = "no true slip episode"
+    else:
+        slip = f"{found} of {n} true episodes detected ({s['missed_episodes']} missed)"
+        if found:
+            slip += f", delay p50 {s['detection_delay_ms_p50']:.1f} ms, p95 {s['detection_delay_ms_p95']:.1f} ms"
+    rows.append("slip: " + slip)
+    share = s["false_alarm_share"]
+    reading = "" if not share else (" (early warnings acted on)" if s["grip_commands"] else " (false alarms)")
+    rows.append(f"flags: {_pct(share) if share is None else f'{share * 100:.2f}%'} of {s['stick_frames']} sticking "
+                f"frames flagged outside slip{reading}")
+    rows.append(f"grip: commanded mean {_num(s['grip_command_mean_n'], '.2f')} N, peak "
+                f"{_num(s['grip_command_peak_n'], '.2f')} N; applied mean {_num(s['applied_f_n_mean_n'], '.2f')} N")
+    return rows
+
+
+def _no_truth_rows(s: dict) -> list[str]:
+    return [f"slip: no ground truth (real hardware); slip in {s['slip_verdicts']} of {s['slip_frames']} verdicts",
+            f"grip: commanded mean {_num(s['grip_command_mean_n'], '.2f')} N, peak "
+            f"{_num(s['grip_command_peak_n'], '.2f')} N"]
+
+
+def _control_row(s: dict) -> str:
+    if not s["grip_commands"]:
+        return "control: no grip commands (detection only, or the controller never ran)"
+    row = (f"control: {s['grip_commands']} commands; fail-safe {_pct(s['fail_safe_share'])} "
+           f"({s['fail_safe_commands']} of {s['commands_while_running']}), late {_pct(s['late_share'])}")
+    if s["late_commands"]:
+        row += f" ({s['late_commands']}, worst {s['command_age_ms_max']:.0f} ms)"
+    return row
+
+
+def _bus_row(s: dict) -> str:
+    lost = sorted(((c["lost"], c["of"], node, c["topic"]) for node, counts in s["losses"].items()
+                   for c in counts.values()), reverse=True)
+    if lost:
+        n, of, node, topic = lost[0]
+        row = f"bus: {sum(x[0] for x in lost):g} frames lost ({node} {topic} {n:g} of {of:g}"
+        row += f", +{len(lost) - 1} more)" if len(lost) > 1 else ")"
+    else:
+        row = "bus: no frame lost"
+    skipped = sorted(((n["skipped"] / n["received"], node, topic) for node, inputs in s["skipped_for_newer"].items()
+                      for topic, n in inputs.items()
+                      if topic in SENSOR_TOPICS and n["received"]), reverse=True)
+    if skipped:
+        share, node, topic = skipped[0]
+        return row + f"; {node} skipped {share * 100:.1f}% of {topic}"
+    return row + "; every sensor sample examined"
+
+
+def _health_rows(shorts: list[str], room: int) -> list[str]:
+    """One HEALTH line per problem while they fit in ``room`` lines; else packed, the rest counted."""
+    if not shorts:
+        return ["HEALTH: ok"]
+    if len(shorts) <= room:
+        return [_clip("HEALTH: " + short) for short in shorts]
+    rows: list[str] = []
+    for k, short in enumerate(shorts):
+        more = f"; +{len(shorts) - k} more (verbose:=true)"
+        if rows and len(rows[-1]) + 2 + len(short) <= SUMMARY_WIDTH - (len(more) if len(rows) == room else 0):
+            rows[-1] += "; " + short
+        elif len(rows) < room:
+            rows.append(_clip("HEALTH: " + short))
+        else:
+            rows[-1] = rows[-1][: SUMMARY_WIDTH - len(more)] + more
+            break
+    return rows
+
+
+def format_details(s: dict, problems: list[Problem]) -> list[str]:
+    """The long form: every count with its denominator, a HEALTH line per problem with what to do."""
+    lines = [TITLE]
     if s["has_truth"]:
         lines += [
             f"slip episodes: {s['detected_episodes']} detected of {s['true_episodes']} true, {s['missed_episodes']} missed",
             _delay_line(s),
-            _flag_without_slip_line(s),
-            f"grip force commanded: mean {num(s['grip_command_mean_n'], '.2f')} N, peak "
-            f"{num(s['grip_command_peak_n'], '.2f')} N; applied mean {num(s['applied_f_n_mean_n'], '.2f')} N",
-            f"object slid {num(s['slip_distance_mm'], '.2f')} mm and turned {num(s['slip_angle_deg'], '.2f')} deg in all",
+            _false_alarm_line(s),
+            f"grip force commanded: mean {_num(s['grip_command_mean_n'], '.2f')} N, peak "
+            f"{_num(s['grip_command_peak_n'], '.2f')} N; applied mean {_num(s['applied_f_n_mean_n'], '.2f')} N",
+            f"object slid {_num(s['slip_distance_mm'], '.2f')} mm and turned {_num(s['slip_angle_deg'], '.2f')} deg in all",
         ]
     else:
         lines += [
             "slip: no ground truth on this run (no rig/truth topic: real hardware), so no true episodes, missed "
             f"slips or flags without true slip; the detector said slip in {s['slip_verdicts']} of {s['slip_frames']} verdicts",
-            f"grip force commanded: mean {num(s['grip_command_mean_n'], '.2f')} N, peak "
-            f"{num(s['grip_command_peak_n'], '.2f')} N",
+            f"grip force commanded: mean {_num(s['grip_command_mean_n'], '.2f')} N, peak "
+            f"{_num(s['grip_command_peak_n'], '.2f')} N",
         ]
+    if s["detector_calibration"]:
+        lines.append(f"detector {s['detector_calibration']}")
     if not s["grip_commands"]:
         lines.append("control path: no grip commands (a detection-only graph, or the controller never ran)")
     else:
         lines.append(
-            f"control path: {s['grip_commands']} grip commands; fail-safe while running {pct(s['fail_safe_share'])}"
+            f"control path: {s['grip_commands']} grip commands; fail-safe while running {_pct(s['fail_safe_share'])}"
             f" ({s['fail_safe_commands']} of {s['commands_while_running']}), {s['fail_safe_while_starting']} more while"
             f" the sensors started" + (f", {s['fail_safe_after_scene']} after the scene ended" if s["has_truth"] else "")
             + "; " + _late_text(s))
-    problems = check_problems(s, p or MonitorParams()) + device_problems(s) + behind_problems(s)
-    lines.extend(f"HEALTH: {problem}" for problem in problems or ["ok"])
+    lines.extend(f"HEALTH: {problem.text}" for problem in problems)
+    if not problems:
+        lines.append("HEALTH: ok")
     if s["losses"]:
         for node, counts in sorted(s["losses"].items()):
             lines.append(f"frames lost at {node}: " + "; ".join(
@@ -623,3 +766,43 @@ def format_summary(s: dict, p: MonitorParams | None = None) -> list[str]:
     if s["recording"]:
         lines.append(f"recording: {s['recording']}")
     return lines
+
+
+def _delay_line(s: dict) -> str:
+    """Detection delay (flag rise − true onset; negative: a warning) over the detected episodes."""
+    if not s["true_episodes"]:
+        return "detection delay: - (no true slip episode)"
+    if not s["detected_episodes"]:
+        return "detection delay: - (no episode detected)"
+    n = s["detected_episodes"]
+    return (f"detection delay: p50 {s['detection_delay_ms_p50']:.1f} ms, p95 {s['detection_delay_ms_p95']:.1f} ms"
+            f" over {n} episode{'s' if n != 1 else ''} (negative: a warning before the onset)")
+
+
+def _false_alarm_line(s: dict) -> str:
+    """The share of truly sticking frames flagged outside every episode's window, read for
+    what it is: with the controller on, mostly the early warnings it acted on (so no gross
+    slip followed); with no grip commands, false alarms. The latch hold after slip apart."""
+    reading = ("controller on: mostly early warnings it acted on, so no gross slip followed" if s["grip_commands"]
+               else "no grip commands: false alarms")
+    share = s["false_alarm_share"]
+    hold = s["latch_hold_share"]
+    return (f"slip flag without true slip: {share * 100:.2f}% of {s['stick_frames']} sticking frames"
+            + (f", {hold * 100:.2f}% of them the latch held after a slip" if hold else "")
+            + (f" ({reading})" if share else ""))
+
+
+def _late_text(s: dict) -> str:
+    """Late commands (computed from a new sample, more than the deadline after it) per
+    stretch, and the watchdog repeats, whose age is the data's and not the control path's."""
+    pct = "-" if s["late_share"] is None else f"{s['late_share'] * 100:.1f}%"
+    text = f"late (over {s['command_deadline_ms']:g} ms from sample to command) while running {pct} ({s['late_commands']})"
+    if s["late_while_starting"]:
+        text += (f", {s['late_while_starting']} more while the sensors started (worst "
+                 f"{s['command_age_ms_max_while_starting']:.0f} ms: a stall before the stack ran, the grip held)")
+    if s["late_after_scene"]:
+        text += f", {s['late_after_scene']} after the scene ended"
+    if s["watchdog_repeats"]:
+        text += (f"; {s['watchdog_repeats']} watchdog repeat{'s' if s['watchdog_repeats'] != 1 else ''} of the last "
+                 "grip while no new verdict came (counted as fail-safe, not late)")
+    return text

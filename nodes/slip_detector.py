@@ -30,6 +30,12 @@ held the grip). ``onset_frames`` is counted in time at any F/T rate (frames at
 1 kHz: ``lib/detector.py``), so the flag rises after the same time in the band at
 1 kHz and at 7 kHz.
 
+Without a material file (``material = ""``) the node runs on the shipped default and
+says so: a start line, ``diagnostics`` status ``uncalibrated`` with what it costs (the
+monitor shows it on the live line and in the summary). ``calibrate = "online"`` lets it
+learn the contact at hand (``lib/online_calibration.py``); the status then says what it
+learned, and a line is logged each time it learns.
+
 All of this is :class:`~slipstack.lib.detector.Detector` (usable offline, without the
 graph); the node feeds it each contact and publishes what it returns.
 """
@@ -47,7 +53,10 @@ from slipstack.lib.known_cor import KNOWN_COR_METHOD
 from slipstack.lib.limit_set import compile_kernels
 from slipstack.lib.slip_tests import SLIP_TESTS
 from slipstack.messages import Contact, Slip
-from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material
+from slipstack.lib.errors import ConfigError
+from slipstack.lib.material import Material
+from slipstack.lib.online_calibration import Learned
+from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material, resolve_material
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
 __all__ = ["SlipDetector", "SlipDetectorParams"]
@@ -58,8 +67,12 @@ class SlipDetectorParams:
     method: str = field(default="exact", metadata={
         "help": f"deciding test: one of {sorted([*SLIP_TESTS, KNOWN_COR_METHOD])}"})
     also: list[str] = field(default_factory=lambda: list(FT_TESTS), metadata={"help": "tests published alongside"})
-    material: str = field(default=DEFAULT_MATERIAL, metadata={
-        "help": "material file (launch/materials/ name or path): mu, delta, gamma_release, gamma_resume unless given"})
+    material: str = field(default="", metadata={
+        "help": "material file (launch/materials/ name or path): mu, delta, gamma_release, gamma_resume unless "
+                f"given; '': none, the shipped {DEFAULT_MATERIAL} (reported as uncalibrated)"})
+    calibrate: str = field(default="off", metadata={
+        "help": "online: learn mu, the band and the release level from the contact's confirmed slips "
+                "(lib/online_calibration.py); off: keep the material's"})
     mu: float = field(default=math.nan, metadata={"help": "static friction coefficient; nan: the material's mu_s"})
     beta_m: float = field(default=0.0, metadata={"help": "torsional coefficient for F/T tests (m); 0: from tactile"})
     delta: float = field(default=math.nan, metadata={
@@ -81,9 +94,16 @@ class SlipDetectorParams:
         "help": f"{KNOWN_COR_METHOD}: the fixed pivot's y in the pad frame (m); nan: none"})
 
     def __post_init__(self) -> None:
+        if self.calibrate not in CALIBRATE:
+            raise ConfigError(f"slip_detector calibrate must be one of {CALIBRATE}, got {self.calibrate!r}")
         fill_from_material(self, mu="mu_s", delta="delta", gamma_release="gamma_release",
                            gamma_resume="gamma_resume")
 
+
+CALIBRATE = ("online", "off")
+"""The values of ``calibrate``."""
+_UNCALIBRATED = "uncalibrated"
+"""The node's status while it runs on the default material and has learned nothing."""
 
 _WITHOUT_TACTILE = "tactile_off"
 """A tactile test's verdict on a contact of a stack run without tactile (fusion ``use_tactile = false``)."""
@@ -105,11 +125,16 @@ class SlipDetector(Node):
     def __init__(self, params: SlipDetectorParams | None = None) -> None:
         super().__init__(params)
         p = self.params
+        material = resolve_material(p.material)
         self.detector = Detector(DetectorSettings(
             mu=p.mu, delta=p.delta, gamma_release=p.gamma_release, method=p.method, also=tuple(p.also),
             beta_m=p.beta_m, release_ns=round(p.release_ms * 1e6), pool=p.pool, gamma_resume=p.gamma_resume,
-            onset_frames=p.onset_frames, known_cor_m=self._known_cor(p)))
+            onset_frames=p.onset_frames, known_cor_m=self._known_cor(p),
+            calibrate_from=material if p.calibrate == "online" else None))
         self._said_without_tactile = False
+        self._revision = 0
+        self._said = (0, self.detector.settings.mu)  # (episodes, mu) of the last calibration line
+        self._status = self._calibration_status(material)
 
     @staticmethod
     def _known_cor(p: SlipDetectorParams) -> tuple[float, float] | None:
@@ -117,8 +142,39 @@ class SlipDetector(Node):
         given = (p.known_cor_x_m, p.known_cor_y_m)
         return None if all(math.isnan(v) for v in given) else given
 
+    def _calibration_status(self, material: Material) -> tuple[str, str, str]:
+        """(status, short detail for ``diagnostics``, advice for the start line): what the
+        thresholds come from."""
+        p, d = self.params, self.detector.settings
+        now = f"mu {d.mu:.3f}, band delta {d.delta:.3f}, release {d.gamma_release:.3f}"
+        if material.refused:
+            return ("refused-material", f"{p.material} written by identify --force ({now})",
+                    f"identify refused it: {material.refused}")
+        if p.material:
+            return "ok", "", ""
+        online = " It learns online from the contact's confirmed slips (calibrate:=online)." if p.calibrate == "online" else ""
+        return (_UNCALIBRATED, f"no material file, the shipped {DEFAULT_MATERIAL} ({now})",
+                "On another contact slip is flagged early, or late or not at all (docs/benchmarks.md). Identify "
+                "yours: slipstack identify RAMP.mcap... -o mine.toml, then material:=mine.toml." + online)
+
+    def _say_learned(self, learned: Learned, ctx: Context) -> None:
+        """Status: what the online calibration learned; a log line when it confirmed a slip
+        or μ moved by 1 % since the last line (the capacity rule moves it in small steps)."""
+        mu = self.detector.settings.mu * learned.mu_scale
+        text = (f"from {learned.episodes} confirmed slip(s) and the loads carried: mu {mu:.3f}, band delta "
+                f"{learned.delta:.3f}, release {learned.gamma_release:.3f}")
+        ctx.set_status("calibrated-online", text)
+        said_episodes, said_mu = self._said
+        if learned.episodes != said_episodes or abs(mu - said_mu) >= 0.01 * said_mu:
+            self._said = (learned.episodes, mu)
+            ctx.log(f"calibrated online {text}")
+
     def start(self, ctx: Context) -> None:
         compile_kernels()  # before the node reports ready, so its first contact runs at full speed
+        status, detail, advice = self._status
+        ctx.set_status(status, detail)
+        if status != "ok":
+            ctx.log(f"{status}: {detail}. {advice}")
 
     def on_contact(self, msgs: tuple[Contact, ...], ctx: Context) -> None:
         detector = self.detector
@@ -129,6 +185,10 @@ class SlipDetector(Node):
             if held is None and v.status not in _JUDGED and msg is not msgs[-1]:
                 held = v.status
         ctx.count("slip_test.samples_judged", detector.samples_judged - judged)
+        cal = detector.calibration
+        if cal is not None and cal.revision != self._revision:
+            self._revision = cal.revision
+            self._say_learned(cal.learned, ctx)
         status = held if held is not None and v.status in _JUDGED else v.status
         if not v.solver_status.usable:
             ctx.count(f"slip.{v.solver_status.value}")

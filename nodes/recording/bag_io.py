@@ -50,13 +50,15 @@ from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.nodes.runtime.node import Node
 
 __all__ = [
-    "SCHEMA_ENCODING", "MESSAGE_ENCODING", "CLOCK_METADATA", "RecordingError", "RecordedFrame",
-    "RecordingWriter", "claim_recording_path", "read_recording", "TopicInfo", "RecordingInfo", "recording_info",
+    "SCHEMA_ENCODING", "MESSAGE_ENCODING", "ROS2_MESSAGE_ENCODING", "CLOCK_METADATA", "RecordingError", "RecordedFrame",
+    "RecordingWriter", "RECORDING_FORMATS", "recording_writer", "claim_recording_path", "read_recording", "TopicInfo", "RecordingInfo", "recording_info",
     "message_schema", "clock_offset_ns", "recorded_clock_offset_ns",
     "replay_into", "same_output", "match_outputs",
 ]
 
 MESSAGE_ENCODING = "msgpack"
+ROS2_MESSAGE_ENCODING = "cdr"
+"""The message encoding of a rosbag2 MCAP file, which :func:`read_recording` reads too."""
 SCHEMA_ENCODING = "slipstack-fields+json"
 CLOCK_METADATA = "slipstack.clock"
 DEFAULT_CHUNK_SIZE = 256 * 1024
@@ -155,6 +157,9 @@ class RecordingWriter:
             stored as :data:`CLOCK_METADATA` (``None``: not stored).
     """
 
+    PROFILE = ""
+    """The MCAP header's profile (none: slipstack's own layout)."""
+
     def __init__(
         self,
         path: str | os.PathLike,
@@ -167,7 +172,8 @@ class RecordingWriter:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._fh = open(self.path, "wb")
         self._writer = Writer(self._fh, chunk_size=chunk_size, compression=CompressionType.ZSTD)
-        self._writer.start(profile="", library="slipstack")
+        self._writer.start(profile=self.PROFILE, library="slipstack")
+        self.wall_minus_monotonic_ns = wall_minus_monotonic_ns
         if wall_minus_monotonic_ns is not None:
             self._writer.add_metadata(CLOCK_METADATA, {"wall_minus_monotonic_ns": str(int(wall_minus_monotonic_ns))})
             self._fh.flush()
@@ -208,6 +214,10 @@ class RecordingWriter:
             publish_time, sequence = head.pub_ns, head.seq & 0xFFFFFFFF
         self._writer.add_message(cid, log_time_ns, payload if type(payload) is bytes else bytes(payload),
                                  publish_time, sequence)
+        self._written(topic, log_time_ns)
+
+    def _written(self, topic: str, log_time_ns: int) -> None:
+        """Count a frame written at ``log_time_ns`` and close the chunk if it is old enough."""
         self.counts[topic] += 1
         if self._chunk_opened_ns is None:
             self._chunk_opened_ns = log_time_ns
@@ -236,6 +246,19 @@ class RecordingWriter:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+RECORDING_FORMATS = ("slipstack", "ros2")
+"""How a recording is written: :class:`RecordingWriter`'s layout, or rosbag2's (``ros2_bag.py``)."""
+
+
+def recording_writer(path: str | os.PathLike, fmt: str = "slipstack", **kwargs: Any) -> RecordingWriter:
+    """A writer of format ``fmt`` (:data:`RECORDING_FORMATS`); ``kwargs`` as :class:`RecordingWriter`'s."""
+    if fmt == "ros2":
+        from slipstack.nodes.recording.ros2_bag import Ros2RecordingWriter
+
+        return Ros2RecordingWriter(path, **kwargs)
+    return RecordingWriter(path, **kwargs)
 
 
 # -- reading ------------------------------------------------------------------------------
@@ -353,6 +376,9 @@ def read_recording(
 ) -> Iterator[RecordedFrame]:
     """Iterate the recorded frames in file (= receive) order.
 
+    A rosbag2 MCAP file (CDR messages) reads as the frames its messages were made of
+    (``nodes/recording/ros2_bag.py``; needs the ``ros2`` extra).
+
     Args:
         path: an MCAP file written by :class:`RecordingWriter` (or any MCAP file).
         topics: keep only these topics (``None``: all).
@@ -362,10 +388,19 @@ def read_recording(
     """
     wanted = None if topics is None else set(topics)
     state = _ScanState()
+    ros2 = None  # a rosbag2 layout's reader, made at its first CDR message
     for m in _scan(path, state, tolerant, progress):
-        topic = state.channels[m.channel_id].topic
-        if wanted is None or topic in wanted:
-            yield RecordedFrame(m.log_time, topic, m.data, m.publish_time, m.sequence)
+        channel = state.channels[m.channel_id]
+        if channel.message_encoding == ROS2_MESSAGE_ENCODING:
+            if ros2 is None:
+                from slipstack.nodes.recording.ros2_bag import Ros2Frames
+
+                ros2 = Ros2Frames(state.channels, state.schemas)
+            yield from ros2.frames(m, wanted)
+        elif wanted is None or channel.topic in wanted:
+            yield RecordedFrame(m.log_time, channel.topic, m.data, m.publish_time, m.sequence)
+    if ros2 is not None:
+        yield from ros2.flush()
 
 
 @dataclass(frozen=True)
@@ -423,7 +458,8 @@ def recording_info(path: str | os.PathLike, progress: Callable[[int], None] | No
         counts[topic] += 1
         first.setdefault(topic, m.log_time)
         last[topic] = m.log_time
-        types[topic].add(ch.metadata.get("type", ""))
+        schema = state.schemas.get(ch.schema_id)
+        types[topic].add(ch.metadata.get("type") or (schema.name if schema is not None else ""))
         head = peek_header(m.data)
         seq = head.seq if head else m.sequence
         seq_first.setdefault(topic, seq)

@@ -1,4 +1,4 @@
-"""``bag export``: a recording as JSON that Foxglove opens, or as JSON lines.
+"""``bag export``: a recording as JSON that Foxglove opens, as JSON lines, or as ROS 2 (``ros2_bag.py``).
 
 The MCAP export (``mcap-json``) holds:
 
@@ -28,7 +28,7 @@ import itertools
 import json
 import os
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterable
 
 import numpy as np
 from mcap.writer import CompressionType, Writer
@@ -38,12 +38,13 @@ from slipstack.messages import Cor, TactileFrame, Wrench, decode
 from slipstack.messages.json_schema import TIME_SCHEMA, json_schema, to_json, wall_time
 from slipstack.nodes.recording.foxglove_scene import PAD_FRAME, SCENE_TOPIC, SCENE_UPDATE_SCHEMA, ContactScene
 from slipstack.nodes.recording.bag_io import (
-    CLOCK_METADATA, DEFAULT_CHUNK_SIZE, RecordingError, clock_offset_ns, read_recording, recorded_clock_offset_ns,
+    CLOCK_METADATA, DEFAULT_CHUNK_SIZE, RecordedFrame, RecordingError, clock_offset_ns, read_recording,
+    recorded_clock_offset_ns,
 )
 
 __all__ = ["export_recording", "pad_image", "foxglove_topic", "RAW_IMAGE_SCHEMA", "PAD_IMAGE_TOPIC", "EXPORT_FORMATS"]
 
-EXPORT_FORMATS = ("mcap-json", "jsonl")
+EXPORT_FORMATS = ("mcap-json", "jsonl", "ros2")
 PAD_IMAGE_TOPIC = "/pad/pressure"
 """The Foxglove topic of the pad image (live and exported)."""
 
@@ -133,13 +134,14 @@ def export_recording(path: str | os.PathLike, out: str | os.PathLike, fmt: str =
 
     fmt ``mcap-json``: MCAP for Foxglove. ``jsonl``: one line per message,
     ``{"log_time_ns", "topic", "type", "message"}`` (the message as in the MCAP export).
+    ``ros2``: MCAP as rosbag2 writes it (:mod:`.ros2_bag`; needs the ``ros2`` extra).
     progress: called with the source file's bytes read so far, now and then.
 
     Raises:
         RecordingError: unknown format, the output is the input, the input is no recording.
     """
     if fmt not in EXPORT_FORMATS:
-        raise RecordingError(f"unknown export format {fmt!r}; use mcap-json or jsonl")
+        raise RecordingError(f"unknown export format {fmt!r}; use {', '.join(EXPORT_FORMATS)}")
     if Path(out).resolve() == Path(path).resolve():
         raise RecordingError(f"export output {out} is the recording itself; choose another path")
     frames = read_recording(path, progress=progress)
@@ -147,6 +149,8 @@ def export_recording(path: str | os.PathLike, out: str | os.PathLike, fmt: str =
     recorded = recorded_clock_offset_ns(path)
     offset = recorded if recorded is not None else clock_offset_ns(path)
     Path(out).parent.mkdir(parents=True, exist_ok=True)
+    if fmt == "ros2":
+        return _export_ros2(itertools.chain([first] if first is not None else [], frames), out, offset)
     n = 0
     with open(out, "wb") as fh:
         mcap = _McapJson(fh, path, offset, recorded is not None) if fmt == "mcap-json" else None
@@ -165,3 +169,12 @@ def export_recording(path: str | os.PathLike, out: str | os.PathLike, fmt: str =
         if mcap is not None:
             mcap.finish()
     return n
+
+
+def _export_ros2(frames: Iterable[RecordedFrame], out: str | os.PathLike, offset_ns: int) -> int:
+    from slipstack.nodes.recording.ros2_bag import Ros2RecordingWriter
+
+    with Ros2RecordingWriter(out, wall_minus_monotonic_ns=offset_ns) as writer:
+        for frame in frames:
+            writer.write(frame.topic, frame.payload, frame.log_time_ns)
+    return sum(writer.counts.values())

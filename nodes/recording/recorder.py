@@ -29,7 +29,7 @@ import zmq
 
 from slipstack.lib.errors import ConfigError
 from slipstack.messages.frame import SeqTracker, peek_header, publisher_key
-from slipstack.nodes.recording.bag_io import RecordingWriter, claim_recording_path
+from slipstack.nodes.recording.bag_io import RECORDING_FORMATS, claim_recording_path, recording_writer
 from slipstack.nodes.runtime.curve import secure_connect
 from slipstack.nodes.runtime.graph_info import (RUN_DIR_ENV, find_run_dir, read_graph, time_base_clock,
                                                 topic_endpoints)
@@ -163,6 +163,8 @@ class RecorderParams:
     run_dir: str = field(default="", metadata={
         "help": "run directory of the graph to record; empty: the graph that launched this node"})
     duration_s: float = field(default=0.0, metadata={"help": "stop after this long (s); 0: until stopped"})
+    format: str = field(default="slipstack", metadata={
+        "help": "slipstack (msgpack frames as on the bus) or ros2 (as rosbag2 writes MCAP; the ros2 extra)"})
 
 
 class Recorder(Node):
@@ -181,6 +183,8 @@ class Recorder(Node):
         mapped to stamps through the executor's clock: the graph's time base (``bag
         record`` gives its executor the graph's, nodes/runtime/time_base.py)."""
         super().__init__(params)
+        if self.params.format not in RECORDING_FORMATS:
+            raise ConfigError(f"recorder format must be one of {', '.join(RECORDING_FORMATS)}, got {self.params.format!r}")
         if not self.params.duration_s >= 0.0:
             raise ConfigError(f"recorder duration_s must be >= 0 s (0: until stopped), got {self.params.duration_s!r}")
         self.bus: BusRecorder | None = None
@@ -192,7 +196,7 @@ class Recorder(Node):
         path = Path(p.path) if p.path else default_output_path()
         claim_recording_path(path)  # never overwrites a recording; a path it cannot write fails here
         # stamps are on the graph's time base: wall time = stamp + (wall − graph clock)
-        writer = RecordingWriter(path, wall_minus_monotonic_ns=time.time_ns() - ctx.now_ns())
+        writer = recording_writer(path, p.format, wall_minus_monotonic_ns=time.time_ns() - ctx.now_ns())
         # Launched: the launcher names our graph in $SLIPSTACK_RUN_DIR and counts us in
         # every publisher's readiness handshake (``taps_bus``), so no first sample is missed.
         chosen = p.run_dir or os.environ.get(RUN_DIR_ENV)

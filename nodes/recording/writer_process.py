@@ -38,6 +38,8 @@ import sys
 from pathlib import Path
 from typing import BinaryIO
 
+from slipstack.lib.errors import SlipstackError
+
 __all__ = ["RecordingWriterProcess", "BATCH_BYTES", "PIPE_BYTES", "main"]
 
 BATCH_BYTES = 256 * 1024
@@ -56,9 +58,10 @@ class RecordingWriterProcess:
         wall_minus_monotonic_ns: as :class:`~slipstack.nodes.recording.bag_io.RecordingWriter`'s.
     """
 
-    def __init__(self, path: str | os.PathLike, *, wall_minus_monotonic_ns: int | None = None) -> None:
+    def __init__(self, path: str | os.PathLike, *, wall_minus_monotonic_ns: int | None = None,
+                 fmt: str = "slipstack") -> None:
         self.path = Path(path)
-        command = [sys.executable, "-m", __name__, str(self.path)]
+        command = [sys.executable, "-m", __name__, str(self.path), "--format", fmt]
         if wall_minus_monotonic_ns is not None:
             command += ["--wall-minus-monotonic-ns", str(int(wall_minus_monotonic_ns))]
         # a session of its own: Ctrl-C in the terminal reaches the caller only, which then closes the pipe
@@ -142,14 +145,14 @@ class RecordingWriterProcess:
         self.close()
 
 
-def _copy_frames(source: int, path: Path, wall_minus_monotonic_ns: int | None) -> int:
-    """Write every frame read from the descriptor ``source`` until its end to ``path``; the
-    frame count. It reads what the pipe holds, up to :data:`PIPE_BYTES` at a time."""
-    from slipstack.nodes.recording.bag_io import RecordingWriter
+def _copy_frames(source: int, path: Path, wall_minus_monotonic_ns: int | None, fmt: str = "slipstack") -> int:
+    """Write every frame read from the descriptor ``source`` until its end to ``path`` (format
+    ``fmt``); the frame count. It reads what the pipe holds, up to :data:`PIPE_BYTES` at a time."""
+    from slipstack.nodes.recording.bag_io import recording_writer
 
     count = 0
     pending = bytearray()
-    with RecordingWriter(path, wall_minus_monotonic_ns=wall_minus_monotonic_ns) as writer:
+    with recording_writer(path, fmt, wall_minus_monotonic_ns=wall_minus_monotonic_ns) as writer:
         while chunk := os.read(source, PIPE_BYTES):
             pending += chunk
             view, at = memoryview(pending), 0
@@ -178,10 +181,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("path", type=Path, help="the recording to write (must not exist)")
     parser.add_argument("--wall-minus-monotonic-ns", type=int, default=None,
                         help="the clock metadata to store (ns)")
+    parser.add_argument("--format", default="slipstack", choices=("slipstack", "ros2"), help="the recording's layout")
     args = parser.parse_args(argv)
     try:
-        _copy_frames(sys.stdin.fileno(), args.path, args.wall_minus_monotonic_ns)
-    except (OSError, ValueError) as exc:
+        _copy_frames(sys.stdin.fileno(), args.path, args.wall_minus_monotonic_ns, args.format)
+    except (OSError, ValueError, SlipstackError) as exc:
         print(f"{type(exc).__name__}: {exc}", file=sys.stderr)
         return 1
     return 0

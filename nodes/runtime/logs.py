@@ -21,9 +21,11 @@ from typing import Callable
 
 from slipstack.lib.errors import ConfigError
 
-__all__ = ["LOG_LEVEL_ENV", "LEVELS", "parse_log_levels", "configure_logging", "node_log", "level_of"]
+__all__ = ["LOG_LEVEL_ENV", "DETAIL_PREFIX", "LEVELS", "parse_log_levels", "configure_logging", "node_log", "level_of"]
 
 LOG_LEVEL_ENV = "SLIPSTACK_LOG_LEVEL"
+DETAIL_PREFIX = "detail: "
+"""A line kept in the run's log file but not shown on the terminal (the summary's long form)."""
 LEVELS = ("debug", "info", "warning", "error", "critical")
 _PREFIXES = (("error:", logging.ERROR), ("warning:", logging.WARNING), ("debug:", logging.DEBUG))
 _ROOT = "slipstack.node"

@@ -3,7 +3,7 @@
     slipstack bag record [-a | TOPIC ...] [-o PATH] [--run-dir D] [--duration S]
     slipstack bag play PATH [--rate R] [--loop] [--topics T ...] [--start-offset S] [--restamp]
     slipstack bag info PATH
-    slipstack bag export PATH -o OUT.mcap|OUT.jsonl [--format mcap-json|jsonl]   (other suffixes refused)
+    slipstack bag export PATH -o OUT.mcap|OUT.jsonl [--to mcap-json|jsonl|ros2]   (other suffixes refused)
 
 The file layout (encodings, clocks, chunking) is described in ``nodes/recording/bag_io.py``.
 """
@@ -20,7 +20,7 @@ from slipstack.nodes.runtime.graph_info import RUN_DIR_HELP
 __all__ = ["add_parser", "format_info", "EXPORT_FORMATS"]
 
 EXPORT_SUFFIXES = {".mcap": "mcap-json", ".jsonl": "jsonl"}
-EXPORT_FORMATS = tuple(EXPORT_SUFFIXES.values())  # nodes/recording/export.py's, without importing mcap for --help
+EXPORT_FORMATS = (*EXPORT_SUFFIXES.values(), "ros2")  # nodes/recording/export.py's, without importing mcap for --help
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -59,17 +59,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     info.add_argument("path", help="recording (.mcap)")
     info.set_defaults(func=_main_info)
 
-    ex = verbs.add_parser("export", help="export to JSON (Foxglove-readable MCAP or JSON lines)",
+    ex = verbs.add_parser("export", help="export to JSON (Foxglove-readable MCAP or JSON lines) or ROS 2",
                           description="Export a recording as MCAP with JSON messages and JSON Schemas (opens in "
                                       "Foxglove: the pad as the image /pad/pressure, times on the wall clock, "
-                                      "header.stamp_ns kept on the monotonic clock) or as JSON lines. The format "
-                                      "follows the output's suffix; "
+                                      "header.stamp_ns kept on the monotonic clock), as JSON lines, or with --to "
+                                      "ros2 as rosbag2 writes MCAP (CDR, ros2msg schemas: `ros2 bag`, Foxglove and "
+                                      "PlotJuggler read it; needs the ros2 extra; docs/ros2.md). Without --to the "
+                                      "format follows the output's suffix; "
                                       "other suffixes (.csv ...) are refused: for CSV use "
                                       "`slipstack topic echo TOPIC --csv` on a played recording.")
     ex.add_argument("path", help="recording (.mcap)")
     ex.add_argument("-o", "--output", required=True, help="OUT.mcap or OUT.jsonl")
-    ex.add_argument("--format", choices=EXPORT_FORMATS,
-                    help="mcap-json or jsonl; default: from the output suffix (.mcap, .jsonl)")
+    ex.add_argument("--to", "--format", dest="format", choices=EXPORT_FORMATS,
+                    help="mcap-json, jsonl or ros2; default: from the output suffix (.mcap, .jsonl)")
     ex.set_defaults(func=_main_export)
 
 
@@ -138,7 +140,7 @@ def _main_export(args: argparse.Namespace) -> int:
     fmt = args.format or EXPORT_SUFFIXES.get(Path(args.output).suffix.lower())
     if fmt is None:
         raise ConfigError(f"cannot tell the export format from {args.output!r}: name it OUT.mcap (MCAP with JSON, "
-                          "for Foxglove) or OUT.jsonl (JSON lines), or give --format; CSV is not an export format")
+                          "for Foxglove) or OUT.jsonl (JSON lines), or give --to (ros2: MCAP as rosbag2 writes it); CSV is not an export format")
     from slipstack.lib.progress import file_progress
 
     with file_progress(args.path, "bag export") as progress:

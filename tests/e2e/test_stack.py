@@ -17,10 +17,11 @@ from slipstack.nodes.rig import load_scene_by_name
 
 pytestmark = pytest.mark.e2e
 
-FLAG_WITHOUT_SLIP_BOUND = 0.20
-"""Share of truly sticking frames a detector may flag as slip: the README's detection
-table gives 0.8–14.8 % for the tests these scenes use (6.6 % for the default exact test
-at δ = 0.18) over every scene; a detector stuck on "slip" scores 100 %."""
+FALSE_ALARM_BOUND = 0.35
+"""False-alarm share a detector may have (``lib/episodes.py``: flagged sticking frames
+outside every episode's window, the loads stuck at their friction after a slip included): a
+loose bound; with the default material these scenes measure 8–18 % (bench_detection.py's
+cache, rubber); a detector stuck on "slip" scores nearly 100 %."""
 
 SCENES = ["fig10", "fig11", "fig12", "fig15"]
 
@@ -90,4 +91,4 @@ def test_without_controller_every_gross_slip_episode_is_flagged(launch, run_root
     assert s["missed_episodes"] == 0 and s["detected_episodes"] == s["true_episodes"], _why(s)
     # ... and not by calling slip everywhere: few truly sticking frames flagged
     assert s["stick_frames"] >= 100, _why(s)
-    assert s["flag_without_slip_share"] <= FLAG_WITHOUT_SLIP_BOUND, _why(s)
+    assert s["false_alarm_share"] <= FALSE_ALARM_BOUND, _why(s)

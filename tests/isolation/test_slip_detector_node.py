@@ -46,3 +46,56 @@ def test_a_tactile_test_on_a_stack_without_tactile_says_which_test_to_use():
     assert "needs the tactile pad" in last.last_error and "method:=coulomb" in last.last_error, last.last_error
     said = [line for line in ex.logs if "needs the tactile pad" in line]
     assert len(said) == 1, said  # once, not per contact
+
+
+def _run_with(params: SlipDetectorParams, loads: list[float]) -> InProcessExecutor:
+    """A flat pad pressed with 4 N (a pressure frame every 5 ms) and pulled with ``loads`` (N),
+    one per ms, through fusion, the detector (``params``) and the monitor; the executor, running."""
+    from slipstack.nodes.monitor import Monitor
+
+    ex = InProcessExecutor([Fusion(), SlipDetector(params), Monitor()], diagnostics_period_s=0.001)
+    ex.feed([tactile(k, 4.0) for k in range(0, len(loads), 5)] + [wrench(k + 1, 4.0, f) for k, f in enumerate(loads)])
+    ex.run(until_ns=(len(loads) + 5) * MS)
+    return ex
+
+
+def test_without_a_material_file_it_says_so_at_start_on_diagnostics_live_and_in_the_summary():
+    """The default (material = ""): the shipped rubber, and every place a user looks says
+    the detector is uncalibrated and what it costs; with a file, none of that."""
+    ex = _run_with(SlipDetectorParams(), [0.2] * 10)
+    start = [line for line in ex.logs if "uncalibrated: no material file, the shipped rubber" in line]
+    assert len(start) == 1 and "slipstack identify" in start[0] and "flagged early, or late" in start[0], ex.logs
+    last = [d for d in ex.published["diagnostics"] if d.node == "slip_detector"][-1]
+    assert last.status.startswith("uncalibrated: no material file"), last.status
+    ex.stop()
+    summary = [line for line in ex.logs if line.startswith("[monitor] detector: uncalibrated: no material file")]
+    assert summary and len(summary[0]) <= 100, ex.logs
+
+    ex = _run_with(SlipDetectorParams(material="rubber"), [0.2] * 10)
+    ex.stop()
+    assert not [line for line in ex.logs if "uncalibrated" in line]
+    assert [d for d in ex.published["diagnostics"] if d.node == "slip_detector"][-1].status == "ok"
+
+
+def test_online_calibration_says_what_it_learned():
+    """No file, calibrate online, a pull beyond the default's μ (γ 1.1 of its capacity):
+    μ rises to what the contact carried; a log line and the status say so."""
+    ex = _run_with(SlipDetectorParams(calibrate="online"), [0.2 * k for k in range(10)] + [4.0 * 0.4527 * 1.1] * 40)
+    learned = [line for line in ex.logs if "calibrated online from 0 confirmed slip(s) and the loads carried" in line]
+    assert learned, ex.logs
+    last = [d for d in ex.published["diagnostics"] if d.node == "slip_detector"][-1]
+    assert last.status.startswith("calibrated-online:") and "mu 0.49" in last.status, last.status
+
+
+def test_a_material_written_by_identify_force_is_reported_as_refused(tmp_path):
+    from dataclasses import replace
+
+    from slipstack.lib.material import material_toml
+    from slipstack.nodes.material_param import resolve_material
+
+    path = tmp_path / "forced.toml"
+    path.write_text(material_toml(replace(resolve_material("rubber"), refused="the band would be its cap")))
+    ex = _run_with(SlipDetectorParams(material=str(path)), [0.2] * 5)
+    last = [d for d in ex.published["diagnostics"] if d.node == "slip_detector"][-1]
+    assert last.status.startswith("refused-material: ") and "identify --force" in last.status, last.status
+    assert any("identify refused it: the band would be its cap" in line for line in ex.logs), ex.logs

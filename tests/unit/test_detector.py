@@ -10,7 +10,7 @@ from slipstack.lib.detector import FT_TESTS, Detector, DetectorSettings, PadCont
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.slip_tests import SLIP_TESTS
 from slipstack.nodes.material_param import resolve_material
-from slipstack.nodes.slip_detector import SlipDetector
+from slipstack.nodes.slip_detector import SlipDetector, SlipDetectorParams
 
 ROWS = COLS = 16
 PITCH_M = 1.25e-3
@@ -26,9 +26,12 @@ def pressed(f_x_n: float, f_n: float = 10.0, status: str = "ok") -> PadContact:
 
 
 def test_node_defaults_are_the_material_defaults() -> None:
-    node = SlipDetector()
-    assert node.detector.settings == DetectorSettings.from_material(resolve_material("rubber"))
-    assert set(FT_TESTS) < set(SLIP_TESTS) and node.detector.settings.also == FT_TESTS
+    """No material file: the shipped rubber's thresholds; online calibration only when asked."""
+    rubber = resolve_material("rubber")
+    assert SlipDetector().detector.settings == DetectorSettings.from_material(rubber)
+    online = SlipDetector(SlipDetectorParams(calibrate="online")).detector.settings
+    assert online == DetectorSettings.from_material(rubber, calibrate_from=rubber)
+    assert set(FT_TESTS) < set(SLIP_TESTS) and online.also == FT_TESTS
 
 
 def test_a_pulled_pad_slips_latches_through_a_stale_frame_and_releases_after_the_dwell() -> None:

@@ -65,10 +65,10 @@ def test_report_identifies_from_the_slip_distance_within_its_error_bar() -> None
     # Before the fix: onset where the total displacement crossed 0.1 mm (22 ms late) and
     # the ramp's line extended there: mu_s 0.457, an error bar of 0.0002 that excludes 0.45.
     t, ratio, displacement, slip = record(seed=3)
-    ident = identify_recording(_series(t, ratio, displacement, slip, torsion=False))
-    assert abs(ident.mu.onset_t_s - 1.5) <= 2 * DT
-    assert ident.mu.static == pytest.approx(0.45, rel=0.01)
-    assert abs(ident.mu.static - 0.45) <= 3 * ident.mu.static_se
+    (mu,) = identify_recording(_series(t, ratio, displacement, slip, torsion=False)).mu
+    assert abs(mu.onset_t_s - 1.5) <= 2 * DT
+    assert mu.static == pytest.approx(0.45, rel=0.01)
+    assert abs(mu.static - 0.45) <= 3 * mu.static_se
 
 
 def test_report_torsion_onset_is_the_slip_angle_not_the_elastic_twist() -> None:
@@ -76,11 +76,11 @@ def test_report_torsion_onset_is_the_slip_angle_not_the_elastic_twist() -> None:
     t, ratio, twist, slip = record(static=1.34e-3, dynamic=1.07e-3, t_on=1.76, duration=3.5, seed=4, torsion=True)
     twist = twist * 200.0  # rad: a soft core twists ~0.03 rad before it slides
     slip = slip * 200.0
-    ident = identify_recording(_series(t, ratio, twist, slip, torsion=True))
-    assert ident.beta is not None and ident.beta.ok
-    assert abs(ident.beta.onset_t_s - 1.76) <= 2 * DT
-    assert ident.beta.static == pytest.approx(1.34e-3, rel=0.01)
-    assert ident.beta.dynamic == pytest.approx(1.07e-3, rel=0.02)
+    (beta,) = identify_recording(_series(t, ratio, twist, slip, torsion=True)).beta
+    assert beta.ok
+    assert abs(beta.onset_t_s - 1.76) <= 2 * DT
+    assert beta.static == pytest.approx(1.34e-3, rel=0.01)
+    assert beta.dynamic == pytest.approx(1.07e-3, rel=0.02)
 
 
 def test_torque_ramp_with_slip_angle() -> None:

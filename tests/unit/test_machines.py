@@ -247,7 +247,8 @@ def test_the_monitor_summary_says_the_launchers_clock_offsets():
     summary = summarise(monitor, 2_000_000)
     assert summary["clock_offsets"] == {"launcher@workstation": {"robot": {"offset_ms": 12.345, "uncertainty_ms": 0.05}}}
     assert ("clock offsets between the machines (their clock minus the launcher's): launcher@workstation: robot "
-            "+12.345 ms ± 0.050 ms") in format_summary(summary)
+            "+12.345 ms ± 0.050 ms") in format_summary(summary, verbose=True)
+    assert "clocks: robot +12.345 ms ± 0.050 (other machines' minus ours)" in format_summary(summary)
 
 
 class _StandInPeer(threading.Thread):

@@ -25,25 +25,33 @@ from slipstack.nodes.slip_detector import SlipDetectorParams
 MATERIALS_DIR = Path(__file__).resolve().parents[2] / "launch" / "materials"
 
 
-def test_band_reaches_the_lowest_onset_minus_three_sigma() -> None:
-    # Coulomb: gross slip at the capacity (gamma ~ 1): a narrow band.
+def test_band_is_the_lower_prediction_bound_of_the_identified_onsets() -> None:
+    # Coulomb: 3 onsets 0.99-1.0 (range 0.01): the edge 0.01/4 below the lowest, less 3 sigma.
     coulomb = Material("c", mu_s=0.45, mu_d=0.45, onset_gamma=(0.995, 0.99, 1.0),
                        gamma_noise_stick=0.004, gamma_noise_slide=0.006)
     t = detector_thresholds(coulomb)
-    assert t.delta == pytest.approx(1.0 - (0.99 - 3 * 0.004))
-    # release: mu_d/mu_s - 4 sigma_slide = 0.976, under the band edge 0.978
-    assert t.gamma_release == pytest.approx(1.0 - 4 * 0.006)
-    # A weakening contact (identified onsets 0.85, 0.97): the band reaches its sliding
-    # level 0.6, the release level sits under it.
+    assert t.delta == pytest.approx(1.0 - (0.99 - 0.01 / 4 - 3 * 0.004))
+    # release: mu_d/mu_s - 4 sigma_slide = 0.976, capped at the band edge 0.9755
+    assert t.gamma_release == pytest.approx(0.9755)
+    # A weakening contact whose identified onsets are 0.85 and 0.97: the band follows them
+    # (it used to reach the sliding level 0.6 whatever the data), the release level sits
+    # under the sliding level.
     weak = Material("w", mu_s=0.5, mu_d=0.3, onset_gamma=(0.85, 0.97), gamma_noise_stick=0.005,
                     gamma_noise_slide=0.01)
     t = detector_thresholds(weak)
-    assert t.delta == pytest.approx(0.4 + 0.015)
+    assert t.delta == pytest.approx(1.0 - (0.85 - 0.12 / 3 - 0.015))
     assert t.gamma_release == pytest.approx(0.6 - 0.04)
     assert t.gamma_resume == pytest.approx(0.6 - 0.02)  # mu_d/mu_s - 2 sigma_slide
-    # Mildly weakening with an onset below its sliding level (noise): the onset decides.
+    # Without onsets: the worst case, the sliding level less 3 sigma.
+    t = detector_thresholds(Material("n", mu_s=0.5, mu_d=0.3, gamma_noise_stick=0.005))
+    assert t.delta == pytest.approx(0.4 + 0.015)
+    # An onset below the sliding level (a compliant contact's partial slip): the data decide.
     t = detector_thresholds(Material("m", mu_s=0.45, mu_d=0.43, onset_gamma=(0.9,), gamma_noise_stick=0.005))
     assert t.delta == pytest.approx(0.1 + 0.015)
+    # A torque ramp's lower sliding level (beta_d/beta_s) counts too.
+    t = detector_thresholds(Material("b", mu_s=0.45, mu_d=0.45, beta_s_m=1e-3, beta_d_m=0.8e-3,
+                                     gamma_noise_slide=0.005))
+    assert t.gamma_release == pytest.approx(0.8 - 0.02)
 
 
 def test_release_never_above_the_band_edge_and_noise_floor() -> None:

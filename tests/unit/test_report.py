@@ -96,8 +96,8 @@ def test_identify_recovers_mu_and_onset_with_truth(tmp_path):
     path = tmp_path / "fig4a.mcap"
     write_ramp(path)
     ident = identify_recording(load_series(path))
-    mu = ident.mu
-    assert mu.ok and ident.beta is None and not ident.torque_dominates
+    (mu,) = ident.mu  # one loading
+    assert mu.ok and ident.beta == () and ident.load == "force"
     assert ident.motion_source == "rig/truth" and mu.onset_source == "slip"
     # onset: the last sample before the slip distance grows (the truth's gross-slip onset)
     assert mu.onset_t_s == pytest.approx(ONSET_S, abs=0.005)
@@ -114,7 +114,7 @@ def test_identify_without_truth_uses_the_ratio_drop_and_merges_tied_stamps(tmp_p
     assert "1000 F/T samples (500 sharing a stamp averaged)" in out
     assert "slip onset from the ratio drop" in out
     ident = identify_recording(load_series(path))
-    mu = ident.mu
+    (mu,) = ident.mu
     assert mu.ok and mu.onset_source == "ratio" and ident.merged == 500
     assert mu.onset_t_s == pytest.approx(ONSET_S, abs=0.006)  # pairs: a 4 ms time grid
     assert mu.static == pytest.approx(MU_S, abs=0.005)
@@ -129,16 +129,17 @@ def test_identify_torque_ramp_gives_beta(tmp_path, capsys):
     path = tmp_path / "fig4b.mcap"
     write_ramp(path, torque=True)
     ident = identify_recording(load_series(path))
-    assert ident.torque_dominates and ident.beta is not None and ident.beta.ok
-    assert ident.beta.onset_source == "slip"
-    assert ident.beta.static == pytest.approx(BETA_S, rel=0.02)
-    assert ident.beta.dynamic == pytest.approx(BETA_D, rel=0.01)
-    assert ident.beta.onset_t_s == pytest.approx(ONSET_S, abs=0.005)
+    (beta,) = ident.beta
+    assert ident.load == "torque" and ident.mu == () and beta.ok
+    assert beta.onset_source == "slip"
+    assert beta.static == pytest.approx(BETA_S, rel=0.02)
+    assert beta.dynamic == pytest.approx(BETA_D, rel=0.01)
+    assert beta.onset_t_s == pytest.approx(ONSET_S, abs=0.005)
     assert run_cli(str(path), "--identify") == 0
     out = capsys.readouterr().out
     assert "the torque ramp dominates" in out
     printed = dict(printed_estimates(out))
-    assert_printed(printed["β_s"], ident.beta.static * 1e3, ident.beta.static_se * 1e3)
+    assert_printed(printed["β_s"], beta.static * 1e3, beta.static_se * 1e3)
     assert "β_d = " in out and " mm" in out
 
 
