@@ -246,7 +246,14 @@ class TrackGains:
     the mode ends once the motion at its rate would reach the target in this time;
     ``regrip_margin``: the squeeze after it over the larger of the least holding squeeze and
     the kinetic one; ``overspeed``, ``overspeed_min``: faster than this times the rate and than
-    ``overspeed_min`` (unit/s; the breakaway's first jerk) ends the mode and grips."""
+    ``overspeed_min`` (unit/s; the breakaway's first jerk) ends the mode and grips;
+    ``weakening``: how far the object moves before its friction has fallen from static to
+    sliding (the contact's slip-weakening length, in the unit; 0: at once): the feed-forward
+    goes from the squeeze it broke away at to the kinetic one over it; ``max_error``: the
+    reference waits for an object further behind than this (a stuck object would otherwise
+    wind the squeeze down into a plunge), and if it moves slower than ``stuck`` times the rate
+    it stuck again (friction back at static): release again from the squeeze it broke away
+    at, not from one the lag of the squeeze would take far below it."""
 
     k_p: float
     k_d: float
@@ -258,16 +265,19 @@ class TrackGains:
     regrip_margin: float = 1.5
     overspeed: float = 3.0
     overspeed_min: float = 0.0
+    weakening: float = 0.0
+    max_error: float = math.inf
+    stuck: float = 0.2
 
 
 BREAKAWAY_SHARE = 0.9
 """The object broke away once the load the contacts carry fell below this share of its
 value at the mode's start (sliding friction carries ``μ_d/μ_s``, 0.8 on rubber)."""
 PIVOT_GAINS = TrackGains(k_p=100.0, k_d=6.0, k_i=120.0, release_n_per_s=20.0, accel=30.0, moving=0.015,
-                         lead_s=0.09, overspeed_min=2.0)
+                         lead_s=0.09, overspeed_min=2.0, weakening=0.04, max_error=0.05)
 """The pivot's gains (per rad), tuned in lock-step on the shipped pivot scene (docs/benchmarks.md)."""
 SLIDE_GAINS = TrackGains(k_p=800.0, k_d=40.0, k_i=1600.0, release_n_per_s=10.0, accel=0.5, moving=3e-4,
-                         overspeed_min=0.1)
+                         overspeed_min=0.1, weakening=2e-4, max_error=2e-3)
 """The slide's gains (per m), tuned likewise on the shipped slide scene."""
 
 
@@ -298,6 +308,11 @@ class TrackControl:
         self._offset = 0.0  # progress when tracking began
         self._start_rate = 0.0  # and the rate then (at most the one asked)
         self._integral = 0.0
+        self._breakaway_n = start_n  # the squeeze the object broke away at
+        self._release_from = start_n * 1.02  # the squeeze a release starts from
+        self._released_at = 0.0  # the progress when it started
+        self._last_demand = start_n
+        self._ref_shift = 0.0  # how long the reference waited for the object (in the unit)
         self._last_ns = now_ns
         self._at_floor_ns: int | None = None
 
@@ -324,21 +339,40 @@ class TrackControl:
         if self.phase in ("release", "track") and rate > max(g.overspeed * self.rate, g.overspeed_min):
             return self._end(f"drop-guard: moving at {rate / self.rate:.1f} times the rate asked; gripped", hold_n)
         if self.phase == "release":
-            if progress < g.moving and load_share > BREAKAWAY_SHARE:
-                demand = self.start_n * 1.02 - g.release_n_per_s * (now_ns - self._t_release) * 1e-9
+            demand = self._release_from - g.release_n_per_s * (now_ns - self._t_release) * 1e-9
+            # at the mode's start the F/T sensors see the breakaway first; once it moved, the load
+            # has changed with the motion and only the motion tells
+            broke = (progress - self._released_at >= g.moving or
+                     (self._released_at == 0.0 and load_share <= BREAKAWAY_SHARE))
+            if not broke:
                 return self._floored(demand, now_ns, hold_n)
             self.phase, self._t_track, self._offset = "track", now_ns, progress
+            self._breakaway_n = max(demand, self.floor_n)
             self._start_rate = min(max(rate, 0.0), self.rate)
+            self._ref_shift = self._integral = 0.0
         if self.phase == "track":
             if progress + min(max(rate, 0.0), self.rate) * g.lead_s < self.target:
                 ref, ref_rate = self.reference(now_ns)
-                error = ref - (progress - self._offset)
+                moved = progress - self._offset
+                error = ref - self._ref_shift - moved
+                if error > g.moving and rate < g.stuck * self.rate:  # stuck again: release from where it broke away
+                    self.phase, self._t_release, self._released_at = "release", now_ns, progress
+                    self._release_from = min(self._last_demand, self._breakaway_n)
+                    return self._floored(self._release_from, now_ns, hold_n)
+                if error > g.max_error:  # far behind: the reference waits
+                    self._ref_shift += error - g.max_error
+                    error = g.max_error
                 # the integral may move the squeeze by at most a third of the kinetic squeeze: an
                 # object that sticks for a while must not wind it up into a plunge
                 limit = self.kinetic_n / (3.0 * g.k_i) if g.k_i > 0.0 else 0.0
                 self._integral = min(max(self._integral + error * dt, -limit), limit)
-                demand = self.kinetic_n - g.k_p * error - g.k_d * (ref_rate - rate) - g.k_i * self._integral
-                return self._floored(demand, now_ns, hold_n)
+                # friction falls from static to sliding over the weakening length: so does the feed-forward
+                weak = math.exp(-max(moved, 0.0) / g.weakening) if g.weakening > 0.0 else 0.0
+                feed = self.kinetic_n + (self._breakaway_n - self.kinetic_n) * weak
+                demand = feed - g.k_p * error - g.k_d * (ref_rate - rate) - g.k_i * self._integral
+                out = self._floored(demand, now_ns, hold_n)
+                self._last_demand = out.demand_n
+                return out
             self.phase, self.ended = "regrip", "reached"
         return ModeOutput(self._regrip_n(hold_n), "regrip", self.ended)
 

@@ -111,6 +111,24 @@ def test_the_tracking_law_releases_tracks_and_regrips():
     assert out == G.ModeOutput(25.0 * g.regrip_margin, "regrip", "reached")
 
 
+def test_the_feed_forward_weakens_from_the_breakaway_squeeze_and_a_stuck_object_is_released_again():
+    g = G.TrackGains(k_p=0.0, k_d=0.0, k_i=0.0, release_n_per_s=10.0, accel=1000.0, moving=0.01, lead_s=0.0,
+                     weakening=0.1)
+    c = G.TrackControl(1.0, 0.25, start_n=20.0, kinetic_n=25.0, floor_n=5.0, now_ns=0, gains=g)
+    c.step(0, 0.0, 0.0, 21.0)
+    out = c.step(100_000_000, 0.02, 0.25, 21.0)  # broke away at 20.4 - 10 N/s x 0.1 s = 19.4 N
+    assert out.phase == "track" and out.demand_n == pytest.approx(19.4)  # static friction still: its squeeze
+    out = c.step(200_000_000, 0.12, 0.25, 21.0)  # 0.1 further: friction weakened by 1/e towards sliding
+    assert out.demand_n == pytest.approx(25.0 + (19.4 - 25.0) * math.exp(-1.0))
+    # it sticks: the reference runs on, the object does not; it is released from where it broke away
+    out = c.step(800_000_000, 0.12, 0.0, 21.0)  # the reference at 0.175 from where tracking began
+    assert out.phase == "release" and out.demand_n == pytest.approx(19.4)
+    out = c.step(900_000_000, 0.125, 0.0, 21.0)  # still stuck: lowered at the release rate
+    assert out.phase == "release" and out.demand_n == pytest.approx(18.4)
+    out = c.step(1_000_000_000, 0.135, 0.2, 21.0)  # moved 0.015 since: tracking again, from static friction
+    assert out.phase == "track" and out.demand_n == pytest.approx(17.4)
+
+
 def test_the_drop_guards_end_the_mode_and_grip():
     g = G.TrackGains(k_p=100.0, k_d=0.0, k_i=0.0, release_n_per_s=100.0, accel=1000.0, moving=0.01,
                      overspeed=3.0, overspeed_min=0.5)
