@@ -71,7 +71,7 @@ class Tap:
     def run_until(self, t_end_s: float) -> None:
         while time.monotonic() < t_end_s:
             for sock, _ in self.poller.poll(50):
-                while True:
+                for _ in range(1000):  # then look at the clock: a tap behind the stream still ends on time
                     try:
                         topic_b, payload = sock.recv_multipart(zmq.NOBLOCK)
                     except zmq.Again:
@@ -92,7 +92,9 @@ class Tap:
 
 
 def measure(stack: dict, args: argparse.Namespace, tmp: Path) -> dict:
-    scene = long_scene(stack["scene"], args.warmup + args.duration + 30.0, tmp / f"{stack['scene']}-long.toml")
+    # the scene runs from the rig's start: it must outlast the graph's start (up to the 90 s allowed for the
+    # first command below on a busy machine), the warm-up and the measurement
+    scene = long_scene(stack["scene"], args.warmup + args.duration + 120.0, tmp / f"{stack['scene']}-long.toml")
     launch = [*stack["launch"], f"ft_rate_hz:={args.ft_rate:g}", f"tactile_rate_hz:={args.tactile_rate:g}",
               "truth_rate_hz:=250", "record:=false", "monitor:=false", "check:=false", f"scene:={scene}",
               f"rdt_port:={free_udp_port()}"]
@@ -117,6 +119,7 @@ def measure(stack: dict, args: argparse.Namespace, tmp: Path) -> dict:
         w1 = time.monotonic_ns()
         if not run.running():
             raise RuntimeError(f"{stack['label']}: the launch ended during the measurement:\n{run.log()[-3000:]}")
+        tap.run_until(time.monotonic() + 2.0)  # the commands of the window's last samples (a busy tap lags)
     finally:
         if tap is not None:
             tap.close()
