@@ -1,15 +1,7 @@
 """Beyond the paper: the cost and accuracy of each slip test, grip force against the
 oracle, and how far the limit surfaces (5) and (6) are from the exact limit set.
 
-- :func:`pareto`: every setting of the slip detector replayed over the ``contact``
-  messages of detection-only runs (controller off) through the ``slip_detector``
-  node's own :class:`~slipstack.lib.detector.Detector`, timed per frame, and scored
-  against the rig's truth with :func:`slipstack.lib.episodes.detection_quality` (the
-  monitor's and the detection benchmark's definitions).
-- :func:`grip_economy`: the commanded f_n of each grip law on fig15 against the oracle
-  (:mod:`slipstack.analysis.grip_oracle`, as ``tests/bench/bench_grip_economy.py``).
-- :func:`limit_errors`: the load factor the F/T limit surfaces (5) and (6) give against
-  the exact one (``lib/limit_set.py``) for a uniform, a Hertzian and an off-centre pressure.
+More in docs/modules.md, `analysis/beyond.py`.
 """
 
 from __future__ import annotations

@@ -1,24 +1,6 @@
 """``slipstack identify RECORDING... -o material.toml``: a material file from friction ramps.
 
-Recordings as a user makes them (``ident_force``, ``ident_torsion``, ``ident_combined``,
-fig4a/b, or ``bag record`` on hardware): presses, ramps past slip, holds, unloads, rests.
-:func:`identify_recording` (``analysis/report.py``) cuts each into loadings and estimates
-``μ_s, μ_d`` per loading of a force ramp, ``β_s, β_d`` of a torque ramp (a combined
-ramp gives onsets only), the onsets from ``rig/truth`` when recorded, else from the
-ratio (docs/math.md §6.1). All loadings of one kind are pooled (inverse-variance mean),
-their spread reported; their scatter enters the model error.
-
-The detector's load factor γ (the exact test on each ``tactile/frame`` with the nearest
-``ft/wrench`` sample and the identified ``μ_s``; without tactile frames the ratio over
-its static value) gives ``gamma_noise_stick`` (frame-to-frame, over the 300 ms before
-each onset, 20 ms short of it), ``gamma_noise_slide`` (from 100 ms after each onset to
-the end of its slide) and ``onset_gamma`` (the last frame before each gross-slip onset).
-For β, the disagreement with ``μ × r̄`` of the torque ramp's pressure frames
-(``lib/material_fit.beta_from_pressure``) is added to its model error.
-
-:func:`_implausible` says why a result cannot be trusted; then the command refuses to
-write it (exit 2, the reasons and what to record), unless ``--force``, which writes it
-with ``refused`` set. ``lib/material.py`` turns the file into the detector's thresholds.
+More in docs/modules.md, `analysis/identify_cli.py`.
 """
 
 from __future__ import annotations
@@ -38,6 +20,7 @@ from slipstack.lib.errors import DecodeError
 from slipstack.lib.limit_set import load_factor
 from slipstack.lib.identify import RampEstimate
 from slipstack.lib.material import DELTA_MAX, Material, detector_thresholds, material_toml
+from slipstack.lib.output_file import output_file
 from slipstack.lib.material_fit import (beta_from_pressure, frame_noise, interval_half_width, onset_levels,
                                          pooled, pooled_model)
 from slipstack.lib.pad import PadGeometry
@@ -331,7 +314,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        "constant grip. Pass one tangential-force ramp (fig4a, ident_force) and, for beta, one "
                        "torque ramp (fig4b, ident_torsion); then run the stack with material:=FILE.")
     p.add_argument("recordings", nargs="+", metavar="RECORDING", help=".mcap recordings of friction ramps")
-    p.add_argument("-o", "--output", metavar="MATERIAL.toml", required=True, help="the material file to write")
+    p.add_argument("-o", "--output", metavar="MATERIAL.toml", required=True,
+                   help="the material file to write (an existing one is refused unless --overwrite)")
+    p.add_argument("--overwrite", action="store_true", help="replace MATERIAL.toml if it exists")
     p.add_argument("--name", help="material name (default: the output file's stem)")
     p.add_argument("--provenance", default="", help="where the object and the records come from (written to the file)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
@@ -350,21 +335,21 @@ def main_identify(args: argparse.Namespace) -> int:
     progress = None if args.quiet else (lambda msg: print(f"\ridentify: {msg:<70}", end="", file=sys.stderr, flush=True))
     stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     provenance = args.provenance or f"slipstack identify {' '.join(p.name for p in paths)} ({stamp})"
-    try:
-        material, lines = identify_material(paths, name=args.name or out.stem, provenance=provenance,
-                                            progress=progress)
-    except IdentificationRefused as refused:
-        if progress is not None:
+    with output_file(out, force=args.overwrite):  # refused before the fit, removed if the fit fails
+        try:
+            material, lines = identify_material(paths, name=args.name or out.stem, provenance=provenance,
+                                                progress=progress)
+        except IdentificationRefused as refused:
+            if progress is not None:
+                print(file=sys.stderr)
+            print("\n".join(refused.lines))
+            if not args.force:
+                raise
+            material, lines = replace(refused.material, refused="; ".join(refused.reasons)), []
+            print(f"identify: refused, written anyway (--force): {material.refused}", file=sys.stderr)
+        if progress is not None and lines:
             print(file=sys.stderr)
-        print("\n".join(refused.lines))
-        if not args.force:
-            raise
-        material, lines = replace(refused.material, refused="; ".join(refused.reasons)), []
-        print(f"identify: refused, written anyway (--force): {material.refused}", file=sys.stderr)
-    if progress is not None and lines:
-        print(file=sys.stderr)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(material_toml(material, f"Written by slipstack identify, {stamp}."), encoding="utf-8")
+        out.write_text(material_toml(material, f"Written by slipstack identify, {stamp}."), encoding="utf-8")
     if lines:
         print("\n".join(lines))
     print(f"wrote {out}; use it with: slipstack launch FILE material:={out}")

@@ -7,24 +7,7 @@ The figure (matplotlib, Agg) stacks up to four panels on one time axis: sample
 stamps (``header.stamp_ns``), s from the scene start (the first ``rig/truth`` sample;
 on hardware, the first usable F/T sample):
 
-1. normal force, N: applied by the finger (``rig/truth``), commanded
-   (``grip/command``, else the rig's own command) and measured by the F/T sensor
-   (``−force[2]`` of ``ft/wrench`` in the pad frame ``F``, docs/math.md §1);
-2. tangential load ``|f_t|`` and the friction limit ``μ·f_n`` (N), torque ``τ`` (N·mm);
-3. the verdict of the deciding method, margin ``1 − γ`` (> 0 sticks), with the spans
-   where ``slip.state`` is a slip state and the rig's true gross-slip spans;
-4. object motion from ``rig/truth``: slip distance (mm) and slip angle (deg).
-
-Panels whose topics are missing (no truth on real hardware) are left out. A two-finger
-recording (``launch/files/gripper.toml``) gets the grasp's figure instead
-(``analysis/grasp_report.py``).
-
-``--identify`` runs :func:`slipstack.lib.identify.identify_mu_loadings` on the F/T data
-of a ramp recording (paper Fig. 4, docs/math.md §6; scenes ``fig4a``/``fig4b``), with the
-rig's gross-slip flags and slip distance (angle) after the elastic pre-slip as the
-slip signals when the recording has them (``slipstack identify`` writes the result as a
-material file), or :func:`~slipstack.lib.identify.identify_beta_loadings` when the torque
-ramp dominates (:func:`load_kind`). It needs no matplotlib.
+More in docs/modules.md, `analysis/report.py`.
 """
 
 from __future__ import annotations
@@ -48,6 +31,7 @@ from slipstack.lib.identify import (
     identify_beta_loadings,
     identify_mu_loadings,
 )
+from slipstack.lib.output_file import claim_output, output_file
 from slipstack.lib.progress import file_progress
 from slipstack.messages import STATUS_OK, Message, decode
 from slipstack.nodes.recording.bag_io import RecordingError, read_recording
@@ -530,6 +514,7 @@ def main_report(args: argparse.Namespace) -> int:
             print(f"slipstack report: {MATPLOTLIB_HINT}", file=sys.stderr)
             return 2
     if not args.identify:
+        claim_output(out, force=True)  # before the recording is read: a path it cannot write fails now
         grasp = load_grasp_series(path)
         if is_grasp_recording({topic for topic, msgs in grasp.messages.items() if msgs}):
             panels = plot_grasp_report(grasp, out, title=args.title)
@@ -541,7 +526,8 @@ def main_report(args: argparse.Namespace) -> int:
     if args.identify:
         print(format_identification(identify_recording(series)))
         return 0
-    panels = plot_report(series, out, title=args.title, mu=args.mu)
+    with output_file(out, force=True):  # a figure is replaced; a path it cannot write fails here
+        panels = plot_report(series, out, title=args.title, mu=args.mu)
     print(out)
     print(summarize(series))
     print(f"  panels: {', '.join(panels)}")

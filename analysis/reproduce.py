@@ -1,19 +1,6 @@
 """``slipstack reproduce``: the paper's §V experiments, figure by figure.
 
-Runs every experiment of :data:`~slipstack.analysis.runs.EXPERIMENTS` in lock-step
-(deterministic: the same output every time), draws each of the paper's figures
-(:mod:`slipstack.analysis.figures`) and the figures beyond the paper
-(:mod:`slipstack.analysis.beyond`) as a PNG, and writes ``index.html`` and
-``report.md`` beside them: each figure with what the paper shows, what slipstack
-shows (its numbers) and where they differ and why. The HTML is self-contained
-(relative image links): open it from disk.
-
-``--quick`` shortens every scene to 3 s (for CI: checks that everything runs and
-draws, not the paper's numbers).
-
-Beside the figures: ``digests.json`` (per experiment, the SHA-256 of every message
-payload it published: two runs with equal digests were byte-identical), the Fig. 4
-recordings, the material file identified from them and the identification's log.
+More in docs/modules.md, `analysis/reproduce.py`.
 """
 
 from __future__ import annotations
@@ -26,6 +13,7 @@ import time
 from pathlib import Path
 
 from slipstack.analysis.figure_keys import FIGURE_KEYS, figure_runs
+from slipstack.lib.output_file import writable_folder
 
 __all__ = ["add_parser", "main_reproduce", "reproduce"]
 
@@ -48,7 +36,7 @@ def reproduce(out_dir: Path, *, quick: bool = False, only: list[str] | None = No
     from slipstack.analysis.friction import identify_friction, with_friction
     from slipstack.analysis.runs import EXPERIMENTS, run_experiment
 
-    out_dir.mkdir(parents=True, exist_ok=True)
+    writable_folder(out_dir, "--out")
     keys = [k for k in catalogue.FIGURES if not only or k in only]
     runs_needed = list(dict.fromkeys(k for key in keys for k in figure_runs(key)))
     if any(k in USES_IDENTIFIED_FRICTION for k in runs_needed):
@@ -145,6 +133,7 @@ def main_reproduce(args: argparse.Namespace) -> int:
         print(f"{start}[{bar:<30}] {fraction * 100:5.1f} %  {key:<6}", end=end, file=sys.stderr, flush=True)
 
     out = Path(args.out)
+    writable_folder(out, "--out")  # before minutes of runs
     texts = reproduce(out, quick=args.quick, only=args.only, progress=progress)
     figures = f"{len(texts)} figure{'s' if len(texts) != 1 else ''}"
     print(f"\nwrote {figures}, {out / 'index.html'} and {out / 'report.md'} in {time.monotonic() - t0:.0f} s",

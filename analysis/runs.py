@@ -1,14 +1,6 @@
 """The paper's §V experiments as lock-step runs, and their topics as arrays.
 
-Each :class:`Experiment` is a shipped launch file (``launch/files/<launch>.toml``, the
-graph ``slipstack launch <launch>`` starts) and the launch arguments the paper's run
-differs in: detection-only experiments (Figs. 4, 13, 14) run with the controller off
-(the default of the fig13 and fig14 launch files), at the scene's constant normal force;
-control experiments (Figs. 10–12, 15) with the launch file's law. :func:`run_experiment`
-runs it like ``slipstack launch <launch> --lockstep`` (``launch/lockstep.py``: the same
-nodes, device codecs and parameters, deterministic) and returns a :class:`Run`: each
-topic as numpy arrays, time in seconds from the start of the run (the scene starts once
-the drivers' devices stream), and the ``contact`` messages as published.
+More in docs/modules.md, `analysis/runs.py`.
 """
 
 from __future__ import annotations

@@ -6,13 +6,7 @@ and its machine's next-to-last port for the others: ``launch/plan.py:
 launcher_pub_endpoints``), stamped on the graph's time base. Its counters, per other
 machine ``PEER``:
 
-* ``clock.PEER.offset_ns``: that machine's clock minus this one's (ns), the newest estimate;
-* ``clock.PEER.uncertainty_ns``: how far off that may be (ns); ``clock.PEER.exchanges``;
-
-and ``clock.time_base_offset_ns``, what this machine's nodes add to its clock (0 on
-the first machine). Its status says the same in words, or ``warning: ...`` while the
-clock drifted beyond what the grip controller tolerates or a machine went quiet.
-``topic echo diagnostics`` shows it, and the monitor's summary lists the offsets.
+More in docs/modules.md, `launch/clock_report.py`.
 """
 
 from __future__ import annotations

@@ -1,20 +1,6 @@
 """Injection from other machines: tools elsewhere reach this machine's nodes through its launcher.
 
-A node's injection endpoint (``inject`` in ``graph.json``) is an ipc path in its
-machine's run directory, out of reach of a tool on another machine. So each launcher of
-a graph over machines binds an XSUB on its machine's *last* port (:func:`relay_endpoint`
-in ``launch/plan.py``; CURVE like every tcp link: a peer without one of the graph's
-keys is refused and injects nothing) and an XPUB connected to the injection endpoints of
-its nodes, and forwards between them in a thread of its own: the nodes' subscriptions up
-to the tools (so a tool that waits for its subscribers waits until the nodes really
-listen), the tools' ``[topic, payload(, origin)]`` frames down to the nodes. Other
-machines' ``graph.json`` list this endpoint as the ``inject`` of this machine's nodes,
-so ``topic pub`` and ``bag play`` there reach them unchanged.
-
-Bounds: at most :data:`READ_LIMIT` frames per wake-up each way, the sockets' high-water
-marks (the excess is dropped by ZeroMQ at the sending tool), frames of at most
-``MAX_PAYLOAD_BYTES``; malformed frames are dropped and counted (:attr:`InjectionRelay.rejected`).
-The nodes' own token buckets bound what they take.
+More in docs/modules.md, `launch/inject_relay.py`.
 """
 
 from __future__ import annotations

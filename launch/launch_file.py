@@ -2,92 +2,31 @@
 
 Format::
 
-    [launch]
-    description = "what this graph does"
-    duration_s = 0            # stop by itself after this long (0: run until Ctrl-C)
-    check = false             # true: exit 1 unless the run passed (<run_dir>/check.json,
-                              # written by the monitor, and no node died and stayed down); `check:=true`
-                              # sets it from the command line unless the file declares an
-                              # argument named check
-    extends = "stack.toml"    # optional: take the nodes and args of another launch
-                              # file; this file's [args] override, its nodes are added
-
-    [args]                    # launch arguments, overridden by `name:=value`
-    rate_hz = 1000.0          # built in: $(run_dir), this run's private directory, and
-                              # $(free_udp_port), $(free_udp_port_2), two UDP ports free on
-                              # 127.0.0.1 now, $(free_tcp_port), a TCP port free there,
-                              # $(stamp), the date-time the launch started,
-                              # $(sim), "sim:" with --lockstep (simulated devices), else ""
-
-    [[node]]
-    name = "source"           # instance name (unique; letters, digits, _ and -)
-    type = "wrench_source"    # a node type from `slipstack run --help`
-    params = { rate_hz = "$(rate_hz)" }   # "$(arg)" is replaced by a launch argument
-    remap = { "ft/wrench" = "ft/raw" }    # default topic -> topic in this graph
-    namespace = "finger0"     # every topic of the node under finger0/ (ft/wrench -> finger0/ft/wrench),
-                              # except those remap names; diagnostics stays global
-    respawn = false           # restart it when it dies
-    respawn_delay_s = 0.05    # before the first restart; doubles with each further one
-    respawn_max_retries = 3
-    respawn_reset_s = 10.0    # a process that stayed up this long gets its full budget back
-    respawn_standby = true    # keep a warm standby process (modules loaded) for a ~0.1 s
-                              # restart; false saves its memory (30-200 MB)
-    required = false          # when it exits, the whole launch stops
-    transport = "ipc"         # or "tcp" (binds 127.0.0.1 on a free port)
-    enabled = true            # may be "$(arg)": leave a node out of this run
-    after = ["rig"]           # start only once these nodes are ready (besides the
-                              # topic order: subscribers before publishers)
-    nice = -5                 # scheduling priority, also of the node's autogroup (needs
-                              # the privilege to raise it; without it the node runs at
-                              # normal priority)
-    realtime_priority = 10    # SCHED_FIFO priority 1-99 (0: normal scheduling by nice), where
-                              # the launcher may set it (root, CAP_SYS_NICE or `ulimit -r`);
-                              # otherwise the node runs by its nice and the launcher says so
-    machine = "robot"         # the [machines] entry whose launcher runs it (default: the first)
-
-    [machines.robot]          # a graph over several computers: one table per machine
-    address = "10.0.0.2"      # its IP address (or host name); its tcp endpoints bind there
-    ports = [24700, 24799]    # tcp ports its launcher (the first, the last two) and its nodes use,
-                              # in order of node name: every launcher computes every endpoint
-    keys = "keys/robot"       # its key directory (DIR/robot after `slipstack keys DIR --machine
-                              # robot ...`); default: DIR/robot for [launch] keys = "DIR"
-    nodes = ["rig"]           # nodes of a file this one extends that run here (a node's own
-                              # `machine` key says the same for a node of this file)
-
-With machines, each computer runs ``slipstack launch FILE --machine NAME``: it starts
-the nodes placed on NAME; links to nodes of other machines are tcp with CURVE on
-their machine's address, links on one machine stay ipc (or in-process).
-
-A value that is exactly ``"$(name)"`` takes the argument's type; inside a longer
-string it is substituted as text. Flags (``enabled``, ``respawn``, ``required``,
-``stop_first``) take a boolean or the strings "true"/"false".
-
-A name is looked up in the shipped folder first (``fig15``, ``stack.toml``); a file
-of your own is named as a path (``./my.toml``, ``configs/my.toml``), relative to the
-current directory on the command line and to the including file for ``extends``.
+More in docs/modules.md, `launch/launch_file.py`.
 """
 
 
 
 from __future__ import annotations
 
+import math
 import re
 import socket
 import time
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from slipstack.lib.config import read_flag, read_number
 from slipstack.lib.errors import ConfigError
-from slipstack.lib.toml_file import resolve_path
-from slipstack.nodes.runtime.curve import GraphKeys
-from slipstack.nodes.catalog import node_class
-from slipstack.nodes.runtime.node import Node, make_params
+from slipstack.lib.toml_file import loads as toml_loads, resolve_path
+
+if TYPE_CHECKING:  # the node types are imported when a launch is loaded: `launch --help` and completion start lean
+    from slipstack.nodes.runtime.node import Node
 
 __all__ = ["NodeEntry", "LaunchFile", "load_launch_file", "default_launch_file", "launch_files_dir", "free_port",
-           "CHECK_ARG", "SIM_ARG", "PORT_ARGS", "arg_comments"]
+           "CHECK_ARG", "SIM_ARG", "PORT_ARGS", "arg_comments", "declared_args"]
 
 _SUBST = re.compile(r"\$\((\w+)\)")
 _IDENTIFIER = re.compile(r"[A-Za-z0-9_-]+")
@@ -98,7 +37,7 @@ DEFAULT_PORTS = (24700, 24799)
 """tcp ports of a machine without ``ports``: the first for its launcher, then one per node; the
 last two are its launcher's too: its clock offsets on ``diagnostics``, and the injection of tools
 on other machines into its nodes (below Linux's ephemeral ports, 32768-60999, which outgoing connections may hold)."""
-_LAUNCH_KEYS = {"description", "duration_s", "extends", "check", "keys", "insecure"}
+_LAUNCH_KEYS = {"description", "duration_s", "extends", "check", "keys", "insecure", "allow_inject"}
 _NODE_KEYS = {"name", "type", "params", "remap", "namespace", "respawn", "respawn_delay_s", "respawn_max_retries",
               "respawn_reset_s", "respawn_standby", "required", "transport", "enabled", "after", "nice",
               "realtime_priority", "container", "stop_first", "machine"}
@@ -152,9 +91,11 @@ class NodeEntry:
                 self.respawn_standby, self.required, self.transport, self.nice, self.realtime_priority, self.stop_first,
                 self.machine)
 
-    def instance(self) -> Node:
-        """Build the node object (validates the parameters)."""
-        return self.cls(make_params(self.cls.Params, self.params, self.name))
+    def instance(self, **options: Any) -> Node:
+        """Build the node object (validates the parameters); ``options``: the node class's own keywords."""
+        from slipstack.nodes.runtime.node import make_params
+
+        return self.cls(make_params(self.cls.Params, self.params, self.name), **options)
 
     def output_topics(self, node: Node) -> dict[str, str]:
         return {n: self.remap.get(o.topic, o.topic) for n, o in node.outputs.items()}
@@ -196,6 +137,8 @@ class LaunchFile:
     """tcp links without CURVE, explicitly allowed."""
     machines: dict[str, Machine] = field(default_factory=dict)
     """The computers the graph spans (empty: all on this one), in file order."""
+    allow_inject: tuple[str, ...] = ()
+    """Topics of a type tools may not inject (``INJECTION_REFUSED``) that this launch lets them inject."""
 
 
 def launch_files_dir() -> Path:
@@ -253,8 +196,9 @@ def _resolve_args(args: dict[str, Any], file: str) -> dict[str, Any]:
     return {name: resolve(name, ()) for name in args}
 
 
-def _typed_override(default: Any, text: str, name: str) -> Any:
-    """A launch argument given as ``name:=text``, read as the type of its declared ``default``."""
+def _typed_override(default: Any, text: str, name: str, endless: bool = False) -> Any:
+    """A launch argument given as ``name:=text``, read as the type of its declared ``default``
+    (finite, unless ``endless``: the argument is the launch's duration, which may be inf)."""
     where = f"launch argument {name}"
     if isinstance(default, bool):
         return read_flag(text, where)
@@ -262,7 +206,7 @@ def _typed_override(default: Any, text: str, name: str) -> Any:
         items = text.strip().removeprefix("[").removesuffix("]")
         return [item.strip().strip("'\"") for item in items.split(",") if item.strip()]
     if isinstance(default, (int, float)):
-        return read_number(text, where, type(default))
+        return read_number(text, where, type(default), finite=not endless)
     return text
 
 
@@ -313,7 +257,7 @@ def arg_comments(path: Path) -> dict[str, str]:
                 comments[m.group(1)] = inline or " ".join(above)
         above = []
     try:
-        base_name = tomllib.loads(text).get("launch", {}).get("extends")
+        base_name = toml_loads(text).get("launch", {}).get("extends")
     except tomllib.TOMLDecodeError:
         base_name = None
     if isinstance(base_name, str):
@@ -327,7 +271,7 @@ def arg_comments(path: Path) -> dict[str, str]:
 def _parses(toml_line: str) -> bool:
     """True if ``toml_line`` is a whole ``key = value`` (so a ``#`` after it starts a comment)."""
     try:
-        tomllib.loads(toml_line)
+        toml_loads(toml_line)
     except tomllib.TOMLDecodeError:
         return False
     return True
@@ -362,7 +306,7 @@ def _parse_toml(p: Path) -> dict[str, Any]:
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{p}: cannot read it ({exc})") from None
     try:
-        return tomllib.loads(text)
+        return toml_loads(text)
     except tomllib.TOMLDecodeError as exc:
         message = str(exc)
         at = re.search(r" \(at line (\d+), column (\d+)\)$", message)
@@ -406,6 +350,11 @@ def _read_with_base(p: Path, seen: tuple[Path, ...]) -> dict[str, Any]:
     }
 
 
+def declared_args(path: Path) -> dict[str, Any]:
+    """The ``[args]`` of a launch file and the files it extends, as written (not substituted)."""
+    return dict(_read_with_base(path, seen=()).get("args", {}))
+
+
 def _check_containers(file: str, entries: list[NodeEntry]) -> None:
     """A container's members share one process, so they must agree on its settings."""
     names = {e.name for e in entries}
@@ -431,6 +380,8 @@ def _declared_topics(cls: type[Node]) -> set[str]:
 
 def _node_entry(raw: dict[str, Any], where: str) -> NodeEntry | None:
     """The entry of one substituted ``[[node]]`` table; None if it is not enabled."""
+    from slipstack.nodes.catalog import node_class
+
     if not read_flag(raw.get("enabled", True), f"{where}.enabled"):
         return None
     if "type" not in raw:
@@ -489,10 +440,11 @@ def load_launch_file(
     args = dict(data.get("args", {}))
     overrides = dict(overrides or {})
     check_override = overrides.pop(CHECK_ARG) if CHECK_ARG in overrides and CHECK_ARG not in args else None
+    duration = _SUBST.fullmatch(str(data.get("launch", {}).get("duration_s", "")))
     for name, text in overrides.items():
         if name not in args:
             raise ConfigError(f"{p.name}: no launch argument {name!r}; declared: {', '.join(sorted(args)) or 'none'}")
-        args[name] = _typed_override(args[name], text, name)
+        args[name] = _typed_override(args[name], text, name, endless=duration is not None and duration[1] == name)
     args.update({**_free_ports(), "stamp": time.strftime("%Y%m%d-%H%M%S"), SIM_ARG: "", **(builtins or {})})
     # an argument may refer to others ("rdt://127.0.0.1:$(rdt_port)", "$(run_dir)/ft.tty"),
     # which may refer to others again
@@ -526,9 +478,24 @@ def load_launch_file(
     _check_containers(p.name, entries)
     check = meta.get("check", False) if check_override is None else _typed_override(False, check_override, CHECK_ARG)
     keys, insecure = _tcp_security(p, meta, entries, machines)
-    duration_s = read_number(meta.get("duration_s", 0), f"{p.name}: duration_s", lo=0)
+    duration_s = read_number(meta.get("duration_s", 0), f"{p.name}: duration_s", lo=0, finite=False)
+    if math.isnan(duration_s):
+        raise ConfigError(f"{p.name}: duration_s must be a number of seconds >= 0 or inf, got nan")
     return LaunchFile(p, str(meta.get("description", "")), duration_s,
-                      args, entries, read_flag(check, f"{p.name}: [launch] check"), keys, insecure, machines)
+                      args, entries, read_flag(check, f"{p.name}: [launch] check"), keys, insecure, machines,
+                      _allow_inject(p.name, meta.get("allow_inject", []), entries))
+
+
+def _allow_inject(file: str, value: Any, entries: list[NodeEntry]) -> tuple[str, ...]:
+    """``[launch] allow_inject``: topics a node of the launch subscribes to."""
+    subscribed = {t for e in entries for t in e.input_topics(e.instance()).values()}
+    if not (isinstance(value, list) and all(isinstance(t, str) for t in value)):
+        raise ConfigError(f"{file}: [launch] allow_inject must be a list of topic names, got {value!r}")
+    unknown = sorted(set(value) - subscribed)
+    if unknown:
+        raise ConfigError(f"{file}: [launch] allow_inject names {unknown}, which no node of this launch subscribes "
+                          f"to; subscribed: {', '.join(sorted(subscribed))}")
+    return tuple(sorted(set(value)))
 
 
 def _port_range(value: Any, where: str) -> tuple[int, int]:
@@ -612,6 +579,8 @@ def _tcp_security(p: Path, meta: dict[str, Any], entries: list[NodeEntry],
                               "or insecure = true to let anyone who reaches those ports connect")
         return keys, insecure
     if keys is not None:
+        from slipstack.nodes.runtime.curve import GraphKeys
+
         GraphKeys.load(keys)  # fail now with how to make them
     tcp = [e.name for e in entries if e.transport == "tcp"]
     if tcp and keys is None and not insecure:

@@ -1,49 +1,15 @@
 """``slipstack launch``: start a graph of node processes and supervise it.
 
-Each node runs in a process of its own, or with the other nodes of its ``container``
-in one process (their messages to each other then skip the bus; see
-``nodes/runtime/process.py``). Starts processes subscribers-first (reverse topological order
-of the topic graph, so a publisher's subscribers exist before its data flows), waits
-for each to report ready, forwards every log line prefixed with ``[node]``, respawns
-crashed nodes per their policy, and on SIGINT/SIGTERM stops them in reverse start
-order with SIGINT → SIGTERM → SIGKILL escalation (nodes marked ``stop_first``, the
-simulated rig, go first: the simulated world must not run on without its controller).
-Children get a parent-death signal, so even a SIGKILLed launcher leaves no orphans
-behind.
-
-Respawn: a process that may be respawned has a warm standby (unless ``respawn_standby
-= false``), a second process that has imported its modules and waits on stdin (it
-binds nothing); a restart wakes it, so the node is back without paying the interpreter
-start and the imports again, and a new standby is prepared once it is ready. The first
-restart follows ``respawn_delay_s`` after the exit, each further one waits twice as
-long; ``respawn_max_retries`` restarts in a row use up the budget, which a process
-that stays up ``respawn_reset_s`` gets back. A process whose budget is used up is
-*abandoned*: said loudly, and the launch ends with exit 1 if the node is ``required``
-or the launch has ``check = true``. Deaths, restarts and abandonments are printed in
-the closing lines and written to ``<run_dir>/launch_events.json`` (the run directory
-keeps that file and ``check.json`` after the launch; the newest ``KEEP_FINISHED_RUNS``
-finished ones are kept). With ``check = true`` the launch ends with ``[launch] check
-passed`` or ``[launch] CHECK FAILED: ...`` (exit 1) from the monitor's ``check.json``
-and the processes that died and stayed down.
-
-Machines: a launch file with ``[machines.NAME]`` tables is run by one launcher per
-machine, ``slipstack launch FILE --machine NAME``; each starts the nodes placed on its
-machine (the plan of its share, ``launch/plan.py``, where every endpoint is computed
-from the file alike on every machine) and talks to the other launchers
-(``launch/peers.py``): ``after`` waits for nodes on other machines, a machine that goes
-quiet or stops is reported, and the launchers of machines other than the first start
-their nodes on the first machine's clock (``nodes/runtime/time_base.py``).
-``--lockstep`` runs the nodes of every machine in one process (placement does not
-matter on the simulated clock); it refuses ``--machine``.
+More in docs/modules.md, `launch/launcher.py`.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import selectors
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -56,33 +22,38 @@ import zmq
 
 from slipstack.lib.errors import ConfigError, SlipstackError
 from slipstack.messages import Diagnostics
-from slipstack.launch.launch_file import PORT_ARGS, SIM_ARG, LaunchFile, arg_comments, load_launch_file
+from slipstack.launch.launch_file import LaunchFile
 from slipstack.launch.clock_report import REPORT_PERIOD_S, ClockReport, launcher_node
 from slipstack.launch.inject_relay import InjectionRelay
 from slipstack.launch.peers import PeerLinks, launcher_endpoint
 from slipstack.launch.priority import (
     grant_realtime_priority, has_realtime_priority, set_autogroup_nice,
 )
-from slipstack.launch.plan import (PEER_WAIT_S, NodePlan, ProcessPlan, launcher_pub_endpoints, plan_launch,
-                                   relay_endpoint, remote_sources, runs_on)
-from slipstack.launch.run_node import parse_assignments, set_parent_death_signal
-from slipstack.nodes.devices.sim_link import SIM_PREFIX
+from slipstack.launch.plan import (PEER_WAIT_S, NodePlan, ProcessPlan, launcher_pub_endpoints, machine_endpoints,
+                                   plan_launch, relay_endpoint, remote_sources, runs_on)
+from slipstack.launch.run_node import set_parent_death_signal
 from slipstack.launch.quiet_shutdown import WorldEndFilter, WorldLogLevels
-from slipstack.launch.run_log import RunLog, log_path_for
-from slipstack.nodes.runtime.logs import DETAIL_PREFIX, LOG_LEVEL_ENV, parse_log_levels
+from slipstack.launch.run_log import RunLog
+from slipstack.nodes.monitor import write_json_atomically
+from slipstack.nodes.recording.loss import NUMBERED_REPORT, RECORDING_REPORT, loss_text
+from slipstack.nodes.runtime.logs import DETAIL_PREFIX, LOG_LEVEL_ENV
 from slipstack.nodes.runtime.curve import INSECURE_ENV, KEYS_ENV, MACHINE_ENV, GraphKeys, machine_env, use_keys
-from slipstack.nodes.runtime.graph_info import process_start_ticks, write_graph
+from slipstack.nodes.runtime.graph_info import PARAM_REPLY, process_start_ticks, write_graph
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
-from slipstack.nodes.runtime.run_dir import finish_run_dir, make_run_dir, remove_run_dir, write_private_file
+from slipstack.nodes.runtime.run_dir import finish_run_dir, write_private_file
 from slipstack.nodes.runtime.remote_sources import REMOTE_SOURCES_ENV
 from slipstack.nodes.runtime.time_base import CLOCK_OFFSET_ENV
+from slipstack.nodes.runtime.transport import LISTEN_FDS_ENV, listening_socket
 
-__all__ = ["Launcher", "add_parser", "main_launch"]
+__all__ = ["Launcher", "run_lockstep", "monitor_check_problems"]
 
 READY_TIMEOUT_S = 20.0
 STOP_GRACE_S = 0.4       # per node, after SIGINT, before the next node is told to stop
 TERM_AFTER_S = 1.5       # from the start of shutdown: SIGTERM whoever is left
 KILL_AFTER_S = 2.5       # from the start of shutdown: SIGKILL whoever is left
+RESPAWN_PRIORITY = 1     # SCHED_FIFO of a restarting process until it is ready (where the launcher may set it)
+FINISH_LIMIT_S = 60.0    # then the recorder and the monitor: time to write what they hold (docs/safety.md)
+FINISH_NOTE_S = 3.0      # said on the terminal once it takes this long
 CLOCK_EXCHANGES = 10     # ping exchanges with the first machine before its clock offset is used
 DRIFT_CHECK_S = 5.0      # how often the clock offset in use is compared with a fresh estimate
 EVENTS_FILE = "launch_events.json"
@@ -112,6 +83,8 @@ class _Process(ProcessPlan):
     buffer: bytes = b""
     realtime_refused_said: bool = False
     """The log has said that its ``realtime_priority`` was not granted (once per launch)."""
+    restarting_for: str = ""
+    """A parameter change it was stopped for (``slipstack param set``): restarted at once, not a death."""
 
 
 class Console:
@@ -172,7 +145,14 @@ class Launcher:
             name: _Process(p.name, p.members, p.spec_path, p.spec) for name, p in self.plan.processes.items()}
         self.order: list[str] = self.plan.order  # process names, in start order
         self._stop_requested = False
+        self._signals = 0
+        self._numbered: dict[str, dict[str, int]] = {}
+        self._summary_gap = ""
+        """What the run's summary misses (the monitor died and nothing was recorded); "" if nothing."""
+        """Node → topic → frames it published, as its process stopped (its stop report)."""
         self.exit_code = 0
+        self.error = ""
+        """Why the launch failed to run (its start failed), if it did."""
         self.start_ticks = process_start_ticks(os.getpid())
         world = {n: tuple(p.node_names) for n, p in self.processes.items() if p.entry.stop_first}
         self._world_levels = WorldLogLevels(os.environ.get(LOG_LEVEL_ENV, ""), world)
@@ -180,6 +160,40 @@ class Launcher:
                                          {n for n, p in self.processes.items() if p.runs_device_driver})
         for proc in self.processes.values():
             write_private_file(self.run_dir, proc.spec_path.name, json.dumps(proc.spec, indent=1))
+        self.held_ports: dict[str, socket.socket] = {}
+        """tcp endpoint → the listening socket held for the node that binds it, the whole launch."""
+        self._claim_tcp_ports()
+
+    def _claim_tcp_ports(self) -> None:
+        """Bind every tcp port this machine's nodes publish on before any starts, and hold it for the
+        whole launch: a node's socket takes it over (nodes/runtime/transport.py: listening_socket), so
+        a port stays claimed while its node restarts and nothing else can take it meanwhile."""
+        fixed = set(machine_endpoints(self.launch).values())
+        for c in self.processes.values():
+            for member in c.members:
+                for ep in {member.endpoint, member.remote_endpoint} - {None}:
+                    if not ep.startswith("tcp://") or ep in self.held_ports:
+                        continue
+                    try:
+                        self.held_ports[ep] = listening_socket(ep)
+                    except OSError as exc:
+                        self._release_ports()
+                        where = (f"a port the launch file fixes ([machines.{member.entry.machine}] ports); stop that "
+                                 "process (`ss -ltnp` shows who) or give the machine other ports, on every machine"
+                                 if ep in fixed else "a free port a moment ago; stop that process (`ss -ltnp` shows "
+                                 "who) or start the launch again, which picks another")
+                        raise SlipstackError(f"node {member.entry.name} cannot have {ep} ({exc.strerror}): {where}") \
+                            from None
+
+    def _release_ports(self) -> None:
+        for sock in self.held_ports.values():
+            sock.close()
+        self.held_ports.clear()
+
+    def _listen_fds(self, c: _Process) -> dict[str, int]:
+        """The held listening sockets of ``c``'s members: endpoint → descriptor (inherited by its process)."""
+        return {ep: sock.fileno() for ep, sock in self.held_ports.items()
+                if any(ep in (m.endpoint, m.remote_endpoint) for m in c.members)}
 
     # -- processes --------------------------------------------------------------------------
     def _spawn(self, c: _Process) -> None:
@@ -219,6 +233,9 @@ class Launcher:
         env = dict(os.environ, PYTHONUNBUFFERED="1", SLIPSTACK_RUN_DIR=str(self.run_dir),
                    **{LOG_LEVEL_ENV: self._world_levels.spec_for(c.name)})
         env.update(self._security_env())
+        listen = self._listen_fds(c)
+        if listen:
+            env[LISTEN_FDS_ENV] = json.dumps(listen)
         if self.clock_offset_ns:
             env[CLOCK_OFFSET_ENV] = str(self.clock_offset_ns)
         if self.remote_sources:
@@ -237,7 +254,7 @@ class Launcher:
         proc = subprocess.Popen(
             cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
             stdin=subprocess.PIPE if standby else subprocess.DEVNULL,
-            env=env, preexec_fn=in_child, start_new_session=True,
+            env=env, preexec_fn=in_child, start_new_session=True, pass_fds=tuple(listen.values()),
         )
         os.set_blocking(proc.stdout.fileno(), False)
         self.selector.register(proc.stdout, selectors.EVENT_READ, c)
@@ -305,10 +322,7 @@ class Launcher:
         while pending:
             if self._stop_requested:
                 raise SlipstackError("interrupted while starting")
-            while self.control.poll(0):
-                event = msgpack.unpackb(self.control.recv())
-                if event.get("event") == "ready":
-                    pending.discard(event.get("node"))
+            self._read_control(pending)
             proc = process.proc
             if proc is not None and proc.poll() is not None:
                 self._forward_logs(0.05)
@@ -329,6 +343,7 @@ class Launcher:
             "launch_file": str(self.launch.path),
             "keys": str(keys) if keys else "",
             "state": state,
+            "control": self.control_ep,
             "started_ns": time.time_ns(),
             "nodes": {name: self._graph_node(c) for name, c in self.children.items()},
         }
@@ -465,9 +480,13 @@ class Launcher:
         return False
 
     def _wait_for_peers(self, process: _Process) -> None:
-        """Until the nodes on other machines that ``process``'s members start ``after`` are ready."""
+        """Until the nodes on other machines that ``process``'s members start ``after`` are ready; for the
+        simulated world (``stop_first``), every node of the other machines: it must not run while a
+        controller elsewhere is still coming up (as PEER_WAIT_S allows another machine's launcher)."""
         remote = {a for c in process.members for a in c.entry.after if not self.plan.is_local(self.children[a].entry)}
-        deadline = time.monotonic() + READY_TIMEOUT_S
+        if process.entry.stop_first:
+            remote |= {name for name, c in self.children.items() if not self.plan.is_local(c.entry)}
+        deadline = time.monotonic() + PEER_WAIT_S
         while remote:
             missing = {a for a in remote if a not in self.peers.peers[self.children[a].entry.machine].ready}
             if not missing:
@@ -478,13 +497,14 @@ class Launcher:
                 where = {self.peers.peers[self.children[a].entry.machine].label for a in missing}
                 raise SlipstackError(
                     f"{process.label} starts after {', '.join(sorted(missing))} on {', '.join(sorted(where))}, not "
-                    f"ready after {READY_TIMEOUT_S:.0f} s: is `slipstack launch {self.launch.path.name} --machine "
+                    f"ready after {PEER_WAIT_S:.0f} s: is `slipstack launch {self.launch.path.name} --machine "
                     f"{self.children[sorted(missing)[0]].entry.machine}` running there?")
             self._forward_logs(0.02)
             self._service_peers()
 
     def _on_signal(self, signum: int, frame: object) -> None:
         self._stop_requested = True
+        self._signals += 1
 
     # -- the run ------------------------------------------------------------------------------
     def run(self) -> int:
@@ -500,11 +520,13 @@ class Launcher:
                     self._wait_for_peers(self.processes[name])
                 self._spawn(self.processes[name])
                 started.append(name)
+                self._write_graph("starting")  # its pid: `node list` shows it up while the others start
                 self._wait_ready(self.processes[name], READY_TIMEOUT_S)
-                self._prepare_standby(self.processes[name])
                 if self.peers is not None:
                     self.peers.ready = sorted(n for p in started for n in self.processes[p].node_names)
             self._write_graph()
+            for name in started:  # once the graph runs: their imports do not delay its start
+                self._prepare_standby(self.processes[name])
             ready = [f"{n} ({', '.join(c.entry.name for c in self.processes[n].members)})"
                      if self.processes[n].is_container else n for n in started]
             where = f" on machine {self.machine}" if self.machine is not None else ""
@@ -517,6 +539,7 @@ class Launcher:
         except SlipstackError as exc:
             self.echo(f"[launch] error: {exc}")
             self.exit_code = 1
+            self.error = str(exc)
         finally:
             self._shutdown(started)
             for s, h in old.items():
@@ -528,6 +551,10 @@ class Launcher:
                 self.relay.close()
             if self.clock_report is not None:
                 self.clock_report.close()
+            self._release_ports()
+        recording = self._read_recording_report()
+        self._summary_from_recording(recording)
+        self._report_recording(recording)
         self._report_events()
         if self.launch.check:
             self._report_check()
@@ -547,7 +574,7 @@ class Launcher:
             self._report_clocks()
             if self._required_peer_stopped():
                 return
-            self._note_ready_reports()
+            self._read_control()
             now = time.monotonic()
             for c in self.processes.values():
                 if c.respawn_at is not None and now >= c.respawn_at:
@@ -558,11 +585,27 @@ class Launcher:
                 if not self._on_exit(c, now):
                     return
 
-    def _note_ready_reports(self) -> None:
-        """Read the ready reports of respawned nodes; say how long each process was gone."""
+    def _read_control(self, starting: set[str] | None = None) -> None:
+        """Read the ready reports (of the nodes in ``starting`` while the graph starts; of
+        respawned nodes, saying how long each process was gone), the stop reports (what each
+        node published, for the recorder's count of what it misses) and the parameter changes
+        ``slipstack param set`` asks for."""
         while self.control.poll(0):
-            event = msgpack.unpackb(self.control.recv())
+            try:
+                event = msgpack.unpackb(self.control.recv())
+            except ValueError:
+                continue
+            if not isinstance(event, dict):
+                continue
+            if event.get("event") == "stopped" and isinstance(event.get("numbered"), dict):
+                self._numbered[str(event.get("node"))] = event["numbered"]
+            if event.get("event") == "set_param":
+                self._set_param(event, starting is not None)
+                continue
             if event.get("event") != "ready":
+                continue
+            if starting is not None:
+                starting.discard(event.get("node"))
                 continue
             for c in self.processes.values():
                 if event.get("node") in c.not_ready:
@@ -574,20 +617,70 @@ class Launcher:
                         c.died_at = None
                         self._prepare_standby(c)
 
+    def _set_param(self, event: dict, graph_starting: bool = False) -> None:
+        """``{"node", "name", "value"}``: write the new value into the node's run spec and restart
+        its process (the node's own start: a grip controller starts from the force the pad
+        measures), if the launch file lets it restart (``respawn``) and the value is valid."""
+        node, name, value = event.get("node"), event.get("name"), event.get("value")
+        plan = self.children.get(node) if isinstance(node, str) else None
+        c = self.processes.get(plan.process) if plan is not None and self.plan.is_local(plan.entry) else None
+        why = ("the graph is still starting: set it once `slipstack node list` shows it up" if graph_starting else
+               "no such node on this machine" if c is None or not isinstance(name, str) else
+               "its process may not be restarted (respawn = false in the launch file)" if not c.entry.respawn else
+               "it is restarting already" if c.proc is None or c.respawn_at is not None or c.restarting_for else "")
+        if not why:
+            params = {**plan.entry.params, name: value}
+            try:
+                from slipstack.nodes.runtime.node import make_params
+
+                make_params(plan.entry.cls.Params, params, node)
+            except SlipstackError as exc:
+                why = str(exc)
+        reply = event.get("reply")
+        answer = (lambda ok, text: write_private_file(self.run_dir, f"{PARAM_REPLY}{reply}.json",
+                                                      json.dumps({"ok": ok, "message": text}))
+                  ) if isinstance(reply, int) else (lambda ok, text: None)
+        if why:
+            self.echo(f"[launch] param set {node} {name} refused: {why}")
+            answer(False, why)
+            return
+        plan.entry.params[name] = value
+        for member in c.spec.get("members", [c.spec]):
+            if member.get("name") == node:
+                member["params"] = dict(plan.entry.params)
+        write_private_file(self.run_dir, c.spec_path.name, json.dumps(c.spec, indent=1))
+        c.restarting_for = f"{node} {name} := {value!r}"
+        self.echo(f"[launch] param set: {c.restarting_for}; restarting {c.label}")
+        answer(True, f"restarting {c.label}")
+        c.proc.send_signal(signal.SIGINT)
+
     def _respawn(self, c: _Process) -> None:
         c.respawn_at = None
         c.restarts += 1
-        c.budget_used += 1
         c.not_ready = set(c.node_names)
         how = "its warm standby" if c.standby is not None and c.standby.poll() is None else "a new process"
+        if c.restarting_for:
+            c.restarting_for = ""
+            self.echo(f"[launch] restarting {c.name} with its new parameter from {how}")
+            self._spawn(c)
+            self._write_graph()
+            return
+        c.budget_used += 1
         self.echo(f"[launch] respawning {c.name} (restart {c.budget_used}/{c.entry.respawn_max_retries}) "
                   f"from {how}")
         self._spawn(c)
+        if c.entry.realtime_priority and c.proc is not None:  # the graph waits for it: ahead of other work,
+            grant_realtime_priority(c.proc.pid, RESPAWN_PRIORITY)  # behind the running nodes; its own once ready
         self._write_graph()
 
     def _on_exit(self, c: _Process, now: float) -> bool:
         """Handle the exit of ``c`` (respawn it, abandon it); False if the launch must end."""
         code = c.proc.returncode
+        if c.restarting_for and code == 0:  # stopped for a parameter change: back at once, no restart used
+            self._forward_logs(0.0)
+            c.respawn_at, c.died_at = now, now
+            return True
+        c.restarting_for = ""
         if code != 0:
             c.deaths += 1
         self._forward_logs(0.0)
@@ -609,7 +702,7 @@ class Launcher:
             if code != 0 or c.abandoned:
                 self.exit_code = 1
             return False
-        if c.abandoned and self.launch.check:
+        if c.abandoned and self.launch.check and not c.observes_only:
             self.echo("[launch] check = true: a node was abandoned; stopping the launch")
             self.exit_code = 1
             return False
@@ -631,24 +724,37 @@ class Launcher:
 
     def _check_problems(self) -> list[str]:
         """What failed the run: the monitor's ``check.json`` problems (none expected without a monitor in
-        the launch), processes that died and stayed down."""
+        the launch), processes of the data path that died and stayed down (an observer's death is said,
+        not judged)."""
         problems = monitor_check_problems(self.launch, self.run_dir, self.machine)
+        if self.error:  # the monitor may have seen nothing wrong: nothing ran
+            problems.insert(0, f"the launch failed ({self.error})")
+        if self._summary_gap:
+            problems.append(self._summary_gap)
         for c in self.processes.values():
             if c.abandoned:
-                problems.append(f"{c.name} abandoned after {c.restarts} restarts")
+                down = f"{c.name} abandoned after {c.restarts} restarts"
             elif c.deaths and c.proc is None:
-                problems.append(f"{c.name} died and was not restarted (respawn = false)")
+                down = f"{c.name} died and was not restarted (respawn = false)"
+            else:
+                continue
+            if c.observes_only:
+                self.echo(f"[launch] {down}: it only observes (publishes no data), so the check does not judge it")
+            else:
+                problems.append(down)
         return problems
 
     def _report_check(self) -> None:
         problems = self._check_problems()
+        details = f" (details: {self.echo.path})" if self.echo.path is not None else ""
         if problems:
-            self.echo(f"[launch] CHECK FAILED: {'; '.join(problems)}")
+            self.echo(f"[launch] CHECK FAILED: {'; '.join(problems)}{details}")
             self.exit_code = 1
         else:
             elsewhere = sorted({e.machine for e in self.launch.nodes if e.type == "monitor" and not self.plan.is_local(e)})
             self.echo("[launch] check passed" + (f" on this machine; the run's own check is on machine "
-                                                 f"{', '.join(elsewhere)}, where the monitor runs" if elsewhere else ""))
+                                                 f"{', '.join(elsewhere)}, where the monitor runs" if elsewhere else "")
+                      + details)
 
     def _stop_order(self, started: list[str]) -> list[_Process]:
         """Processes marked ``stop_first`` (the simulated world), then the rest in reverse start order."""
@@ -658,8 +764,24 @@ class Launcher:
         self._world_end.world_ending()
         for c in self.processes.values():
             self._dismiss_standby(c)
-        t0 = time.monotonic()
         live = [p for p in self._stop_order(started) if p.proc is not None]
+        self._stop_graph([c for c in live if not c.outlives_graph])
+        self._read_control()
+        try:  # the recorder counts what its file misses against it
+            write_private_file(self.run_dir, NUMBERED_REPORT, json.dumps(self._numbered))
+        except OSError as exc:
+            self.echo(f"[launch] cannot write {NUMBERED_REPORT} in the run directory ({exc.strerror})")
+        self._let_finish([c for c in live if c.outlives_graph])
+        for c in live:
+            c.proc.wait()
+        self._forward_logs(0.0)
+        closing = self._world_end.closing_line()
+        if closing:
+            self.echo(closing)
+
+    def _stop_graph(self, live: list[_Process]) -> None:
+        """Stop ``live`` in order: SIGINT, then SIGTERM and SIGKILL to whoever is left."""
+        t0 = time.monotonic()
         for c in live:
             if c.proc.poll() is None:
                 c.proc.send_signal(signal.SIGINT)
@@ -674,12 +796,85 @@ class Launcher:
                 if c.proc.poll() is None:
                     self.echo(f"[launch] {c.name} still running; sending {sig.name}")
                     c.proc.send_signal(sig)
-        for c in live:
-            c.proc.wait()
-        self._forward_logs(0.0)
-        closing = self._world_end.closing_line()
-        if closing:
-            self.echo(closing)
+
+    def _let_finish(self, live: list[_Process]) -> None:
+        """Stop the recorder and the monitor once the rest has stopped, and wait while they write
+        what they still hold, up to :data:`FINISH_LIMIT_S` (a further Ctrl-C cuts it short)."""
+        running = [c for c in live if c.proc.poll() is None]
+        for c in running:
+            c.proc.send_signal(signal.SIGINT)
+        t0, signals, said = time.monotonic(), self._signals, False
+        while any(c.proc.poll() is None for c in running):
+            waited = time.monotonic() - t0
+            if waited > FINISH_LIMIT_S or self._signals > signals:
+                break
+            if not said and waited > FINISH_NOTE_S:
+                said = True
+                names = ", ".join(c.name for c in running if c.proc.poll() is None)
+                self.echo(f"[launch] waiting for {names} to finish writing (at most {FINISH_LIMIT_S:g} s; "
+                          "Ctrl-C again to stop now)")
+            self._forward_logs(0.05)
+        for c in running:
+            if c.proc.poll() is None:
+                why = "Ctrl-C again" if self._signals > signals else f"not done after {FINISH_LIMIT_S:g} s"
+                self.echo(f"[launch] {c.name} stopped with SIGKILL ({why}): what it still held is lost"
+                          + (" and its file is unfinished (bag info reads it up to its last chunk; missing ?)"
+                             if any(m.entry.cls.taps_bus for m in c.members) else ""))
+                c.proc.send_signal(signal.SIGKILL)
+
+    def _read_recording_report(self) -> dict | None:
+        """The recorder's report in the run directory (its file and what it misses); ``None`` if none."""
+        try:
+            fd = os.open(self.run_dir / RECORDING_REPORT, os.O_RDONLY | os.O_NOFOLLOW)
+            with os.fdopen(fd, "rb") as fh:
+                report = json.loads(fh.read(CHECK_FILE_MAX_BYTES))
+            if isinstance(report.get("topics"), dict) and isinstance(report.get("path"), str):
+                return report
+            raise ValueError("not a recorder's report")
+        except FileNotFoundError:
+            return None
+        except (OSError, ValueError, AttributeError) as exc:
+            self.echo(f"[launch] the recorder's {RECORDING_REPORT} is unreadable ({exc})")
+            return None
+
+    def _summary_from_recording(self, recording: dict | None) -> None:
+        """The monitor died during the run (or did not finish): its summary would cover only the time
+        since it came back, or be missing. Sum the run up from the recording instead, into the same
+        summary and check files; without a recording, say what the summary misses."""
+        monitor = next((c for c in self.processes.values() if any(m.entry.type == "monitor" for m in c.members)), None)
+        if monitor is None or not (monitor.deaths or (monitor.proc is not None and monitor.proc.returncode)):
+            return
+        path = recording["path"] if recording else ""
+        if not path or not os.path.isfile(path):
+            self._summary_gap = (f"the monitor died {monitor.deaths}x and nothing was recorded: its summary covers "
+                                 "only the time since it came back")
+            self.echo(f"[launch] {self._summary_gap}")
+            return
+        self.echo(f"[launch] the monitor died {monitor.deaths}x during the run: the run's summary from the "
+                  f"recording {path}")
+        member = next(m for m in monitor.members if m.entry.type == "monitor")
+        from slipstack.nodes.monitor import summary_from_recording
+
+        summary_from_recording(member.entry.instance(graph_nodes=set(self.children)), path,
+                               lambda line: self.echo(line.replace("[monitor]", "[monitor, from the recording]", 1)))
+
+    def _report_recording(self, report: dict | None) -> None:
+        """The recorder's count of what its file misses: one line, and ``recording_loss`` in the
+        summary JSON."""
+        if report is None:
+            return
+        loss = report["topics"]
+        self.echo(f"[launch] recording {report['path']}: {loss_text(loss, topics_shown=1)}")
+        summary = next((e.params.get("summary_path") for e in self.launch.nodes
+                        if e.type == "monitor" and self.plan.is_local(e) and e.params.get("summary_path")), None)
+        if summary and os.path.isfile(summary):
+            try:
+                with open(summary, encoding="utf-8") as fh:
+                    doc = json.load(fh)
+                doc["recording_loss"] = loss
+                write_json_atomically(summary, doc)
+            except (OSError, ValueError) as exc:
+                self.echo(f"[launch] cannot add the recording's loss to {summary} ({exc})")
 
 
 def monitor_check_problems(launch: LaunchFile, run_dir: Path, machine: str | None = None) -> list[str]:
@@ -689,7 +884,8 @@ def monitor_check_problems(launch: LaunchFile, run_dir: Path, machine: str | Non
         fd = os.open(run_dir / CHECK_FILE, os.O_RDONLY | os.O_NOFOLLOW)
         with os.fdopen(fd, "rb") as fh:
             doc = json.loads(fh.read(CHECK_FILE_MAX_BYTES))
-        problems = [] if doc["passed"] is True else [str(p) for p in doc.get("problems") or ["not passed"]]
+        words = doc.get("short") or doc.get("problems")  # the HEALTH lines' short phrases, if the monitor wrote them
+        problems = [] if doc["passed"] is True else [str(p) for p in words or ["not passed"]]
     except FileNotFoundError:
         monitored = any(e.type == "monitor" for e in launch.nodes if runs_on(e, machine))
         problems = [f"no {CHECK_FILE} from the monitor (did it not stop cleanly?)"] if monitored else []
@@ -714,73 +910,6 @@ def _check_machine(launch: LaunchFile, machine: str | None) -> str | None:
     if keys is not None:  # fail now, with how to make them
         GraphKeys.load(keys, machine, {m.address: m.name for m in launch.machines.values()})
     return machine
-
-
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "launch", help="run a graph (default: the simulated rig and the full stack)",
-        description="Run a graph of nodes from a TOML launch file; name:=value sets launch arguments.",
-    )
-    p.add_argument("file", nargs="?", help="launch file (path or shipped name); default: the default graph"
-                   ).completer = _shipped_launch_files  # type: ignore[attr-defined]
-    p.add_argument("assignments", nargs="*", metavar="name:=value", help="launch argument overrides")
-    p.add_argument("--show-args", action="store_true",
-                   help="print the launch arguments with their values and comments, and exit")
-    p.add_argument("--lockstep", action="store_true",
-                   help="run every node in this process on the simulated clock, the rig in lock-step with the "
-                        "stack: faster than real time and repeatable bit for bit (simulated devices only; "
-                        "a graph over machines runs every machine's nodes here)")
-    p.add_argument("--machine", metavar="NAME",
-                   help="run the share of machine NAME of a graph with [machines.NAME] tables (run the "
-                        "same file and arguments on every machine, each with its own NAME)")
-    p.add_argument("--log-level", metavar="LEVEL[,NODE=LEVEL]", default="",
-                   help="least level of the node log lines shown and kept: debug, info (default), warning, "
-                        "error; for every node, then per node, e.g. warning,ft_driver=debug")
-    p.add_argument("--log-file", metavar="PATH",
-                   help="keep every line printed here (default: beside the recording, runs/<stamp>.log; "
-                        "none when nothing is recorded)")
-    p.set_defaults(func=main_launch)
-
-
-def _shipped_launch_files(**_: object) -> list[str]:
-    """Shell completion of the launch file: the shipped ones, by name (``fig15``)."""
-    from slipstack.launch.launch_file import launch_files_dir
-
-    return sorted(p.stem for p in launch_files_dir().glob("*.toml"))
-
-
-def main_launch(args: argparse.Namespace) -> int:
-    parse_log_levels(args.log_level)  # a bad level fails before anything starts
-    if args.log_level:
-        os.environ[LOG_LEVEL_ENV] = args.log_level  # the node processes inherit it
-    positional = list(args.assignments)
-    file = args.file
-    if file is not None and ":=" in file:  # `slipstack launch name:=value` with the default file
-        positional.insert(0, file)
-        file = None
-    run_dir = make_run_dir()
-    try:
-        builtins = {"run_dir": str(run_dir), SIM_ARG: SIM_PREFIX if args.lockstep else ""}
-        launch = load_launch_file(file, parse_assignments(positional), builtins=builtins)
-        if args.show_args:
-            comments = arg_comments(launch.path)
-            for name, value in launch.args.items():
-                if name not in ("run_dir", "stamp", SIM_ARG, *PORT_ARGS):
-                    note = f"  # {comments[name]}" if name in comments else ""
-                    print(f"{name} := {value!r}{note}")
-            remove_run_dir(run_dir)
-            return 0
-        if args.lockstep:
-            if args.machine is not None:
-                raise ConfigError("--lockstep runs every machine's nodes in this one process; "
-                                  "drop --machine (or drop --lockstep to run one machine's share)")
-            return run_lockstep(launch, run_dir)
-        launcher = Launcher(launch, run_dir, log_file=Path(args.log_file) if args.log_file else log_path_for(launch),
-                            machine=args.machine)
-    except BaseException:  # a bad launch file leaves no run directory behind
-        remove_run_dir(run_dir)
-        raise
-    return launcher.run()
 
 
 def run_lockstep(launch: LaunchFile, run_dir: Path, echo: Callable[[str], None] | None = None) -> int:

@@ -1,35 +1,11 @@
 """``slipstack launch FILE --lockstep``: a launch plan run in one process on the simulated clock.
 
-The nodes of the plan (``launch/plan.py``), the ones a real-time launch starts as
-processes, run on the :class:`~slipstack.nodes.runtime.inprocess.InProcessExecutor`:
-every timer, deadline and message in simulated time order, as fast as the CPU allows
-and bit-for-bit repeatable (a scene's seed fixes everything). The simulated rig's
-emulators and the drivers meet on simulated devices (``sim:`` URLs,
-``nodes/devices/sim_link.py``): each sample still travels as device bytes, encoded by
-the emulator and decoded by the driver's own back-end, handshakes included. A grip
-command takes effect at the rig's next tick, as in a real-time launch.
-
-The monitor prints the same summary and writes the same ``check.json``; the recorder
-entry of the plan writes the frames of its topics to its ``path`` as they are
-published, with the simulated publication time as log time (ns from the run's start),
-through a writer in a child process (``nodes/recording/writer_process.py``: the MCAP
-work runs on another core). With ``SLIPSTACK_STAGE_CPU=1`` the run ends with each node's
-CPU (its handlers, the encoding of its frames and their hand-over to the writer;
-``lockstep``: the executor's own loop), and every
-``diagnostics`` carries the ``cpu.<stage>_us`` counters (``nodes/runtime/stage_cpu.py``).
-A message a node publishes reaches its in-process subscribers as one shared object and
-is encoded only for the recording (``nodes/runtime/inprocess.py``).
-
-A launch ends when a ``required`` node finishes (the rig, at the end of its scene) or
-at ``[launch] duration_s`` of simulated time, whichever comes first.
-
-Refused, with what to do instead: a driver on a real device (a URL without ``sim:``),
-a node that waits on descriptors of its own (``io_sources``; the executor has no
-descriptors to wait on), and a run with no end (no ``required`` node, no duration).
+More in docs/modules.md, `launch/lockstep.py`.
 """
 
 from __future__ import annotations
 
+import math
 import tempfile
 import time
 from pathlib import Path
@@ -69,6 +45,9 @@ def check_lockstep(launch: LaunchFile) -> None:
         if own_io and not issubclass(e.cls, DeviceDriver) and not getattr(e.cls, "taps_bus", False):
             raise ConfigError(f"{name}: node {e.name} ({e.type}) does I/O of its own and cannot run in lock-step; "
                               f"leave it out of this launch (its enabled argument) or launch without --lockstep")
+    if math.isinf(launch.duration_s):
+        raise ConfigError("--lockstep runs as fast as the CPU on the simulated clock: give a finite duration_s "
+                          "(duration_s:=inf keeps a real-time launch up until Ctrl-C)")
     if not any(e.required for e in launch.nodes) and launch.duration_s <= 0:
         raise ConfigError(f"{name}: a lock-step run needs an end: a required node that finishes (the simulated rig) "
                           "or a duration (duration_s:=SECONDS if the file declares it)")

@@ -1,26 +1,6 @@
 """The launchers of a graph over several machines: who is up, which nodes are ready, the clock offset.
 
-Each launcher binds a ROUTER socket on the first port of its machine
-(``[machines.NAME] ports``; CURVE like every tcp link of the graph) and connects a
-DEALER to the launcher of every other machine. Every :data:`PING_PERIOD_S` it pings
-each peer with its clock; the answer carries the peer's clock on arrival and on
-departure (``lib/clock_offset.py``: the NTP formula) and the peer's state and ready
-nodes, which is how ``after`` waits for a node on another machine. A peer silent for
-:data:`QUIET_AFTER_S` is reported as gone quiet (its nodes' data is then stale and the
-grip controller holds), and again when it answers. A launcher that stops says
-goodbye, so its peers report that it stopped rather than that its link failed; it repeats
-the goodbye until each peer acknowledges it (or :data:`BYE_LINGER_MS` passed), and a peer
-ignores the state in answers the stopped launcher gave before its goodbye (they travel on
-another connection and may arrive after it).
-
-The links run in a thread of their own, blocked in ``poll`` on their sockets, so a
-ping is answered and an answer stamped the moment it arrives, whatever the launcher's
-main loop is doing (the round trip bounds the offset's uncertainty); the main thread
-reads the peers' state and prints the thread's reports (:meth:`PeerLinks.service`).
-
-Frames (multipart, integers as 8-byte signed big-endian ns of ``CLOCK_MONOTONIC``):
-``[b"ping", t1, machine]`` → ``[b"pong", t1, t2, t3, msgpack {"machine", "state",
-"ready": [node, ...]}]``; ``[b"bye", machine, t]`` → ``[b"bye-ack"]``.
+More in docs/modules.md, `launch/peers.py`.
 """
 
 from __future__ import annotations

@@ -7,24 +7,7 @@ in which order processes start and stop. ``launch/launcher.py`` supervises proce
 from a plan; ``launch/lockstep.py`` runs the same plan's nodes in one process on the
 simulated clock.
 
-Start order: subscribers before publishers (reverse topological order of the topic
-graph, so a publisher's subscribers exist before its data flows), then every node's
-``after`` list. Stop order: nodes marked ``stop_first`` (the simulated rig), then the
-others in reverse start order.
-
-Machines (``[machines.NAME]``): the plan of one machine's share lists every node of
-the graph, but only that machine's nodes get processes, injection endpoints and run
-specs. Every machine's launcher computes the same endpoints from the same file: a node
-binds ipc for the nodes of its machine and also its machine's tcp port
-(``transport.py: machine_ports``) for subscribers and tools elsewhere
-(:attr:`NodePlan.remote_endpoint`, ``pub_remote`` of its run spec); a subscriber
-connects to a publisher of another machine on that tcp endpoint. A node of another
-machine is injected into through its machine's launcher (:func:`relay_endpoint`, the
-machine's last port: ``launch/inject_relay.py``); its launcher publishes its clock
-offsets on ``diagnostics`` from the next-to-last (:func:`launcher_pub_endpoints`), and
-the plan adds the launchers to the publishers of ``diagnostics`` a node subscribes to. ``after`` a node of
-another machine is the launcher's to wait for, not part of this start order. A plan
-with no machine named runs every node on this computer (the lock-step run).
+More in docs/modules.md, `launch/plan.py`.
 """
 
 from __future__ import annotations
@@ -36,6 +19,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.launch.launch_file import LaunchFile, Machine, NodeEntry, free_port
 from slipstack.messages import Diagnostics
 from slipstack.nodes.device_driver import DeviceDriver
+from slipstack.nodes.runtime.graph_info import INJECTION_REFUSED
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.transport import ipc_endpoint, machine_ports, tcp_endpoint
 
@@ -84,6 +68,11 @@ class ProcessPlan:
         return any(issubclass(m.entry.cls, DeviceDriver) for m in self.members)
 
     @property
+    def outlives_graph(self) -> bool:
+        """A member records or sums up the others (``Node.outlives_graph``): stopped last, given time to finish."""
+        return any(m.entry.cls.outlives_graph for m in self.members)
+
+    @property
     def is_container(self) -> bool:
         return bool(self.entry.container)
 
@@ -103,6 +92,12 @@ class ProcessPlan:
     @property
     def outputs(self) -> set[str]:
         return {t for c in self.members for t in c.outputs}
+
+    @property
+    def observes_only(self) -> bool:
+        """It publishes nothing but diagnostics (the monitor, the recorder, the Foxglove bridge):
+        the control path does not depend on it, so the run's check does not judge it (docs/summary.md)."""
+        return self.outputs <= {DIAGNOSTICS_TOPIC}
 
 
 @dataclass
@@ -203,10 +198,12 @@ def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -
         child.outputs[DIAGNOSTICS_TOPIC] = Diagnostics.TYPE  # every node publishes it
         child.inputs = {t: nodes[e.name].inputs[n].type.TYPE for n, t in e.input_topics(nodes[e.name]).items()}
         children[e.name] = child
+        injectable = [t for t, kind in child.inputs.items()
+                      if kind not in INJECTION_REFUSED or t in launch.allow_inject]
         if not runs_here:  # another machine's launcher runs it; tools here inject through it
-            child.inject = {t: relay_endpoint(launch.machines[e.machine]) for t in child.inputs}
+            child.inject = {t: relay_endpoint(launch.machines[e.machine]) for t in injectable}
             continue
-        child.inject = {t: ipc_endpoint(run_dir, f"{e.name}.in") for t in child.inputs}
+        child.inject = {t: ipc_endpoint(run_dir, f"{e.name}.in") for t in injectable}
         proc = processes.setdefault(child.process, ProcessPlan(child.process, [], run_dir / f"{child.process}.spec.json"))
         proc.members.append(child)
     publishers: dict[str, list[str]] = {}

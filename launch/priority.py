@@ -1,37 +1,15 @@
 """A node process's scheduling priority: its ``nice``, applied where Linux weighs it, and
 its real-time priority.
 
-The launcher starts every node in a session of its own (``start_new_session``: a
-Ctrl-C in the launcher's terminal reaches the launcher only, which stops the nodes in
-order). With ``/proc/sys/kernel/sched_autogroup_enabled`` = 1 (the default of most
-desktop distributions) each session is a scheduling *autogroup*: the CPU is shared
-between autogroups first, and a process's own nice value only ranks it against the
-other processes of its group. A node alone in its session would therefore ignore its
-``nice``; :func:`set_autogroup_nice` gives the node's autogroup the same value, so that
-``nice`` ranks nodes against each other and against the rest of the machine.
-
-As for ``nice`` itself, a positive value (lower priority) needs no privilege; a
-negative one needs CAP_SYS_NICE and is otherwise left at 0.
-
-A node with a ``realtime_priority`` (1-99) runs under ``SCHED_FIFO`` instead, where the
-launcher may set it (root, CAP_SYS_NICE, or ``ulimit -r`` at least that high): a
-real-time process runs as soon as it wakes, ahead of every normal process, so other
-users' work on the machine no longer delays the control path (beside two CPU hogs on 2
-cores: 0.6-3.1 % of F/T samples skipped and p99 0.73 ms, against 15-16 % and 3.0-4.4 ms with
-``nice = -5`` alone; docs/benchmarks.md, scheduling). Linux's real-time throttling
-(``/proc/sys/kernel/sched_rt_runtime_us``, 95 % of each CPU by default) bounds what a
-runaway node could take. The threads a node starts share its priority (ZeroMQ's I/O
-thread moves its frames: ``SCHED_RESET_ON_FORK`` would leave it at normal scheduling,
-since a thread is a fork to Linux here). A node process starts, and a warm standby
-waits, at normal scheduling: their imports and kernel loads (about a second of CPU each)
-run beside the running graph rather than ahead of it, and the launcher gives a process
-its priority once its nodes report ready (:func:`grant_realtime_priority`).
+More in docs/modules.md, `launch/priority.py`.
 """
 
 from __future__ import annotations
 
 import os
 from pathlib import Path
+
+from slipstack.nodes.runtime.scheduling import has_realtime_priority
 
 __all__ = ["AUTOGROUP_PATH", "grant_realtime_priority", "has_realtime_priority", "set_autogroup_nice"]
 
@@ -65,10 +43,3 @@ def grant_realtime_priority(pid: int, priority: int) -> bool:
         return False
     return True
 
-
-def has_realtime_priority(pid: int) -> bool:
-    """Whether process ``pid`` runs under ``SCHED_FIFO`` (``False`` if it is gone)."""
-    try:
-        return os.sched_getscheduler(pid) & ~os.SCHED_RESET_ON_FORK == os.SCHED_FIFO
-    except OSError:
-        return False

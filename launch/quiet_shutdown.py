@@ -7,14 +7,7 @@ normal end those lines are expected: :class:`WorldEndFilter` holds them back and
 launcher prints one line instead, naming the drivers and how many lines it held
 (:meth:`WorldEndFilter.closing_line`); every held line still goes to the run's log file.
 
-When the world has ended is known without a race: the rig logs ``scene NAME finished``
-(:data:`SCENE_FINISHED`) before it closes its devices, the launcher reads each batch of
-output with the world's lines first, and a shutdown begun by the launcher (Ctrl-C, the
-duration) marks the end before the world is stopped. Device errors before that moment,
-and any line of a launch without a simulated world (hardware), pass unchanged. The rig's
-line is at level info; so that ``--log-level warning`` does not hide it from the launcher,
-the world's processes always log at info (:class:`WorldLogLevels`) and the launcher drops
-their lines below the level asked for.
+More in docs/modules.md, `launch/quiet_shutdown.py`.
 """
 
 from __future__ import annotations

@@ -4,7 +4,9 @@
 the log outlives the run directory, which is removed at the end. Each line is written
 with its wall-clock time; lines held back from the terminal (a quiet normal shutdown,
 ``launch/quiet_shutdown.py``) are written too, marked ``(not shown)``. The file is
-bounded: past :data:`MAX_LOG_BYTES` it says so once and takes no more lines.
+bounded: past :data:`MAX_LOG_BYTES` it says so once and takes no more lines. A write
+that fails (a full disk) never stops the launch: the terminal says so once and gets
+every later line alone.
 """
 
 from __future__ import annotations
@@ -14,6 +16,8 @@ from pathlib import Path
 from typing import Callable
 
 from slipstack.launch.launch_file import LaunchFile
+from slipstack.lib.errors import ConfigError
+from slipstack.lib.output_file import why_unwritable
 
 __all__ = ["RunLog", "log_path_for", "MAX_LOG_BYTES"]
 
@@ -38,8 +42,13 @@ class RunLog:
         self._fh = None
         self._written = 0
         if path is not None:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            self._fh = open(path, "a", encoding="utf-8", errors="replace")
+            try:
+                path.parent.mkdir(exist_ok=True)  # runs/ beside the recording, never a whole tree
+                self._fh = open(path, "a", encoding="utf-8", errors="replace")
+            except OSError as exc:
+                raise ConfigError(f"cannot write the run's log {path} ({why_unwritable(path, exc)}): it goes beside the "
+                                  "recording, in a folder that exists and you may write; pass recording:=PATH "
+                                  "(or --log-file PATH) there") from None
 
     def __call__(self, line: str) -> None:
         self.echo(line)
@@ -57,10 +66,18 @@ class RunLog:
         self._written += len(text)
         if self._written > MAX_LOG_BYTES:
             text = f"[launch] log file full ({MAX_LOG_BYTES} bytes): later lines are on the terminal only\n"
-        self._fh.write(text)
-        self._fh.flush()
+        try:
+            self._fh.write(text)
+            self._fh.flush()
+        except OSError as exc:  # the disk is full: the launch goes on, the terminal keeps the lines
+            self.close()
+            self.echo(f"[launch] WARNING: cannot write the run's log {self.path} ({exc.strerror}); "
+                      "later lines are on the terminal only")
 
     def close(self) -> None:
-        if self._fh is not None:
-            self._fh.close()
-            self._fh = None
+        fh, self._fh = self._fh, None
+        if fh is not None:
+            try:
+                fh.close()
+            except OSError:  # its last flush failed (a full disk): said where the write failed
+                pass

@@ -13,9 +13,12 @@ from __future__ import annotations
 import argparse
 import ctypes
 import json
+import os
 import re
 import signal
 import sys
+from pathlib import Path
+from typing import Callable
 
 import zmq
 
@@ -101,7 +104,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("assignments", nargs="*", metavar="name:=value", help="parameter overrides")
     p.add_argument("--name", help="instance name (default: the node type)")
     p.add_argument("--spec", help="JSON run spec written by the launcher")
-    p.add_argument("--pub", help="endpoint to bind for publishing, e.g. ipc:///tmp/x.pub or tcp://*:5555")
+    p.add_argument("--pub", help="endpoint to bind for publishing, e.g. ipc:///tmp/x.pub or tcp://*:5555 "
+                                 "(default: attach to the running graph, else a default endpoint, said on stderr)")
     p.add_argument("--sub", action="append", default=[], metavar="TOPIC=ENDPOINT", help="where to find a topic (repeatable)")
     p.add_argument("--log-level", metavar="LEVEL", default=None,
                    help="least level of the log lines shown: debug, info (default), warning, error")
@@ -117,17 +121,17 @@ def _member(raw: dict) -> tuple[Node, RunSpec]:
     return cls(make_params(cls.Params, values, spec.name)), spec
 
 
-def _executor(members: list[tuple[Node, RunSpec]]) -> ProcessExecutor:
+def _executor(members: list[tuple[Node, RunSpec]], clock: Callable[[], int] | None = None) -> ProcessExecutor:
     """The executor of ``members`` (binds their sockets); SlipstackError, one line, if an address is taken."""
     try:
-        return ProcessExecutor(members)
+        return ProcessExecutor(members, clock=clock)
     except zmq.ZMQError as exc:
         if exc.errno != zmq.EADDRINUSE:
             raise
         names = ", ".join(spec.name for _, spec in members)
         raise SlipstackError(
             f"{names}: cannot bind its socket: {exc}. Another process holds that address: stop it (`ss -ltnp` "
-            "shows who), or restart the launch, which picks a free port"
+            "shows who) or give another address"
         ) from None
 
 
@@ -157,21 +161,46 @@ def main_run(args: argparse.Namespace) -> int:
         raw = {"name": args.name or args.node, "pub": args.pub, "subs": subs}
     raw.setdefault("params", {}).update(parse_assignments(args.assignments))
     member = _member({**raw, "type": args.node})  # parameter errors first
-    if not args.spec:
-        _require_pub(member[0], raw["name"], args.pub)
-    return _executor([member]).run()
+    if args.spec or args.pub:
+        return _executor([member]).run()
+    return _run_attached(args, raw)
 
 
-def _require_pub(node: Node, name: str, pub: str | None) -> None:
-    """Refuse to run a publishing node by hand without ``--pub``: it would publish nowhere."""
-    outputs = sorted(o.topic for o in node.outputs.values())
-    if pub or not outputs:
-        return
-    raise ConfigError(
-        f"{name} publishes {', '.join(outputs)} and diagnostics: give it an endpoint to bind, e.g. "
-        f"--pub ipc:///tmp/{name}.pub (then `--sub TOPIC=ipc:///tmp/{name}.pub` for a consumer), "
-        "or start it from a launch file, which wires the graph and the tools"
-    )
+def _run_attached(args: argparse.Namespace, raw: dict) -> int:
+    """A node run by hand without ``--pub``: attached to the running graph (its inputs from the
+    graph's publishers, its endpoint registered beside the graph's tools, so that ``topic echo``
+    and the recorders see it; the graph's time base), else publishing on a default endpoint in
+    the run root. Says where on stderr."""
+    from slipstack.nodes.runtime.graph_info import find_run_dir, read_graph, register_tool, topic_endpoints
+    from slipstack.nodes.runtime.graph_info import time_base_clock
+    from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
+    from slipstack.messages import Diagnostics
+    from slipstack.nodes.runtime.run_dir import run_root
+    from slipstack.nodes.runtime.transport import ipc_endpoint
+
+    try:
+        run_dir: Path | None = find_run_dir(None)
+        graph = read_graph(run_dir)
+    except ConfigError:
+        run_dir, graph = None, {"nodes": {}}
+    name = args.name or f"{args.node}-{os.getpid()}"  # beside a graph that may run a node of the same type
+    raw = {**raw, "name": name, "pub": ipc_endpoint(run_dir or run_root(), name)}
+    publishers = topic_endpoints(graph)
+    inputs = [i.topic for i in node_class(args.node).inputs.values()]
+    node, spec = _member({**raw, "type": args.node,
+                          "subs": {**{t: publishers[t] for t in inputs if t in publishers}, **raw["subs"]}})
+    outputs = {o.topic: o.type.TYPE for o in node.outputs.values()}
+    where = f"the graph in {run_dir}" if run_dir is not None else "no running graph"
+    print(f"{name}: {where}; publishing {', '.join([*outputs, 'diagnostics'])} on {spec.pub}"
+          + (f"; inputs from {', '.join(sorted(spec.subs))}" if spec.subs else "")
+          + ("" if run_dir is not None else f" (a consumer: --sub TOPIC={spec.pub})"), file=sys.stderr, flush=True)
+    registration = (register_tool(run_dir, name, spec.pub, {**outputs, DIAGNOSTICS_TOPIC: Diagnostics.TYPE})
+                    if run_dir is not None else None)
+    try:
+        return _executor([(node, spec)], time_base_clock(graph) if run_dir is not None else None).run()
+    finally:
+        if registration is not None:
+            registration.unlink(missing_ok=True)
 
 
 def main_spawned(argv: list[str] | None = None) -> int:

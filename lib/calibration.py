@@ -4,21 +4,7 @@ The model, per taxel i with raw count c_i::
 
     p_i = table(g_i · c_i)        (Pa)
 
-``table`` is the monotone piecewise-linear interpolation through the points
-(``counts[k]``, ``pressure_pa[k]``), held constant beyond its ends; ``g_i`` is an
-optional per-taxel gain (flat-field correction in count space, default 1). A taxel
-is *saturated* when its raw count is ≥ ``saturation_counts``; its pressure is then a
-lower bound. A *dead* taxel reports 0 Pa and is flagged, so that fusion can skip it.
-
-File format (TOML)::
-
-    counts = [0, 100, 1000, 4095]             # strictly increasing raw counts
-    pressure_pa = [0.0, 500.0, 8000.0, 4e4]   # non-decreasing, same length, >= 0
-    gain = [1.0, 1.02, ...]                   # optional, one per taxel (row-major)
-    dead = [17, 200]                          # optional, taxel indices (row-major)
-    saturation_counts = 4095                  # optional
-
-Taxel indices are row-major: i = row·cols + col.
+More in docs/modules.md, `lib/calibration.py`.
 """
 
 from __future__ import annotations
@@ -30,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ConfigError
+from .toml_file import loads as toml_loads
 
 __all__ = ["Calibration", "CalibratedFrame", "load_calibration", "save_calibration"]
 
@@ -126,7 +113,7 @@ class Calibration:
     def from_toml(cls, text: str) -> Calibration:
         """Parse TOML text; ConfigError names the problem."""
         try:
-            d = tomllib.loads(text)
+            d = toml_loads(text)
         except tomllib.TOMLDecodeError as e:
             raise ConfigError(f"calibration: not valid TOML: {e}") from e
         unknown = set(d) - {"counts", "pressure_pa", "gain", "dead", "saturation_counts"}

@@ -6,11 +6,7 @@ ways, their clock minus ours is
 
     θ = ((t2 − t1) + (t3 − t4)) / 2,      round trip δ = (t4 − t1) − (t3 − t2),
 
-and whatever the asymmetry, the true offset lies within θ ± δ/2. On a loaded machine
-most of δ is scheduling, not wire, so the estimate keeps the exchanges with the
-shortest round trips (at most the median of the window) and takes the median of their
-θ; its uncertainty is the larger of half the shortest round trip kept and the spread
-(1.4826 × median absolute deviation) of the θ kept. All times are integers in ns.
+More in docs/modules.md, `lib/clock_offset.py`.
 """
 
 from __future__ import annotations

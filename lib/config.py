@@ -7,14 +7,7 @@ the text values of a device URL's query, and is consumed key by key: each getter
 removes its key, checks the value's type and range and returns it typed; ``finish()``
 rejects whatever is left (a misspelt key).
 
-Every error is a :class:`~slipstack.lib.errors.ConfigError` worded ``<where>: <what is
-wrong>, got <value>``, ``<where>`` naming the source and the key, e.g.
-``fig15.toml: contact.mu: must be > 0, got -1.0``, ``rdt://host?cpf=x: cpf: must be a
-number, got 'x'``, ``launch argument rate_hz: must be finite, got nan``.
-
-Text (a command line, a URL query, a string in a TOML file) is read too where a table
-or function is told ``from_text``: numbers are parsed, and flags are ``true``/``false``,
-``1``/``0``, ``yes``/``no`` or ``on``/``off`` (any case).
+More in docs/modules.md, `lib/config.py`.
 """
 
 from __future__ import annotations

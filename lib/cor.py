@@ -6,23 +6,7 @@ The paper's test (11) at a point ``p_c`` (pad frame F, m) is::
 
 with ``p_c`` the solution of (12), ``∇_c (n − T) = 0``, i.e.::
 
-    perp(f_t) = μ Σ φ_i (c − p_i)/|c − p_i|,        perp(a) = (−a_y, a_x).
-
-Two solvers:
-
-* :func:`paper_cor` — the paper's recursive iteration with a Jacobian and a fixed
-  gain ``h`` (its Fig. 7), read here as ``c ← c − h·J(c)⁻¹ F(c)`` with
-  ``F = perp(f_t) − ∇T`` and ``J = −∇²T``, started at the centre of pressure. It
-  solves only the sense the paper writes (``s = +1``) and cannot converge to a
-  COR on a taxel (J is singular there): that is reported (SINGULAR / MAX_ITER),
-  not hidden. The paper's special-case test for an iterate exactly on taxel j,
-  ``|φ_j,t| ≤ μ φ_j``, is applied when it happens.
-* :func:`robust_cor` — maximises the concave ``g_s(c) = s·n(c) − T(c)`` for both
-  senses with :func:`slipstack.lib.weber.solve_weber` (safeguarded Newton + Kuhn
-  test, warm start), and reports the binding sense. ``|f_t| ≥ μ f_n`` makes
-  ``g_s`` unbounded: case TRANSLATION, the contact slips.
-
-Stick per (11) iff ``max_s max_c g_s(c) ≤ 0``, which is exactly ``γ ≤ 1`` (docs/math.md §4.2).
+More in docs/modules.md, `lib/cor.py`.
 """
 
 from __future__ import annotations

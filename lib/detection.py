@@ -4,33 +4,7 @@ A load factor computed from *measured* data never exceeds 1: it reaches 1 at sli
 onset and, once sliding, drops to about ``μ_d/μ_s`` (the peak of the paper's
 Fig. 4). So :class:`SlipLatch`
 
-- flags slip when the contact is *at* the limit: ``γ ≥ 1 − δ`` (margin ``≤ δ``) on
-  ``onset_frames`` (two) valid frames in a row that span at least ``onset_ns`` of
-  their stamps (the nodes: 0.9 ms, two samples at 1 kHz less stamp jitter: ``lib/detector.py``), so a
-  7 kHz stream raises the flag after the same time in the band as a 1 kHz one, not
-  after two of its samples (0.14 ms, which single noisy samples reach 7 times as often),
-- latches it through the static→dynamic drop: slip stays flagged while
-  ``γ ≥ γ_release``, and
-- releases only after ``γ < γ_release`` has held for ``release_ns``; a frame at or
-  above ``γ_resume`` (a noise margin above ``γ_release``) restarts that dwell, one
-  between the two does not.
-
-The thresholds belong to the contact, not to this module: ``lib/material.py`` derives
-all three from the user's material file (``slipstack identify``) by the rule of
-docs/math.md §3.1: the band's edge is a lower prediction bound of the identified onset
-load factors less 3σ of the frame noise (without onsets, the sliding level less 3σ),
-the release level the lowest sliding level less 4σ, the resume level less 2σ.
-``lib/online_calibration.py`` moves them while the detector runs (``calibrate:=online``).
-
-The module's defaults (δ = 0.18, γ_release = 0.76, no resume margin) are the latch's
-own, for tests and offline use without a material; the nodes always take a material's
-(the shipped ``launch/materials/rubber.toml`` when none is given, and they say so).
-
-What force data cannot tell: after the object re-sticks, the load can stay at or above
-``μ_d/μ_s`` (a load held just under the sliding friction, or re-loading towards the
-limit between stick–slip episodes); the latch then holds, or the onset band flags,
-although the contact sticks. ``tests/bench/bench_detection.py`` measures both against
-the rig's truth, per material. Times are integer ns.
+More in docs/modules.md, `lib/detection.py`.
 """
 
 from __future__ import annotations

@@ -7,37 +7,7 @@ returns a :class:`DetectorVerdict` with the deciding test's load factor γ and m
 the latched slip state, the kind of slip, the COR of impending slip, the solver
 status, the verdict's validity status and every side test's ``[stick, margin]``.
 
-- The deciding test is ``method``; the cheaper tests in ``also`` are computed
-  alongside, so their agreement can be watched.
-- A :class:`~slipstack.lib.detection.SlipLatch` turns the margin into the latched
-  state (onset band ``delta``, release level ``gamma_release``, dwell ``release_ns``).
-- The F/T tests need a torsional coefficient β: ``beta_m`` if set, otherwise β_s of
-  the pressure frame, computed once per frame (it depends only on the shape of the
-  pressure, not its size) and shared by every F/T test.
-- The deciding test's COR warm-starts the next frame's.
-- A contact that carries the earlier F/T samples of fusion's batch (the ``contact``
-  message's ``earlier_*``: at 7 kHz several samples per wake-up) has each of them
-  stepped through the deciding test and the latch first, oldest first, with the
-  contact's pressure frame scaled to the sample's normal force, then the newest: the
-  same latched state as stepping them one by one, so a slip flagged by any sample of
-  the batch is latched, never lost (only a loss of contact clears it). The side tests
-  run once, on the newest. ``samples_judged`` counts the samples whose load the
-  deciding test judged.
-- ``method = "tactile_cor_known"`` with ``known_cor_m`` evaluates test (11) about
-  that fixed pivot instead of solving for the COR (``lib/known_cor.py``, Fig. 13).
-- ``calibrate_from``: online calibration (``lib/online_calibration.py``) from that
-  material: the deciding test's γ is taken with the learned μ, and the latch's band and
-  release levels follow what it learns; ``calibration`` says what that is.
-
-Validity (docs/safety.md): ``status`` is ``ok`` only when the verdict judged valid
-data; otherwise it is the contact's status, ``tactile_<why>`` for a tactile test
-without a paired pressure frame, or the solver's status. A frame without a valid
-verdict keeps the latch as it is (a sensor hiccup never releases it) and restarts its
-release dwell; only a real loss of contact clears it.
-
-Defaults: :meth:`DetectorSettings.from_material` derives μ, δ, γ_release and γ_resume from a
-material exactly as the node does (``lib/material.py``); the node's default material
-is ``launch/materials/rubber.toml``.
+More in docs/modules.md, `lib/detector.py`.
 """
 
 from __future__ import annotations

@@ -4,13 +4,7 @@ The tactile pad gives the *shape* of the pressure, the F/T sensor its *size*::
 
     φ_i = f_n · w_i / Σ_j w_j        over the taxels in contact (w_i > noise floor).
 
-Sign convention (used by every slip test): the wrench is the one the **object
-exerts on the pad**, expressed in the pad frame F (z = outward normal, towards
-the object). The object pushes the pad along −z, so the normal force is
-``f_n = −F_z`` (positive when pressing); the tangential load is
-``f_t = (F_x, F_y)`` (N) and ``τ = T_z`` (N·m) about z through the pad origin.
-The limit set is centrally symmetric, so flipping the sign of ``(f_t, τ)`` (using
-the wrench on the object instead) changes no verdict, γ, or COR.
+More in docs/modules.md, `lib/fusion.py`.
 """
 
 from __future__ import annotations

@@ -3,27 +3,7 @@
 Every law maps one control step's load to a desired normal force ``f_n`` (N) on the
 pad, bounded to ``[f_nom, f_max]``:
 
-========================  ================================================================
-registry name             law
-========================  ================================================================
-``"linear"``              §V-A: ``f_n = |f_t| / (σ μ)``
-``"ft13"``                (13): ``f_n = |f_t|/μ + |τ|/β + k``  (paper: ``k = 2 N``)
-``"ft13_sigma"``          Fig. 12 variant of (13): ``f_n = (|f_t|/μ + |τ|/β) / σ``
-``"tactile14"``           (14): raise ``f_n`` by ``δf_n`` while the tactile test (11) fails
-``"exact"``               ``f_n = γ f_n / σ`` with ``γ`` the load factor of docs/math.md §4.1
-========================  ================================================================
-
-each followed by ``min(max(·, f_nom), f_max)``. Loads are in the pad frame ``F``
-(docs/math.md §1): ``f_t = (f_x, f_y)`` in N, ``τ`` about ``z`` through the pad origin in
-N·m, ``β`` in m (``τ/f_n`` at slip), ``μ`` and ``σ`` dimensionless, ``σ ≤ 1`` the
-safety factor (paper: ``σ = 0.5``, ``μ = 0.45``).
-
-A law is stateless: it never raises on bad data. A required input that is NaN/Inf
-gives reason ``"fail-safe"`` with ``f_n_desired = f_max`` (the only never-release
-answer without memory). :class:`GripGovernor` is what a controller runs: it adds the
-memory a law lacks — staleness and sensor status checks, holding the last commanded
-force in fail-safe (never lower), and the actuator rate limit (:class:`RateLimiter`).
-Time is passed in (integer ns stamps, float s steps); nothing here reads a clock.
+More in docs/modules.md, `lib/grip_laws.py`.
 """
 
 from __future__ import annotations
@@ -56,10 +36,14 @@ __all__ = [
     "LAWS",
     "make_law",
     "RateLimiter",
+    "FingerReport",
     "GripGovernor",
+    "NOT_OK",
 ]
 
 _NAN = float("nan")
+NOT_OK = "input status not ok"
+"""The fail-safe cause of a step whose caller said its input is not ok (``status_ok`` false)."""
 
 
 class GripReason(str, Enum):
@@ -466,6 +450,20 @@ class RateLimiter:
         self._value = float(value_n)
 
 
+@dataclass(frozen=True, slots=True)
+class FingerReport:
+    """What the finger says it holds to (``grip/state``).
+
+    Attributes:
+        f_n_command: the normal force it holds to now, N.
+        commanded: it has followed a controller's command since it powered on (a controller
+            ran before: the grip it holds is one the stack chose for a load).
+    """
+
+    f_n_command: float
+    commanded: bool
+
+
 @dataclass
 class GripGovernor:
     """The controller state around a law: staleness, status, hold, escalation, rate limit.
@@ -476,16 +474,21 @@ class GripGovernor:
     (a clock that jumped), when no stamp is given, when ``status_ok`` is false, or when
     the law reports non-finite input. The contract (docs/safety.md):
 
-    - **Start from the actuator.** The first step starts from ``initial_n`` if given,
-      otherwise from the normal force the pad measures now (``inp.f_n``, within
-      ``[f_nom, f_max]``; ``f_max`` when unknown): a (re)started controller never steps
-      the grip down to ``f_nom``.
+    - **Start from what the finger holds.** The first command is ``initial_n`` if given,
+      else the highest of: the normal force the pad measures (``inp.f_n``) when the
+      step is trusted (fresh and ``status_ok``), and the force the finger reports
+      holding (``finger``); with neither, ``f_hold_n`` once ``finger_wait_ns`` has passed
+      since the first step was asked for (the finger's report may be on its way). All
+      within ``[f_nom, f_max]``. Until one of them is known :meth:`step` returns
+      ``None``: no command, the finger keeps its grip.
     - **Hold.** In fail-safe the command stays at the last commanded force (never
       lower, never released, reason ``"fail-safe"``).
     - **Escalate while blind and loaded.** Once fail-safe has lasted ``blind_grace_ns``
-      and the last valid step saw a loaded contact, the command rises at
+      and the last valid step saw a loaded contact (before any: the finger reports that
+      a controller commanded it, so a load was held), the command rises at
       ``blind_rise_n_per_s`` towards ``blind_limit_n`` (default ``f_max``): the load
-      may be growing where the controller cannot see it.
+      may be growing where the controller cannot see it. A launch never squeezes
+      blind: holding is not squeezing.
     - **Recover rate-limited.** The next valid step resumes the law through the rate
       limiter, from wherever the hold or escalation left the command.
 
@@ -494,7 +497,11 @@ class GripGovernor:
         timeout_ns: largest accepted input age, ns.
         max_rate_n_per_s: actuator force slew limit when raising, N/s.
         max_fall_rate_n_per_s: slew limit when lowering, N/s (default: the same).
-        initial_n: first command, N (default: the measured force, see above).
+        initial_n: first command, N (default: as above).
+        f_hold_n: first command on untrusted data without a finger report, N (None: no
+            command until one of the two is known).
+        finger_wait_ns: how long the first command waits for the finger's report before
+            ``f_hold_n``, ns.
         blind_grace_ns: fail-safe time before escalation starts, ns (< 0: never escalate).
         blind_rise_n_per_s: escalation rate, N/s.
         blind_limit_n: escalation ceiling, N (default ``f_max``).
@@ -505,6 +512,8 @@ class GripGovernor:
     max_rate_n_per_s: float
     max_fall_rate_n_per_s: float | None = None
     initial_n: float | None = None
+    f_hold_n: float | None = None
+    finger_wait_ns: int = 100_000_000
     blind_grace_ns: int = 50_000_000
     blind_rise_n_per_s: float = 10.0
     blind_limit_n: float | None = None
@@ -512,7 +521,8 @@ class GripGovernor:
     _escalation: RateLimiter = field(init=False, repr=False)
     _last_now_ns: int | None = field(init=False, default=None, repr=False)
     _blind_since_ns: int | None = field(init=False, default=None, repr=False)
-    _loaded: bool = field(init=False, default=True, repr=False)
+    _loaded: bool = field(init=False, default=False, repr=False)
+    _asked_since_ns: int | None = field(init=False, default=None, repr=False)
 
     def __post_init__(self) -> None:
         law = self.law
@@ -521,6 +531,10 @@ class GripGovernor:
         if self.initial_n is not None and not (
                 math.isfinite(self.initial_n) and law.f_nom_n <= self.initial_n <= law.f_max_n):
             raise ConfigError(f"grip governor initial_n must lie in [f_nom_n, f_max_n], got {self.initial_n!r}")
+        if self.f_hold_n is not None and not (math.isfinite(self.f_hold_n) and self.f_hold_n >= 0.0):
+            raise ConfigError(f"grip governor f_hold_n must be a finite force >= 0 N, got {self.f_hold_n!r}")
+        if not self.finger_wait_ns >= 0:
+            raise ConfigError(f"grip governor finger_wait_ns must be >= 0 ns, got {self.finger_wait_ns!r}")
         ceiling = law.f_max_n if self.blind_limit_n is None else self.blind_limit_n
         if not (math.isfinite(ceiling) and law.f_nom_n <= ceiling <= law.f_max_n):
             raise ConfigError(f"grip governor blind_limit_n must lie in [f_nom_n, f_max_n], got {ceiling!r}")
@@ -539,20 +553,21 @@ class GripGovernor:
         """Whether the last step held (or escalated) the grip."""
         return self._blind_since_ns is not None
 
-    def step(self, inp: GripInput, *, now_ns: int, stamps_ns: Sequence[int],
-             status_ok: bool = True, loaded: bool = True) -> GripDecision:
-        """One control step; returns the command (never NaN, never raises).
+    def step(self, inp: GripInput, *, now_ns: int, stamps_ns: Sequence[int], status_ok: bool = True,
+             loaded: bool = True, finger: FingerReport | None = None) -> GripDecision | None:
+        """One control step; returns the command (never NaN, never raises), or ``None``
+        before the first command while its start is unknown (class docstring).
 
         ``loaded``: the contact carries a load (the verdict saw contact); only a valid
-        step updates what the governor believes about it.
+        step updates what the governor believes about it. ``finger``: the finger's
+        newest report (read at the first command only).
         """
+        cause = self._stale_cause(now_ns, stamps_ns) or ("" if status_ok else NOT_OK)
+        if self._limiter.value is None and not self._start(inp, now_ns, trusted=not cause, finger=finger):
+            return None
         last = self._last_now_ns
         dt_s = 0.0 if last is None or now_ns <= last else (now_ns - last) * 1e-9
         self._last_now_ns = now_ns if last is None else max(now_ns, last)
-        if self._limiter.value is None:  # first step: start from the actuator, never from f_nom
-            measured = inp.f_n if math.isfinite(inp.f_n) else self.law.f_max_n
-            self._limiter.reset(min(max(measured, self.law.f_nom_n), self.law.f_max_n))
-        cause = self._stale_cause(now_ns, stamps_ns) or ("" if status_ok else "input status not ok")
         if not cause:
             decision = self.law.decide(inp, dt_s)
             if decision.reason is not GripReason.FAIL_SAFE:
@@ -561,6 +576,21 @@ class GripGovernor:
                 return GripDecision(commanded, decision.law, decision.reason, decision.raw)
             cause = decision.detail
         return self._fail_safe(cause, now_ns, dt_s)
+
+    def _start(self, inp: GripInput, now_ns: int, *, trusted: bool, finger: FingerReport | None) -> bool:
+        """Set the first command from what is known (class docstring); False while nothing is."""
+        if self._asked_since_ns is None:
+            self._asked_since_ns = now_ns
+        known = [inp.f_n] if trusted and math.isfinite(inp.f_n) else []
+        if finger is not None and math.isfinite(finger.f_n_command):
+            known.append(finger.f_n_command)
+            self._loaded = finger.commanded
+        if not known and self.f_hold_n is not None and now_ns - self._asked_since_ns >= self.finger_wait_ns:
+            known.append(self.f_hold_n)
+        if not known:
+            return False
+        self._limiter.reset(min(max(max(known), self.law.f_nom_n), self.law.f_max_n))
+        return True
 
     def _fail_safe(self, cause: str, now_ns: int, dt_s: float) -> GripDecision:
         """Hold the last command; escalate once blind for ``blind_grace_ns`` with a load."""

@@ -5,69 +5,7 @@ At (nearly) constant ``f_n`` with a slowly rising tangential load the ratio
 with a rising torque ``β(t) = |τ|/f_n`` (m) peaks at ``β_s`` and settles to ``β_d``.
 :func:`identify_mu` and :func:`identify_beta` run one estimator on that ratio:
 
-1. Reject samples with a non-finite value or ``f_n < min_normal_force_n`` (counted).
-2. Smooth the ratio with a centred moving average of ``smooth_window_s`` (rounded to
-   an odd number of samples, using the median sample spacing) and take its maximum
-   ``k*`` as the peak region. With a motion signal the onset comes from the motion and
-   ``k*`` is searched up to it (a ramp that levels off before ``k*`` — creep, stick–slip —
-   and then clearly drops is read as if it rose):
-
-   - ``slip_m`` / ``slip_rad`` (preferred): the object's slip distance or angle *after*
-     the elastic pre-slip (zero while the contact sticks, e.g. ``rig/truth``'s
-     ``slip_distance_m``). The onset is the last sample at which it had not yet grown
-     by ``slip_start_m`` (``slip_start_rad``): the last stuck sample.
-   - ``displacement_m`` / ``rotation_rad``: the total displacement, which includes
-     the elastic twist before slip; the onset is the sample before it first exceeds
-     ``slip_threshold_m`` (``slip_threshold_rad``) from its initial value — late by
-     the time the slip needs to cover that distance.
-3. Fit a straight line to the raw ratio on the rising ramp, ``fit_window_s`` before
-   the smoothing-affected zone ``[k* − w/2, …)``; its residual std is the noise level
-   ``s_r``. The onset (ratio-based) is the sample before the first of two successive
-   samples, after the fitted zone, that fall below the line by ``drop_sigma · s_r``.
-4. ``static`` = the value at the onset of a line fitted to the raw ratio over the
-   ``static_window_s`` *ending at the onset* (never a line extended past its data), with
-   the standard error of that value;
-   ``dynamic`` = mean of the raw ratio over the second half of the plateau that runs
-   from ``settle_s`` after the onset to the end (with a motion signal: over the samples
-   that are sliding, not stuck; friction that weakens with the distance slid reaches
-   its sliding level late), with its standard error corrected for lag-1
-   autocorrelation (AR(1): ``s/√n · √((1+ρ)/(1−ρ))``).
-5. Model error, reported apart from the standard errors (which only see the noise):
-   what the estimator's assumptions miss, as a standard uncertainty in the same unit.
-
-   - ``static_model`` = ``|static − the same line's value over the last half of
-     static_window_s|``: a straight line cannot follow a ramp that bends over before
-     the onset (patches that slip and weaken, bristle compliance), and then the two
-     windows disagree.
-   - ``dynamic_model``: how much the level still drifts where it is measured, the
-     difference between the means of the two halves of the plateau's second half.
-
-   ``slipstack identify`` adds a third term for β (``lib/material_fit.py``).
-
-The peak's *prominence* is ``min(static, max smoothed ratio) − dynamic`` (the smoothed
-maximum guards against a line extrapolated past a knee).
-
-A recording made as a user makes it holds more than one ramp: pressing, ramps past slip,
-holds, unloads, rests, repeated. :func:`identify_mu_loadings` and
-:func:`identify_beta_loadings` cut it into *loadings* first (docs/math.md §6.1): with
-the truth's gross-slip flags, runs of slip less than ``fit_window_s`` apart are one
-loading (stick–slip on one ramp); without them, a stretch where the smoothed ratio is
-at least ``active_fraction`` of its largest value, its sliding plateau ending where the
-ratio falls away from the plateau's level (the unload). Each loading's window runs from
-the end of the previous one to the end of its own sliding, and the estimator above runs
-on it: a plateau never reaches into an unload or a rest. Samples with ``f_n`` under
-``grip_fraction`` of the grip (its 90th percentile) are left out (pressing, releasing).
-
-Statuses: ``ok``; ``no-clear-peak`` (prominence ``< min_prominence_sigma · s_r``: the
-drop is not resolved, ``μ_s ≈ μ_d``, estimates given but flagged; when the ratio
-levels off at a knee — best fit of ``a + b·min(t − t_k, 0)`` — the knee gives the
-onset and ``static = dynamic``);
-``no-onset`` (the ratio is still rising at the end, the ramp does not rise, or the
-displacement never crosses its threshold: ``static`` is then the largest smoothed
-ratio seen, a lower bound); ``insufficient-data``; ``bad-input`` (shapes, time not
-increasing). With a motion signal, a ratio without a drop is ``ok`` (``μ_s ≈ μ_d``: the
-motion gives the onset). Nothing here raises on data; :class:`IdentifyConfig` raises
-:class:`ConfigError` on bad settings.
+More in docs/modules.md, `lib/identify.py`.
 """
 
 from __future__ import annotations

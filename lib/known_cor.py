@@ -5,11 +5,7 @@ does not solve (12) for the COR: it evaluates test (11) about the pivot directly
 
     |n(p_c)| ≤ T(p_c),   n(p_c) = τ + f_t × p_c,   T(p_c) = μ Σ φ_i |p_i − p_c|
 
-(pad frame F, SI: τ in N·m about the pad origin, f_t in N, p_i and p_c in m, φ_i in
-N). The load factor is ``γ = |n(p_c)| / T(p_c)``. The tangential force is carried
-by the shaft, so only its moment about the pivot loads the contact; a slip is always
-a ``rotation``. :func:`known_cor_test` returns a slip test with the signature of
-``lib/slip_tests.py``'s, for :class:`~slipstack.lib.detector.Detector`.
+More in docs/modules.md, `lib/known_cor.py`.
 """
 
 from __future__ import annotations

@@ -6,20 +6,26 @@ plus ``T`` stands for ``late // T`` ticks that came in a burst, and every sensor
 of that time left up to ``late`` late. :class:`LateTicks` is fed the time of each tick
 (ns, any monotonic clock; nothing here reads a clock) and words a report after a late
 tick, at most one per ``report_every_ns``: how many ticks were late since the last
-report, the worst by how much, and :data:`BEHIND_REAL_TIME_ADVICE`.
+report, the worst by how much, and what to do (:func:`behind_real_time_advice`).
 """
 
 from __future__ import annotations
 
-__all__ = ["BEHIND_REAL_TIME_ADVICE", "LateTicks"]
+__all__ = ["behind_real_time_advice", "LateTicks"]
 
-BEHIND_REAL_TIME_ADVICE = (
-    "give it a CPU core: run with `realtime:=10` (SCHED_FIFO, the default where the launcher may set it: "
-    "as root, with CAP_SYS_NICE or after `ulimit -r 10`; the launch log says when it was not granted) or free a "
-    "core; or lower the sensor rates (`ft_rate_hz:=250 tactile_rate_hz:=125`); or run `slipstack launch ... "
-    "--lockstep` for a deterministic run on the simulated clock, which never falls behind"
-)
-"""What to do when a real-time loop cannot keep its tick (launch arguments of the shipped files)."""
+_OTHER_REMEDIES = ("or lower the sensor rates (`ft_rate_hz:=250 tactile_rate_hz:=125`); or run `slipstack launch ... "
+                   "--lockstep` for a deterministic run on the simulated clock, which never falls behind")
+
+
+def behind_real_time_advice(realtime: bool) -> str:
+    """What to do when a real-time loop cannot keep its tick (launch arguments of the shipped
+    files); ``realtime``: the loop already ran under SCHED_FIFO, so raising its priority is no remedy."""
+    if realtime:
+        return ("it already runs with real-time priority (SCHED_FIFO), so something of equal or higher priority, "
+                "or the kernel, held its core: free a core (stop other real-time work); " + _OTHER_REMEDIES)
+    return ("give it a CPU core: run with `realtime:=10` (SCHED_FIFO, the default where the launcher may set it: "
+            "as root, with CAP_SYS_NICE or after `ulimit -r 10`; the launch log says when it was not granted) or free "
+            "a core; " + _OTHER_REMEDIES)
 
 
 class LateTicks:
@@ -63,18 +69,19 @@ class LateTicks:
         self._unreported_worst_ns = max(self._unreported_worst_ns, late)
         return True
 
-    def report(self, now_ns: int, scene_start_ns: int) -> str | None:
+    def report(self, now_ns: int, scene_start_ns: int, realtime: bool = False) -> str | None:
         """The report due at ``now_ns``, if a late tick is untold and none was given for
-        ``report_every_ns``; times in it count from ``scene_start_ns`` (s)."""
+        ``report_every_ns``; times in it count from ``scene_start_ns`` (s); ``realtime``: the
+        loop runs under SCHED_FIFO (it changes what to do)."""
         if not self._unreported or (self._reported_ns is not None
                                     and now_ns - self._reported_ns < self.report_every_ns):
             return None
-        text = self._report(scene_start_ns)
+        text = self._report(scene_start_ns, realtime)
         self._reported_ns = now_ns
         self._unreported = self._unreported_worst_ns = 0
         return text
 
-    def _report(self, scene_start_ns: int) -> str:
+    def _report(self, scene_start_ns: int, realtime: bool) -> str:
         worst_ms = self._unreported_worst_ns / 1e6
         burst = self._unreported_worst_ns // self.period_ns
         since = (self._unreported_first_ns - scene_start_ns) / 1e9
@@ -83,4 +90,4 @@ class LateTicks:
                 f"{worst_ms:.1f} ms ({burst} ticks of {self.period_ns / 1e6:g} ms made up at once: the sensor "
                 f"samples of that time left in a burst, up to {worst_ms:.0f} ms late, and the controller saw them "
                 f"that late); {self.late_ticks} late ticks in all, the worst by {self.worst_ns / 1e6:.1f} ms. "
-                f"What to do: {BEHIND_REAL_TIME_ADVICE}")
+                f"What to do: {behind_real_time_advice(realtime)}")

@@ -5,42 +5,7 @@ docs/math.md §4. Each taxel ``i`` (position ``p_i`` in the pad frame F, m; norm
 ``w = (f_t, τ)`` (N, N·m about z through the pad origin, in F) sticks iff
 ``γ(w) ≤ 1`` with the load factor::
 
-    γ(w) = max( |f_t|/(μ f_n),  sup_c |n(c)| / T(c) ),
-    n(c) = τ + f_t × c,     T(c) = μ Σ φ_i |p_i − c|.
-
-Method (:func:`load_factor`):
-
-1. Normalise: centre on the centre of pressure ``p̄`` and divide lengths by the RMS
-   contact radius ``L``, forces by ``μ f_n``. All tolerances are then relative, so
-   γ is invariant to the force scale and the pad's length scale.
-2. Sense. For ``f_t ≠ 0`` write ``a = |n(p̄)|/|f_t|`` (the lever arm of the load
-   about the centre of pressure). Along the ray ``c = p̄ + t·b̂``,
-   ``b̂ = s·perp(f_t)/|f_t|``, the concave function ``s·n − γ_t·T`` with
-   ``γ_t = |f_t|/(μ f_n)`` increases to its limit ``s·n(p̄)``; hence
-   ``γ > γ_t`` iff ``n(p̄) ≠ 0``, the maximiser is finite, and its sense is
-   ``s = sign n(p̄)``. Only that sense needs solving.
-3. Near translation (``a ≤ 1e-5·σ``, σ the RMS spread of the contact along
-   ``f_t``) the COR lies beyond ``σ²/a ≥ 1e5 σ``; there
-   ``γ = γ_t (1 + a²/(2σ²)) + O(γ_t (a/σ)³)`` (expansion of ``|p_i − c|`` in
-   ``1/t``), whose relative error is below 1e-15. The case is reported as
-   TRANSLATION with no COR — never an overflowing one.
-4. Otherwise Dinkelbach's iteration for the fractional program
-   ``max_c s·n(c)/T(c)``: ``γ_k = s·n(c_k)/T(c_k)``, then a step of the
-   Fermat–Weber sub-solver (:func:`slipstack.lib.weber.newton_step`) on
-   ``max_c s·n(c) − γ_k T(c)``, i.e. weights ``φ_i/f_n`` and linear term
-   ``s·perp(f_t)/(γ_k μ f_n)``. One safeguarded Newton step per update of ``γ``
-   ("inexact Dinkelbach") keeps ``γ_k`` strictly increasing (the step decreases
-   the sub-objective, which was 0 at ``c_k``) and is asymptotically Newton's
-   method on the ratio (at the optimum ``∇²(n/T) = −(γ/T)∇²T``), so convergence
-   is quadratic; on a taxel the sub-solver's Kuhn test certifies the kink.
-5. ``f_t = 0`` (or below rounding beside the torque, ``|f̃| ≤ 1e-16 |ñ(p̄)|``): the COR is
-   the weighted geometric median, ``γ = |τ|/T_min``.
-
-Special cases (documented choices): all ``φ = 0`` → NO_CONTACT, ``γ = 0``; a friction
-capacity ``μ f_n`` that is subnormal (no measured force) or overflows → INVALID_INPUT;
-``f_t = 0`` and ``τ = 0`` → NO_LOAD, ``γ = 0`` (margin ``1 − γ = 1``); all force
-on one taxel with a non-zero torque about it → POINT_CONTACT, ``γ = +inf`` (the
-only non-finite output).
+More in docs/modules.md, `lib/limit_set.py`.
 """
 
 from __future__ import annotations

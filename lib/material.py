@@ -3,37 +3,7 @@
 A material file (TOML, written by ``slipstack identify``; shipped ones in
 ``launch/materials/``) holds what the paper's Fig. 4 identification measures::
 
-    [material]
-    name = "rubber"
-    provenance = "how and from what it was identified"
-    mu_s = 0.45          # static friction coefficient (dimensionless), with mu_s_se
-    mu_d = 0.36          # dynamic (sliding) coefficient, with mu_d_se
-    beta_s_m = 1.3e-3    # torsional coefficients (m), with beta_s_se_m, beta_d_m, beta_d_se_m
-    mu_s_model = 0.003   # model error of each coefficient, apart from its standard error:
-                         # mu_s_model, mu_d_model, beta_s_model_m, beta_d_model_m
-    gamma_noise_stick = 0.004   # std of the detector's load factor γ while sticking
-    gamma_noise_slide = 0.008   # ... and while sliding (frame-to-frame, detrended)
-    onset_gamma = [0.95, 0.97]  # γ at which each identified gross-slip episode began
-
-A standard error (``*_se``) is the noise's share of the uncertainty; the model error
-(``*_model``, ``lib/identify.py`` step 5 and ``lib/material_fit.py``) is what the
-estimator's assumptions miss, as a standard uncertainty. A coefficient's ± 2-sigma
-interval is ``value ± 2·√(se² + model²)``.
-
-**The rule** (:func:`detector_thresholds`, derived in docs/math.md §3.1): the band's edge
-is a lower prediction bound of the next onset's load factor from the identified ones,
-``1 − δ = min(onset_gamma) − R/(n + 1) − 3·σ_stick`` (``n`` onsets spanning ``R``); only
-without any onset the worst case a slip-weakening contact allows, its sliding level less
-the noise, ``min(μ_d/μ_s, β_d/β_s) − 3·σ_stick``. The
-release level is the lowest identified sliding level less the sliding noise,
-``γ_release = min(μ_d/μ_s, β_d/β_s) − 4·σ_slide``, never above ``1 − δ``, and
-``γ_resume`` the same with ``2·σ_slide``. ``σ`` below ``NOISE_FLOOR`` is raised to it; δ
-is kept in ``[DELTA_MIN, DELTA_MAX]``. ``refused``: why ``slipstack identify`` refused the
-file when ``--force`` wrote it anyway (empty: not refused).
-
-The grip laws take ``μ_s`` and ``β_s`` from the file. Nothing here imports zmq; a
-missing key, a wrong type or an out-of-range value raises :class:`ConfigError` naming
-the key.
+More in docs/modules.md, `lib/material.py`.
 """
 
 from __future__ import annotations

@@ -2,24 +2,7 @@
 
 The pieces of :mod:`slipstack.analysis.identify_cli` that are plain computation:
 
-- :func:`pooled`: several estimates of one coefficient (one per recording) as their
-  inverse-variance weighted mean and its standard error.
-- :func:`frame_noise`: the frame-to-frame noise of a load-factor series, the standard
-  deviation of its first differences over √2. A slow trend (a load ramp, the friction's
-  decay while sliding) changes consecutive frames by far less than the noise, so it
-  hardly enters; the difference of two independent noisy frames has variance 2σ².
-- :func:`onset_levels`: the load factor γ of the last frame before each gross-slip
-  onset, the last one still sticking (dimensionless).
-- :func:`pooled_model`: the model error of a pooled coefficient (see there).
-- :func:`beta_from_pressure`: the torsional coefficient that rigid Coulomb friction
-  gives a measured pressure, ``μ × r̄`` (m): a second route to β, independent of the
-  torque ramp. The two routes disagree by what the rigid model misses (bristle
-  compliance: the patches next to the centre of rotation never reach their limit
-  before the object turns; edges that weaken before the core lets go), so
-  ``slipstack identify`` adds that disagreement to β's model error.
-- :func:`interval_half_width`: ``2·√(se² + model²)``, the ± of a reported value.
-
-Times are integer ns; nothing here raises on data (empty inputs give NaN or empty).
+More in docs/modules.md, `lib/material_fit.py`.
 """
 
 from __future__ import annotations

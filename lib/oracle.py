@@ -3,16 +3,7 @@
 Benchmarks compare a grip law's force with this lower bound, computed from the
 *true* pressure and load (e.g. the simulated rig's), not from sensor data.
 
-With per-taxel normal forces ``φ_i`` (N, pad frame F) summing to ``f_n`` and the
-load ``w = (f_t, τ)`` (N, N·m about z through the pad origin), the load factor
-``γ(w)`` of :func:`slipstack.lib.limit_set.load_factor` is the factor by which the
-friction capacity must grow to just hold ``w``. If the pressure *shape* does not
-change with the force (flat contacts), scaling ``f_n`` scales every ``φ_i`` and the
-capacity alike, so the least holding force is exactly ``f_n* = γ·f_n``
-(:func:`oracle_normal_force`). If the shape depends on the force (a Hertzian
-fingertip: contact radius ``∝ f_n^{1/3}``, torsional capacity ``∝ f_n^{4/3}``),
-``f_n*`` is the fixed point of ``g(f) = γ(φ(f))·f``, i.e. ``γ(φ(f*)) = 1``
-(:func:`least_holding_force`). Pure computation: no clock, never raises.
+More in docs/modules.md, `lib/oracle.py`.
 """
 
 from __future__ import annotations

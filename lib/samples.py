@@ -12,7 +12,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FtSample", "TactileSample", "GripperSample"]
+__all__ = ["FtSample", "TactileSample", "GripperSample", "MAX_SAMPLE_RATE_HZ"]
+
+MAX_SAMPLE_RATE_HZ = 10_000.0
+"""The fastest sensor stream accepted (Hz), simulated or read: above the fastest the drivers
+know (ATI RDT, 7 kHz); a rate beyond it is a typo (1e12 made a lock-step run hang)."""
 
 
 @dataclass(frozen=True, slots=True)

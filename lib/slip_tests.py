@@ -3,42 +3,7 @@
 Every test has the signature ``test(contact, params, warm_start=None) -> SlipVerdict``
 and returns a load factor ``γ`` (or its analogue) with ``margin = 1 − γ``:
 
-=================  ==============================================  ==========================
-name               γ (stick iff margin ≥ δ, i.e. γ ≤ 1 − δ)          needs
-=================  ==============================================  ==========================
-``coulomb``        ``|f_t|/(μ f_n)``                          (7)  F/T
-``decoupled``      ``max(|f_t|/(μ f_n), |τ|/(β f_n))``    (Fig. 5d) F/T, β
-``linear_ls``      ``|f_t|/(μ f_n) + |τ|/(β f_n)``            (5)  F/T, β
-``elliptic_ls``    ``√((|f_t|/(μ f_n))² + (τ/(β f_n))²)``      (6)  F/T, β
-``tactile_cor``    ``|n(p_c)|/T(p_c)``, p_c from the paper's  (11) F/T + tactile
-                   fixed-gain iteration for (12) (COR solver ``paper``)
-``tactile_cor_robust``  the same with the robust solver     (11) F/T + tactile
-                   (COR solver ``robust``)
-``exact``          the load factor of the exact limit set     §4   F/T + tactile
-                   (COR solver ``exact``)
-=================  ==============================================  ==========================
-
-``τ`` in the F/T tests is the torque about the pad origin (what the F/T sensor
-gives). ``β`` is ``params.beta_m`` if set, otherwise ``β_s`` computed from the
-tactile data (docs/math.md §4.3) — so the F/T tests become tactile-aware; without
-either, the verdict has status INVALID_INPUT. A tactile point contact has
-``β_s = 0``: any torque then gives ``γ = +inf`` with status POINT_CONTACT.
-
-How ``kind`` is decided (the same thresholds for every test):
-
-* ``'no-contact'`` if ``f_n ≤ 0`` (status NO_CONTACT); ``'stick'`` if stick.
-* Otherwise a *rotation share* ``ρ ∈ [0, 1]`` of the impending motion decides:
-  ``ρ < 1/3`` → ``'translation'``, ``ρ > 2/3`` → ``'rotation'``, else ``'combined'``.
-* F/T tests: ``ρ = a_r/(a_t + a_r)`` with ``a_t = |f_t|/(μ f_n)`` and
-  ``a_r = |τ|/(β f_n)`` (the normalised force and torque); ``coulomb`` sees no
-  torque, so it always says ``'translation'``.
-* Tactile tests: from the twist of impending slip, ``ρ = ℓ/(ℓ + d)`` where ``d`` is
-  the distance from the centre of pressure to the COR and ``ℓ`` the RMS contact
-  radius about the centre of pressure (``ρ = 1`` for a spin about the centre of
-  pressure, ``→ 0`` as the COR recedes; ``ρ = 0`` for a translation).
-
-Special values: no load → ``γ = 0``, margin 1 (stick). A point contact with a
-torque about it → ``γ = +inf``, margin ``−inf`` (slip). No other non-finite output.
+More in docs/modules.md, `lib/slip_tests.py`.
 """
 
 from __future__ import annotations
@@ -177,8 +142,9 @@ def _load(contact: ContactLike, mu: float) -> tuple[float, float, float, float] 
 
 
 def _stick_margin(gamma: float, params: SlipParams, usable: bool) -> tuple[bool, float]:
-    """``(stick, margin)`` of a load factor γ computed with a status that is ``usable`` or not."""
-    margin = 1.0 - gamma
+    """``(stick, margin)`` of a load factor γ computed with a status that is ``usable`` or not
+    (Python bool and float also where γ is a numpy scalar: a kernel run with numba's JIT off)."""
+    margin = 1.0 - float(gamma)
     return usable and margin >= params.delta, margin
 
 

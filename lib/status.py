@@ -6,11 +6,7 @@ result with a :class:`SolverStatus`, whose :attr:`~SolverStatus.message` says in
 words what happened, and :attr:`~SolverStatus.usable` whether the numbers in the
 result may be acted on.
 
-Each member's value is its spelling on the wire and in recordings, kept as it has
-always been: status codes use underscores (``no_contact``, ``on_taxel``), the slip
-state and the COR case hyphens (``no-contact``, ``on-taxel``). Code names a value
-through its enum, never as a bare string; :class:`SlipCase`, :class:`SlipState`
-and :class:`CorSolver` are ``str`` enums, equal to their values.
+More in docs/modules.md, `lib/status.py`.
 """
 
 from __future__ import annotations

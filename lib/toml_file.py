@@ -8,10 +8,19 @@ from typing import Any
 
 from slipstack.lib.errors import ConfigError
 
-__all__ = ["read_toml", "resolve_path", "SHIPPED_ROOT"]
+__all__ = ["read_toml", "resolve_path", "loads", "SHIPPED_ROOT"]
 
 #: Where the shipped launch files (``files/``), scenes and materials live.
 SHIPPED_ROOT = Path(__file__).resolve().parents[1] / "launch"
+
+
+def loads(text: str) -> dict[str, Any]:
+    """``tomllib.loads``; nesting deeper than the parser can follow is a ``TOMLDecodeError`` like
+    any other syntax error (the parser recurses, and ran out of stack: a traceback)."""
+    try:
+        return tomllib.loads(text)
+    except RecursionError:
+        raise tomllib.TOMLDecodeError("arrays or tables nested too deeply") from None
 
 
 def read_toml(path: str | Path, kind: str) -> dict[str, Any]:
@@ -26,7 +35,7 @@ def read_toml(path: str | Path, kind: str) -> dict[str, Any]:
     except OSError as exc:
         raise ConfigError(f"cannot read {kind} file {path}: {exc.strerror}") from exc
     try:
-        return tomllib.loads(text)
+        return loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path.name}: TOML syntax error: {exc}") from exc
 

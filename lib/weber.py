@@ -4,35 +4,7 @@ Minimise over ``c ∈ R²``::
 
     F(c) = Σ_i a_i |p_i − c| − b·c,        a_i ≥ 0,
 
-the sub-problem behind the paper's COR equations (12): with ``a_i = μ φ_i`` and
-``b = s·perp(f_t)`` it is ``max_c g_s(c) = s·n(c) − T(c)`` up to the constant
-``s·τ``; with ``b = 0`` its minimiser is the weighted geometric median.
-
-``F`` is convex. It has a finite minimiser iff ``|b| < Σ a_i`` (for ``|b| ≥ Σ a``
-it decreases without bound along ``b``: the contact translates).
-
-Method: damped Newton with Armijo backtracking on ``F`` (globally convergent on a
-convex function, quadratic near a smooth minimiser), plus the kink handling of
-Kuhn (1973) / Vardi & Zhang (2000): at a point ``p_j`` the minimiser is ``p_j``
-iff ``|R_j| ≤ a_j`` with ``R_j = Σ_{i≠j} a_i (p_j − p_i)/|p_j − p_i| − b``;
-otherwise the steepest-descent step ``−R_j/|R_j| · (|R_j| − a_j)/Σ_{i≠j} a_i/|p_j − p_i|``
-leaves the point. The Kuhn test is run whenever an iterate gets closer to a
-point than the length of its last step: a minimiser on a taxel (the paper's
-special case) is then found exactly instead of being approached forever, and
-when the point is not optimal the Vardi–Zhang step off it is taken if it lowers
-``F`` more than the Newton step (Newton alone crawls near a kink, where the
-curvature grows like 1/r).
-
-All work is done in normalised coordinates (points centred on their weighted
-centroid and divided by their RMS radius, weights divided by their sum), so the
-tolerances are relative: results are invariant to the units of ``a`` and ``b``
-and to the length scale of ``p``.
-
-The inner loops are compiled with numba (one pass over the taxels per Newton
-step instead of a dozen numpy calls: the step costs about a microsecond at 256
-taxels instead of about 20). The kernels are ordinary Python; ``NUMBA_DISABLE_JIT=1``
-runs them interpreted, for debugging. Compiled code is cached beside this file,
-so only the first process after an install pays the compile (a few seconds).
+More in docs/modules.md, `lib/weber.py`.
 """
 
 from __future__ import annotations

@@ -5,12 +5,12 @@
 
 from slipstack.messages.base import Header, Message, decode, encode, registry, validate, handed_over
 from slipstack.messages.types import (
-    STATUS_OK, TACTILE_PAIRING, Contact, Cor, Diagnostics, GripCommand, RigTruth, Slip, TactileFrame, Wrench,
+    STATUS_OK, TACTILE_PAIRING, Contact, Cor, Diagnostics, GripCommand, GripState, RigTruth, Slip, TactileFrame, Wrench,
 )
 from slipstack.messages.grasp import GraspGoal, GraspState, GraspTruth, GripperState
 
 __all__ = [
     "Header", "Message", "decode", "encode", "registry", "validate", "handed_over", "STATUS_OK", "TACTILE_PAIRING",
-    "Contact", "Cor", "Diagnostics", "GripCommand", "RigTruth", "Slip", "TactileFrame", "Wrench",
+    "Contact", "Cor", "Diagnostics", "GripCommand", "GripState", "RigTruth", "Slip", "TactileFrame", "Wrench",
     "GraspGoal", "GraspState", "GraspTruth", "GripperState",
 ]

@@ -6,17 +6,7 @@ are annotated ``float``, ``int``, ``bool``, ``str`` or ``dict``; array fields us
 :class:`~slipstack.messages.frame.Header` filled in by the executor when it is
 published; :mod:`slipstack.messages.frame` holds the frame layout around the body.
 
-Scalar fields may declare :class:`Bounds` with :func:`bounded` (numeric range,
-an enumeration or pattern of strings, a length or entry limit); a ``dict`` field may
-declare its values in its metadata (``"values": float``, or a tuple of types for a
-fixed-length list, ``(bool, float)``); every ``str`` and
-``dict`` field has a length limit even without one (:data:`MAX_STR_LEN`,
-:data:`MAX_DICT_ITEMS`). An array's free dimension may be tied to other fields
-(``array("<f4", ("rows*cols",))``: its length must equal the product).
-
-Decoding validates types, shapes, finiteness and the declared bounds and raises
-:class:`~slipstack.lib.errors.DecodeError` naming the field
-(``slipstack/Wrench.force: expected shape (3,), got (2,)``).
+More in docs/modules.md, `messages/base.py`.
 """
 
 from __future__ import annotations

@@ -7,14 +7,7 @@ array-like structs; new fields may only be appended, with defaults)::
      [stamp_ns, seq, pub_ns, {source_name: stamp_ns}],   # the header
      [field_0, field_1, ...]]                              # the body, declared order
 
-numpy arrays travel as msgpack extension type 1 (see :func:`pack_array`):
-``u8 len(dtype) | dtype str (ascii, e.g. "<f8") | u8 ndim | u32 LE × ndim shape | raw bytes``
-— compact and exact, never lists of floats.
-
-Bounds: a frame payload is at most :data:`MAX_PAYLOAD_BYTES` (the transport refuses
-longer ones: ZeroMQ's maximum message size), and :func:`unpackb` refuses strings,
-lists, maps and arrays longer than any declared message field can be
-(:data:`UNPACK_LIMITS`) before building them.
+More in docs/modules.md, `messages/codec.py`.
 """
 
 from __future__ import annotations

@@ -6,14 +6,7 @@ One frame payload is a MessagePack array (``messages/codec.py`` packs it)::
      [stamp_ns, seq, pub_ns, {source_name: stamp_ns}],   # the header
      [field_0, field_1, ...]]                              # the body, declared order
 
-This module packs and unpacks that outer layout (:func:`pack_frame`,
-:func:`unpack_frame`), validates a header (:func:`header_from_wire`), reads the
-header of a payload without unpacking its body (:func:`peek_header`, ~1 µs),
-shifts every stamp of a payload (:func:`restamp`), names the stream a frame's
-sequence number belongs to (:func:`publisher_key`), whose gaps
-:class:`~slipstack.lib.sequence.SeqTracker` counts (in ``lib`` so that device
-back-ends count their devices' sample counters with it too). Message bodies are
-:mod:`slipstack.messages.base`'s job.
+More in docs/modules.md, `messages/frame.py`.
 """
 
 from __future__ import annotations

@@ -5,49 +5,7 @@ encoded for the bus or the recording, and every frame a process receives is chec
 again: tens of thousands of times a second. Written once per type, like the
 ``__init__`` :mod:`dataclasses` generates, a type's
 
-* **accept test** (:func:`compile_accept`) runs the decoder's checks
-  (:mod:`slipstack.messages.base`: one closure per field, each with its own error text,
-  1–10 µs a message in a closure call, a ``zip`` step and a type dispatch per field)
-  inlined as one ``and`` chain over the fields in declared order::
-
-    def accept_slipstack_Wrench(fields):
-        v_force = fields['force']
-        ...
-        return ((type(v_force) is ndarray and v_force.dtype is dtype_v_force and v_force.shape == (3,)
-                 and -inf < sum(v_force.tolist()) < inf)
-                ...
-                and (type(v_device_seq) is int and v_device_seq >= -1) ...)
-
-* **wire body** (:func:`compile_wire_body`) lists the body fields in declared order with
-  each array already as its MessagePack extension;
-* **__init__** (:func:`compile_init`) stores the fields through the instance dict in one
-  update instead of one ``object.__setattr__`` per field (the frozen dataclass way, ~80 ns
-  a field).
-
-The accept test only answers *accepted or not*: a message it does not accept goes
-through the field-by-field checks, which name the first failing field with the same text
-as ever, or pass it after all. So each test is at most as permissive as the check it
-stands for, never more, and may be stricter where that is cheaper:
-
-* a float is accepted only as exactly ``float`` (an ``int`` or a numpy float goes to the
-  full check, which accepts and converts it); a float is finite when ``v - v == 0.0``
-  (``inf - inf`` and anything with NaN is NaN);
-* an array's dtype must be the declared dtype object itself (numpy keeps one object per
-  built-in dtype; an equal but distinct object goes to the full check);
-* a small float array of fixed size is finite when the sum of its values as Python
-  floats is (NaN or Inf makes it NaN or Inf; a finite array whose sum overflows goes to
-  the full check); a larger one as the full check tests it (:func:`all_finite`);
-* ``str`` values are tested with the very operations the full check uses (``len``,
-  membership in the choices, the pattern's ``fullmatch``), so a ``str`` enumeration
-  member passes both; a field with a pattern also remembers a few exact ``str`` values
-  that passed (:data:`_KNOWN_STRINGS_KEPT`; a law or reason name takes a set look-up,
-  not a regular expression, ~0.2 µs);
-* a ``dict`` field's keys must be exactly ``str`` and its values exactly the declared
-  types (``int`` or ``float`` for a number, a ``list`` for a fixed-length list).
-
-``tests/property/test_generated_code.py`` checks on random valid and invalid
-values, for every registered type, that the hand-over and the decoder reject exactly
-what the field-by-field checks reject.
+More in docs/modules.md, `messages/generated.py`.
 """
 
 from __future__ import annotations

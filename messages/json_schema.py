@@ -7,13 +7,7 @@ numbers are numbers (a float that may be infinite also takes the strings ``"inf"
 enumerations become ``minItems``/``maxItems``, ``minimum``/``maximum``, ``enum`` and
 ``pattern``; a field's declared unit opens its ``description``.
 
-Two clocks, both kept and named in the header:
-
-* ``header.stamp_ns``, ``pub_ns``, ``sources``: as on the bus, integer ns on the
-  publishing host's CLOCK_MONOTONIC;
-* ``header.stamp``: the same sample time on the wall clock, ``{sec, nsec}`` since the
-  Unix epoch (Foxglove's time type: its plots can use it as the x axis), that is
-  ``stamp_ns`` + the recording host's wall − monotonic offset.
+More in docs/modules.md, `messages/json_schema.py`.
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ from slipstack.lib.status import SAMPLE_NO_CONTACT, SAMPLE_OK, SAMPLE_UNUSABLE, 
 from slipstack.messages.base import Bounds, Message, array, bounded, message
 
 __all__ = [
-    "Wrench", "TactileFrame", "Contact", "Cor", "Slip", "GripCommand", "RigTruth",
+    "Wrench", "TactileFrame", "Contact", "Cor", "Slip", "GripCommand", "GripState", "FINGER_MODES", "RigTruth",
     "Diagnostics", "STATUS_OK", "STATUSES", "TACTILE_PAIRING", "DEVICE_STATUS_PATTERN", "NAME_PATTERN", "MAX_PAD_SIDE",
     "MAX_PITCH_M", "MAX_GRIP_FORCE_N", "MAX_TEXT_LEN", "MAX_COUNTERS", "MAX_VERDICTS", "MAX_EARLIER_SAMPLES",
     "SAMPLE_OK", "SAMPLE_NO_CONTACT", "SAMPLE_UNUSABLE",
@@ -210,6 +210,25 @@ class GripCommand(Message):
     f_n_desired: float = bounded(0.0, ge=0.0, le=MAX_GRIP_FORCE_N, doc="N")
     law: str = bounded("", **_NAME)
     reason: str = bounded("nominal", **_NAME)
+
+
+FINGER_MODES = ("initial", "following", "watchdog")
+"""What the finger's grip is (``GripState.mode``): ``initial`` its own since power-on, no command
+yet; ``following`` the last ``grip/command``; ``watchdog`` commands stopped, it holds (and may raise)."""
+
+
+@message("slipstack/GripState")
+class GripState(Message):
+    """``grip/state``: what the finger reports (docs/safety.md, the start contract).
+
+    f_n_command: the normal force it holds to now (N). mode: one of :data:`FINGER_MODES`.
+    commanded_by: who sent the command it follows: "" the graph's controller, else the
+    injecting tool's name (a manual command, where the launch allows it).
+    """
+
+    f_n_command: float = bounded(0.0, ge=0.0, le=MAX_GRIP_FORCE_N, doc="N")
+    mode: str = bounded("initial", choices=FINGER_MODES)
+    commanded_by: str = bounded("", pattern=NAME_PATTERN, max_len=64)
 
 
 @message("slipstack/RigTruth")

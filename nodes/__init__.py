@@ -9,3 +9,7 @@ The modules directly in this package are the node types a launch file names
 * ``recording/``: MCAP recordings (file format, the recorder and the player);
 * ``tools/``: the ``slipstack topic | node | bag`` verbs that attach to a running graph.
 """
+
+from slipstack.nodes.runtime.threads import one_thread_per_library
+
+one_thread_per_library()  # before anything below this package loads numpy

@@ -3,32 +3,7 @@
 A :class:`DeviceDriver` owns one back-end chosen by URL
 (:func:`slipstack.nodes.devices.backends.backend_from_url`). It never blocks:
 
-- the back-end's descriptor is watched (:meth:`io_sources`, re-read every loop turn
-  because a reconnect changes it) and every readable event runs one ``poll``; a
-  simulated device (``sim:`` URL, ``nodes/devices/sim_link.py``) has no descriptor
-  and makes its bytes due at once through the deadline instead;
-- the node's deadline (:meth:`next_deadline_ns`) is the back-end's own (stale
-  limit, reconnect back-off, handshake timeout), the next status republish and the
-  next counter sync, whichever comes first; the executor wakes the node exactly
-  then, so staleness and reconnects happen without input and without a periodic
-  timer (with the default stale limit of 2.5 sample periods, at least 2.5 ms, the
-  first status message follows the last sample within 3 sample periods or 3 ms,
-  up to the executor's wake-up jitter);
-- while the back-end is not ``ok`` the driver publishes a *status message* (the
-  subclass's last good values with status ``stale`` / ``disconnected``) at once on
-  the change and then every ``stale_status_period_ms``, so consumers can hold;
-- samples decoded in one read get stamps stepped back from the read's time by the
-  nominal sample period (strictly increasing), not one shared stamp;
-- the back-end's counters are mirrored into ``diagnostics`` as ``device.<name>``
-  (``device.frames``, ``device.crc_errors``, ``device.rejected_bytes``,
-  ``device.reconnects``, …), and the node status is the link status;
-- a device that cannot be opened or is lost is said at once: one log line per new
-  error (the terminal of ``slipstack run`` / ``launch``), ``last_error`` on
-  ``diagnostics``, status ``disconnected: URL: error``; retries follow the
-  back-off without a busy loop.
-
-Subclasses set ``kind`` ("ft" or "tactile") and implement :meth:`on_sample` and
-:meth:`publish_status`.
+More in docs/modules.md, `nodes/device_driver.py`.
 """
 
 from __future__ import annotations
@@ -44,6 +19,7 @@ from slipstack.nodes.runtime.node import Context, IoSource, Node
 
 __all__ = ["DeviceDriver"]
 
+_STARTING = "starting"  # not a link status: the first poll reports whatever it finds
 _LINK_OK = LinkStatus.OK.value  # looked up once: next_deadline_ns runs between every two simulated instants
 _COUNTER_SYNC_NS = 50_000_000  # mirror back-end counters at most every 50 ms (and at stop)
 
@@ -75,7 +51,7 @@ class DeviceDriver(Node):
             raise ConfigError(f"{self.name}: {p.url!r} is a {self.backend.kind} device; use one of {wanted}")
         self.status_period_ns = round(p.stale_status_period_ms * 1e6)
         self.sample_period_s = 1.0 / self.backend.rate_hz
-        self.status = "starting"  # not a link status: the first poll reports whatever it finds
+        self.status = _STARTING
         self._reported_error = ""
         self._last_status_pub_ns: int | None = None
         self._sources: list[IoSource] = []
@@ -98,8 +74,7 @@ class DeviceDriver(Node):
 
     # -- node interface --------------------------------------------------------------------
     def start(self, ctx: Context) -> None:
-        self.backend.open(ctx.now_ns())
-        self._after_poll(ctx)
+        self.backend.open(ctx.now_ns())  # its status is published at the first deadline, once subscribers are in
 
     def stop(self, ctx: Context) -> None:
         self.backend.close()
@@ -126,6 +101,8 @@ class DeviceDriver(Node):
         return due
 
     def on_deadline(self, ctx: Context) -> None:
+        if self.status == _STARTING:
+            self._after_poll(ctx)
         now = ctx.now_ns()
         deadline = self.backend.next_deadline_ns()
         if deadline is not None and now >= deadline:

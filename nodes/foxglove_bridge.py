@@ -1,20 +1,10 @@
 """The ``foxglove`` node: the running graph, live, in Foxglove (WebSocket protocol).
 
-Serves ``ws://HOST:PORT`` with the Foxglove SDK (``pip install 'slipstack[foxglove]'``)
+Serves ``ws://HOST:PORT`` with the Foxglove SDK (``pip install 'slipstack[foxglove]'``;
+subprotocol ``foxglove.sdk.v1``, or ``foxglove.websocket.v1``: :mod:`.foxglove_front`)
 and, per received message (latest value per input; a viewer never slows the graph):
 
-* every input topic as JSON with the JSON Schema of its message declaration
-  (``/slipstack/<topic>``: slip state, γ, margin, grip force ... plottable by field);
-* ``/pad/pressure``: the tactile frame as a ``foxglove.RawImage``, encoding ``32FC1``,
-  one pixel per taxel, row 0 first, values in Pa (a heat map in the Image panel);
-* ``/pad/scene``: a ``foxglove.SceneUpdate`` (JSON) in frame ``pad`` (the pad frame F,
-  m): the force of ``ft/wrench`` as an arrow from the pad origin (length 1 cm per N)
-  and the centre of rotation from ``cor`` as a sphere
-  (:mod:`slipstack.nodes.recording.foxglove_scene`, which ``bag export`` writes too).
-
-Log times are wall-clock ns: each message's ``stamp_ns`` (CLOCK_MONOTONIC) plus the
-host's wall − monotonic offset read at start. ``docs/foxglove_layout.json`` is a
-layout with these panels.
+More in docs/modules.md, `nodes/foxglove_bridge.py`.
 """
 
 from __future__ import annotations
@@ -61,6 +51,7 @@ class FoxgloveBridge(Node):
         if not 0 < self.params.port < 65536:
             raise ConfigError(f"foxglove: port must be 1..65535, got {self.params.port}")
         self._server: Any = None
+        self._front: Any = None
         self._json: dict[str, Any] = {}
         self._wall_offset_ns = 0
         self._contact = ContactScene()
@@ -74,16 +65,28 @@ class FoxgloveBridge(Node):
         from slipstack.messages.json_schema import json_schema
 
         self._wall_offset_ns = time.time_ns() - time.monotonic_ns()
-        self._server = foxglove.start_server(name="slipstack", host=self.params.host, port=self.params.port)
+        from slipstack.nodes.foxglove_front import SubprotocolFront
+
+        self._server = foxglove.start_server(name="slipstack", host="127.0.0.1", port=0)  # behind the front
+        try:
+            self._front = SubprotocolFront(self.params.host, self.params.port, self._server.port)
+        except OSError as exc:
+            self._server.stop()
+            raise ConfigError(f"foxglove: cannot listen on {self.params.host}:{self.params.port} ({exc.strerror}); "
+                              "choose another foxglove_port:=") from None
         for name, spec in self.inputs.items():
             self._json[name] = foxglove.Channel(foxglove_topic(spec.topic), schema=json_schema(spec.type))
         self._image = RawImageChannel(PAD_IMAGE_TOPIC)
         scene_schema = foxglove.Schema(name=SCENE_UPDATE_SCHEMA["title"], encoding="jsonschema",
                                        data=json.dumps(SCENE_UPDATE_SCHEMA).encode())
         self._scene = foxglove.Channel(SCENE_TOPIC, schema=scene_schema, message_encoding="json")
-        ctx.log(f"serving Foxglove on ws://{self.params.host}:{self._server.port}")
+        ctx.log(f"serving Foxglove on ws://{self.params.host}:{self._front.port} (subprotocol foxglove.sdk.v1, "
+                "or foxglove.websocket.v1 for older clients)")
 
     def stop(self, ctx: Context) -> None:
+        if self._front is not None:
+            self._front.close()
+            self._front = None
         if self._server is not None:
             self._server.stop()
             self._server = None

@@ -2,24 +2,7 @@
 
 Per decoded sample, in this order:
 
-1. bias: ``w − b`` with ``b`` the mean of ``tare_samples`` samples (sensor frame S),
-   taken at start if ``tare_on_start`` and whenever :meth:`FtDriver.tare` is called;
-   samples used for the mean are published with status ``taring``. The bias is
-   kept across reconnects (it belongs to the sensor, not the link);
-2. low-pass (``lowpass_hz`` > 0): :class:`slipstack.lib.filters.LowPass` with
-   ``dt`` = the nominal sample period ``1/rate_hz`` of the URL (samples decoded in
-   one read share one receive stamp, so stamps cannot give ``dt``); restarted when
-   the link leaves ``ok`` and after a tare;
-3. sensor → pad (``to_pad``): :func:`slipstack.lib.fusion.wrench_to_pad` with
-   ``R_FS = rotation_rpy(pad_rpy_deg)`` (:mod:`slipstack.lib.frames`) and
-   ``p_SF = pad_offset_m``: ``f_F = R_FS f_S``, ``τ_F = R_FS τ_S + p_SF × f_F``.
-
-The stamp is the receive time (executor clock, ns) of the read that decoded the
-sample; ``device_seq`` is the RDT sequence (−1 for devices without one). A
-non-zero device status word (RDT status, Bota status bits) is published as status
-``device-status 0xNNNN``. While the link is stale or disconnected, the last
-published force/torque is republished with that status (see
-:mod:`slipstack.nodes.device_driver`).
+More in docs/modules.md, `nodes/ft_driver.py`.
 """
 
 from __future__ import annotations

@@ -1,31 +1,6 @@
 """fusion: pairs ``ft/wrench`` with the newest ``tactile/frame`` into ``contact`` (docs/safety.md).
 
-Its ``wrench`` input is a ``batch``: every F/T sample that arrived since the last
-wake-up, oldest first (at most :data:`BATCH_DEPTH`; at 1 kHz usually one, at 7 kHz
-several). Each wake-up publishes one ``contact`` for the newest sample that carries the
-loads of the earlier ones too (``Contact.earlier_*``, each judged usable or not as its
-own contact would be), so the slip detector examines every sample while the control
-chain runs once per wake-up, not once per sample; a backlog of more than
-:data:`SAMPLES_PER_CONTACT` samples, after a stall, makes several contacts, oldest first,
-and samples outside the tactile frame's pairing window are never carried by a contact
-paired with it. The tactile frame's pressure shape is
-computed once per frame. A batch that held an unusable sample (a device status, stale,
-implausible) passes that status on in the contact's ``status`` (docs/safety.md: the grip
-controller holds). ``fusion.samples`` counts the samples carried by contacts.
-
-The newest sample of a batch produces the ``contact``: with the newest tactile
-frame if its stamp lies within ``max_pair_age_ms`` of the wrench's and its status is
-``ok``, otherwise an F/T-only contact (``has_tactile`` false) whose ``tactile_status``
-says why (``none``, ``unpaired``, or the frame's own status such as ``stale``).
-``header.sources`` carries both stamps (and ``ft_oldest``, the oldest sample's of a batch
-of several, so the age of every sample at the grip command is known downstream) and
-``pair_offset_ns`` the tactile minus F/T stamp, so every consumer knows which samples
-were paired and how old they were.
-
-Plausibility: when the pad is pressed far harder than the F/T sensor says (the pad's
-force over ``ft_plausibility_ratio`` times the F/T normal force, as a biased or spoofed
-F/T sensor would read), the contact's status is ``implausible`` and the grip
-controller holds. A stale, disconnected or implausible sensor passes its status on.
+More in docs/modules.md, `nodes/fusion.py`.
 """
 
 from __future__ import annotations

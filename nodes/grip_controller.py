@@ -1,17 +1,6 @@
 """grip_controller: the grip-force law of docs/math.md §5 behind a fail-safe governor.
 
-Inputs: ``slip`` (triggers a step; it carries the load it judged and γ); law (14)
-also needs the contact mask and the COR, so only then ``contact`` and ``cor``
-(newest values) are subscribed.
-Output: ``grip/command``. The safety contract is docs/safety.md: a verdict that is
-not valid (its ``status`` is not ``ok``: a sensor stale, missing, unpaired or
-implausible), stale or future-stamped inputs, and a watchdog deadline without a new
-verdict all hold the last grip with reason ``fail-safe``; held for longer than
-``blind_grace_ms`` with a loaded contact, the grip rises at ``blind_rise_n_per_s``. A
-(re)started controller starts from the force the pad measures, never from ``f_nom``.
-In a graph over several machines, a fail-safe on stale inputs names the machines their
-data comes from (``$SLIPSTACK_REMOTE_SOURCES``, nodes/runtime/remote_sources.py), e.g.
-``fail-safe: input age 180.000 ms > timeout 20.000 ms (from machine robot, 127.0.0.1)``.
+More in docs/modules.md, `nodes/grip_controller.py`.
 """
 
 from __future__ import annotations
@@ -25,9 +14,10 @@ import numpy as np
 from slipstack.lib.contact_view import pad_positions
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.defaults import F_MAX_N
-from slipstack.lib.grip_laws import LAWS, GripDecision, GripGovernor, GripInput, GripReason, make_law
+from slipstack.lib.grip_laws import (LAWS, NOT_OK, FingerReport, GripDecision, GripGovernor, GripInput, GripReason,
+                                      make_law)
 from slipstack.lib.status import SlipCase, SlipState
-from slipstack.messages import Contact, Cor, GripCommand, Slip
+from slipstack.messages import Contact, Cor, GripCommand, GripState, Slip
 from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
 from slipstack.nodes.runtime.remote_sources import remote_sources
@@ -63,6 +53,11 @@ class GripControllerParams:
     blind_grace_ms: float = field(default=50.0, metadata={
         "help": "fail-safe this long with a loaded contact starts raising the grip (ms); < 0: never"})
     blind_rise_n_per_s: float = field(default=10.0, metadata={"help": "rate of that raise (N/s)"})
+    f_hold_n: float = field(default=math.nan, metadata={
+        "help": "first command on untrusted data when the finger reports nothing on grip/state (N); "
+                "nan: none, no command until trusted data or the finger's report (the finger keeps its grip)"})
+    finger_wait_ms: float = field(default=100.0, metadata={
+        "help": "how long a first command on untrusted data waits for the finger's report before f_hold_n (ms)"})
 
     def __post_init__(self) -> None:
         if self.increment not in INCREMENTS:  # checked for every law: a typo must not pass silently
@@ -79,6 +74,7 @@ class GripController(Node):
     name = "grip_controller"
     inputs = {
         "slip": Input("slip", Slip),
+        "finger": Input("grip/state", GripState),
         "contact": Input("contact", Contact),
         "cor": Input("cor", Cor),
     }
@@ -89,18 +85,21 @@ class GripController(Node):
         super().__init__(params)
         p = self.params
         if p.law != "tactile14":
-            self.inputs = {"slip": self.inputs["slip"]}
+            self.inputs = {"slip": self.inputs["slip"], "finger": self.inputs["finger"]}
         law_cls = LAWS.get(p.law)
         accepted = {f.name for f in dataclasses.fields(law_cls)} if law_cls else set()
         law_params = {k: v for k, v in dataclasses.asdict(p).items() if k in accepted}
         self.law = make_law(p.law, **law_params)
         self.governor = GripGovernor(self.law, timeout_ns=round(p.timeout_ms * 1e6), max_rate_n_per_s=p.max_rate_n_per_s,
+                                     f_hold_n=None if math.isnan(p.f_hold_n) else p.f_hold_n,
+                                     finger_wait_ns=round(p.finger_wait_ms * 1e6),
                                      blind_grace_ns=round(p.blind_grace_ms * 1e6),
                                      blind_rise_n_per_s=p.blind_rise_n_per_s)
         self.contact: Contact | None = None
         self.cor: Cor | None = None
         self.slip: Slip | None = None
-        self._last_publish_ns = 0
+        self.finger: GripState | None = None
+        self._last_step_ns = 0
         self._remote_sources = remote_sources()  # read here: a malformed map is refused before the node runs
         self._remote_label = ""
         """The other machines the inputs' data comes from ("" on one machine); set in ``start``."""
@@ -117,26 +116,45 @@ class GripController(Node):
     def on_cor(self, msg: Cor, ctx: Context) -> None:
         self.cor = msg
 
+    def on_finger(self, msg: GripState, ctx: Context) -> None:
+        if ctx.sender:  # a report only the finger may give: one a tool injected is not what it holds
+            ctx.count("grip.injected_finger_reports")
+            return
+        self.finger = msg
+
     def on_slip(self, msg: Slip, ctx: Context) -> None:
+        if ctx.sender:  # a verdict the graph did not judge: it triggers a hold, never a law step
+            ctx.count("grip.injected_verdicts")
+            self._step(ctx, distrust=f"slip verdict injected by {ctx.sender}: not trusted")
+            return
         self.slip = msg
         self._step(ctx)
 
     def next_deadline_ns(self) -> int | None:
-        """Watchdog: one timeout after the last command (none before the first slip verdict,
+        """Watchdog: one timeout after the last step (none before the first slip verdict,
         so the actuator keeps its own initial grip until the stack has data)."""
-        return None if self.slip is None else self._last_publish_ns + self.governor.timeout_ns
+        return None if self.slip is None else self._last_step_ns + self.governor.timeout_ns
 
     def on_deadline(self, ctx: Context) -> None:
         # no new verdict for a whole timeout: hold (and escalate), never re-run the law on the
         # old inputs (law (14) would lower the command to the lagging measured force)
-        self._step(ctx, verdict_missing=True)
+        self._step(ctx, distrust="no new slip verdict within the timeout")
 
-    def _step(self, ctx: Context, *, verdict_missing: bool = False) -> None:
+    def _step(self, ctx: Context, *, distrust: str = "") -> None:
         now = ctx.now_ns()
+        self._last_step_ns = now
         inp, stamps, ok = self._gather()
-        ok = ok and not verdict_missing
         loaded = self.slip is not None and self.slip.state != SlipState.NO_CONTACT
-        decision = self.governor.step(inp, now_ns=now, stamps_ns=stamps, status_ok=ok, loaded=loaded)
+        finger = None if self.finger is None else FingerReport(self.finger.f_n_command, self.finger.mode != "initial")
+        decision = self.governor.step(inp, now_ns=now, stamps_ns=stamps, status_ok=ok and not distrust, loaded=loaded,
+                                      finger=finger)
+        if decision is None:  # nothing known to start from: no command, the finger keeps its grip
+            ctx.count("grip.waiting_to_start")
+            ctx.set_status("starting", "no trusted data and no report from the finger (grip/state) yet: "
+                                       "no command, the finger keeps its grip")
+            return
+        if distrust and decision.reason is GripReason.FAIL_SAFE:  # say why, where the status alone was blamed
+            decision = dataclasses.replace(decision, detail=decision.detail.replace(NOT_OK, distrust, 1))
         stamp = max(stamps) if stamps else now
         sources = {"slip": self.slip.header.stamp_ns, **self.slip.header.sources} if self.slip else {}
         self._publish(decision, stamp, sources, ctx)
@@ -201,7 +219,6 @@ class GripController(Node):
             ctx.set_status("ok")
         ctx.publish("command", GripCommand(f_n_desired=float(d.f_n_desired), law=d.law, reason=reason),
                     stamp_ns=stamp, sources=sources)
-        self._last_publish_ns = ctx.now_ns()
 
     def _name_the_machine(self, detail: str, now_ns: int) -> str:
         """``detail``, naming the other machines the inputs come from when an input is a timeout old."""

@@ -1,66 +1,38 @@
 """The monitor: a live one-line status and, on exit, the run's summary and its health.
 
-Listens to ``slip`` (which carries the load it judged and its COR), ``grip/command``,
-``rig/truth`` and every node's ``diagnostics`` — not to the 1 kHz ``contact``/``cor``
-streams, to keep its share of the CPU small. Every ``status_period_s`` it logs one
-``STATUS`` line (the launcher redraws it in place on a terminal). On stop it logs the
-summary: slip episodes detected versus true, detection delay, false alarms and the latch
-hold after slip (one definition: ``lib/episodes.py``, docs/math.md §3.2), grip force used, the
-control path's health, dropped frames and the recording's path; with ``summary_path``
-it also writes them as JSON, and with ``check_path`` a pass/fail verdict (see
-:func:`check_problems`).
-
-Health (one ``HEALTH:`` line per problem, or ``HEALTH: ok``; the fail-safe share and
-silent nodes also on the live line):
-
-- *fail-safe share*: grip commands whose reason is ``fail-safe`` (the controller held
-  the grip because its inputs were missing, stale or invalid);
-- *late commands*: commands computed from a new sample while the stack ran whose age at
-  publish, ``pub_ns − stamp_ns`` of their header (the sensor sample they derive from to
-  the moment they left), exceeded ``command_deadline_ms`` (those while the sensors
-  started and after the scene, and the watchdog's repeats, are counted apart: see
-  :class:`CommandStats`);
-- *samples not examined*: ``in.<topic>.dropped`` over ``in.<topic>.received`` of each
-  node's inputs: skipped for a newer one by a latest-value input, or beyond the depth of
-  a batch input (fusion takes every F/T sample of a wake-up as one batch, so it skips
-  none unless it falls 1 000 samples, its batch depth, behind), on the HEALTH line for sensor topics above
-  :data:`SKIP_WARN_SHARE`; and the F/T samples fusion received, carried in contacts and
-  the slip test judged (``fusion.samples``, ``slip_test.samples_judged``);
-- *behind real time*: ``timer.<name>.skipped`` ticks of a timer-paced node (the rig
-  skips simulator ticks it could not make up);
-- *silent nodes*: a node whose ``diagnostics`` (every 1 s) stopped for longer than
-  ``silent_after_s`` — dead, stopped or starved — whether it came back or not;
-- *disconnected devices*: a driver whose ``diagnostics`` status is ``disconnected: …``
-  (also on the live line, while it lasts); and a run whose every grip command was
-  fail-safe (the sensors never streamed).
-
-Counts are given with their denominators (``frames lost at fusion: ft/wrench 497 of
-30004 (sequence gaps, of those sent)``). Without ``rig/truth`` (real hardware) there is no ground
-truth: the summary says so instead of printing episode counts and flags without true slip.
-
-Memory is bounded: running sums and counts per message, the detection quality streamed
-by :class:`~slipstack.lib.episodes.EpisodeTracker`, one counter map per node.
+It listens to ``slip``, ``grip/command``, ``rig/truth`` and every node's ``diagnostics``, not to
+the 1 kHz ``contact`` stream, to keep its share of the CPU small. It logs a ``STATUS`` line every
+``status_period_s``. When it stops, it logs the summary's short form (at most 12 lines), then the
+long form as ``detail:`` lines for the run log. It writes the summary as JSON (``summary_path``)
+and the check's verdict (``check_path``). docs/summary.md gives the layout, what each count
+means (false alarms by the one definition of docs/math.md §3.2) and what fails the check.
+Memory stays bounded: running sums and counts, the detection quality streamed by
+EpisodeTracker, one counter map per node.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
 import tempfile
-import dataclasses
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
 
 from slipstack.lib.episodes import EpisodeTracker
 from slipstack.lib.errors import ConfigError
-from slipstack.lib.late_ticks import BEHIND_REAL_TIME_ADVICE
+from slipstack.lib.late_ticks import behind_real_time_advice
 from slipstack.lib.status import SLIP_STATES, SlipState
 from slipstack.messages import Diagnostics, GripCommand, RigTruth, Slip
+from slipstack.nodes.runtime.graph_info import RUN_DIR_ENV, read_graph
+from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.logs import DETAIL_PREFIX
 from slipstack.nodes.runtime.node import Context, Input, Node
 
 __all__ = ["Monitor", "MonitorParams", "Problem", "summarise", "health_problems", "check_problems", "format_summary",
-           "format_details", "status_line", "CALIBRATION_STATUSES"]
+           "format_details", "status_line", "summary_from_recording", "CALIBRATION_STATUSES"]
 
 CALIBRATION_STATUSES = ("uncalibrated", "calibrated-online", "refused-material")
 """The slip detector's statuses when no identified material gives its thresholds."""
@@ -75,6 +47,17 @@ of a latest-value input is reported on the HEALTH line (at the paper rates fusio
 path is falling behind). Other skips (the rig acting on the newest grip command) are
 only listed."""
 SENSOR_TOPICS = ("ft/wrench", "tactile/frame")
+MAX_OTHER_NODES = 32
+"""Senders of diagnostics outside the graph (tools, other names) the monitor watches; frames of
+further ones are counted and dropped (a flood of made-up names must not grow it)."""
+MAX_KEPT_COUNTERS = 512
+MAX_COUNTER_NAME = 160
+"""Counters kept per node, and the longest name kept (characters)."""
+SILENT_SHOWN = 5
+"""Silent nodes named on the live line; the rest are counted."""
+SUSPECT_DEVICE_COUNTERS = {"rejected_bytes": "bytes rejected", "crc_errors": "frames failing their check",
+                           "implausible_records": "records out of the stream", "bad_frames": "inconsistent frames"}
+"""Driver counters (``device.<name>``, nodes/devices/backends.py) that mean the link carried what no sensor sent."""
 
 
 @dataclass(frozen=True)
@@ -103,6 +86,15 @@ class MonitorParams:
                 raise ConfigError(f"monitor: {name} must be a finite number > 0, got {value!r}")
         if not (0.0 <= self.check_fail_safe_share <= 1.0):
             raise ConfigError(f"monitor: check_fail_safe_share must be in [0, 1], got {self.check_fail_safe_share!r}")
+        for name in ("summary_path", "check_path"):
+            path = getattr(self, name)
+            if path and os.path.isdir(path):
+                raise ConfigError(f"monitor: {name} {path} is a directory; give a file in it "
+                                  f"(summary:={os.path.join(path, 'summary.json')})")
+        folder = os.path.dirname(os.path.abspath(self.summary_path))
+        if self.summary_path and not os.path.isdir(folder):
+            raise ConfigError(f"monitor: the folder of summary_path {self.summary_path} does not exist; create it "
+                              "or give a path in a folder that does")
 
 
 @dataclass
@@ -210,6 +202,16 @@ class NodeWatch:
     last_seq: int | None = None
     restarted: bool = False
 
+    had_device: bool = False
+    """It reported a device status (``disconnected``): a driver, in the data path even before it publishes."""
+
+    @property
+    def observer(self) -> bool:
+        """It published no data and drives no device (the recorder, the Foxglove bridge, a
+        monitor): the control path does not depend on it."""
+        return not self.had_device and not any(
+            k.startswith("out.") and k.endswith(".published") and v for k, v in self.counters.items())
+
     def report(self, msg: Diagnostics, now_ns: int, silent_after_ns: int) -> None:
         stamp = msg.header.stamp_ns
         if self.last_stamp_ns is not None:
@@ -218,14 +220,29 @@ class NodeWatch:
             self.silences += gap > silent_after_ns
             self.restarted |= gap > silent_after_ns and self.last_seq is not None and msg.header.seq <= self.last_seq
         self.last_seq = msg.header.seq
-        self.counters = msg.counters
+        self.counters = _kept(msg.counters)
         self.status = msg.status
         if not msg.status.startswith(DISCONNECTED):
             self.disconnected_since_ns = None
         elif self.disconnected_since_ns is None:
             self.disconnected_since_ns = stamp
+            self.had_device = True
         self.last_seen_ns = now_ns
         self.last_stamp_ns = stamp
+
+
+def _kept(counters: dict) -> dict:
+    """The counters of one report the monitor keeps: at most :data:`MAX_KEPT_COUNTERS`, names of
+    at most :data:`MAX_COUNTER_NAME` characters (a node's own are far fewer and shorter)."""
+    if len(counters) <= MAX_KEPT_COUNTERS and all(len(k) <= MAX_COUNTER_NAME for k in counters):
+        return counters
+    kept = {}
+    for key, value in counters.items():
+        if len(key) <= MAX_COUNTER_NAME:
+            kept[key] = value
+            if len(kept) == MAX_KEPT_COUNTERS:
+                break
+    return kept
 
 
 class Monitor(Node):
@@ -239,9 +256,15 @@ class Monitor(Node):
         "diagnostics": Input("diagnostics", Diagnostics, policy="queue", depth=1000),
     }
     Params = MonitorParams
+    outlives_graph = True  # a launch stops it last and lets it write the summary
 
-    def __init__(self, params: MonitorParams | None = None) -> None:
+    def __init__(self, params: MonitorParams | None = None, *, graph_nodes: set[str] | None = None) -> None:
+        """``graph_nodes``: the names of the graph's nodes, whose silence the monitor judges
+        (``None``: read from the run's ``graph.json`` at start, if launched; else every sender)."""
         super().__init__(params)
+        self.graph_nodes = graph_nodes
+        self.ignored_diagnostics = 0
+        """Diagnostics frames from senders beyond :data:`MAX_OTHER_NODES` outside the graph, not watched."""
         self.timers = {"status": self.params.status_period_s}
         self.episodes = EpisodeTracker()
         self.commands = CommandStats()
@@ -254,6 +277,9 @@ class Monitor(Node):
         self._deadline_ns = round(self.params.command_deadline_ms * 1e6)
         self._silent_after_ns = round(self.params.silent_after_s * 1e9)
         self._at_status = (0, 0, 0, 0)  # time, slip frames, commands, fail-safe commands at the last STATUS
+        self.declared: dict[str, bool] | None = None
+        """Node name → whether it only observes (publishes nothing but diagnostics), as the running
+        graph declares it (None: no graph file; the counters tell, :class:`NodeWatch`)."""
 
     def on_slip(self, msg: Slip, ctx: Context) -> None:
         self.slip_frames += 1
@@ -273,13 +299,35 @@ class Monitor(Node):
         self.last["truth"] = msg
         self.commands.truth_seen()
 
+    def start(self, ctx: Context) -> None:
+        if self.graph_nodes is None and os.environ.get(RUN_DIR_ENV):
+            try:
+                nodes = read_graph(Path(os.environ[RUN_DIR_ENV]))["nodes"]
+                self.graph_nodes = set(nodes)
+                self.declared = {name: set(entry.get("outputs", {})) <= {DIAGNOSTICS_TOPIC}
+                                 for name, entry in nodes.items()}
+            except (OSError, ValueError, KeyError, TypeError, AttributeError):
+                ctx.log("warning: cannot read the graph's node list; every sender of diagnostics is judged")
+
     def on_diagnostics(self, msg: Diagnostics, ctx: Context) -> None:
-        self.nodes.setdefault(msg.node, NodeWatch()).report(msg, ctx.now_ns(), self._silent_after_ns)
+        watch = self.nodes.get(msg.node)
+        if watch is None:
+            others = sum(not self.in_graph(name) for name in self.nodes)
+            if not self.in_graph(msg.node) and others >= MAX_OTHER_NODES:
+                self.ignored_diagnostics += 1
+                return
+            watch = self.nodes[msg.node] = NodeWatch()
+        watch.report(msg, ctx.now_ns(), self._silent_after_ns)
+
+    def in_graph(self, name: str) -> bool:
+        """A node of the graph (every sender when the graph's node list is not known)."""
+        return self.graph_nodes is None or name in self.graph_nodes
 
     def silent_nodes(self, now_ns: int) -> dict[str, float]:
-        """Nodes silent now (longer than ``silent_after_s``): name → seconds since their last report."""
+        """Nodes of the graph silent now (longer than ``silent_after_s``): name → seconds since
+        their last report (a tool that ended, or a forged name, is no silent node)."""
         return {name: (now_ns - w.last_seen_ns) / 1e9 for name, w in self.nodes.items()
-                if now_ns - w.last_seen_ns > self._silent_after_ns}
+                if now_ns - w.last_seen_ns > self._silent_after_ns and self.in_graph(name)}
 
     def disconnected_nodes(self, since_before_ns: int | None = None) -> dict[str, str]:
         """Nodes whose latest diagnostics say ``disconnected``: name → that status; with
@@ -313,12 +361,26 @@ class Monitor(Node):
                 ctx.log(DETAIL_PREFIX + line)
         problems = health_problems(summary, self.params)
         summary["health"] = [dataclasses.asdict(x) for x in problems]
-        if self.params.summary_path:
-            write_json_atomically(self.params.summary_path, summary)
+        files = [(self.params.summary_path, summary)] if self.params.summary_path else []
         if self.params.check_path:
             failed = [x for x in problems if x.fails_check]
-            write_json_atomically(self.params.check_path, {"passed": not failed, "problems": [x.text for x in failed],
-                                                           "short": [x.short for x in failed]})
+            files.append((self.params.check_path, {"passed": not failed, "problems": [x.text for x in failed],
+                                                   "short": [x.short for x in failed]}))
+        for path, content in files:
+            try:
+                write_json_atomically(path, content)
+            except OSError as exc:  # a full disk: the lines above are the summary
+                ctx.report_error(f"cannot write {path} ({exc.strerror})")
+
+
+def summary_from_recording(monitor: Monitor, path: str, log: Callable[[str], None]) -> None:
+    """Run ``monitor`` over the recording ``path`` (its inputs, each at the time the recorder
+    received it): its summary goes to ``log`` (the live STATUS lines left out) and to its
+    summary and check files, as at the end of a run. The launch does this when its monitor
+    died during the run, which would otherwise sum up only the time since it came back."""
+    from slipstack.nodes.recording.bag_io import replay_into
+
+    replay_into(monitor, path, log=lambda line: None if "] STATUS " in line else log(line))
 
 
 def write_json_atomically(path: str, content: dict) -> None:
@@ -362,7 +424,8 @@ def status_line(last: dict[str, object], rate_hz: float, fail_safe: tuple[int, i
     if held:
         parts.append(f"FAIL-SAFE {held / commands * 100:.0f}% ({held} of {commands} commands)")
     if silent:
-        parts.append("SILENT " + ",".join(silent))
+        more = f" +{len(silent) - SILENT_SHOWN}" if len(silent) > SILENT_SHOWN else ""
+        parts.append("SILENT " + ",".join(silent[:SILENT_SHOWN]) + more)
     if disconnected:
         parts.append("DISCONNECTED " + ",".join(disconnected))
     if calibration:
@@ -389,7 +452,7 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         for node, w in m.nodes.items()
     }
     silent_now = m.silent_nodes(now_ns)
-    went_silent = {name: w.longest_silence_ns / 1e9 for name, w in m.nodes.items() if w.silences}
+    went_silent = {name: w.longest_silence_ns / 1e9 for name, w in m.nodes.items() if w.silences and m.in_graph(name)}
     truth = m.last.get("truth")
     judged, judged_fail_safe = cmd.judged(with_rig=truth is not None)
     late, age_max_ns = cmd.late_while_running(with_rig=truth is not None)
@@ -436,23 +499,57 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "detector_calibration": m.detector_calibration(),
         "nodes_that_went_silent": went_silent,
         "nodes_restarted_after_silence": sorted(name for name, w in m.nodes.items() if w.restarted),
+        "observers": sorted(name for name, w in m.nodes.items()
+                            if (m.declared or {}).get(name, w.observer)),
+        "behind_while_realtime": sorted(name for name, w in m.nodes.items() if any(
+            k.startswith("timer.") and k.endswith(".skipped_realtime") and v for k, v in w.counters.items())),
         "recording": m.params.recording if m.params.recording and os.path.exists(m.params.recording) else "",
+        "recorders": _recorders(m.nodes),
+        "device_rejects": _device_rejects(m.nodes),
+        "diagnostics_senders_outside_graph": sorted(name for name in m.nodes if not m.in_graph(name)),
+        "diagnostics_ignored": m.ignored_diagnostics,
         "clock_offsets": _clock_offsets(m.nodes),
+        "injected": {what: sum(w.counters.get(key, 0) for w in m.nodes.values()) for what, key in INJECTED.items()},
+        "steps_without_a_start": sum(w.counters.get("grip.waiting_to_start", 0) for w in m.nodes.values()),
     }
+
+
+INJECTED = {"grip_commands": "rig.manual_commands", "slip_verdicts": "grip.injected_verdicts",
+            "finger_reports": "grip.injected_finger_reports"}
+"""What tools injected where the launch allows it (``allow_inject``): summary key → counter."""
+
+
 
 
 def _ft_samples(nodes: dict[str, NodeWatch]) -> dict[str, float]:
     """F/T samples over the run: ``received`` by fusion (its ``ft/wrench`` input), ``carried``
     in its contacts, ``judged`` by the slip test (a verdict on valid data or a loss of
     contact; the rest had no usable data and held the grip)."""
-    totals = {"received": 0.0, "carried": 0.0, "judged": 0.0}
+    totals = {"received": 0.0, "carried": 0.0, "judged": 0.0, "implausible": 0.0}
     for w in nodes.values():
         c = w.counters
         if "fusion.samples" in c:
             totals["received"] += c.get("in.ft/wrench.received", 0)
             totals["carried"] += c["fusion.samples"]
+            totals["implausible"] += c.get("fusion.implausible_ft", 0)
         totals["judged"] += c.get("slip_test.samples_judged", 0)
     return totals
+
+
+def _device_rejects(nodes: dict[str, NodeWatch]) -> dict[str, dict[str, float]]:
+    """Per driver, its device counters that say the link carried what no sensor sent."""
+    out = {}
+    for node, w in sorted(nodes.items()):
+        seen = {k: w.counters[f"device.{k}"] for k in SUSPECT_DEVICE_COUNTERS if w.counters.get(f"device.{k}")}
+        if seen:
+            out[node] = seen
+    return out
+
+
+def _recorders(nodes: dict[str, NodeWatch]) -> dict[str, dict]:
+    """Each recorder's status and how often it fell behind (its counters ``recorder.*``)."""
+    return {node: {"status": w.status, "fell_behind": w.counters.get("recorder.fell_behind", 0)}
+            for node, w in sorted(nodes.items()) if "recorder.written" in w.counters}
 
 
 def _clock_offsets(nodes: dict[str, NodeWatch]) -> dict[str, dict[str, dict[str, float]]]:
@@ -505,10 +602,12 @@ class Problem:
 
 def health_problems(s: dict, p: MonitorParams) -> list[Problem]:
     """What the HEALTH lines report: first what fails the check (the object slid or turned
-    more than allowed, too many fail-safe commands, missed episodes, a silent node, no
-    valid sensor data at all), then what is only reported (disconnected
-    devices, signs of falling behind)."""
-    return _check_problems(s, p) + _silence_problems(s) + _device_problems(s) + _behind_problems(s)
+    more than allowed, too many fail-safe commands, missed episodes, a silent node of the
+    data path, no valid sensor data at all), then what is only reported (an observer's
+    silence, disconnected devices, signs of falling behind, sensor attacks, the recording's
+    loss, what tools injected)."""
+    return (_check_problems(s, p) + _silence_problems(s) + _device_problems(s) + _behind_problems(s)
+            + _sensor_problems(s) + _recording_problems(s) + _injection_problems(s))
 
 
 def check_problems(s: dict, p: MonitorParams) -> list[str]:
@@ -537,24 +636,41 @@ def _check_problems(s: dict, p: MonitorParams) -> list[Problem]:
         out.append(Problem("every command fail-safe: no valid sensor data",
                            f"all {s['grip_commands']} grip commands were fail-safe: the controller never had valid "
                            "sensor data (are the sensors connected and streaming?)"))
+    if not s["grip_commands"] and s.get("steps_without_a_start"):
+        out.append(Problem("no command: no trusted sensor data, the finger kept its grip",
+                           "the controller sent no grip command: it never had trusted sensor data nor the finger's "
+                           "report (grip/state), so the finger kept its own grip (are the sensors connected and "
+                           "streaming? docs/safety.md, clause 4)"))
     return out
 
 
 def _silence_problems(s: dict) -> list[Problem]:
-    """Nodes silent at the end, or silent for a while and back."""
+    """Nodes silent at the end, or silent for a while and back. A node of the data path fails
+    the check; an observer (it published no data: the recorder, the Foxglove bridge) is
+    reported only, as the control path does not depend on it."""
     out = []
+    observers = set(s["observers"])
     for node, seconds in sorted(s["silent_nodes"].items()):
-        out.append(Problem(f"{node} silent for the last {seconds:.1f} s",
-                           f"node {node} went silent: no diagnostics for the last {seconds:.1f} s (dead or stopped?)"))
+        observer = node in observers
+        out.append(Problem(f"{node} silent for the last {seconds:.1f} s" + (" (observer)" if observer else ""),
+                           f"node {node} went silent: no diagnostics for the last {seconds:.1f} s (dead or stopped?)"
+                           + (_OBSERVER_NOTE if observer else ""), not observer))
     for node, seconds in sorted(s["nodes_that_went_silent"].items()):
         if node in s["silent_nodes"]:
             continue
+        observer = node in observers
         restarted = node in s["nodes_restarted_after_silence"]
         how = ("as a new process (restarted)" if restarted else
                "as the same process (it stalled: a machine too busy, or stopped and continued)")
-        out.append(Problem(f"{node} silent {seconds:.1f} s, then back ({'restarted' if restarted else 'stalled'})",
-                           f"node {node} went silent for {seconds:.1f} s and came back {how}"))
+        out.append(Problem(f"{node} silent {seconds:.1f} s, then back ({'restarted' if restarted else 'stalled'}"
+                           + (", observer)" if observer else ")"),
+                           f"node {node} went silent for {seconds:.1f} s and came back {how}"
+                           + (_OBSERVER_NOTE if observer else ""), not observer))
     return out
+
+
+_OBSERVER_NOTE = ("; it only observes (it publishes no data), so the control path did not depend on it and the "
+                  "check does not judge it")
 
 
 def _device_problems(s: dict) -> list[Problem]:
@@ -568,10 +684,51 @@ def device_problems(s: dict) -> list[str]:
     return [x.text for x in _device_problems(s)]
 
 
+def _sensor_problems(s: dict) -> list[Problem]:
+    """Sensors under attack or off: device links that carried what no sensor sends (forged,
+    stray or garbage data), an F/T sensor reading implausibly low against the pad (biased,
+    tared under load, or spoofed); diagnostics from made-up senders beyond the bound."""
+    out = []
+    for node, seen in sorted(s.get("device_rejects", {}).items()):
+        what = ", ".join(f"{SUSPECT_DEVICE_COUNTERS[k]} {v:g}" for k, v in sorted(seen.items()))
+        out.append(Problem(f"{node}: its link carried invalid data ({what.split(',')[0]})",
+                           f"{node}'s device link carried data that is no valid sample ({what}): forged, stray or "
+                           "garbage datagrams, another program writing to the link, or bytes lost or damaged on "
+                           "it; find what else writes to it (docs/drivers.md)", False))
+    ft = s.get("ft_samples") or {}
+    if ft.get("implausible"):
+        out.append(Problem(f"F/T implausibly low vs the pad in {ft['implausible']:g} samples",
+                           f"the F/T sensor read implausibly low against the pad in {ft['implausible']:g} of "
+                           f"{ft['received']:g} samples (biased, tared under load, or spoofed): the grip was held; "
+                           "tare it unloaded (docs/safety.md, clause 7)", False))
+    if s.get("diagnostics_ignored"):
+        out.append(Problem(f"{s['diagnostics_ignored']:g} diagnostics from unknown senders ignored",
+                           f"{s['diagnostics_ignored']:g} diagnostics frames from more than {MAX_OTHER_NODES} senders "
+                           "outside the graph were ignored (made-up node names on the bus?)", False))
+    return out
+
+
+def _recording_problems(s: dict) -> list[Problem]:
+    """A recorder that cannot write its file (a full disk) or fell behind."""
+    out = []
+    for node, r in sorted(s.get("recorders", {}).items()):
+        if r["status"].startswith("error: cannot write the recording"):
+            why = r["status"].split(": ")[-1]
+            out.append(Problem(f"recorder cannot write its file ({why})",
+                               f"the recorder cannot write its file ({why}): the frames since are counted, not "
+                               "recorded (the launch's recording line says how many)", False))
+        elif r["fell_behind"]:
+            out.append(Problem(f"{node} fell behind {r['fell_behind']:g}x",
+                               f"{node} fell behind {r['fell_behind']:g}x (frames written over 1 s after they were "
+                               "sent): a busy machine; the launch's recording line says what the file misses", False))
+    return out
+
+
 def _behind_problems(s: dict) -> list[Problem]:
     """Signs that the graph fell behind: late commands, timer ticks skipped, more than
-    :data:`SKIP_WARN_SHARE` of a sensor topic's samples not examined."""
+    :data:`SKIP_WARN_SHARE` of a sensor topic's samples not examined by a node of the data path."""
     out = []
+    observers = set(s["observers"])
     if s["late_commands"]:
         out.append(Problem(
             f"{s['late_commands']} of {s['commands_while_running']} commands late (over "
@@ -583,10 +740,18 @@ def _behind_problems(s: dict) -> list[Problem]:
     for node, timers in sorted(s["behind_real_time"].items()):
         skipped = sum(timers.values())
         ticks = ", ".join(f"{k.split('.')[1]} {v:g}" for k, v in sorted(timers.items()))
+        if node in observers:
+            out.append(Problem(f"{node} fell behind ({skipped:g} timer ticks skipped; observer)",
+                               f"{node} fell behind (timer ticks skipped: {ticks}): it is not real-time and "
+                               "waited for a CPU core; what it records or shows lags behind the graph (`slipstack "
+                               "bag info` shows any frames it lost); free a core or record fewer topics", False))
+            continue
         out.append(Problem(f"{node} behind real time ({skipped:g} timer ticks skipped)",
                            f"{node} fell behind real time (timer ticks skipped: {ticks}; its diagnostics say how "
-                           f"late): {BEHIND_REAL_TIME_ADVICE}", False))
+                           f"late): {behind_real_time_advice(node in s['behind_while_realtime'])}", False))
     for node, inputs in sorted(s["skipped_for_newer"].items()):
+        if node in observers:
+            continue
         for topic, n in sorted(inputs.items()):
             share = n["skipped"] / n["received"] if n["received"] else 0.0
             if topic in SENSOR_TOPICS and share > SKIP_WARN_SHARE:
@@ -595,6 +760,17 @@ def _behind_problems(s: dict) -> list[Problem]:
                                    "or beyond a batch's depth): it fell behind its input; free a CPU core or raise "
                                    "the stack's priority (the launch file's `realtime_priority` or `nice`)", False))
     return out
+
+
+def _injection_problems(s: dict) -> list[Problem]:
+    """Grip commands the finger took from a tool, slip verdicts and finger reports the controller did not trust."""
+    n = s.get("injected", {})
+    if not any(n.values()):
+        return []
+    return [Problem(f"injected by tools: {n['grip_commands']:g} grip commands, {n['slip_verdicts']:g} verdicts",
+                    f"injected by tools (allow_inject): {n['grip_commands']:g} grip commands obeyed (the finger's log "
+                    f"names who sent them), {n['slip_verdicts']:g} verdicts and {n['finger_reports']:g} finger reports "
+                    "not trusted (the grip held)", False)]
 
 
 def behind_problems(s: dict) -> list[str]:
@@ -629,7 +805,8 @@ def format_summary(s: dict, p: MonitorParams | None = None, *, verbose: bool = F
     if clocks:
         rows.append("clocks: " + ", ".join(clocks) + " (other machines' minus ours)")
     if s["detector_calibration"]:
-        rows.append("detector: " + s["detector_calibration"])
+        row = "detector: " + s["detector_calibration"]
+        rows.append(row if len(row) <= SUMMARY_WIDTH else row.split(" (")[0])  # its numbers: the long form
     if s["recording"]:
         rows.append("recording: " + s["recording"])
     rows = [_clip(row) for row in rows]
@@ -674,21 +851,21 @@ def _control_row(s: dict) -> str:
 
 
 def _bus_row(s: dict) -> str:
+    """Frames lost (the most at one node and topic, if it fits) and the largest share of a sensor
+    topic a node of the data path skipped."""
     lost = sorted(((c["lost"], c["of"], node, c["topic"]) for node, counts in s["losses"].items()
                    for c in counts.values()), reverse=True)
-    if lost:
-        n, of, node, topic = lost[0]
-        row = f"bus: {sum(x[0] for x in lost):g} frames lost ({node} {topic} {n:g} of {of:g}"
-        row += f", +{len(lost) - 1} more)" if len(lost) > 1 else ")"
-    else:
-        row = "bus: no frame lost"
     skipped = sorted(((n["skipped"] / n["received"], node, topic) for node, inputs in s["skipped_for_newer"].items()
-                      for topic, n in inputs.items()
+                      if node not in s["observers"] for topic, n in inputs.items()
                       if topic in SENSOR_TOPICS and n["received"]), reverse=True)
-    if skipped:
-        share, node, topic = skipped[0]
-        return row + f"; {node} skipped {share * 100:.1f}% of {topic}"
-    return row + "; every sensor sample examined"
+    skip = (f"; {skipped[0][1]} skipped {skipped[0][0] * 100:.1f}% of {skipped[0][2]}" if skipped
+            else "; every sensor sample examined")
+    if not lost:
+        return "bus: no frame lost" + skip
+    n, of, node, topic = lost[0]
+    total = f"bus: {sum(x[0] for x in lost):g} frames lost"
+    most = f" (most: {node} {topic} {n:g} of {of:g}" + (f", +{len(lost) - 1} more)" if len(lost) > 1 else ")")
+    return total + most + skip if len(total + most + skip) <= SUMMARY_WIDTH else total + skip
 
 
 def _health_rows(shorts: list[str], room: int) -> list[str]:
@@ -763,6 +940,9 @@ def format_details(s: dict, problems: list[Problem]) -> list[str]:
               for node, peers in sorted(s.get("clock_offsets", {}).items()) for peer, c in sorted(peers.items())]
     if clocks:
         lines.append("clock offsets between the machines (their clock minus the launcher's): " + "; ".join(clocks))
+    if s["observers"]:
+        lines.append("observers (they published no data; their silence does not fail the check): "
+                     + ", ".join(s["observers"]))
     if s["recording"]:
         lines.append(f"recording: {s['recording']}")
     return lines

@@ -1,22 +1,6 @@
 """rig: the simulated laboratory rig behind real device protocols.
 
-Runs a scene (``launch/scenes/*.toml``) in real time: every tick it advances the
-simulator to the wall-clock time elapsed since start, sends each F/T and tactile
-sample as bytes through a device emulator (ATI RDT on loopback UDP, Robotiq or Bota
-on a pseudo-terminal; DSACON32, M1616 or the framed format on a pseudo-terminal), and
-publishes ``rig/truth``. ``grip/command`` sets the finger's normal force; the finger's
-command watchdog (``command_timeout_ms``) holds the grip, and raises it towards
-``watchdog_grip_n``, when commands stop (docs/safety.md). The detector only ever sees
-what the drivers decode from those bytes. A tick handed over more than 10 ms late (its
-process waited for a core) is counted (``rig.late_ticks``) and told on ``diagnostics``
-and in the log, how late and what to do, at most every 10 s (:mod:`slipstack.lib.late_ticks`).
-
-The tactile calibration table of the simulated rubber is written to
-``calibration_out`` at start, for the tactile driver to load. A gripper scene
-(``[gripper]``) has a second finger with its own F/T and tactile devices (``finger1_*``)
-and publishes each finger's true load on ``rig/grasp``; with ``gripper`` it serves
-an emulated WSG 50 there and squeezes with the force the gripper is told (its driver's
-watchdog then guards it), and the scene starts once the gripper holds the part.
+More in docs/modules.md, `nodes/rig.py`.
 """
 
 from __future__ import annotations
@@ -31,15 +15,18 @@ from slipstack.lib.errors import ConfigError
 from slipstack.lib.late_ticks import LateTicks
 from slipstack.lib.rig.actuator import CommandWatchdog
 from slipstack.lib.rig.scene import Scene, load_scene, with_rig_material
-from slipstack.lib.samples import FtSample, TactileSample
+from slipstack.lib.samples import MAX_SAMPLE_RATE_HZ, FtSample, TactileSample
 from slipstack.lib.rig.simulator import Simulator, Truth, compile_kernels as compile_rig_kernels
+from slipstack.lib.protocols.crc import compile_kernels as compile_crc_kernels
 from slipstack.lib.toml_file import resolve_path
-from slipstack.messages import GraspTruth, GripCommand, RigTruth
+from slipstack.messages import GraspTruth, GripCommand, GripState, RigTruth
+from slipstack.messages.types import MAX_GRIP_FORCE_N
 from slipstack.nodes.devices.emulators import (
     BotaEmulator, Dsacon32Emulator, M1616Emulator, RdtSimServer, RdtUdpServer, RobotiqEmulator, WsgEmulator,
 )
 from slipstack.nodes.devices.sim_link import SIM_PREFIX, is_simulated
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
+from slipstack.nodes.runtime.scheduling import runs_realtime
 
 __all__ = ["Rig", "RigParams", "load_scene_by_name", "truth_message", "grasp_truth_message", "with_rates"]
 
@@ -48,6 +35,8 @@ _LATE_TICK_MS = 10
 """A tick later than this (ms) after its due time is reported: half the grip controller's timeout."""
 _LATE_REPORT_EVERY_S = 10
 """At most one "fell behind real time" report per this long (s)."""
+_MAX_NAMED_SENDERS = 16
+"""Senders of manual commands named in the log (one line each); more are only counted."""
 
 FT_PROTOCOLS = ("rdt", "robotiq", "bota")
 TACTILE_PROTOCOLS = ("dsacon32", "m1616")
@@ -76,7 +65,9 @@ class RigParams:
     tick_ms: float = field(default=1.0, metadata={"help": "real-time step of the rig node (ms)"})
     wait_for_drivers_s: float = field(default=30.0, metadata={
         "help": "the scene starts when every emulated sensor is streaming to a driver, or after this long (s)"})
-    exit_at_end: bool = field(default=True, metadata={"help": "stop the node when the scene ends"})
+    run_s: float = field(default=0.0, metadata={
+        "help": "how long the rig runs from the scene's start (s): 0: until the scene ends; longer: the world goes "
+                "on after the scene, holding its last load; inf: until stopped (interactive use)"})
     command_timeout_ms: float = field(default=100.0, metadata={
         "help": "finger watchdog: no grip/command for this long after the first one -> hold and raise (ms); 0: off"})
     watchdog_grip_n: float = field(default=0.0, metadata={
@@ -94,6 +85,8 @@ class RigParams:
     gripper_address: str = field(default="127.0.0.1:1000", metadata={
         "help": "TCP HOST:PORT of the emulated gripper (sim:HOST:PORT: the simulated device table, lock-step runs)"})
     part_width_mm: float = field(default=20.0, metadata={"help": "the emulated gripper finds the part at this width (mm)"})
+    grip_state_rate_hz: float = field(default=100.0, metadata={
+        "help": "rate of the finger's report on grip/state (Hz; and at once when its mode changes)"})
 
 
 class Rig(Node):
@@ -101,7 +94,8 @@ class Rig(Node):
 
     name = "rig"
     inputs = {"grip": Input("grip/command", GripCommand)}
-    outputs = {"truth": Output("rig/truth", RigTruth), "grasp": Output("rig/grasp", GraspTruth)}
+    outputs = {"truth": Output("rig/truth", RigTruth), "grasp": Output("rig/grasp", GraspTruth),
+               "finger": Output("grip/state", GripState)}
     Params = RigParams
     precise_timers = True  # sensor samples leave on the simulated tick, not up to 1 ms late
 
@@ -129,6 +123,13 @@ class Rig(Node):
         self._t0: int | None = None
         self.late_ticks = LateTicks(round(p.tick_ms * 1e6), _LATE_TICK_MS * _NS_PER_MS,
                                     _LATE_REPORT_EVERY_S * 1000 * _NS_PER_MS)
+        if not p.grip_state_rate_hz > 0:
+            raise ConfigError(f"rig grip_state_rate_hz must be > 0 Hz, got {p.grip_state_rate_hz!r}")
+        self._state_period_ns = round(1e9 / p.grip_state_rate_hz)
+        self._next_state_ns = 0
+        self._finger_mode = "initial"
+        self._commanded_by = ""
+        self._named_senders: set[str] = set()
         try:
             self.watchdog = CommandWatchdog(round(p.command_timeout_ms * 1e6), p.watchdog_grip_n,
                                             p.watchdog_rise_n_per_s)
@@ -138,6 +139,7 @@ class Rig(Node):
     def start(self, ctx: Context) -> None:
         p, scene = self.params, self.scene
         compile_rig_kernels()  # loaded before the scene starts, not on its first slip or re-shape
+        compile_crc_kernels()  # the device emulators frame CRCs from the first sample on
         self.sim = Simulator(scene)
         devices = [(p.rdt_port, p.ft_link, p.tactile_link, "")]
         if scene.fingers == 2:
@@ -186,10 +188,40 @@ class Rig(Node):
     def on_grip(self, msg: GripCommand, ctx: Context) -> None:
         if self._t0 is None:
             return
-        if self.sim.command_normal_force(msg.f_n_desired):
-            self.watchdog.commanded(ctx.now_ns())
-        else:
+        if not self.sim.command_normal_force(msg.f_n_desired):
             ctx.count("rig.rejected_commands")
+            return
+        self.watchdog.commanded(ctx.now_ns())
+        if ctx.sender:
+            self._manual_command(msg, ctx)
+        if ctx.sender != self._commanded_by:  # a manual command is reported with its sender at once
+            self._commanded_by = ctx.sender
+            self._next_state_ns = 0
+        self._set_finger_mode("following", ctx)
+        self._report_finger(ctx)
+
+    def _manual_command(self, msg: GripCommand, ctx: Context) -> None:
+        """A command a tool injected (the launch allows it): counted, and its sender named once."""
+        ctx.count("rig.manual_commands")
+        if ctx.sender not in self._named_senders and len(self._named_senders) < _MAX_NAMED_SENDERS:
+            self._named_senders.add(ctx.sender)
+            ctx.log(f"manual grip/command from {ctx.sender}: {msg.f_n_desired:.2f} N (injected by a tool; "
+                    f"the launch file allows it in [launch] allow_inject)")
+
+    def _set_finger_mode(self, mode: str, ctx: Context) -> None:
+        if mode != self._finger_mode:
+            self._finger_mode = mode
+            self._next_state_ns = 0  # a change is reported at once
+
+    def _report_finger(self, ctx: Context) -> None:
+        """``grip/state`` when due: the force the finger holds to, its mode and who commanded it."""
+        now = ctx.now_ns()
+        if now < self._next_state_ns:
+            return
+        self._next_state_ns = now + self._state_period_ns
+        sender = "".join(c if c.isalnum() or c in "_.+-" else "_" for c in self._commanded_by)[:64]
+        ctx.publish("finger", GripState(f_n_command=min(self.sim.normal_force_command, MAX_GRIP_FORCE_N),
+                                        mode=self._finger_mode, commanded_by=sender), stamp_ns=now)
 
     def _guard_finger(self, ctx: Context) -> None:
         """The finger's command watchdog: hold, or raise towards the safe grip, without commands."""
@@ -198,6 +230,7 @@ class Rig(Node):
         if command is not None:
             self.sim.command_normal_force(command)
             ctx.count("rig.watchdog_ticks")
+            self._set_finger_mode("watchdog", ctx)
             if not was_expired:
                 ctx.log(f"finger watchdog: no grip/command for {self.params.command_timeout_ms:g} ms; "
                         f"holding {command:.2f} N" + (f", raising towards {self.watchdog.safe_grip_n:g} N"
@@ -211,7 +244,7 @@ class Rig(Node):
         now = ctx.now_ns()
         if self.late_ticks.tick(now):
             ctx.count("rig.late_ticks")
-        report = self.late_ticks.report(now, self._t0)
+        report = self.late_ticks.report(now, self._t0, runs_realtime())
         if report is not None:
             ctx.report_error(report)
 
@@ -237,6 +270,7 @@ class Rig(Node):
             dev.service()
         if self.gripper is not None:
             self._serve_gripper(ctx)
+        self._report_finger(ctx)
         if self._t0 is None:  # the experiment starts once the drivers read the sensors
             waited = (ctx.now_ns() - self._powered_ns) / 1e9
             if not self._sensors_streaming() and waited < self.params.wait_for_drivers_s:
@@ -260,7 +294,7 @@ class Rig(Node):
                 ctx.publish("truth", truth_message(sample), stamp_ns=stamp)
                 if sample.finger_loads:
                     ctx.publish("grasp", grasp_truth_message(sample, self.params.scene), stamp_ns=stamp)
-        if sim.done and self.params.exit_at_end:
+        if sim.done and (ctx.now_ns() - self._t0) / 1e9 >= self.params.run_s:
             ctx.log(f"scene {self.scene.name} finished")
             ctx.shutdown()
 
@@ -277,7 +311,14 @@ def load_scene_by_name(name: str) -> Scene:
 
 
 def with_rates(scene: Scene, ft_hz: float = 0.0, tactile_hz: float = 0.0, truth_hz: float = 0.0) -> Scene:
-    """``scene`` with its sensor and truth rates (Hz) replaced where the value is > 0."""
+    """``scene`` with its sensor and truth rates (Hz) replaced where the value is > 0.
+
+    Raises:
+        ConfigError: a rate above :data:`~slipstack.lib.samples.MAX_SAMPLE_RATE_HZ`, or not a number.
+    """
+    for name, hz in (("ft_rate_hz", ft_hz), ("tactile_rate_hz", tactile_hz), ("truth_rate_hz", truth_hz)):
+        if not 0.0 <= hz <= MAX_SAMPLE_RATE_HZ:
+            raise ConfigError(f"rig {name} must be 0 (the scene's) up to {MAX_SAMPLE_RATE_HZ:g} Hz, got {hz:g}")
     if ft_hz > 0:
         scene = replace(scene, ft=replace(scene.ft, rate_hz=ft_hz))
     if tactile_hz > 0:

@@ -6,38 +6,7 @@ watched and recorded. A :class:`~slipstack.lib.detection.SlipLatch` turns the
 method's margin into the latched state (onset band ``delta`` held for
 ``onset_frames``, release level ``gamma_release`` and ``gamma_resume``, ``release_ms``).
 
-``method = "tactile_cor_known"`` with ``known_cor_x_m``, ``known_cor_y_m`` evaluates test
-(11) about that fixed pivot (an object on a shaft, the paper's Fig. 13) instead of
-solving (12) for the COR.
-
-The detector computes its verdict from ``contact`` directly rather than waiting for
-``cor``: one hop less between the sensor sample and the grip command. Its own COR of
-impending slip warm-starts the next frame.
-
-The F/T tests need a torsional coefficient β: ``beta_m`` if set, otherwise β_s from
-the tactile data (docs/math.md §4.3), computed once per tactile frame (β_s depends only
-on the shape of the pressure, not on its size) and shared by every F/T test.
-
-Every F/T sample is examined: a contact carries the earlier samples of fusion's batch,
-which the detector steps before the newest, and the ``contact`` input is a ``batch``
-too (every contact that arrived since the last wake-up, each stepped in order; one
-``slip`` for the newest, with the status of the first earlier one that had no usable
-verdict when the newest's was usable, so the grip is held). ``slip_test.samples_judged``
-counts the samples the deciding test judged: a verdict on valid data or a loss of
-contact (the monitor's and the benchmark's "not examined" are the samples fusion
-received but no contact carried; those examined but not judged had no usable data and
-held the grip). ``onset_frames`` is counted in time at any F/T rate (frames at
-1 kHz: ``lib/detector.py``), so the flag rises after the same time in the band at
-1 kHz and at 7 kHz.
-
-Without a material file (``material = ""``) the node runs on the shipped default and
-says so: a start line, ``diagnostics`` status ``uncalibrated`` with what it costs (the
-monitor shows it on the live line and in the summary). ``calibrate = "online"`` lets it
-learn the contact at hand (``lib/online_calibration.py``); the status then says what it
-learned, and a line is logged each time it learns.
-
-All of this is :class:`~slipstack.lib.detector.Detector` (usable offline, without the
-graph); the node feeds it each contact and publishes what it returns.
+More in docs/modules.md, `nodes/slip_detector.py`.
 """
 
 from __future__ import annotations

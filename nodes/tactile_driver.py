@@ -5,27 +5,7 @@ Each frame of raw counts (rows × cols, row = y, col = x) is calibrated with
 row-major), a saturation mask (raw count ≥ the saturation level) and a dead mask
 (the calibration's dead taxels plus ``dead_taxels``; they read 0 Pa).
 
-Without a calibration file the driver uses a linear table,
-``p = pa_per_count · counts`` (Pa), with the saturation level ``saturation_counts``
-or, if that is 0, the device's full scale (4095 for DSACON32 and 12-bit framed
-streams, 255 for u8, 65535 for u16 — the M1616 module's ADC range is not verified,
-so give it explicitly for a real module). The calibration file is read when the node
-starts (in a launch, another node such as the simulated rig may write it first); a
-missing or invalid file (a NaN or infinite entry, a non-monotone table, per-taxel
-data of the wrong size) stops the node at start with a ConfigError naming it.
-
-``rows`` × ``cols`` is the image as the device sends it. The array's mounting on the
-pad (``flip_rows``, ``flip_cols``, ``quarter_turns``: :class:`slipstack.lib.pad.PadMount`)
-turns it into the pad frame before it is published, so a pad mounted the other way
-round needs no code; the published ``rows``/``cols`` are swapped by an odd number of
-quarter turns. Calibration and ``dead_taxels`` use the device's own indices.
-
-A frame whose size differs from ``rows`` × ``cols`` is not published: it is counted
-(``tactile.size_mismatch``) and the node status says ``size-mismatch`` with both
-sizes. The stamp is the receive time (executor clock, ns); ``device_stamp`` is the
-controller's own clock in ns (DSACON32) or −1. While the link is stale or
-disconnected the last frame is republished with that status
-(:mod:`slipstack.nodes.device_driver`).
+More in docs/modules.md, `nodes/tactile_driver.py`.
 """
 
 from __future__ import annotations

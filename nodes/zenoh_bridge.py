@@ -35,7 +35,8 @@ _CLOCKS = ("system", "graph")
 _LINGER_S = 0.2  # at stop, for the samples still in Zenoh's queues (as ZeroMQ's linger)
 _TYPES_BY_TOPIC = {"ft/wrench": "slipstack/Wrench", "tactile/frame": "slipstack/TactileFrame",
                    "contact": "slipstack/Contact", "cor": "slipstack/Cor", "slip": "slipstack/Slip",
-                   "grip/command": "slipstack/GripCommand", "rig/truth": "slipstack/RigTruth",
+                   "grip/command": "slipstack/GripCommand", "grip/state": "slipstack/GripState",
+                   "rig/truth": "slipstack/RigTruth",
                    "diagnostics": "slipstack/Diagnostics"}
 
 

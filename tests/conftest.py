@@ -5,16 +5,7 @@ compile.
 Hypothesis profiles (``HYPOTHESIS_PROFILE=name`` picks one; otherwise ``ci`` when the
 ``CI`` environment variable is set, as on the CI machine, and ``dev`` elsewhere):
 
-- ``ci``: derandomized (the same examples on every run, so a red CI run is a real
-  regression, reproducible locally with ``HYPOTHESIS_PROFILE=ci``), no deadline (the
-  machine is shared and busy), no example database, 100 examples unless a test says less;
-- ``dev``: random examples, failures remembered in the local ``.hypothesis`` database
-  and replayed first, no deadline;
-- ``thorough``: ``dev`` with 1000 examples per test that does not set its own count,
-  for a long local hunt.
-
-Known counterexamples that matter are pinned in the tests with ``@example``, so they
-run under every profile.
+More in docs/modules.md, `tests/conftest.py`.
 """
 
 import os
@@ -23,6 +14,7 @@ from hypothesis import HealthCheck, settings
 
 from slipstack.lib.fusion import compile_kernels as compile_fusion_kernels
 from slipstack.lib.limit_set import compile_kernels
+from slipstack.lib.protocols.crc import compile_kernels as compile_crc_kernels
 from slipstack.lib.rig.simulator import compile_kernels as compile_rig_kernels
 
 _COMMON = {"deadline": None, "suppress_health_check": [HealthCheck.too_slow]}
@@ -33,3 +25,4 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE") or ("ci" if os.enviro
 compile_kernels()
 compile_fusion_kernels()
 compile_rig_kernels()
+compile_crc_kernels()

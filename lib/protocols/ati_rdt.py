@@ -7,20 +7,7 @@ Request (8 bytes, to UDP port 49152)::
 
     u16 0x1234 | u16 command | u32 sample count (0 = endless)
 
-Record (36 bytes; buffered mode packs several in one datagram)::
-
-    u32 rdt_sequence (from 1 per request) | u32 ft_sequence (internal, 7000/s) |
-    u32 status | int32 x6 Fx Fy Fz Tx Ty Tz (counts)
-
-Force N = counts / counts-per-force, torque N·m = counts / counts-per-torque; both
-scales are read from the sensor (1,000,000 is typical, not fixed).
-
-A record carries no checksum and its status word may take any value, so a record
-cannot be validated on its own. Its two counters can be, against the stream it
-belongs to (:func:`follows`): rdt_sequence restarts at 1 with every start request
-and then counts the records sent, ft_sequence counts the sensor's internal samples
-and only moves forward. A datagram that is not part of the stream (stray, stale or
-forged with random content) passes this check with a probability of about 2**-26.
+More in docs/modules.md, `lib/protocols/ati_rdt.py`.
 """
 
 from __future__ import annotations

@@ -3,17 +3,7 @@
 Sources: BOTAsys/matlab ``bota_serial/*.m``; public BotaSerialDriver sources
 (see docs/protocols.md §5). 460800 baud 8N1. Frame, little-endian, packed::
 
-    offset  type        content
-    0       u8          0xAA
-    1-2     u16         status (b0 app too slow, b1 over-range, b2 invalid, b3 raw)
-    3-26    f32 x6      Fx Fy Fz (N), Mx My Mz (N·m), sensor frame
-    27-30   u32         timestamp (µs)
-    31-34   f32         temperature (°C)
-    35-36   u16         CRC-16/X-25 over bytes 1-34
-
-ASCII commands: ``C`` enters configuration mode (reply ``r,0,C,0``), ``R`` runs
-(streams). The reply to ``R`` and the line terminator of replies are not verified;
-the driver does not depend on them.
+More in docs/modules.md, `lib/protocols/bota.py`.
 """
 
 from __future__ import annotations

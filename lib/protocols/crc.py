@@ -3,43 +3,20 @@
 One implementation, parameterised in the Rocksoft/Williams style (polynomial,
 initial value, bit order, final XOR) plus one extra switch that the DSACON32 needs:
 
-=================  ======  ======  ========  ========  ======  ==========================
-name               poly    init    refin     table     xorout  check("123456789")
-=================  ======  ======  ========  ========  ======  ==========================
-CRC-16/MODBUS      0x8005  0xFFFF  yes       reflected 0x0000  0x4B37 (Robotiq FT 300)
-CRC-16/X-25        0x1021  0xFFFF  yes       reflected 0xFFFF  0x906E (Bota serial)
-DSACON32           0x1021  0xFFFF  yes       MSB-first 0x0000  0x6EB4 (Weiss DSACON32)
-CRC-16/CCITT-FALSE 0x1021  0xFFFF  no        MSB-first 0x0000  0x29B1 (``framed`` option)
-=================  ======  ======  ========  ========  ======  ==========================
-
-*refin* selects the register update: reflected (LSB-first)
-``crc = (crc >> 8) ^ T[(crc ^ byte) & 0xFF]`` or MSB-first
-``crc = ((crc << 8) & 0xFFFF) ^ T[((crc >> 8) ^ byte) & 0xFF]``. *table* selects how the
-256-entry table is built: from the bit-reversed polynomial shifted right (reflected,
-what every Rocksoft-model reflected CRC uses) or from the normal polynomial shifted
-left (MSB-first). The DSACON32 firmware (SCHUNK SDHLibrary ``dsa.cpp``) combines an
-MSB-first CCITT table with the reflected update; that is not any catalogued CRC (it is
-*not* CCITT-FALSE, whose check value is 0x29B1), and it is the only combination that
-reproduces both the check value 0x6EB4 and the packet CRCs printed in docs/protocols.md §6
-(``AA AA AA 0B 01 00 00 CB FB``).
-
-The table loop is a numba kernel (about 1 µs for a 520-byte DSACON32 frame; the
-pure-Python loop it replaced took 60 ns per byte); MSB-first 0x1021 CRCs
-(CCITT-FALSE) use ``binascii.crc_hqx``, which is C.
+More in docs/modules.md, `lib/protocols/crc.py`.
 """
 
 from __future__ import annotations
 
 import binascii
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
-
-from slipstack.lib.weber import JIT
 
 __all__ = [
     "Crc16",
+    "compile_kernels",
     "CRC16_MODBUS",
     "CRC16_X25",
     "CRC16_DSACON32",
@@ -69,7 +46,6 @@ def _make_table(poly: int, reflected_table: bool) -> tuple[int, ...]:
     return tuple(table)
 
 
-@njit(**JIT)
 def _table_crc(data: np.ndarray, table: np.ndarray, crc: int, reflected_update: bool) -> int:
     """The register after *data* (uint8) from *crc*, one table step per byte (module docstring)."""
     for byte in data:
@@ -79,6 +55,21 @@ def _table_crc(data: np.ndarray, table: np.ndarray, crc: int, reflected_update: 
         else:
             crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ b) & 0xFF]
     return crc
+
+
+KERNEL_FROM_BYTES = 16
+"""Shorter data (a request, a constant built at import) takes the loop in Python: about as fast
+as the kernel's call there, and it needs no kernel."""
+
+
+@functools.cache
+def _kernel():
+    """:func:`_table_crc` compiled by numba (or loaded from its cache), once per process."""
+    from numba import njit
+
+    from slipstack.lib.weber import JIT
+
+    return njit(**JIT)(_table_crc)
 
 
 @dataclass(frozen=True)
@@ -105,14 +96,16 @@ class Crc16:
     check: int
     reflected_table: bool | None = None
     _table: np.ndarray = field(init=False, repr=False, compare=False)
+    _table_tuple: tuple[int, ...] = field(init=False, repr=False, compare=False)
     _hqx: bool = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         refl = self.refin if self.reflected_table is None else self.reflected_table
-        object.__setattr__(self, "_table", np.array(_make_table(self.poly, refl), dtype=np.int64))
+        object.__setattr__(self, "_table_tuple", _make_table(self.poly, refl))
+        object.__setattr__(self, "_table", np.array(self._table_tuple, dtype=np.int64))
         # binascii.crc_hqx is the MSB-first 0x1021 CRC in C: use it where it applies
         object.__setattr__(self, "_hqx", self.poly == 0x1021 and not self.refin and not refl)
-        got = self(b"123456789")
+        got = self(b"123456789")  # shorter than KERNEL_FROM_BYTES: no kernel at import
         if got != self.check:  # a wrong table is a programming error, caught at import
             raise ValueError(f"{self.name}: check value {got:#06x} != {self.check:#06x}")
 
@@ -121,7 +114,9 @@ class Crc16:
         c = self.init if init is None else init
         if self._hqx:
             return binascii.crc_hqx(data, c) ^ self.xorout
-        return int(_table_crc(np.frombuffer(data, dtype=np.uint8), self._table, c, self.refin)) ^ self.xorout
+        if len(data) < KERNEL_FROM_BYTES:
+            return _table_crc(bytes(data), self._table_tuple, c, self.refin) ^ self.xorout
+        return int(_kernel()(np.frombuffer(data, dtype=np.uint8), self._table, c, self.refin)) ^ self.xorout
 
 
 #: Modbus RTU (Robotiq FT 300); transmitted little-endian.
@@ -135,3 +130,12 @@ CRC16_DSACON32 = Crc16(
 )
 #: CCITT-FALSE (offered by the generic ``framed`` format).
 CRC16_CCITT_FALSE = Crc16("CRC-16/CCITT-FALSE", poly=0x1021, init=0xFFFF, refin=False, xorout=0x0000, check=0x29B1)
+
+
+def compile_kernels() -> None:
+    """Load the CRC kernel for every CRC here (compiled once into numba's cache): a node that
+    frames CRCs calls this before it reports ready, so its first frame runs at full speed."""
+    data = np.frombuffer(b"123456789" * 4, dtype=np.uint8)
+    for crc in (CRC16_MODBUS, CRC16_X25, CRC16_DSACON32):
+        if _kernel()(data, crc._table, crc.init, crc.refin) != _table_crc(data, crc._table, crc.init, crc.refin):
+            raise ValueError(f"{crc.name}: the compiled kernel disagrees with the loop in Python")

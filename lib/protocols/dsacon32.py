@@ -5,20 +5,7 @@ Sources: SCHUNK SDHLibrary ``dsa.cpp``/``dsa.h``; RobWork ``DSACON32.cpp``
 
     AA AA AA | u8 id | u16 payload size | payload | u16 CRC (only if size > 0)
 
-The CRC (:data:`~slipstack.lib.protocols.crc.CRC16_DSACON32`) covers id, size and
-payload. Packet ids: 0x00 frame, 0x01 controller info, 0x02 sensor info, 0x03
-configure acquisition (payload ``flags u8, fps u16``; flags b7 acquire, b6 single
-shot, b5 internal trigger, b0 RLE; reply payload ``u16 error``, 0 = OK), 0x0B matrix
-info (payload: matrix index u8).
-
-Matrix info reply, 52 bytes: ``u16 error, f32 texel width (mm), f32 texel height
-(mm), u16 cells_x, u16 cells_y`` then uid, hardware revision, centre, orientation,
-full scale and flags, which are not decoded here (the emulator sends zeros).
-
-Frame payload: ``u32 timestamp (ms), u8 flags (b0 RLE)`` then 12-bit values as u16
-per taxel (index = y·cells_x + x, matrices in sequence). With RLE each u16 holds the
-value in its low 12 bits and a repeat count (1..15, taken literally; not verified)
-in its high 4 bits. Matrix sizes and rates of standalone pads are not verified.
+More in docs/modules.md, `lib/protocols/dsacon32.py`.
 """
 
 from __future__ import annotations

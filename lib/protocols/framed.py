@@ -4,31 +4,7 @@ Many home-made and low-cost tactile boards stream a matrix as::
 
     header (fixed bytes) | rows*cols values | trailer (opaque bytes) | checksum
 
-:class:`FramedFormat` describes one such format: value type ``u8``, ``u16`` or
-``u12`` (12-bit counts in a u16 container; a frame holding a value > 4095 is
-rejected, a cheap plausibility check), endianness ``le``/``be``, taxel order
-``row`` (row-major) or ``col`` (column-major), ``trailer`` bytes that are skipped,
-and a checksum over everything before it (header included): ``none``, ``sum8``
-(one byte, sum mod 256), ``crc16`` (CRC-16/MODBUS, little-endian) or
-``crc16-ccitt`` (CRC-16/CCITT-FALSE, big-endian; computed in C, so the cheap
-choice for large frames at high rates).
-
-Recovery guarantee of the deframer (:mod:`~slipstack.lib.protocols.stream`):
-
-* with ``sum8``/``crc16``/``crc16-ccitt`` a false header inside garbage is
-  rejected by the check (except for a chance collision: 1/256 for sum8, 2**-16
-  for the CRCs) and costs one byte, so every good frame after the garbage is
-  recovered and nothing else is decoded;
-* with ``u12`` and no checksum every good frame is still recovered when the
-  header has at least two bytes > 0x0F (a false candidate overlapping a good
-  frame's header then holds an out-of-range value), but a false header in the
-  garbage followed by in-range bytes decodes as an extra frame;
-* with ``checksum="none"`` (e.g. the M1616 module) a false header in the garbage
-  is accepted as a frame; it ends inside the next good frame, which is then lost.
-  Each header pattern in the garbage costs at most one good frame provided the
-  payload itself cannot contain the header (true for 12-bit counts in big-endian
-  u16 after ``AA AB AC``); good frames preceded by garbage without a header pattern
-  are always recovered.
+More in docs/modules.md, `lib/protocols/framed.py`.
 """
 
 from __future__ import annotations

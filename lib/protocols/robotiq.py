@@ -7,14 +7,7 @@ Link 19200 baud 8N1, Modbus slave id 9. Streaming starts when 0x0200 is written 
 holding register 410 (function 16); the sensor echoes the 8-byte write response and
 then sends, at 100 Hz::
 
-    offset  type          content
-    0-1     u8 x2         0x20 0x4E
-    2-7     int16 LE x3   Fx Fy Fz   (N   = value / 100)
-    8-13    int16 LE x3   Mx My Mz   (N·m = value / 1000)
-    14-15   u16 LE        CRC-16/Modbus over bytes 0-13
-
-Streaming stops when the host sends 0xFF bytes (about 0.5 s of them). Values are in
-the sensor frame; no frame transform is applied here.
+More in docs/modules.md, `lib/protocols/robotiq.py`.
 """
 
 from __future__ import annotations

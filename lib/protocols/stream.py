@@ -4,18 +4,7 @@ Bytes arrive in arbitrary chunks; :class:`Deframer` buffers them, finds frames t
 start with a codec's sync bytes, asks the codec how long the frame is and whether it
 is intact, and returns the decoded values. It never raises on bad input.
 
-Resynchronisation: a sync pattern whose length field is implausible or whose frame
-fails the integrity check (CRC, checksum, value range) costs exactly one byte: the
-search restarts at the next byte. Hence a good frame behind a burst of garbage is
-recovered even if the garbage holds a false sync pattern, unless the false candidate
-passes the integrity check (probability 2**-16 per false candidate with a CRC-16).
-Formats without an integrity check give a weaker guarantee, stated in
-:mod:`slipstack.lib.protocols.framed`.
-
-Counters (:class:`DeframerCounts`): ``frames`` decoded, ``crc_errors`` candidates that
-failed the integrity check, ``rejected_bytes`` bytes that ended up in no frame.
-In the common in-sync case the work per frame is one ``bytearray.find``, one slice
-and the codec's ``parse`` (which uses ``struct``/``numpy.frombuffer``).
+More in docs/modules.md, `lib/protocols/stream.py`.
 """
 
 from __future__ import annotations

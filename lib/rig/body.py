@@ -7,19 +7,7 @@ reference point is the centre of mass, or the fixed pivot of a rotation-only rig
 (the paper's Fig. 13). The velocity of the body point at ``p`` is
 ``v_r + i·ω·(p − r)`` (``i·d`` is ``perp(d)`` of docs/math.md §1).
 
-Generalised coordinates are ``ξ = (v_x, v_y, ω)``; the constrained ones are held at
-zero and never integrated. One step solves the implicit mid-point equations
-
-    (M + dt/2·K) Δξ = dt·(g − K ξ_n),     ξ̄ = ξ_n + Δξ/2,
-
-for forces of the form ``q_j = e_j − D_j ū_j`` at points ``p_j`` (friction patches,
-motor damping) plus a generalised load ``g``, where ``K = Σ D_j J_jᵀJ_j`` and
-``J_j = [[1, 0, −d_y], [0, 1, d_x]]``, ``d = p_j − r``. The caller gathers the sums
-about the pad origin (so per-taxel lever arms never change) and :func:`mid_point_twist`
-moves them to ``r``: ``S = Σ D``, ``S_p = Σ D p``, ``S_pp = Σ D |p|²``, ``F = Σ e``,
-``τ = Σ p × e`` (+ pure torques, and ``S_rot`` for rotational damping). The pose then advances with the
-mid-point twist ``ξ̄``. With this pairing the kinetic energy change over a step is
-exactly ``dt·(forces)·ξ̄``, which makes the energy books of the simulator exact.
+More in docs/modules.md, `lib/rig/body.py`.
 """
 
 from __future__ import annotations

@@ -1,17 +1,6 @@
 """Compiled per-taxel arithmetic of one bristle-friction step (see lib/rig/friction.py).
 
-:class:`~slipstack.lib.rig.friction.BristleField` owns the state and the physics;
-these numba kernels do its element-wise loops over the taxels in one call each,
-instead of a dozen small numpy operations per step. Each kernel evaluates exactly
-the expressions of the numpy code it replaced, element by element and in the same
-order, so a run's results do not change: on this project's machines they are bit
-for bit those of numpy (``complex_abs`` rounds as numpy's ``abs`` of a complex
-does). The plant step that chains them with the body's solve, and sums over the
-taxels in plain loops, is :func:`slipstack.lib.rig.plant_kernel.plant_step`.
-
-Conventions: planar vectors are complex ``x + i·y`` in the pad frame ``F``;
-velocities m/s, forces N, deflections and slip distances m, damping N·s/m. Arrays
-have one entry per taxel (shape (N,)); ``*_out`` arrays are written in place.
+More in docs/modules.md, `lib/rig/bristle_kernels.py`.
 """
 
 from __future__ import annotations

@@ -6,18 +6,7 @@ pressure over them, so a contact smaller than a taxel or an edge crossing a cell
 not aliased onto a single taxel centre. Models (parameters in
 :class:`~slipstack.lib.rig.scene.ContactSpec`):
 
-- ``flat``: uniform pressure over a footprint (whole pad, disc or rectangle).
-- ``offset``: a footprint with a linear pressure gradient (tilted or off-centre face).
-- either with ridges: the pressure times ``1 + depth·cos(2π d·n/period)`` (a grooved face).
-- ``hertz``: curved fingertip on a flat object; ``p ∝ sqrt(1 − r²/a²)`` with
-  ``a = a_ref·(f_n/f_ref)^{1/3}`` (Hertz: contact radius ∝ ``f_n^{1/3}``; Johnson,
-  *Contact Mechanics*, 1985, §4.2), so the torsional limit ∝ ``f_n^{4/3}`` (docs/math.md §4.3).
-- ``edge``: an object edge pressed on the pad; uniform along a strip of length ``L``,
-  Hertzian line-contact profile ``sqrt(1 − d²/b²)`` across it with half-width
-  ``b = b_ref·(f_n/f_ref)^{1/2}`` (Johnson §4.3: ``b ∝ sqrt(load per length)``).
-
-A footprint attached to the object (default for flat, offset, edge) moves with the
-object's pose; a Hertzian fingertip's contact is fixed on the pad.
+More in docs/modules.md, `lib/rig/contact.py`.
 """
 
 from __future__ import annotations

@@ -4,36 +4,7 @@ Each taxel patch ``i`` in contact (``φ_i > 0``) carries an elastic tangential
 deflection ``z_i`` (complex ``x + i·y``, metres, pad frame ``F``): the displacement of
 the object's surface point relative to where it stuck. Vectors are complex numbers.
 
-- **Stick**: ``ż_i = u_i`` (``u_i`` the object's surface velocity over taxel ``i``)
-  and the force on the object is ``q_i = −k z_i − c u_i`` with ``k = k_t h²``,
-  ``c = c_t h²`` (rubber shear stiffness and damping per taxel).
-- **Stick → slip** when ``|q_i| > μ_s,i φ_i`` (static limit).
-- **Slip**: ``q_i = −μ_i(s_i) φ_i u_i/|u_i|`` opposing the slip velocity, with slip
-  weakening ``μ_i(s) = μ_d,i + (μ_s,i − μ_d,i) exp(−s/d_c)``, ``s_i`` the distance slid
-  since the patch last stuck (a Dieterich-type characteristic slip distance ``d_c``:
-  the static→dynamic drop of the paper's Fig. 4 happens over a slip distance, not
-  instantly). The bristle rests at ``z_i = −q_i/k``.
-- **Slip → stick** when the relative velocity reverses within a step, or falls below
-  ``stick_speed`` while decelerating.
-
-Because the contact edges carry less pressure (Hertz) or larger lever arms (torsion),
-they reach their limit first: partial slip precedes gross slip.
-
-Integration (one step of ``dt``, with the body, lib/rig/simulator.py): the forces are
-linear in the step's mid-point velocity ``ū_i``: ``q_i = e_i − D_i ū_i`` where
-
-- stick: ``e_i = −k z_i``, ``D_i = c + k dt/2`` — the implicit mid-point rule for the
-  spring-damper (``−k (z_n + z_{n+1})/2 − c ū`` with ``z_{n+1} = z_n + dt ū``);
-- slip: ``e_i = 0``, ``D_i = μ_i φ_i / max(ŝ_i, v_reg)`` — Coulomb friction with its
-  magnitude set from ``ŝ_i``, the mid-step speed extrapolated from the last two steps
-  (not below the start-of-step speed), and its direction from ``ū``, so the friction
-  power ``q_i·ū_i = −D_i |ū_i|² ≤ 0`` exactly.
-
-The body solves one small linear system for ``ū`` (:mod:`slipstack.lib.rig.body`); a
-step of both is one compiled call, :func:`slipstack.lib.rig.plant_kernel.plant_step`.
-The mid-point rule is A-stable and conserves the stored elastic energy of the linear
-stick dynamics exactly, so the step is stable at any contact stiffness; accuracy
-needs ``ω_c dt`` well below 1 (``ω_c`` the stiffest contact mode).
+More in docs/modules.md, `lib/rig/friction.py`.
 """
 
 from __future__ import annotations

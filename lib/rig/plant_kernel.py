@@ -1,20 +1,6 @@
 """The rig's plant step as one compiled call: bristle friction and body together.
 
-:meth:`slipstack.lib.rig.simulator.Simulator._step` calls :func:`plant_step` once per
-internal step, after the Python side has advanced the finger, re-shaped the pressure
-and taken the motor's load. It replaces about ten calls a step (four friction
-kernels, numpy's sums over the taxels, numpy's ``exp`` and the body's solve in
-Python, ~34 µs a step in the lock-step run). The equations are those of
-lib/rig/friction.py (the linearised contact forces ``q_i = e_i − D_i ū_i``) and
-lib/rig/body.py (the implicit mid-point step); docs/math.md §8 summarises them.
-Sums over the taxels are plain loops, in taxel order, and the weakening is libm's
-``exp``: their last bits differ from numpy's (BLAS, SIMD) but a run is as
-deterministic as before.
-
-Conventions: planar vectors are complex ``x + i·y`` in the pad frame ``F``, about
-the pad origin; SI units. The state lives in
-:class:`~slipstack.lib.rig.friction.BristleField`'s tables (rows named in
-lib/rig/bristle_kernels.py) and is updated in place.
+More in docs/modules.md, `lib/rig/plant_kernel.py`.
 """
 
 from __future__ import annotations

@@ -1,17 +1,6 @@
 """Compiled Hertzian pressure sampling of the taxel cells (see lib/rig/contact.py).
 
-:class:`~slipstack.lib.rig.contact.PressureModel` re-evaluates a Hertzian contact's
-shape whenever the normal force moves by 0.2 % (its radius follows ``f_n^{1/3}``):
-under grip control that is often, and each evaluation samples ``s²`` points in each
-of the N taxel cells. This kernel does it in one pass with the rounding of the numpy
-code it replaced: the same element-wise expressions, and each cell's mean summed in
-numpy's pairwise order (:func:`numpy_pairwise_sum`), so the shapes are bit for bit
-those of numpy. :func:`footprint_cell_means` does the same for the flat and offset
-models (a uniform or sloped pressure over a pad, disc or rectangle footprint), which
-re-shape whenever an attached contact moves with the object (and may carry ridges).
-
-Positions are complex ``x + i·y`` (m) in the footprint's frame; pressures are
-relative (dimensionless, the shape is normalised by the caller).
+More in docs/modules.md, `lib/rig/pressure_kernels.py`.
 """
 
 from __future__ import annotations

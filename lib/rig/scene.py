@@ -7,25 +7,7 @@ in the pad frame ``F`` of docs/math.md §1. The loader is strict: an unknown key
 type or an out-of-range value raises :class:`ConfigError` naming the key, e.g.
 ``fig10.toml: contact.mu_d: must be <= contact.mu_s (0.45), got 0.5``.
 
-Layout of a scene file (every table but ``[object]``, ``[contact]``, ``[dof]`` and
-``[disturbance]`` is optional; defaults are the dataclass defaults below)::
-
-    name, description, seed, duration_s
-    [pad]            rows, cols, pitch_m
-    [sim]            step_us, truth_rate_hz
-    [object]         mass_kg, inertia_kgm2, pose = [x_m, y_m, theta_rad]
-    [contact]        model = "flat" | "hertz" | "offset" | "edge", material (RIG_MATERIALS), friction and bristle
-                     parameters, and the pressure model's geometry (see ContactSpec)
-    [dof]            free = ["x", "y", "theta"] (any non-empty subset), pivot_m
-    [finger]         f_initial_N, bandwidth_hz, rate_N_per_s, f_max_N
-    [disturbance]    mode = "wrench" | "drag", point_m, damping, stiffness,
-                     [[disturbance.segments]] kind = "hold" | "step" | "ramp" | "sine"
-    [support]        force_N, torque_Nm (Coulomb friction under the object)
-    [gripper]        a second finger on the opposite face: gravity_m_s2, weight_on_s,
-                     [gripper.contact] (finger 1's contact), [[gripper.added_mass]] at_s, mass_kg, over_s
-    [sensors.ft]     rate, frame offset, noise, bias, resolution, range
-    [sensors.tactile] rate, rubber curve, gain spread, noise, dead taxels, crosstalk
-    [expect]         slips_at_initial, holds_at_N (documentation, checked by the bench)
+More in docs/modules.md, `lib/rig/scene.py`.
 """
 
 from __future__ import annotations
@@ -39,6 +21,7 @@ from slipstack.lib.config import REQUIRED, ConfigTable
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.toml_file import read_toml
 from slipstack.lib.pad import PadGeometry
+from slipstack.lib.samples import MAX_SAMPLE_RATE_HZ
 
 __all__ = [
     "MAX_SUBSAMPLES",
@@ -554,6 +537,10 @@ def _pos(t: ConfigTable, name: str, default: Any) -> float:
     return t.real(name, default, lo=0.0, lo_open=True)
 
 
+def _rate(t: ConfigTable, name: str, default: Any) -> float:
+    return t.real(name, default, lo=0.0, lo_open=True, hi=MAX_SAMPLE_RATE_HZ)
+
+
 def _nonneg(t: ConfigTable, name: str, default: Any) -> float:
     return t.real(name, default, lo=0.0)
 
@@ -578,7 +565,7 @@ def _dead(t: ConfigTable, name: str, default: Any) -> tuple[tuple[int, int], ...
 
 def _ft(t: ConfigTable) -> FtSpec:
     return _simple(t, FtSpec, {
-        "enabled": _flag, "rate_hz": _pos, "origin_m": _vec3,
+        "enabled": _flag, "rate_hz": _rate, "origin_m": _vec3,
         "yaw_rad": lambda t, n, d: t.real(n, d),
         "noise_force_N": _nonneg, "noise_torque_Nm": _nonneg,
         "bias_force_N": _vec3, "bias_torque_Nm": _vec3,
@@ -590,7 +577,7 @@ def _ft(t: ConfigTable) -> FtSpec:
 
 def _tactile(t: ConfigTable) -> TactileSpec:
     return _simple(t, TactileSpec, {
-        "enabled": _flag, "rate_hz": _pos, "p0_Pa": _pos,
+        "enabled": _flag, "rate_hz": _rate, "p0_Pa": _pos,
         "full_scale_counts": lambda t, n, d: t.integer(n, d, lo=1),
         "baseline_counts": _nonneg,
         "gain_spread": lambda t, n, d: t.real(n, d, lo=0.0, hi=0.5),
@@ -641,7 +628,7 @@ def parse_scene(data: Mapping[str, Any], *, source: str = "<scene>") -> Scene:
     sim_t = top.table("sim")
     sim = SimSpec(
         step_us=sim_t.integer("step_us", SimSpec.step_us, lo=1),
-        truth_rate_hz=sim_t.real("truth_rate_hz", SimSpec.truth_rate_hz, lo=0.0, lo_open=True),
+        truth_rate_hz=_rate(sim_t, "truth_rate_hz", SimSpec.truth_rate_hz),
     )
     sim_t.finish()
     sensors = top.table("sensors")

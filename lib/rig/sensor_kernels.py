@@ -5,11 +5,7 @@ range) in one call: it replaced a loop over the six axes in Python and two numpy
 products per sample (~10 µs a sample in the lock-step run); its moments ``Σ x φ``
 and ``Σ y φ`` are plain loops, so their last bits may differ from numpy's.
 
-:meth:`~slipstack.lib.rig.sensors.TactileSensorModel.measure` turned the rubber's
-saturation level into 12-bit counts with seven numpy calls on the 256 taxels of
-every frame; :func:`tactile_counts` does them in one pass, with the same operations
-in the same order (so the counts do not change). The exponential stays numpy's (its
-rounding differs from libm's) and so does the noise generator.
+More in docs/modules.md, `lib/rig/sensor_kernels.py`.
 """
 
 from __future__ import annotations

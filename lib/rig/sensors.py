@@ -1,17 +1,6 @@
 """Sensor models of the rig: a 6-axis F/T sensor and a conductive-rubber tactile pad.
 
-Sign convention (an honest plant): the F/T sensor in the finger measures the wrench
-the **object exerts on the finger**, through the contact only (never the disturbance
-directly). Its tangential force and torque about the pad's ``z`` are therefore the
-*load on the object* of docs/math.md §1 (in equilibrium they equal the disturbance, and
-friction on the object is their negative); its normal force is ``f_z = −f_n`` (the
-object pushes the pad inwards, along ``−z``). A driver maps a reading to the
-quantities of docs/math.md §1 with :meth:`FtSensorModel.pad_load`:
-
-    f_F = R_z(yaw)·f_S,  τ_F = R_z(yaw)·τ_S + p_S × f_F,
-    f_t = (f_F,x, f_F,y),  τ = τ_F,z,  f_n = −f_F,z.
-
-Stamps are integer nanoseconds of simulated time.
+More in docs/modules.md, `lib/rig/sensors.py`.
 """
 
 from __future__ import annotations

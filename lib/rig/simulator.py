@@ -9,16 +9,7 @@ scene seed. A scene with ``[gripper]`` is a parallel gripper: a second finger, w
 own sensors, presses the opposite face with the same squeeze, and gravity acts
 (docs/math.md §9).
 
-Clocks: the simulator only advances when asked, ``step_until(t_ns)``, in simulated
-integer nanoseconds from 0. Lock-step (tests, benchmarks) calls it as fast as
-possible; real time (the rig node) calls it with the wall-clock time elapsed since
-start, so pacing lives outside ``lib/``.
-
-Energy books: ``Truth.energy_J`` (kinetic + elastic bristle energy) and
-``Truth.work_J`` (work of the motor's active force/torque on the object since t=0).
-Over any interval at constant grip force, ``Δenergy ≤ Δwork``: friction, damping and
-the release of bristle energy at slip onset only dissipate (the step is built so
-that this holds exactly up to round-off; see lib/rig/friction.py and body.py).
+More in docs/modules.md, `lib/rig/simulator.py`.
 """
 
 from __future__ import annotations

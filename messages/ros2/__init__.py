@@ -16,8 +16,8 @@ from typing import Any, Callable
 import numpy as np
 
 from slipstack.lib.errors import ConfigError, DecodeError
-from slipstack.messages import (Contact, Cor, Diagnostics, GripCommand, Header, Message, RigTruth, Slip, TactileFrame,
-                                Wrench)
+from slipstack.messages import (Contact, Cor, Diagnostics, GripCommand, GripState, Header, Message, RigTruth, Slip,
+                                TactileFrame, Wrench)
 
 __all__ = ["INSTALL_HINT", "PAD_FRAME_ID", "WRENCH_STAMPED", "IMAGE", "ROS_TYPES", "INFO_TYPES", "INFO_SUFFIX",
            "RosOut", "Ros2Codec", "ROS_NAMESPACE", "codec", "ros_topic", "stamp_to_ns"]
@@ -30,14 +30,15 @@ IMAGE = "sensor_msgs/msg/Image"
 PACKAGE = "slipstack_msgs"
 ROS_TYPES: dict[type[Message], str] = {
     Wrench: WRENCH_STAMPED, TactileFrame: IMAGE, Contact: f"{PACKAGE}/msg/Contact", Cor: f"{PACKAGE}/msg/Cor",
-    Slip: f"{PACKAGE}/msg/Slip", GripCommand: f"{PACKAGE}/msg/GripCommand", RigTruth: f"{PACKAGE}/msg/RigTruth",
-    Diagnostics: f"{PACKAGE}/msg/Diagnostics",
+    Slip: f"{PACKAGE}/msg/Slip", GripCommand: f"{PACKAGE}/msg/GripCommand", GripState: f"{PACKAGE}/msg/GripState",
+    RigTruth: f"{PACKAGE}/msg/RigTruth", Diagnostics: f"{PACKAGE}/msg/Diagnostics",
 }
 """The ROS 2 type each slipstack type is published and recorded as."""
 INFO_TYPES: dict[type[Message], str] = {Wrench: f"{PACKAGE}/msg/WrenchInfo", TactileFrame: f"{PACKAGE}/msg/TactileInfo"}
 """Standard-typed messages also go out as these, on ``<topic>/info``: what the standard type lacks."""
 INFO_SUFFIX = "/info"
-_MSG_FILES = ("Trace", "WrenchInfo", "TactileInfo", "Contact", "Cor", "Slip", "GripCommand", "RigTruth", "Diagnostics")
+_MSG_FILES = ("Trace", "WrenchInfo", "TactileInfo", "Contact", "Cor", "Slip", "GripCommand", "GripState", "RigTruth",
+              "Diagnostics")
 _INT32_MAX = 2**31 - 1
 # fields renamed or reshaped between a slipstack type and its slipstack_msgs type
 _RENAMED = {"case": "cor_case"}

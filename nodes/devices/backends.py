@@ -2,50 +2,7 @@
 
 URL grammar (query parameters optional unless marked)::
 
-    rdt://HOST[:PORT]         ATI Net F/T / Axia RDT over UDP (port 49152)
-        cpf=1000000 cpt=1000000   counts per N / per N·m (read them from the sensor)
-    robotiq://PATH            Robotiq FT 300 (Modbus RTU, 19200 baud)
-        stop_ms=500 echo_ms=200   0xFF stop burst length; echo wait before retrying
-    bota://PATH               Bota serial F/T (460800 baud)
-    dsacon32://PATH           Weiss DSACON32 (115200 baud)
-        fps=30 rle=0 matrix=0 reply_ms=500
-    m1616://PATH              16×16 module, header AA AB AC (115200 baud)
-    framed://PATH?header=HEX  generic framed tactile (lib/protocols/framed.py)
-        rows=16 cols=16 dtype=u16|u8|u12 endian=le|be order=row|col trailer=0
-        checksum=none|sum8|crc16|crc16-ccitt
-
-    common: baud=…  rate_hz=…  (nominal sample rate; defaults: rdt 7000, robotiq 100,
-            bota 200, dsacon32 = fps, m1616/framed 100)
-            stale_ms=…  (default 2.5 sample periods, at least 2.5 ms) backoff_ms=50 backoff_max_ms=2000
-
-    wsg://HOST[:PORT]         Weiss WSG 50 gripper, binary command protocol over TCP (port 1000)
-        rate_hz=100 (the force readings it streams)  reply_ms=100  width_mm=20 speed_mm_s=20
-        grasp_n=10 (the force of the first grasp, until a command says otherwise)
-
-    sim:URL                   the simulated twin of the device URL names, on an in-process
-                              link (``sim_link.py``; lock-step runs)
-
-PATH is absolute (three slashes: ``robotiq:///dev/ttyUSB0``). An unknown scheme or
-key, or a bad value, raises ConfigError naming it.
-
-Every back-end has ``open(now_ns)``, ``fileno()``, ``poll(now_ns) -> list[Sample]``,
-``next_deadline_ns()``, ``counters`` (dict), ``status`` (:class:`LinkStatus` after
-the last poll) and ``close()``. Times are the caller's clock in integer ns; nothing
-blocks. The node wrapper waits for ``fileno()`` to become readable or for
-``next_deadline_ns()``, calls ``poll`` and publishes the samples; it re-reads
-``fileno()`` after every poll because a reconnect changes it.
-
-Counters: ``frames`` decoded samples, ``crc_errors`` frames failing their integrity
-check, ``rejected_bytes`` bytes/datagrams bytes in no frame, ``gaps`` samples missing
-by device sequence (RDT only; other devices carry no sequence), ``reconnects``
-successful reopens; plus ``flushed_bytes`` (discarded on purpose during a
-handshake), ``handshake_failures``, ``ignored_packets`` (valid packets of no use),
-``bad_frames`` (valid CRC, inconsistent content), ``requests`` (RDT start requests),
-``implausible_records`` (RDT records whose counters do not continue the requested
-stream: stray, stale or forged datagrams; :func:`~slipstack.lib.protocols.ati_rdt.follows`).
-
-Sensor values are in the sensor's frame; no frame transform is applied. The gripper
-back-end (``wsg``) also takes commands: :meth:`WsgBackend.set_force`.
+More in docs/modules.md, `nodes/devices/backends.py`.
 """
 
 from __future__ import annotations
@@ -61,9 +18,10 @@ import numpy as np
 from slipstack.lib.config import ConfigTable
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.protocols import ati_rdt, bota, dsacon32, m1616, robotiq, wsg
+from slipstack.lib.protocols.crc import compile_kernels as compile_crc_kernels
 from slipstack.lib.protocols.framed import FramedCodec, FramedFormat
 from slipstack.lib.protocols.stream import Deframer
-from slipstack.lib.samples import FtSample, GripperSample, TactileSample
+from slipstack.lib.samples import MAX_SAMPLE_RATE_HZ, FtSample, GripperSample, TactileSample
 from slipstack.lib.sequence import SeqTracker
 
 from . import Freshness, LinkStatus
@@ -97,7 +55,7 @@ class Backend(ABC):
 
     def __init__(self, url: str, params: ConfigTable) -> None:
         self.url = url
-        self.rate_hz = params.real("rate_hz", float(self.default_rate_hz), lo=0.0, lo_open=True)
+        self.rate_hz = params.real("rate_hz", float(self.default_rate_hz), lo=0.0, lo_open=True, hi=MAX_SAMPLE_RATE_HZ)
         default_stale_ms = max(DEFAULT_STALE_PERIODS * 1e3 / self.rate_hz, MIN_DEFAULT_STALE_MS)
         self.stale_after_s = params.real("stale_ms", default_stale_ms) / 1e3
         self.backoff_min_s = params.real("backoff_ms", 50.0) / 1e3
@@ -190,6 +148,7 @@ class _SerialBackend(Backend):
 
     def __init__(self, url: str, path: str, params: ConfigTable) -> None:
         super().__init__(url, params)
+        compile_crc_kernels()  # the serial protocols frame CRCs: loaded before the first frame
         baud = params.integer("baud", self.default_baud, lo=1)
         self._link = SerialLink(path, baudrate=baud, stale_after_s=self.stale_after_s,
                                 backoff_min_s=self.backoff_min_s, backoff_max_s=self.backoff_max_s,

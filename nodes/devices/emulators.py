@@ -6,28 +6,7 @@ simulated rig) paces them: it calls ``send_ft(force_n, torque_nm)`` or
 ``send_tactile(counts)`` once per sample period; each call first handles pending
 host commands, then sends a frame if the device is streaming. Nothing blocks.
 
-Serial devices sit on a pseudo-terminal (:class:`PtyDevice`). The driver opens the
-stable symlink ``emulator.path`` (like ``/dev/serial/by-id/...``); ``unplug()``
-closes the pty and removes the link (the driver reads EIO), ``replug()`` opens a
-new pty (a new ``/dev/pts/N``) behind the same link, like a USB device coming back.
-
-Construction::
-
-    RobotiqEmulator(link_path=None, streaming=True)       # FT 300, streaming at power-up
-    BotaEmulator(link_path=None, streaming=True, rate_hz=200.0)
-    Dsacon32Emulator(link_path=None, rows=16, cols=16, texel_size_m=1.25e-3)
-    M1616Emulator(link_path=None)
-    FramedEmulator(fmt, link_path=None)
-    RdtUdpServer(host="127.0.0.1", port=0, counts_per_force=1e6, counts_per_torque=1e6)
-    WsgEmulator(address="127.0.0.1:0", part_width_mm=20.0)   # a WSG 50 gripper on TCP
-
-The gripper is paced by its caller too: ``tick(now_ns, force_n)`` handles commands and
-streams the force readings a driver asked for (``force_n``, what the fingers measure).
-
-``link_path=None`` makes a private temporary directory holding the link. A
-``sim:`` link path (``sim:/run/tactile.tty``) puts the device in this process's
-simulated device table instead (``sim_link.py``, lock-step runs), and
-:class:`RdtSimServer` is the RDT server there.
+More in docs/modules.md, `nodes/devices/emulators.py`.
 """
 
 from __future__ import annotations

@@ -7,17 +7,7 @@ UDP socket. Nothing is bound or opened and nothing waits: whoever runs the nodes
 (the in-process executor, ``slipstack launch --lockstep``) decides when each side
 runs, so a run is deterministic.
 
-Addresses: a driver URL with the prefix ``sim:`` (:data:`SIM_PREFIX`) names the
-simulated twin of the device the rest of the URL names, ``sim:rdt://127.0.0.1:49152``
-or ``sim:dsacon32:///run/tactile.tty``; the port in the table is the device's address,
-``udp:HOST:PORT`` for a UDP device, ``tcp:HOST:PORT`` for a TCP one and the path for a
-serial one (:func:`udp_address`, :func:`tcp_address`). The device side plugs the port in (like a USB device
-appearing), the driver side opens it once it is there and reads ``disconnected``
-(then retries with its back-off) while it is not, exactly as with hardware.
-
-Bounds: each direction of a port holds at most :data:`PORT_MAX_BYTES`; bytes beyond
-are dropped and counted (a UART overrun), never queued without limit. Times are the
-caller's clock in integer ns; nothing here reads a clock.
+More in docs/modules.md, `nodes/devices/sim_link.py`.
 """
 
 from __future__ import annotations

@@ -2,25 +2,7 @@
 
 File layout (one MCAP file per recording, https://mcap.dev/spec):
 
-* message_encoding ``msgpack``: every message's data is the frame payload exactly as
-  it travelled on the bus (``messages/codec.py`` wire format), so a replay decodes
-  the very bytes a node received.
-* one channel per (topic, message type); channel metadata ``{"type", "version"}``.
-* schema encoding :data:`SCHEMA_ENCODING` (a slipstack-specific name, allowed by the
-  MCAP spec for custom encodings): a JSON document describing the type's wire
-  layout and fields (name, wire type, dtype, shape, units) — see
-  :func:`message_schema`. A payload whose type is unknown gets schema id 0.
-* ``log_time``: receive time at the recorder, **wall clock** ns since the Unix epoch
-  (the MCAP convention, ``time.time_ns``); ``publish_time`` = ``header.pub_ns`` and
-  ``sequence`` = ``header.seq`` (both from the publisher: ``pub_ns`` is on the
-  publisher's CLOCK_MONOTONIC, not the wall clock).
-* a metadata record :data:`CLOCK_METADATA` written first, holding
-  ``wall_minus_monotonic_ns`` of the recording host, so receive times can be put on
-  the stamps' monotonic clock (:func:`replay_into`).
-* chunked (zstd) and indexed; the writer closes a chunk when it exceeds
-  ``chunk_size`` bytes **or** is older than ``flush_period_s``, and flushes it to the
-  OS, so a ``kill -9`` loses at most the chunk in progress. :func:`read_recording`
-  reads such an unfinished file up to its last intact chunk.
+More in docs/modules.md, `nodes/recording/bag_io.py`.
 """
 
 from __future__ import annotations
@@ -42,7 +24,8 @@ from mcap.reader import SeekingReader
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import MCAP0_MAGIC, CompressionType, Writer
 
-from slipstack.lib.errors import ConfigError, DecodeError, SlipstackError
+from slipstack.lib.errors import DecodeError, SlipstackError
+from slipstack.lib.output_file import claim_output
 from slipstack.messages import Message, decode, registry
 from slipstack.messages.base import declared_bounds
 from slipstack.messages.frame import FrameHeader, SeqTracker, peek_header, publisher_key
@@ -50,10 +33,11 @@ from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.nodes.runtime.node import Node
 
 __all__ = [
-    "SCHEMA_ENCODING", "MESSAGE_ENCODING", "ROS2_MESSAGE_ENCODING", "CLOCK_METADATA", "RecordingError", "RecordedFrame",
-    "RecordingWriter", "RECORDING_FORMATS", "recording_writer", "claim_recording_path", "read_recording", "TopicInfo", "RecordingInfo", "recording_info",
+    "SCHEMA_ENCODING", "MESSAGE_ENCODING", "ROS2_MESSAGE_ENCODING", "CLOCK_METADATA", "LOSS_METADATA", "RecordingError",
+    "RecordedFrame", "RecordingWriter", "RECORDING_FORMATS", "recording_writer", "claim_recording_path",
+    "read_recording", "TopicInfo", "RecordingInfo", "recording_info",
     "message_schema", "clock_offset_ns", "recorded_clock_offset_ns",
-    "replay_into", "same_output", "match_outputs",
+    "replay_into", "FLOAT_RTOL", "FLOAT_ATOL", "same_value", "same_output", "match_outputs",
 ]
 
 MESSAGE_ENCODING = "msgpack"
@@ -61,6 +45,9 @@ ROS2_MESSAGE_ENCODING = "cdr"
 """The message encoding of a rosbag2 MCAP file, which :func:`read_recording` reads too."""
 SCHEMA_ENCODING = "slipstack-fields+json"
 CLOCK_METADATA = "slipstack.clock"
+LOSS_METADATA = "slipstack.loss"
+"""Metadata record written as the recorder closes the file: ``{"topics": JSON}``, what the
+file misses per topic (``nodes/recording/loss.py``: ``recorded``, ``missing`` and its parts)."""
 DEFAULT_CHUNK_SIZE = 256 * 1024
 DEFAULT_FLUSH_PERIOD_S = 1.0
 
@@ -127,30 +114,28 @@ def message_schema(cls: type[Message]) -> dict[str, Any]:
 # -- writing ------------------------------------------------------------------------------
 
 def claim_recording_path(path: Path) -> None:
-    """Create the empty file ``path`` (and its folders) for a new recording, before anything
-    is recorded, so that a path that cannot be written fails at once rather than after a run.
+    """Create the empty file ``path`` for a new recording, before anything is recorded, so that
+    a path that cannot be written fails at once rather than after a run. Its folder is made if
+    its parent exists (``runs/`` in the current directory), never a whole tree (a typo's).
 
     Raises:
         ConfigError: ``path`` exists (a recording is never overwritten, nor written through a
             link), or cannot be written; the message says what to do.
     """
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        open(path, "xb").close()
-    except OSError as exc:
-        if os.path.lexists(path):
-            raise ConfigError(f"recording {path} exists; pass recording:=NEW.mcap (or path:=NEW.mcap) "
-                              "or delete it") from None
-        raise ConfigError(f"cannot write the recording {path} ({exc.strerror}); pass recording:=PATH "
-                          "in a folder you may write") from None
+    claim_output(path, what="the recording", change="pass recording:=NEW.mcap (or path:=NEW.mcap)", force_option=None)
 
 
 class RecordingWriter:
     """Write frames to an MCAP file (see the module docstring for the layout).
 
+    A write that fails (a full disk) never raises: :attr:`error` keeps it, nothing more is
+    written, and every frame from the chunk it cut on is counted per topic in
+    :attr:`not_written`; :attr:`counts` are the frames in the file's intact chunks, which
+    :func:`read_recording` reads (the file stays unfinished).
+
     Args:
-        path: output file (parent folders are created).
-        chunk_size: close a chunk above this many bytes.
+        path: output file (its folder must exist: :func:`claim_recording_path`).
+        chunk_size: close a chunk above this many bytes of frames.
         flush_period_s: close and flush a chunk at most this long (s, in log time)
             after its first message, so a crash loses at most that much.
         wall_minus_monotonic_ns: the host's ``time.time_ns() - time.monotonic_ns()``,
@@ -169,20 +154,45 @@ class RecordingWriter:
         wall_minus_monotonic_ns: int | None = None,
     ) -> None:
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
         self._fh = open(self.path, "wb")
-        self._writer = Writer(self._fh, chunk_size=chunk_size, compression=CompressionType.ZSTD)
-        self._writer.start(profile=self.PROFILE, library="slipstack")
+        # chunks are closed here, never inside add_message: each is then flushed whole or counted lost
+        self._writer = Writer(self._fh, chunk_size=1 << 62, compression=CompressionType.ZSTD)
+        self._chunk_size = chunk_size
         self.wall_minus_monotonic_ns = wall_minus_monotonic_ns
-        if wall_minus_monotonic_ns is not None:
-            self._writer.add_metadata(CLOCK_METADATA, {"wall_minus_monotonic_ns": str(int(wall_minus_monotonic_ns))})
-            self._fh.flush()
         self._flush_period_ns = round(flush_period_s * 1e9)
         self._chunk_opened_ns: int | None = None
+        self._chunk_bytes = 0
         self._schemas: dict[str, int] = {}
         self._channels: dict[tuple[str, str], int] = {}
         self.counts: dict[str, int] = defaultdict(int)
+        self._pending: dict[str, int] = defaultdict(int)
+        self.not_written: dict[str, int] = defaultdict(int)
+        self.error: OSError | None = None
         self.closed = False
+        self._guard(lambda: self._writer.start(profile=self.PROFILE, library="slipstack"))
+        if wall_minus_monotonic_ns is not None:
+            self._guard(lambda: self._writer.add_metadata(
+                CLOCK_METADATA, {"wall_minus_monotonic_ns": str(int(wall_minus_monotonic_ns))}))
+        self._guard(self._fh.flush)
+
+    def _guard(self, step: Callable[[], object]) -> bool:
+        """Run one write ``step``; on an OSError keep it in :attr:`error`, count the chunk in
+        progress as not written and write nothing more. True if it succeeded."""
+        if self.error is not None:
+            return False
+        try:
+            step()
+            return True
+        except OSError as exc:
+            self.error = exc
+            for topic, n in self._pending.items():
+                self.not_written[topic] += n
+            self._pending.clear()
+            try:
+                self._fh.close()
+            except OSError:  # its buffer could not be written either
+                pass
+            return False
 
     def _channel(self, topic: str, head: FrameHeader | None) -> int:
         type_name = head.type_name if head else ""
@@ -203,7 +213,10 @@ class RecordingWriter:
         return cid
 
     def write(self, topic: str, payload: bytes, log_time_ns: int) -> None:
-        """Append one frame received at ``log_time_ns`` (wall-clock ns)."""
+        """Append one frame received at ``log_time_ns`` (wall-clock ns); after a failed write
+        it is only counted in :attr:`not_written`."""
+        if self._failed(topic):
+            return
         head = peek_header(payload)
         log_time_ns = int(log_time_ns)
         if head is None:
@@ -214,14 +227,23 @@ class RecordingWriter:
             publish_time, sequence = head.pub_ns, head.seq & 0xFFFFFFFF
         self._writer.add_message(cid, log_time_ns, payload if type(payload) is bytes else bytes(payload),
                                  publish_time, sequence)
-        self._written(topic, log_time_ns)
+        self._written(topic, log_time_ns, len(payload))
 
-    def _written(self, topic: str, log_time_ns: int) -> None:
-        """Count a frame written at ``log_time_ns`` and close the chunk if it is old enough."""
-        self.counts[topic] += 1
+    def _failed(self, topic: str) -> bool:
+        """After a failed write: count a frame of ``topic`` as not written; True then."""
+        if self.error is None:
+            return False
+        self.not_written[topic] += 1
+        return True
+
+    def _written(self, topic: str, log_time_ns: int, n_bytes: int) -> None:
+        """Count a frame of ``n_bytes`` written at ``log_time_ns`` into the chunk in progress,
+        and close the chunk if it is big or old enough."""
+        self._pending[topic] += 1
+        self._chunk_bytes += n_bytes
         if self._chunk_opened_ns is None:
             self._chunk_opened_ns = log_time_ns
-        if log_time_ns - self._chunk_opened_ns >= self._flush_period_ns:
+        if self._chunk_bytes >= self._chunk_size or log_time_ns - self._chunk_opened_ns >= self._flush_period_ns:
             self.flush()
 
     def tick(self, now_ns: int) -> None:
@@ -231,15 +253,24 @@ class RecordingWriter:
 
     def flush(self) -> None:
         """Close the chunk in progress and hand it to the OS (survives ``kill -9``)."""
-        self._writer.flush()
+        if self._guard(self._writer.flush):
+            for topic, n in self._pending.items():
+                self.counts[topic] += n
+            self._pending.clear()
         self._chunk_opened_ns = None
+        self._chunk_bytes = 0
 
-    def close(self) -> None:
-        """Finish the file: last chunk, summary, indexes, footer. Idempotent."""
-        if not self.closed:
-            self.closed = True
-            self._writer.finish()
-            self._fh.close()
+    def close(self, metadata: dict[str, dict[str, str]] | None = None) -> None:
+        """Finish the file: last chunk, ``metadata`` records (name → key → value), summary,
+        indexes, footer. Idempotent. After a failed write the file is left unfinished."""
+        if self.closed:
+            return
+        self.closed = True
+        self.flush()
+        for name, record in (metadata or {}).items():
+            self._guard(lambda: self._writer.add_metadata(name, record))
+        if self._guard(self._writer.finish):
+            self._guard(self._fh.close)
 
     def __enter__(self) -> "RecordingWriter":
         return self
@@ -372,7 +403,7 @@ def _chunks_after(fh: Any, offset: int, state: _ScanState) -> Iterator[McapMessa
 
 def read_recording(
     path: str | os.PathLike, topics: Iterable[str] | None = None, *, tolerant: bool = True,
-    progress: Callable[[int], None] | None = None,
+    progress: Callable[[int], None] | None = None, on_damage: Callable[[str], None] | None = None,
 ) -> Iterator[RecordedFrame]:
     """Iterate the recorded frames in file (= receive) order.
 
@@ -385,6 +416,7 @@ def read_recording(
         tolerant: read an unfinished file (no summary, e.g. after ``kill -9``) up to
             its last intact chunk; ``False`` raises :class:`RecordingError` instead.
         progress: called with the bytes of the file read so far, after each chunk.
+        on_damage: called once at the end with what was damaged, if anything was (tolerant).
     """
     wanted = None if topics is None else set(topics)
     state = _ScanState()
@@ -401,6 +433,8 @@ def read_recording(
             yield RecordedFrame(m.log_time, channel.topic, m.data, m.publish_time, m.sequence)
     if ros2 is not None:
         yield from ros2.flush()
+    if state.error and on_damage is not None:
+        on_damage(state.error)
 
 
 @dataclass(frozen=True)
@@ -408,8 +442,10 @@ class TopicInfo:
     """Per-topic numbers of a recording.
 
     rate_hz: (count − 1) / (last − first receive time). seq_gaps: sequence numbers
-    missing between consecutive frames of each publisher (a restart, where seq goes
-    back, is not a gap).
+    missing between consecutive frames of each publisher in the file (a restart, where
+    seq goes back, is not a gap). missing: every frame sent and not in the file, as the
+    recorder counted it when it closed the file (:data:`LOSS_METADATA`; ``None``: not
+    known, the file was not closed by a recorder), with its parts in ``loss``.
     """
 
     topic: str
@@ -419,6 +455,8 @@ class TopicInfo:
     seq_gaps: int
     first_seq: int
     last_seq: int
+    missing: int | None = None
+    loss: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -465,18 +503,31 @@ def recording_info(path: str | os.PathLike, progress: Callable[[int], None] | No
         seq_first.setdefault(topic, seq)
         seq_last[topic] = seq
         gaps[topic] += seq_tracker.update(seq, publisher_key(topic, m.data, head))
+    loss = _loss_record(state.metadata.get(LOSS_METADATA))
     topics = {
         t: TopicInfo(
             t, tuple(sorted(types[t])), counts[t],
             (counts[t] - 1) / ((last[t] - first[t]) / 1e9) if last[t] > first[t] else 0.0,
             gaps[t], seq_first[t], seq_last[t],
+            loss[t]["missing"] if t in loss else None, loss.get(t, {}),
         )
         for t in sorted(counts)
     }
+    for t in sorted(set(loss) - set(counts)):  # a topic sent and wholly missing
+        topics[t] = TopicInfo(t, (), 0, 0.0, 0, 0, 0, loss[t]["missing"], loss[t])
     return RecordingInfo(
         Path(path), os.path.getsize(path), state.finished, state.chunks, sum(counts.values()),
         min(first.values(), default=0), max(last.values(), default=0), topics, state.error,
     )
+
+
+def _loss_record(record: dict[str, str] | None) -> dict[str, dict[str, Any]]:
+    """Topic → its loss (:data:`LOSS_METADATA`); empty if the file has none or it is unreadable."""
+    try:
+        topics = json.loads((record or {}).get("topics", "{}"))
+        return {str(t): v for t, v in topics.items() if isinstance(v, dict) and isinstance(v.get("missing"), int)}
+    except (ValueError, AttributeError):
+        return {}
 
 
 def clock_offset_ns(path: str | os.PathLike, frames: list[RecordedFrame] | None = None) -> int:
@@ -513,6 +564,7 @@ def replay_into(
     *,
     timing: str = "receive",
     remap: dict[str, str] | None = None,
+    log: Callable[[str], None] | None = None,
 ) -> dict[str, list[Message]]:
     """Feed a recording's input frames to one node in an :class:`InProcessExecutor`.
 
@@ -526,6 +578,7 @@ def replay_into(
             ``header.stamp_ns`` (sample order). Either way ``ctx.now_ns()`` is on the
             stamps' clock, so ages (now − stamp) stay meaningful.
         remap: the node's default topic → topic (as in its launch entry).
+        log: receives the node's log lines (``[name] text``; default: kept by the executor).
 
     Returns:
         topic → messages the node published (decoded, in publication order).
@@ -553,19 +606,58 @@ def replay_into(
         offset = clock_offset_ns(path, frames)
         events = [(f.log_time_ns - offset, f.topic, f.payload) for f in frames]
     start = min((t for t, _, _ in events), default=0)
-    ex = InProcessExecutor([node], remaps={node.name: remap}, start_ns=start)
+    ex = InProcessExecutor([node], remaps={node.name: remap}, start_ns=start, log=log)
     ex.feed(events)
     ex.run()
     ex.stop()
     return dict(ex.published)
 
 
+FLOAT_RTOL = 1e-9
+"""Relative tolerance of :func:`same_output` for float64 values (float32: 8 of its ulps, 9.5e-7);
+docs/portability.md §1 says why replays compare floats with one."""
+FLOAT_ATOL = 1e-12
+"""Absolute floor of that tolerance, in the field's SI unit (for values that cancel to ~0)."""
+
+
+def _float_rtol(dtype: np.dtype) -> float:
+    return max(FLOAT_RTOL, 8 * float(np.finfo(dtype).eps))
+
+
+def same_value(x: Any, y: Any) -> bool:
+    """True if ``x`` and ``y`` are the same field value: floats within :data:`FLOAT_RTOL` /
+    :data:`FLOAT_ATOL` (NaN equal to NaN, infinities exact); integers, strings, booleans and
+    array dtypes and shapes exact; dicts, lists and tuples item by item."""
+    if isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
+        if not (isinstance(x, np.ndarray) and isinstance(y, np.ndarray)) or x.dtype != y.dtype or x.shape != y.shape:
+            return False
+        if x.dtype.kind not in "fc":
+            return bool(np.array_equal(x, y))
+        return bool(np.isclose(x, y, rtol=_float_rtol(x.dtype), atol=FLOAT_ATOL, equal_nan=True).all())
+    if (isinstance(x, float) or isinstance(y, float)) and _is_number(x) and _is_number(y):
+        x, y = float(x), float(y)
+        if math.isnan(x) or math.isnan(y):
+            return math.isnan(x) and math.isnan(y)
+        return x == y or (math.isfinite(x) and math.isfinite(y)
+                          and abs(x - y) <= FLOAT_ATOL + FLOAT_RTOL * max(abs(x), abs(y)))
+    if isinstance(x, dict) and isinstance(y, dict):
+        return x.keys() == y.keys() and all(same_value(x[k], y[k]) for k in x)
+    if isinstance(x, (list, tuple)) and isinstance(y, (list, tuple)):
+        return len(x) == len(y) and all(same_value(a, b) for a, b in zip(x, y))
+    return bool(x == y)
+
+
+def _is_number(x: Any) -> bool:
+    return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, (bool, np.bool_))
+
+
 def same_output(a: Message, b: Message, *, check_seq: bool = False) -> str | None:
     """``None`` if ``a`` and ``b`` are the same output, else the first differing field.
 
     Same means: same type, equal ``header.stamp_ns`` and ``header.sources`` (and
-    ``header.seq`` if ``check_seq``), and equal body fields (arrays: same dtype, shape
-    and values, NaN equal to NaN). ``header.pub_ns`` is ignored: it is executor time.
+    ``header.seq`` if ``check_seq``), and body fields that are :func:`same_value` (floats
+    within the stated tolerance, everything else exact). ``header.pub_ns`` is ignored:
+    it is executor time.
     """
     if type(a) is not type(b):
         return f"type ({a.TYPE} vs {b.TYPE})"
@@ -577,11 +669,8 @@ def same_output(a: Message, b: Message, *, check_seq: bool = False) -> str | Non
         return f"header.seq ({a.header.seq} vs {b.header.seq})"
     for name in a._body_fields:  # type: ignore[attr-defined]
         x, y = getattr(a, name), getattr(b, name)
-        if isinstance(x, np.ndarray):
-            if x.dtype != y.dtype or x.shape != y.shape or not np.array_equal(x, y, equal_nan=x.dtype.kind == "f"):
-                return name
-        elif x != y and not (isinstance(x, float) and math.isnan(x) and isinstance(y, float) and math.isnan(y)):
-            return f"{name} ({x!r} vs {y!r})"
+        if not same_value(x, y):
+            return name if isinstance(x, np.ndarray) else f"{name} ({x!r} vs {y!r})"
     return None
 
 

@@ -2,23 +2,7 @@
 
 The MCAP export (``mcap-json``) holds:
 
-* one channel per (topic, message type), named ``/slipstack/<topic>`` as the live
-  ``foxglove`` node names them (so ``docs/foxglove_layout.json`` fits both), message
-  encoding ``json``, schema encoding ``jsonschema``: the schema of :mod:`slipstack.messages.json_schema` (every field
-  required, types, units, declared bounds and enumerations);
-* ``/pad/pressure``: every tactile frame again as a ``foxglove.RawImage`` (encoding
-  ``32FC1``: one float32 pixel per taxel in Pa, row 0 first, frame ``pad``), which
-  Foxglove's Image panel shows as a heat map;
-* ``/pad/scene``: at every pad-frame wrench and every COR, a ``foxglove.SceneUpdate``
-  with the force arrow and the COR in the pad frame (:mod:`.foxglove_scene`, as live);
-* one clock: ``log_time`` is the recorder's receive time and ``publish_time`` the
-  publisher's ``pub_ns``, both on the wall clock (ns since the Unix epoch); inside
-  each message ``header.stamp`` is the sample time on the wall clock and
-  ``header.stamp_ns`` etc. stay on the recording host's CLOCK_MONOTONIC, as on the bus;
-* the recording's clock metadata (``wall_minus_monotonic_ns``, the offset used) as
-  recorded, and ``slipstack.export`` naming the source and how the offset was found.
-
-Frames that do not decode are skipped and not counted.
+More in docs/modules.md, `nodes/recording/export.py`.
 """
 
 from __future__ import annotations
@@ -34,6 +18,7 @@ import numpy as np
 from mcap.writer import CompressionType, Writer
 
 from slipstack.lib.errors import DecodeError
+from slipstack.lib.output_file import output_file
 from slipstack.messages import Cor, TactileFrame, Wrench, decode
 from slipstack.messages.json_schema import TIME_SCHEMA, json_schema, to_json, wall_time
 from slipstack.nodes.recording.foxglove_scene import PAD_FRAME, SCENE_TOPIC, SCENE_UPDATE_SCHEMA, ContactScene
@@ -129,30 +114,34 @@ class _McapJson:
 
 
 def export_recording(path: str | os.PathLike, out: str | os.PathLike, fmt: str = "mcap-json",
-                     progress: Callable[[int], None] | None = None) -> int:
+                     progress: Callable[[int], None] | None = None, *, force: bool = False,
+                     on_damage: Callable[[str], None] | None = None) -> int:
     """Export a recording (see the module docstring); returns the number of messages exported.
 
     fmt ``mcap-json``: MCAP for Foxglove. ``jsonl``: one line per message,
     ``{"log_time_ns", "topic", "type", "message"}`` (the message as in the MCAP export).
     ``ros2``: MCAP as rosbag2 writes it (:mod:`.ros2_bag`; needs the ``ros2`` extra).
     progress: called with the source file's bytes read so far, now and then.
+    force: replace an existing output (else it is refused). on_damage: called with what was
+    damaged in the recording, if anything (what could be read is exported all the same).
 
     Raises:
         RecordingError: unknown format, the output is the input, the input is no recording.
+        ConfigError: the output exists (without ``force``) or cannot be written.
     """
     if fmt not in EXPORT_FORMATS:
         raise RecordingError(f"unknown export format {fmt!r}; use {', '.join(EXPORT_FORMATS)}")
     if Path(out).resolve() == Path(path).resolve():
         raise RecordingError(f"export output {out} is the recording itself; choose another path")
-    frames = read_recording(path, progress=progress)
+    frames = read_recording(path, progress=progress, on_damage=on_damage)
     first = next(frames, None)  # an unreadable input raises here, before the output exists
     recorded = recorded_clock_offset_ns(path)
     offset = recorded if recorded is not None else clock_offset_ns(path)
-    Path(out).parent.mkdir(parents=True, exist_ok=True)
     if fmt == "ros2":
-        return _export_ros2(itertools.chain([first] if first is not None else [], frames), out, offset)
+        with output_file(Path(out), force=force):
+            return _export_ros2(itertools.chain([first] if first is not None else [], frames), out, offset)
     n = 0
-    with open(out, "wb") as fh:
+    with output_file(Path(out), force=force), open(out, "wb") as fh:
         mcap = _McapJson(fh, path, offset, recorded is not None) if fmt == "mcap-json" else None
         for frame in itertools.chain([first] if first is not None else [], frames):
             try:

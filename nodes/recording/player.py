@@ -1,25 +1,6 @@
 """The player: publish a recording on the bus with its original timing.
 
-Frames are sent at the recorder's receive times, relative to the first played frame,
-divided by ``rate``. Payloads go out exactly as recorded — original headers, stamps
-and sequence numbers — unless *restamp* is on: then every frame's ``stamp_ns``,
-``pub_ns`` and each ``sources`` stamp are shifted by one offset Δ (per pass of the
-loop) chosen so the first frame's receive time maps to "now" on the player's clock;
-``seq``, bodies and spacing of the stamps stay as recorded (at ``rate`` ≠ 1 the
-stamps keep the recorded spacing, not the played one).
-
-One player, the ``player`` node (:class:`Player`, on :class:`Playback`), two ways:
-
-* ``slipstack bag play`` (:func:`play`) runs it in its own process, sending on its own endpoint
-  (``--endpoint``), registered in the run directory so ``topic echo`` and the
-  recorders see the frames, and injects them into the running nodes that subscribe
-  to the played topics (their *inject* endpoints in ``graph.json``), each frame named
-  after the recorded publisher it came from, so the nodes track sequence gaps per
-  recorded publisher (:mod:`slipstack.nodes.runtime.tool_pub`);
-* the ``player`` node type in a launch file: outputs are the recording's topics, so
-  the launcher wires subscribers to it. Those outputs are known only once the node is
-  built with its ``path`` (they are not a property of the node type), which is why the
-  launch plan builds every node and reads the outputs off the instance.
+More in docs/modules.md, `nodes/recording/player.py`.
 """
 
 from __future__ import annotations
@@ -34,7 +15,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.messages import registry
 from slipstack.messages.frame import peek_header, publisher_key, restamp
 from slipstack.nodes.recording.bag_io import RecordedFrame, clock_offset_ns, read_recording
-from slipstack.nodes.runtime.graph_info import find_run_dir, read_graph, time_base_clock
+from slipstack.nodes.runtime.graph_info import INJECTION_REFUSED, find_run_dir, read_graph, time_base_clock
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.node import Context, Node, Output
 from slipstack.nodes.runtime.process import ProcessExecutor, RunSpec
@@ -221,9 +202,12 @@ def play(
                                  start_offset_s=start_offset_s), send=send)
     played = set(player.types)
     injects: list[tuple[str, str]] = []
+    refused: set[str] = set()
     if rd is not None:
         for node in graph_nodes.values():
             injects += [(t, ep) for t, ep in node.get("inject", {}).items() if t in played]
+            refused |= {t for t, kind in node.get("inputs", {}).items()
+                        if t in played and kind in INJECTION_REFUSED and t not in node.get("inject", {})}
     name = tool_name("bag_play")  # one endpoint per player: ipc binds steal
     bus = BusPublisher(rd, name, player.types, endpoint=endpoint, sndhwm=100_000)
     injector = InjectionSender([ep for _, ep in injects], name, sndhwm=100_000)  # one per node, whatever its topics
@@ -235,6 +219,9 @@ def play(
         bus.wait_for_recorders(sum(1 for n in graph_nodes.values() if n.get("type") == "recorder"), wait_s)
         echo(f"playing {path}: {len(player.playback.frames)} frames on {', '.join(sorted(played))} at {rate:g}x "
              f"from {bus.endpoint}, into {len(injects)} subscriber(s)")
+        if refused:
+            echo(f"not into the graph's nodes: {', '.join(sorted(refused))} (only its own nodes publish them; a launch "
+                 f"file allows it with allow_inject under [launch]); on the bus for echo and recorders only")
         ProcessExecutor([(player, RunSpec(name=name))], clock=time_base_clock(graph)).run()  # restamps on the graph's
         echo(f"played {player.playback.sent} frames ({player.playback.passes} loops)")
         return player.playback.sent

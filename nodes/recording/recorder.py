@@ -5,19 +5,12 @@ in a launch file (params ``topics``, ``path``) it records its own graph;
 ``slipstack bag record`` (:func:`record`) runs the same node in its own process,
 attached to a running graph.
 
-Discovery: publishers are found in the graph's ``graph.json`` (``nodes/graph_info``),
-re-read every :data:`REFRESH_PERIOD_S`, so nodes added later are picked up; a
-respawned node binds the same endpoint and ZeroMQ reconnects to it by itself. The
-recorder subscribes with its own SUB socket; it is not in the launcher's readiness
-handshake, so frames published before it connected are not recorded (the first
-recorded sequence number shows how many).
-
-Frames are written raw (the bus bytes) with log_time = receive time,
-``time.time_ns()`` (wall clock, the MCAP convention); see ``nodes/recording/bag_io.py``.
+More in docs/modules.md, `nodes/recording/recorder.py`.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import time
 from dataclasses import dataclass, field
@@ -28,20 +21,29 @@ from typing import Any, Callable
 import zmq
 
 from slipstack.lib.errors import ConfigError
-from slipstack.messages.frame import SeqTracker, peek_header, publisher_key
-from slipstack.nodes.recording.bag_io import RECORDING_FORMATS, claim_recording_path, recording_writer
+from slipstack.messages.frame import peek_header
+from slipstack.nodes.recording.bag_io import (LOSS_METADATA, RECORDING_FORMATS, RecordingWriter, claim_recording_path,
+                                              recording_writer)
+from slipstack.nodes.recording.loss import NUMBERED_REPORT, RECORDING_REPORT, LossLedger, loss_text
 from slipstack.nodes.runtime.curve import secure_connect
 from slipstack.nodes.runtime.graph_info import (RUN_DIR_ENV, find_run_dir, read_graph, time_base_clock,
                                                 topic_endpoints)
+from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.node import Context, Node
 from slipstack.nodes.runtime.process import ProcessExecutor, RunSpec
 from slipstack.nodes.runtime.tool_pub import tool_name
+from slipstack.nodes.runtime.run_dir import write_private_file
 from slipstack.nodes.runtime.transport import make_sub, run_root
 
 __all__ = ["BusRecorder", "Recorder", "RecorderParams", "default_output_path", "record"]
 
 REFRESH_PERIOD_S = 0.5
 RCVHWM = 100_000  # a recorder must not drop: ~100 s of a 1 kHz topic
+DRAIN_LIMIT = 5000  # frames per drain: ~0.1 s of work, then timers and diagnostics get their turn
+CLOSE_QUIET_S = 0.2
+"""On close, frames are written until none came for this long (the last ones of stopped publishers)."""
+BEHIND_AFTER_S = 1.0
+"""Frames written later than this after they were sent: the recorder says it is falling behind."""
 
 
 def default_output_path(now: datetime | None = None) -> Path:
@@ -59,6 +61,12 @@ class BusRecorder:
         run_dir: the graph's run directory; ``None``: look it up on each refresh
             (``$SLIPSTACK_RUN_DIR`` or ``<run root>/current``), accepting a graph only
             if ``accept(graph)`` says so.
+        clock: the graph's clock (ns), that frames are sent on: how far behind the
+            writing is (:attr:`lag_ns`).
+
+    Every frame of every publisher is counted (``nodes/recording/loss.py``), the
+    ``diagnostics`` too, which tell what each node sent: :meth:`close` returns what the
+    file misses per topic and stores it in the file (:data:`LOSS_METADATA`).
     """
 
     def __init__(
@@ -68,6 +76,7 @@ class BusRecorder:
         *,
         run_dir: Path | None = None,
         accept: Callable[[dict[str, Any]], bool] = lambda graph: True,
+        clock: Callable[[], int] = time.monotonic_ns,
     ) -> None:
         self.writer = writer
         self.topics = set(topics or [])
@@ -75,18 +84,25 @@ class BusRecorder:
         self._accept = accept
         self.zctx = zmq.Context.instance()
         self.sock = make_sub(self.zctx, [], None, rcvhwm=RCVHWM)
-        if self.topics:  # prefix filters; exact match is checked per frame
+        if self.topics:  # prefix filters; exact match is checked per frame; diagnostics count the loss
             self.sock.setsockopt(zmq.UNSUBSCRIBE, b"")
-            for t in sorted(self.topics):
+            for t in sorted(self.topics | {DIAGNOSTICS_TOPIC}):
                 self.sock.setsockopt(zmq.SUBSCRIBE, t.encode())
         self.endpoints: set[str] = set()
         self.received = 0
         self.lost: dict[str, int] = {}
-        self._seq_tracker = SeqTracker()
+        """Frames missing per topic (sequence gaps) since the node last took them (it clears it)."""
+        self.lost_total = 0
+        self.ledger = LossLedger()
+        self.lag_ns = 0
+        """How long after it was sent the newest frame was written (the graph's clock, ns)."""
+        self.more_waiting = False
+        """The last :meth:`drain` stopped at its limit: more frames may wait."""
+        self._clock = clock
         self._next_refresh = 0.0
 
     def fileno(self) -> int:
-        """The socket's ZMQ_FD (readable when frames may be waiting; drain fully)."""
+        """The socket's ZMQ_FD (readable when frames may be waiting; the node's timer drains what one wake-up left)."""
         return self.sock.getsockopt(zmq.FD)
 
     def refresh(self) -> None:
@@ -112,46 +128,60 @@ class BusRecorder:
                     self.endpoints.add(ep)
 
     def drain(self) -> int:
-        """Write every waiting frame; returns how many. Refreshes the graph when due."""
+        """Write the waiting frames, at most :data:`DRAIN_LIMIT` (the node's timer drains the
+        rest: its diagnostics and status go on while it catches up); returns how many.
+        Refreshes the graph when due."""
         n = 0
-        while True:
+        head = None
+        self.more_waiting = True
+        for _ in range(DRAIN_LIMIT):
             try:
                 parts = self.sock.recv_multipart(zmq.NOBLOCK)
             except zmq.Again:
+                self.more_waiting = False
                 break
             now = time.time_ns()
             if len(parts) != 2:
                 continue
             topic = parts[0].decode(errors="replace")
+            head = peek_header(parts[1])
+            gap = self.ledger.frame(topic, parts[1], head)
+            if gap:
+                self.lost[topic] = self.lost.get(topic, 0) + gap
+                self.lost_total += gap
             if self.topics and topic not in self.topics:
                 continue
-            self._count_seq(topic, parts[1])
             self.writer.write(topic, parts[1], now)
             n += 1
+        if head is not None:
+            self.lag_ns = self._clock() - head.pub_ns
         self.received += n
         self.writer.tick(time.time_ns())
         if time.monotonic() >= self._next_refresh:
             self.refresh()
         return n
 
-    def _count_seq(self, topic: str, payload: bytes) -> None:
-        head = peek_header(payload)
-        if head is None:
-            return
-        gap = self._seq_tracker.update(head.seq, publisher_key(topic, payload, head))
-        if gap:
-            self.lost[topic] = self.lost.get(topic, 0) + gap
-
-    @property
-    def lost_total(self) -> int:
-        """Frames missing from sequence gaps since the start, all topics."""
-        return self._seq_tracker.lost
-
-    def close(self) -> None:
-        """Write what is left and finish the file (summary and indexes)."""
+    def close(self, numbered: dict[str, dict[str, int]] | None = None) -> dict[str, dict]:
+        """Write what is left and finish the file, with what it misses per topic, which is
+        returned. ``numbered``: node → topic → frames it published, reported as it stopped (the
+        graph has stopped: frames are written until none came for :data:`CLOSE_QUIET_S`)."""
         self.drain()
-        self.writer.close()
+        while self.more_waiting:
+            self.drain()
+        while numbered is not None and (self.drain() or self.sock.poll(round(CLOSE_QUIET_S * 1e3))):
+            pass
+        if numbered:
+            try:
+                self.ledger.numbered_at_stop(numbered)
+            except (TypeError, ValueError, AttributeError):  # not what the launcher writes: left out
+                pass
+        self.writer.flush()  # the chunk in progress: in the file, or counted as not written
+        loss = self.ledger.report(self.writer.counts, self.writer.not_written)
+        if self.topics:
+            loss = {t: v for t, v in loss.items() if t in self.topics}
+        self.writer.close({LOSS_METADATA: {"topics": json.dumps(loss)}})
         self.sock.close(linger=0)
+        return loss
 
 
 # -- the node ---------------------------------------------------------------------------
@@ -174,6 +204,7 @@ class Recorder(Node):
     name = "recorder"
     timers = {"poll": 0.05}
     taps_bus = True  # subscribes to every topic in ``params.topics`` (all if empty)
+    outlives_graph = True  # a launch stops it last and lets it write what it still holds
     Params = RecorderParams
 
     def __init__(self, params: RecorderParams | None = None, *,
@@ -190,6 +221,8 @@ class Recorder(Node):
         self.bus: BusRecorder | None = None
         self._on_recording = on_recording
         self._end_ns: int | None = None
+        self._behind = False
+        self._error_said = False
 
     def start(self, ctx: Context) -> None:
         p = self.params
@@ -200,7 +233,7 @@ class Recorder(Node):
         # Launched: the launcher names our graph in $SLIPSTACK_RUN_DIR and counts us in
         # every publisher's readiness handshake (``taps_bus``), so no first sample is missed.
         chosen = p.run_dir or os.environ.get(RUN_DIR_ENV)
-        self.bus = BusRecorder(writer, list(p.topics), run_dir=Path(chosen) if chosen else None)
+        self.bus = BusRecorder(writer, list(p.topics), run_dir=Path(chosen) if chosen else None, clock=ctx.now_ns)
         self.bus.refresh()
         if not self.bus.endpoints:
             ctx.log(f"warning: the graph lists no publisher of {', '.join(p.topics or ['any topic'])} yet; waiting")
@@ -217,19 +250,58 @@ class Recorder(Node):
         ctx.count("recorder.written", source.drain())
 
     def on_timer_poll(self, ctx: Context) -> None:
-        if self.bus is not None:
-            ctx.count("recorder.written", self.bus.drain())
-            for topic, n in self.bus.lost.items():
+        bus = self.bus
+        if bus is not None:
+            ctx.count("recorder.written", bus.drain())
+            for topic, n in bus.lost.items():
                 ctx.count(f"recorder.{topic}.lost", n)
-            self.bus.lost.clear()
+            bus.lost.clear()
+            self._say_behind(bus.lag_ns, ctx)
+            error = bus.writer.error
+            if error is not None and not self._error_said:
+                self._error_said = True
+                ctx.set_status("error", f"cannot write the recording: {error.strerror}")
+                ctx.report_error(f"cannot write the recording {bus.writer.path} ({error.strerror}): from now on "
+                                 "frames are counted as not written, not recorded; free space on its disk, or "
+                                 "record to another (recording:=PATH)")
         if self._end_ns is not None and ctx.now_ns() >= self._end_ns:
             ctx.shutdown()
 
+    def _say_behind(self, lag_ns: int, ctx: Context) -> None:
+        """Status ``behind`` (and a log line) while frames are written more than
+        :data:`BEHIND_AFTER_S` after they were sent; ``ok`` again once caught up."""
+        if self._error_said:
+            return
+        if not self._behind and lag_ns > BEHIND_AFTER_S * 1e9:
+            self._behind = True
+            ctx.count("recorder.fell_behind")
+            ctx.set_status("behind", f"writing frames {lag_ns / 1e9:.1f} s after they were sent")
+            ctx.log(f"warning: falling behind: writing frames {lag_ns / 1e9:.1f} s after they were sent (the "
+                    f"machine is busy); they wait in its queue, up to {RCVHWM} per publisher")
+        elif self._behind and lag_ns < BEHIND_AFTER_S * 1e9 / 2:
+            self._behind = False
+            ctx.set_status("ok")
+            ctx.log("caught up")
+
     def stop(self, ctx: Context) -> None:
-        if self.bus is not None:
-            self.bus.close()
-            ctx.log(f"wrote {self.bus.writer.path}: {self.bus.received} frames; "
-                    f"sequence gaps seen: {self.bus.lost_total or 'none'}")
+        if self.bus is None:
+            return
+        run_dir = os.environ.get(RUN_DIR_ENV) if not self.params.run_dir else None
+        numbered = None
+        if run_dir:  # launched: what each node published, as the launcher heard it when they stopped
+            try:
+                numbered = json.loads((Path(run_dir) / NUMBERED_REPORT).read_text())
+            except (OSError, ValueError):
+                numbered = {}  # the nodes' diagnostics tell it instead, as in `bag record`
+        loss = self.bus.close(numbered if isinstance(numbered, dict) else {} if run_dir else None)
+        ctx.log(f"wrote {self.bus.writer.path}: {sum(v['recorded'] for v in loss.values())} frames; {loss_text(loss)}")
+        if run_dir:  # launched: the launcher adds it to the run's summary
+            report = {"path": str(self.bus.writer.path), "topics": loss,
+                      "error": self.bus.writer.error.strerror if self.bus.writer.error else ""}
+            try:
+                write_private_file(Path(run_dir), RECORDING_REPORT, json.dumps(report))
+            except OSError as exc:
+                ctx.report_error(f"cannot write {RECORDING_REPORT} in the run directory ({exc.strerror})")
 
 
 # -- the command line -------------------------------------------------------------------

@@ -16,8 +16,8 @@ import yaml
 from mcap.records import Channel, Message as McapMessage, Schema
 
 from slipstack.lib.errors import DecodeError
-from slipstack.messages import (Contact, Cor, Diagnostics, GripCommand, RigTruth, Slip, TactileFrame, Wrench, decode,
-                                encode)
+from slipstack.messages import (Contact, Cor, Diagnostics, GripCommand, GripState, RigTruth, Slip, TactileFrame, Wrench,
+                                decode, encode)
 from slipstack.messages.ros2 import INFO_SUFFIX, INFO_TYPES, ROS_NAMESPACE, ROS_TYPES, codec, ros_topic
 from slipstack.nodes.recording.bag_io import ROS2_MESSAGE_ENCODING, RecordedFrame, RecordingWriter
 
@@ -30,7 +30,8 @@ ROSBAG2_METADATA = "rosbag2"
 ``metadata.yaml`` (version 9), from which ``ros2 bag info`` reads the file."""
 _DEFAULT_TOPICS = {ROS_TYPES[Wrench]: "ft/wrench", ROS_TYPES[TactileFrame]: "tactile/frame",
                    ROS_TYPES[Contact]: "contact", ROS_TYPES[Cor]: "cor", ROS_TYPES[Slip]: "slip",
-                   ROS_TYPES[GripCommand]: "grip/command", ROS_TYPES[RigTruth]: "rig/truth",
+                   ROS_TYPES[GripCommand]: "grip/command", ROS_TYPES[GripState]: "grip/state",
+                   ROS_TYPES[RigTruth]: "rig/truth",
                    ROS_TYPES[Diagnostics]: "diagnostics"}
 """The slipstack topic of a ROS 2 type recorded outside :data:`ROS_NAMESPACE` (another lab's bag)."""
 
@@ -80,6 +81,8 @@ class Ros2RecordingWriter(RecordingWriter):
 
     def write(self, topic: str, payload: bytes, log_time_ns: int) -> None:
         """Append one bus frame received at ``log_time_ns`` (wall-clock ns) as its ROS 2 message(s)."""
+        if self._failed(topic):
+            return
         try:
             msg = decode(payload)
             outs = self._codec.to_ros(msg)
@@ -97,13 +100,11 @@ class Ros2RecordingWriter(RecordingWriter):
             self._ros_counts[(name + out.suffix, out.ros_type)] += 1
         self._first_ns = log_time_ns if self._first_ns is None else min(self._first_ns, log_time_ns)
         self._last_ns = max(self._last_ns, log_time_ns)
-        self._written(topic, log_time_ns)
+        self._written(topic, log_time_ns, sum(len(out.cdr) for out in outs))
 
-    def close(self) -> None:
-        """Write rosbag2's metadata record, then finish the file as :meth:`RecordingWriter.close`."""
-        if not self.closed:
-            self._writer.add_metadata(ROSBAG2_METADATA, {"serialized_metadata": self._bag_metadata()})
-        super().close()
+    def close(self, metadata: dict[str, dict[str, str]] | None = None) -> None:
+        """Finish the file as :meth:`RecordingWriter.close`, with rosbag2's metadata record too."""
+        super().close({ROSBAG2_METADATA: {"serialized_metadata": self._bag_metadata()}, **(metadata or {})})
 
     def _bag_metadata(self) -> str:
         start = self._first_ns or 0

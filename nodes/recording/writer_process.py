@@ -1,29 +1,6 @@
 """A recording written by a child process: the caller only hands it encoded frames.
 
-``slipstack launch FILE --lockstep`` runs the whole graph on one core; writing its
-recording (the MCAP records, the chunk index, zstd) cost about a tenth of that core.
-:class:`RecordingWriterProcess` moves that work to a child process, on the other core:
-the caller appends each frame to a buffer and sends the buffer down the child's stdin
-every :data:`BATCH_BYTES`; the child writes the frames with
-:class:`~slipstack.nodes.recording.bag_io.RecordingWriter`, so the file is, byte for
-byte, the one an in-process writer makes of the same frames.
-
-Bounds and failures:
-
-* what waits is bounded by the batch and the pipe's buffer (raised to
-  :data:`PIPE_BYTES`, so the caller does not wait while the child writes a batch
-  into the file): a slow disk slows the caller (a full pipe blocks its write), it
-  never grows memory;
-* the caller stopping in any way (return, exception, Ctrl-C, ``kill -9``) closes the
-  pipe, and the child then finishes the file (summary, index, footer); frames still
-  in the caller's buffer at a ``kill -9``, or in a write that Ctrl-C interrupts, are
-  lost, as the chunk in progress would be (the latter is reported by ``close``);
-* the child failing (disk full, a folder it may not write) does not stop the caller:
-  later frames are dropped, and :meth:`RecordingWriterProcess.close` raises
-  :class:`~slipstack.nodes.recording.bag_io.RecordingError` with the child's reason.
-
-Wire format on the pipe, per frame: ``<q H I`` (log time ns, topic length, payload
-length), the topic (UTF-8), the payload.
+More in docs/modules.md, `nodes/recording/writer_process.py`.
 """
 
 from __future__ import annotations
@@ -149,6 +126,7 @@ def _copy_frames(source: int, path: Path, wall_minus_monotonic_ns: int | None, f
     """Write every frame read from the descriptor ``source`` until its end to ``path`` (format
     ``fmt``); the frame count. It reads what the pipe holds, up to :data:`PIPE_BYTES` at a time."""
     from slipstack.nodes.recording.bag_io import recording_writer
+    from slipstack.nodes.recording.loss import written_loss
 
     count = 0
     pending = bytearray()
@@ -167,6 +145,9 @@ def _copy_frames(source: int, path: Path, wall_minus_monotonic_ns: int | None, f
                 at = end
             view.release()
             del pending[:at]
+            if writer.error is not None:  # a full disk: the caller's close() says so
+                raise writer.error
+        writer.close(written_loss(writer))  # every frame of the run was handed over: what misses was not written
     if pending:
         raise ValueError(f"the frames ended inside a frame after {count} frames ({len(pending)} bytes left over)")
     return count

@@ -1,26 +1,6 @@
 """ZeroMQ CURVE on every tcp link: only holders of the graph's keys publish, receive or inject.
 
-A graph that uses ``transport = "tcp"`` names a key directory (``[launch] keys``,
-made by ``slipstack keys DIR``). It holds the graph's key pair (``graph.key``,
-``graph.key_secret``) and the public keys (``*.key``) of everyone allowed to connect.
-Every socket that *binds* a tcp endpoint is a CURVE server: a ZAP authenticator
-(``zmq.auth``) admits only clients whose public key is in the directory. Every socket
-that *connects* to one is a CURVE client that checks the server's key, so a process
-that grabs a freed port cannot pass itself off as a node. ipc endpoints are guarded by
-the run directory's permissions (owner only, 0700) and stay as they are.
-
-A graph over several machines (``[machines.NAME]``) gives each machine a key pair of
-its own: ``slipstack keys DIR --machine robot --machine workstation`` makes
-``DIR/robot/`` with ``robot.key_secret`` and the public keys ``robot.key`` and
-``workstation.key``, and ``DIR/workstation/`` alike; each machine keeps only its own
-directory. Its sockets serve with its own pair and admit the public keys in that
-directory; a socket connecting to a machine's address checks that machine's public key.
-
-The launcher passes the directory to its processes in ``$SLIPSTACK_KEYS`` (and, with
-machines, ``$SLIPSTACK_MACHINE``: this machine's name and every machine's address);
-tools that attach to a graph read both from ``graph.json``. ``insecure = true`` in the
-launch file (``$SLIPSTACK_INSECURE=1`` for the processes) allows tcp without keys,
-explicitly.
+More in docs/modules.md, `nodes/runtime/curve.py`.
 """
 
 from __future__ import annotations
@@ -28,8 +8,10 @@ from __future__ import annotations
 import json
 import os
 import shutil
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Iterator
 
 import zmq
 import zmq.auth
@@ -92,11 +74,33 @@ def make_keys(directory: str | Path) -> tuple[Path, Path]:
     d = Path(directory).expanduser()
     if (d / f"{KEY_NAME}.key_secret").exists():
         raise ConfigError(f"{d} already holds a key pair; remove it first to make a new one")
-    d.mkdir(mode=0o700, parents=True, exist_ok=True)
-    os.chmod(d, 0o700)
-    public, secret = zmq.auth.create_certificates(str(d), KEY_NAME)
-    os.chmod(secret, 0o600)
+    with _keys_written(d):
+        _private_dir(d)
+        public, secret = zmq.auth.create_certificates(str(d), KEY_NAME)
+        os.chmod(secret, 0o600)
     return Path(public), Path(secret)
+
+
+@contextmanager
+def _keys_written(directory: Path) -> Iterator[None]:
+    """Key files written into ``directory``: a folder that cannot take them is a ConfigError."""
+    try:
+        yield
+    except OSError as exc:
+        raise ConfigError(f"cannot make keys in {directory} ({exc.strerror}); give a new directory of yours, "
+                          "e.g. `slipstack keys ~/.slipstack/keys`") from None
+
+
+def _private_dir(d: Path) -> None:
+    """``d`` made with mode 0700 (its parents too); an existing one must be an empty directory of
+    this user's (never a folder of other files, whose mode this would change)."""
+    if d.is_dir() and not d.is_symlink() and d.stat().st_uid == os.getuid() and not any(d.iterdir()):
+        os.chmod(d, 0o700)
+        return
+    if os.path.lexists(d):
+        raise ConfigError(f"{d} exists and is not an empty directory of yours; keys go into a directory of their "
+                          "own: give a new one")
+    d.mkdir(mode=0o700, parents=True)
 
 
 def make_machine_keys(directory: str | Path, machines: list[str]) -> list[Path]:
@@ -114,15 +118,17 @@ def make_machine_keys(directory: str | Path, machines: list[str]) -> list[Path]:
     for sub, name in zip(dirs, machines):
         if (sub / f"{name}.key_secret").exists():
             raise ConfigError(f"{sub} already holds a key pair; remove it first to make new ones")
-    for sub, name in zip(dirs, machines):
-        sub.mkdir(mode=0o700, parents=True, exist_ok=True)
-        os.chmod(sub, 0o700)
-        _, secret = zmq.auth.create_certificates(str(sub), name)
-        os.chmod(secret, 0o600)
-    for sub in dirs:
-        for other, name in zip(dirs, machines):
-            if other != sub:
-                shutil.copyfile(other / f"{name}.key", sub / f"{name}.key")
+    with _keys_written(d):
+        if not d.is_dir() or d.is_symlink():
+            _private_dir(d)
+        for sub, name in zip(dirs, machines):
+            _private_dir(sub)
+            _, secret = zmq.auth.create_certificates(str(sub), name)
+            os.chmod(secret, 0o600)
+        for sub in dirs:
+            for other, name in zip(dirs, machines):
+                if other != sub:
+                    shutil.copyfile(other / f"{name}.key", sub / f"{name}.key")
     return dirs
 
 
@@ -173,9 +179,10 @@ def _tcp_keys(endpoint: str) -> GraphKeys | None:
 
 
 def secure_bind(sock: zmq.Socket, endpoint: str) -> None:
-    """Make ``sock`` a CURVE server before it binds ``endpoint`` (tcp only)."""
+    """Make ``sock`` a CURVE server before it binds ``endpoint`` (tcp only; plain for ipc)."""
     keys = _tcp_keys(endpoint)
     if keys is None:
+        _plain(sock)
         return
     ctx = sock.context
     if id(ctx) not in _authenticators:
@@ -191,10 +198,20 @@ def secure_bind(sock: zmq.Socket, endpoint: str) -> None:
 
 
 def secure_connect(sock: zmq.Socket, endpoint: str) -> None:
-    """Make ``sock`` a CURVE client of the graph before it connects to ``endpoint`` (tcp only)."""
+    """Make ``sock`` a CURVE client of the graph before it connects to ``endpoint`` (tcp only; plain for ipc)."""
     keys = _tcp_keys(endpoint)
     if keys is None:
+        _plain(sock)
         return
     sock.curve_secretkey = keys.secret
     sock.curve_publickey = keys.public
     sock.curve_serverkey = keys.server_key(endpoint)
+
+
+def _plain(sock: zmq.Socket) -> None:
+    """No security mechanism for the socket's next bind or connect. ZeroMQ reads the mechanism
+    at each bind and connect from the socket's options, so one socket that reached a tcp peer
+    with CURVE (a recorder tapping two machines) would otherwise offer CURVE to an ipc peer too,
+    which never answers the handshake; setting ``curve_server`` to 0 resets it to NULL."""
+    if sock.get(zmq.MECHANISM) != zmq.NULL:
+        sock.curve_server = False

@@ -2,33 +2,7 @@
 
 ``<run_dir>/graph.json``::
 
-    {"run_dir": str, "launcher_pid": int, "launcher_start_ticks": int (field 22 of
-     /proc/PID/stat: with the pid, names the launcher process even if the pid is reused),
-     "started_ns": int, "launch_file": str,
-     "state": "starting" (endpoints known, nodes coming up) | "running" (all ready),
-     "keys": key directory of the tcp links ("" if none),
-     "nodes": {name: {"type": str, "pid": int | null, "pub": endpoint,
-                      "inputs": {topic: message type}, "outputs": {topic: message type},
-                      "inject": {topic: endpoint the node's SUB binds, for `topic pub`},
-                      "restarts": int,
-                      "machine": str, "pub_remote": tcp endpoint (with machines only)}},
-     "machine": {"name": this machine, "hosts": {address: machine}, "clock_offset_ns": int
-                 (added to this machine's clock by its nodes), "peers": {machine: {"state",
-                 "quiet", "ready", "offset_ns", "uncertainty_ns", "exchanges"}}}  (with machines only)}
-
-With machines, the graph of each machine's launcher lists the nodes of every machine:
-those of other machines with their tcp endpoint (``pub``) and no pid, so a tool on any
-machine of the graph attaches to all of it, with that machine's keys.
-
-A tool that publishes on the bus (``topic pub``, ``bag play``) registers its own
-publish endpoint beside it, in ``<run_dir>/tool-<name>.json`` (:func:`register_tool`:
-``{"type", "pid", "start_ticks", "pub", "outputs"}``); :func:`read_graph` lists the
-tools whose process is alive among the nodes (``"tool": true``, no inputs), so
-``topic echo``, ``topic list`` and the recorder find what they publish.
-
-``<run root>/current`` is a symlink to the newest run directory; tools use it
-unless ``--run-dir`` or ``$SLIPSTACK_RUN_DIR`` names another. A run directory whose
-launcher is gone (SIGKILLed: nobody removed the directory) is refused as stale.
+More in docs/modules.md, `nodes/runtime/graph_info.py`.
 """
 
 from __future__ import annotations
@@ -42,10 +16,18 @@ from slipstack.lib.errors import ConfigError
 from slipstack.nodes.runtime.run_dir import CURRENT_LINK, point_current, run_root, write_private_file
 from slipstack.nodes.runtime.time_base import shifted_clock
 
-__all__ = ["GRAPH_FILE", "RUN_DIR_HELP", "write_graph", "read_graph", "find_run_dir", "topic_endpoints", "process_start_ticks",
+__all__ = ["GRAPH_FILE", "INJECTION_REFUSED", "RUN_DIR_HELP", "write_graph", "read_graph", "find_run_dir", "topic_endpoints", "process_start_ticks",
            "register_tool", "time_base_clock"]
 
 GRAPH_FILE = "graph.json"
+INJECTION_REFUSED = ("slipstack/GripCommand", "slipstack/Slip", "slipstack/GripState")
+"""Message types only the graph's own nodes publish: the grip commands, the slip verdicts and the
+finger's report. A node gets no injection endpoint for an input of these types unless the launch
+file names its topic in ``[launch] allow_inject`` (docs/safety.md)."""
+
+PARAM_REPLY = "param-reply-"
+"""``<run_dir>/param-reply-<tool pid>.json``: the launcher's answer to ``slipstack param set``,
+``{"ok": bool, "message": str}``."""
 _TOOL_GLOB = "tool-*.json"
 MAX_TOOLS = 32  # live registered tools listed at most (by name)
 RUN_DIR_ENV = "SLIPSTACK_RUN_DIR"

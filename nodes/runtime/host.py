@@ -26,9 +26,11 @@ from slipstack.nodes.runtime.stage_cpu import StageCpu
 
 _Delivered = TypeVar("_Delivered")
 
-__all__ = ["NodeHost", "DIAGNOSTICS_TOPIC"]
+__all__ = ["NodeHost", "DIAGNOSTICS_TOPIC", "STOPPED_COUNTER"]
 
 DIAGNOSTICS_TOPIC = "diagnostics"
+STOPPED_COUNTER = "stopped"
+"""Set to 1 in the ``diagnostics`` a node sends as it stops (nodes/recording/loss.py reads it)."""
 _MAX_ORIGINS = 256  # (input, origin) sequence trackers kept; the oldest is forgotten first
 _MAX_LOGGED_ERRORS = 64  # distinct handler errors remembered so that each is logged once
 
@@ -98,6 +100,8 @@ class NodeHost:
         self.last_error = ""
         self._diag_seq = 0
         self.shutdown_requested = False
+        self.sender = ""
+        """Who sent the message being handled: "" for the graph's own nodes, else the injecting tool."""
         self._measure = measure_handlers
         self._durations: deque[int] = deque(maxlen=2000)
         self._logged_errors: set[tuple[str, str, str]] = set()
@@ -150,6 +154,12 @@ class NodeHost:
         """Put an already-encoded frame on the bus unchanged (recording playback)."""
         self._send_raw(topic, payload)
         self.counters[f"out.{topic}.published"] += 1
+
+    def numbered(self) -> dict[str, int]:
+        """Topic → frames this node numbered (published) on it so far: its next sequence number,
+        ``diagnostics`` included."""
+        return {**{self.output_topics[output]: seq for output, seq in self._seq.items()},
+                DIAGNOSTICS_TOPIC: self._diag_seq}
 
     def count(self, name: str, increment: int = 1) -> None:
         counters = self.counters
@@ -289,10 +299,19 @@ class NodeHost:
             self._log(f"error in {label} (logged once; repeats count as handler_errors on diagnostics):\n"
                       f"{traceback.format_exc().rstrip()}")
 
-    def dispatch(self, input_name: str, msg: Message) -> None:
-        """Run the input's handler; exceptions are counted and logged, never raised."""
+    def dispatch(self, input_name: str, msg: Message, *, sender: str = "") -> None:
+        """Run the input's handler; exceptions are counted and logged, never raised.
+        ``sender``: the tool that injected ``msg`` ("" for the graph's own publishers), the
+        handler's ``ctx.sender``."""
         label, handler = self._handlers[input_name]
-        self._guarded(label, handler, msg, self)
+        if not sender:  # the graph's own: the hot path
+            self._guarded(label, handler, msg, self)
+            return
+        self.sender = sender
+        try:
+            self._guarded(label, handler, msg, self)
+        finally:
+            self.sender = ""
 
     def fire_timer(self, timer: str) -> None:
         label, handler = self._timer_handlers[timer]
@@ -303,9 +322,12 @@ class NodeHost:
         self._guarded(label, fn, *args)
 
     # -- diagnostics -------------------------------------------------------------------
-    def diagnostics(self) -> bytes:
-        """Encode the node's current :class:`Diagnostics` frame."""
+    def diagnostics(self, *, final: bool = False) -> bytes:
+        """Encode the node's current :class:`Diagnostics` frame; ``final``: its last, as it
+        stops (counter :data:`STOPPED_COUNTER` = 1: what it published is complete)."""
         counters = dict(self.counters)
+        if final:
+            counters[STOPPED_COUNTER] = 1
         if self._durations:
             d = np.fromiter(self._durations, dtype=np.int64)
             counters["handler.p50_us"] = float(np.percentile(d, 50)) / 1e3

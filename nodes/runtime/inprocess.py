@@ -1,27 +1,6 @@
 """The in-process executor: deterministic, no sockets, simulated clock.
 
-Nodes are fed from a list of ``(t_ns, topic, message_or_payload)`` events (a
-recording, or hand-made: :meth:`InProcessExecutor.feed`, :meth:`~InProcessExecutor.inject`);
-fed frames go through decode, so validation and counting behave exactly as on the bus.
-A message a node publishes is checked once and reaches its subscribers as one shared
-object with its new header, as inside a container (``messages.handed_over``,
-``NodeHost.receive_local``): one that fails the decoder's checks is rejected and counted
-by each subscriber, as on the bus. It is encoded only for
-:attr:`~InProcessExecutor.published` and ``on_frame``.
-Events, timers, deadlines and the messages nodes publish are processed in time order
-(ties: in the order they were scheduled), so a run is bit-for-bit repeatable. A
-``batch`` input takes the messages due for it at one instant, one after the other in
-that order, in one call (a driver's device read of several samples).
-:meth:`~InProcessExecutor.advance` moves the simulated clock; a whole
-launch file runs this way with ``slipstack launch --lockstep`` (``launch/lockstep.py``).
-
-A node's deadline (``next_deadline_ns``) is re-read after each of its events, and a
-node doing I/O of its own (``io_sources``) before the clock moves on: a driver whose
-simulated device, fed by the rig, has bytes waiting (``nodes/devices/sim_link.py``)
-runs at the same simulated instant (at once: nothing else is due at that instant then, so its
-deadline event would be the next one anyway). A deadline a node has moved since it was scheduled
-is dropped unread, so it never moves the clock (nor makes the executor re-read the I/O
-nodes' deadlines at an instant where nothing happens).
+More in docs/modules.md, `nodes/runtime/inprocess.py`.
 """
 
 from __future__ import annotations

@@ -6,10 +6,7 @@ nodes already use: ``error: …`` (what :meth:`Context.report_error` writes) is 
 logger ``slipstack.node.<name>``; one handler writes the bare line to stderr, where the
 launcher prefixes it with ``[<name>]`` and keeps it in the run's log file.
 
-Levels come from ``--log-level`` of ``slipstack launch`` / ``run``, handed to the node
-processes in :data:`LOG_LEVEL_ENV`: ``LEVEL`` for every node, then ``NODE=LEVEL`` items
-for single nodes, comma-separated (``warning,ft_driver=debug``). Level names are
-Python's (debug, info, warning, error, critical), in any case.
+More in docs/modules.md, `nodes/runtime/logs.py`.
 """
 
 from __future__ import annotations

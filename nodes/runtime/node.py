@@ -6,17 +6,7 @@ Handlers read time only from ``ctx.now_ns()``.
 
 Declaring a node::
 
-    class Relay(Node):
-        '''Republish wrenches unchanged.'''
-        name = "relay"
-        inputs = {"wrench": Input("ft/wrench", Wrench)}
-        outputs = {"out": Output("ft/relayed", Wrench)}
-
-        def on_wrench(self, msg: Wrench, ctx: Context) -> None:
-            ctx.publish("out", msg, stamp_ns=msg.header.stamp_ns)
-
-Timers are inputs too: ``timers = {"tick": 0.001}`` calls ``on_timer_tick(ctx)``
-every millisecond of executor time, paced by absolute deadlines.
+More in docs/modules.md, `nodes/runtime/node.py`.
 """
 
 from __future__ import annotations
@@ -73,6 +63,10 @@ class Output:
 class Context(Protocol):
     """What an executor gives a handler."""
 
+    sender: str
+    """Who sent the message being handled: "" for the graph's own nodes, else the name the tool
+    that injected it gave (``topic_pub-1234``; "inject" if it gave none)."""
+
     def now_ns(self) -> int:
         """Executor time in integer nanoseconds (monotonic or simulated)."""
 
@@ -123,6 +117,9 @@ class Node:
     """True for a timer-paced source (the rig): sleep to the exact tick, deaf to input
     for under a millisecond; otherwise the executor rounds timer wake-ups up to the
     next millisecond and never stops listening."""
+    outlives_graph: ClassVar[bool] = False
+    """True for a node that records or sums up the others (recorder, monitor): a launch stops
+    it after every other process, and gives it time to finish (launch/launcher.py)."""
     Params: ClassVar[type] = NoParams
 
     def __init__(self, params: Any = None) -> None:

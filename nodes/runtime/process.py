@@ -1,35 +1,7 @@
 """The process executor: one node — or a container of nodes — in one OS process,
 ZeroMQ PUB/SUB, monotonic clock.
 
-Life cycle: bind the XPUB, connect the SUBs, call ``node.start``, report *ready* to
-the launcher, then hold all data flow (timers, device I/O, handlers) until every
-subscriber the launch graph expects has subscribed — so nobody misses the first
-message — and run the loop until SIGINT/SIGTERM. Timers are paced by absolute
-deadlines; inputs are drained to the newest frame (``latest``), queued
-(``queue``) or handed over as one tuple of what the wake-up found (``batch``); every
-drop and rejected frame is counted and published on ``diagnostics``.
-
-Work per wake-up is bounded. A ``latest`` input reads what is waiting (at most
-:data:`_DRAIN_LIMIT` frames) and decodes only from the newest back to the first
-valid frame, so a backlog costs a read per frame, not a decode and a handler call.
-Frames injected by tools pass a token bucket per node (``RunSpec.inject_rate_hz``)
-and go to ``latest`` inputs newest only too; one wake-up reads at most
-:data:`_INJECT_READ_LIMIT` of them. A flood costs the node a bounded share of its
-time whatever its rate: once :data:`_OVER_RATE_READS` frames of one wake-up found
-the bucket empty (counted as ``inject.dropped_rate``), the node stops reading
-injected frames for :data:`_INJECT_PAUSE_NS` (``inject.pauses``); meanwhile the
-socket's high-water mark makes ZeroMQ drop the excess, uncounted, at the sender.
-
-A *container* (ROS 2's component container) runs several nodes in one process and
-one loop. Each member keeps its own publish endpoint, so every tool and recorder
-sees the same graph; a message one member publishes to another is also handed over
-in-process — the same object with its header, no encode/decode, no socket hop, no
-wake-up of another process — right after the publishing handler returns (the
-launcher leaves those publishers out of the member's SUB sockets: ``RunSpec.local``);
-a ``latest`` input handed several at once handles the newest, a ``batch`` input all
-of them in one call. A publication no
-subscriber outside the process wants is not encoded nor sent (the XPUB is polled for
-(un)subscriptions, so a tool that subscribes gets the next one).
+More in docs/modules.md, `nodes/runtime/process.py`.
 """
 
 from __future__ import annotations
@@ -47,10 +19,12 @@ import msgpack
 import zmq
 
 from slipstack.messages import Header, Message, handed_over
+from slipstack.messages.codec import MAX_PAYLOAD_BYTES
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC, NodeHost
 from slipstack.nodes.runtime.logs import node_log
 from slipstack.nodes.runtime.node import Node
 from slipstack.nodes.runtime.rate_limit import TokenBucket
+from slipstack.nodes.runtime.scheduling import runs_realtime
 from slipstack.nodes.runtime.stage_cpu import StageCpu, stage_cpu_from_env
 from slipstack.nodes.runtime.curve import secure_bind
 from slipstack.nodes.runtime.time_base import graph_clock
@@ -67,6 +41,7 @@ _INJECT_HWM = 200  # injected frames queued in the node's injection socket: the 
 _OVER_RATE_READS = 64  # frames over the injection rate read (and dropped) per wake-up before a pause
 _INJECT_PAUSE_NS = 10_000_000  # how long a node over its injection rate leaves the injection socket unread
 _TIMER_CATCH_UP = 20  # late ticks of one timer fired per loop turn before ticks are skipped
+_CLOSE_LINGER_MS = 200  # at exit, how long frames still queued for a subscriber may take to leave
 _now_ns = graph_clock()  # monotonic ns, on the reference machine's time base (nodes/runtime/time_base.py)
 
 
@@ -90,6 +65,10 @@ class RunSpec:
     inject_rate_hz, inject_burst: the token bucket all frames injected into this
         node share (frames/s, frames back to back); the excess is dropped undecoded
         and counted as ``inject.dropped_rate``.
+    inject_bytes_per_s, inject_burst_bytes: likewise in bytes (``inject.dropped_bytes``);
+        a frame larger than the burst is never admitted.
+    inject_work_share, inject_work_burst_s: the share of the node's time injected frames
+        may take (0..1: of each second), and how much of it at once (s).
     """
 
     name: str
@@ -105,6 +84,10 @@ class RunSpec:
     local: dict[str, list[str]] = field(default_factory=dict)
     inject_rate_hz: float = 2000.0
     inject_burst: int = 200
+    inject_bytes_per_s: float = 4e6
+    inject_burst_bytes: int = MAX_PAYLOAD_BYTES
+    inject_work_share: float = 0.2
+    inject_work_burst_s: float = 0.02
 
 
 class _Stop(Exception):
@@ -158,7 +141,10 @@ class _Member:
         }
         self.inject_sock: zmq.Socket | None = None
         self.inject_bucket = TokenBucket(spec.inject_rate_hz, spec.inject_burst)
+        self.inject_bytes = TokenBucket(spec.inject_bytes_per_s, spec.inject_burst_bytes)
+        self.inject_work = TokenBucket(spec.inject_work_share * 1e9, spec.inject_work_burst_s * 1e9)  # ns of work
         self.inject_resume_ns: int | None = None  # set while injected frames are left unread (over the rate)
+        self.inject_backlog = False  # after a pause: what queued meanwhile is dropped before anything is admitted
         if self.inject_routes:
             self.inject_sock = make_sub(zctx, [], None, rcvhwm=_INJECT_HWM)
             self.inject_sock.setsockopt(zmq.UNSUBSCRIBE, b"")
@@ -224,13 +210,14 @@ class _Member:
             if self.subscribers_of(t) < n
         }
 
-    def report(self, event: str) -> None:
+    def report(self, event: str, **details: Any) -> None:
+        """Tell the launcher ``event`` (``ready``; ``stopped`` with what it published)."""
         if not self.spec.control:
             return
         sock = bound_socket(self.zctx, zmq.PUSH, sndhwm=10, rcvhwm=10, max_msg_bytes=1024)
         sock.setsockopt(zmq.LINGER, 1000)
         sock.connect(self.spec.control)
-        sock.send(msgpack.packb({"node": self.spec.name, "event": event, "pid": os.getpid()}))
+        sock.send(msgpack.packb({"node": self.spec.name, "event": event, "pid": os.getpid(), **details}))
         sock.close()
 
     def sockets(self) -> list[zmq.Socket]:
@@ -297,53 +284,84 @@ class _Member:
                             lambda payload, skipped: host.receive(input_name, payload, origin, skipped=skipped))
 
     def drain_injected(self, now_ns: int) -> None:
-        """Frames put in by tools, within the node's injection rate: a ``queue`` input
+        """Frames put in by tools, within the node's injection budgets: a ``queue`` input
         handles each valid one in order, a ``latest`` input the newest valid one, a ``batch``
         input its valid ones in one call (at most its depth, the newest). Sets
-        :attr:`inject_resume_ns` when a flood calls for a pause (module docstring)."""
+        :attr:`inject_resume_ns` when a flood calls for a pause (module docstring); the
+        caller charges the time it took with :meth:`charge_injected_work`."""
         host = self.host
-        bucket = self.inject_bucket
-        bucket.refill(now_ns)
-        newest: dict[str, Message] = {}
-        batches: dict[str, list[Message]] = {}
-        over_rate = 0
+        frames, size, work = self.inject_bucket, self.inject_bytes, self.inject_work
+        for bucket in (frames, size, work):
+            bucket.refill(now_ns)
+        t0 = time.perf_counter_ns()
+        newest: dict[str, tuple[Message, str]] = {}
+        batches: dict[str, tuple[list[Message], str]] = {}
+        over_rate = over_bytes = backlog = 0
+        flushing, self.inject_backlog = self.inject_backlog, False
         for _ in range(_INJECT_READ_LIMIT):
             if not self.inject_sock.getsockopt(_EVENTS) & _POLLIN:
                 break
+            if not flushing and time.perf_counter_ns() - t0 >= work.tokens:  # the share of work is spent
+                break
             parts = _read_frame(self.inject_sock)
-            if not bucket.take():
-                over_rate += 1
-                if over_rate >= _OVER_RATE_READS:
+            n_bytes = sum(len(part) for part in parts)
+            if flushing:  # what queued while the node was over budget (one wake-up's worth): a flood's
+                backlog += 1
+                continue
+            if frames.tokens < 1.0 or size.tokens < n_bytes:  # dropped before it is decoded
+                over_rate += frames.tokens < 1.0
+                over_bytes += frames.tokens >= 1.0
+                if over_rate + over_bytes >= _OVER_RATE_READS:
                     self.inject_resume_ns = now_ns + _INJECT_PAUSE_NS
+                    self.inject_backlog = True
                     host.count("inject.pauses")
                     break
                 continue
+            frames.take()
+            size.take(n_bytes)
             names = self.inject_routes.get(parts[0], []) if len(parts) in (2, 3) else []
             if not names:
                 host.count("in.injected.rejected")
                 host.last_error = (f"injected frame: expected [topic, payload(, origin)] on an input topic, "
                                    f"got {len(parts)} parts")
-            origin = "inject/" + parts[2][:MAX_ORIGIN_BYTES].decode(errors="replace") if len(parts) == 3 else "inject"
+            sender = parts[2][:MAX_ORIGIN_BYTES].decode(errors="replace") if len(parts) == 3 else ""
+            origin = f"inject/{sender}" if sender else "inject"
             for input_name in names:
                 msg = host.receive(input_name, parts[1], origin)
                 if msg is None:
                     continue
                 if input_name in self.queues:
-                    host.dispatch(input_name, msg)
+                    host.dispatch(input_name, msg, sender=sender or "inject")
                 elif input_name in self.batch_inputs:
-                    batches.setdefault(input_name, []).append(msg)
+                    batches.setdefault(input_name, ([], sender))[0].append(msg)
                 else:
                     if input_name in newest:
                         host.count_dropped(input_name, 1)
-                    newest[input_name] = msg
+                    newest[input_name] = (msg, sender)
         if over_rate:
             host.count("inject.dropped_rate", over_rate)
-        for input_name, msg in newest.items():
-            host.dispatch(input_name, msg)
-        for input_name, msgs in batches.items():
+        if over_bytes:
+            host.count("inject.dropped_bytes", over_bytes)
+        if backlog:
+            host.count("inject.dropped_backlog", backlog)
+        for input_name, (msg, sender) in newest.items():
+            host.dispatch(input_name, msg, sender=sender or "inject")
+        for input_name, (msgs, sender) in batches.items():
             depth = self.node.inputs[input_name].depth
             host.count_dropped(input_name, max(len(msgs) - depth, 0))
-            host.dispatch(input_name, tuple(msgs[-depth:]))
+            host.dispatch(input_name, tuple(msgs[-depth:]), sender=sender or "inject")
+
+    def charge_injected_work(self, work_ns: int, now_ns: int) -> None:
+        """Charge ``work_ns`` spent on injected frames (their decode, handlers and hand-overs) to
+        the node's share; a share used up leaves them unread until half its burst is earned back
+        (at least :data:`_INJECT_PAUSE_NS`)."""
+        work = self.inject_work
+        work.spend(work_ns)
+        if work.tokens < 1.0:
+            resume = now_ns + max(work.ns_until(work.burst / 2), _INJECT_PAUSE_NS)
+            self.inject_resume_ns = max(resume, self.inject_resume_ns or 0)
+            self.inject_backlog = True
+            self.host.count("inject.work_pauses")
 
     def watch_io(self, poller: zmq.Poller, handlers: dict) -> None:
         """Keep the poller in step with the node's current descriptors."""
@@ -400,6 +418,8 @@ class _Member:
             if now >= due:  # hopelessly behind: skip ahead and say so
                 skipped = (now - due) // period + 1
                 host.count(f"timer.{timer}.skipped", skipped)
+                if runs_realtime():  # raising its priority is then no remedy: the summary's advice differs
+                    host.count(f"timer.{timer}.skipped_realtime", skipped)
                 due += skipped * period
             self.deadlines[timer] = due
         if now >= self.next_diag:
@@ -426,6 +446,8 @@ class ProcessExecutor:
         self.members = [_Member(node, spec, self.zctx, name_logs=len(members) > 1, stage_cpu=self.stage_cpu,
                                 clock=self.clock) for node, spec in members]
         by_name = {m.spec.name: m for m in self.members}
+        for m in self.members[1:]:  # a container's members share one process: one share of work for tools
+            m.inject_work = self.members[0].inject_work
         # (publisher name, topic) → the members' inputs it feeds in-process
         self._routes: dict[tuple[str, str], list[tuple[_Member, str]]] = {}
         for m in self.members:
@@ -553,9 +575,10 @@ class ProcessExecutor:
             for m in self.members:
                 m.host.call("stop", m.node.stop, m.host)
                 if m.pub is not None:
-                    m.send(DIAGNOSTICS_TOPIC, m.host.diagnostics())
-            for sock in self._sockets():
-                sock.close(linger=0)
+                    m.send(DIAGNOSTICS_TOPIC, m.host.diagnostics(final=True))
+                    m.report("stopped", numbered=m.host.numbered())  # what a recording of it must hold
+            for sock in self._sockets():  # the last frames and diagnostics leave, if their subscribers take them
+                sock.close(linger=_CLOSE_LINGER_MS if sock.type == zmq.XPUB else 0)
         return 0
 
     def _loop(self) -> None:
@@ -617,9 +640,14 @@ class ProcessExecutor:
                 elif kind == "subscriptions":
                     m.read_subscriptions()
                 else:
+                    work0 = time.perf_counter_ns()
                     m.drain_injected(_now_ns())
+                    if handover:
+                        self._run_handovers()
+                    m.charge_injected_work(time.perf_counter_ns() - work0, _now_ns())
                     if m.inject_resume_ns is not None:
-                        poller.unregister(item)  # over the rate: unread until the pause ends
+                        poller.unregister(item)  # over budget: unread until the pause ends
+                    continue
                 if handover:
                     self._run_handovers()
             now = _now_ns()

@@ -1,16 +1,6 @@
 """The run root and run directories: private to the user, written without following links.
 
-The run root (``$SLIPSTACK_RUN_ROOT``, else ``/tmp/slipstack-<uid>``) holds one run
-directory per launched graph and ``current``, a symlink to the newest one. Anyone may
-create a name in ``/tmp`` first, so the root is used only if it is a directory owned
-by this user with no access for others (mode 0700); otherwise it is refused with a
-message saying how to fix it. Files are written into a run directory through a
-temporary file in the same directory and ``os.replace`` (which replaces a symlink
-instead of writing through it), the temporary opened with ``O_EXCL | O_NOFOLLOW``.
-
-A run directory lives as long as its launch; at the end the launcher keeps only its
-reports in it (:func:`finish_run_dir`), and of those finished directories the newest
-``KEEP_FINISHED_RUNS`` are kept.
+More in docs/modules.md, `nodes/runtime/run_dir.py`.
 """
 
 from __future__ import annotations
@@ -41,11 +31,14 @@ def _check_private_dir(path: Path) -> None:
         raise ConfigError(f"run root {path} cannot be used ({exc.strerror}); remove it, "
                           f"or set ${RUN_ROOT_ENV} to a private directory") from None
     uid = os.getuid()
+    link = os.lstat(path)
     problem = None
     if not stat.S_ISDIR(st.st_mode):
         problem = "not a directory"
-    elif st.st_uid != uid or os.lstat(path).st_uid != uid:
+    elif st.st_uid != uid:
         problem = f"owned by uid {st.st_uid}, not by you (uid {uid})"
+    elif link.st_uid != uid:
+        problem = f"a symbolic link owned by uid {link.st_uid}, not by you (uid {uid})"
     elif st.st_mode & 0o077:
         problem = f"open to other users (mode {stat.S_IMODE(st.st_mode):04o})"
     if problem:

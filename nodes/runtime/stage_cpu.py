@@ -7,19 +7,7 @@ one stage at a time and reports the totals on ``diagnostics`` as
 reports its own decode/handler/encode/send/receive, the first member the
 process's poll and loop). The stages:
 
-- ``poll``: waiting in ``zmq_poll`` (the system call's own CPU cost);
-- ``receive``: reading frames from a socket or a device descriptor's bytes;
-- ``decode``: MessagePack decode and validation of a frame;
-- ``handler``: the node's own code (handlers, timers, deadlines, device decoding);
-- ``encode``: building the header and the MessagePack payload of a publication (and
-  queueing it for a container's members when nobody on the bus wants it);
-- ``send``: handing the payload to ZeroMQ (and queueing it for a container's members);
-- ``loop``: everything else: the executor's loop, counters, hand-over, diagnostics.
-
-Thread CPU time is not the process's: ZeroMQ's I/O thread (which writes to the
-sockets) is in neither, so a benchmark reports process CPU beside the sum.
-Without the variable, :func:`stage_cpu_from_env` returns ``None`` and the executor
-makes no clock call at all.
+More in docs/modules.md, `nodes/runtime/stage_cpu.py`.
 """
 
 from __future__ import annotations

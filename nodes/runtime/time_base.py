@@ -1,18 +1,6 @@
 """One time base for a graph over several machines: the reference machine's clock.
 
-Every stamp of the graph is ``CLOCK_MONOTONIC`` in nanoseconds, and nodes judge ages
-by comparing stamps with their own clock (the grip controller holds on inputs older
-than its ``timeout_ms``). On one computer that is one clock. Across machines the
-launcher of every machine but the first (the *reference*) measures its clock's offset
-to the reference (``lib/clock_offset.py``) before it starts a node, and hands it to its
-node processes in ``$SLIPSTACK_CLOCK_OFFSET_NS``: their clock is then the local
-monotonic clock plus that offset, the reference machine's time (up to the reported
-uncertainty). The offset stays fixed for the launch, so the processes of one machine
-agree with each other; the launcher keeps measuring and warns when the clocks drift
-apart by more than the controller tolerates. A tool started outside the launch (``bag
-record``, ``bag play``, ``topic pub``, ``topic hz``) reads the offset from ``graph.json``
-(``graph_info.time_base_clock``) and runs on the same clock: the process executor takes
-it as its ``clock``.
+More in docs/modules.md, `nodes/runtime/time_base.py`.
 """
 
 from __future__ import annotations

@@ -1,15 +1,6 @@
 """The two sockets of a tool that publishes into a running graph (``topic pub``, ``bag play``).
 
-* :class:`BusPublisher`: an XPUB bound on the tool's own endpoint and registered in the
-  run directory (:func:`slipstack.nodes.runtime.graph_info.register_tool`), so ``topic echo``,
-  ``bag record`` and the recorder node see what the tool sends, as they see any node;
-* :class:`InjectionSender`: an XPUB connected to the injection endpoints of the nodes
-  that subscribe (their SUB sockets bind them; nodes never connect to new publishers).
-  A node on another machine is reached through its machine's launcher (over tcp with
-  CURVE, ``launch/inject_relay.py``), which subscribes for it, so the sender waits alike.
-  Its frames are ``[topic, payload, origin]``: the node tracks sequence numbers per
-  origin, so two tools injecting on one topic (or a tool and a recording's several
-  publishers) are not counted as lost frames.
+More in docs/modules.md, `nodes/runtime/tool_pub.py`.
 """
 
 from __future__ import annotations

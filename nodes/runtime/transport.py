@@ -5,14 +5,14 @@ XPUB socket (verbose, so it sees every subscription and can wait for its
 subscribers: the readiness handshake against slow joiners); each input connects
 one SUB socket to every endpoint that publishes its topic.
 
-Every socket is bounded: both high-water marks are set explicitly, and a peer that
-sends a frame longer than the socket's maximum message size is disconnected by
-ZeroMQ before the frame is buffered (data: :data:`~slipstack.messages.codec.MAX_PAYLOAD_BYTES`;
-the subscriptions an XPUB receives: :data:`MAX_SUBSCRIPTION_BYTES`).
+More in docs/modules.md, `nodes/runtime/transport.py`.
 """
 
 from __future__ import annotations
 
+import json
+import os
+import socket
 from pathlib import Path
 
 import zmq
@@ -25,7 +25,7 @@ from slipstack.nodes.runtime.run_dir import RUN_ROOT_ENV, make_run_dir, run_root
 __all__ = [
     "make_run_dir", "ipc_endpoint", "make_pub", "make_sub", "bound_socket", "RUN_ROOT_ENV", "run_root",
     "MAX_SUBSCRIPTION_BYTES", "SUBSCRIPTION_HWM", "MAX_ORIGIN_BYTES", "tcp_endpoint",
-    "machine_ports",
+    "machine_ports", "listening_socket", "LISTEN_FDS_ENV", "HANDSHAKE_MS",
 ]
 
 IPC_PATH_MAX = 107  # Linux sun_path limit (libzmq zmq_ipc)
@@ -66,13 +66,52 @@ MAX_SUBSCRIPTION_BYTES = 1024
 """Longest frame an XPUB accepts from a peer: a subscription (one byte and a topic prefix)."""
 SUBSCRIPTION_HWM = 1000
 """Queued (un)subscriptions, each direction."""
+HANDSHAKE_MS = 10_000
+"""A connection whose handshake (ZMTP, CURVE) is not done within this is closed (ZeroMQ's default,
+30 s, let silent connections pile up: 5000 held for 35 s took 2900 descriptors; 3 s was too
+short for a CURVE handshake with a launcher at nice 5 on a machine at load 13)."""
+LISTEN_FDS_ENV = "SLIPSTACK_LISTEN_FDS"
+"""JSON ``{endpoint: descriptor}``: listening tcp sockets a node process inherits from its launcher."""
+LISTEN_BACKLOG = 100  # ZeroMQ's own default
+
+
+def listening_socket(endpoint: str) -> socket.socket:
+    """A tcp socket bound to ``endpoint`` (``tcp://HOST:PORT``) and listening, inheritable: the
+    launcher holds one per tcp port of its nodes for the whole launch, and a node's socket takes
+    it over (ZMQ_USE_FD), so after a crash nothing else can take the port before the node is back.
+
+    Raises:
+        OSError: the address cannot be bound (EADDRINUSE: another process holds it).
+    """
+    host, _, port = endpoint[len("tcp://"):].rpartition(":")
+    host = host.strip("[]")
+    sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_STREAM)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as ZeroMQ's own bind does
+        sock.bind((host, int(port)))
+        sock.listen(LISTEN_BACKLOG)
+    except BaseException:
+        sock.close()
+        raise
+    sock.set_inheritable(True)
+    return sock
+
+
+def _inherited_listen_fd(endpoint: str) -> int | None:
+    """The descriptor of the listening socket the launcher holds for ``endpoint``, if any."""
+    try:
+        fd = json.loads(os.environ.get(LISTEN_FDS_ENV, "{}")).get(endpoint)
+    except (ValueError, AttributeError):
+        return None
+    return fd if isinstance(fd, int) else None
 
 
 def bound_socket(ctx: zmq.Context, kind: int, *, sndhwm: int, rcvhwm: int, max_msg_bytes: int) -> zmq.Socket:
     """A new socket with both high-water marks (frames), a maximum inbound frame size
-    (bytes; a peer sending more is disconnected) and no linger."""
+    (bytes; a peer sending more is disconnected), a handshake time limit and no linger."""
     sock = ctx.socket(kind)
     sock.setsockopt(zmq.LINGER, 0)
+    sock.setsockopt(zmq.HANDSHAKE_IVL, HANDSHAKE_MS)
     sock.setsockopt(zmq.SNDHWM, sndhwm)
     sock.setsockopt(zmq.RCVHWM, rcvhwm)
     sock.setsockopt(zmq.MAXMSGSIZE, max_msg_bytes)
@@ -93,7 +132,11 @@ def make_pub(ctx: zmq.Context, endpoint: str, *, sndhwm: int = 1000, unsubscript
     sock.setsockopt(zmq.XPUB_VERBOSER if unsubscriptions else zmq.XPUB_VERBOSE, 1)
     for ep in (endpoint, remote) if remote else (endpoint,):
         secure_bind(sock, ep)
+        fd = _inherited_listen_fd(ep)
+        if fd is not None:
+            sock.setsockopt(zmq.USE_FD, fd)
         sock.bind(ep)
+        sock.setsockopt(zmq.USE_FD, -1)
     return sock
 
 

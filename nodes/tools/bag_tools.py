@@ -11,6 +11,7 @@ The file layout (encodings, clocks, chunking) is described in ``nodes/recording/
 from __future__ import annotations
 
 import argparse
+import sys
 from datetime import datetime
 from pathlib import Path
 
@@ -67,11 +68,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                                       "PlotJuggler read it; needs the ros2 extra; docs/ros2.md). Without --to the "
                                       "format follows the output's suffix; "
                                       "other suffixes (.csv ...) are refused: for CSV use "
-                                      "`slipstack topic echo TOPIC --csv` on a played recording.")
+                                      "`slipstack topic echo TOPIC --csv` on a played recording. An existing OUT is "
+                                      "refused unless --overwrite. A damaged recording is exported as far as it can be "
+                                      "read, and the command says what was damaged and exits 1.")
     ex.add_argument("path", help="recording (.mcap)")
     ex.add_argument("-o", "--output", required=True, help="OUT.mcap or OUT.jsonl")
     ex.add_argument("--to", "--format", dest="format", choices=EXPORT_FORMATS,
                     help="mcap-json, jsonl or ros2; default: from the output suffix (.mcap, .jsonl)")
+    ex.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
     ex.set_defaults(func=_main_export)
 
 
@@ -120,8 +124,20 @@ def format_info(info) -> str:  # noqa: ANN001 — a bag_io.RecordingInfo
     width = max((len(t) for t in info.topics), default=5)
     for t in info.topics.values():
         lines.append(f"  {t.topic:<{width}}  {t.count:>8} msgs  {t.rate_hz:9.1f} Hz  seq {t.first_seq}..{t.last_seq}  "
-                     f"gaps {t.seq_gaps:<5} {', '.join(t.types)}")
+                     f"gaps {t.seq_gaps:<5} missing {_missing(t):<8} {', '.join(t.types)}")
+    if any(t.missing is None for t in info.topics.values()):
+        lines.append("missing ?: not known: the recorder did not close the file (killed, or an older recording); "
+                     "frames sent after its end are not counted")
+    if any(not t.loss.get("exact", True) for t in info.topics.values()):
+        lines.append("missing ≥N: at least; a publisher's last diagnostics (what it sent) never reached the recorder")
     return "\n".join(lines)
+
+
+def _missing(t) -> str:  # noqa: ANN001 — a bag_io.TopicInfo
+    """Frames sent and not in the file: ``0``, ``N`` (exact), ``≥N`` (at least) or ``?`` (not known)."""
+    if t.missing is None:
+        return "?"
+    return f"{'' if t.loss.get('exact', True) else '≥'}{t.missing}"
 
 
 def _main_info(args: argparse.Namespace) -> int:
@@ -143,7 +159,12 @@ def _main_export(args: argparse.Namespace) -> int:
                           "for Foxglove) or OUT.jsonl (JSON lines), or give --to (ros2: MCAP as rosbag2 writes it); CSV is not an export format")
     from slipstack.lib.progress import file_progress
 
+    damage: list[str] = []
     with file_progress(args.path, "bag export") as progress:
-        n = export_recording(args.path, args.output, fmt, progress=progress)
+        n = export_recording(args.path, args.output, fmt, progress=progress, force=args.overwrite, on_damage=damage.append)
     print(f"wrote {args.output}: {n} messages ({fmt})")
+    if damage:
+        print(f"slipstack bag export: {args.path} is damaged ({damage[0]}); {args.output} holds the {n} messages that "
+              "could be read. `slipstack bag info` shows what is left", file=sys.stderr)
+        return 1
     return 0

@@ -17,7 +17,7 @@ from typing import Any
 from slipstack.lib.errors import ConfigError
 from slipstack.nodes.runtime.graph_info import RUN_DIR_HELP, find_run_dir, process_start_ticks, read_graph
 
-__all__ = ["add_parser", "node_params"]
+__all__ = ["add_parser", "node_params", "newest_diagnostics"]
 
 _SPEC_GLOB = "*.spec.json"
 
@@ -41,9 +41,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=main_info)
 
 
-def _alive(entry: dict[str, Any]) -> str:
+def _alive(entry: dict[str, Any], graph_state: str = "running") -> str:
     pid = entry.get("pid")
-    return "running" if pid is not None and process_start_ticks(int(pid)) is not None else "down"
+    if pid is None:
+        return "not started yet" if graph_state == "starting" else "down"
+    return "running" if process_start_ticks(int(pid)) is not None else "down"
 
 
 def main_list(args: argparse.Namespace) -> int:
@@ -57,12 +59,17 @@ def main_list(args: argparse.Namespace) -> int:
             clock = (f", clock {peer['offset_ns'] / 1e6:+.3f} ms ± {peer['uncertainty_ns'] / 1e6:.3f} ms from ours"
                      if "offset_ns" in peer else "")
             print(f"machine {name}: {peer['state']}{' (quiet)' if peer.get('quiet') else ''}{clock}")
+    state = graph.get("state", "running")
+    if state != "running":
+        print(f"graph {state}")
     for name, entry in sorted(graph["nodes"].items()):
         kind = "tool" if entry.get("tool") else entry.get("type", "?")
         if entry.get("machine", here) != here:  # run by another machine's launcher: no pid here
             print(f"{name}  [{kind}] on machine {entry['machine']} ({entry['pub']})")
             continue
-        print(f"{name}  [{kind}] pid {entry.get('pid')} {_alive(entry)}, restarts {entry.get('restarts', 0)}")
+        pid = entry.get("pid")
+        print(f"{name}  [{kind}] pid {'-' if pid is None else pid} {_alive(entry, state)}, "
+              f"restarts {entry.get('restarts', 0)}")
     return 0
 
 
@@ -79,7 +86,7 @@ def node_params(run_dir: Path, name: str) -> dict[str, Any] | None:
     return None
 
 
-def _newest_diagnostics(endpoint: str, name: str, timeout_s: float) -> Any:
+def newest_diagnostics(endpoint: str, name: str, timeout_s: float) -> Any:
     import zmq
 
     from slipstack.lib.errors import DecodeError
@@ -124,7 +131,7 @@ def main_info(args: argparse.Namespace) -> int:
     print("  parameters:" + ("" if params else " (defaults)"))
     for key, value in sorted((params or {}).items()):
         print(f"    {key}: {value!r}")
-    diag = _newest_diagnostics(entry["pub"], args.name, args.timeout) if entry.get("pub") else None
+    diag = newest_diagnostics(entry["pub"], args.name, args.timeout) if entry.get("pub") else None
     if diag is None:
         print(f"  diagnostics: none within {args.timeout:g} s")
         return 0

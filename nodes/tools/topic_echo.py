@@ -1,15 +1,6 @@
 """``slipstack topic echo``: print a topic's messages as they arrive.
 
-One SUB socket per publisher (from ``graph.json``, re-read every
-:data:`REFRESH_PERIOD_S` for tools that publish, such as ``topic pub``), so sequence gaps are counted
-per publisher (``diagnostics`` has one publisher per node); a sequence number that
-does not go up is a restart (a respawned node starts again at 0), not a loss.
-Frames are drained in batches and printed with one buffered write per batch, which
-keeps up with a 1 kHz topic. A slow terminal never blocks the graph: the SUB
-queues are bounded (``--qos-depth``); when they fill, the publisher drops frames for
-this subscriber only, and the gap shows up here as lost messages on stderr.
-A frame that fails to decode is reported on stderr with the decoder's reason and
-skipped.
+More in docs/modules.md, `nodes/tools/topic_echo.py`.
 """
 
 from __future__ import annotations
@@ -20,6 +11,7 @@ import io
 import os
 import sys
 import time
+from pathlib import Path
 from typing import Any, Callable, TextIO
 
 import numpy as np
@@ -31,7 +23,7 @@ from slipstack.messages.frame import SeqTracker
 from slipstack.nodes.tools.topic_format import as_tree, check_field, csv_cell, flatten, pick, render_yaml
 from slipstack.nodes.runtime.graph_info import read_graph
 from slipstack.nodes.runtime.stop_signal import stop_on_signals
-from slipstack.nodes.tools.topic_tools import TopicInfo, load_graph, resolve_topic
+from slipstack.nodes.tools.topic_tools import TopicInfo, graph_topics, load_graph, resolve_topic
 from slipstack.nodes.runtime.transport import make_sub
 
 __all__ = ["MessagePrinter", "main_echo"]
@@ -39,6 +31,7 @@ __all__ = ["MessagePrinter", "main_echo"]
 BATCH = 500  # frames read from one publisher before the output is written
 REFRESH_PERIOD_S = 0.5  # how often the graph is re-read for new publishers (tools that publish)
 MAX_PUBLISHERS = 256  # publishers of one topic listened to at most
+MISSING_NOTE_AFTER = 20  # messages without the --field's map key before saying so
 _FILTER_BUILTINS = {f.__name__: f for f in (abs, all, any, len, max, min, round, sum, float, int, bool, str)}
 
 
@@ -103,6 +96,31 @@ def _write(stream: TextIO, text: str) -> None:
         stream.flush()
 
 
+def _published(run_dir: Path, graph: dict[str, Any], topic: str, deadline: float | None) -> TopicInfo | None:
+    """The topic once a publisher of it is in the graph (a node not started yet, a tool such as
+    ``bag play`` or ``topic pub``, a machine coming up): said once on stderr and waited for, as
+    ros2 does, re-reading the graph; ``None`` if ``deadline`` passed first."""
+    said = False
+    while True:
+        try:
+            info = resolve_topic(graph, topic)
+            if any(e.address for e in info.publishers):
+                return info
+            why = "subscribed but not published yet"
+        except ConfigError:
+            why = f"not in the graph yet; its topics: {', '.join(graph_topics(graph)) or 'none'}"
+        if not said:
+            print(f"topic echo: waiting for {topic} ({why})", file=sys.stderr, flush=True)
+            said = True
+        if deadline is not None and time.monotonic() >= deadline:
+            return None
+        time.sleep(REFRESH_PERIOD_S)
+        try:
+            graph = read_graph(run_dir)
+        except (OSError, ValueError):
+            pass  # the graph file is being rewritten: read it next time
+
+
 def main_echo(args: argparse.Namespace) -> int:
     """Run ``topic echo``; returns 0, or 1 if ``--timeout`` passed without any message printed.
 
@@ -110,14 +128,15 @@ def main_echo(args: argparse.Namespace) -> int:
         ConfigError: a field path no message can have, or a ``--filter`` that raises.
     """
     run_dir, graph = load_graph(args.run_dir)
-    info = resolve_topic(graph, args.topic)
+    keep = _compile_filter(args.filter)
+    deadline = None if args.timeout is None else time.monotonic() + args.timeout
+    info = _published(run_dir, graph, args.topic, deadline)
+    if info is None:
+        print(f"topic echo: {args.topic} was not published within {args.timeout:g} s", file=sys.stderr)
+        return 1
     cls = info.message_type()
     if args.field:
         check_field(cls, args.field)
-    keep = _compile_filter(args.filter)
-    publishers = [e for e in info.publishers if e.address]
-    if not publishers:
-        raise ConfigError(f"topic {info.name} has no publisher in this graph")
     limit = 1 if args.once else args.count
     printer = MessagePrinter(field=args.field, csv_mode=args.csv, no_arr=args.no_arr, truncate=args.truncate_length)
 
@@ -141,8 +160,7 @@ def main_echo(args: argparse.Namespace) -> int:
     connect_new(info)
     next_refresh = time.monotonic() + REFRESH_PERIOD_S
     out, err = sys.stdout, sys.stderr
-    printed = rejected = 0
-    deadline = None if args.timeout is None else time.monotonic() + args.timeout
+    printed = rejected = missing = 0
     stop_on_signals()
     try:
         while limit is None or printed < limit:
@@ -200,6 +218,11 @@ def main_echo(args: argparse.Namespace) -> int:
                             ) from None
                     text = printer.format(msg)
                     if text is None:
+                        missing += 1
+                        if missing == MISSING_NOTE_AFTER and not printed:
+                            notes.append(f"topic echo: {missing} messages so far have no {args.field} (a key of a "
+                                         "map, which another message may have); still waiting: check the spelling "
+                                         "(`--once` prints the whole message), or Ctrl-C")
                         continue
                     chunks.append(text)
                     printed += 1

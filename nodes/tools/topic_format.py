@@ -17,7 +17,7 @@ from typing import Any, Iterator
 import numpy as np
 
 from slipstack.lib.errors import ConfigError
-from slipstack.messages import Message
+from slipstack.messages import Header, Message
 
 __all__ = ["as_tree", "pick", "check_field", "render_yaml", "flatten", "csv_cell"]
 
@@ -69,11 +69,17 @@ def pick(tree: Any, path: str) -> tuple[bool, Any]:
 
 
 def check_field(msg_type: type[Message], path: str) -> None:
-    """Raise :class:`ConfigError` if ``path`` cannot start with a field of ``msg_type``."""
-    first = path.split(".", 1)[0]
+    """Raise :class:`ConfigError` if ``path`` cannot start with a field of ``msg_type`` (or,
+    below ``header``, of the header: its fields are the same in every message)."""
+    first, _, rest = path.partition(".")
     fields = ["header", *msg_type._body_fields]  # type: ignore[attr-defined]
     if first not in fields:
         raise ConfigError(f"{msg_type.TYPE} has no field {first!r}; fields: {', '.join(fields)}")
+    header_fields = [f.name for f in dataclasses.fields(Header)]
+    second = rest.split(".", 1)[0]
+    if first == "header" and rest and second not in header_fields:
+        raise ConfigError(f"field {path!r}: the header has no field {second!r}; its fields: "
+                          f"{', '.join(header_fields)}")
 
 
 def _scalar(v: Any) -> str:

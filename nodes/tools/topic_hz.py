@@ -6,20 +6,7 @@ drains them, taking the receive time (CLOCK_MONOTONIC) of each frame. With
 ``--use-stamps`` the times are the header's ``stamp_ns`` instead, read by
 :func:`~slipstack.messages.frame.peek_header` straight from the MessagePack bytes without unpacking the body.
 
-Statistics over the last ``window`` times (ros2's ``topic hz`` output)::
-
-    average rate: 1000.012
-        min: 0.000412s max: 0.001603s std dev: 0.00008s window: 1000
-
-``topic delay`` prints receive time minus ``stamp_ns`` the same way (``average
-delay: ...``): the stamp is the time of the sensor sample a message derives from, so
-this is the sample-to-here latency on the same host (both CLOCK_MONOTONIC).
-
-``topic bw`` prints the bytes per second of the frames' payloads (MessagePack, as on
-the wire, without the topic frame) and their sizes (ros2's ``topic bw`` output)::
-
-    average: 92.17 KB/s
-        mean: 92.16 B min: 92 B max: 93 B window: 1000
+More in docs/modules.md, `nodes/tools/topic_hz.py`.
 """
 
 from __future__ import annotations

@@ -1,24 +1,6 @@
 """``slipstack topic pub``: publish messages by hand into the running graph.
 
-Mechanism: the graph's subscribers never connect to new publishers, but each
-node's SUB socket also *binds* an injection endpoint per input (``inject`` in
-``graph.json``). ``topic pub`` connects one XPUB socket to the injection endpoints
-of every subscriber of the topic, waits until each has subscribed (verbose XPUB:
-no slow-joiner loss), then publishes with its own header sequence from 0 and
-``stamp_ns = pub_ns`` on the graph's time base (the executors' clock: this machine's
-``CLOCK_MONOTONIC``, shifted to the first machine's in a graph over machines). A
-subscriber on another machine of the graph is reached through that machine's launcher,
-over tcp with CURVE (``launch/inject_relay.py``). Several ``topic
-pub`` processes can inject at once: ZeroMQ lets many peers connect to one bound SUB,
-and each frame names its sender, so the nodes count sequence gaps per sender. The
-same frames go on the bus from the tool's own registered endpoint
-(:mod:`slipstack.nodes.runtime.tool_pub`): ``topic echo`` and the recorders see them; the
-recorder nodes of the graph are waited for, a listener that attaches later misses
-the frames sent before it joined.
-
-Values are YAML flow text (:mod:`slipstack.nodes.tools.topic_yaml`), e.g.
-``'{f_n_desired: 12.0, law: manual}'``; fields left out keep their defaults, and the
-message is validated exactly as a subscriber would before it is sent.
+More in docs/modules.md, `nodes/tools/topic_pub.py`.
 """
 
 from __future__ import annotations
@@ -35,12 +17,12 @@ import numpy as np
 from slipstack.lib.errors import ConfigError, DecodeError
 from slipstack.messages import Header, Message, encode, registry, validate
 from slipstack.nodes.tools.topic_tools import TopicInfo, load_graph, resolve_topic
-from slipstack.nodes.runtime.graph_info import time_base_clock
+from slipstack.nodes.runtime.graph_info import INJECTION_REFUSED, time_base_clock
 from slipstack.nodes.runtime.stop_signal import stop_on_signals
 from slipstack.nodes.runtime.tool_pub import BusPublisher, InjectionSender, tool_name
 from slipstack.nodes.tools.topic_yaml import parse_flow
 
-__all__ = ["build_message", "split_type_and_values", "Injector", "main_pub"]
+__all__ = ["build_message", "refuse_protected", "split_type_and_values", "Injector", "main_pub"]
 
 
 def build_message(cls: type[Message], values: Any) -> Message:
@@ -108,6 +90,20 @@ class Injector:
         self.sender.close(self._linger_s)
 
 
+def refuse_protected(info: TopicInfo, cls: type[Message]) -> None:
+    """Refuse a topic only the graph's own nodes may publish (``INJECTION_REFUSED``), unless the
+    launch allowed it to one of its subscribers (which then has an injection endpoint).
+
+    Raises:
+        ConfigError: saying so and how a launch file allows it.
+    """
+    if cls.TYPE in INJECTION_REFUSED and info.subscribers and not any(e.address for e in info.subscribers):
+        raise ConfigError(
+            f"the running graph refuses {info.name} from tools: only its own nodes publish grip commands, slip "
+            f"verdicts and the finger's report (docs/safety.md); a launch file that must allow it says "
+            f'allow_inject = ["{info.name}"] under [launch]')
+
+
 def split_type_and_values(info: TopicInfo, items: list[str]) -> tuple[type[Message], str]:
     """The topic's message class and the values text of ``topic pub``'s positionals.
 
@@ -138,6 +134,7 @@ def main_pub(args: argparse.Namespace) -> int:
     run_dir, graph = load_graph(args.run_dir)
     info = resolve_topic(graph, args.topic)
     cls, text = split_type_and_values(info, args.values)
+    refuse_protected(info, cls)
     body = build_message(cls, parse_flow(text))
     if args.rate <= 0:
         raise ConfigError("--rate must be positive")

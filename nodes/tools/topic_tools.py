@@ -1,19 +1,6 @@
 """``slipstack topic``: look at the running graph's topics (ros2cli conventions).
 
-    slipstack topic list [-t] [-c] [-v]
-    slipstack topic info TOPIC [-v]
-    slipstack topic echo TOPIC [--once] [--count N] [--field a.b] [--csv] [--no-arr] ...
-    slipstack topic hz TOPIC [--window N] [--use-stamps]
-    slipstack topic delay TOPIC [--window N]
-    slipstack topic bw TOPIC [--window N]
-    slipstack topic pub TOPIC [TYPE] [VALUES] [--once | --times N] [--rate HZ]
-
-Every verb reads the graph from ``<run_dir>/graph.json`` (``--run-dir``, else
-``$SLIPSTACK_RUN_DIR``, else the newest run; see
-:func:`slipstack.nodes.runtime.graph_info.find_run_dir`). This module holds the graph
-view the verbs share, ``list`` and ``info``, and the argument parsers; ``echo``,
-``hz`` and ``pub`` live in :mod:`.topic_echo`, :mod:`.topic_hz`, :mod:`.topic_pub`,
-imported only when they run (``topic list`` starts without numpy).
+More in docs/modules.md, `nodes/tools/topic_tools.py`.
 """
 
 from __future__ import annotations
@@ -212,8 +199,8 @@ def _add_echo(verbs: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p = verbs.add_parser(
         "echo", help="print a topic's messages",
         description="Print the messages of TOPIC as YAML-ish text (one message per block, "
-                    "separated by '---'), or as CSV. Lost messages (sequence gaps, per publisher) "
-                    "and rejected frames are reported on stderr.",
+                    "separated by '---'), or as CSV. A topic not published yet is waited for. Lost "
+                    "messages (sequence gaps, per publisher) and rejected frames are reported on stderr.",
     )
     _topic_argument(p)
     p.add_argument("--once", action="store_true", help="print one message and exit")

@@ -5,14 +5,7 @@ Flow or block style, as ``ros2 topic pub`` takes them::
     {f_n_desired: 12.0, law: manual}
     force: [1.5, 0, -2e-3], status: "ok, really"      # outer braces may be left out
 
-Read strictly, with the scalars of YAML 1.2's core schema rather than PyYAML's YAML 1.1
-defaults: integers (``12``, ``0x1f``, ``0o17``), floats (``1.5``, ``-2e-3``, ``1e3``,
-``.inf``, ``-.inf``, ``.nan``), ``true``/``false``, ``null``/``~``; anything else is a
-string. So ``-2e-3`` is a number (YAML 1.1 made it a string) and ``yes``/``on`` are
-strings (YAML 1.1 made them booleans), and a mistyped number (``12.O``) is a string that
-the message's type check then refuses, naming the field. Refused here, with where:
-malformed text, a duplicated key, a key that is not a name, aliases (``*a``: no
-exponential expansion), more than one document, and tags other than the standard ones.
+More in docs/modules.md, `nodes/tools/topic_yaml.py`.
 """
 
 from __future__ import annotations

@@ -2,16 +2,7 @@
 
 Reusable by any bench that needs the full multi-process stack:
 
-- :func:`long_scene` writes a copy of a scene whose disturbance pattern repeats until
-  ``duration_s`` (shipped scenes end by themselves after ~30 s);
-- :class:`StackRun` runs ``slipstack launch`` as a subprocess in a private short run
-  root, waits for ``graph.json`` to say ``running``, and stops it with SIGINT (then
-  SIGTERM, SIGKILL) — checking that no node process is left behind;
-- :class:`ProcSampler` reads CPU time (``/proc/<pid>/stat``) and context switches
-  (``/proc/<pid>/status``) of the graph's processes and of the whole machine, so a
-  bench can report CPU per node over its measurement window.
-
-Times are CLOCK_MONOTONIC seconds or nanoseconds, as each name says.
+More in docs/modules.md, `tests/bench/_stack.py`.
 """
 
 from __future__ import annotations
@@ -166,7 +157,7 @@ class StackRun:
         return self.proc.poll() is None
 
     def log(self) -> str:
-        self._log.flush()
+        """What the launcher wrote (it writes the file itself: nothing to flush here)."""
         return self.log_path.read_text(errors="replace")
 
     def stop(self, timeout_s: float = 15.0) -> list[int]:

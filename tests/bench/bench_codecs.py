@@ -1,19 +1,6 @@
 """Benchmark the device codecs and the driver paths (run by hand, not by CI).
 
-1. Decoding cost per frame for each protocol: the deframer fed an in-sync stream in
-   chunks of ``--chunk`` frames (µs per frame), and the CRC alone.
-2. End-to-end paths, emulator in a thread and back-end in the main thread, paced by
-   absolute deadlines for ``--seconds``: ATI RDT over loopback UDP at 7 kHz, and
-   tactile 16×16 frames over a pty at 1 kHz (DSACON32 and M1616). Losses are counted
-   from sequence numbers (RDT) or a frame counter embedded in the counts (tactile).
-3. The publication path of the graph's messages, one message of each type as the
-   ``fig15`` scene publishes it: µs per hand-over to in-process subscribers
-   (``handed_over``: the decoder's checks), per ``encode`` and per ``decode``, and
-   their mean over fig15's lock-step mix (``--messages``: this part only). It uses
-   only the public message API, so the same script measures another checkout:
-   ``/other/.venv/bin/python tests/bench/bench_codecs.py --messages``.
-
-    .venv/bin/python tests/bench/bench_codecs.py [--seconds 3] [--frames 3000] [--messages]
+More in docs/modules.md, `tests/bench/bench_codecs.py`.
 """
 
 from __future__ import annotations
@@ -36,6 +23,7 @@ from slipstack.messages import (
     handed_over,
 )
 from slipstack.nodes.devices.emulators import Dsacon32Emulator, M1616Emulator, RdtUdpServer
+from _versions import print_versions
 
 
 def _per_call_us(fn, n: int) -> float:
@@ -206,6 +194,7 @@ def main() -> None:
     ap.add_argument("--messages", action="store_true", help="only the messages' hand-over, encoding and decoding")
     ap.add_argument("--calls", type=int, default=10000, help="calls per message measurement (the best of 7 runs)")
     args = ap.parse_args()
+    print_versions()
 
     print(f"{'message':14s} {'hand-over':>9s} {'encode':>7s} {'both':>6s} {'decode':>7s}  (CPU µs per message)")
     rows = bench_messages(args.calls)

@@ -5,34 +5,7 @@ RIG_MATERIALS: the rubber, a Coulomb contact with μ_d = μ_s, a strongly weaken
 and, with ``--engine DIR``, on recordings of a second physics engine (MuJoCo, written by
 ``tests/bench/mujoco_world.py`` as slipstack recordings):
 
-1. **Identify**: the identification scenes ``ident_force``, ``ident_torsion`` and
-   ``ident_combined`` (ramps past slip, hold, unload, rest, as a user records them) run
-   in lock-step (controller off) and are recorded; ``slipstack identify`` writes a material
-   file from them with ``rig/truth``, and again from copies without it. The first table
-   compares both with the truth (μ from the material; β = μ × the pressure-weighted mean
-   taxel distance of ``ident_torsion``'s true pressure, the rigid Coulomb value).
-2. **Detect**: every detection scene (fig4a–fig15, ``default``) and the material's holds
-   that must not slip (90 % of the sliding friction, ``hold_*``, and 95 % of the capacity,
-   ``hold95_*``; the Coulomb contact's ``hold_*`` are at 95 %) run once on that material
-   with the controller off and the launch file's deciding test at μ = 0.45; γ of every
-   frame is recorded (all these tests' γ is inversely proportional to μ, β scaling with
-   it), and each material file's μ, band and release level drive the detector's latch
-   (``lib/online_calibration.CalibratedLatch``, as the node runs it) over those frames:
-   the contact's own file, the file from the pure ramps only (force, torsion), and no file
-   (the shipped default) with ``calibrate`` off and online.
-
-Metrics (``lib/episodes.py``, as the monitor's summary gives them; F/T period 2 ms):
-episodes, *missed* (no flag from 20 ms before the onset to the end), *delay* (flag rise −
-onset, in F/T samples: p50 / p95, negative: a warning), *false alarms* (flagged sticking
-frames outside every window [onset − 20 ms, end + 25 ms], % of sticking frames; in
-brackets the latch hold's part), the same on the scenes a tactile test decides / the
-F/T-only fig10–12, the *latch hold* after slip (p50 / p95 ms), and the holds: rising
-flags (flagged % of frames). Online: missed and delay p95 of each run's episodes after
-its first.
-
-    python tests/bench/bench_detection.py                        # all materials and scenes
-    python tests/bench/bench_detection.py --materials coulomb --scenes fig15 default
-    python tests/bench/bench_detection.py --engine /work/notes/mujoco_recordings
+More in docs/modules.md, `tests/bench/bench_detection.py`.
 """
 
 from __future__ import annotations
@@ -66,6 +39,7 @@ from slipstack.nodes.recording.bag_io import RecordingWriter, read_recording
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.nodes.slip_detector import SlipDetector, SlipDetectorParams
 from slipstack.nodes.rig import load_scene_by_name, with_rates
+from _versions import print_versions
 
 DETECTION_SCENES = ["fig4a", "fig4b", "fig10", "fig11", "fig12", "fig13", "fig14", "fig15", "default"]
 IDENT_SCENES = ["ident_force", "ident_torsion", "ident_combined"]
@@ -404,6 +378,7 @@ def main() -> None:
     ap.add_argument("--engine", type=Path, help="a folder of the second engine's recordings "
                     "(tests/bench/engine_mujoco.py writes them, a .json beside each)")
     args = ap.parse_args()
+    print_versions()
     args.cache.mkdir(parents=True, exist_ok=True)
     rates = (args.ft_rate, args.tactile_rate)
     period_ns = 1e9 / args.ft_rate

@@ -6,27 +6,7 @@ Cases (each ``--duration`` seconds after a warm-up):
 - ``tactile_driver`` on M1616 (16×16, pty) at 1 kHz;
 - ``tactile_driver`` on DSACON32 (16×16, pty, push mode fps=1000) at 1 kHz.
 
-This process paces the emulator by absolute deadlines (bursts of the samples due
-since the last turn, ~0.5 ms turns) and reads the driver's output with a SUB
-socket. ``sent`` = samples the emulator wrote in the window, ``published`` = ``ok``
-messages received in the window; ``loss`` = sent − published. The window starts
-after a 0.3 s pause that drains everything in flight; "other statuses" counts the
-non-``ok`` messages (a ``stale`` after the last sample is expected). CPU is the driver process's
-user+system time over the window (``/proc/PID/stat``) divided by the window. The
-latency column is SUB receive time − message stamp (the driver's receive time;
-CLOCK_MONOTONIC in both processes): device read → decode → publish → SUB.
-
-RDT runs with ``stale_ms=5``: the back-end default (2.5 periods = 0.36 ms at 7 kHz)
-flags every scheduler hiccup of the pacing loop as stale.
-
-``--tight N`` instead runs each driver node in this process against the same
-emulator, one sample written and read at a time, no bus (the payload is encoded and
-dropped), and prints the thread CPU of the driver's ``on_readable`` alone per sample
-(device read + decode + the node's work + encode): median of 5 runs of N samples.
-
-    python tests/bench/bench_drivers.py                  # 10 s per case
-    python tests/bench/bench_drivers.py --duration 3 --case rdt
-    python tests/bench/bench_drivers.py --tight 4000 --case rdt --case dsacon32
+More in docs/modules.md, `tests/bench/bench_drivers.py`.
 """
 
 from __future__ import annotations
@@ -45,6 +25,7 @@ import zmq
 
 from slipstack.messages import decode
 from slipstack.nodes.devices.emulators import Dsacon32Emulator, M1616Emulator, RdtUdpServer
+from _versions import print_versions
 
 CLK_TCK = os.sysconf("SC_CLK_TCK")
 
@@ -194,6 +175,7 @@ def main() -> None:
     ap.add_argument("--tight", type=int, metavar="N", default=0,
                     help="instead: the driver's on_readable CPU per sample in this process, no bus, N samples")
     args = ap.parse_args()
+    print_versions()
     if args.tight:
         for name in args.case or ["rdt", "m1616", "dsacon32"]:
             print(f"{name:<10}{tight_loop_us(name, args.tight):8.1f} us CPU per sample (on_readable, median of 5)")

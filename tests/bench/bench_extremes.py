@@ -1,14 +1,6 @@
 """Robustness sweep: random extreme frames through fusion and every slip test.
 
-Each frame draws a pad size, a pressure field (sparse, single taxel, empty, uneven,
-with NaN/Inf/negative taxels), a force scale 1e-9…1e4 N, and a load (none, pure
-force, pure torque, through the centre of pressure, on the Coulomb boundary,
-random). The frame goes through :func:`fuse` and every registered slip test. A
-*failure* is an exception, a NaN anywhere in a verdict, a status that is not a
-``SolverStatus``, an infinite value other than the documented point-contact
-``γ = +inf``, or a non-finite COR. The count must be zero.
-
-Run: ``.venv/bin/python tests/bench/bench_extremes.py [--frames 100000] [--seed 7]``.
+More in docs/modules.md, `tests/bench/bench_extremes.py`.
 """
 
 from __future__ import annotations
@@ -24,6 +16,7 @@ from slipstack.lib.fusion import fuse
 from slipstack.lib.pad import PadGeometry
 from slipstack.lib.slip_tests import SLIP_TESTS, SlipParams
 from slipstack.lib.status import SolverStatus
+from _versions import print_versions
 
 PADS = [PadGeometry(4, 4, 2e-3), PadGeometry(8, 8, 1.25e-3), PadGeometry(16, 16, 1.25e-3)]
 
@@ -86,6 +79,7 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=100_000, help="number of random frames (default 1e5)")
     ap.add_argument("--seed", type=int, default=7, help="random seed")
     args = ap.parse_args()
+    print_versions()
     rng = np.random.default_rng(args.seed)
     params = SlipParams(mu=0.5)
     failures: Counter = Counter()

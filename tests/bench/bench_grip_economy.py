@@ -6,39 +6,7 @@ simulated rig (``slipstack launch stack --lockstep``, ``launch/lockstep.py``: co
 on, its sensor rates, material and law parameters; f_max = the scene's finger limit).
 Laws (docs/math.md §5):
 
-* ``ft13`` — F/T only, paper (13) ``|f_t|/μ + |τ|/β + k`` (k = 2 N), no tactile
-  driver; ``β`` = the contact's true ``β_s`` at the initial grip (what the paper's
-  Fig. 4b identification gives), from the simulator's pressure with
-  :func:`slipstack.lib.limit_set.torsional_coefficient`; slip test ``linear_ls``.
-* ``tactile14`` — both sensors, paper (14), at the grip controller's default onset
-  band ``delta``; slip test ``exact``, exact COR solver.
-* ``tactile14:delta=0.25`` — (14) with the band set above ``1 − μ_d/μ_s``:
-  once the contact slides it transmits only ``μ_d/μ_s = 0.8`` of the static
-  capacity, so with a narrower band test (11) stops failing and (14) stops raising
-  while the object keeps sliding.
-* ``exact`` — both sensors, ``γ f_n / σ``; slip test ``exact``.
-  (``linear`` and ``ft13_sigma`` may be named too; they run F/T-only like ``ft13``;
-  ``law:arg=value,...`` sets launch arguments of ``stack.toml``. A law that needs the
-  tactile pad is skipped on a scene that simulates none, e.g. fig12.)
-
-Reported per run: time-mean and peak commanded ``f_n``, time-mean applied ``f_n``,
-whether the object held (from the rig's truth: slip distance < 0.5 mm and slip angle
-< 0.5° accumulated in gross slip), and the **oracle**: at each truth sample the least
-normal force that holds the *true* load (``load_f_t``, ``load_tau``) with ``μ = μ_s``
-and the *true* pressure (the simulator's pressure model at the true pose) —
-``f* = γ_true·f_n`` for a shape that scales with the force, the fixed point
-``γ(φ(f*)) = 1`` for a force-dependent (Hertzian) one (:mod:`slipstack.analysis.grip_oracle`).
-A law's economy is its mean force over the oracle's mean on the same run.
-
-The oracle is not floored at ``f_nom`` (it is 0 with no load), so even a perfect law
-with ``f_nom = 2 N`` shows a ratio above 1; the ``≥f_nom`` column gives the oracle
-floored at ``f_nom`` for that comparison. A run that slips transmits only the
-friction it gets, so its oracle under-states the load: compare ratios of held runs.
-
-Examples:
-    .venv/bin/python tests/bench/bench_grip_economy.py --png /tmp/grip_economy_fig15.png   # ~7 min
-    .venv/bin/python tests/bench/bench_grip_economy.py --scenes fig15 --laws ft13 tactile14 \\
-        --png /tmp/grip_economy_fig15.png --cache /tmp/grip_economy
+More in docs/modules.md, `tests/bench/bench_grip_economy.py`.
 """
 
 from __future__ import annotations
@@ -59,6 +27,7 @@ from slipstack.launch.launch_file import load_launch_file
 from slipstack.launch.lockstep import run_launch_file
 from slipstack.analysis.grip_oracle import oracle_series
 from slipstack.nodes.rig import load_scene_by_name
+from _versions import print_versions
 
 DEFAULT_SCENES = ["fig12", "fig14", "fig15", "default"]
 DEFAULT_LAWS = ["ft13", "tactile14", "tactile14:delta=0.25", "exact"]
@@ -258,6 +227,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--png-scene", help="scene for --png (default: fig15 if run, else the first)")
     parser.add_argument("--cache", type=Path, help="directory to cache runs in (re-used when parameters match)")
     args = parser.parse_args(argv)
+    print_versions()
 
     prepared = {name: prepare(name) for name in args.scenes}
     runs = [(sc, beta, law) for sc, beta in prepared.values() for law in args.laws if runnable(law, sc)]

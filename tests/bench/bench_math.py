@@ -2,17 +2,7 @@
 
 Prints three markdown tables:
 
-1. time per frame (p50 / p99, µs) of every slip test and solver at 16×16, 32×32 and
-   64×64, cold and warm start (warm = the previous frame's COR, loads drifting ~1% per
-   frame), beside ``scipy.optimize.root(method='hybr')`` on the same equations (12);
-2. COR agreement: robust solver vs hybr (fraction within 1e-9 m) and the speed-up;
-3. every approximate test against the exact test over a grid of loads in the
-   ``(f_t, τ)`` plane for uniform, Hertzian, off-centre and two-patch pressure:
-   false-stick rate, false-slip rate, worst margin error;
-4. γ against an independent brute-force twist search on random 16×16 cases.
-
-Run: ``.venv/bin/python tests/bench/bench_math.py [--frames 300] [--sizes 16 32 64]``.
-Time is measured with ``time.perf_counter`` here (a benchmark, not ``lib/``).
+More in docs/modules.md, `tests/bench/bench_math.py`.
 """
 
 from __future__ import annotations
@@ -29,6 +19,7 @@ from slipstack.lib.limit_set import load_factor, torsional_coefficient
 from slipstack.lib.pad import PadGeometry
 from slipstack.lib.slip_tests import SLIP_TESTS, SlipParams
 from slipstack.lib.weber import solve_weber
+from _versions import print_versions
 
 MU = 0.5
 
@@ -238,6 +229,7 @@ def main() -> None:
     ap.add_argument("--crosscheck", type=int, default=1000, help="brute-force cases at 16x16 (default 1000)")
     ap.add_argument("--seed", type=int, default=1, help="random seed")
     args = ap.parse_args()
+    print_versions()
     rng = np.random.default_rng(args.seed)
     rows, agree = timing_table(args.sizes, args.frames, rng)
     print_timing(rows, agree)

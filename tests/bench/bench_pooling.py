@@ -2,13 +2,7 @@
 2×2 and 4×4 blocks (``PadGeometry.pool``, the ``pool`` parameter of slip_detector and
 cor_estimator), against the full resolution.
 
-For each pressure field (uniform disc, Hertzian, off-centre tilted, two patches) it
-draws loads in the (f_t, τ) space scaled so the full-resolution load factor γ is
-uniform in [0.5, 1.5], and reports per pooling: time per frame (p50, p99, warm
-start), γ error relative to full resolution (p95, worst), and the verdict errors at
-δ = 0: false stick (γ_full > 1 but pooled γ ≤ 1: the dangerous one) and false slip.
-
-    python tests/bench/bench_pooling.py [--loads 400]
+More in docs/modules.md, `tests/bench/bench_pooling.py`.
 """
 
 from __future__ import annotations
@@ -20,6 +14,7 @@ import numpy as np
 
 from slipstack.lib.limit_set import load_factor
 from slipstack.lib.pad import PadGeometry
+from _versions import print_versions
 
 MU = 0.45
 PAD = PadGeometry()
@@ -59,6 +54,7 @@ def main() -> None:
     ap.add_argument("--loads", type=int, default=400, help="loads per field (default 400)")
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args()
+    print_versions()
     rng = np.random.default_rng(args.seed)
     print("| field | pool | taxels | p50 µs | p99 µs | γ err p95 | γ err worst | false stick | false slip |")
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")

@@ -8,10 +8,7 @@ episodes and slip distance with the grip fixed at f_initial. ``--check`` re-runs
 scene with the grip commanded to its ``[expect] holds_at_N`` and verifies the
 scene's stated outcome (slips at f_initial, holds at holds_at_N).
 
-Examples:
-    .venv/bin/python tests/bench/bench_rig.py
-    .venv/bin/python tests/bench/bench_rig.py --sensor-rate 1000 fig14 default
-    .venv/bin/python tests/bench/bench_rig.py --check
+More in docs/modules.md, `tests/bench/bench_rig.py`.
 """
 
 from __future__ import annotations
@@ -26,6 +23,7 @@ import slipstack.launch
 from slipstack.lib.rig.scene import Scene, load_scene
 from slipstack.lib.samples import FtSample, TactileSample
 from slipstack.lib.rig.simulator import Simulator, Truth
+from _versions import print_versions
 
 SCENES_DIR = Path(slipstack.launch.__file__).parent / "scenes"
 
@@ -72,6 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--check", action="store_true",
                         help="also run at [expect] holds_at_N and verify the stated outcomes")
     args = parser.parse_args(argv)
+    print_versions()
     paths = [Path(s) if s.endswith(".toml") else SCENES_DIR / f"{s}.toml" for s in args.scenes]
     paths = paths or sorted(SCENES_DIR.glob("*.toml"))
 

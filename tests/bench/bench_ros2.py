@@ -3,13 +3,7 @@
     python tests/bench/bench_ros2.py encode RECORDING.mcap   # CDR encoding: rosbags against mcap-ros2-support
     python tests/bench/bench_ros2.py bridge [--rate 1000] [--seconds 5]
 
-``encode``: CPU per message of each type of a recording (e.g. ``slipstack launch fig15
---lockstep recording:=fig15.mcap``), encoded by rosbags (what messages/ros2 uses) and by
-mcap-ros2-support's encoder, from the same ROS 2 message.
-``bridge``: Slip messages published at RATE on a ZeroMQ socket as a node would; a ZeroMQ
-subscriber (the bus path) and a Zenoh peer behind ``slipstack run zenoh_bridge`` (the ROS 2
-path) each time every one from its ``pub_ns`` to its arrival (one host, CLOCK_MONOTONIC);
-the bridge process's CPU from /proc.
+More in docs/modules.md, `tests/bench/bench_ros2.py`.
 """
 
 from __future__ import annotations

@@ -23,6 +23,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from _versions import print_versions  # noqa: E402
 from _stack import StackRun, free_udp_port, long_scene, pid_alive  # noqa: E402
 
 
@@ -44,6 +45,7 @@ def main() -> int:
     ap.add_argument("--interval", type=float, default=10.0, help="seconds between memory samples")
     ap.add_argument("--scene", default="default", help="scene whose disturbance repeats")
     args = ap.parse_args()
+    print_versions()
     duration_s = args.minutes * 60.0
     with tempfile.TemporaryDirectory(prefix="sss-", dir="/tmp") as tmp:
         tmp = Path(tmp)

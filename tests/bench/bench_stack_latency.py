@@ -1,44 +1,6 @@
 """End-to-end latency of the real stack: F/T sample → ``grip/command``, with loss and CPU.
 
-Launches the default graph with ``slipstack launch`` (rig + ft_driver over RDT/UDP +
-tactile_driver over a DSACON32 pty + fusion + cor_estimator + slip_detector +
-grip_controller; no recorder, no monitor unless ``--keep-monitor``) at ``--ft-rate``
-/ ``--tactile-rate`` on a copy of the scene that lasts the whole run, taps
-``ft/wrench``, ``contact``, ``slip``, ``grip/command``, ``rig/truth`` and
-``diagnostics`` live (one SUB per publisher endpoint of ``graph.json``; only
-headers are decoded), and reports over ``--duration`` seconds after ``--warmup``:
-
-- latency = ``header.pub_ns − header.sources['ft']`` per message: the F/T sample's
-  receive stamp at the driver (its ``poll()`` decoded it) → publish of ``contact``,
-  ``slip`` and ``grip/command``; per hop for chains matched by that stamp;
-- sim-time latency: the rig's intended sample instant ``t0 + (device_seq − 1)/rate``
-  (``t0`` from ``rig/truth``: its stamp is ``t0`` + simulated time, its seq counts
-  truth samples from t = 0; RDT ``device_seq`` counts F/T records from 1) →
-  driver stamp, and → command publish (adds the rig's pacing and the UDP hop);
-- every sample → command: fusion takes the F/T samples of a wake-up as one batch and
-  the command carries the stamps of its newest and oldest (``sources['ft_oldest']``):
-  ``pub_ns − ft_oldest`` is the age of the oldest sample the command judged, the worst of
-  its batch;
-- F/T samples received by fusion, *not examined* (received − carried in contacts:
-  skipped beyond a batch's depth, or for a newer one by a latest-value input) and
-  judged by the slip test (``fusion.samples``, ``slip_test.samples_judged``), commands
-  per second;
-- loss: sequence gaps per topic seen by the tap, RDT sequence gaps, and *lost*
-  (``.lost``, ``.rejected``, ``.dropped_hwm``) from the nodes' diagnostics;
-- CPU per process (``/proc/<pid>/stat``), involuntary context switches, the
-  machine's busy cores and other processes' load;
-- CPU per handled message per process (process CPU over the window / the messages
-  it took in from the bus or its device), split into the stages of
-  :mod:`slipstack.nodes.runtime.stage_cpu` (the nodes run with
-  ``SLIPSTACK_STAGE_CPU=1`` unless ``--no-stages``), beside a raw pyzmq + msgpack
-  subscriber to ``ft/wrench`` measured in the same run (its own process: poll,
-  ``recv_multipart``, ``msgpack.unpackb``, nothing else).
-
-Commands the grip controller's watchdog republishes for an unchanged slip verdict
-are counted, not timed (their age is the watchdog's timeout, not a latency).
-
-    python tests/bench/bench_stack_latency.py --duration 10    # while developing
-    python tests/bench/bench_stack_latency.py                  # the claim: 60 s
+More in docs/modules.md, `tests/bench/bench_stack_latency.py`.
 """
 
 from __future__ import annotations
@@ -60,6 +22,7 @@ import msgpack
 import numpy as np
 import zmq
 
+from _versions import print_versions
 from _stack import ProcSampler, StackRun, free_udp_port, long_scene
 from slipstack.nodes.runtime.stage_cpu import STAGE_CPU_ENV
 
@@ -586,6 +549,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    print_versions()
     report = Report()
     with tempfile.TemporaryDirectory(prefix="ssb-scene-", dir="/tmp") as tmp:
         scene = long_scene(args.scene, args.warmup + args.duration + 30.0, Path(tmp) / "long.toml")

@@ -6,9 +6,7 @@ reads the tool's CPU time (utime + stime from ``/proc/<pid>/stat``) over the ste
 part of the run (after the first ``--settle`` seconds of imports and connecting).
 The same is measured for ``topic echo ft/wrench > /dev/null`` (the YAML printer).
 
-Targets: hz reports 1000 ± 2 Hz and uses < 15 % of one core.
-
-    python tests/bench/bench_topic_hz.py --duration 20
+More in docs/modules.md, `tests/bench/bench_topic_hz.py`.
 """
 
 from __future__ import annotations
@@ -22,6 +20,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from _versions import print_versions
 
 import numpy as np
 
@@ -56,6 +55,7 @@ def main() -> None:
     ap.add_argument("--settle", type=float, default=2.0, help="seconds left out of the CPU figure (default 2)")
     ap.add_argument("--window", type=int, default=1000, help="hz window in messages (default 1000)")
     args = ap.parse_args()
+    print_versions()
     with tempfile.TemporaryDirectory(prefix="bh-", dir="/tmp") as root:
         env = dict(os.environ, SLIPSTACK_RUN_ROOT=root, PYTHONUNBUFFERED="1")
         cli = [sys.executable, "-m", "slipstack.launch.cli"]

@@ -6,26 +6,7 @@ same clock in every process) and counts what arrived. Two payload sizes: a
 ``Wrench`` (~108 B encoded) and a 12×16 ``TactileFrame`` (~1.2 KB). Every process is
 forked (no ZeroMQ context exists before the fork), endpoints are ``ipc://``.
 
-- raw: XPUB/SUB processes; relays ``unpackb`` then ``packb`` the list
-  ``[stamp_ns, seq, blob]`` (blob sized so the frame matches the slipstack one);
-  each process waits for its downstream subscription before data flows.
-- raw+codec: the same processes, but every frame is a slipstack message: the source
-  ``encode``s it with a new header, relays and sink ``decode`` it (unpack and validate
-  every field, as a node must) and the sink takes the stamp from the decoded header.
-  The fair baseline for the framework: raw pyzmq doing the work a node cannot skip.
-- slipstack: ``ProcessExecutor`` nodes (the source is a timer node, relays are
-  ``queue`` inputs republishing the decoded message with its stamp, as the demo relay).
-
-Loss = messages the source sent that the sink never received. CPU per message =
-process CPU time (``time.process_time_ns``: every thread, ZeroMQ's I/O thread
-included) from the source's first send / the sink's first receive to the end,
-divided by the messages sent / received after that one; the sink's main thread
-alone (``time.thread_time_ns``: poll, receive, decode, handler, the loop) is
-reported beside it, the rest being ZeroMQ's I/O thread.
-
-    python tests/bench/bench_transport.py                 # 10 s per case
-    python tests/bench/bench_transport.py --duration 60   # the real claim
-    python tests/bench/bench_transport.py --profile       # codec costs, receive path per wake-up
+More in docs/modules.md, `tests/bench/bench_transport.py`.
 """
 
 from __future__ import annotations
@@ -45,6 +26,7 @@ import numpy as np
 
 from slipstack.messages import Header, Message, TactileFrame, Wrench, decode, encode
 from slipstack.nodes.runtime.node import Input, Node, Output
+from _versions import print_versions
 
 WARMUP = 200  # first messages left out of the statistics
 
@@ -429,6 +411,7 @@ def main() -> None:
     ap.add_argument("--profile", action="store_true",
                     help="print per-step codec costs and the receive path's cost per wake-up, and exit")
     args = ap.parse_args()
+    print_versions()
     if args.profile:
         profile()
         receive_path()

@@ -3,27 +3,7 @@
 Runs Fig. 15's closed loop (a copy of the scene that lasts the run) three ways, one
 after the other in one invocation, on this computer:
 
-- ``one host``: ``slipstack launch fig15`` (every link ipc or in-process);
-- ``two hosts, CURVE``: ``launch/files/two_hosts.toml``, two launchers on 127.0.0.1
-  (robot: rig and drivers) and 127.0.0.2 (workstation: control container), the links
-  between them tcp with CURVE, keys made by ``slipstack keys DIR --machine ...``;
-- ``two hosts, plain tcp``: the same with ``insecure = true`` and no keys.
-
-Then one hop alone, the same 108-byte frame at 1 kHz from a publisher to a subscriber
-in this process, over ipc, tcp and tcp with CURVE (``--hops`` frames each), so the cost
-of the transport shows apart from the scheduling of the whole stack.
-
-A tap on the machine of the grip controller subscribes to ``grip/command`` and times
-``header.pub_ns − header.sources['ft']``: the F/T sample decoded by the driver (on the
-robot in the split) → the command published (on the workstation), one cross-machine
-hop on the way. In the split both stamps are on the robot's time base: the
-workstation's nodes add the clock offset its launcher measured, whose uncertainty is
-printed beside the figures (on one computer the true offset is 0, so the estimate's
-error biases the split figures by at most that much). Commands the controller's
-watchdog repeats for an unchanged verdict are not timed. The load average before and
-after each run is printed: the machine is shared.
-
-    python tests/bench/bench_two_hosts.py --duration 20
+More in docs/modules.md, `tests/bench/bench_two_hosts.py`.
 """
 
 from __future__ import annotations
@@ -41,6 +21,7 @@ from pathlib import Path
 import msgpack
 import numpy as np
 
+from _versions import print_versions
 from _stack import StackRun, free_udp_port, long_scene
 
 from slipstack.launch.launch_file import launch_files_dir
@@ -155,6 +136,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--hops", type=int, default=5000, help="frames per transport in the one-hop part (default 5000)")
     p.add_argument("--json", metavar="FILE", help="also write the rows as JSON")
     args = p.parse_args(argv)
+    print_versions()
     with tempfile.TemporaryDirectory(prefix="ssb2-") as tmp_dir:
         tmp = Path(tmp_dir)
         keys = tmp / "keys"

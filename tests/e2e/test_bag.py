@@ -149,3 +149,34 @@ def test_play_into_a_running_relay(launch, run_root, tmp_path):
     relayed = [m for m in (decode(f.payload) for f in read_recording(out, tolerant=False)) if m.device_seq >= 0]
     assert [m.device_seq for m in relayed] == list(range(200))
     assert [m.header.stamp_ns for m in relayed] == [1_000_000 + k * 1_000_000 for k in range(200)]
+
+
+def _loaded(pid: int, library: str) -> bool:
+    """Whether process ``pid`` has mapped a shared library whose path holds ``library``."""
+    try:
+        with open(f"/proc/{pid}/maps") as fh:
+            return library in fh.read()
+    except OSError:
+        return False
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_stop_during_the_start_of_bag_record_ends_it(launch, run_root, sig):
+    """``bag record -a &`` from a script inherits SIGINT ignored. A Ctrl-C while it was still
+    importing (here: once pyzmq is loaded, well before its recorder runs) was lost: it went
+    on recording (11 MB in 20 s). It must end, having recorded nothing."""
+    graph = launch("demo")
+    graph.wait_ready()
+    out = run_root / "early.mcap"
+    proc = subprocess.Popen([PY, "-m", "slipstack.launch.cli", "bag", "record", "-a", "-o", str(out)], env=graph.env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    try:
+        eventually(lambda: _loaded(proc.pid, "zmq") or proc.poll() is not None, "bag record importing pyzmq", 60)
+        proc.send_signal(sig)
+        code = proc.wait(timeout=30)
+    finally:
+        proc.kill()
+        proc.wait()
+    assert code == 130 or (sig == signal.SIGTERM and code == -signal.SIGTERM), (code, proc.stderr.read())
+    assert not out.exists()

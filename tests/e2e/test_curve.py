@@ -2,7 +2,8 @@
 
 A real launched graph (synthetic source → relay → sink) with the source on tcp. With
 the graph's keys the relay and an authorised subscriber receive every frame; a plain
-subscriber (another local user, no keys) receives nothing. Without keys the launch is
+subscriber (another local user, no keys) and a CURVE client with a key pair of its own
+receive nothing. Without keys the launch is
 refused, unless the file says ``insecure = true``.
 """
 
@@ -13,6 +14,7 @@ import sys
 
 import pytest
 import zmq
+import zmq.auth
 
 from slipstack.nodes.runtime import curve
 from slipstack.nodes.runtime.transport import make_sub
@@ -50,7 +52,7 @@ def _launch_file(tmp_path, security: str):
 
 def test_tcp_without_keys_is_refused_with_what_to_do(launch, tmp_path):
     g = launch(str(_launch_file(tmp_path, "")))
-    assert g.proc.wait(60) != 0
+    assert g.wait_exit(60) != 0
     assert "slipstack keys" in g.log() and "insecure = true" in g.log()
 
 
@@ -71,6 +73,12 @@ def test_only_holders_of_the_keys_receivecount_frames(launch, tmp_path):
         stranger.setsockopt(zmq.SUBSCRIBE, b"")
         stranger.setsockopt(zmq.LINGER, 0)
         stranger.connect(endpoint)
+        impostor = ctx.socket(zmq.SUB)  # a CURVE client with a key pair of its own and the graph's public key
+        impostor.curve_publickey, impostor.curve_secretkey = zmq.curve_keypair()
+        impostor.curve_serverkey = zmq.auth.load_certificate(keys / "graph.key")[0]  # no secret
+        impostor.setsockopt(zmq.SUBSCRIBE, b"")
+        impostor.setsockopt(zmq.LINGER, 0)
+        impostor.connect(endpoint)
         curve.use_keys(keys)
         try:
             member = make_sub(ctx, [endpoint], None)
@@ -78,10 +86,9 @@ def test_only_holders_of_the_keys_receivecount_frames(launch, tmp_path):
             curve.use_keys(None)
         assert count_frames(member, 2.0) > 100  # 500 Hz: the authorised subscriber is served
         assert count_frames(stranger, 1.0) == 0
-        member.close()
-        stranger.close()
+        assert count_frames(impostor, 1.0) == 0
     finally:
-        ctx.term()
+        ctx.destroy(linger=0)  # closes the sockets also when an assertion failed (term would wait on them)
     echo = g.cli("topic", "echo", "ft/relayed", "--once", timeout=60)  # the relay got through, and tools attach
     assert echo.returncode == 0 and "force" in echo.stdout, echo.stderr
 

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import zmq
+from progress_deadline import ProgressDeadline
 
 from slipstack.lib.protocols.framed import FramedFormat
 from slipstack.messages import decode
@@ -63,7 +64,7 @@ class Driver:
         return out
 
     def log(self) -> str:
-        self._log.flush()
+        """What the driver process wrote (it writes the file itself: nothing to flush here)."""
         return self.log_path.read_text(errors="replace")
 
     def stop(self) -> int:
@@ -82,11 +83,12 @@ class Driver:
 def pace(driver: Driver, send, until, timeout_s: float = 30.0) -> list[tuple[str, object]]:
     """Call send() every PERIOD_S and collect frames until until(frames) holds."""
     frames: list[tuple[str, object]] = []
-    deadline = time.monotonic() + timeout_s
+    deadline = ProgressDeadline(timeout_s, lambda: [driver.proc.pid])
     next_send = time.monotonic()
     while not until(frames):
         now = time.monotonic()
-        assert now < deadline, f"timed out; got {[(t, getattr(m, 'status', '')) for t, m in frames[-5:]]}\n{driver.log()}"
+        assert not deadline.expired(), (f"not done after {deadline}; got "
+                                        f"{[(t, getattr(m, 'status', '')) for t, m in frames[-5:]]}\n{driver.log()}")
         if now >= next_send:
             send()
             next_send += PERIOD_S
@@ -233,9 +235,9 @@ def test_wrong_device_path_is_said_and_retried_without_spinning(node, url, run_d
     driver = Driver(node, url, run_dir)
     try:
         diags = []
-        deadline = time.monotonic() + 20
+        deadline = ProgressDeadline(20, lambda: [driver.proc.pid])
         while len(diags) < 3:
-            assert time.monotonic() < deadline, f"diagnostics: {diags}\n{driver.log()}"
+            assert not deadline.expired(), f"not done after {deadline}; diagnostics: {diags}\n{driver.log()}"
             diags += [m for t, m in driver.receive(1.0) if t == "diagnostics"]
         last = diags[-1]
         assert last.status.startswith("disconnected"), last.status

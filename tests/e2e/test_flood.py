@@ -28,13 +28,14 @@ def _flood_frame(k: int) -> bytes:
 
 
 def _diagnostics(sock: zmq.Socket, node: str, want: str, timeout_s: float = 15.0) -> dict:
+    """The first diagnostics of ``node`` with a counter whose name starts with ``want``."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         if sock.poll(100):
             topic, payload = sock.recv_multipart()
             if topic == b"diagnostics":
                 d = decode(payload)
-                if d.node == node and want in d.counters:
+                if d.node == node and any(k.startswith(want) for k in d.counters):
                     return d.counters
     raise AssertionError(f"no diagnostics of {node} with {want}")
 
@@ -76,8 +77,9 @@ def test_an_injection_flood_is_rate_limited_counted_and_the_bus_carries_on(launc
         spec = RunSpec(name="defaults")
         admitted = spec.inject_rate_hz * (last_marked - t0 + 0.5) + spec.inject_burst
         assert 0 < relayed_marked <= admitted, (relayed_marked, admitted)
-        counters = _diagnostics(out, "relay", "inject.dropped_rate")
-        assert 0 < counters["inject.dropped_rate"] <= FLOOD - relayed_marked
+        counters = _diagnostics(out, "relay", "inject.dropped_")  # over the rate, or queued meanwhile
+        dropped = sum(v for k, v in counters.items() if k.startswith("inject.dropped_"))
+        assert 0 < dropped <= FLOOD - relayed_marked, counters
     finally:
         injector.close()
         out.close()

@@ -2,14 +2,13 @@
 
 The test process publishes a wrench and a 16x16 tactile frame on its own XPUB; the node
 runs as ``slipstack run foxglove`` subscribed to it; a ``websockets`` client speaks the
-Foxglove WebSocket protocol (subprotocol ``foxglove.sdk.v1``): reads the advertised channels,
-subscribes, and decodes what arrives.
+Foxglove WebSocket protocol (subprotocol ``foxglove.sdk.v1``, or its older name
+``foxglove.websocket.v1``): reads the advertised channels, subscribes, and decodes what arrives.
 """
 
 from __future__ import annotations
 
 import json
-import socket
 import struct
 import subprocess
 import sys
@@ -18,6 +17,7 @@ import time
 import numpy as np
 import pytest
 import zmq
+from free_ports import free_port
 
 pytest.importorskip("foxglove", reason="the foxglove extra is not installed")
 sync_client = pytest.importorskip("websockets.sync.client", reason="websockets (a WebSocket client) is not installed")
@@ -27,14 +27,8 @@ from slipstack.nodes.runtime.transport import make_pub  # noqa: E402
 
 pytestmark = pytest.mark.e2e
 
-SUBPROTOCOL = "foxglove.sdk.v1"  # the SDK's name for the Foxglove WebSocket protocol
+SUBPROTOCOLS = ("foxglove.sdk.v1", "foxglove.websocket.v1")  # the SDK's name, and older clients'
 MESSAGE_DATA = 0x01
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _frames(k: int) -> list[tuple[str, bytes]]:
@@ -48,25 +42,39 @@ def _frames(k: int) -> list[tuple[str, bytes]]:
     ]
 
 
-def test_a_websocket_client_subscribes_and_decodes_the_live_graph(tmp_path):
-    endpoint = f"ipc://{tmp_path}/bus.pub"
-    pub = make_pub(zmq.Context.instance(), endpoint)
-    port = _free_port()
+def _start_node(tmp_path, endpoint: str) -> tuple[subprocess.Popen, int, object]:
+    """``slipstack run foxglove`` on a free port, subscribed to ``endpoint``; (process, port, log file)."""
+    port = free_port()
     log = open(tmp_path / "foxglove.log", "wb")
     proc = subprocess.Popen(
         [sys.executable, "-m", "slipstack.launch.cli", "run", "foxglove", f"port:={port}",
          "--sub", f"ft/wrench={endpoint}", "--sub", f"tactile/frame={endpoint}"],
         stdout=log, stderr=subprocess.STDOUT)
+    return proc, port, log
+
+
+def _connect(proc: subprocess.Popen, port: int, subprotocol: str, tmp_path):
+    deadline = time.monotonic() + 30
+    while True:
+        assert proc.poll() is None and time.monotonic() < deadline, (tmp_path / "foxglove.log").read_text()
+        try:
+            return sync_client.connect(f"ws://127.0.0.1:{port}", subprotocols=[subprotocol], open_timeout=2)
+        except OSError:
+            time.sleep(0.2)
+
+
+@pytest.mark.parametrize("subprotocol", SUBPROTOCOLS)
+def test_a_websocket_client_subscribes_and_decodes_the_live_graph(tmp_path, subprotocol):
+    """Under either name of the protocol (a ``foxglove.websocket.v1`` client got "400 Missing
+    expected sec-websocket-protocol header" from the SDK)."""
+    endpoint = f"ipc://{tmp_path}/bus.pub"
+    pub = make_pub(zmq.Context.instance(), endpoint)
+    proc, port, log = _start_node(tmp_path, endpoint)
     try:
-        ws = None
+        ws = _connect(proc, port, subprotocol, tmp_path)
         deadline = time.monotonic() + 30
-        while ws is None:
-            assert proc.poll() is None and time.monotonic() < deadline, (tmp_path / "foxglove.log").read_text()
-            try:
-                ws = sync_client.connect(f"ws://127.0.0.1:{port}", subprotocols=[SUBPROTOCOL], open_timeout=2)
-            except OSError:
-                time.sleep(0.2)
         with ws:
+            assert ws.subprotocol == subprotocol
             channels: dict[str, dict] = {}
             while not {"/slipstack/ft/wrench", "/pad/pressure", "/pad/scene"} <= set(channels):
                 msg = json.loads(ws.recv(timeout=10))
@@ -103,3 +111,23 @@ def test_a_websocket_client_subscribes_and_decodes_the_live_graph(tmp_path):
         proc.wait(20)
         log.close()
         pub.close(linger=0)
+
+
+def test_a_client_of_another_protocol_is_told_what_the_node_speaks(tmp_path):
+    import http.client
+
+    proc, port, log = _start_node(tmp_path, f"ipc://{tmp_path}/bus.pub")
+    try:
+        with _connect(proc, port, SUBPROTOCOLS[0], tmp_path):  # it is up
+            pass
+        conn = http.client.HTTPConnection("127.0.0.1", port, timeout=10)
+        conn.request("GET", "/", headers={"Upgrade": "websocket", "Connection": "Upgrade", "Sec-WebSocket-Version": "13",
+                                          "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ==",
+                                          "Sec-WebSocket-Protocol": "chat"})
+        answer = conn.getresponse()
+        assert answer.status == 400
+        assert b"subprotocol foxglove.sdk.v1 (foxglove.websocket.v1 is accepted too)" in answer.read()
+    finally:
+        proc.terminate()
+        proc.wait(20)
+        log.close()

@@ -19,7 +19,7 @@ def test_every_ft_sample_at_7_khz_reaches_the_slip_test(launch, run_root):
     summary = run_root / "ft7k.json"
     g = launch("fig10", "ft_rate_hz:=7000", "duration_s:=4", "record:=false",
                f"summary:={summary}", "check:=false")
-    assert g.proc.wait(100) == 0, g.log()
+    assert g.wait_exit(100) == 0, g.log()
     assert summary.exists(), g.log()
     s = json.loads(summary.read_text())
     why = json.dumps(s, indent=1)

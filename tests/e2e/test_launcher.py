@@ -28,11 +28,12 @@ def _pids(graph: dict) -> dict[str, int]:
 
 
 def _wait_until(condition, what: str, g, timeout: float = 30.0) -> None:
-    """Poll ``condition`` until it holds; fail naming ``what`` with the launch log (a generous deadline)."""
-    deadline = time.monotonic() + timeout
+    """Poll ``condition`` until it holds; fail naming ``what`` with the launch log (``timeout`` s of the
+    time the launch's processes could run)."""
+    deadline = g.deadline(timeout)
     while not condition():
-        if time.monotonic() > deadline:
-            pytest.fail(f"{what}:\n{g.log()}")
+        if deadline.expired():
+            pytest.fail(f"{what} after {deadline}:\n{g.log()}")
         time.sleep(0.05)
 
 
@@ -89,8 +90,8 @@ def test_demo_graph_respawns_a_killed_node_and_stops_cleanly_on_each_signal(laun
         assert "seq:" in _echo_once(g, "ft/relayed")
 
         os.kill(pids["relay"], signal.SIGKILL)
-        deadline = time.monotonic() + 15
-        while time.monotonic() < deadline:
+        deadline = g.deadline(15)
+        while not deadline.expired():
             now = g.graph()["nodes"]["relay"]
             if now["restarts"] == 1 and now["pid"] != pids["relay"] and pid_alive(now["pid"]):
                 break
@@ -101,7 +102,7 @@ def test_demo_graph_respawns_a_killed_node_and_stops_cleanly_on_each_signal(laun
 
         all_pids = [*_pids(g.graph()).values(), g.proc.pid]
         g.proc.send_signal(sig)
-        g.proc.wait(30)
+        g.wait_exit(30)
         _wait_until(lambda: not any(pid_alive(p) for p in all_pids), f"processes left after {sig.name}", g)
         _wait_until(lambda: not _processes_of(g.run_root), f"standby processes left after {sig.name}", g)
         assert g.proc.returncode == 0, g.log()
@@ -155,7 +156,7 @@ def test_a_bad_parameter_stops_the_launch_naming_the_node(launch, run_root):
     bad = run_root / "bad.toml"
     bad.write_text('[[node]]\nname = "src"\ntype = "wrench_source"\nparams = { rate_hz = "fast" }\n')
     g = launch(str(bad))
-    assert g.proc.wait(30) != 0
+    assert g.wait_exit(30) != 0
     assert "src" in g.log() and "rate_hz" in g.log()
 
 
@@ -173,8 +174,8 @@ def test_a_container_runs_its_nodes_in_one_process_hands_messages_over_and_respa
     assert counters.get("in.ft/relayed.lost", 0) == 0
 
     os.kill(nodes["sink"]["pid"], signal.SIGKILL)  # the container goes down as one
-    deadline = time.monotonic() + 15
-    while time.monotonic() < deadline:
+    deadline = g.deadline(15)
+    while not deadline.expired():
         now = g.graph()["nodes"]
         if now["relay"]["restarts"] == now["sink"]["restarts"] == 1 and pid_alive(now["sink"]["pid"]):
             break
@@ -192,7 +193,7 @@ def test_container_members_must_share_their_process_settings(launch, run_root):
     bad.write_text('[[node]]\nname = "relay"\ntype = "relay"\ncontainer = "c"\nrespawn = true\n'
                    '[[node]]\nname = "sink"\ntype = "sink"\ncontainer = "c"\n')
     g = launch(str(bad))
-    assert g.proc.wait(30) != 0
+    assert g.wait_exit(30) != 0
     assert "relay and sink share container 'c'" in g.log()
 
 
@@ -232,7 +233,7 @@ def test_a_node_out_of_restarts_is_abandoned_loudly_and_ends_a_required_or_check
     g = launch(_write_launch(run_root, PIPELINE.format(source="", relay=relay)), *args)
     pids = _pids(g.wait_ready())
     os.kill(_kill_and_wait_respawn(g, "relay", restarts=1), signal.SIGKILL)
-    assert g.proc.wait(30) == 1, g.log()
+    assert g.wait_exit(30) == 1, g.log()
     log = g.log()
     assert "[launch] ABANDONED relay: it exited 2 times in a row (restarted 1x, respawn_max_retries = 1)" in log
     assert "[launch] relay: died 2x, abandoned after 1 restarts" in log
@@ -250,7 +251,7 @@ def test_a_required_node_that_exits_ends_the_launch_with_its_code(launch, run_ro
     g = launch(_write_launch(run_root, PIPELINE.format(source="required = true", relay="")))
     pids = _pids(g.wait_ready())
     os.kill(pids["source"], sig)
-    assert g.proc.wait(30) == launch_code, g.log()
+    assert g.wait_exit(30) == launch_code, g.log()
     assert f"[launch] node source (wrench_source) exited with code {code}" in g.log()
     assert f"[launch] source is required; stopping the launch (it exited with code {code})" in g.log()
     _wait_until(lambda: not any(pid_alive(p) for p in pids.values()), "nodes left running", g)

@@ -49,6 +49,27 @@ def test_every_shipped_launch_file_runs_in_lockstep(name: str, tmp_path: Path, c
     assert "[monitor] ==== slipstack run summary ====" in out
 
 
+@pytest.mark.parametrize("name", ["fig15", "fig10", "default"])
+def test_a_launch_starts_by_holding_what_the_finger_holds(name: str, tmp_path: Path, capsys) -> None:
+    # Issue 29: every launch began with 2 N commands (f_nom, from the first verdict's measured
+    # force before the sensors were trusted) while the finger held 3-4 N; a real finger already
+    # holding an object would have let it go. check:=false: a 0.3 s cut is no run to judge.
+    recording = tmp_path / "start.mcap"
+    assert _launch(name, "duration_s:=0.3", "check:=false", f"recording:={recording}") == 0
+    finger, held = None, []
+    for f in read_recording(recording, ["grip/state", "grip/command"]):
+        msg = decode(f.payload)
+        if f.topic == "grip/state":
+            finger = msg
+        elif not held or held[-1].reason == "fail-safe":
+            held.append(msg)  # the commands until the first on valid data, and that one
+    assert finger is not None and held, "no report from the finger or no command"
+    first_report = next(decode(f.payload) for f in read_recording(recording, ["grip/state"]))
+    assert first_report.mode == "initial"
+    assert held[0].f_n_desired >= first_report.f_n_command, (held[0], first_report)
+    assert all(c.f_n_desired == held[0].f_n_desired for c in held if c.reason == "fail-safe")  # held, not squeezed
+
+
 def test_a_scene_with_a_pad_runs_on_the_f_t_sensor_alone(tmp_path: Path, capsys) -> None:
     # tactile:=false on fig15 (a scene with a pad): the rig serves no tactile device, so it
     # must not wait for a tactile driver that the launch does not start

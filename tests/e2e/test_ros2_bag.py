@@ -135,8 +135,8 @@ def test_every_fig15_message_reads_back_with_mcap_ros2_field_for_field(fig15: Pa
     assert len(main_messages) == len(recorded) > 20000
     types = {"ft/wrench": "geometry_msgs/msg/WrenchStamped", "tactile/frame": "sensor_msgs/msg/Image",
              "cor": "slipstack_msgs/msg/Cor", "slip": "slipstack_msgs/msg/Slip",
-             "grip/command": "slipstack_msgs/msg/GripCommand", "rig/truth": "slipstack_msgs/msg/RigTruth",
-             "diagnostics": "slipstack_msgs/msg/Diagnostics"}
+             "grip/command": "slipstack_msgs/msg/GripCommand", "grip/state": "slipstack_msgs/msg/GripState",
+             "rig/truth": "slipstack_msgs/msg/RigTruth", "diagnostics": "slipstack_msgs/msg/Diagnostics"}
     seen = set()
     for (topic, log_ns, msg), (ros_topic, schema, ros_log_ns, d) in zip(recorded, main_messages):
         assert (ros_topic, schema, ros_log_ns) == (f"/slipstack/{topic}", types[topic], log_ns)

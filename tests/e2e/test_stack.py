@@ -32,7 +32,7 @@ def _run(launch, run_root, scene: str, controller: bool) -> dict:
     # for more than 1 % of its commands, which a busy machine can cause; these tests judge the
     # outcome themselves (the check's verdicts are tested in test_launcher.py)
     g = launch(scene, f"controller:={str(controller).lower()}", "record:=false", f"summary:={summary}", "check:=false")
-    code = g.proc.wait(100)  # well within the 120 s test timeout, so a hang shows its log
+    code = g.wait_exit(100)  # in run time: a hang shows its log before the test's timeout
     assert code == 0, g.log()
     assert summary.exists(), g.log()
     return json.loads(summary.read_text())

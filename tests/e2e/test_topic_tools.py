@@ -62,9 +62,13 @@ def test_list_and_info_describe_the_demo_graph(demo):
 
 
 def test_unknown_topic_is_a_config_error_listing_the_known_ones(demo):
-    out = demo.cli("topic", "echo", "ft/wrnch", "--once")
+    out = demo.cli("topic", "info", "ft/wrnch")
     assert out.returncode == 2
     assert "unknown topic 'ft/wrnch'" in out.stderr and "ft/relayed, ft/wrench" in out.stderr
+    # echo waits for a topic that may be published later, and says at once which ones are
+    out = demo.cli("topic", "echo", "ft/wrnch", "--once", "--timeout", "1")
+    assert out.returncode == 1
+    assert "waiting for ft/wrnch (not in the graph yet; its topics: diagnostics, ft/relayed, ft/wrench)" in out.stderr
 
 
 def test_echo_once_prints_one_yaml_block(demo):
@@ -220,11 +224,52 @@ def test_rate_stats_match_hand_values():
 
 # -- echo exits on what can never print, and --timeout is a total deadline ----
 @pytest.mark.parametrize("field,words", [("force.5", "force is an array of 3 value(s)"),
-                                         ("status.0", "status is a single value")])
+                                         ("status.0", "status is a single value"),
+                                         # a misspelt header field printed nothing and never exited, even --once
+                                         ("header.stampns", "header has no field 'stampns'; its fields: stamp_ns")])
 def test_echo_a_field_no_message_can_have_is_a_clear_error(demo, field, words):
-    out = demo.cli("topic", "echo", "ft/wrench", "--field", field, "--once")
+    out = demo.cli("topic", "echo", "ft/wrench", "--field", field, "--once", timeout=60)
     assert out.returncode == 2, out
     assert words in out.stderr and "Traceback" not in out.stderr, out.stderr
+
+
+def test_echo_says_when_no_message_has_a_map_key(demo):
+    """A key below a map (``header.sources``) may come with a later message: echo waits, and
+    says so once many have come without it (it used to wait in silence)."""
+    out = demo.cli("topic", "echo", "ft/wrench", "--field", "header.sources.nosuch", "--once", "--timeout", "5")
+    assert out.returncode == 1, out
+    assert "messages so far have no header.sources.nosuch" in out.stderr and "check the spelling" in out.stderr
+
+
+def test_echo_waits_for_a_topic_published_later(demo, tmp_path):
+    """``topic echo ft/later`` before anything publishes it waits, as ros2's does, and prints the
+    first message once ``bag play`` publishes it (it was refused: "unknown topic")."""
+    from slipstack.messages import Header, Wrench, encode
+    from slipstack.nodes.recording.bag_io import RecordingWriter
+
+    rec = tmp_path / "later.mcap"
+    with RecordingWriter(rec, wall_minus_monotonic_ns=0) as w:
+        for k in range(200):
+            stamp = 10**9 + k * 10**7
+            w.write("ft/later", encode(Wrench(force=np.array([0.0, 0.0, -4.5]), torque=np.zeros(3),
+                                              header=Header(stamp, k, stamp, {}))), stamp)
+    echo = subprocess.Popen([sys.executable, "-m", "slipstack.launch.cli", "topic", "echo", "ft/later", "--once",
+                             "--field", "force", "--timeout", "60"], env=demo.env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    play = None
+    try:
+        said = echo.stderr.readline()
+        assert said.startswith("topic echo: waiting for ft/later (not in the graph yet; its topics: "), said
+        play = subprocess.Popen([sys.executable, "-m", "slipstack.launch.cli", "bag", "play", str(rec), "--loop"],
+                                env=demo.env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        out, err = echo.communicate(timeout=60)
+    finally:
+        echo.kill()
+        if play is not None:
+            play.send_signal(signal.SIGINT)  # it unregisters its endpoint from the run directory
+            play.wait(30)
+    assert echo.returncode == 0, err
+    assert out.startswith("[0.0, 0.0, -4.5]"), out
 
 
 def test_echo_a_filter_that_raises_is_a_clear_error(demo):

@@ -1,20 +1,19 @@
 """One graph over two machines: two launchers on two loopback addresses, CURVE on.
 
 ``launch/files/two_hosts.toml`` puts the rig and the drivers on ``robot`` (127.0.0.1)
-and the control path and the monitor on ``workstation`` (127.0.0.2), each launched by
-its own ``slipstack launch two_hosts --machine NAME`` with its own run root and key
-directory. The closed loop must hold Fig. 15's object (a 10 s cut of the scene), tools
-on the workstation must see and record the robot's topics, and a peer holding a key pair the graph
-does not know must get nothing and get no answer. A second test freezes the robot
-(its launcher and nodes stopped, as a dropped link looks from the workstation) and
-lets it go again; a third kills the robot's launcher.
+and the control path, the monitor and the recorder on ``workstation`` (127.0.0.2), each
+launched by its own ``slipstack launch two_hosts --machine NAME`` with its own run root
+and key directory, as documented: default arguments, only the port range chosen free.
+The closed loop must hold Fig. 15's object three runs of three (recorded ``rig/truth``).
+Tools on the workstation see and record the robot's topics; a peer with a key pair the
+graph does not know gets nothing. Other tests freeze the robot (its launcher and nodes
+stopped, as a dropped link looks from the workstation) and kill the robot's launcher.
 """
 
 from __future__ import annotations
 
 import json
 import os
-import random
 import re
 import signal
 import subprocess
@@ -28,39 +27,38 @@ import numpy as np
 import pytest
 import zmq
 import zmq.auth
+from free_ports import free_port_block
 
 from slipstack.lib.toml_file import resolve_path
 from slipstack.messages import Header, Wrench, decode, encode
+from slipstack.nodes.recording.bag_io import read_recording
 
-from .conftest import LaunchedGraph, count_frames, pid_alive
+from .conftest import LaunchedGraph, count_frames, ended_by_its_check, pid_alive
 
 pytestmark = pytest.mark.e2e
 
 ROBOT, WORKSTATION = "127.0.0.1", "127.0.0.2"
-SCENE_S = 10.0
+RUNS = 3  # the documented launch must hold every time, not most times
 
 
 @pytest.fixture
 def two_hosts(tmp_path):
-    """``start(*args)`` → (robot, workstation) launchers of two_hosts.toml with fresh keys,
-    a random port range and a 10 s cut of the fig15 scene; both killed at teardown."""
+    """``start(*args)`` → (robot, workstation) launchers of two_hosts.toml with fresh keys and a
+    random port range, otherwise the default arguments, run in ``tmp_path`` (the default
+    recording goes to its ``runs/``); both killed at teardown."""
     keys = tmp_path / "keys"
     made = subprocess.run([sys.executable, "-m", "slipstack.launch.cli", "keys", str(keys), "--machine", "robot",
                            "--machine", "workstation"], capture_output=True, text=True, timeout=60)
     assert made.returncode == 0, made.stderr
-    scene = tmp_path / "fig15_short.toml"
-    text = resolve_path("fig15", Path.cwd(), "scenes").read_text()
-    scene.write_text(text.replace("duration_s = 12.0", f"duration_s = {SCENE_S}", 1))
-    first = random.randrange(20000, 32000, 100)  # below the ephemeral ports (32768-60999)
+    first = free_port_block(100, (ROBOT, WORKSTATION))
     graphs: list[LaunchedGraph] = []
     roots: list[tempfile.TemporaryDirectory] = []
 
     def start(*extra: str) -> tuple[LaunchedGraph, LaunchedGraph]:
-        common = ["two_hosts", f"keys:={keys}", f"first_port:={first}", f"last_port:={first + 99}",
-                  f"scene:={scene}", "record:=false", "check:=false", *extra]
+        common = ["two_hosts", f"keys:={keys}", f"first_port:={first}", f"last_port:={first + 99}", *extra]
         for machine in ("robot", "workstation"):
             roots.append(tempfile.TemporaryDirectory(prefix="ss-", dir="/tmp"))
-            graphs.append(LaunchedGraph([*common, "--machine", machine], Path(roots[-1].name)))
+            graphs.append(LaunchedGraph([*common, "--machine", machine], Path(roots[-1].name), cwd=tmp_path))
         return graphs[-2], graphs[-1]
 
     start.keys, start.first_port = keys, first
@@ -71,6 +69,14 @@ def two_hosts(tmp_path):
         r.cleanup()
 
 
+def _scene(tmp_path: Path, seconds: float) -> Path:
+    """Fig. 15's scene lasting ``seconds`` (a test that needs the graph up longer than the scene)."""
+    scene = tmp_path / "fig15_long.toml"
+    text = resolve_path("fig15", Path.cwd(), "scenes").read_text()
+    scene.write_text(text.replace("duration_s = 12.0", f"duration_s = {seconds}", 1))
+    return scene
+
+
 def _curve_client(ctx: zmq.Context, kind: int, secret_file: Path, server_public_file: Path) -> zmq.Socket:
     sock = ctx.socket(kind)
     sock.setsockopt(zmq.LINGER, 0)
@@ -79,14 +85,45 @@ def _curve_client(ctx: zmq.Context, kind: int, secret_file: Path, server_public_
     return sock
 
 
-def test_closed_loop_over_two_machines_holds_and_strangers_get_nothing(two_hosts, tmp_path):
-    summary = tmp_path / "summary.json"
-    robot, workstation = two_hosts(f"summary:={summary}")
+@pytest.mark.parametrize("run", range(1, RUNS + 1))
+def test_the_documented_launch_holds_fig15_with_default_arguments(two_hosts, tmp_path, run):
+    robot, workstation = two_hosts()
     graph = workstation.wait_ready(timeout=90)
     robot.wait_ready(timeout=90)
     nodes = graph["nodes"]
     assert nodes["rig"]["machine"] == "robot" and nodes["rig"]["pub"].startswith(f"tcp://{ROBOT}:")
     assert nodes["fusion"]["pub"].startswith("ipc://")  # on one machine the link stays ipc
+
+    # the scene ends: the rig (required) exits, its launcher stops, the workstation follows
+    assert robot.proc.wait(90) == 0, robot.log()
+    try:
+        ended_by_its_check(workstation, 90)
+    except subprocess.TimeoutExpired:
+        pytest.fail("the workstation's launcher did not follow the robot's:\n" + workstation.log()[-4000:])
+    assert "machine robot (127.0.0.1) stopped" in workstation.log()
+    # the truth, as the rig recorded it on the workstation's default recording
+    recordings = list((tmp_path / "runs").glob("*.mcap"))
+    assert len(recordings) == 1, recordings
+    truth = [decode(f.payload) for f in read_recording(recordings[0], ["rig/truth"])]
+    commands = [decode(f.payload) for f in read_recording(recordings[0], ["grip/command"])]
+    assert truth and truth[-1].header.stamp_ns - truth[0].header.stamp_ns > 11e9  # the whole 12 s scene
+    assert len(commands) > 4000  # the loop closed from the start (500 Hz for 12 s)
+    slid_mm = max(t.slip_distance_m for t in truth) * 1e3
+    turned_deg = max(abs(t.slip_angle_rad) for t in truth) * 180 / np.pi
+    assert slid_mm < 0.1 and turned_deg < 0.1, (slid_mm, turned_deg)
+
+
+TOOLS_SCENE_S = 30.0
+"""The scene while tools attach from the workstation: they start after the graph is ready, and
+on a busy host their start alone can outlast the 12 s scene (the graph is then gone); the
+default scene is run by the test above."""
+
+
+def test_tools_on_the_workstation_see_the_robot_and_strangers_get_nothing(two_hosts, tmp_path):
+    robot, workstation = two_hosts(f"scene:={_scene(tmp_path, TOOLS_SCENE_S)}")
+    graph = workstation.wait_ready(timeout=90)
+    robot.wait_ready(timeout=90)
+    nodes = graph["nodes"]
     # a tool on the workstation sees the robot's topics (over tcp, with the workstation's keys)
     echo = subprocess.Popen([sys.executable, "-m", "slipstack.launch.cli", "topic", "echo", "rig/truth", "--once",
                              "--no-arr", "--timeout", "30"], env=workstation.env, stdout=subprocess.PIPE,
@@ -116,8 +153,10 @@ def test_closed_loop_over_two_machines_holds_and_strangers_get_nothing(two_hosts
         for sock in (pinger, member):
             sock.connect(f"tcp://{WORKSTATION}:{two_hosts.first_port}")  # the workstation's launcher
             sock.send_multipart([b"ping", (0).to_bytes(8, "big"), b"robot"])
-        assert member.poll(10_000)  # the robot's key pair is answered
-        assert count_frames(legit, 1.0) > 10
+        # the graph's keys are answered and served (generous waits: a busy machine may take seconds
+        # over the CURVE handshakes of a node that has just started), then the stranger in the same time
+        assert member.poll(60_000), workstation.log()[-3000:]  # the robot's key pair is answered
+        assert legit.poll(60_000) and count_frames(legit, 1.0) > 10, robot.log()[-3000:]
         assert count_frames(wrong, 1.0) == 0
         assert not pinger.poll(1000)
     finally:
@@ -129,15 +168,8 @@ def test_closed_loop_over_two_machines_holds_and_strangers_get_nothing(two_hosts
     frames = int(re.search(r"wrote .*: (\d+) frames", out + err).group(1))
     assert frames > 0, out
 
-    # the scene ends: the rig (required) exits, its launcher stops, the workstation follows
-    assert robot.proc.wait(90) == 0, robot.log()
-    try:
-        assert workstation.proc.wait(90) == 0, workstation.log()
-    except subprocess.TimeoutExpired:
-        pytest.fail("the workstation's launcher did not follow the robot's:\n" + workstation.log()[-4000:])
-    assert "machine robot (127.0.0.1) stopped" in workstation.log()
-    s = json.loads(summary.read_text())
-    assert s["slip_distance_mm"] < 0.5, json.dumps(s, indent=1)
+    for g in (robot, workstation):
+        g.stop()
 
 
 def test_a_machine_whose_launcher_dies_takes_its_nodes_and_is_reported(two_hosts):
@@ -147,18 +179,17 @@ def test_a_machine_whose_launcher_dies_takes_its_nodes_and_is_reported(two_hosts
     pids = [v["pid"] for v in robot_nodes.values() if v.get("machine") == "robot"]
     assert pids and all(pid_alive(p) for p in pids)
     robot.proc.kill()  # no goodbye: the workstation must notice the silence
-    deadline = time.monotonic() + 30
-    while time.monotonic() < deadline and ("went quiet" not in workstation.log() or any(map(pid_alive, pids))):
+    deadline = workstation.deadline(30)
+    while not deadline.expired() and ("went quiet" not in workstation.log() or any(map(pid_alive, pids))):
         time.sleep(0.1)
     assert not any(pid_alive(p) for p in pids), "the robot's nodes outlived their launcher"
     assert "machine robot (127.0.0.1) went quiet" in workstation.log(), workstation.log()
 
 
 def test_a_machine_gone_quiet_is_named_the_grip_holds_and_the_loop_resumes(two_hosts, tmp_path):
-    scene = tmp_path / "fig15_long.toml"  # a scene that outlasts the test
-    scene.write_text((tmp_path / "fig15_short.toml").read_text().replace(f"duration_s = {SCENE_S}",
-                                                                         "duration_s = 120.0", 1))
-    robot, workstation = two_hosts(f"scene:={scene}", "monitor:=false")
+    # a scene that outlasts the test; no monitor: its summary of a frozen run is not what is
+    # tested here and it costs a core's share (the default, monitor on, runs in the test above)
+    robot, workstation = two_hosts(f"scene:={_scene(tmp_path, 120.0)}", "monitor:=false")
     nodes = workstation.wait_ready(timeout=90)["nodes"]
     robot_pids = [robot.proc.pid, *(v["pid"] for v in robot.wait_ready(timeout=90)["nodes"].values()
                                     if v.get("machine") == "robot")]
@@ -190,8 +221,8 @@ def test_a_machine_gone_quiet_is_named_the_grip_holds_and_the_loop_resumes(two_h
 
     try:
         before: list[tuple[float, str]] = []
-        deadline = time.monotonic() + 30
-        while time.monotonic() < deadline and not any(reason != "fail-safe" for _, reason in before):
+        deadline = workstation.deadline(30)
+        while not deadline.expired() and not any(reason != "fail-safe" for _, reason in before):
             before += read(0.5)
         assert before, "no grip command before the freeze"
         for pid in robot_pids:
@@ -210,9 +241,9 @@ def test_a_machine_gone_quiet_is_named_the_grip_holds_and_the_loop_resumes(two_h
             os.kill(pid, signal.SIGCONT)
         read(30, until="machine robot (127.0.0.1) is back")
         assert "machine robot (127.0.0.1) is back" in workstation.log(), workstation.log()
-        deadline = time.monotonic() + 30
+        deadline = workstation.deadline(30)
         resumed: list[tuple[float, str]] = []
-        while time.monotonic() < deadline and not any(reason != "fail-safe" for _, reason in resumed):
+        while not deadline.expired() and not any(reason != "fail-safe" for _, reason in resumed):
             resumed = read(0.5)
         assert any(reason != "fail-safe" for _, reason in resumed), resumed
     finally:
@@ -250,7 +281,7 @@ def test_topic_pub_on_one_machine_reaches_a_node_on_the_other_and_both_launchers
     for directory in (keys, stranger):
         subprocess.run([sys.executable, "-m", "slipstack.launch.cli", "keys", str(directory), "--machine", "a",
                         "--machine", "b"], check=True, capture_output=True, timeout=60)
-    first = random.randrange(20000, 32000, 100)
+    first = free_port_block(10, (ROBOT, WORKSTATION))
     launch_file = tmp_path / "inject.toml"
     launch_file.write_text(INJECTION_GRAPH.format(first=first, last=first + 9, keys=keys))
     roots = [tempfile.TemporaryDirectory(prefix="ss-", dir="/tmp") for _ in range(2)]

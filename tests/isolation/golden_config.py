@@ -1,17 +1,6 @@
 """What the golden recordings under ``tests/isolation/golden/`` are made of.
 
-One :class:`Golden` per file: a shipped launch file (the graph users launch, with
-its parameters) run in lock-step on a short scene that slips early
-(``golden/<name>.scene.toml``, a cut of the launch file's own scene). Nothing else
-is restated here: ``make_golden.py`` runs ``slipstack launch FILE --lockstep
-scene:=...`` recording every topic, and ``test_golden.py`` builds each node from the
-same launch file's entry with :func:`build_node`, so recording and replay cannot
-drift apart, and neither can they drift from the launch file.
-
-Every node starts at simulated time 0, before the first frame (the drivers' device
-handshake takes the first few ms): every node's state (warm starts, the slip latch,
-the grip governor, the newest tactile frame) is then a function of the recorded
-inputs alone, so a replay from the first frame reproduces every output.
+More in docs/modules.md, `tests/isolation/golden_config.py`.
 """
 
 from __future__ import annotations

@@ -5,12 +5,7 @@ Run from the repository root::
     .venv/bin/python tests/isolation/make_golden.py            # rewrite the golden files
     .venv/bin/python tests/isolation/make_golden.py --check    # exit 1 if they are stale
 
-Each recording (``golden_config.GOLDENS``) is a shipped launch file run in lock-step
-(``slipstack launch FILE --lockstep``, ``launch/lockstep.py``) on a short scene, every
-topic recorded as it was published: log_time = ``header.pub_ns`` (the in-process
-executor's clock, ns from the run's start) and ``wall_minus_monotonic_ns = 0``, so
-``replay_into`` feeds each frame at the very time, and in the very order, the live
-node received it.
+More in docs/modules.md, `tests/isolation/make_golden.py`.
 """
 
 from __future__ import annotations
@@ -23,7 +18,8 @@ from pathlib import Path
 from golden_config import GOLDEN_DIR, GOLDENS, Golden
 
 from slipstack.launch.lockstep import run_launch_file
-from slipstack.nodes.recording.bag_io import read_recording
+from slipstack.messages import decode
+from slipstack.nodes.recording.bag_io import read_recording, same_output
 
 __all__ = ["write_golden", "compare_recordings", "main"]
 
@@ -39,13 +35,22 @@ def write_golden(golden: Golden, path: Path) -> dict[str, int]:
 
 
 def compare_recordings(a: Path, b: Path) -> list[str]:
-    """Differences between two recordings, frame by frame (topic, log time, payload bytes); [] if equal."""
+    """Differences between two recordings, frame by frame; [] if they are the same.
+
+    Topic, log time, header seq and pub_ns and every integer, string and state must be
+    equal; floats within ``same_output``'s stated tolerance (docs/portability.md §1).
+    """
     fa, fb = list(read_recording(a, tolerant=False)), list(read_recording(b, tolerant=False))
     diffs = [f"{len(fa)} vs {len(fb)} frames"] if len(fa) != len(fb) else []
     for k, (x, y) in enumerate(zip(fa, fb)):
-        if (x.topic, x.log_time_ns, x.payload) != (y.topic, y.log_time_ns, y.payload):
-            diffs.append(f"frame {k}: {x.topic}@{x.log_time_ns} vs {y.topic}@{y.log_time_ns}"
-                         + ("" if x.payload == y.payload else " (payload differs)"))
+        if (x.topic, x.log_time_ns) != (y.topic, y.log_time_ns):
+            diffs.append(f"frame {k}: {x.topic}@{x.log_time_ns} vs {y.topic}@{y.log_time_ns}")
+            continue
+        mx, my = decode(x.payload), decode(y.payload)
+        differs = ("header.pub_ns" if mx.header.pub_ns != my.header.pub_ns
+                   else same_output(mx, my, check_seq=True))
+        if differs is not None:
+            diffs.append(f"frame {k}: {x.topic}@{x.log_time_ns}: {differs}")
     return diffs
 
 

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from slipstack.messages import Header, TactileFrame, Wrench
+from slipstack.messages import GripState, Header, TactileFrame, Wrench
 
-__all__ = ["COLS", "MS", "PITCH_M", "ROWS", "pressure_for", "tactile", "wrench"]
+__all__ = ["COLS", "MS", "PITCH_M", "ROWS", "finger", "pressure_for", "tactile", "wrench"]
 
 MS = 1_000_000
 """Nanoseconds per millisecond."""
@@ -51,3 +51,9 @@ def tactile(t_ms: float, f_n: float, *, seq: int = 0, status: str = "ok", stamp_
                        saturated=np.zeros(n, bool), dead=np.zeros(n, bool), status=status,
                        header=Header(stamp, seq, stamp, {}))
     return round(t_ms * MS), "tactile/frame", msg
+
+
+def finger(t_ms: float, f_n: float, mode: str = "following") -> tuple[int, str, GripState]:
+    """The finger's report at ``t_ms``: it holds to ``f_n`` N, in ``mode`` (``initial``: never commanded)."""
+    stamp = round(t_ms * MS)
+    return stamp, "grip/state", GripState(f_n_command=f_n, mode=mode, header=Header(stamp, 0, stamp, {}))

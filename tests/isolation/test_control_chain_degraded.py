@@ -10,9 +10,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sensor_frames import MS, tactile, wrench
+from sensor_frames import MS, finger, tactile, wrench
 
+from slipstack.lib.grip_laws import LAWS
 from slipstack.messages import GripCommand
+from slipstack.nodes.cor_estimator import CorEstimator, CorParams
 from slipstack.nodes.fusion import Fusion, FusionParams
 from slipstack.nodes.grip_controller import GripController, GripControllerParams
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
@@ -48,7 +50,7 @@ def test_an_ft_only_contact_loaded_past_friction_does_not_command_the_nominal_gr
     # 1.11 mu f_n (a load that slips), the old chain read "stick, gamma 0, ok" and commanded 2 N.
     ex, _ = chain()
     f_n = 4.0
-    ex.feed(wrench(k, f_n, 1.11 * MU * f_n, seq=k) for k in range(1, 30))
+    ex.feed([finger(0, f_n), *(wrench(k, f_n, 1.11 * MU * f_n, seq=k) for k in range(1, 30))])
     ex.run(until_ns=40 * MS)
     cmds = commands(ex)
     assert cmds, "the controller must say something once it has verdicts"
@@ -144,6 +146,28 @@ def test_a_restarted_controller_begins_from_the_force_the_finger_applies():
     steps = np.diff([c.f_n_desired for c in cmds])
     gaps_s = np.diff([c.header.pub_ns for c in cmds]) * 1e-9
     assert np.all(np.abs(steps) <= 200.0 * gaps_s + 1e-9)  # then down at the slew limit only
+
+
+@pytest.mark.parametrize("law", sorted(LAWS))
+def test_a_controller_restarted_after_an_ft_bias_holds_what_the_finger_holds(law):
+    # Issue 29: one RDT BIAS datagram zeroes the F/T reading while the finger squeezes 14 N, then
+    # the control container crashes. The new controller's verdicts are implausible (the pad is
+    # pressed at 14 N, the F/T reads ~0 N): it holds the finger's 14 N. The old start took the
+    # verdict's measured ~0 N and commanded f_nom, 2 N (fig15: 0.47 mm slid, 7.06 deg turned).
+    ctrl = GripController(GripControllerParams(law=law, mu=MU, f_nom_n=2.0, f_max_n=20.0))
+    nodes = [Fusion(FusionParams()), SlipDetector(SlipDetectorParams(method="exact", mu=MU, also=[])), ctrl]
+    ex = InProcessExecutor([*nodes[:2], CorEstimator(CorParams(mu=MU)), ctrl] if law == "tactile14" else nodes)
+    events = [finger(0, 14.0)]
+    for k in range(1, 120):
+        if k % 2 == 0:
+            events.append(tactile(k, 14.0, seq=k))
+        events.append(wrench(k + 0.1, 0.0, 0.0, seq=k))  # biased: the F/T reads nothing
+    ex.feed(events)
+    ex.run(until_ns=130 * MS)
+    cmds = commands(ex)
+    assert len(cmds) > 50 and all(c.reason == "fail-safe" for c in cmds), [c.reason for c in cmds[:5]]
+    assert min(c.f_n_desired for c in cmds) >= 14.0  # then raised while blind: a load was held
+    assert any("implausible" in s.status for s in ex.published["slip"])
 
 
 def test_blind_and_loaded_the_controller_raises_the_grip_by_its_policy():

@@ -1,17 +1,16 @@
 """Offline and online agree: a golden recording's contacts replayed through the library
 detector (lib/detector.py) and through the slip_detector node (in-process executor)
-give the same verdict on every frame, and both give the recorded one."""
+give the same verdict on every frame, and both give the recorded one (states, stamps and
+statuses exactly, floats within ``same_value``'s stated tolerance: docs/portability.md §1)."""
 
 from __future__ import annotations
-
-import math
 
 import pytest
 from golden_config import GOLDENS, Golden, build_node
 
 from slipstack.lib.detector import Detector, DetectorSettings
 from slipstack.messages import Contact, Slip, decode
-from slipstack.nodes.recording.bag_io import read_recording, replay_into
+from slipstack.nodes.recording.bag_io import read_recording, replay_into, same_value
 from slipstack.nodes.material_param import resolve_material
 
 
@@ -23,19 +22,9 @@ def _library_settings(golden: Golden) -> DetectorSettings:
     return DetectorSettings.from_material(resolve_material("rubber"), **params)
 
 
-def _same(a: float, b: float) -> bool:
-    return a == b or (math.isnan(a) and math.isnan(b))
-
-
 def _row(stamp_ns: int, state: str, gamma: float, margin: float, status: str, p_c: tuple | None,
          verdicts: dict) -> tuple:
     return stamp_ns, state, gamma, margin, status, p_c, {k: (bool(s), float(m)) for k, (s, m) in verdicts.items()}
-
-
-def _rows_equal(a: tuple, b: tuple) -> bool:
-    (sa, sta, ga, ma, sa_, pa, va), (sb, stb, gb, mb, sb_, pb, vb) = a, b
-    return ((sa, sta, sa_, pa) == (sb, stb, sb_, pb) and _same(ga, gb) and _same(ma, mb)
-            and va.keys() == vb.keys() and all(va[k][0] == vb[k][0] and _same(va[k][1], vb[k][1]) for k in va))
 
 
 def _message_row(m: Slip) -> tuple:
@@ -57,7 +46,7 @@ def test_library_detector_matches_the_node_frame_by_frame(golden: Golden) -> Non
 
     assert len(library) == len(node) == len(recorded) > 50
     for k, (mine, theirs, rec) in enumerate(zip(library, node, recorded)):
-        assert _rows_equal(mine, theirs), f"frame {k}: library {mine} != node {theirs}"
-        assert _rows_equal(mine, rec), f"frame {k}: library {mine} != recorded {rec}"
+        assert same_value(mine, theirs), f"frame {k}: library {mine} != node {theirs}"
+        assert same_value(mine, rec), f"frame {k}: library {mine} != recorded {rec}"
     states = {row[1] for row in library}
     assert "stick" in states and states & {"translation", "rotation", "combined"}, states  # the latch was exercised

@@ -3,11 +3,13 @@ or go stale, and never lowers it in fail-safe."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from slipstack.lib.defaults import F_MAX_N
-from slipstack.messages import Header, Slip
+from slipstack.messages import GripState, Header, Slip, decode
 from slipstack.nodes.grip_controller import GripController, GripControllerParams
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 
@@ -129,11 +131,46 @@ def test_diagnostics_say_fail_safe_and_why_while_the_grip_is_held_and_ok_once_va
     assert recovered.status == "ok" and recovered.counters["grip.fail_safe_steps"] == 5
 
 
-def test_a_controller_that_never_had_a_valid_verdict_counts_the_contact_as_loaded_when_blind():
-    # started into stale data (e.g. restarted while the F/T driver hangs): it cannot know the
-    # finger is empty, so after the 50 ms grace the held grip rises at 10 N/s
-    events = [(k * MS, "slip", _slip(k, 0.9, stamp_ns=(k - 30) * MS)) for k in range(31, 131)]
-    cmds = _run(events, until_ms=131, params=DEFAULTS)
+def _finger(k: int, f_n: float, mode: str = "following") -> tuple[int, str, GripState]:
+    """The finger's report at ``k`` ms: it holds to ``f_n`` N, in ``mode``."""
+    return k * MS, "grip/state", GripState(f_n_command=f_n, mode=mode, header=Header(k * MS, k, k * MS, {}))
+
+
+STALE = [(k * MS, "slip", _slip(k, 0.9, stamp_ns=(k - 30) * MS)) for k in range(31, 131)]  # measured 4 N, 30 ms old
+
+
+def test_a_controller_restarted_into_stale_data_holds_what_the_finger_reports_then_rises_blind():
+    # restarted while the F/T driver hangs, the finger held 6 N for the controller before: the
+    # stale 4 N is no start; a load was held, so after the 50 ms grace the grip rises at 10 N/s
+    cmds = _run([_finger(30, 6.0), *STALE], until_ms=131, params=DEFAULTS)
     assert all(c.reason == "fail-safe" for c in cmds)
-    assert cmds[0].f_n_desired == 4.0  # started from the measured force
-    assert cmds[-1].f_n_desired == pytest.approx(4.0 + 10.0 * 0.050, rel=1e-9)  # 50 rising 1 ms steps, 81-130 ms
+    assert cmds[0].f_n_desired == 6.0
+    assert cmds[-1].f_n_desired == pytest.approx(6.0 + 10.0 * 0.050, rel=1e-9)  # 50 rising 1 ms steps, 81-130 ms
+
+
+def test_a_launch_into_stale_data_holds_the_fingers_own_grip_and_never_squeezes():
+    cmds = _run([_finger(30, 3.0, mode="initial"), *STALE], until_ms=131, params=DEFAULTS)
+    assert len(cmds) == 100 and all(c.reason == "fail-safe" and c.f_n_desired == 3.0 for c in cmds)
+
+
+def test_without_the_fingers_report_no_command_or_f_hold_after_the_wait():
+    assert _run(STALE, until_ms=131, params=DEFAULTS) == []  # nothing known: the finger keeps its grip
+    longer = [(k * MS, "slip", _slip(k, 0.9, stamp_ns=(k - 30) * MS)) for k in range(31, 141)]
+    cmds = _run(longer, until_ms=141, params=dataclasses.replace(DEFAULTS, f_hold_n=12.0))
+    assert cmds[0].header.pub_ns == 131 * MS and cmds[0].f_n_desired == 12.0  # 100 ms after the first verdict
+
+
+def test_an_injected_verdict_is_never_trusted_not_even_before_the_first_real_one():
+    ex = InProcessExecutor([GripController(DEFAULTS)])
+    host = ex.host("grip_controller")
+    forged = _slip(1, 0.0, f_n=0.5)  # "ok, no load": the law would release to f_nom
+    host.dispatch("slip", forged, sender="topic_pub-1")
+    assert ex.published["grip/command"] == [] and host.counters["handler_errors"] == 0
+    ex.feed([(k * MS, "slip", _slip(k, 1.8)) for k in range(2, 21)])  # exact law: 8 N
+    ex.run(until_ns=20 * MS)
+    held = ex.published["grip/command"][-1].f_n_desired
+    host.dispatch("slip", _slip(20, 0.0, f_n=0.5), sender="topic_pub-1")
+    last = ex.published["grip/command"][-1]
+    assert (last.f_n_desired, last.reason) == (held, "fail-safe") and held > 7.0  # on its way to 8 N at 200 N/s
+    assert decode(host.diagnostics()).status == "fail-safe: slip verdict injected by topic_pub-1: not trusted"
+    assert host.counters["grip.injected_verdicts"] == 2

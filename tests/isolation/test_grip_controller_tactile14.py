@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from sensor_frames import MS
+from sensor_frames import MS, finger
 
 from slipstack.messages import Contact, Cor, Header, Slip
 from slipstack.nodes.grip_controller import GripController, GripControllerParams
@@ -103,7 +103,8 @@ def test_law_14_holds_the_measured_force_while_the_cor_torque_is_within_capacity
     {"with_cor": False},              # no COR yet
 ])
 def test_law_14_holds_the_grip_without_a_valid_fresh_contact_and_cor(degraded):
-    cmds = run(steady(5, T_C - 0.05, **degraded), until_ms=5)  # the load would let the law relax
+    # the finger reports what it holds: the first command on untrusted data holds it
+    cmds = run([finger(0, F_N), *steady(5, T_C - 0.05, **degraded)], until_ms=5)  # the load would let the law relax
     assert len(cmds) == 5 and all(c.reason == "fail-safe" for c in cmds)
     assert all(c.f_n_desired == F_N for c in cmds)
 

@@ -4,52 +4,7 @@ bug at a time, run the tests that should notice, report the bugs nobody noticed 
 
 Usage (from the worktree root; ``make mutation`` runs every configured module)::
 
-    .venv/bin/python tests/mutation/mutate.py                       # all modules of config.toml
-    .venv/bin/python tests/mutation/mutate.py lib/detection.py      # one module
-    .venv/bin/python tests/mutation/mutate.py lib/weber.py --line 203   # mutants on one line
-    .venv/bin/python tests/mutation/mutate.py lib/weber.py --list   # print the mutants, run nothing
-
-Why a runner of its own and not mutmut or cosmic-ray: mutmut 3 copies the sources into
-``mutants/`` and imports them by their folder names, but this project maps folders to
-``slipstack.*`` packages (``package-dir`` in pyproject.toml), so the copy is not what
-the tests import; and neither tool knows that a numba kernel must be recompiled
-without its on-disk cache (see below). This runner is a few hundred lines with no
-dependency beyond the standard library.
-
-How: the module's source is parsed (``ast``) and one operator is changed at a time
-(see :data:`OPERATORS`); the mutated text replaces exactly the changed expression,
-so every other line, comment and line number stays as it was. The runner copies the
-worktree into a temporary folder once (see :class:`_Sandbox`: the tests import
-``slipstack`` from the copy), writes each mutant over the copy's file, runs the
-module's test selection (``config.toml``) with ``pytest -x`` in a process forked from
-the runner (numpy, scipy, numba, pytest and hypothesis already imported; slipstack
-is imported afresh from the copy in each child) and puts the original text back. The
-worktree is never modified.
-
-Outcomes: *killed* (a test failed), *timeout* (the tests ran longer than
-``max(60 s, 5 × the clean run)``: an endless loop, counted as killed), *survived*
-(every selected test passed), *equivalent* (survived and listed in
-``equivalent.txt`` with a reason: no test can tell it from the original).
-
-The numba kernels (:mod:`slipstack.lib.weber`, :mod:`slipstack.lib.limit_set`): by
-default the mutants run compiled, as in production. That costs a recompile of the
-mutated file's kernels per mutant (10-30 s on two busy cores), so ``--interpreted``
-(what ``make mutation`` uses) runs them under ``NUMBA_DISABLE_JIT=1`` (1.5-3 s); as
-interpreted code raises on a division by zero or a math domain error where the
-compiled kernels return IEEE ``inf``/NaN, a mutant killed only by such an exception is
-re-run compiled before it counts. In compiled runs numba's cache beside the source is never used:
-``NUMBA_CACHE_DIR`` points into a temporary folder. A mutant inside a kernel, or at
-module level in ``lib/`` (a constant is frozen into every kernel that reads it), gets a fresh,
-empty cache folder: a kernel of another file that calls the mutated one (``limit_set``
-calls ``weber.newton_step``) would otherwise be loaded from a cache compiled against
-the original callee. A mutant inside a plain Python function shares one cache folder
-per run (the kernels are unchanged). Python's bytecode cache is not written
-(``PYTHONDONTWRITEBYTECODE``; the copy starts without one): it keys on the file's
-mtime in whole seconds and its size, which two mutants can share.
-
-Equivalent mutants: ``equivalent.txt`` lists them one per line as
-``path:line:col operator  # reason``. After the source changes, the runner names
-the entries that match no mutant any more (re-check them).
+More in docs/modules.md, `tests/mutation/mutate.py`.
 """
 
 from __future__ import annotations

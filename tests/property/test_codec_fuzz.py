@@ -3,21 +3,7 @@ garbage bursts between good frames, arbitrary chunking.
 
 Guarantees checked:
 
-* nothing ever raises;
-* CRC-protected formats (Robotiq, Bota, DSACON32 non-empty packets, framed crc16 and crc16-ccitt):
-  every good frame after garbage is recovered, exactly and in order, and nothing
-  else is decoded. This holds unless a false sync in the garbage passes the check
-  by chance (2**-16 per false candidate for a CRC-16), so the run is derandomized:
-  a passing run stays passing;
-* the u12 range-checked framed format (no CRC): every good frame is recovered (a
-  false candidate overlapping a good frame's header always holds a byte > 0x0F in
-  a high-byte position), but a sync in the junk followed by in-range bytes decodes
-  as an extra frame;
-* CRC-less M1616: good frames come out in order, and a good frame is lost only if
-  the garbage right before it holds a header pattern (weaker guarantee, framed.py).
-
-The stream ends with ``max_length`` zero bytes, as a live stream would go on: a
-false candidate near the end then completes and is rejected.
+More in docs/modules.md, `tests/property/test_codec_fuzz.py`.
 """
 
 from __future__ import annotations

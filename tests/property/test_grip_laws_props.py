@@ -12,6 +12,7 @@ from hypothesis.extra.numpy import arrays
 
 from slipstack.lib.grip_laws import (
     ExactLaw,
+    FingerReport,
     Ft13Law,
     Ft13SigmaLaw,
     GripGovernor,
@@ -160,4 +161,44 @@ def test_governor_finite_bounded_rate_limited_and_holds(
         assert abs(d.f_n_desired - last) <= rate * advance * 1e-9 + 1e-9
         if d.reason is GripReason.FAIL_SAFE:
             assert d.f_n_desired == last  # held: never below (nor above) the last command
+        last = d.f_n_desired
+
+
+finger_reports = st.one_of(st.none(), st.builds(FingerReport, anything, st.booleans()))
+
+
+@given(law=st.sampled_from(LAWS), seq=steps, finger=finger_reports,
+       f_hold=st.one_of(st.none(), st.floats(0.0, 2 * F_MAX)), grace=st.integers(-1, 60_000_000))
+def test_governor_start_contract(law: GripLaw, seq: list[tuple[GripInput, int, int, bool]],
+                                 finger: FingerReport | None, f_hold: float | None, grace: int) -> None:
+    """docs/safety.md, clause 4, for every law: the first command is never below the force
+    measured when the step is trusted, nor below the finger's report; with neither, nothing
+    until the wait for the report is over, then f_hold; all within the bounds. Until a valid
+    step, the grip is held, and raised only for a finger a controller commanded before."""
+    gov = GripGovernor(law, timeout_ns=50_000_000, max_rate_n_per_s=300.0, f_hold_n=f_hold,
+                       finger_wait_ns=100_000_000, blind_grace_ns=grace)
+    now, first, last, asked = 0, None, None, None
+    for inp, advance, age, ok in seq:
+        now += advance
+        asked = now if asked is None else asked
+        d = gov.step(inp, now_ns=now, stamps_ns=[now - age], status_ok=ok, finger=finger)
+        trusted = ok and age <= 50_000_000 and math.isfinite(inp.f_n)
+        if first is None:
+            floors = ([inp.f_n] if trusted else []) + (
+                [finger.f_n_command] if finger and math.isfinite(finger.f_n_command) else [])
+            if not floors and f_hold is not None and now - asked >= 100_000_000:
+                floors = [f_hold]
+            if not floors:
+                assert d is None
+                continue
+            first = min(max(max(floors), F_NOM), F_MAX)
+            assert d.f_n_desired == first  # valid or not: the first step moves nowhere (dt 0)
+        else:
+            assert d is not None
+        if d.reason is not GripReason.FAIL_SAFE:
+            return  # a valid step: the law takes over (the other properties hold from here)
+        if last is not None:
+            squeezes = finger is not None and finger.commanded and math.isfinite(finger.f_n_command)
+            assert d.f_n_desired == last or (squeezes and d.f_n_desired > last)
+        assert F_NOM <= d.f_n_desired <= F_MAX
         last = d.f_n_desired

@@ -2,13 +2,7 @@
 in-process executor: valid frames (any values the declarations allow) and hostile
 ones (random bytes, corrupted payloads, the wrong type, resource bombs).
 
-For each frame: no exception escapes and no handler raises (``handler_errors``
-stays 0); the frame is either handled or rejected and counted
-(``in.<topic>.rejected``); and its cost stays within a budget of
-:data:`CPU_FACTOR` × the node's nominal per-frame CPU time (process time, so a
-loaded machine does not count against it) and :data:`MEMORY_FACTOR` × its nominal
-allocation peak (tracemalloc), each with a small floor for clock and allocator
-granularity.
+More in docs/modules.md, `tests/property/test_node_fuzz_budget.py`.
 """
 
 from __future__ import annotations
@@ -28,7 +22,8 @@ from msg_strategies import valid_message
 
 from slipstack.lib.errors import DecodeError
 from slipstack.messages import (
-    Contact, Cor, Diagnostics, GripCommand, Header, Message, RigTruth, Slip, TactileFrame, Wrench, decode, encode,
+    Contact, Cor, Diagnostics, GripCommand, GripState, Header, Message, RigTruth, Slip, TactileFrame, Wrench, decode,
+    encode,
 )
 from slipstack.messages.codec import packb
 from slipstack.nodes.catalog import node_class
@@ -69,6 +64,7 @@ def _nominal_frames() -> dict[type[Message], Message]:
         Slip: Slip(state="stick", margin=0.6, method="exact", verdicts={"exact": [True, 0.6]}, gamma=0.4,
                    f_n=contact.f_n, f_t=contact.f_t, tau=contact.tau),
         GripCommand: GripCommand(f_n_desired=6.0, law="exact", reason="nominal"),
+        GripState: GripState(f_n_command=6.0, mode="following"),
         RigTruth: RigTruth(f_n_applied=6.0, f_n_command=6.0),
         Diagnostics: Diagnostics(node="fusion", counters={"in.contact.received": 10}),
     }

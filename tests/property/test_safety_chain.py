@@ -5,13 +5,7 @@ stamped in the past or the future, marked stale or disconnected, zeroed (a biase
 F/T sensor) or carrying a random load — go through the real fusion, slip detector
 and grip controller nodes on the in-process executor. Whatever happens:
 
-- no handler raises;
-- every command lies in ``[f_nom, f_max]`` and moves no faster than the slew limit;
-- a command on invalid, stale or missing data (reason ``fail-safe``) is never below
-  the command before it;
-- a command derived from a sensor sample whose status was not ``ok`` is ``fail-safe``;
-- a command lower than the one before derives from a faultless F/T sample and, for
-  the laws that read the tactile pad, a faultless tactile frame paired with it.
+More in docs/modules.md, `tests/property/test_safety_chain.py`.
 """
 
 from __future__ import annotations

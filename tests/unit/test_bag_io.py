@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import shutil
 
 import numpy as np
@@ -12,7 +13,8 @@ from mcap.reader import make_reader
 from slipstack.messages import Diagnostics, Header, Wrench, decode, encode
 from slipstack.nodes.recording.bag_io import (
     MESSAGE_ENCODING, SCHEMA_ENCODING, RecordingError, RecordingWriter,
-    match_outputs, message_schema, read_recording, recording_info, replay_into, same_output,
+    FLOAT_ATOL, FLOAT_RTOL, match_outputs, message_schema, read_recording, recording_info, replay_into, same_output,
+    same_value,
 )
 from slipstack.nodes.demo import Relay, WrenchSource
 from slipstack.nodes.recording.export import export_recording
@@ -170,12 +172,28 @@ def test_replay_into_reproduces_recorded_outputs(tmp_path):
 def test_same_output_names_the_difference():
     a = Wrench(force=np.array([1.0, 2.0, 3.0]), torque=np.zeros(3), header=Header(1, 0, 2, {"w": 1}))
     assert same_output(a, Wrench(force=a.force, torque=a.torque, header=Header(1, 5, 99, {"w": 1}))) is None
-    assert same_output(a, Wrench(force=a.force + [0, 0, 1e-12], torque=a.torque, header=a.header)) == "force"
+    assert same_output(a, Wrench(force=a.force + [0, 0, 1e-6], torque=a.torque, header=a.header)) == "force"
     assert same_output(a, Wrench(force=a.force, torque=a.torque, header=Header(2, 0, 2, {"w": 1}))).startswith(
         "header.stamp_ns")
     assert same_output(a, Wrench(force=a.force, torque=a.torque, status="stale", header=a.header)).startswith("status")
     assert "header.seq" in same_output(a, Wrench(force=a.force, torque=a.torque, header=Header(1, 1, 2, {"w": 1})),
                                        check_seq=True)
+
+
+def test_same_value_compares_floats_within_the_stated_tolerance_and_the_rest_exactly():
+    """A replay on another CPU differs in the last bits of its floats (docs/portability.md §1)."""
+    x = 0.01033215058729231  # a COR coordinate (m) as two machines computed it (issue 27)
+    assert same_value(x, 0.010332150587292033) and same_value(x, x * (1 + 0.9 * FLOAT_RTOL))
+    assert not same_value(x, x * (1 + 2 * FLOAT_RTOL)) and not same_value(1.0, 1.0 + 1e-8)
+    assert same_value(1e-17, -3e-18) and not same_value(0.0, 2 * FLOAT_ATOL)  # cancelled to ~0: the floor
+    assert same_value(math.nan, math.nan) and not same_value(math.nan, 0.0) and not same_value(math.inf, 1e308)
+    assert not same_value(3, 4) and not same_value("stick", "slip") and not same_value(True, False)
+    assert same_value(np.float32([1e4, 0.0]), np.float32([1e4 + 2 ** -9, 0.0]))  # float32: 1 ulp of 1e4
+    assert not same_value(np.float32([1e4]), np.float32([1e4 + 0.1]))
+    assert not same_value(np.array([1.0]), np.array([1.0], dtype=np.float32))  # dtype and shape exact
+    assert not same_value(np.array([1, 2]), np.array([1, 3])) and not same_value(np.zeros(2), np.zeros(3))
+    assert same_value({"a": (True, 0.5)}, {"a": (True, 0.5 + 1e-17)}) and not same_value({"a": 1}, {"b": 1})
+    assert not same_value({"a": (True, 0.5)}, {"a": (False, 0.5)})
 
 
 def test_playback_timing_rate_and_loop(tmp_path):

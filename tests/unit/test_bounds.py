@@ -3,6 +3,7 @@ exported schemas; the frame size and socket limits of the transport."""
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -13,7 +14,7 @@ from slipstack.lib.errors import ConfigError, DecodeError
 from slipstack.lib.status import SolverStatus
 from slipstack.messages import Contact, Cor, Diagnostics, GripCommand, Slip, TactileFrame, Wrench, decode, encode
 from slipstack.messages.codec import MAX_PAYLOAD_BYTES, packb
-from slipstack.messages.types import MAX_COUNTERS, MAX_TEXT_LEN
+from slipstack.messages.types import MAX_COUNTERS, MAX_GRIP_FORCE_N, MAX_PITCH_M, MAX_TEXT_LEN
 from slipstack.messages.json_schema import json_schema
 from slipstack.nodes.recording.bag_io import message_schema
 from slipstack.nodes.devices import LinkStatus
@@ -87,6 +88,25 @@ def test_values_outside_the_declared_bounds_are_rejected_naming_the_field(cls, f
         decode(_payload(cls, **over))
     assert f"{cls.TYPE}.{field}:" in str(err.value) and why in str(err.value)
     assert len(str(err.value)) < 600  # a huge value is never echoed back (the list of choices may be long)
+
+
+_PAD_ARRAYS = {"pressure_pa": np.zeros(256, np.float32), "saturated": np.zeros(256, bool), "dead": np.zeros(256, bool)}
+_NO_PAD = {"rows": 0, "cols": 0, "phi": np.zeros(0), "mask": np.zeros(0, bool)}  # an F/T-only contact
+
+
+@pytest.mark.parametrize(("cls", "field", "legal", "illegal"), [
+    (TactileFrame, "pitch_m", [math.ulp(0.0), MAX_PITCH_M], [0.0, -0.0, math.nextafter(MAX_PITCH_M, math.inf)]),
+    (Contact, "pitch_m", [0.0, MAX_PITCH_M], [-math.ulp(0.0), math.nextafter(MAX_PITCH_M, math.inf)]),
+    (GripCommand, "f_n_desired", [0.0, MAX_GRIP_FORCE_N], [-math.ulp(0.0), math.nextafter(MAX_GRIP_FORCE_N, math.inf)]),
+])
+def test_each_bound_admits_its_edge_and_refuses_the_next_float_past_it(cls, field, legal, illegal):
+    """The edge values themselves, not far-off ones: > 0 refuses 0, <= 1000 admits 1000."""
+    arrays = _PAD_ARRAYS if cls is TactileFrame else _NO_PAD if cls is Contact else {}
+    for value in legal:
+        assert getattr(decode(_payload(cls, **arrays, **{field: value})), field) == value
+    for value in illegal:
+        with pytest.raises(DecodeError, match=rf"{cls.TYPE}\.{field}:"):
+            decode(_payload(cls, **arrays, **{field: value}))
 
 
 def test_a_10_mb_string_is_refused_by_the_decoder_without_echoing_it():

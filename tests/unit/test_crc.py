@@ -89,3 +89,15 @@ def test_the_crcs_run_interpreted():
                           env={**os.environ, "NUMBA_DISABLE_JIT": "1"})
     assert done.returncode == 0, done.stderr[-2000:]
     assert "CRC-16/MODBUS" in done.stdout
+
+
+def test_importing_the_crcs_loads_no_kernel():
+    """A process that frames no CRC (an F/T driver on RDT) does not pay numba's import and
+    first dispatch (0.5 s of CPU) for the protocols it imports; the check values still hold."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from slipstack.lib.protocols import bota, dsacon32, framed, robotiq; "
+            "print('numba' in sys.modules)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stdout.strip() == "False", done.stdout + done.stderr[-2000:]

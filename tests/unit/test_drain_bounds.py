@@ -166,3 +166,82 @@ def test_a_flood_over_the_rate_pauses_reading_after_a_bounded_number_of_frames(c
         member.start_clock(t0)  # next diagnostics in 1 s
         assert member.next_due() == member.inject_resume_ns  # the loop wakes to resume reading
         assert member.inject_sock.getsockopt(zmq.EVENTS) & zmq.POLLIN  # the rest is left unread
+
+
+class _Heavy(Node):
+    """A queue input whose every frame costs its handler ``COST_S`` of work (a heavy legal frame)."""
+
+    COST_S = 0.005
+    name = "heavy_node"
+    inputs = {"queued": Input("grip/wrench", Wrench, policy="queue", depth=10_000)}
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.handled = 0
+
+    def on_queued(self, msg: Wrench, ctx) -> None:
+        end = time.perf_counter() + self.COST_S
+        while time.perf_counter() < end:
+            pass
+        self.handled += 1
+
+
+def test_injected_work_takes_at_most_its_share_of_the_node_whatever_each_frame_costs(ctx, tmp_path):
+    """A 5 kHz flood of legal frames, 5 ms of handler work each, within the frame and byte budgets:
+    over one second of the node's clock they may take 20 % of it (and the 20 ms burst), not all of
+    it (before: the frame bucket admitted 200 at once, a second of work); what queued while it
+    was paused is dropped, not handled late."""
+    endpoint = f"ipc://{tmp_path}/h.inject"
+    node = _Heavy()
+    member = _Member(node, RunSpec(name="h", inject={"grip/wrench": endpoint}, inject_rate_hz=100_000.0,
+                                   inject_burst=100_000), ctx)
+    tool = ctx.socket(zmq.XPUB)
+    tool.setsockopt(zmq.LINGER, 0)
+    tool.connect(endpoint)
+    try:
+        deadline = time.monotonic() + 10
+        while not tool.poll(10):
+            member.inject_sock.getsockopt(zmq.EVENTS)
+            assert time.monotonic() < deadline, "the member never subscribed"
+        tool.recv()
+        t0, now, work, k = 10**12, 10**12, 0, 0
+        while now < t0 + 1_000_000_000:  # one second of the node's clock, in 1 ms wake-ups, 5 frames each
+            for _ in range(5):
+                tool.send_multipart([b"grip/wrench", _wrench(k)], zmq.NOBLOCK)
+                k += 1
+            if member.inject_resume_ns is None or now >= member.inject_resume_ns:
+                member.inject_resume_ns = None
+                w0 = time.perf_counter_ns()
+                member.drain_injected(now)
+                spent = time.perf_counter_ns() - w0
+                member.charge_injected_work(spent, now)
+                work += spent
+            now += 1_000_000
+        share = RunSpec.inject_work_share
+        assert node.handled >= 2, dict(member.host.counters)  # not vacuous: the share was used
+        assert work <= share * 1e9 + RunSpec.inject_work_burst_s * 1e9 + 2 * _Heavy.COST_S * 1e9, work / 1e6
+        assert node.handled <= (share + RunSpec.inject_work_burst_s) / _Heavy.COST_S + 2, node.handled
+        assert member.host.counters["inject.work_pauses"] >= 1
+        assert member.host.counters["inject.dropped_backlog"] > 0
+    finally:
+        tool.close(linger=0)
+        for sock in member.sockets():
+            sock.close(linger=0)
+
+
+def test_a_frame_over_the_byte_budget_is_dropped_before_it_is_decoded(ctx, tmp_path, monkeypatch):
+    """A wrench of ~55 KB (8000 header sources: a frame of the right shape, 200 times a wrench's size) against a
+    byte burst of 16 KB: read and counted, never unpacked."""
+    heavy = encode(Wrench(force=np.zeros(3), torque=np.zeros(3)), Header(1, 0, 1, {f"s{k}": 1 for k in range(8000)}))
+    with _injected(ctx, tmp_path, topics=["ft/wrench"], inject_burst_bytes=16_384) as (node, member, tool):
+        decoded = []
+        real_receive = member.host.receive
+        monkeypatch.setattr(member.host, "receive", lambda *a, **kw: decoded.append(a[1]) or real_receive(*a, **kw))
+        for k in range(5):
+            tool.send_multipart([b"ft/wrench", heavy])
+        tool.send_multipart([b"ft/wrench", _wrench(7)])
+        _settle()
+        member.drain_injected(10**12)
+        c = member.host.counters
+        assert len(heavy) > 50_000 and c["inject.dropped_bytes"] == 5 and decoded == [_wrench(7)]
+        assert node.handled["latest"] == [7]

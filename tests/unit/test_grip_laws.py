@@ -11,6 +11,7 @@ import pytest
 
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.grip_laws import (
+    FingerReport,
     LAWS,
     ExactLaw,
     Ft13Law,
@@ -257,19 +258,62 @@ def test_governor_fail_safe_before_any_input_holds_initial() -> None:
     assert (d.f_n_desired, d.reason) == (2.0, GripReason.FAIL_SAFE)
 
 
-def test_a_started_governor_begins_from_the_measured_force_not_f_nom() -> None:
-    # A respawned controller while the finger squeezes 12.9 N: its first command is 12.9 N,
-    # valid data or not, and the law then moves it at the slew limit (200 N/s: 2 N per 10 ms).
+def test_a_started_governor_begins_from_the_trusted_measured_force_not_f_nom() -> None:
+    # A respawned controller while the finger squeezes 12.9 N on valid data: its first command is
+    # 12.9 N, and the law then moves it at the slew limit (200 N/s: 2 N per 10 ms).
     measured = GripInput(f_t=(0.3, 0.4), f_n=12.9)  # law demand 2 N (f_nom)
     fresh = _governor(initial_n=None)
     first = fresh.step(measured, now_ns=0, stamps_ns=[0])
     assert first.f_n_desired == pytest.approx(12.9)
     assert fresh.step(measured, now_ns=10 * MS, stamps_ns=[10 * MS]).f_n_desired == pytest.approx(10.9)
-    blind = _governor(initial_n=None)
-    held = blind.step(measured, now_ns=0, stamps_ns=[-(100 * MS)])
-    assert (held.f_n_desired, held.reason) == (pytest.approx(12.9), GripReason.FAIL_SAFE)
-    unknown = _governor(initial_n=None).step(GripInput(f_t=(0.3, 0.4)), now_ns=0, stamps_ns=[-(100 * MS)])
-    assert unknown.f_n_desired == 30.0  # nothing measured: the never-release answer, f_max
+
+
+def test_an_untrusted_measurement_is_no_start_the_finger_report_is() -> None:
+    # One RDT BIAS datagram zeroes the F/T: the verdict is implausible, its f_n ~0 N. The old
+    # governor started there (f_nom, 2 N) although the finger held 14 N.
+    biased = GripInput(f_t=(0.0, 0.0), f_n=0.01)
+    gov = _governor(initial_n=None)
+    assert gov.step(biased, now_ns=0, stamps_ns=[0], status_ok=False) is None  # nothing known: no command
+    held = gov.step(biased, now_ns=MS, stamps_ns=[MS], status_ok=False, finger=FingerReport(14.0, True))
+    assert (held.f_n_desired, held.reason) == (14.0, GripReason.FAIL_SAFE)
+    stale = _governor(initial_n=None).step(GripInput(f_n=25.0), now_ns=0, stamps_ns=[-(100 * MS)],
+                                           finger=FingerReport(14.0, True))
+    assert stale.f_n_desired == 14.0  # a stale measurement is not trusted either, however high
+
+
+def test_the_start_is_the_highest_of_what_is_known_within_the_bounds() -> None:
+    lower_finger = _governor(initial_n=None).step(GripInput(f_n=12.9), now_ns=0, stamps_ns=[0],
+                                                  finger=FingerReport(11.0, True))
+    higher_finger = _governor(initial_n=None).step(GripInput(f_n=12.9), now_ns=0, stamps_ns=[0],
+                                                   finger=FingerReport(13.5, True))
+    above_f_max = _governor(initial_n=None).step(GripInput(f_n=1.0), now_ns=0, stamps_ns=[0],
+                                                 finger=FingerReport(45.0, True))
+    below_f_nom = _governor(initial_n=None).step(GripInput(f_n=0.5), now_ns=0, stamps_ns=[0],
+                                                 finger=FingerReport(1.0, False))
+    assert [d.f_n_desired for d in (lower_finger, higher_finger, above_f_max, below_f_nom)] == [12.9, 13.5, 30.0, 2.0]
+
+
+def test_without_trusted_data_or_a_report_f_hold_comes_after_the_wait_for_the_finger() -> None:
+    gov = _governor(initial_n=None, f_hold_n=9.0, finger_wait_ns=100 * MS)
+    waiting = [gov.step(LOAD, now_ns=k * 10 * MS, stamps_ns=[k * 10 * MS], status_ok=False) for k in range(10)]
+    assert waiting == [None] * 10  # 0..90 ms: the finger's report may be on its way
+    held = gov.step(LOAD, now_ns=100 * MS, stamps_ns=[100 * MS], status_ok=False)
+    assert (held.f_n_desired, held.reason) == (9.0, GripReason.FAIL_SAFE)
+    nothing = _governor(initial_n=None)  # no f_hold: no command at all while nothing is known
+    assert all(nothing.step(LOAD, now_ns=k * 100 * MS, stamps_ns=[0], status_ok=False) is None for k in range(50))
+
+
+def test_a_launch_holds_blind_it_does_not_squeeze_a_restart_escalates() -> None:
+    # The finger's power-on grip (never commanded): held while the sensors start, however long.
+    launch = _governor(initial_n=None, blind_grace_ns=50 * MS)
+    out = [launch.step(LOAD, now_ns=k * 10 * MS, stamps_ns=[k * 10 * MS], status_ok=False,
+                       finger=FingerReport(3.0, False)).f_n_desired for k in range(100)]
+    assert out == [3.0] * 100
+    # A finger a controller commanded before: a load was held, so blind it rises after the grace.
+    restart = _governor(initial_n=None, blind_grace_ns=50 * MS, blind_rise_n_per_s=10.0)
+    out = [restart.step(LOAD, now_ns=k * 10 * MS, stamps_ns=[k * 10 * MS], status_ok=False,
+                        finger=FingerReport(14.0, True)).f_n_desired for k in range(16)]
+    assert out[:5] == [14.0] * 5 and out[-1] == pytest.approx(15.1)  # 10 N/s from 40 to 150 ms, after 50 ms
 
 
 def test_governor_escalates_while_blind_and_loaded_then_recovers_rate_limited() -> None:

@@ -111,3 +111,23 @@ def test_the_gripper_graph_runs_each_finger_under_its_namespace():
     assert remaps["ft_driver1"]["ft/wrench"] == "finger1/ft/wrench"
     assert remaps["fusion1"]["tactile/frame"] == "finger1/tactile/frame"
     assert remaps["slip_detector0"]["slip"] == "finger0/slip" and remaps["grasp"] == {}
+def test_the_values_an_argument_comment_lists_are_the_codes():
+    """Shell completion offers the ``a | b`` an argument's comment lists (launch/launch_command.py):
+    they must be the values the nodes accept."""
+    from slipstack.launch.launch_command import _CHOICES
+    from slipstack.launch.launch_file import arg_comments, default_launch_file
+    from slipstack.lib.grip_laws import LAWS
+    from slipstack.nodes.cor_estimator import SOLVERS
+    from slipstack.nodes.grip_controller import INCREMENTS
+    from slipstack.nodes.rig import FT_PROTOCOLS, TACTILE_PROTOCOLS
+    from slipstack.nodes.slip_detector import KNOWN_COR_METHOD, SLIP_TESTS
+
+    comments = arg_comments(default_launch_file())
+    listed = {name: {v.strip() for v in m.group(0).split("|")} for name, text in comments.items()
+              if (m := _CHOICES.search(text))}
+    assert listed["law"] == set(LAWS)
+    assert listed["method"] == {*SLIP_TESTS, KNOWN_COR_METHOD}
+    assert listed["cor_solver"] == set(SOLVERS)
+    assert listed["ft_protocol"] == set(FT_PROTOCOLS) and listed["tactile_protocol"] == set(TACTILE_PROTOCOLS)
+    assert listed["increment"] == set(INCREMENTS)
+    assert listed["rig_material"] == {p.stem for p in (default_launch_file().parents[1] / "materials").glob("*.toml")}

@@ -88,3 +88,17 @@ def test_without_a_machine_every_machines_nodes_are_planned_here(tmp_path: Path)
     assert all(n.endpoint.startswith("ipc://") and n.remote_endpoint is None for n in plan.nodes.values())
     with pytest.raises(ConfigError, match=r"no machine 'lab'; machines: robot, workstation"):
         plan_launch(launch, tmp_path, "lab")
+
+
+def test_grip_commands_verdicts_and_the_fingers_report_are_injected_only_where_the_launch_allows(tmp_path: Path):
+    plan = _plan(tmp_path, "fig15")
+    assert plan.nodes["rig"].inject == {}  # grip/command: only the controller commands the finger
+    assert set(plan.nodes["grip_controller"].inject) == {"contact", "cor"}  # no slip, no grip/state
+    assert set(plan.nodes["fusion"].inject) == {"ft/wrench", "tactile/frame"}  # sensor data: replay, tests
+    own = tmp_path / "manual.toml"
+    own.write_text('[launch]\nextends = "fig15.toml"\nallow_inject = ["grip/command"]\n')
+    plan = _plan(tmp_path, str(own))
+    assert set(plan.nodes["rig"].inject) == {"grip/command"} and "slip" not in plan.nodes["grip_controller"].inject
+    own.write_text('[launch]\nextends = "fig15.toml"\nallow_inject = ["grip/comand"]\n')
+    with pytest.raises(ConfigError, match=r"allow_inject names \['grip/comand'\], which no node"):
+        _plan(tmp_path, str(own))

@@ -1,18 +1,6 @@
 """The import layers of docs/architecture.md §9, checked over the source tree with ast.
 
-Lowest first: ``lib`` imports nothing of ours but ``lib``; ``messages`` imports ``lib``;
-``nodes`` imports ``lib`` and ``messages``; ``launch`` imports those three;
-``analysis`` (offline runs and figures, on lock-step launches) imports those four; the
-command line (``launch/cli.py``) names a verb of every layer and is the top. Inside ``nodes`` the same holds by
-folder: ``runtime`` and ``devices`` know no node; ``recording`` sits on ``runtime``;
-the graph's nodes (the modules directly in ``nodes/``) use those three; ``tools`` may
-use everything in ``nodes`` and nothing uses ``tools``. ``lib`` and ``messages`` never
-import zmq. An import counts wherever it is written (module level or inside a
-function), and so does a module named in a string (``importlib.import_module(
-"slipstack.x.y")``, the node catalog's ``"slipstack.nodes.demo:Relay"``).
-
-Violations would be listed one by one in :data:`ALLOWED`; a new one fails the test,
-and an entry that no longer occurs fails it too, so the list only shrinks.
+More in docs/modules.md, `tests/unit/test_layering.py`.
 """
 
 from __future__ import annotations

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from numba import config as numba_config
 from scipy.optimize import minimize
 
 from slipstack.lib.limit_set import load_factor, torsional_coefficient
@@ -466,6 +467,7 @@ def test_a_capacity_that_underflows_is_refused_not_divided_by():
     assert res.status is SolverStatus.INVALID_INPUT
 
 
+@pytest.mark.skipif(numba_config.DISABLE_JIT, reason="specialisations are compiled code: none with the JIT off")
 def test_the_solvers_kernels_have_one_specialisation_whatever_arrays_they_are_given():
     """A read-only array is a numba type of its own; the kernels take every array read-only
     (``kernel_input``), so a node passing writable pooled taxels loads no second specialisation."""

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import os
-import random
 import signal
 import threading
 import time
@@ -19,6 +18,8 @@ import msgpack
 import pytest
 import zmq
 import zmq.auth
+
+from free_ports import free_port, free_port_block
 
 from slipstack.launch.launch_file import load_launch_file
 from slipstack.launch import launcher as launcher_module
@@ -32,18 +33,20 @@ from slipstack.nodes.runtime.time_base import CLOCK_OFFSET_ENV, graph_clock
 from slipstack.nodes.runtime.transport import make_pub, make_sub
 
 BUILTINS = {"run_dir": "/tmp/slipstack-test"}
+FIRST = free_port_block(100, ("127.0.0.1", "127.0.0.2"))
+"""Both machines' first port (machine a holds 5, b 100), free when this module loads."""
 GRAPH = """
 [launch]
 {launch}
 
 [machines.a]
 address = "{a}"
-ports = [31200, 31204]
+ports = [{first}, {last_a}]
 {a_keys}
 
 [machines.b]
 address = "127.0.0.2"
-ports = [31200, 31299]
+ports = [{first}, {last_b}]
 {b_keys}
 
 [[node]]
@@ -67,8 +70,8 @@ machine = "b"
 def _load(tmp_path: Path, *, launch: str = "", a: str = "127.0.0.1", a_keys: str = 'keys = "keys/a"',
           b_keys: str = 'keys = "keys/b"', source: str = "", relay: str = "", extra: str = ""):
     path = tmp_path / "two.toml"
-    path.write_text(GRAPH.format(launch=launch, a=a, a_keys=a_keys, b_keys=b_keys, source=source, relay=relay)
-                    + extra)
+    path.write_text(GRAPH.format(launch=launch, a=a, a_keys=a_keys, b_keys=b_keys, source=source, relay=relay,
+                                 first=FIRST, last_a=FIRST + 4, last_b=FIRST + 99) + extra)
     return load_launch_file(str(path), builtins=BUILTINS)
 
 
@@ -99,9 +102,9 @@ def test_both_launchers_compute_the_same_endpoints_ipc_inside_a_machine_tcp_betw
     source = specs["a"]["source.spec.json"]
     relay, sink = specs["b"]["relay.spec.json"], specs["b"]["sink.spec.json"]
     # the port of a node: its machine's first port (the launcher's) + 1 + its rank by name
-    assert source["pub"].startswith("ipc://") and source["pub_remote"] == "tcp://127.0.0.1:31201"
-    assert relay["pub_remote"] == "tcp://127.0.0.2:31201" and sink["pub_remote"] == "tcp://127.0.0.2:31202"
-    assert relay["subs"]["ft/wrench"] == ["tcp://127.0.0.1:31201"]  # from the other machine: tcp
+    assert source["pub"].startswith("ipc://") and source["pub_remote"] == f"tcp://127.0.0.1:{FIRST + 1}"
+    assert relay["pub_remote"] == f"tcp://127.0.0.2:{FIRST + 1}" and sink["pub_remote"] == f"tcp://127.0.0.2:{FIRST + 2}"
+    assert relay["subs"]["ft/wrench"] == [f"tcp://127.0.0.1:{FIRST + 1}"]  # from the other machine: tcp
     assert sink["subs"]["ft/relayed"] == [relay["pub"]] and relay["pub"].startswith("ipc://")  # same machine: ipc
     assert source["expected_subscribers"] == {"ft/wrench": 1}  # the relay on b is waited for,
     assert source["handshake_timeout_s"] == launcher_module.PEER_WAIT_S  # as long as b's launcher may take
@@ -127,7 +130,7 @@ def test_each_machine_knows_which_other_machine_its_topics_come_from(tmp_path, k
     ({"a_keys": "", "b_keys": ""}, r"link over tcp without keys.*or insecure = true"),
     ({"extra": '[[node]]\nname = "x"\ntype = "sink"\nmachine = "c"\n'}, r"node x: no \[machines.c\]; machines: a, b"),
     ({"extra": '[[node]]\nname = "x"\ntype = "sink"\n[[node]]\nname = "y"\ntype = "sink"\n'},
-     r"\[machines.a\].ports \[31200, 31204\] holds 5 ports; it needs 6"),
+     rf"\[machines.a\].ports \[{FIRST}, {FIRST + 4}\] holds 5 ports; it needs 6"),
     ({"relay": 'container = "box"', "extra": '[[node]]\nname = "z"\ntype = "sink"\ncontainer = "box"\n'},
      r"share container 'box' but differ in .*machine"),
 ])
@@ -136,18 +139,25 @@ def test_bad_machine_tables_are_refused_with_what_to_do(tmp_path, change, messag
         _load(tmp_path, **change)
 
 
-def test_after_a_node_of_a_machine_that_is_not_up_names_the_machine(tmp_path, keys, monkeypatch):
-    monkeypatch.setattr(launcher_module, "READY_TIMEOUT_S", 1.0)
+@pytest.mark.parametrize("source, waits_for", [
+    ('after = ["relay"]', "relay"),
+    # the simulated world (stop_first) waits for every node elsewhere: with the control path on
+    # another machine still starting, the rig had run its scene uncontrolled (issue 29)
+    ("stop_first = true", "relay, sink"),
+])
+def test_a_node_that_waits_for_a_machine_that_is_not_up_names_the_machine(tmp_path, keys, monkeypatch, source,
+                                                                           waits_for):
+    monkeypatch.setattr(launcher_module, "PEER_WAIT_S", 1.0)
     lines: list[str] = []
     run_dir = tmp_path / "run"
     run_dir.mkdir(mode=0o700)
-    launcher = Launcher(_load(tmp_path, source='after = ["relay"]'), run_dir, machine="a", echo=lines.append)
+    launcher = Launcher(_load(tmp_path, source=source), run_dir, machine="a", echo=lines.append)
     try:
         assert launcher.run() == 1
     finally:
         curve.use_keys(None)  # the launcher took machine a's keys for its own links
-    assert any("node source (wrench_source) starts after relay on machine b (127.0.0.2), not ready after 1 s: is "
-               "`slipstack launch two.toml --machine b` running there?" in line for line in lines), lines
+    assert any(f"node source (wrench_source) starts after {waits_for} on machine b (127.0.0.2), not ready after 1 s: "
+               "is `slipstack launch two.toml --machine b` running there?" in line for line in lines), lines
 
 
 def test_launch_keys_name_the_directory_of_every_machines_key_directory(tmp_path, keys):
@@ -175,12 +185,13 @@ def test_a_machine_admits_the_graphs_machines_and_no_stranger_while_ipc_stays_pl
     ctx = zmq.Context()
     try:
         curve.use_keys(keys[0], "a", hosts)
-        pub = make_pub(ctx, f"ipc://{tmp_path}/a.pub", remote="tcp://127.0.0.1:31290")
+        port = free_port()
+        pub = make_pub(ctx, f"ipc://{tmp_path}/a.pub", remote=f"tcp://127.0.0.1:{port}")
         plain_ipc = make_sub(ctx, [f"ipc://{tmp_path}/a.pub"], None)  # ipc: no CURVE on that endpoint
         curve.use_keys(keys[1], "b", hosts)
-        member = make_sub(ctx, ["tcp://127.0.0.1:31290"], None)
+        member = make_sub(ctx, [f"tcp://127.0.0.1:{port}"], None)
         curve.use_keys(stranger, "b", hosts)
-        outsider = make_sub(ctx, ["tcp://127.0.0.1:31290"], None)
+        outsider = make_sub(ctx, [f"tcp://127.0.0.1:{port}"], None)
         time.sleep(0.3)
         end = time.monotonic() + 1.5
         counts = {"ipc": 0, "member": 0, "outsider": 0}
@@ -192,6 +203,31 @@ def test_a_machine_admits_the_graphs_machines_and_no_stranger_while_ipc_stays_pl
                     counts[name] += 1
             time.sleep(0.005)
         assert counts["ipc"] > 20 and counts["member"] > 20 and counts["outsider"] == 0, counts
+    finally:
+        curve.use_keys(None)
+        ctx.destroy(linger=0)
+
+
+def test_one_subscriber_of_publishers_on_both_machines_hears_them_all(tmp_path, keys):
+    """The recorder on machine b taps the graph with one SUB: the tcp publishers of a (CURVE)
+    and the ipc publishers of b (plain), connected in graph.json's order, whichever comes first."""
+    hosts = {"127.0.0.1": "a"}
+    ctx = zmq.Context()
+    try:
+        curve.use_keys(keys[0], "a", hosts)
+        remote = make_pub(ctx, f"ipc://{tmp_path}/a.pub", remote=f"tcp://127.0.0.1:{free_port()}")
+        curve.use_keys(keys[1], "b", hosts)
+        local = [make_pub(ctx, f"ipc://{tmp_path}/b{k}.pub") for k in range(2)]
+        tcp = remote.getsockopt(zmq.LAST_ENDPOINT).decode()
+        tap = make_sub(ctx, [f"ipc://{tmp_path}/b0.pub", tcp, f"ipc://{tmp_path}/b1.pub"], None)
+        heard: set[bytes] = set()
+        end = time.monotonic() + 10.0
+        while time.monotonic() < end and len(heard) < 3:
+            for name, pub in ((b"a", remote), (b"b0", local[0]), (b"b1", local[1])):
+                pub.send_multipart([b"t", name])
+            while tap.poll(5):
+                heard.add(tap.recv_multipart()[1])
+        assert heard == {b"a", b"b0", b"b1"}
     finally:
         curve.use_keys(None)
         ctx.destroy(linger=0)
@@ -311,7 +347,7 @@ def test_the_launcher_warns_when_the_clock_offset_drifts_beyond_half_the_control
         tmp_path, keys, monkeypatch, shift_ms, warned):
     monkeypatch.setattr(peers_module, "PING_PERIOD_S", 0.01)  # the estimate's window fills in a second
     monkeypatch.setattr(launcher_module, "DRIFT_CHECK_S", 0.1)
-    first = random.randrange(20000, 32000, 10)  # below the ephemeral ports
+    first = free_port_block(10)
     path = tmp_path / "drift.toml"
     path.write_text(DRIFT_GRAPH.format(first=first, last=first + 9))
     lf = load_launch_file(str(path), builtins=BUILTINS)

@@ -265,9 +265,9 @@ def test_check_names_every_problem(tmp_path):
         t = s * 1_000_000_000 - 1
         events.append((t, "diagnostics", _diag("control", t)))
         if s <= 1:
-            events.append((t, "diagnostics", _diag("ft_driver", t)))
+            events.append((t, "diagnostics", _diag("ft_driver", t, **{"out.ft/wrench.published": 500.0 * s})))
         if s <= 2 or s >= 6:
-            events.append((t, "diagnostics", _diag("tactile_driver", t)))
+            events.append((t, "diagnostics", _diag("tactile_driver", t, **{"out.tactile/frame.published": 250.0 * s})))
     s, logs, _ = monitor_over(events, tmp_path, check_path=str(check))
     verdict = json.loads(check.read_text())
     assert verdict["passed"] is False
@@ -294,9 +294,10 @@ def test_a_node_back_after_a_silence_is_told_restarted_or_stalled(tmp_path):
         if 2 < k < 6:
             continue
         t = k * 1_000_000_000
-        events.append((t, "diagnostics", Diagnostics(node="fusion", counters={}, header=Header(t, k, t, {}))))
+        data = {"out.contact.published": 100.0 * k}  # nodes of the data path: their silence fails the check
+        events.append((t, "diagnostics", Diagnostics(node="fusion", counters=data, header=Header(t, k, t, {}))))
         seq = k if k <= 2 else k - 6
-        events.append((t, "diagnostics", Diagnostics(node="slip_detector", counters={}, header=Header(t, seq, t, {}))))
+        events.append((t, "diagnostics", Diagnostics(node="slip_detector", counters=data, header=Header(t, seq, t, {}))))
     s, logs, _ = monitor_over([(t, topic, encode(m)) for t, topic, m in events], tmp_path)
     assert s["nodes_restarted_after_silence"] == ["slip_detector"]
     assert ("node fusion went silent for 4.0 s and came back as the same process (it stalled: a machine too busy, "
@@ -466,7 +467,7 @@ def test_the_summary_counts_the_ft_samples_fusion_received_carried_and_the_slip_
                                                                        "fusion.samples": 7000})))
     events.append((61 * MS, "diagnostics", _diag("slip_detector", 61 * MS, **{"slip_test.samples_judged": 6990})))
     s, logs, _ = monitor_over(events, tmp_path)
-    assert s["ft_samples"] == {"received": 7000, "carried": 7000, "judged": 6990}
+    assert s["ft_samples"] == {"received": 7000, "carried": 7000, "judged": 6990, "implausible": 0}
     assert s["skipped_for_newer"] == {}
     assert any("samples not examined (skipped for a newer one, or beyond a batch's depth): none" in line
                for line in logs)
@@ -533,7 +534,72 @@ def test_short_health_lines_name_each_problem_in_a_few_words(tmp_path):
     assert "HEALTH: fail-safe 50.0% of commands (allowed 1%)" in shown, shown
     assert "commands late (over 20 ms, worst 30 ms)" in shown, shown
     assert "control: 4000 commands; fail-safe 50.0% (1999 of 3999), late" in shown, shown
-    assert "bus: 7 frames lost (fusion ft/wrench 7 of " in shown and "fusion skipped 40.0% of ft/wrench" in shown
+    assert "bus: 7 frames lost (most: fusion ft/wrench 7 of " in shown and "fusion skipped 40.0% of ft/wrench" in shown
+
+
+# -- the check judges the control path; advice fits the node ------------------------------------
+def test_a_silent_observer_is_reported_and_does_not_fail_the_check(tmp_path):
+    """10 s: the recorder (it publishes no data) stalls from 2 s to 6 s and the
+    Foxglove bridge stops at 1 s; the data path reports every second. The check passes
+    (it used to fail on "node recorder went silent"), and HEALTH still names both."""
+    check = tmp_path / "check.json"
+    events = [(k * MS, "rig/truth", _truth(k * MS)) for k in range(0, 10_000, 10)]
+    for s in range(1, 11):
+        t = s * 1_000_000_000 - 1
+        events.append((t, "diagnostics", _diag("control", t, **{"in.ft/wrench.received": 500.0 * s,
+                                                                 "out.grip/command.published": 500.0 * s})))
+        if s <= 2 or s >= 6:
+            events.append((t, "diagnostics", Diagnostics(node="recorder", counters={"recorder.written": 500.0 * s},
+                                                         header=Header(t, s, t, {}))))
+        if s <= 1:
+            events.append((t, "diagnostics", _diag("foxglove", t, **{"in.slip.received": 500.0})))
+    s, logs, _ = monitor_over(events, tmp_path, check_path=str(check), verbose=False)
+    assert json.loads(check.read_text())["passed"] is True
+    assert s["observers"] == ["foxglove", "recorder"]
+    shown = [line for line in logs if line.startswith("[monitor] HEALTH:")]
+    assert shown == ["[monitor] HEALTH: foxglove silent for the last 9.0 s (observer)",
+                     "[monitor] HEALTH: recorder silent 4.0 s, then back (stalled, observer)"], shown
+    assert all(not h["fails_check"] for h in s["health"])
+    assert "the control path did not depend on it" in s["health"][1]["text"]
+
+
+def test_behind_real_time_advice_fits_the_node(tmp_path):
+    """Raising the priority is advised only to a node of the data path that did not run with
+    it: not to the rig under SCHED_FIFO (the default where granted; it was advised
+    `realtime:=10` there), not to the recorder, which is not real-time."""
+    events = [(t * MS, "rig/truth", _truth(t * MS)) for t in range(100)]
+    events.append((60 * MS, "diagnostics", _diag("rig", 60 * MS, **{"out.rig/truth.published": 60,
+                                                                    "timer.tick.skipped": 35,
+                                                                    "timer.tick.skipped_realtime": 35})))
+    events.append((61 * MS, "diagnostics", _diag("ft_driver", 61 * MS, **{"out.ft/wrench.published": 60,
+                                                                          "timer.poll.skipped": 3})))
+    events.append((62 * MS, "diagnostics", _diag("recorder", 62 * MS, **{"in.slip.received": 60,
+                                                                         "timer.poll.skipped": 128})))
+    s, logs, _ = monitor_over(events, tmp_path)
+    advice = {line.split("HEALTH: ")[1].split()[0]: line for line in logs if "HEALTH:" in line}
+    assert "already runs with real-time priority" in advice["rig"] and "realtime:=10" not in advice["rig"]
+    assert "`realtime:=10`" in advice["ft_driver"]
+    assert "not real-time" in advice["recorder"] and "realtime" not in advice["recorder"].replace("real-time", "")
+
+
+def test_the_graph_file_says_who_observes(tmp_path, monkeypatch):
+    """In a launched graph the monitor takes the observers from ``graph.json``: a rig that stops
+    before its scene starts has published no data yet, and was taken for an observer."""
+    (tmp_path / "graph.json").write_text(json.dumps({"nodes": {
+        "rig": {"outputs": {"rig/truth": "slipstack/RigTruth", "diagnostics": "slipstack/Diagnostics"}},
+        "recorder": {"outputs": {"diagnostics": "slipstack/Diagnostics"}}}}))
+    monkeypatch.setenv("SLIPSTACK_RUN_DIR", str(tmp_path))
+    events = []
+    for s in range(1, 11):
+        t = s * 1_000_000_000 - 1
+        if s <= 1:
+            events += [(t, "diagnostics", _diag("rig", t)), (t, "diagnostics", _diag("recorder", t))]
+        events.append((t, "diagnostics", _diag("control", t, **{"out.grip/command.published": 500.0 * s})))
+    check = tmp_path / "check.json"
+    s, _, _ = monitor_over(events, tmp_path, check_path=str(check))
+    assert s["observers"] == ["recorder"]
+    assert json.loads(check.read_text())["problems"] == ["node rig went silent: no diagnostics for the last 9.0 s "
+                                                         "(dead or stopped?)"]
 
 
 def test_the_live_line_says_when_the_detector_runs_without_an_identified_material():

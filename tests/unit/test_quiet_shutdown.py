@@ -8,11 +8,11 @@ import logging
 from slipstack.launch.quiet_shutdown import WorldEndFilter, WorldLogLevels
 from slipstack.nodes.runtime.logs import parse_log_levels
 
-README_LEVELS = "warning,monitor=info"  # the README's example
+DOCS_LEVELS = "warning,monitor=info"  # docs/operating.md's example
 
 
 def test_the_world_logs_its_end_of_scene_under_warning_and_the_launcher_hides_it():
-    levels = WorldLogLevels(README_LEVELS, {"rig": ("rig",)})
+    levels = WorldLogLevels(DOCS_LEVELS, {"rig": ("rig",)})
     default, per_node = parse_log_levels(levels.spec_for("rig"))  # what the rig's process runs with
     assert per_node.get("rig", default) == logging.INFO  # it writes its end of scene for the launcher
     line = "scene default finished"
@@ -23,10 +23,10 @@ def test_the_world_logs_its_end_of_scene_under_warning_and_the_launcher_hides_it
 
 
 def test_levels_of_the_world_follow_what_was_asked():
-    levels = WorldLogLevels(README_LEVELS, {"rig": ("rig",)})
+    levels = WorldLogLevels(DOCS_LEVELS, {"rig": ("rig",)})
     assert levels.shown("rig", "warning: rig fell behind") and levels.shown("rig", "error: x")
     assert levels.shown("monitor", "STATUS ...")  # not the world: the node filters itself
-    assert levels.spec_for("monitor") == README_LEVELS
+    assert levels.spec_for("monitor") == DOCS_LEVELS
     assert WorldLogLevels("", {"rig": ("rig",)}).spec_for("rig") == ""
     debug = WorldLogLevels("warning,rig=debug", {"rig": ("rig",)})
     assert debug.spec_for("rig") == "warning,rig=debug" and debug.shown("rig", "debug: tick")

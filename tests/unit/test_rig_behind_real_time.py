@@ -73,3 +73,15 @@ def test_a_tick_within_the_tolerance_or_a_burst_of_made_up_ticks_is_not_late():
     assert pace.report(30 * MS, 0) is None  # told
     with pytest.raises(ValueError):
         LateTicks(period_ns=0, late_after_ns=0, report_every_ns=0)
+
+
+def test_the_report_of_a_loop_under_sched_fifo_does_not_advise_realtime():
+    """The rig runs under SCHED_FIFO by default where the launcher may set it: its report
+    used to advise `realtime:=10` all the same."""
+    for realtime, advised in ((False, True), (True, False)):
+        pace = LateTicks(period_ns=MS, late_after_ns=5 * MS, report_every_ns=0)
+        pace.tick(0)
+        pace.tick(20 * MS)
+        report = pace.report(20 * MS, 0, realtime)
+        assert ("`realtime:=10`" in report) is advised, report
+        assert "free a core" in report and "--lockstep" in report

@@ -1,15 +1,6 @@
 """The plant step (one compiled call: bristles and body) against the numpy chain it replaced.
 
-Until the plant kernel, :class:`~slipstack.lib.rig.simulator.Simulator` stepped the
-bristles with one kernel call per operation (``_ChainedField`` below: the 1637698
-friction step, verbatim in substance), summed over the taxels with numpy (BLAS) and
-solved the body in Python (``_reference_twist``: the same solve, interpreted; the
-body's physics is checked in tests/unit/test_rig_physics.py). The kernel sums in plain loops and
-takes libm's ``exp``, so the two differ in their last bits only: a sum of N ≤ 256
-terms rounds differently by at most ~N·eps of its terms' magnitudes (~6e-14), and
-the solve and a few dozen steps of this stable (implicit mid-point) system do not
-amplify that past 1e-12 of each quantity's scale. Stick/slip decisions are compared
-exactly: random draws do not land within 1e-12 of a threshold.
+More in docs/modules.md, `tests/unit/test_rig_bristle_step.py`.
 """
 
 from __future__ import annotations

@@ -13,6 +13,7 @@ import pytest
 
 from slipstack.messages import Diagnostics, Header, TactileFrame, Wrench, encode
 from slipstack.nodes.recording.bag_io import RecordingError, RecordingWriter, read_recording
+from slipstack.nodes.recording.loss import written_loss
 from slipstack.nodes.recording.writer_process import BATCH_BYTES, RecordingWriterProcess
 
 OFFSET = 1_700_000_000_000_000_000
@@ -41,6 +42,7 @@ def test_the_child_writes_the_file_an_in_process_writer_writes_byte_for_byte(tmp
     with RecordingWriter(tmp_path / "here.mcap", wall_minus_monotonic_ns=OFFSET) as here:
         for topic, payload, t in sent:
             here.write(topic, payload, t)
+        here.close(written_loss(here))  # the child's record: every frame it was handed is in the file
     with RecordingWriterProcess(tmp_path / "child.mcap", wall_minus_monotonic_ns=OFFSET) as child:
         for topic, payload, t in sent:
             child.write(topic, payload, t)
