@@ -180,6 +180,10 @@ class Grasp(Node):
         loaded = any(s is not None and s.state != SlipState.NO_CONTACT for s in (s0, s1))
         decision = self.governor.step(GripInput(demand_n=demand, f_n=f_n), now_ns=now, stamps_ns=stamps or [],
                                       status_ok=ok, loaded=loaded)
+        if decision is None:  # nothing trusted to start from yet (docs/safety.md): no command, the gripper keeps its grip
+            ctx.count("grip.waiting_to_start")
+            ctx.set_status("starting", "no trusted verdict of both fingers yet: no command, the gripper keeps its grip")
+            return
         self._fail_safe = decision.reason is GripReason.FAIL_SAFE
         if self._fail_safe:
             ctx.count("grip.fail_safe_steps")
