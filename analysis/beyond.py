@@ -1,183 +1,24 @@
-"""Beyond the paper: the cost and accuracy of each slip test, grip force against the
-oracle, and how far the limit surfaces (5) and (6) are from the exact limit set.
+"""Beyond the paper: grip force against the oracle, and how far the limit surfaces (5) and
+(6) are from the exact limit set (the cost and accuracy of each slip test is
+:mod:`slipstack.analysis.sensitivity`).
 
 More in docs/modules.md, `analysis/beyond.py`.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
-import os
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import matplotlib.ticker
 import numpy as np
 
 from slipstack.analysis.figures import FigureText, plt, save_png
 from slipstack.analysis.grip_oracle import oracle_series
-from slipstack.analysis.runs import Run
-from slipstack.lib.episodes import LEAD_NS, MARGIN_NS, RELEASE_NS, detection_quality
 from slipstack.lib.limit_set import load_factor, torsional_coefficient
 from slipstack.lib.pad import PadGeometry
-from slipstack.nodes.slip_detector import SlipDetector
 
-__all__ = ["DetectorSetting", "SettingScore", "DETECTOR_SETTINGS", "score_setting", "pareto", "grip_economy",
-           "LimitError", "limit_error", "limit_errors"]
-
-
-@dataclass(frozen=True)
-class DetectorSetting:
-    """A deciding slip test and its taxel pooling (``pool`` × ``pool`` blocks; 1: off)."""
-
-    method: str
-    pool: int = 1
-
-    @property
-    def label(self) -> str:
-        return self.method if self.pool == 1 else f"{self.method}, pool {self.pool}"
-
-
-DETECTOR_SETTINGS: tuple[DetectorSetting, ...] = (
-    DetectorSetting("coulomb"), DetectorSetting("decoupled"), DetectorSetting("linear_ls"),
-    DetectorSetting("elliptic_ls"), DetectorSetting("tactile_cor"), DetectorSetting("tactile_cor", 2),
-    DetectorSetting("tactile_cor_robust"), DetectorSetting("tactile_cor_robust", 2), DetectorSetting("exact"),
-    DetectorSetting("exact", 2))
-"""Every deciding test the detector offers on a free object (``tactile_cor_known`` needs a
-fixed pivot, which fig14 and fig15 do not have), and pooling 2 for the tactile ones."""
-
-
-@dataclass(frozen=True)
-class SettingScore:
-    """One setting's cost and accuracy over the replayed runs.
-
-    us_per_frame: mean wall time of one ``Detector.step`` (µs); episodes, missed: true
-    gross-slip episodes and those with no flag in their window; false_alarm_share: flagged
-    sticking frames outside every episode's window among all sticking ones; delays_ms: the
-    rise of the flag minus the onset per detected episode (ms, negative: before; all as
-    ``lib/episodes.py`` defines them); agreement: for the runs' own setting, the share of
-    frames where the replay's latched state equals the published one (NaN otherwise).
-    """
-
-    setting: DetectorSetting
-    us_per_frame: float
-    episodes: int
-    missed: int
-    false_alarm_share: float
-    delays_ms: tuple[float, ...]
-    agreement: float = math.nan
-
-    @property
-    def delay_p50_ms(self) -> float:
-        return float(np.median(self.delays_ms)) if self.delays_ms else math.nan
-
-
-def _truth_ns(run: Run) -> np.ndarray:
-    return np.round(run["rig/truth"]["t"] * 1e9).astype(np.int64)
-
-
-def score_setting(runs: list[Run], setting: DetectorSetting) -> SettingScore:
-    """Replay every run's contacts through a fresh ``slip_detector`` node's detector with
-    ``setting`` (the run's other detector parameters), timed, and score the flags."""
-    episodes = missed = false_alarm_frames = stick_frames = 0
-    delays: list[float] = []
-    elapsed_ns = frames = same = own = 0
-    for run in runs:
-        params = dataclasses.replace(run.detector, method=setting.method, pool=setting.pool, also=[])
-        detector = SlipDetector(params).detector
-        stamps = np.empty(len(run.contacts), dtype=np.int64)
-        flags = np.empty(len(run.contacts), dtype=bool)
-        for i, msg in enumerate(run.contacts):
-            t0 = time.perf_counter_ns()
-            verdict = detector.step(msg, msg.header.stamp_ns, tactile_frame=msg.header.sources.get("tactile"))
-            elapsed_ns += time.perf_counter_ns() - t0
-            stamps[i], flags[i] = msg.header.stamp_ns, verdict.slipping
-        frames += len(run.contacts)
-        if (run.detector.method, run.detector.pool) == (setting.method, setting.pool):
-            published = run["slip"]["state"]
-            n = min(len(published), len(flags))
-            same += int(np.sum((published[:n] != "stick") & (published[:n] != "no-contact") == flags[:n]))
-            own += n
-        truth = run["rig/truth"]
-        q = detection_quality(_truth_ns(run), truth["gross_slip"].astype(bool), stamps, flags)
-        episodes += len(q.episodes)
-        missed += q.missed
-        false_alarm_frames += q.false_alarm_frames
-        stick_frames += q.stick_frames
-        delays += [d / 1e6 for d in q.delays_ns]
-    return SettingScore(setting, elapsed_ns / 1e3 / max(frames, 1), episodes, missed,
-                        false_alarm_frames / max(stick_frames, 1), tuple(delays), same / own if own else math.nan)
-
-
-def _dominated(a: SettingScore, scores: list[SettingScore]) -> bool:
-    """Whether another setting is at least as cheap and as accurate in every respect, and better in one."""
-    def key(s: SettingScore) -> tuple[float, ...]:
-        return s.us_per_frame, s.missed, s.false_alarm_share, s.delay_p50_ms if s.delays_ms else math.inf
-
-    ka = key(a)
-    return any(all(x <= y for x, y in zip(key(b), ka)) and key(b) != ka for b in scores if b is not a)
-
-
-def pareto(*runs_and_out) -> FigureText:
-    """Cost per frame against accuracy of every detector setting, on the detection-only runs."""
-    *runs, out = runs_and_out
-    load = os.getloadavg()
-    scores = [score_setting(list(runs), s) for s in DETECTOR_SETTINGS]
-    fig, axes = plt.subplot_mosaic([["cost", "delay"], ["legend", "legend"]], figsize=(13, 6.8),
-                                   height_ratios=[4, 1])
-    ax0, ax1 = axes["cost"], axes["delay"]
-    for k, s in enumerate(scores):
-        front = not _dominated(s, scores)
-        marker = "o" if s.setting.pool == 1 else "s"
-        style = {"color": f"C{k % 10}", "ms": 9, "mfc": f"C{k % 10}" if front else "none", "mew": 1.8}
-        label = f"{s.setting.label}: missed {s.missed}/{s.episodes}{' (Pareto front)' if front else ''}"
-        ax0.plot(s.us_per_frame, s.false_alarm_share * 100, marker, label=label, **style)
-        if s.delays_ms:
-            ax1.plot(s.us_per_frame, s.delay_p50_ms, marker, **style)
-            ax1.vlines(s.us_per_frame, min(s.delays_ms), max(s.delays_ms), color=f"C{k % 10}", lw=1)
-    for ax in (ax0, ax1):
-        ax.set_xscale("log")
-        ax.xaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
-        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
-        ax.grid(alpha=0.3, which="both")
-    ax0.set(xlabel="cost per frame (µs, Detector.step, this machine)", ylabel="false alarms (% of sticking frames)",
-            title="cost against false alarms (filled: on the Pareto front)")
-    ax1.axhline(0, color="0.4", lw=0.8)
-    ax1.set_yscale("symlog", linthresh=LEAD_NS / 1e6)  # linear within ± the lead, logarithmic beyond
-    ax1.yaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
-    ax1.set(xlabel="cost per frame (µs)", ylabel="flag raised − true onset (ms)",
-            title="cost against detection delay (median; bar: min to max)")
-    scenes = ", ".join(r.experiment.key for r in runs)
-    fig.suptitle(f"Every slip test replayed over the contacts of {scenes} (controller off)", fontsize=11)
-    axes["legend"].axis("off")
-    axes["legend"].legend(*ax0.get_legend_handles_labels(), fontsize=8, loc="center", ncol=3)
-    png = save_png(fig, out, "pareto")
-    rows = "; ".join(f"{s.setting.label} {s.us_per_frame:.0f} µs, missed {s.missed}/{s.episodes}, "
-                     f"false alarms {s.false_alarm_share * 100:.1f} %, " + (f"delay {s.delay_p50_ms:+.0f} ms" if s.delays_ms else
-                                                          "no episode detected") for s in scores)
-    own = next((s for s in scores if not math.isnan(s.agreement)), None)
-    check = (f" The replay of the runs' own setting ({own.setting.label}) agrees with the published slip state in "
-             f"{own.agreement * 100:.1f} % of the frames." if own else "")
-    front = " | ".join(s.setting.label for s in scores if not _dominated(s, scores))
-    return FigureText("pareto", "Beyond the paper — cost and accuracy of every slip test", png,
-                      "The paper compares the tests (7), (5), (6) and (11)/(12) by their limit curves, not by what "
-                      "they cost or how well they detect a real slip.",
-                      f"Each setting replays the {sum(len(r.contacts) for r in runs)} contact messages of {scenes} "
-                      f"through the slip detector node's Detector, timed per frame in this run (load average "
-                      f"{load[0]:.1f} / {load[1]:.1f} over 1 / 5 min on {len(os.sched_getaffinity(0))} cores), and "
-                      f"is scored "
-                      f"against the rig's truth as the monitor scores it (missed: no flag from {LEAD_NS / 1e6:g} ms "
-                      f"before the onset to the end; delay: the flag's rise minus the onset; false alarms: flagged "
-                      f"sticking frames outside every episode's window, {LEAD_NS / 1e6:g} ms before it to "
-                      f"{(RELEASE_NS + MARGIN_NS) / 1e6:g} ms after, over all sticking frames; the controller is off). "
-                      f"{rows}.{check} "
-                      f"Not dominated: {front}.",
-                      "Costs are wall time on a shared machine (the load above): compare the settings with each "
-                      "other, not with another machine; the F/T tests cost about the same, so which of them is on "
-                      "the front changes from run to run. The F/T tests here get β_s of each pressure frame, so they "
-                      "are better than without a tactile pad.")
+__all__ = ["grip_economy", "LimitError", "limit_error", "limit_errors"]
 
 
 def grip_economy(*runs_and_out, max_samples: int = 400) -> FigureText:

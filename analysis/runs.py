@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -17,12 +18,15 @@ from slipstack.lib.defaults import MU
 from slipstack.lib.limit_set import torsional_coefficient
 from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.scene import Scene
+from slipstack.lib.toml_file import SHIPPED_ROOT, read_toml
+from slipstack.analysis.figure_keys import parse_variant
 from slipstack.launch.launch_file import load_launch_file
 from slipstack.launch.lockstep import run_launch_file
 from slipstack.messages import encode
 from slipstack.nodes.rig import load_scene_by_name
 
-__all__ = ["Experiment", "EXPERIMENTS", "Run", "run_experiment", "payload_digest", "launch_args", "BETA_FIG11_M"]
+__all__ = ["Experiment", "EXPERIMENTS", "experiment", "Run", "run_experiment", "payload_digest", "launch_args",
+           "BETA_FIG11_M"]
 
 
 def launch_args(launch: str) -> dict[str, Any]:
@@ -43,7 +47,9 @@ class Experiment:
     file's (name → value, as ``name:=value``; the monitor is off);
     friction: where the law's μ and β come from (set by ``analysis/friction.py``);
     beta_from_contact: give the F/T test and the law the scene contact's exact β_s
-    (:func:`contact_beta_s`), as ``tests/bench/bench_grip_economy.py`` does.
+    (:func:`contact_beta_s`), as ``tests/bench/bench_grip_economy.py`` does;
+    seed, noise_scale: the scene run with another seed (its sensor noise and surface) and
+    its sensors' noise scaled (the sensitivity of ``analysis/sensitivity.py``).
     """
 
     key: str
@@ -52,6 +58,8 @@ class Experiment:
     config: dict[str, Any] = field(default_factory=dict)
     friction: str = ""
     beta_from_contact: bool = False
+    seed: int | None = None
+    noise_scale: float = 1.0
 
     def arg(self, name: str) -> Any:
         """The launch argument ``name`` this experiment runs with (its own, else the file's)."""
@@ -70,6 +78,8 @@ EXPERIMENTS: dict[str, Experiment] = {e.key: e for e in (
     Experiment("fig4b", "fig4b", "constant f_n = 5 N, torque rising through a torsional spring; no controller",
                {"controller": False}),
     Experiment("fig10", "fig10", "F/T only: Coulomb test (7), linear law f_n = |f_t|/(σμ), σ = 0.5"),
+    Experiment("fig10b", "fig10", "F/T only: Coulomb test (7), the strategy of the paper's ref. [9] (law cone_margin)",
+               {"law": "cone_margin"}),
     Experiment("fig11", "fig11", "F/T only: pure torque, law (13) with k = 2 N"),
     Experiment("fig12", "fig12", "F/T only: force and torque, the σ-variant of law (13)"),
     Experiment("fig13", "fig13", "rotation about a known COR (the motor shaft) at constant f_n = 2 N; "
@@ -89,6 +99,18 @@ EXPERIMENTS: dict[str, Experiment] = {e.key: e for e in (
 )}
 
 
+def experiment(key: str) -> Experiment:
+    """The experiment ``key``: one of :data:`EXPERIMENTS`, or a variant of one with another seed
+    and sensor noise (:func:`slipstack.analysis.figure_keys.variant_key`)."""
+    variant = parse_variant(key)
+    if variant is None:
+        return EXPERIMENTS[key]
+    scene, seed, noise = variant
+    base = EXPERIMENTS[scene]
+    # every test is replayed on a variant: the live detector's cheapest test keeps the run cheap
+    return dataclasses.replace(base, key=key, seed=seed, noise_scale=noise, config={**base.config, "method": "coulomb"})
+
+
 @dataclass
 class Run:
     """One experiment's output: ``topics[name][field]`` arrays, ``t`` in s from the start,
@@ -103,6 +125,7 @@ class Run:
     digest: str = ""  # :func:`payload_digest` of everything the run published
     detector: Any = None  # the slip detector's parameters as the run resolved them (SlipDetectorParams)
     contacts: list = field(default_factory=list)  # the ``contact`` messages as published, for replays
+    replays: dict = field(default_factory=dict, repr=False)  # test → its replay (analysis/replay.py), computed once
 
     def __getitem__(self, topic: str) -> dict[str, np.ndarray]:
         return self.topics.get(topic, {})
@@ -151,13 +174,61 @@ def with_contact_beta(exp: Experiment, scene: Scene) -> Experiment:
     return dataclasses.replace(exp, config={**exp.config, "beta_m": contact_beta_s(scene)}, beta_from_contact=False)
 
 
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    return repr(value)
+
+
+def _toml_table(table: dict[str, Any], name: str = "") -> list[str]:
+    """``table`` as TOML lines (scalars and lists first, then tables and arrays of tables)."""
+    lines = [f"{key} = {_toml_value(v)}" for key, v in table.items()
+             if not isinstance(v, dict) and not (isinstance(v, list) and v and isinstance(v[0], dict))]
+    for key, v in table.items():
+        full = f"{name}.{key}" if name else key
+        if isinstance(v, dict):
+            lines += ["", f"[{full}]", *_toml_table(v, full)]
+        elif isinstance(v, list) and v and isinstance(v[0], dict):
+            for item in v:
+                lines += ["", f"[[{full}]]", *_toml_table(item, full)]
+    return lines
+
+
+def scene_variant(scene: str, seed: int | None, noise_scale: float, folder: Path) -> Path:
+    """A copy of the shipped ``scene`` with another ``seed`` and its F/T and tactile noise
+    scaled by ``noise_scale``, written into ``folder``; returns its path."""
+    data = read_toml(SHIPPED_ROOT / "scenes" / f"{scene}.toml", "scene")
+    defaults = load_scene_by_name(scene)
+    if seed is not None:
+        data["seed"] = seed
+    sensors = data.setdefault("sensors", {})
+    ft, tactile = sensors.setdefault("ft", {}), sensors.setdefault("tactile", {})
+    ft["noise_force_N"] = defaults.ft.noise_force_N * noise_scale
+    ft["noise_torque_Nm"] = defaults.ft.noise_torque_Nm * noise_scale
+    tactile["noise_counts"] = defaults.tactile.noise_counts * noise_scale
+    path = folder / f"{scene}-seed{data.get('seed', 0)}-noise{noise_scale:g}.toml"
+    path.write_text("\n".join(_toml_table(data)) + "\n")
+    return path
+
+
 def payload_digest(published: dict[str, list]) -> str:
     """SHA-256 (hex) over every topic's name and its messages' encoded payloads, in order."""
+    return raw_digest((topic, encode(m)) for topic, messages in published.items() for m in messages)
+
+
+def raw_digest(frames) -> str:
+    """:func:`payload_digest` of the ``(topic, payload)`` frames as published (each topic's in order)."""
+    by_topic: dict[str, list[bytes]] = {}
+    for topic, payload in frames:
+        by_topic.setdefault(topic, []).append(payload)
     h = hashlib.sha256()
-    for topic in sorted(published):
+    for topic in sorted(by_topic):
         h.update(topic.encode() + b"\0")
-        for m in published[topic]:
-            payload = encode(m)
+        for payload in by_topic[topic]:
             h.update(len(payload).to_bytes(8, "little") + payload)
     return h.hexdigest()
 
@@ -173,7 +244,10 @@ def run_experiment(exp: Experiment, *, duration_s: float | None = None,
         args.update(record="true", recording=str(record))
     if duration_s is not None:
         args["duration_s"] = str(duration_s)
-    ex = run_launch_file(exp.launch, args, progress=progress)
+    with tempfile.TemporaryDirectory(prefix="slipstack-scene-") as folder:
+        if exp.seed is not None or exp.noise_scale != 1.0:
+            args["scene"] = str(scene_variant(str(exp.arg("scene")), exp.seed, exp.noise_scale, Path(folder)))
+        ex = run_launch_file(exp.launch, args, progress=progress)
     scene: Scene = ex.host("rig").node.scene
     if duration_s is not None:
         scene = dataclasses.replace(scene, duration_s=min(duration_s, scene.duration_s))
@@ -181,4 +255,5 @@ def run_experiment(exp: Experiment, *, duration_s: float | None = None,
     tactile = [c for c in ex.published.get("contact", []) if c.has_tactile and c.phi.size]
     detector = ex.host("slip_detector").node.params
     return Run(exp, scene, topics, tactile[len(tactile) // 2].phi if tactile else None,
-               payload_digest(ex.published), detector, list(ex.published.get("contact", [])))
+               raw_digest((topic, payload) for _, topic, payload in ex.raw), detector,
+               list(ex.published.get("contact", [])))

@@ -27,12 +27,14 @@ __all__ = [
     "ft13_sigma_demand",
     "tactile14_increment",
     "exact_demand",
+    "cone_margin_demand",
     "GripLaw",
     "LinearLaw",
     "Ft13Law",
     "Ft13SigmaLaw",
     "Tactile14Law",
     "ExactLaw",
+    "ConeMarginLaw",
     "LAWS",
     "make_law",
     "RateLimiter",
@@ -173,6 +175,18 @@ def tactile14_increment(
 def exact_demand(gamma: float, f_n: float, sigma: float) -> float:
     """``f_n* / σ = γ f_n / σ`` in N: least holding force with margin (docs/math.md §4.1)."""
     return gamma * f_n / sigma
+
+
+def cone_margin_demand(f_t_abs: float, mu: float, margin_n: float) -> float:
+    """The paper's ref. [9] (docs/math.md §5): the least ``f_n`` whose force lies
+    ``margin_n`` (N) inside the friction cone, ``(|f_t| + √(1+μ²)·margin_n) / μ`` in N.
+
+    With ``d_s = (μ f_n − |f_t|)/√(1+μ²)`` the force's distance from the cone's border
+    in the (|f_t|, f_n) plane and ``d_f = |f_n − f_nom|`` its distance from the nominal
+    grip, this bounded below by ``f_nom`` minimises ``d_f + w/d_s`` for the weight
+    ``w = margin_n² √(1+μ²)/μ``: near ``f_nom``, never nearer the cone than ``margin_n``.
+    """
+    return (f_t_abs + math.sqrt(1.0 + mu * mu) * margin_n) / mu
 
 
 def bound_demand(raw: float, f_nom_n: float, f_max_n: float, law: str) -> GripDecision:
@@ -385,8 +399,27 @@ class ExactLaw(GripLaw):
         return exact_demand(inp.gamma, inp.f_n, self.sigma)
 
 
+@dataclass(frozen=True, kw_only=True)
+class ConeMarginLaw(GripLaw):
+    """The paper's ref. [9]: nearest ``f_nom``, ``cone_margin_n`` (N, > 0) inside the cone
+    of ``mu`` (:func:`cone_margin_demand`)."""
+
+    name: ClassVar[str] = "cone_margin"
+    needs: ClassVar[tuple[str, ...]] = ("f_t",)
+    mu: float = MU
+    cone_margin_n: float = 1.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_positive("mu", self.mu)
+        _check_positive("cone_margin_n", self.cone_margin_n)
+
+    def demand(self, inp: GripInput, dt_s: float) -> float:
+        return cone_margin_demand(inp.f_t_abs, self.mu, self.cone_margin_n)
+
+
 LAWS: Mapping[str, type[GripLaw]] = {
-    cls.name: cls for cls in (LinearLaw, Ft13Law, Ft13SigmaLaw, Tactile14Law, ExactLaw)
+    cls.name: cls for cls in (LinearLaw, Ft13Law, Ft13SigmaLaw, Tactile14Law, ExactLaw, ConeMarginLaw)
 }
 
 

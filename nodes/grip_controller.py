@@ -41,6 +41,8 @@ class GripControllerParams:
         "help": "torsional coefficient beta (m) for ft13 laws; nan or 0 (the launch files' 'from data'): "
                 "the material's beta_s"})
     k_n: float = field(default=2.0, metadata={"help": "offset k (N) of law (13)"})
+    cone_margin_n: float = field(default=1.0, metadata={
+        "help": "cone_margin (the paper's ref. [9]): distance kept from the friction cone's border (N)"})
     increment: str = field(default="total", metadata={
         "help": "(14): 'total' N_A*dphi, or 'per_taxel' dphi as the paper prints it (under-raises)"})
     decay_n_per_s: float = field(default=0.0, metadata={"help": "(14): release rate while (11) holds (N/s)"})

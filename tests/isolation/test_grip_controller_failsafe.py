@@ -115,6 +115,19 @@ def test_law_13_adds_its_default_2_n_offset():
     assert cmds[-1].f_n_desired == pytest.approx(0.5 / 0.45 + 0.5 + 2.0, rel=1e-12)
 
 
+def test_the_cone_margin_law_keeps_its_default_1_n_from_the_cone_and_holds_on_stale_input():
+    # the paper's ref. [9]: (|f_t| + sqrt(1 + mu^2) * 1 N) / mu = (1.8 + 1.0966) / 0.45 = 6.437 N
+    params = GripControllerParams(law="cone_margin", mu=0.45, max_rate_n_per_s=1e6)
+    events = [(k * MS, "slip", _slip(k, 1.8)) for k in range(1, 30)]
+    events += [(k * MS, "slip", _slip(k, 0.0, status="stale")) for k in range(30, 35)]
+    cmds = _run(events, until_ms=35, params=params)
+    live = [c for c in cmds if c.reason == "slip"]
+    assert live[-1].f_n_desired == pytest.approx((1.8 + (1 + 0.45 ** 2) ** 0.5) / 0.45, rel=1e-12)
+    assert live[-1].law == "cone_margin"
+    held = [c for c in cmds if c.reason == "fail-safe"]
+    assert held and all(c.f_n_desired == live[-1].f_n_desired for c in held)  # a stale "no load" does not release
+
+
 def test_diagnostics_say_fail_safe_and_why_while_the_grip_is_held_and_ok_once_valid_again():
     events = [(k * MS, "slip", _slip(k, 0.9)) for k in range(1, 11)]
     events += [(k * MS, "slip", _slip(k, 0.9, status="tactile_stale")) for k in range(11, 16)]

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from slipstack.lib.grip_laws import (
+    ConeMarginLaw,
     ExactLaw,
     FingerReport,
     Ft13Law,
@@ -33,6 +34,7 @@ LAWS: list[GripLaw] = [
     Tactile14Law(decay_n_per_s=5.0, f_nom_n=F_NOM, f_max_n=F_MAX),
     Tactile14Law(increment="per_taxel", f_nom_n=F_NOM, f_max_n=F_MAX),
     ExactLaw(f_nom_n=F_NOM, f_max_n=F_MAX),
+    ConeMarginLaw(f_nom_n=F_NOM, f_max_n=F_MAX),
 ]
 
 anything = st.floats(allow_nan=True, allow_infinity=True)
@@ -55,7 +57,7 @@ def test_output_always_finite_and_bounded(law: GripLaw, inp: GripInput, dt: floa
     assert not math.isnan(d.raw)
 
 
-STATIC = [law for law in LAWS if isinstance(law, (LinearLaw, Ft13Law, Ft13SigmaLaw))]
+STATIC = [law for law in LAWS if isinstance(law, (LinearLaw, Ft13Law, Ft13SigmaLaw, ConeMarginLaw))]
 
 
 @given(law=st.sampled_from(STATIC), fx=sane, fy=sane, tau=sane, scale=st.floats(1.0, 10.0))
@@ -68,16 +70,17 @@ def test_static_laws_monotone_in_load(law: GripLaw, fx: float, fy: float, tau: f
 
 @given(fx=sane, fy=sane, tau=sane, scale=st.floats(0.01, 100.0))
 def test_scaling_of_load(fx: float, fy: float, tau: float, scale: float) -> None:
-    """linear and ft13_sigma are homogeneous of degree 1 in (f_t, τ); ft13 is, once its
-    demand at zero load (the offset) is taken away."""
-    lin, ft13, ft13s = STATIC
+    """linear and ft13_sigma are homogeneous of degree 1 in (f_t, τ); ft13 and cone_margin
+    are, once their demand at zero load (the offset) is taken away."""
+    lin, ft13, ft13s, _ = STATIC
     base = GripInput(f_t=(fx, fy), tau=tau)
     scaled = GripInput(f_t=(fx * scale, fy * scale), tau=tau * scale)
     assert lin.decide(scaled).raw == pytest.approx(scale * lin.decide(base).raw, rel=1e-9, abs=1e-9)
     assert ft13s.decide(scaled).raw == pytest.approx(scale * ft13s.decide(base).raw, rel=1e-9, abs=1e-9)
-    offset = ft13.decide(GripInput(f_t=(0.0, 0.0), tau=0.0)).raw
-    expected = scale * (ft13.decide(base).raw - offset)
-    assert ft13.decide(scaled).raw - offset == pytest.approx(expected, rel=1e-9, abs=1e-9)
+    for offset_law in STATIC[1::2]:  # ft13 and cone_margin: an offset at zero load
+        offset = offset_law.decide(GripInput(f_t=(0.0, 0.0), tau=0.0)).raw
+        expected = scale * (offset_law.decide(base).raw - offset)
+        assert offset_law.decide(scaled).raw - offset == pytest.approx(expected, rel=1e-9, abs=1e-9)
 
 
 @given(law=st.sampled_from(STATIC), fx=sane, fy=sane, tau=sane)
@@ -90,7 +93,7 @@ def test_static_laws_ignore_the_sense_of_the_load(law: GripLaw, fx: float, fy: f
 
 def test_static_laws_hand_checked_values() -> None:
     """|f_t| = 0.5 N, |τ| = 4 mN·m, μ = 0.45, β = 8 mm, σ = 0.5, k = 2 N, worked by hand."""
-    lin, ft13, ft13s = STATIC
+    lin, ft13, ft13s, _ = STATIC
     inp = GripInput(f_t=(0.3, -0.4), tau=-0.004)
     assert lin.decide(inp).raw == pytest.approx(0.5 / 0.225, rel=1e-12)  # 2.222 N
     assert ft13.decide(inp).raw == pytest.approx(1.1111111111111112 + 0.5 + 2.0, rel=1e-12)  # 3.611 N

@@ -8,8 +8,10 @@ import pytest
 
 pytest.importorskip("matplotlib")  # analysis/figures.py draws with it
 
-from slipstack.analysis.beyond import DetectorSetting, SettingScore, _dominated, _pressures, limit_error  # noqa: E402
+from slipstack.analysis.beyond import _pressures, limit_error  # noqa: E402
 from slipstack.analysis.grip_oracle import oracle_series  # noqa: E402
+from slipstack.analysis.replay import Quality  # noqa: E402
+from slipstack.analysis.sensitivity import Score, dominated  # noqa: E402
 from slipstack.lib.pad import PadGeometry  # noqa: E402
 from slipstack.nodes.rig import load_scene_by_name  # noqa: E402
 
@@ -49,15 +51,27 @@ def test_the_linear_surface_never_says_stick_too_late_on_a_centred_pressure_and_
     assert off.linear.min() < -0.2  # a pure force about the pad origin twists an off-centre contact
 
 
-def _score(label: str, us: float, missed: int, false: float, delays=(-10.0,)) -> SettingScore:
-    return SettingScore(DetectorSetting(label), us, 2, missed, false, tuple(delays))
+def _score(label: str, us: float, missed: int, false: float, delays_ms=(-10.0,)) -> Score:
+    """2 episodes over 1000 sticking frames, ``false`` of them flagged."""
+    return Score(label, us, Quality(2, missed, tuple(int(d * 1e6) for d in delays_ms), int(false * 1000), 0, 1000))
 
 
 def test_a_setting_is_dominated_only_by_one_at_least_as_good_in_every_respect():
     cheap_noisy = _score("coulomb", 10, 0, 0.2)
     dear_clean = _score("exact", 50, 0, 0.05)
     worse = _score("tactile_cor", 900, 0, 0.05)
-    blind = _score("decoupled", 5, 2, 0.0, delays=())
+    blind = _score("decoupled", 5, 2, 0.0, delays_ms=())
     scores = [cheap_noisy, dear_clean, worse, blind]
-    assert [_dominated(s, scores) for s in scores] == [False, False, True, False]
-    assert _dominated(_score("tactile_cor_robust", 60, 1, 0.05), scores)
+    assert [dominated(s, scores) for s in scores] == [False, False, True, False]
+    assert dominated(_score("tactile_cor_robust", 60, 1, 0.05), scores)
+
+
+def test_a_warning_is_on_time_not_better_than_on_time():
+    """The front ranks lateness, max(delay, 0): flagging 400 ms before the onset does not beat a
+    test that flags at the onset; the early one pays in false alarms instead."""
+    early = _score("linear_ls", 50, 0, 0.3, delays_ms=(-400.0, -350.0))
+    on_time = _score("exact", 50, 0, 0.3, delays_ms=(0.0, 0.0))
+    assert early.lateness_p50_ms == on_time.lateness_p50_ms == 0.0
+    assert not dominated(on_time, [early, on_time]) and not dominated(early, [early, on_time])
+    late = _score("coulomb", 50, 0, 0.3, delays_ms=(5.0, 9.0))
+    assert dominated(late, [early, late])

@@ -13,6 +13,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.lib.grip_laws import (
     FingerReport,
     LAWS,
+    ConeMarginLaw,
     ExactLaw,
     Ft13Law,
     Ft13SigmaLaw,
@@ -49,6 +50,36 @@ def test_linear_law_paper_parameters() -> None:
     # Paper σ = 0.5, μ = 0.45: |f_t| = 0.9 N -> 0.9 / 0.225 = 4 N.
     d = LinearLaw(f_nom_n=1.0, f_max_n=30.0).decide(GripInput(f_t=(0.9, 0.0)))
     assert d.f_n_desired == pytest.approx(4.0)
+
+
+def test_cone_margin_law_hand_value() -> None:
+    # μ = 0.75, so √(1 + μ²) = 1.25; |f_t| = |(3, 4)| = 5 N, d = 2 N: f_n = (5 + 1.25·2) / 0.75 = 10 N.
+    law = ConeMarginLaw(mu=0.75, cone_margin_n=2.0, f_nom_n=1.0, f_max_n=30.0)
+    d = law.decide(GripInput(f_t=(3.0, 4.0)))
+    assert (d.f_n_desired, d.reason, d.law) == (pytest.approx(10.0), GripReason.SLIP, "cone_margin")
+    # the force (5 N, 10 N) lies d = (μ f_n − |f_t|)/√(1+μ²) = (7.5 − 5)/1.25 = 2 N inside the cone
+    assert (0.75 * d.f_n_desired - 5.0) / 1.25 == pytest.approx(2.0)
+    # no load: (0 + 2.5)/0.75 = 3.33 N; below f_nom = 4 N it is f_nom, nominal
+    assert law.decide(GripInput(f_t=(0.0, 0.0))).f_n_desired == pytest.approx(10.0 / 3.0)
+    low = ConeMarginLaw(mu=0.75, cone_margin_n=2.0, f_nom_n=4.0, f_max_n=30.0).decide(GripInput(f_t=(0.0, 0.0)))
+    assert (low.f_n_desired, low.reason) == (4.0, GripReason.NOMINAL)
+    # a non-finite f_t: fail-safe at f_max, as every law
+    bad = law.decide(GripInput(f_t=(NAN, 1.0)))
+    assert (bad.f_n_desired, bad.reason) == (30.0, GripReason.FAIL_SAFE) and "f_t" in bad.detail
+
+
+def test_cone_margin_law_minimises_distance_to_nominal_plus_barrier() -> None:
+    """The strategy of the paper's ref. [9] by brute force: over a fine grid of f_n the
+    least d_f + w/d_s (w = d²√(1+μ²)/μ) is where the law puts f_n, for loads on both sides
+    of the point where the margin reaches f_nom."""
+    mu, margin, f_nom = 0.45, 1.0, 2.0
+    w = margin ** 2 * math.sqrt(1 + mu ** 2) / mu
+    law = ConeMarginLaw(mu=mu, cone_margin_n=margin, f_nom_n=f_nom, f_max_n=1e3)
+    for f_t in (0.0, 0.5, 1.0, 3.0, 8.0):
+        grid = np.linspace(f_t / mu + 1e-6, f_t / mu + 40.0, 400_001)
+        d_s = (mu * grid - f_t) / math.sqrt(1 + mu ** 2)
+        best = grid[np.argmin(np.abs(grid - f_nom) + w / d_s)]
+        assert law.decide(GripInput(f_t=(f_t, 0.0))).f_n_desired == pytest.approx(best, abs=2e-4), f_t
 
 
 def test_bounds_nominal_and_saturated() -> None:
@@ -145,7 +176,7 @@ def test_law_non_finite_input_is_fail_safe_not_nan(bad: float) -> None:
 
 
 def test_registry_names() -> None:
-    assert set(LAWS) == {"linear", "ft13", "ft13_sigma", "tactile14", "exact"}
+    assert set(LAWS) == {"linear", "ft13", "ft13_sigma", "tactile14", "exact", "cone_margin"}
     law = make_law("ft13", beta_m=0.01, f_nom_n=1.0, f_max_n=30.0)
     assert isinstance(law, Ft13Law) and law.k_n == 2.0 and law.mu == 0.45
 
@@ -160,6 +191,7 @@ def test_registry_names() -> None:
         ("linear", {"f_nom_n": 1.0, "f_max_n": 30.0, "mu": 0.0}, "mu"),
         ("linear", {"f_nom_n": 1.0, "f_max_n": 30.0, "colour": 1}, "colour"),
         ("tactile14", {"f_nom_n": 1.0, "f_max_n": 30.0, "increment": "each"}, "increment"),
+        ("cone_margin", {"f_nom_n": 1.0, "f_max_n": 30.0, "cone_margin_n": 0.0}, "cone_margin_n"),
     ],
 )
 def test_config_errors_say_what_to_fix(name: str, params: dict, words: str) -> None:

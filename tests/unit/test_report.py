@@ -27,7 +27,7 @@ RATE = 0.8                  # dμ/dt on the ramp, 1/s (4 N/s at 5 N, as in fig4a
 ONSET_S = MU_S / RATE       # 0.5625 s
 DURATION_S = 2.0
 SLIDE_M_PER_S = 0.05        # object speed once sliding: the 0.1 mm threshold is 2 ms away
-BETA_S, BETA_D = 1.33e-3, 1.06e-3  # m (fig4b's values)
+BETA_S, BETA_D = 1.33e-3, 1.06e-3  # m (a Hertzian tip of radius 5 mm at 5 N)
 
 
 def _stamp(t_s: float) -> int:
