@@ -838,20 +838,25 @@ class Launcher:
             return None
 
     def _summary_from_recording(self, recording: dict | None) -> None:
-        """The monitor died during the run (or did not finish): its summary would cover only the time
-        since it came back, or be missing. Sum the run up from the recording instead, into the same
-        summary and check files; without a recording, say what the summary misses."""
+        """The monitor died during the run (or did not finish), or did not see every frame it judges
+        (it fell behind): its summary would cover only part of the run, or be missing. Sum the run up
+        from the recording instead, into the same summary and check files; without a recording, say
+        what the summary misses (the monitor's own summary says what it did not see)."""
         monitor = next((c for c in self.processes.values() if any(m.entry.type == "monitor" for m in c.members)), None)
-        if monitor is None or not (monitor.deaths or (monitor.proc is not None and monitor.proc.returncode)):
+        if monitor is None:
+            return
+        died = monitor.deaths or (monitor.proc is not None and monitor.proc.returncode)
+        if not died and _read_check(self.run_dir).get("judged_whole", True) is not False:
             return
         path = recording["path"] if recording else ""
         if not path or not os.path.isfile(path):
-            self._summary_gap = (f"the monitor died {monitor.deaths}x and nothing was recorded: its summary covers "
-                                 "only the time since it came back")
-            self.echo(f"[launch] {self._summary_gap}")
+            if died:
+                self._summary_gap = (f"the monitor died {monitor.deaths}x and nothing was recorded: its summary "
+                                     "covers only the time since it came back")
+                self.echo(f"[launch] {self._summary_gap}")
             return
-        self.echo(f"[launch] the monitor died {monitor.deaths}x during the run: the run's summary from the "
-                  f"recording {path}")
+        why = f"died {monitor.deaths}x" if died else "did not see every frame (it fell behind)"
+        self.echo(f"[launch] the monitor {why} during the run: the run's summary from the recording {path}")
         member = next(m for m in monitor.members if m.entry.type == "monitor")
         from slipstack.nodes.monitor import summary_from_recording
 
@@ -877,13 +882,26 @@ class Launcher:
                 self.echo(f"[launch] cannot add the recording's loss to {summary} ({exc})")
 
 
+def _read_check(run_dir: Path) -> dict:
+    """The monitor's ``check.json`` in ``run_dir``; ``{}`` if it is missing or unreadable."""
+    try:
+        return _load_check(run_dir)
+    except (OSError, ValueError):
+        return {}
+
+
+def _load_check(run_dir: Path) -> dict:
+    fd = os.open(run_dir / CHECK_FILE, os.O_RDONLY | os.O_NOFOLLOW)
+    with os.fdopen(fd, "rb") as fh:
+        doc = json.loads(fh.read(CHECK_FILE_MAX_BYTES))
+    return doc if isinstance(doc, dict) else {}
+
+
 def monitor_check_problems(launch: LaunchFile, run_dir: Path, machine: str | None = None) -> list[str]:
     """The problems in the monitor's ``check.json`` in ``run_dir`` (none expected without a monitor in the
     launch, or on ``machine``'s share of it)."""
     try:
-        fd = os.open(run_dir / CHECK_FILE, os.O_RDONLY | os.O_NOFOLLOW)
-        with os.fdopen(fd, "rb") as fh:
-            doc = json.loads(fh.read(CHECK_FILE_MAX_BYTES))
+        doc = _load_check(run_dir)
         words = doc.get("short") or doc.get("problems")  # the HEALTH lines' short phrases, if the monitor wrote them
         problems = [] if doc["passed"] is True else [str(p) for p in words or ["not passed"]]
     except FileNotFoundError:

@@ -25,7 +25,7 @@ from slipstack.lib.episodes import EpisodeTracker
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.late_ticks import behind_real_time_advice
 from slipstack.lib.status import SLIP_STATES, SlipState
-from slipstack.messages import Diagnostics, GripCommand, RigTruth, Slip
+from slipstack.messages import Diagnostics, GripCommand, Message, RigTruth, Slip
 from slipstack.nodes.runtime.graph_info import RUN_DIR_ENV, read_graph
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.logs import DETAIL_PREFIX
@@ -55,6 +55,9 @@ MAX_COUNTER_NAME = 160
 """Counters kept per node, and the longest name kept (characters)."""
 SILENT_SHOWN = 5
 """Silent nodes named on the live line; the rest are counted."""
+JUDGED_INPUTS = {"grip": "grip commands", "slip": "slip verdicts", "truth": "truth frames"}
+"""The inputs the check judges, and what the summary calls their frames: every one of them the graph
+published must reach the monitor, or the summary says which it did not see (:class:`Coverage`)."""
 SUSPECT_DEVICE_COUNTERS = {"rejected_bytes": "bytes rejected", "crc_errors": "frames failing their check",
                            "implausible_records": "records out of the stream", "bad_frames": "inconsistent frames"}
 """Driver counters (``device.<name>``, nodes/devices/backends.py) that mean the link carried what no sensor sent."""
@@ -184,6 +187,34 @@ class CommandStats:
 
 
 @dataclass
+class Coverage:
+    """What the monitor saw of one judged input (:data:`JUDGED_INPUTS`), to compare with what the graph
+    published on it: frames handled from the graph's own nodes (not from tools), and the sequence
+    number and stamp (ns) of the first and the last of them."""
+
+    seen: int = 0
+    first: tuple[int, int] | None = None
+    last: tuple[int, int] | None = None
+
+    def add(self, msg: Message, sender: str) -> None:
+        if sender:
+            return
+        self.seen += 1
+        mark = (msg.header.seq, msg.header.stamp_ns)
+        self.first = self.first or mark
+        self.last = mark
+
+    def up_to_s(self, published: int) -> tuple[float | None, float | None]:
+        """(seconds from the stream's first frame to the last one seen, to the last one published),
+        on a steady rate estimated from the frames seen; ``None`` where it cannot be told."""
+        if self.first is None or self.last is None or self.last[0] <= self.first[0]:
+            return None, None
+        period = (self.last[1] - self.first[1]) / (self.last[0] - self.first[0])
+        start = self.first[1] - self.first[0] * period
+        return (self.last[1] - start) / 1e9, (published - 1) * period / 1e9
+
+
+@dataclass
 class NodeWatch:
     """One node's diagnostics: its latest counters, when the last report arrived
     (executor time, ns) and the silences between its reports, by the reports' own stamps
@@ -274,6 +305,11 @@ class Monitor(Node):
         self.applied_f_n_sum = 0.0
         self.last: dict[str, object] = {}
         self.nodes: dict[str, NodeWatch] = {}
+        self.coverage = {name: Coverage() for name in JUDGED_INPUTS}
+        self.topics = {name: self.inputs[name].topic for name in JUDGED_INPUTS}
+        """Input → its topic in the graph (remapped at start)."""
+        self.numbered: dict[str, dict[str, int]] = {}
+        """Node → topic → frames it published, as the launcher heard it when the graph stopped (read at stop)."""
         self._deadline_ns = round(self.params.command_deadline_ms * 1e6)
         self._silent_after_ns = round(self.params.silent_after_s * 1e9)
         self._at_status = (0, 0, 0, 0)  # time, slip frames, commands, fail-safe commands at the last STATUS
@@ -282,6 +318,7 @@ class Monitor(Node):
         graph declares it (None: no graph file; the counters tell, :class:`NodeWatch`)."""
 
     def on_slip(self, msg: Slip, ctx: Context) -> None:
+        self.coverage["slip"].add(msg, ctx.sender)
         self.slip_frames += 1
         slipping = msg.state in SLIP_STATES
         self.slip_verdicts += slipping
@@ -289,10 +326,12 @@ class Monitor(Node):
         self.last["slip"] = msg
 
     def on_grip(self, msg: GripCommand, ctx: Context) -> None:
+        self.coverage["grip"].add(msg, ctx.sender)
         self.commands.add(msg, self._deadline_ns)
         self.last["grip"] = msg
 
     def on_truth(self, msg: RigTruth, ctx: Context) -> None:
+        self.coverage["truth"].add(msg, ctx.sender)
         self.truth_frames += 1
         self.applied_f_n_sum += msg.f_n_applied
         self.episodes.add_truth(msg.header.stamp_ns, msg.gross_slip)
@@ -300,6 +339,7 @@ class Monitor(Node):
         self.commands.truth_seen()
 
     def start(self, ctx: Context) -> None:
+        self.topics = {name: ctx.input_topic(name) for name in JUDGED_INPUTS}
         if self.graph_nodes is None and os.environ.get(RUN_DIR_ENV):
             try:
                 nodes = read_graph(Path(os.environ[RUN_DIR_ENV]))["nodes"]
@@ -351,7 +391,32 @@ class Monitor(Node):
         watch = self.nodes.get("slip_detector")
         return watch.status if watch is not None and watch.status.split(":")[0] in CALIBRATION_STATUSES else None
 
+    def published(self) -> dict[str, int]:
+        """Input → frames the graph published on its topic: the most of what the publishers' newest
+        diagnostics say (``out.<topic>.published``) and what they reported as they stopped."""
+        out = {}
+        for name, topic in self.topics.items():
+            key = f"out.{topic}.published"
+            said = sum(w.counters.get(key, 0) for w in self.nodes.values())
+            out[name] = int(max(said, sum(topics.get(topic, 0) for topics in self.numbered.values())))
+        return out
+
+    def read_numbered(self) -> None:
+        """What each node published, from the launcher's report in the run directory (launched only)."""
+        from slipstack.nodes.recording.loss import NUMBERED_REPORT
+
+        run_dir = os.environ.get(RUN_DIR_ENV)
+        if not run_dir:
+            return
+        try:
+            numbered = json.loads((Path(run_dir) / NUMBERED_REPORT).read_text())
+            self.numbered = {str(node): {str(t): int(n) for t, n in topics.items()}
+                             for node, topics in numbered.items()}
+        except (OSError, ValueError, TypeError, AttributeError):
+            self.numbered = {}
+
     def stop(self, ctx: Context) -> None:
+        self.read_numbered()
         self.episodes.finish()
         summary = summarise(self, ctx.now_ns())
         for line in format_summary(summary, self.params, verbose=self.params.verbose):
@@ -365,7 +430,8 @@ class Monitor(Node):
         if self.params.check_path:
             failed = [x for x in problems if x.fails_check]
             files.append((self.params.check_path, {"passed": not failed, "problems": [x.text for x in failed],
-                                                   "short": [x.short for x in failed]}))
+                                                   "short": [x.short for x in failed],
+                                                   "judged_whole": not summary["monitor_unseen"]}))
         for path, content in files:
             try:
                 write_json_atomically(path, content)
@@ -456,6 +522,11 @@ def summarise(m: Monitor, now_ns: int) -> dict:
     truth = m.last.get("truth")
     judged, judged_fail_safe = cmd.judged(with_rig=truth is not None)
     late, age_max_ns = cmd.late_while_running(with_rig=truth is not None)
+    unseen = _unseen(m)
+    if unseen:
+        losses[m.name] = {**losses.get(m.name, {}), **{
+            f"unseen.{u['topic']}": {"topic": u["topic"], "lost": u["unseen"], "of": u["published"],
+                                     "how": "not seen by the monitor, of those published"} for u in unseen.values()}}
     return {
         "has_truth": truth is not None,
         "slip_frames": m.slip_frames,
@@ -490,6 +561,7 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "slip_distance_mm": truth.slip_distance_m * 1e3 if truth else None,
         "slip_angle_deg": math.degrees(truth.slip_angle_rad) if truth else None,
         "losses": {n: v for n, v in losses.items() if v},
+        "monitor_unseen": unseen,
         "skipped_for_newer": {n: v for n, v in skipped.items() if v},
         "ft_samples": _ft_samples(m.nodes),
         "behind_real_time": {n: v for n, v in behind.items() if v},
@@ -512,6 +584,21 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "injected": {what: sum(w.counters.get(key, 0) for w in m.nodes.values()) for what, key in INJECTED.items()},
         "steps_without_a_start": sum(w.counters.get("grip.waiting_to_start", 0) for w in m.nodes.values()),
     }
+
+
+def _unseen(m: Monitor) -> dict[str, dict]:
+    """The judged inputs of which the graph published frames the monitor did not see: input →
+    ``{topic, seen, published, unseen, seen_up_to_s, published_up_to_s}`` (the times from the
+    stream's first frame; ``None`` where they cannot be told)."""
+    out = {}
+    for name, published in m.published().items():
+        c = m.coverage[name]
+        if published > c.seen:
+            seen_s, published_s = c.up_to_s(published)
+            out[name] = {"topic": m.topics[name], "seen": c.seen, "published": published,
+                         "unseen": published - c.seen, "seen_up_to_s": seen_s, "published_up_to_s": published_s,
+                         "tail_unseen": c.last is None or c.last[0] + 1 < published}
+    return out
 
 
 INJECTED = {"grip_commands": "rig.manual_commands", "slip_verdicts": "grip.injected_verdicts",
@@ -636,12 +723,35 @@ def _check_problems(s: dict, p: MonitorParams) -> list[Problem]:
         out.append(Problem("every command fail-safe: no valid sensor data",
                            f"all {s['grip_commands']} grip commands were fail-safe: the controller never had valid "
                            "sensor data (are the sensors connected and streaming?)"))
+    out += _unseen_problems(s)
     if not s["grip_commands"] and s.get("steps_without_a_start"):
         out.append(Problem("no command: no trusted sensor data, the finger kept its grip",
                            "the controller sent no grip command: it never had trusted sensor data nor the finger's "
                            "report (grip/state), so the finger kept its own grip (are the sensors connected and "
                            "streaming? docs/safety.md, clause 4)"))
     return out
+
+
+def _unseen_problems(s: dict) -> list[Problem]:
+    """Frames of the judged inputs the graph published and the monitor never saw: the check judged
+    part of the run only, so it does not pass it."""
+    unseen = s.get("monitor_unseen") or {}
+    if not unseen:
+        return []
+    parts = [f"{u['unseen']} of {u['published']} {JUDGED_INPUTS[name]}" for name, u in unseen.items()]
+    truth = unseen.get("truth")
+    seen_s, of_s = (truth["seen_up_to_s"], truth["published_up_to_s"]) if truth else (None, None)
+    until = f"truth up to {seen_s:.1f} s of {of_s:.1f} s" if seen_s is not None else ""
+    if truth and truth["tail_unseen"]:
+        short = (f"monitor saw {until}" if until else f"monitor missed the last of {truth['published']} truth frames"
+                 ) + ": not judged to the end"
+    else:
+        name, u = max(unseen.items(), key=lambda item: item[1]["unseen"])
+        short = f"monitor missed {u['unseen']} of {u['published']} {JUDGED_INPUTS[name]}: judged in part"
+    return [Problem(short, f"the monitor did not see {', '.join(parts)}" + (f" (it saw {until})" if until else "")
+                    + ": it fell behind its inputs (it waited for a CPU core, or was stopped), so the check judged "
+                    "only what it saw; free a CPU core, or give the monitor a real-time priority (its "
+                    "`realtime_priority` in the launch file)")]
 
 
 def _silence_problems(s: dict) -> list[Problem]:

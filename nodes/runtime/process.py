@@ -42,6 +42,8 @@ _OVER_RATE_READS = 64  # frames over the injection rate read (and dropped) per w
 _INJECT_PAUSE_NS = 10_000_000  # how long a node over its injection rate leaves the injection socket unread
 _TIMER_CATCH_UP = 20  # late ticks of one timer fired per loop turn before ticks are skipped
 _CLOSE_LINGER_MS = 200  # at exit, how long frames still queued for a subscriber may take to leave
+_FINAL_QUIET_MS = 200  # at exit, a node that outlives the graph reads its inputs until none came for this long,
+_FINAL_DRAIN_S = 10.0  # or for this long at most (its inputs' depths bound the frames)
 _now_ns = graph_clock()  # monotonic ns, on the reference machine's time base (nodes/runtime/time_base.py)
 
 
@@ -132,7 +134,8 @@ class _Member:
         # like loss. One more SUB, bound, takes frames injected by tools.
         self.sub_topic: dict[zmq.Socket, tuple[str, bytes, str]] = {}
         for input_name, topic in self.host.input_topics.items():
-            hwm = 100 if node.inputs[input_name].policy == "latest" else 1000
+            policy, depth = node.inputs[input_name].policy, node.inputs[input_name].depth
+            hwm = 100 if policy == "latest" else max(1000, depth) if policy == "queue" else 1000  # a queue's backlog fits
             for origin in spec.subs.get(topic, []):
                 sock = make_sub(zctx, [origin], topic, rcvhwm=hwm)
                 self.sub_topic[sock] = (input_name, topic.encode(), origin)
@@ -220,11 +223,30 @@ class _Member:
         sock.send(msgpack.packb({"node": self.spec.name, "event": event, "pid": os.getpid(), **details}))
         sock.close()
 
+    def drain_delivered(self, clock: Callable[[], int]) -> None:
+        """Handle what was delivered to the inputs before ``stop``: frames are read until none came
+        for :data:`_FINAL_QUIET_MS`, for at most :data:`_FINAL_DRAIN_S` and as many frames as the
+        inputs' depths (a node that sums up the run judges all of it; what is left it counts itself)."""
+        if not self.sub_topic:
+            return
+        poller = zmq.Poller()
+        for sock in self.sub_topic:
+            poller.register(sock, zmq.POLLIN)
+        budget = sum(i.depth for i in self.node.inputs.values())
+        deadline = clock() + round(_FINAL_DRAIN_S * 1e9)
+        while budget > 0 and clock() < deadline:
+            events = poller.poll(_FINAL_QUIET_MS)
+            if not events:
+                return
+            for sock, _ in events:
+                budget -= self.drain(self.sub_topic[sock][0], sock)
+
     def sockets(self) -> list[zmq.Socket]:
         return [*self.sub_topic, *([self.inject_sock] if self.inject_sock else []), *([self.pub] if self.pub else [])]
 
     # -- input --------------------------------------------------------------------------
-    def drain(self, input_name: str, sock: zmq.Socket) -> None:
+    def drain(self, input_name: str, sock: zmq.Socket) -> int:
+        """Read and handle at most :data:`_DRAIN_LIMIT` frames waiting on ``sock``; returns how many were read."""
         _, want, origin = self.sub_topic[sock]
         host = self.host
         topic = host.input_topics[input_name]
@@ -254,7 +276,7 @@ class _Member:
                 self._dispatch_batch(input_name, payloads, origin)
             else:
                 self._dispatch_newest(input_name, payloads, origin)
-            return
+            return len(payloads)
         for payload in payloads:
             msg = host.receive(input_name, payload, origin)
             if msg is not None:
@@ -263,6 +285,7 @@ class _Member:
                 queue.append(msg)
         while queue:
             host.dispatch(input_name, queue.popleft())
+        return len(payloads)
 
     def _dispatch_newest(self, input_name: str, payloads: list[bytes], origin: str) -> None:
         """Handle the newest valid frame of a ``latest`` input's backlog; the older ones are
@@ -573,6 +596,8 @@ class ProcessExecutor:
             pass
         finally:
             for m in self.members:
+                if m.node.outlives_graph:
+                    m.drain_delivered(self.clock)
                 m.host.call("stop", m.node.stop, m.host)
                 if m.pub is not None:
                     m.send(DIAGNOSTICS_TOPIC, m.host.diagnostics(final=True))

@@ -237,7 +237,7 @@ def test_a_clean_run_says_health_ok_and_passes_its_check(fig10_runs, tmp_path):
     assert s["fail_safe_commands"] == 0 and s["late_commands"] == 0  # lock-step: nothing is late
     assert "HEALTH: ok" in [line.split("] ", 1)[-1] for line in logs]
     assert any("frames lost: none" in line for line in logs)
-    assert json.loads(check.read_text()) == {"passed": True, "problems": [], "short": []}
+    assert json.loads(check.read_text()) == {"passed": True, "problems": [], "short": [], "judged_whole": True}
 
 
 def _truth(t_ns: int, *, slid_m: float = 0.0, turned_rad: float = 0.0, gross: bool = False) -> RigTruth:
@@ -547,7 +547,7 @@ def test_a_silent_observer_is_reported_and_does_not_fail_the_check(tmp_path):
     for s in range(1, 11):
         t = s * 1_000_000_000 - 1
         events.append((t, "diagnostics", _diag("control", t, **{"in.ft/wrench.received": 500.0 * s,
-                                                                 "out.grip/command.published": 500.0 * s})))
+                                                                 "out.contact.published": 500.0 * s})))
         if s <= 2 or s >= 6:
             events.append((t, "diagnostics", Diagnostics(node="recorder", counters={"recorder.written": 500.0 * s},
                                                          header=Header(t, s, t, {}))))
@@ -594,7 +594,7 @@ def test_the_graph_file_says_who_observes(tmp_path, monkeypatch):
         t = s * 1_000_000_000 - 1
         if s <= 1:
             events += [(t, "diagnostics", _diag("rig", t)), (t, "diagnostics", _diag("recorder", t))]
-        events.append((t, "diagnostics", _diag("control", t, **{"out.grip/command.published": 500.0 * s})))
+        events.append((t, "diagnostics", _diag("control", t, **{"out.contact.published": 500.0 * s})))
     check = tmp_path / "check.json"
     s, _, _ = monitor_over(events, tmp_path, check_path=str(check))
     assert s["observers"] == ["recorder"]
