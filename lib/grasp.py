@@ -273,7 +273,7 @@ class TrackGains:
 BREAKAWAY_SHARE = 0.9
 """The object broke away once the load the contacts carry fell below this share of its
 value at the mode's start (sliding friction carries ``μ_d/μ_s``, 0.8 on rubber)."""
-PIVOT_GAINS = TrackGains(k_p=100.0, k_d=6.0, k_i=120.0, release_n_per_s=20.0, accel=30.0, moving=0.015,
+PIVOT_GAINS = TrackGains(k_p=100.0, k_d=6.0, k_i=120.0, release_n_per_s=10.0, accel=30.0, moving=0.015,
                          lead_s=0.09, overspeed_min=2.0, weakening=0.04, max_error=0.05)
 """The pivot's gains (per rad), tuned in lock-step on the shipped pivot scene (docs/benchmarks.md)."""
 SLIDE_GAINS = TrackGains(k_p=800.0, k_d=40.0, k_i=1600.0, release_n_per_s=10.0, accel=0.5, moving=3e-4,
