@@ -18,10 +18,11 @@ import numpy as np
 from slipstack.lib.episodes import find_episodes
 from slipstack.lib.errors import DecodeError
 from slipstack.lib.limit_set import load_factor
+from slipstack.lib.onset_band import load_path, pressure_spread
 from slipstack.lib.identify import RampEstimate
 from slipstack.lib.material import DELTA_MAX, Material, detector_thresholds, material_toml
 from slipstack.lib.output_file import output_file
-from slipstack.lib.material_fit import (beta_from_pressure, frame_noise, interval_half_width, onset_levels,
+from slipstack.lib.material_fit import (beta_from_pressure, frame_noise, interval_half_width, onset_frames,
                                          pooled, pooled_model)
 from slipstack.lib.pad import PadGeometry
 from slipstack.messages import decode
@@ -78,14 +79,26 @@ def _tactile_frames(path: Path) -> list:
     return frames
 
 
-def _gamma_series(rec: IdentifiedRecording, mu_s: float, beta_s_m: float) -> tuple[np.ndarray, np.ndarray, str]:
-    """(stamps ns, γ, source) of the recording: exact on tactile frames, else the F/T ratio."""
+@dataclass(frozen=True)
+class _Frames:
+    """The detector's view of a recording, per frame: stamps (ns), γ, load path and
+    pressure spread (NaN without a pressure frame), and what γ was computed from."""
+
+    stamps: np.ndarray
+    gamma: np.ndarray
+    path: np.ndarray
+    spread: np.ndarray
+    source: str
+
+
+def _gamma_series(rec: IdentifiedRecording, mu_s: float, beta_s_m: float) -> _Frames:
+    """The recording's frames: exact γ on tactile frames, else the F/T ratio."""
     w = rec.series["ft/wrench"]
     ok = w["usable"].astype(bool) & (w["f_n"] > _MIN_F_N)
     ft_ns, f_n, f_t, tau = w["stamp_ns"][ok], w["f_n"][ok].astype(float), w["f_t"][ok].astype(float), w["tau"][ok]
     frames = [m for m in _tactile_frames(rec.path) if m.status == "ok"] if math.isfinite(mu_s) else []
     if frames and ft_ns.size:
-        stamps, gammas = [], []
+        rows = []
         pad = PadGeometry(frames[0].rows, frames[0].cols, frames[0].pitch_m)
         for m in frames:
             k = int(np.clip(np.searchsorted(ft_ns, m.header.stamp_ns), 1, ft_ns.size - 1))
@@ -93,14 +106,17 @@ def _gamma_series(rec: IdentifiedRecording, mu_s: float, beta_s_m: float) -> tup
             p = np.where(m.dead, 0.0, np.maximum(m.pressure_pa.astype(float), 0.0))
             if p.sum() <= 0 or (m.rows, m.cols) != (pad.rows, pad.cols):
                 continue
-            r = load_factor(f_n[k] * p / p.sum(), pad.positions, f_t[k], float(tau[k]), mu_s)
+            phi = f_n[k] * p / p.sum()
+            r = load_factor(phi, pad.positions, f_t[k], float(tau[k]), mu_s)
             if r.status.usable:
-                stamps.append(m.header.stamp_ns)
-                gammas.append(r.gamma)
-        return np.array(stamps, dtype=np.int64), np.array(gammas), "exact (tactile)"
-    if rec.torsion:
-        return ft_ns, np.abs(tau) / f_n / beta_s_m, "ratio (F/T only)"
-    return ft_ns, np.hypot(f_t[:, 0], f_t[:, 1]) / f_n / mu_s, "ratio (F/T only)"
+                rows.append((m.header.stamp_ns, r.gamma, load_path(float(np.hypot(*f_t[k])), float(tau[k]), mu_s,
+                                                                   beta_s_m), pressure_spread(phi)))
+        stamps, gamma, path, spread = (np.array(c) for c in zip(*rows)) if rows else (np.zeros(0),) * 4
+        return _Frames(stamps.astype(np.int64), gamma, path, spread, "exact (tactile)")
+    force = np.hypot(f_t[:, 0], f_t[:, 1])
+    path = np.array([load_path(f, t, mu_s, beta_s_m) for f, t in zip(force.tolist(), tau.tolist())])
+    ratio = np.abs(tau) / f_n / beta_s_m if rec.torsion else force / f_n / mu_s
+    return _Frames(ft_ns, ratio, path, np.full(ft_ns.size, math.nan), "ratio (F/T only)")
 
 
 def _sliding_mask(rec: IdentifiedRecording, stamps_ns: np.ndarray) -> np.ndarray:
@@ -217,17 +233,25 @@ def identify_material(paths: list[Path], *, name: str, provenance: str = "",
                              "that slides; " + _RECORD_FORCE)
     mu_s, mu_d = _pool(force_ests)
     beta_s, beta_d = _pool(torsion_ests) if torsion_ests else (_Pooled(math.nan, math.nan),) * 2
-    stick, slide, onset_gamma, lines = [], [], [], []
+    stick, slide, onset_gamma, onset_path, onset_spread, lines = [], [], [], [], [], []
+    force_noise, torque_noise = [], []
     beta_s_routes, beta_d_routes = [], []
     for i, rec in enumerate(recs, 1):
         say(f"[{i}/{len(recs)}] {rec.path.name}: load factor per frame")
-        stamps, gamma, source = _gamma_series(rec, mu_s.value, beta_s.value)
+        series = _gamma_series(rec, mu_s.value, beta_s.value)
+        stamps, gamma, source = series.stamps, series.gamma, series.source
         onsets = _onsets_ns(rec)
-        levels = onset_levels(stamps, gamma, onsets)
+        at_onset = onset_frames(stamps, gamma, onsets)
+        levels = [float(gamma[k]) for k in at_onset]
         sliding = _sliding_mask(rec, stamps)
+        wrench = rec.series["ft/wrench"]
         for onset in onsets:
             before = (stamps >= onset - _STICK_WINDOW_NS) & (stamps <= onset - _STICK_GUARD_NS)
             stick.append(frame_noise(gamma[before]))
+            w = wrench["usable"].astype(bool) & (wrench["stamp_ns"] >= onset - _STICK_WINDOW_NS) \
+                & (wrench["stamp_ns"] <= onset - _STICK_GUARD_NS)
+            force_noise.append(float(np.mean([frame_noise(wrench["f_t"][w, i].astype(float)) for i in (0, 1)])))
+            torque_noise.append(frame_noise(wrench["tau"][w].astype(float)))
         slide.append(frame_noise(gamma[sliding]))
         if onsets and rec.torsion and source.startswith("exact"):
             before = (stamps >= onsets[0] - _STICK_WINDOW_NS) & (stamps <= onsets[0] - _STICK_GUARD_NS)
@@ -235,6 +259,8 @@ def identify_material(paths: list[Path], *, name: str, provenance: str = "",
             beta_s_routes.append(beta_from_pressure(_pressure_frames(rec, stamps, before), positions, mu_s.value))
             beta_d_routes.append(beta_from_pressure(_pressure_frames(rec, stamps, sliding), positions, mu_d.value))
         onset_gamma += levels
+        onset_path += [float(series.path[k]) for k in at_onset]
+        onset_spread += [float(series.spread[k]) for k in at_onset]
         lines += [f"== {rec.path}", format_identification(rec.ident),
                   f"load factor {source}: {len(onsets)} gross-slip onsets, γ there "
                   + (", ".join(f"{g:.3f}" for g in levels) or "-")]
@@ -247,20 +273,29 @@ def identify_material(paths: list[Path], *, name: str, provenance: str = "",
         mu_d_se=mu_d.se, beta_s_m=beta_s.value, beta_s_se_m=beta_s.se, beta_d_m=beta_d.value,
         beta_d_se_m=beta_d.se, mu_s_model=mu_s.model, mu_d_model=mu_d.model, beta_s_model_m=beta_s.model,
         beta_d_model_m=beta_d.model, gamma_noise_stick=_median(stick), gamma_noise_slide=_median(slide),
-        onset_gamma=tuple(round(g, 5) for g in onset_gamma if 0 < g <= 1.5))
+        force_noise_n=_median(force_noise), torque_noise_nm=_median(torque_noise),
+        **_onsets_in_range(onset_gamma, onset_path, onset_spread))
     t = detector_thresholds(material)
     lines += [f"material {name} (± standard error, ± model error; the ± 2-sigma interval in % of the value):",
               f"  mu_s   {mu_s.text()}", f"  mu_d   {mu_d.text()}",
               f"  beta_s {beta_s.text(1e3, ' mm')}", f"  beta_d {beta_d.text(1e3, ' mm')}",
               f"  force ramps: {_spread(force_ests, 1.0, '')}",
               *([f"  torque ramps: {_spread(torsion_ests, 1e3, ' mm')}"] if torsion_ests else []),
-              f"  gamma noise stick {material.gamma_noise_stick:.4f}, slide {material.gamma_noise_slide:.4f}; "
+              f"  F/T noise {material.force_noise_n:.4g} N, {material.torque_noise_nm:.3g} N·m; "
+              f"gamma noise stick {material.gamma_noise_stick:.4f}, slide {material.gamma_noise_slide:.4f}; "
               f"detector delta {t.delta:.4f}, gamma_release {t.gamma_release:.4f}, gamma_resume {t.gamma_resume:.4f}"]
     reasons += _implausible(material, {"mu_s": mu_s, "mu_d": mu_d, "beta_s": beta_s, "beta_d": beta_d},
                             force_ests, torsion_ests)
     if reasons:
         raise IdentificationRefused(reasons, material, lines)
     return material, lines
+
+
+def _onsets_in_range(gammas: list[float], paths: list[float], spreads: list[float]) -> dict[str, tuple[float, ...]]:
+    """The onsets whose γ lies in (0, 1.5] (the others are reasons to refuse), as Material fields."""
+    keep = [(round(g, 5), round(p, 4), round(k, 4)) for g, p, k in zip(gammas, paths, spreads) if 0 < g <= 1.5]
+    return {key: tuple(column) for key, column in zip(("onset_gamma", "onset_path", "onset_spread"), zip(*keep))} \
+        if keep else {}
 
 
 _MAX_LEVEL_SPREAD = 0.1

@@ -37,6 +37,10 @@ class DetectorConfig:
         row are that much rarer, at the cost of one frame at an onset.
     onset_ns: and how long, ns (≥ 0): from the stamp of the row's first frame to the
         current one. 0: frames only (the latch's own default, for offline use).
+    sliding_level: γ a sliding contact transmits (``μ_d/μ_s``; dimensionless); with
+        ``stuck_margin`` (the noise margin above it), a flag whose slip reached below
+        ``sliding_level + stuck_margin`` is released after ``release_ns`` above it
+        (outside the band). NaN: no such release.
     """
 
     delta: float = 0.18
@@ -45,6 +49,8 @@ class DetectorConfig:
     gamma_resume: float = math.nan
     onset_frames: int = 2
     onset_ns: int = 0
+    sliding_level: float = math.nan
+    stuck_margin: float = math.nan
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.delta < 1.0:
@@ -57,9 +63,19 @@ class DetectorConfig:
             raise ConfigError(f"detector onset_frames must be an integer >= 1, got {self.onset_frames!r}")
         if not (isinstance(self.onset_ns, int) and self.onset_ns >= 0):
             raise ConfigError(f"detector onset_ns must be an integer >= 0 ns, got {self.onset_ns!r}")
+        if not (math.isnan(self.sliding_level) or 0.0 < self.sliding_level <= 1.0) or not (
+                math.isnan(self.stuck_margin) or self.stuck_margin >= 0.0):
+            raise ConfigError(f"detector sliding_level must lie in (0, 1] and stuck_margin be >= 0 (or nan: no "
+                              f"release when stuck), got {self.sliding_level}, {self.stuck_margin}")
         if not (math.isnan(self.gamma_resume) or 0.0 < self.gamma_resume <= 1.0):
             raise ConfigError(f"detector gamma_resume must lie in (0, 1] (or be nan: gamma_release), "
                               f"got {self.gamma_resume}")
+
+    @property
+    def stuck_level(self) -> float:
+        """γ above which a contact that slid proves that it sticks (inf: never)."""
+        level = self.sliding_level + self.stuck_margin
+        return level if level == level else math.inf
 
     @property
     def resume_level(self) -> float:
@@ -78,30 +94,38 @@ class SlipLatch:
         self._below_since: int | None = None
         self._in_band = 0  # valid frames in a row in the band (while not yet slipping)
         self._band_since: int | None = None  # stamp of the row's first frame (ns)
+        self._slid = False  # since the flag rose, a frame below the stuck level
+        self._above_since: int | None = None  # since when above the stuck level after that (ns)
 
-    def update(self, t_ns: int, margin: float, *, in_contact: bool = True) -> bool:
+    def update(self, t_ns: int, margin: float, *, in_contact: bool = True, delta: float | None = None) -> bool:
         """Feed one frame's margin (``1 − γ``); returns whether slip is flagged.
 
+        ``delta``: this frame's band width (``lib/onset_band.py``; None: the config's).
         A non-finite margin (no verdict) keeps the current flag and restarts the release
-        dwell: release needs ``release_ns`` of *valid* frames below the level, so a stretch
-        without information never counts towards it. No contact clears the flag.
+        dwells: a release needs ``release_ns`` of *valid* frames, so a stretch without
+        information never counts towards it. No contact clears the flag.
         """
         if not in_contact:
             self.slipping, self._below_since, self._in_band, self._band_since = False, None, 0, None
+            self._above_since = None
             return False
-        if margin != margin:  # NaN: no information, keep the flag, start the dwell again
-            self._below_since = None
+        if margin != margin:  # NaN: no information, keep the flag, start the dwells again
+            self._below_since = self._above_since = None
             return self.slipping
         gamma = 1.0 - margin
         cfg = self.config
-        if margin <= cfg.delta:
+        if margin <= (cfg.delta if delta is None else delta):
             self._in_band = min(self._in_band + 1, cfg.onset_frames)
             if self._band_since is None:
                 self._band_since = t_ns
-            if self.slipping or (self._in_band >= cfg.onset_frames and t_ns - self._band_since >= cfg.onset_ns):
-                self.slipping, self._below_since = True, None
+            if not self.slipping and self._in_band >= cfg.onset_frames and t_ns - self._band_since >= cfg.onset_ns:
+                self.slipping, self._slid = True, False
+            if self.slipping:
+                self._below_since = self._above_since = None
             return self.slipping
         self._in_band, self._band_since = 0, None
+        if self.slipping:
+            self._release_when_stuck(t_ns, gamma)
         if self.slipping:
             if gamma >= cfg.resume_level:
                 self._below_since = None
@@ -111,3 +135,14 @@ class SlipLatch:
             elif t_ns - self._below_since >= cfg.release_ns:
                 self.slipping, self._below_since = False, None
         return self.slipping
+
+    def _release_when_stuck(self, t_ns: int, gamma: float) -> None:
+        """Clear the flag after ``release_ns`` above the stuck level, once the slip went below it."""
+        cfg = self.config
+        if gamma < cfg.stuck_level:
+            self._slid, self._above_since = True, None
+        elif self._slid:
+            if self._above_since is None:
+                self._above_since = t_ns
+            elif t_ns - self._above_since >= cfg.release_ns:
+                self.slipping, self._below_since, self._above_since = False, None, None

@@ -24,10 +24,13 @@ from slipstack.lib.errors import ConfigError
 from slipstack.lib.known_cor import KNOWN_COR_METHOD, known_cor_test
 from slipstack.lib.material import Material, detector_thresholds
 from slipstack.lib.online_calibration import CalibratedLatch
+from slipstack.lib.onset_band import OnsetBand, pressure_spread
 from slipstack.lib.slip_tests import FT_TESTS, SlipParams, SlipVerdict, ft_beta, ft_stick_margins, get_slip_test
 from slipstack.lib.status import SAMPLE_NO_CONTACT, SAMPLE_OK, SLIP_STATES, SlipState, SolverStatus
 
 __all__ = [
+    "BELOW_NOISE",
+    "NOISE_CAPACITY",
     "FT_TESTS",
     "VALID",
     "CONTACT_LOST",
@@ -46,6 +49,14 @@ CONTACT_LOST = SolverStatus.NO_CONTACT.value
 
 _UNUSABLE = "unusable"
 """Validity status of an earlier sample of a batch whose data were not usable."""
+
+BELOW_NOISE = "below_noise"
+"""The status of a verdict on a capacity the F/T's noise swamps."""
+
+NOISE_CAPACITY = 10.0
+"""A verdict is judged only on a capacity of at least this many times the F/T's noise: below,
+the noise alone moves γ by more than 0.1 (pressing or letting go: f_n of some tenths of a
+newton, or a pressure frame with one taxel pressed, whose torsional capacity is 0)."""
 
 ONSET_NS_PER_FRAME = 900_000
 """Time an onset frame stands for, ns: the paper's 1 kHz F/T period less 10 % for the
@@ -103,6 +114,11 @@ class DetectorSettings:
         ``method = "tactile_cor_known"``, which needs it.
     calibrate_from: the material whose μ and thresholds these are, to calibrate online
         from (None: no online calibration).
+    onset_band: the band of each sample's load path and pressure spread (None: ``delta``
+        for every sample).
+    sliding_level, stuck_margin: release a slip that reached the sliding level when γ
+        stays ``stuck_margin`` above it (``lib/detection.py``; NaN: no such release).
+    force_noise_n, torque_noise_nm: the F/T's noise (N, N·m; NaN: no noise guard).
     """
 
     mu: float
@@ -117,6 +133,11 @@ class DetectorSettings:
     onset_frames: int = DetectorConfig.onset_frames
     known_cor_m: tuple[float, float] | None = None
     calibrate_from: Material | None = None
+    onset_band: OnsetBand | None = None
+    sliding_level: float = math.nan
+    stuck_margin: float = math.nan
+    force_noise_n: float = math.nan
+    torque_noise_nm: float = math.nan
 
     def __post_init__(self) -> None:
         if (self.method == KNOWN_COR_METHOD) != (self.known_cor_m is not None):
@@ -130,11 +151,13 @@ class DetectorSettings:
 
     @classmethod
     def from_material(cls, material: Material, **overrides: Any) -> DetectorSettings:
-        """Settings with μ = μ_s and the thresholds ``lib/material.py`` derives from it;
-        ``overrides`` replaces any field (e.g. ``method="tactile_cor"``)."""
+        """Settings with μ = μ_s, the thresholds ``lib/material.py`` derives from it and its
+        onset band; ``overrides`` replaces any field (e.g. ``method="tactile_cor"``)."""
         thresholds = detector_thresholds(material)
         derived = {"mu": material.mu_s, "delta": thresholds.delta, "gamma_release": thresholds.gamma_release,
-                   "gamma_resume": thresholds.gamma_resume}
+                   "gamma_resume": thresholds.gamma_resume, "onset_band": OnsetBand.of(material),
+                   "sliding_level": thresholds.sliding_level, "stuck_margin": thresholds.stuck_margin,
+                   "force_noise_n": material.force_noise_n, "torque_noise_nm": material.torque_noise_nm}
         return cls(**{**derived, **overrides})
 
 
@@ -184,9 +207,13 @@ class Detector:
         self._params = SlipParams(mu=s.mu, beta_m=s.beta_m or None, delta=s.delta)
         self._ft_params = self._params  # with β_s of the current pressure frame when beta_m is 0
         self._beta_frame: object = None
+        self._frame_beta: float | None = None  # β_s of the last pressure frame (0: a point contact)
+        self._torsion_beta: float | None = None  # β of the current contact's torsional capacity, m
         onset_ns = (s.onset_frames - 1) * ONSET_NS_PER_FRAME if isinstance(s.onset_frames, int) else 0
         self._latch = CalibratedLatch(DetectorConfig(s.delta, s.gamma_release, s.release_ns, s.gamma_resume,
-                                                     s.onset_frames, onset_ns), s.calibrate_from)
+                                                     s.onset_frames, onset_ns, s.sliding_level, s.stuck_margin),
+                                      s.calibrate_from)
+        self._band = s.onset_band if s.onset_band is not None and s.onset_band.kinds else None
         self.calibration = self._latch.calibration
         """The online calibration (None: off); its ``learned`` is what the latch uses."""
         self._warm: tuple[float, float] | None = None
@@ -207,13 +234,15 @@ class Detector:
         view = ContactView(contact, self.settings.pool)
         ft_params = self._params_for_ft_tests(view, tactile_frame)
         params = ft_params if self._deciding_ft else self._params
+        spread = pressure_spread(view.phi) if self._band is not None else math.nan
         if getattr(contact, "earlier_samples", 0):
-            self._step_earlier(contact, view, params)
+            self._step_earlier(contact, view, params, spread)
         v = self._test(view, params, self._warm)
         if v.p_c is not None:
             self._warm = v.p_c
-        status = self._verdict_status(contact.status, contact, v)
-        slipping, in_contact, margin = self._advance(t_ns, v, status, contact_lost=contact.status == CONTACT_LOST)
+        status = self._guard(self._verdict_status(contact.status, contact, v), view.f_n)
+        slipping, in_contact, margin = self._advance(t_ns, v, status, contact_lost=contact.status == CONTACT_LOST,
+                                                     delta=self._delta(view.f_t, view.tau, spread))
         verdicts = {v.method: (v.stick, v.margin)}
         ft_judged = iter(ft_stick_margins(view, ft_params, self._ft_others) if self._ft_others else ())
         for name, test in self._others:
@@ -232,18 +261,24 @@ class Detector:
                                margin=margin, method=v.method, p_c=v.p_c, solver_status=v.status,
                                status=status, verdicts=verdicts)
 
-    def _advance(self, t_ns: int, v: SlipVerdict, status: str, *, contact_lost: bool) -> tuple[bool, bool, float]:
-        """Feed one sample's verdict (its validity ``status``) to the latch: (slipping, in
-        contact, the deciding margin, with the learned μ when calibrating online)."""
+    def _delta(self, f_t: np.ndarray, tau: float, spread: float) -> float | None:
+        """The band for this load (None: the configured ``delta``)."""
+        return None if self._band is None else self._band.delta_of_load(f_t, tau, spread)
+
+    def _advance(self, t_ns: int, v: SlipVerdict, status: str, *, contact_lost: bool,
+                 delta: float | None) -> tuple[bool, bool, float]:
+        """Feed one sample's verdict (its validity ``status``) and band to the latch:
+        (slipping, in contact, the deciding margin, with the learned μ when calibrating online)."""
         fresh = status == VALID
         self.samples_judged += fresh or contact_lost
         in_contact = v.kind != SlipState.NO_CONTACT if fresh else not contact_lost
-        slipping, margin = self._latch.update(t_ns, v.margin if fresh else math.nan, in_contact=in_contact)
+        slipping, margin = self._latch.update(t_ns, v.margin if fresh else math.nan, in_contact=in_contact,
+                                              delta=delta)
         if slipping and in_contact and v.kind in SLIP_STATES:
             self._kind = v.kind
         return slipping, in_contact, v.margin if math.isnan(margin) else margin
 
-    def _step_earlier(self, contact: Any, view: ContactView, params: SlipParams) -> None:
+    def _step_earlier(self, contact: Any, view: ContactView, params: SlipParams, spread: float) -> None:
         """The deciding test and the latch over the contact's earlier samples, oldest first,
         each as its own contact would be judged: its load with the contact's pressure frame
         scaled to its normal force (a contact whose newest sample pressed nothing has no
@@ -257,20 +292,38 @@ class Detector:
             if v.p_c is not None:
                 self._warm = v.p_c
             sample_status = VALID if code == SAMPLE_OK else CONTACT_LOST if code == SAMPLE_NO_CONTACT else _UNUSABLE
-            status = self._verdict_status(sample_status, contact, v)
+            status = self._guard(self._verdict_status(sample_status, contact, v), f_n)
             if status == VALID and view.phi.size and phi_sum <= 0.0 and not self._deciding_ft:
                 status = _UNUSABLE  # a pressure frame with nothing to scale: no verdict for a tactile test
-            self._advance(t_ns, v, status, contact_lost=code == SAMPLE_NO_CONTACT)
+            self._advance(t_ns, v, status, contact_lost=code == SAMPLE_NO_CONTACT,
+                          delta=self._delta((f_tx, f_ty), tau, spread))
 
     def _params_for_ft_tests(self, view: ContactView, frame: object) -> SlipParams:
         """SlipParams with β fixed: the configured one, or β_s of this pressure frame."""
         if self._params.beta_m is not None or not view.phi.size:
+            self._torsion_beta = self._params.beta_m
             return self._params
         if frame != self._beta_frame:
             beta = ft_beta(view, self._params)  # β_s: the configured β is None on this path
             self._ft_params = replace(self._params, beta_m=beta) if beta else self._params
             self._beta_frame = frame
+            self._frame_beta = beta
+        self._torsion_beta = self._frame_beta
         return self._ft_params
+
+    def _guard(self, status: str, f_n: float) -> str:
+        """``below_noise`` for a valid verdict on a capacity under :data:`NOISE_CAPACITY` times
+        the F/T's noise (the force's ``μ f_n``; the torque's ``β f_n`` with the configured β,
+        else β_s of the pressure frame, 0 for a point contact), else ``status``."""
+        s = self.settings
+        if status != VALID:
+            return status
+        if s.force_noise_n > 0.0 and s.mu * f_n < NOISE_CAPACITY * s.force_noise_n:
+            return BELOW_NOISE
+        beta = self._torsion_beta
+        if beta is not None and s.torque_noise_nm > 0.0 and beta * f_n < NOISE_CAPACITY * s.torque_noise_nm:
+            return BELOW_NOISE
+        return status
 
     def _verdict_status(self, sample_status: str, contact: FusedContact, v: SlipVerdict) -> str:
         """``ok`` when the verdict judged valid data; otherwise the sample's status (the

@@ -16,7 +16,7 @@ from typing import Any
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.toml_file import read_toml
 
-__all__ = ["Material", "DetectorThresholds", "detector_thresholds", "load_material", "material_toml",
+__all__ = ["Material", "DetectorThresholds", "band_delta", "detector_thresholds", "load_material", "material_toml",
            "NOISE_FLOOR", "DELTA_MIN", "DELTA_MAX"]
 
 NOISE_FLOOR = 0.002
@@ -34,7 +34,9 @@ class Material:
     Coefficients are dimensionless, β in m, ``*_se`` are standard errors in the same
     unit (NaN: not identified), ``*_model`` their model errors (same unit; NaN: not
     estimated). ``onset_gamma``: the load factor at the start of each identified
-    gross-slip episode, in the order found.
+    gross-slip episode, in the order found; ``onset_path``, ``onset_spread``: the load path
+    and pressure spread there (``lib/onset_band.py``; empty, or one per onset, NaN where
+    not measured).
     """
 
     name: str
@@ -53,7 +55,11 @@ class Material:
     beta_d_model_m: float = math.nan
     gamma_noise_stick: float = math.nan
     gamma_noise_slide: float = math.nan
+    force_noise_n: float = math.nan
+    torque_noise_nm: float = math.nan
     onset_gamma: tuple[float, ...] = field(default_factory=tuple)
+    onset_path: tuple[float, ...] = field(default_factory=tuple)
+    onset_spread: tuple[float, ...] = field(default_factory=tuple)
     refused: str = ""
 
     def __post_init__(self) -> None:
@@ -64,6 +70,14 @@ class Material:
         for g in self.onset_gamma:
             if not (math.isfinite(g) and 0 < g <= 1.5):
                 raise ConfigError(f"material {self.name!r}: onset_gamma entries must lie in (0, 1.5], got {g}")
+        for key in ("onset_path", "onset_spread"):
+            values = getattr(self, key)
+            if values and len(values) != len(self.onset_gamma):
+                raise ConfigError(f"material {self.name!r}: {key} needs one entry per onset_gamma "
+                                  f"({len(self.onset_gamma)}), got {len(values)}")
+            if any(not (math.isnan(v) or 0.0 <= v <= (1.0 if key == "onset_path" else 10.0)) for v in values):
+                raise ConfigError(f"material {self.name!r}: {key} entries must lie in "
+                                  f"[0, {1 if key == 'onset_path' else 10}] or be nan, got {list(values)}")
 
     @property
     def sliding_level(self) -> float:
@@ -75,36 +89,49 @@ class Material:
 
 @dataclass(frozen=True)
 class DetectorThresholds:
-    """The detector's onset band ``delta``, latch ``gamma_release`` and the level
-    ``gamma_resume`` at which a frame restarts the release dwell (dimensionless)."""
+    """The detector's onset band ``delta``, latch ``gamma_release``, the level
+    ``gamma_resume`` at which a frame restarts the release dwell, and the contact's
+    ``sliding_level`` with the ``stuck_margin`` above it that proves it sticks after a
+    slip (dimensionless; NaN: no such release)."""
 
     delta: float
     gamma_release: float
     gamma_resume: float
+    sliding_level: float = math.nan
+    stuck_margin: float = math.nan
 
 
 def _noise(value: float) -> float:
     return max(value, NOISE_FLOOR) if math.isfinite(value) else NOISE_FLOOR
 
 
-def detector_thresholds(material: Material) -> DetectorThresholds:
-    """Band and release level from a material, by the rule of the module docstring."""
+def band_delta(material: Material, onsets: tuple[float, ...] | list[float]) -> float:
+    """The band's width δ (its edge ``1 − δ``) from ``onsets`` (load factors at gross-slip
+    onsets of ``material``; none: its sliding level), by the rule of the module docstring."""
     stick = _noise(material.gamma_noise_stick)
-    onsets = material.onset_gamma
     edge = material.sliding_level - _BAND_SIGMAS * stick  # the worst case, without onsets
     if onsets:
         below_lowest = (max(onsets) - min(onsets)) / (len(onsets) + 1)
         edge = min(min(onsets), 1.0) - below_lowest - _BAND_SIGMAS * stick
-    delta = min(max(1.0 - edge, DELTA_MIN), DELTA_MAX)
+    return min(max(1.0 - edge, DELTA_MIN), DELTA_MAX)
+
+
+def detector_thresholds(material: Material) -> DetectorThresholds:
+    """Band and release level from a material, by the rule of the module docstring."""
+    delta = band_delta(material, material.onset_gamma)
     release = material.sliding_level - _RELEASE_SIGMAS * _noise(material.gamma_noise_slide)
     release = min(max(release, 1e-3), 1.0 - delta)
     resume = material.sliding_level - _RESUME_SIGMAS * _noise(material.gamma_noise_slide)
     resume = max(release, min(resume, 1.0 - delta))
-    return DetectorThresholds(delta=delta, gamma_release=release, gamma_resume=resume)
+    return DetectorThresholds(delta=delta, gamma_release=release, gamma_resume=resume,
+                              sliding_level=material.sliding_level,
+                              stuck_margin=_RELEASE_SIGMAS * _noise(material.gamma_noise_slide))
 
 
 _FLOATS = ("mu_s", "mu_d", "mu_s_se", "mu_d_se", "beta_s_m", "beta_s_se_m", "beta_d_m", "beta_d_se_m",
-           "mu_s_model", "mu_d_model", "beta_s_model_m", "beta_d_model_m", "gamma_noise_stick", "gamma_noise_slide")
+           "mu_s_model", "mu_d_model", "beta_s_model_m", "beta_d_model_m", "gamma_noise_stick", "gamma_noise_slide",
+           "force_noise_n", "torque_noise_nm")
+_LISTS = ("onset_gamma", "onset_path", "onset_spread")
 
 
 def _number(table: dict[str, Any], key: str, source: str) -> float:
@@ -127,18 +154,19 @@ def parse_material(data: dict[str, Any], *, source: str = "<material>") -> Mater
     name = table.pop("name", Path(source).stem)
     provenance = table.pop("provenance", "")
     refused = table.pop("refused", "")
-    onset = table.pop("onset_gamma", [])
+    lists = {key: table.pop(key, []) for key in _LISTS}
     if not isinstance(name, str) or not isinstance(provenance, str) or not isinstance(refused, str):
         raise ConfigError(f"{source}: material.name, material.provenance and material.refused must be strings")
-    if not isinstance(onset, list) or any(isinstance(g, bool) or not isinstance(g, (int, float)) for g in onset):
-        raise ConfigError(f"{source}: material.onset_gamma: must be a list of numbers, got {onset!r}")
+    for key, values in lists.items():
+        if not isinstance(values, list) or any(isinstance(g, bool) or not isinstance(g, (int, float)) for g in values):
+            raise ConfigError(f"{source}: material.{key}: must be a list of numbers, got {values!r}")
     values = {key: _number(table, key, source) for key in _FLOATS}
     if table:
         raise ConfigError(f"{source}: material.{sorted(table)[0]}: unknown key (known: name, provenance, "
-                          f"refused, onset_gamma, {', '.join(_FLOATS)})")
+                          f"refused, {', '.join(_LISTS)}, {', '.join(_FLOATS)})")
     try:
         return Material(name=name, provenance=provenance, refused=refused,
-                        onset_gamma=tuple(float(g) for g in onset), **values)
+                        **{key: tuple(float(g) for g in v) for key, v in lists.items()}, **values)
     except ConfigError as exc:
         raise ConfigError(f"{source}: {exc}") from None
 
@@ -167,6 +195,7 @@ def material_toml(material: Material, comment: str = "") -> str:
     lines.append(f"# derived detector thresholds (lib/material.py): delta = {t.delta:.4f}, "
                  f"gamma_release = {t.gamma_release:.4f}, gamma_resume = {t.gamma_resume:.4f}")
     lines.append("[material]")
-    for key in ("name", "provenance", *(("refused",) if material.refused else ()), *_FLOATS, "onset_gamma"):
+    lists = tuple(key for key in _LISTS if key == "onset_gamma" or getattr(material, key))
+    for key in ("name", "provenance", *(("refused",) if material.refused else ()), *_FLOATS, *lists):
         lines.append(f"{key} = {_toml_value(getattr(material, key))}")
     return "\n".join(lines) + "\n"

@@ -13,7 +13,7 @@ import numpy as np
 
 from slipstack.lib.limit_set import torsional_coefficient
 
-__all__ = ["pooled", "pooled_model", "frame_noise", "onset_levels", "beta_from_pressure",
+__all__ = ["pooled", "pooled_model", "frame_noise", "onset_frames", "beta_from_pressure",
            "interval_half_width"]
 
 _MIN_NOISE_FRAMES = 5
@@ -83,9 +83,9 @@ def frame_noise(gamma: np.ndarray) -> float:
     return float(np.std(np.diff(g), ddof=1) / math.sqrt(2.0))
 
 
-def onset_levels(frame_ns: np.ndarray, gamma: np.ndarray, onsets_ns: list[int], *,
-                 max_age_ns: int = 20_000_000) -> list[float]:
-    """γ of the newest finite frame before each onset, if no older than ``max_age_ns``.
+def onset_frames(frame_ns: np.ndarray, gamma: np.ndarray, onsets_ns: list[int], *,
+                 max_age_ns: int = 20_000_000) -> list[int]:
+    """Index of the newest frame with a finite γ before each onset, if no older than ``max_age_ns``.
 
     Args:
         frame_ns: frame stamps, ns, increasing.
@@ -94,12 +94,10 @@ def onset_levels(frame_ns: np.ndarray, gamma: np.ndarray, onsets_ns: list[int], 
         max_age_ns: onsets without such a frame are skipped.
     """
     t = np.asarray(frame_ns, dtype=np.int64)
-    g = np.asarray(gamma, dtype=float)
-    keep = np.isfinite(g)
-    t, g = t[keep], g[keep]
-    levels = []
+    finite = np.flatnonzero(np.isfinite(np.asarray(gamma, dtype=float)))
+    frames = []
     for onset in onsets_ns:
-        k = int(np.searchsorted(t, onset, side="left")) - 1
-        if k >= 0 and onset - t[k] <= max_age_ns:
-            levels.append(float(g[k]))
-    return levels
+        k = int(np.searchsorted(t[finite], onset, side="left")) - 1
+        if k >= 0 and onset - t[finite[k]] <= max_age_ns:
+            frames.append(int(finite[k]))
+    return frames

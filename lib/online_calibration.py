@@ -142,14 +142,17 @@ class CalibratedLatch:
     def config(self) -> DetectorConfig:
         return self.latch.config
 
-    def update(self, t_ns: int, margin: float, *, in_contact: bool = True) -> tuple[bool, float]:
-        """(slip flag, margin with the learned μ) for one frame's ``margin`` (NaN: no verdict)."""
+    def update(self, t_ns: int, margin: float, *, in_contact: bool = True,
+               delta: float | None = None) -> tuple[bool, float]:
+        """(slip flag, margin with the learned μ) for one frame's ``margin`` (NaN: no verdict)
+        and band ``delta`` (None: the config's, or what the calibration learned)."""
         cal = self.calibration
         if cal is None:
-            return self.latch.update(t_ns, margin, in_contact=in_contact), margin
+            return self.latch.update(t_ns, margin, in_contact=in_contact, delta=delta), margin
         raw = 1.0 - margin  # γ with the starting μ; NaN stays NaN
         margin = 1.0 - cal.scaled(raw)
-        slipping = self.latch.update(t_ns, margin, in_contact=in_contact)
+        slipping = self.latch.update(t_ns, margin, in_contact=in_contact,
+                                     delta=None if delta is None or cal.learned.episodes else delta)
         if in_contact and cal.step(t_ns, raw, slipping):
             learned = cal.learned
             self.latch.config = replace(self.latch.config, delta=learned.delta, gamma_release=learned.gamma_release,

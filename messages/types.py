@@ -37,6 +37,7 @@ STATUSES = tuple(dict.fromkeys([
     *(s.value for s in SolverStatus),  # fusion and the solvers (lib/status.py), passed on downstream
     "implausible",  # fusion: the pad is pressed far harder than the F/T sensor reports
     *(f"tactile_{p}" for p in TACTILE_PAIRING[1:]),  # slip: a tactile test without a paired frame
+    "below_noise",  # slip: a capacity the F/T's noise swamps (lib/detector.py)
 ]))
 """Status of a data message (``ok``: usable): what the drivers, fusion and the solvers produce."""
 DEVICE_STATUS_PATTERN = r"device-status 0x[0-9a-f]{4,8}"

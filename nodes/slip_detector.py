@@ -17,13 +17,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from slipstack.lib.detection import DetectorConfig
-from slipstack.lib.detector import CONTACT_LOST, FT_TESTS, VALID, Detector, DetectorSettings
+from slipstack.lib.detector import BELOW_NOISE, CONTACT_LOST, FT_TESTS, NOISE_CAPACITY, VALID, Detector, DetectorSettings
 from slipstack.lib.known_cor import KNOWN_COR_METHOD
 from slipstack.lib.limit_set import compile_kernels
 from slipstack.lib.slip_tests import SLIP_TESTS
 from slipstack.messages import Contact, Slip
 from slipstack.lib.errors import ConfigError
-from slipstack.lib.material import Material
+from slipstack.lib.material import Material, detector_thresholds
+from slipstack.lib.onset_band import OnsetBand
 from slipstack.lib.online_calibration import Learned
 from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material, resolve_material
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
@@ -39,6 +40,10 @@ class SlipDetectorParams:
     material: str = field(default="", metadata={
         "help": "material file (launch/materials/ name or path): mu, delta, gamma_release, gamma_resume unless "
                 f"given; '': none, the shipped {DEFAULT_MATERIAL} (reported as uncalibrated)"})
+    band: str = field(default="path", metadata={
+        "help": "path: the onset band of each load's path and pressure spread where the material identified "
+                "onsets of that kind (else delta), and a slip is released when the load proves the contact "
+                "sticks (lib/onset_band.py); fixed: delta for every load, released only below gamma_release"})
     calibrate: str = field(default="off", metadata={
         "help": "online: learn mu, the band and the release level from the contact's confirmed slips "
                 "(lib/online_calibration.py); off: keep the material's"})
@@ -65,12 +70,16 @@ class SlipDetectorParams:
     def __post_init__(self) -> None:
         if self.calibrate not in CALIBRATE:
             raise ConfigError(f"slip_detector calibrate must be one of {CALIBRATE}, got {self.calibrate!r}")
+        if self.band not in BANDS:
+            raise ConfigError(f"slip_detector band must be one of {BANDS}, got {self.band!r}")
         fill_from_material(self, mu="mu_s", delta="delta", gamma_release="gamma_release",
                            gamma_resume="gamma_resume")
 
 
 CALIBRATE = ("online", "off")
 """The values of ``calibrate``."""
+BANDS = ("path", "fixed")
+"""The values of ``band``."""
 _UNCALIBRATED = "uncalibrated"
 """The node's status while it runs on the default material and has learned nothing."""
 
@@ -95,15 +104,22 @@ class SlipDetector(Node):
         super().__init__(params)
         p = self.params
         material = resolve_material(p.material)
+        path = {}
+        if p.band == "path":
+            thresholds = detector_thresholds(material)
+            path = {"onset_band": OnsetBand.of(material), "sliding_level": thresholds.sliding_level,
+                    "stuck_margin": thresholds.stuck_margin}
         self.detector = Detector(DetectorSettings(
             mu=p.mu, delta=p.delta, gamma_release=p.gamma_release, method=p.method, also=tuple(p.also),
             beta_m=p.beta_m, release_ns=round(p.release_ms * 1e6), pool=p.pool, gamma_resume=p.gamma_resume,
             onset_frames=p.onset_frames, known_cor_m=self._known_cor(p),
-            calibrate_from=material if p.calibrate == "online" else None))
+            calibrate_from=material if p.calibrate == "online" else None, force_noise_n=material.force_noise_n,
+            torque_noise_nm=material.torque_noise_nm, **path))
         self._said_without_tactile = False
         self._revision = 0
         self._said = (0, self.detector.settings.mu)  # (episodes, mu) of the last calibration line
         self._status = self._calibration_status(material)
+        self._below_noise = False  # the last verdict's capacity was under the F/T's noise
 
     @staticmethod
     def _known_cor(p: SlipDetectorParams) -> tuple[float, float] | None:
@@ -132,7 +148,9 @@ class SlipDetector(Node):
         mu = self.detector.settings.mu * learned.mu_scale
         text = (f"from {learned.episodes} confirmed slip(s) and the loads carried: mu {mu:.3f}, band delta "
                 f"{learned.delta:.3f}, release {learned.gamma_release:.3f}")
-        ctx.set_status("calibrated-online", text)
+        self._status = ("calibrated-online", text, "")
+        if not self._below_noise:
+            ctx.set_status("calibrated-online", text)
         said_episodes, said_mu = self._said
         if learned.episodes != said_episodes or abs(mu - said_mu) >= 0.01 * said_mu:
             self._said = (learned.episodes, mu)
@@ -144,6 +162,16 @@ class SlipDetector(Node):
         ctx.set_status(status, detail)
         if status != "ok":
             ctx.log(f"{status}: {detail}. {advice}")
+
+    def _say_below_noise(self, below: bool, f_n: float, ctx: Context) -> None:
+        """Status ``below-noise`` while the contact's capacity is under the F/T's noise (no
+        verdict: the grip controller holds the grip), the calibration status again after."""
+        self._below_noise = below
+        if below:
+            ctx.set_status("below-noise", f"f_n {f_n:.2f} N: a friction capacity under {NOISE_CAPACITY:g} x the F/T's "
+                           "noise is not judged; the grip is held")
+        else:
+            ctx.set_status(*self._status[:2])
 
     def on_contact(self, msgs: tuple[Contact, ...], ctx: Context) -> None:
         detector = self.detector
@@ -161,6 +189,10 @@ class SlipDetector(Node):
         status = held if held is not None and v.status in _JUDGED else v.status
         if not v.solver_status.usable:
             ctx.count(f"slip.{v.solver_status.value}")
+        if v.status == BELOW_NOISE:
+            ctx.count("slip.below_noise")
+        if (v.status == BELOW_NOISE) != self._below_noise:
+            self._say_below_noise(v.status == BELOW_NOISE, msg.f_n, ctx)
         if v.status == _WITHOUT_TACTILE and not self._said_without_tactile:
             self._said_without_tactile = True
             ctx.report_error(f"method {self.params.method} needs the tactile pad, but fusion runs F/T-only "

@@ -81,11 +81,14 @@ class BristleField:
     def slip_share(self) -> float:
         """Share of the friction capacity in use by slipping taxels, in [0, 1].
 
-        ``Σ_slip φ_i |ū_i| / Σ φ_i |ū_i|`` over the last step: the share of the
-        frictional dissipation ``D(ξ) = Σ μ φ_i |u_i|`` (docs/math.md §4) due to slipping
-        patches. Weighting by the slip speed discounts the taxels near a centre of
-        rotation, which stick during a gross rotation because they barely move. With
-        the object at rest it falls back to the share of ``f_n``; 0 with no contact.
+        ``Σ_slip φ_i |ū_i| min(1, |q_i|/cap_i) / Σ φ_i |ū_i|`` over the last step: the
+        share of the frictional dissipation ``D(ξ) = Σ μ φ_i |u_i|`` (docs/math.md §4)
+        due to slipping patches, each at the share of its cap it transmits. Weighting by
+        the slip speed discounts the taxels near a centre of rotation, which stick during
+        a gross rotation because they barely move; weighting by the transmitted share
+        discounts a patch in the slip state whose motion stops within the step (the
+        step-rate stick–slip switching of a contact held near its capacity). With the
+        object at rest it falls back to the share of ``f_n``; 0 with no contact.
         """
         return self._slip_share
 

@@ -13,8 +13,8 @@ from numba import njit
 from slipstack.lib.rig.bristle_kernels import (
     CAP_SLIDE, CAP_SLIDE_TOL, CONTACT, DAMPING, DEFLECTION, DT_SLIDE_MASK, EXPLICIT, FORCE, N_FLAG_ROWS, N_TAXEL_ROWS,
     N_VECTOR_ROWS, PHI, POSITION, SLIDE_MASK, SLIDING, SLIP, SPEED_AVG, SPEED_N, STICK_DAMPING, STICK_STIFFNESS, U_AVG,
-    U_N, U_PREV, WEAKENING, advance, deflection_square_sum, end_step, limit_slip_damping, linearise_sliding,
-    new_normal_forces, surface_velocity)
+    U_N, U_PREV, WEAKENING, advance, complex_abs, deflection_square_sum, end_step, limit_slip_damping,
+    linearise_sliding, new_normal_forces, surface_velocity)
 from slipstack.lib.rig.body import mid_point_twist
 from slipstack.lib.weber import JIT
 
@@ -57,15 +57,18 @@ def force_sums(forces: np.ndarray, positions: np.ndarray) -> tuple[complex, floa
 
 
 @njit(**JIT)
-def _slip_share(taxels: np.ndarray) -> float:
-    """``Σ_slip φ_i |ū_i| / Σ φ_i |ū_i|`` of the last cap check; with the object at
-    rest the slipping share of ``f_n``, 0 with no contact (``BristleField.slip_share``)."""
-    phi, mask, speed = taxels[PHI], taxels[SLIDE_MASK], taxels[SPEED_AVG]
+def _slip_share(taxels: np.ndarray, q: np.ndarray) -> float:
+    """``Σ_slip φ_i |ū_i| min(1, |q_i|/cap_i) / Σ φ_i |ū_i|`` of the last cap check: a
+    slipping taxel counts by the share of its cap it transmits (one that decelerates
+    within the step transmits less); with the object at rest the slipping share of
+    ``f_n``, 0 with no contact (``BristleField.slip_share``)."""
+    phi, mask, speed, cap = taxels[PHI], taxels[SLIDE_MASK], taxels[SPEED_AVG], taxels[CAP_SLIDE]
     total = slipping = f_n = f_slip = 0.0
     for i in range(phi.shape[0]):
         weight = speed[i] * phi[i]
         total += weight
-        slipping += weight * mask[i]
+        if mask[i] != 0.0:
+            slipping += weight * min(1.0, complex_abs(q[i]) / cap[i])
         f_n += phi[i]
         f_slip += phi[i] * mask[i]
     if total > 0.0:
@@ -143,7 +146,7 @@ def plant_step(taxels: np.ndarray, flags: np.ndarray, vectors: np.ndarray, const
     q = vectors[FORCE]
     advance(e, damping, u_avg, z, dt, q, z)
     if n_sliding:
-        slip_share = _slip_share(taxels)
+        slip_share = _slip_share(taxels, q)
         s_slid, dt_slide_mask, weakening = taxels[SLIP], taxels[DT_SLIDE_MASK], taxels[WEAKENING]
         for i in range(s_slid.shape[0]):
             if dt_slide_mask[i] != 0.0:

@@ -36,9 +36,9 @@ __all__ = ["Truth", "TaxelState", "Sample", "Simulator", "GROSS_SLIP_FRACTION", 
            "compile_kernels"]
 
 GROSS_SLIP_FRACTION = 0.95
-"""Gross slip ⇔ slipping taxels account for at least this share of the frictional
-dissipation capacity ``Σ φ_i |u_i|`` (``BristleField.slip_share``; for a translation
-simply the share of ``f_n``). Taxels near the centre of rotation stick during a gross
+"""Gross slip ⇔ slipping taxels, each at the share of its cap it transmits, account for
+at least this share of the frictional dissipation capacity ``Σ φ_i |u_i|``
+(``BristleField.slip_share``; for a translation at the cap simply the share of ``f_n``). Taxels near the centre of rotation stick during a gross
 rotation (they barely move), so the share never reaches exactly 1 there; below the
 threshold the contact is in partial slip (edges slipping, core sticking)."""
 MAX_OMEGA_DT = 1.0

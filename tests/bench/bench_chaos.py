@@ -302,7 +302,8 @@ def measure(row: Row, stack: Stack, fault: tuple[int, int]) -> Row:
         prior = [f for stamp, f in finger if stamp < t0]
         row.before_n = prior[-1] if prior else float("nan")
     end = min(back if back is not None else t1 + RECOVERY_CAP_NS, t1 + RECOVERY_CAP_NS)
-    window = [f for stamp, f in finger if t0 <= stamp <= end]
+    # the finger reports at 100 Hz: a fault the control path rides through can end between two reports
+    window = [f for stamp, f in finger if t0 <= stamp <= end] or [f for stamp, f in finger if stamp >= t0][:1]
     row.lowest_n = min(window) if window else float("nan")
     log = stack.control.log()
     health = next((line for line in log.splitlines() if "HEALTH:" in line), "no summary")

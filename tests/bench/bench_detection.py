@@ -20,12 +20,16 @@ from pathlib import Path
 
 import numpy as np
 
+import slipstack.launch
+
 from slipstack.analysis.identify_cli import IdentificationRefused, identify_material
 from slipstack.lib.detection import DetectorConfig
-from slipstack.lib.detector import ONSET_NS_PER_FRAME
+from slipstack.lib.contact_view import pad_positions
+from slipstack.lib.detector import NOISE_CAPACITY, ONSET_NS_PER_FRAME
 from slipstack.lib.episodes import LEAD_NS, MARGIN_NS, MIN_GAP_NS, RELEASE_NS, detection_quality, find_episodes
 from slipstack.lib.limit_set import load_factor, torsional_coefficient
 from slipstack.lib.material import Material, detector_thresholds, load_material, material_toml
+from slipstack.lib.onset_band import OnsetBand, load_path, pressure_spread
 from slipstack.lib.online_calibration import CalibratedLatch
 from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.scene import RIG_MATERIALS, Scene, with_rig_material
@@ -49,12 +53,23 @@ RECORDED_TOPICS = ["ft/wrench", "tactile/frame", "slip", "rig/truth"]
 TACTILE_TESTS = ("exact", "tactile_cor", "tactile_cor_robust", "tactile_cor_known")
 
 
+PATH_HOLDS = Path(slipstack.launch.__file__).parent / "scenes"
+HOLD_KINDS = ("95 % of its path", "95 % of mu_s", "90 % of mu_d")
+
+
 def holds(material: str) -> dict[str, list[str]]:
-    """The material's scenes that must not slip: ``{"95 %": [...], "90 % of mu_d": [...]}``."""
+    """The material's scenes that must not slip, by kind (:data:`HOLD_KINDS`): at 95 % of the
+    load at which their own path lets go (tests/bench/make_path_holds.py), at 95 % of the
+    rigid capacity, at 90 % of the sliding friction."""
+    paths = [f"hold95path_{path}_{material}" for path in ("force", "torsion", "combined")]
+    missing = [name for name in paths if not (PATH_HOLDS / f"{name}.toml").exists()]
+    if missing:
+        _say(f"left out (not written yet: python tests/bench/make_path_holds.py): {', '.join(missing)}")
+        paths = [name for name in paths if name not in missing]
     if material == "coulomb":
-        return {"95 %": ["hold_force_coulomb", "hold_torsion_coulomb"], "90 % of mu_d": []}
-    return {"95 %": [f"hold95_force_{material}", f"hold95_torsion_{material}"],
-            "90 % of mu_d": [f"hold_force_{material}", f"hold_torsion_{material}"]}
+        return {HOLD_KINDS[0]: paths, HOLD_KINDS[1]: ["hold_force_coulomb", "hold_torsion_coulomb"], HOLD_KINDS[2]: []}
+    return {HOLD_KINDS[0]: paths, HOLD_KINDS[1]: [f"hold95_force_{material}", f"hold95_torsion_{material}"],
+            HOLD_KINDS[2]: [f"hold_force_{material}", f"hold_torsion_{material}"]}
 
 
 def _say(msg: str) -> None:
@@ -161,6 +176,41 @@ def true_load_factors(scene: Scene, truth: list) -> np.ndarray:
     return out
 
 
+def verdicts(slips: list, contacts: list) -> dict[str, np.ndarray]:
+    """Per ``slip`` message: stamp, contact, γ (NaN without a valid verdict), the load it
+    judged (f_n N, f_t N, τ N·m), the COR of impending slip (m; NaN if none), and the
+    spread of the pressure of the ``contact`` it judged and its pressure-weighted mean
+    distance from the geometric median (m; β_s/μ, the torsional capacity per μ f_n), NaN
+    without one."""
+    ok = [m.status == "ok" for m in slips]
+    pressure = {c.header.stamp_ns: _pressure_shape(c) for c in contacts}
+    shapes = np.array([pressure.get(m.header.stamp_ns, (math.nan, math.nan)) for m in slips], dtype=float)
+    return {"t": np.array([m.header.stamp_ns for m in slips], dtype=np.int64),
+            "spread": shapes[:, 0].copy(), "mean_distance": shapes[:, 1].copy(),
+            "contact": np.array([m.state != "no-contact" for m in slips], dtype=bool),
+            "gamma": np.array([1.0 - m.margin if good else np.nan for m, good in zip(slips, ok)], dtype=float),
+            "f_n": np.array([m.f_n for m in slips], dtype=float),
+            "f_t": np.array([m.f_t for m in slips], dtype=float).reshape(-1, 2),
+            "tau": np.array([m.tau for m in slips], dtype=float),
+            "p_c": np.array([m.p_c if m.p_c_valid else (np.nan, np.nan) for m in slips], dtype=float).reshape(-1, 2)}
+
+
+def _pressure_shape(contact) -> tuple[float, float]:
+    """(pressure spread, mean distance m) of a ``contact``'s pressure frame (NaN without one)."""
+    if not contact.has_tactile or not contact.phi.size:
+        return math.nan, math.nan
+    tor = torsional_coefficient(contact.phi, pad_positions(contact.rows, contact.cols, contact.pitch_m), 1.0)
+    return pressure_spread(contact.phi), tor.beta_m if tor.status.usable else math.nan
+
+
+def truths(truth: list) -> dict[str, np.ndarray]:
+    """Per ``rig/truth`` message: stamp, gross slip, the slip share, the applied f_n (N)."""
+    return {"truth_t": np.array([m.header.stamp_ns for m in truth], dtype=np.int64),
+            "gross": np.array([m.gross_slip for m in truth], dtype=bool),
+            "slip_share": np.array([m.sliding_fraction for m in truth], dtype=float),
+            "true_f_n": np.array([m.f_n_applied for m in truth], dtype=float)}
+
+
 def recorded_scene(scene_file: str, material: str, cache: Path, rates: tuple[float, float]) -> dict[str, np.ndarray]:
     """γ of the launch file's deciding test on every frame at μ = RECORD_MU, and the truth (cached)."""
     path = cache / f"{scene_file}@{material}.npz"
@@ -172,28 +222,45 @@ def recorded_scene(scene_file: str, material: str, cache: Path, rates: tuple[flo
     tactile = bool(args["tactile"]) and scene.tactile.enabled
     published = _run(base, scene_file, scene, material, {"tactile": str(tactile).lower(), "record": "false"}, rates)
     slips, truth = published["slip"], published["rig/truth"]
-    data = {
-        "t": np.array([m.header.stamp_ns for m in slips], dtype=np.int64),
-        "contact": np.array([m.state != "no-contact" for m in slips]),
-        "gamma": np.array([1.0 - m.margin if m.status == "ok" else np.nan for m in slips], dtype=float),
-        "truth_t": np.array([m.header.stamp_ns for m in truth], dtype=np.int64),
-        "gross": np.array([m.gross_slip for m in truth]),
-        "true_gamma": true_load_factors(scene, truth),
-        "method": np.array(args["method"]),
-    }
+    data = {**verdicts(slips, published["contact"]), **truths(truth), "true_gamma": true_load_factors(scene, truth),
+            "method": np.array(args["method"])}
     cache.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(path, **data)
     return data
 
 
-def flags(data: dict[str, np.ndarray], material: Material, online: bool, record_mu: float = RECORD_MU) -> np.ndarray:
-    """The detector's slip flag on every frame with ``material``'s μ and thresholds."""
+def flags(data: dict[str, np.ndarray], material: Material, online: bool, record_mu: float = RECORD_MU,
+          detector: str = "path") -> np.ndarray:
+    """The detector's slip flag on every frame with ``material``'s μ and thresholds
+    (``detector``: ``path`` as the node runs: the band of each frame's load path and pressure
+    spread, the release when stuck, no verdict below the F/T's noise; ``fixed`` one band,
+    no release when stuck, every frame judged: the detector before issue 24's second pass)."""
     thr = detector_thresholds(material)
-    config = DetectorConfig(thr.delta, thr.gamma_release, gamma_resume=thr.gamma_resume, onset_ns=ONSET_NS_PER_FRAME)
+    stuck = {"sliding_level": thr.sliding_level, "stuck_margin": thr.stuck_margin} if detector == "path" else {}
+    config = DetectorConfig(thr.delta, thr.gamma_release, gamma_resume=thr.gamma_resume, onset_ns=ONSET_NS_PER_FRAME,
+                            **stuck)
     latch = CalibratedLatch(config, material if online else None)
     margin = 1.0 - data["gamma"] * record_mu / material.mu_s
-    return np.array([latch.update(int(t), float(m), in_contact=bool(c))[0]
-                     for t, m, c in zip(data["t"], margin, data["contact"])])
+    if detector == "path" and "mean_distance" in data:
+        margin[below_noise(data, material)] = np.nan
+    band = OnsetBand.of(material)
+    if detector == "path" and band.kinds and "spread" in data:
+        force = np.hypot(data["f_t"][:, 0], data["f_t"][:, 1])
+        deltas = [band.delta(load_path(f, t, material.mu_s, material.beta_s_m), k)
+                  for f, t, k in zip(force.tolist(), data["tau"].tolist(), data["spread"].tolist())]
+    else:
+        deltas = [None] * margin.size
+    return np.array([latch.update(int(t), float(m), in_contact=bool(c), delta=d)[0]
+                     for t, m, c, d in zip(data["t"], margin, data["contact"], deltas)])
+
+
+def below_noise(data: dict[str, np.ndarray], material: Material) -> np.ndarray:
+    """The frames the detector does not judge with ``material``'s F/T noise (``lib/detector.py``
+    ``below_noise``: μ f_n or the pressure frame's β f_n under 10 times the noise)."""
+    f_n = data["f_n"]
+    force = material.mu_s * f_n < NOISE_CAPACITY * material.force_noise_n
+    torque = material.mu_s * data["mean_distance"] * f_n < NOISE_CAPACITY * material.torque_noise_nm
+    return force | torque
 
 
 @dataclass
@@ -205,7 +272,8 @@ class Tally:
     stick: int = 0
     false: int = 0
     latch: int = 0
-    sliding_load: int = 0
+    at_sliding_level: int = 0
+    above_sliding_level: int = 0
     with_true_load: bool = False
     by_test: dict[str, list[int]] = field(default_factory=lambda: {"tactile": [0, 0], "ft": [0, 0]})
     delays: list[float] = field(default_factory=list)
@@ -222,9 +290,11 @@ class Tally:
         k = np.clip(np.searchsorted(data["truth_t"], data["t"]), 0, data["truth_t"].size - 1)
         sticking = data["contact"] & ~data["gross"][k]
         false = f & sticking & ~_excused(data, q)
-        if "true_gamma" in data:  # false alarms while the true load is at or above the sliding level
+        if "true_gamma" in data:  # false alarms while the true load is at the sliding level, or above it
             self.with_true_load = True
-            self.sliding_load += int(np.count_nonzero(false & (data["true_gamma"][k] >= sliding_level - 0.01)))
+            true_gamma = data["true_gamma"][k]
+            self.at_sliding_level += int(np.count_nonzero(false & (np.abs(true_gamma - sliding_level) <= AT_LEVEL)))
+            self.above_sliding_level += int(np.count_nonzero(false & (true_gamma > sliding_level + AT_LEVEL)))
         self.episodes += len(q.episodes)
         self.missed += q.missed
         self.stick += q.stick_frames
@@ -269,34 +339,41 @@ def _share(part: int, whole: int) -> str:
     return f"{100 * part / max(whole, 1):.2f} %"
 
 
+AT_LEVEL = 0.02
+"""A true load within this of the contact's sliding level is at it: there the measured γ
+(noise about 0.006 on the rig) cannot tell a stuck contact from a sliding one."""
+
+
 def detection_row(label: str, material: Material, t: Tally, online: bool) -> str:
     thr = detector_thresholds(material)
     holds_text = " / ".join(f"{r[0]} ({100 * r[1] / max(r[2], 1):.1f} %)" if r[2] else "-"
-                            for r in (t.hold_scenes.get("95 %", [0, 0, 0]), t.hold_scenes.get("90 % of mu_d", [0, 0, 0])))
+                            for r in (t.hold_scenes.get(kind, [0, 0, 0]) for kind in HOLD_KINDS))
     later = (f"{t.later_missed} of {t.later_episodes}, {_pct(t.later_delays, 95)}, "
              f"{_share(t.later_false, t.later_stick)}" if online else "")
     return (f"| {label} | {thr.delta:.3f} / {thr.gamma_release:.3f} | {t.episodes} | {t.missed} | "
             f"{_pct(t.delays, 50)} / {_pct(t.delays, 95)} | {_share(t.false, t.stick)} ({_share(t.latch, t.stick)}; "
-            f"{_share(t.sliding_load, t.stick) if t.with_true_load else '-'}) | "
+            + (f"{_share(t.at_sliding_level, t.stick)}; {_share(t.above_sliding_level, t.stick)}) | "
+               if t.with_true_load else "-; -) | ") +
             f"{_share(*t.by_test['tactile'])} / {_share(*t.by_test['ft'])} | "
             f"{_pct(t.holds_ms, 50, '{:.0f}')} / {_pct(t.holds_ms, 95, '{:.0f}')} | {holds_text} | {later} |")
 
 
 DETECTION_HEADER = [
-    "| contact, material file | δ / γ_release | episodes | missed | delay p50 / p95 (samples) | false alarms "
-    "(latch hold; true load at the sliding level or above) | false alarms: tactile / F/T tests | latch hold p50 / p95 ms | 95 % holds / 90 % μ_d holds: "
-    "alarms (flagged) | online, each run after its first episode: missed, delay p95, false alarms |",
+    "| contact, material file, detector | δ / γ_release | episodes | missed | delay p50 / p95 (samples) | false alarms "
+    "(latch hold; true load at the sliding level ± 0.02; above it) | false alarms: tactile / F/T tests | latch hold "
+    "p50 / p95 ms | holds at 95 % of their path / 95 % of μ_s / 90 % of μ_d: alarms (flagged) | online, each run "
+    "after its first episode: missed, delay p95, false alarms |",
     "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
 ]
 
 
 def evaluate(runs: dict[str, dict], hold_kinds: dict[str, str], material: Material, online: bool,
-             period_ns: float, sliding_level: float, record_mu: float = RECORD_MU) -> Tally:
-    """Every run with ``material`` (``hold_kinds``: scene → its kind of hold, for the holds;
-    ``sliding_level``: the contact's true μ_d/μ_s)."""
+             period_ns: float, sliding_level: float, record_mu: float = RECORD_MU, detector: str = "path") -> Tally:
+    """Every run with ``material`` and ``detector`` (:func:`flags`; ``hold_kinds``: scene →
+    its kind of hold, for the holds; ``sliding_level``: the contact's true μ_d/μ_s)."""
     tally = Tally()
     for scene, data in runs.items():
-        f = flags(data, material, online, record_mu)
+        f = flags(data, material, online, record_mu, detector)
         if scene in hold_kinds:
             tally.add_hold(hold_kinds[scene], f)
         tally.add(data, f, period_ns, sliding_level)
@@ -319,13 +396,8 @@ def engine_run(path: Path, cache: Path) -> dict[str, np.ndarray]:
     ex.feed(events)
     ex.run()
     ex.stop()
-    slips = ex.published["slip"]
     truth = [decode(f.payload) for f in frames if f.topic == "rig/truth"]
-    data = {"t": np.array([m.header.stamp_ns for m in slips], dtype=np.int64),
-            "contact": np.array([m.state != "no-contact" for m in slips]),
-            "gamma": np.array([1.0 - m.margin if m.status == "ok" else np.nan for m in slips], dtype=float),
-            "truth_t": np.array([m.header.stamp_ns for m in truth], dtype=np.int64),
-            "gross": np.array([m.gross_slip for m in truth], dtype=bool), "method": np.array("exact")}
+    data = {**verdicts(ex.published["slip"], ex.published["contact"]), **truths(truth), "method": np.array("exact")}
     np.savez_compressed(out, **data)
     return data
 
@@ -349,13 +421,15 @@ def engine_tables(folder: Path, cache: Path, default: Material, period_ns: float
                                                          cache / f"engine-material-{mu:g}-no-truth.toml")}
         ident_rows += identification_rows(tag, truth, files)
         runs = {p.stem: engine_run(p, cache) for p in own if p not in ident}
-        hold_kinds = {p.stem: "95 %" if sc["name"].startswith("hold95") else "90 % of mu_d"
+        hold_kinds = {p.stem: HOLD_KINDS[1] if sc["name"].startswith("hold95") else HOLD_KINDS[2]
                       for p, sc in own.items() if not sc["expect_slip"]}
-        for label, material, online in ((tag, files["identified (truth)"], False),
-                                        (f"{tag}, **no file**, calibrate off", default, False),
-                                        (f"{tag}, **no file**, calibrate online", default, True)):
+        for label, material, online, detector in (
+                (f"{tag}, fixed band", files["identified (truth)"], False, "fixed"),
+                (f"{tag}, path band", files["identified (truth)"], False, "path"),
+                (f"{tag}, **no file**, calibrate off", default, False, "path"),
+                (f"{tag}, **no file**, calibrate online", default, True, "path")):
             det_rows.append(detection_row(label, material, evaluate(runs, hold_kinds, material, online, period_ns,
-                                                                    1.0), online))
+                                                                    1.0, detector=detector), online))
     return (["", f"Second engine ({folder}): identification from its force_flat and torque_flat sessions (press, "
              "twice: ramp past slip, hold, unload, rest; β truth: μ × the mean taxel distance of a uniform pressure):", "",
              "| contact | file | quantity | truth | identified | ± 2 sigma | error |",
@@ -396,13 +470,15 @@ def main() -> None:
         ident_rows += identification_rows(m, true_friction(m), files)
         hold_kinds = {s: kind for kind, scenes in holds(m).items() for s in scenes}
         runs = {s: recorded_scene(s, m, args.cache, rates) for s in [*args.scenes, *hold_kinds]}
-        for label, material, online in ((m, files["identified (truth)"], False),
-                                        (f"{m}, its file from the pure ramps", files["pure ramps (truth)"], False),
-                                        (f"{m}, **no file**, calibrate off", default, False),
-                                        (f"{m}, **no file**, calibrate online", default, True)):
+        for label, material, online, detector in (
+                (f"{m}, fixed band", files["identified (truth)"], False, "fixed"),
+                (f"{m}, path band", files["identified (truth)"], False, "path"),
+                (f"{m}, its file from the pure ramps, path band", files["pure ramps (truth)"], False, "path"),
+                (f"{m}, **no file**, calibrate off", default, False, "path"),
+                (f"{m}, **no file**, calibrate online", default, True, "path")):
             level = RIG_MATERIALS[m][1] / RIG_MATERIALS[m][0]
             det_rows.append(detection_row(label, material, evaluate(runs, hold_kinds, material, online, period_ns,
-                                                                    level), online))
+                                                                    level, detector=detector), online))
     print(f"\nwall time {time.monotonic() - t0:.0f} s (cache {args.cache})\n")
     print("Identification (ident_force, ident_torsion, ident_combined as a user records them; lock-step, F/T "
           f"{args.ft_rate:g} Hz, tactile {args.tactile_rate:g} Hz; ± 2·√(SE² + model²)):\n")

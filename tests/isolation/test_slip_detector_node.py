@@ -3,10 +3,14 @@ what it says on ``diagnostics`` when its deciding test cannot compute (docs/safe
 
 from __future__ import annotations
 
+import math
+from pathlib import Path
+
 import numpy as np
 
 from sensor_frames import MS, PITCH_M, tactile, wrench
 
+import slipstack.launch
 from slipstack.nodes.fusion import Fusion
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.nodes.slip_detector import SlipDetector, SlipDetectorParams
@@ -99,3 +103,60 @@ def test_a_material_written_by_identify_force_is_reported_as_refused(tmp_path):
     last = [d for d in ex.published["diagnostics"] if d.node == "slip_detector"][-1]
     assert last.status.startswith("refused-material: ") and "identify --force" in last.status, last.status
     assert any("identify refused it: the band would be its cap" in line for line in ex.logs), ex.logs
+
+
+def _noisy_press(material: str) -> InProcessExecutor:
+    """The real fusion, slip detector and grip controller while a finger presses 0 -> 5 N in
+    300 ms, holds, and lets go to 0.12 N from 400 to 500 ms, with no tangential load but the
+    F/T's noise (0.01 N, 20 uN·m), on the pad's centre taxel first (a one-taxel pressure
+    frame: torsional capacity 0)."""
+    from slipstack.nodes.grip_controller import GripController, GripControllerParams
+    rng = np.random.default_rng(3)
+    events = []
+    for k in range(1, 560):
+        f_n = 5.0 * min(k / 300.0, 1.0) if k < 400 else max(5.0 - 4.88 * (k - 400) / 100.0, 0.12)
+        events.append(wrench(k, f_n, float(rng.normal(0.0, 0.01)), seq=k, tau=float(rng.normal(0.0, 2e-5))))
+        if k % 4 == 0:
+            p = np.zeros(256, dtype=np.float32)
+            if k < 40:
+                p[8 * 16 + 8] = f_n / PITCH_M**2
+            else:
+                p[:] = tactile(k, f_n)[2].pressure_pa
+            events.append(tactile(k, f_n, seq=k, pressure_pa=p))
+    ex = InProcessExecutor([Fusion(), SlipDetector(SlipDetectorParams(material=material)),
+                            GripController(GripControllerParams(law="exact", material=material))],
+                           diagnostics_period_s=0.001)
+    ex.feed(sorted(events, key=lambda e: e[0]))
+    ex.run(until_ns=580 * MS)
+    return ex
+
+
+def test_a_press_below_the_ft_noise_is_not_judged_and_the_grip_is_held(tmp_path):
+    """A material that knows its F/T's noise (identify measures it): verdicts on a capacity
+    under 10 times that noise say ``below_noise``, raise no flag, and the grip controller
+    does not start on them (docs/safety.md clause 4: it waits for trusted data) and, once
+    started, holds the grip on them (fail-safe, never lower) when the finger lets go; the
+    detector's ``diagnostics`` say so while it lasts and count those verdicts. Without the noise in the file the same
+    press is judged: a one-taxel frame twisted by noise reads gamma = inf, a flag."""
+    from slipstack.lib.material import load_material, material_toml
+    from dataclasses import replace
+    rubber = load_material(Path(slipstack.launch.__file__).parent / "materials" / "rubber.toml")
+    quiet, plain = tmp_path / "quiet.toml", tmp_path / "plain.toml"
+    quiet.write_text(material_toml(replace(rubber, force_noise_n=0.01, torque_noise_nm=2e-5)))
+    plain.write_text(material_toml(replace(rubber, force_noise_n=math.nan, torque_noise_nm=math.nan)))
+    ex = _noisy_press(str(quiet))
+    slips = ex.published["slip"]
+    below = [s for s in slips if s.status == "below_noise"]
+    assert below and all(s.f_n < 0.25 or s.header.stamp_ns <= 40 * MS for s in below)  # one taxel, or let go
+    assert any(s.header.stamp_ns > 400 * MS for s in below)
+    assert not any(s.state not in ("stick", "no-contact") for s in slips)
+    cmds = ex.published["grip/command"]
+    held = [c for c in cmds if c.header.sources.get("slip") in {s.header.stamp_ns for s in below}]
+    assert cmds[0].header.stamp_ns >= 40 * MS  # no command on the first touch's untrusted verdicts
+    assert held and all(c.reason == "fail-safe" for c in held)
+    assert all(b.f_n_desired >= a.f_n_desired - 1e-12 for a, b in zip(cmds, cmds[1:]) if b.reason == "fail-safe")
+    diagnostics = [d for d in ex.published["diagnostics"] if d.node == "slip_detector"]
+    assert any(d.status.startswith("below-noise: ") and "the grip is held" in d.status for d in diagnostics)
+    assert diagnostics[-1].counters["slip.below_noise"] == len(below)
+    assert any(d.status == "ok" and d.header.stamp_ns < 400 * MS for d in diagnostics)
+    assert any(s.state not in ("stick", "no-contact") for s in _noisy_press(str(plain)).published["slip"])

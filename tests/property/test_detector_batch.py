@@ -64,10 +64,14 @@ batches = st.lists(st.lists(sample, min_size=1, max_size=7), min_size=1, max_siz
 
 
 @settings(max_examples=120, deadline=None)
-@given(batches=batches, method=st.sampled_from(["exact", "coulomb", "tactile_cor"]), period_ns=st.sampled_from([143_000, 1_000_000]))
-def test_a_batch_is_judged_as_its_samples_one_by_one(batches, method, period_ns):
+@given(batches=batches, method=st.sampled_from(["exact", "coulomb", "tactile_cor"]), period_ns=st.sampled_from([143_000, 1_000_000]),
+       noise=st.sampled_from([(math.nan, math.nan), (0.05, 1e-4)]))
+def test_a_batch_is_judged_as_its_samples_one_by_one(batches, method, period_ns, noise):
+    """... also with the noise guard (F/T noise 0.05 N, 0.1 mN·m: μ f_n under 0.5 N, f_n under 1 N,
+    or β f_n under 1 mN·m is ``below_noise``)."""
     tactile = method != "coulomb"
-    settings_ = DetectorSettings(**SETTINGS, method=method, beta_m=0.0 if tactile else 2e-3)
+    settings_ = DetectorSettings(**SETTINGS, method=method, beta_m=0.0 if tactile else 2e-3,
+                                 force_noise_n=noise[0], torque_noise_nm=noise[1])
     by_batch, one_by_one = Detector(settings_), Detector(settings_)
     t, want_slipping = 0, False
     for batch in batches:

@@ -229,3 +229,64 @@ def test_a_fresh_latch_needs_two_frames_in_the_band_and_resume_bounds():
     assert DetectorConfig(gamma_resume=1.0).resume_level == 1.0
     with pytest.raises(ConfigError, match="gamma_resume"):
         DetectorConfig(gamma_resume=0.0)
+
+
+STUCK = DetectorConfig(delta=0.03, gamma_release=0.76, onset_frames=1, sliding_level=0.8, stuck_margin=0.024)
+"""A rubber-like contact (sliding level 0.8, noise margin 4 x 0.006) whose band for this
+load path starts at 0.97 (a pull on a flat face lets go at 1)."""
+
+
+def test_a_load_above_the_sliding_level_after_the_slip_reached_it_releases_after_the_dwell():
+    # Sliding transmits only the sliding friction: once the slip brought gamma to the level,
+    # a load held 0.9 > 0.8 + 0.024 for the dwell is a stuck contact (docs/math.md 3.1).
+    latch = SlipLatch(STUCK)
+    assert latch.update(0, 0.0) is True                  # onset at gamma 1
+    for k, gamma in enumerate([0.95, 0.9, 0.85, 0.81, 0.80], start=1):
+        assert latch.update(k * MS, 1.0 - gamma) is True  # the static->dynamic drop: held
+    assert latch.update(10 * MS, 1.0 - 0.90) is True     # re-stuck: 0.9 from 10 ms
+    assert latch.update(29 * MS, 1.0 - 0.90) is True     # 19 ms above
+    assert latch.update(30 * MS, 1.0 - 0.90) is False    # 20 ms: released
+    assert latch.update(31 * MS, 1.0 - 0.96) is False    # below the band: stays down
+    assert latch.update(32 * MS, 1.0 - 0.975) is True    # in the band again: the next onset
+
+
+def test_the_drop_after_an_onset_never_releases_however_slow():
+    # A slow static->dynamic drop stays above the stuck level for longer than the dwell:
+    # the slip has not reached the sliding level yet, so nothing is proven.
+    latch = SlipLatch(STUCK)
+    assert latch.update(0, 0.0) is True
+    for k in range(1, 200):
+        gamma = 0.96 - 0.15 * k / 200                    # 0.96 -> 0.81 over 200 ms
+        assert latch.update(k * MS, 1.0 - gamma) is True
+
+
+def test_a_frame_at_the_sliding_level_or_without_a_verdict_restarts_the_stuck_dwell():
+    latch = SlipLatch(STUCK)
+    latch.update(0, 0.0)
+    latch.update(1 * MS, 0.2)                            # reached the level
+    latch.update(2 * MS, 0.1)                            # 0.9: dwell from 2 ms
+    latch.update(15 * MS, 0.2)                           # back at the level: restarts
+    latch.update(16 * MS, 0.1)
+    assert latch.update(35 * MS, 0.1) is True            # 19 ms since 16
+    latch.update(36 * MS, math.nan)                      # no verdict: restarts
+    assert latch.update(37 * MS, 0.1) is True
+    assert latch.update(56 * MS, 0.1) is True
+    assert latch.update(57 * MS, 0.1) is False
+
+
+def test_a_coulomb_contact_is_never_released_by_the_stuck_rule():
+    # mu_d = mu_s: the sliding level is 1, the stuck level above the band: only the release
+    # level below it lets go.
+    latch = SlipLatch(DetectorConfig(delta=0.045, gamma_release=0.955, onset_frames=1, sliding_level=1.0,
+                                     stuck_margin=0.025))
+    assert latch.update(0, 0.0) is True
+    for k in range(1, 100):
+        assert latch.update(k * MS, 1.0 - (0.96 if k % 2 else 0.99)) is True
+
+
+def test_stuck_release_config_is_checked():
+    with pytest.raises(ConfigError, match="sliding_level"):
+        DetectorConfig(sliding_level=1.2, stuck_margin=0.02)
+    with pytest.raises(ConfigError, match="stuck_margin"):
+        DetectorConfig(sliding_level=0.8, stuck_margin=-0.01)
+    assert DetectorConfig().stuck_level == math.inf

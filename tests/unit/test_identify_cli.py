@@ -194,3 +194,9 @@ def test_identify_reads_the_second_engines_user_style_ramps(tmp_path: Path, fold
     assert m.beta_s_m == pytest.approx(3.8204e-3, rel=0.05) and m.beta_d_m == pytest.approx(3.8204e-3, rel=0.05)
     assert len(m.onset_gamma) == 2 and all(0.97 <= g <= 1.02 for g in m.onset_gamma)
     assert detector_thresholds(m).delta < 0.05  # a Coulomb contact's narrow band
+    # each onset's load path: the pull 0, the twist 1 (lib/onset_band.py); its pressure's
+    # spread only where the tactile frames give it
+    assert m.onset_path == pytest.approx((0.0, 1.0), abs=0.02)
+    assert len(m.onset_spread) == 2 and all(0.0 <= k < 0.2 for k in m.onset_spread)
+    # the F/T's own noise (the engine adds 0.01 N per force component), for the noise guard
+    assert m.force_noise_n == pytest.approx(0.01, rel=0.2) and 0.0 < m.torque_noise_nm < 1e-4

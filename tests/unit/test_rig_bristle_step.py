@@ -93,7 +93,8 @@ class _ChainedField:
 
     def _advance_sliding(self, u_avg, u_n, z_new):
         speed = self._speed_avg
-        total, slipping = float(speed @ self.phi), float(speed @ (self.phi * self._slide_mask))
+        used = np.minimum(1.0, np.abs(self.q) / np.where(self._slide_mask > 0, self._cap_slide, 1.0))
+        total, slipping = float(speed @ self.phi), float(speed @ (self.phi * self._slide_mask * used))
         if total > 0.0:
             self.slip_share = min(1.0, slipping / total)
         else:
