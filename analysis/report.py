@@ -24,6 +24,7 @@ import numpy as np
 from slipstack.lib.episodes import find_episodes
 from slipstack.lib.errors import ConfigError, DecodeError
 from slipstack.lib.status import SLIP_STATES, SlipState
+from slipstack.analysis.grasp_report import is_grasp_recording, load_grasp_series, plot_grasp_report
 from slipstack.lib.identify import (
     IdentifyConfig,
     RampEstimate,
@@ -514,6 +515,12 @@ def main_report(args: argparse.Namespace) -> int:
             return 2
     if not args.identify:
         claim_output(out, force=True)  # before the recording is read: a path it cannot write fails now
+        grasp = load_grasp_series(path)
+        if is_grasp_recording({topic for topic, msgs in grasp.messages.items() if msgs}):
+            panels = plot_grasp_report(grasp, out, title=args.title)
+            print(out)
+            print(f"  panels: {', '.join(panels)}")
+            return 0
     with file_progress(path, "report") as progress:
         series = load_series(path, progress)
     if args.identify:

@@ -12,13 +12,13 @@ import re
 from pathlib import Path
 from typing import Any
 
-from slipstack.launch.launch_file import SIM_ARG
+from slipstack.launch.launch_file import PORT_ARGS, SIM_ARG
 
 __all__ = ["add_parser", "main_launch", "complete_arguments"]
 
 _CHOICES = re.compile(r"[\w-]+(?:\s*\|\s*[\w-]+)+")
 """An argument's comment lists its values as ``a | b | c`` (launch/files/stack.toml)."""
-_BUILTIN_ARGS = ("run_dir", "free_udp_port", "stamp", SIM_ARG)
+_BUILTIN_ARGS = ("run_dir", *PORT_ARGS, "stamp", SIM_ARG)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

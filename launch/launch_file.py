@@ -26,10 +26,11 @@ if TYPE_CHECKING:  # the node types are imported when a launch is loaded: `launc
     from slipstack.nodes.runtime.node import Node
 
 __all__ = ["NodeEntry", "LaunchFile", "load_launch_file", "default_launch_file", "launch_files_dir", "free_port",
-           "CHECK_ARG", "SIM_ARG", "arg_comments", "declared_args"]
+           "CHECK_ARG", "SIM_ARG", "PORT_ARGS", "arg_comments", "declared_args"]
 
 _SUBST = re.compile(r"\$\((\w+)\)")
 _IDENTIFIER = re.compile(r"[A-Za-z0-9_-]+")
+_NAMESPACE = re.compile(r"[A-Za-z0-9_-]+(/[A-Za-z0-9_-]+)*")
 _TOP_KEYS = {"launch", "args", "node", "machines"}
 _MACHINE_KEYS = {"address", "ports", "keys", "nodes"}
 DEFAULT_PORTS = (24700, 24799)
@@ -37,7 +38,7 @@ DEFAULT_PORTS = (24700, 24799)
 last two are its launcher's too: its clock offsets on ``diagnostics``, and the injection of tools
 on other machines into its nodes (below Linux's ephemeral ports, 32768-60999, which outgoing connections may hold)."""
 _LAUNCH_KEYS = {"description", "duration_s", "extends", "check", "keys", "insecure", "allow_inject"}
-_NODE_KEYS = {"name", "type", "params", "remap", "respawn", "respawn_delay_s", "respawn_max_retries",
+_NODE_KEYS = {"name", "type", "params", "remap", "namespace", "respawn", "respawn_delay_s", "respawn_max_retries",
               "respawn_reset_s", "respawn_standby", "required", "transport", "enabled", "after", "nice",
               "realtime_priority", "container", "stop_first", "machine"}
 SUBST_MAX_CHARS = 65536
@@ -47,6 +48,8 @@ SUBST_MAX_DEPTH = 32
 SIM_ARG = "sim"
 """Built-in argument: ``"sim:"`` in a lock-step launch (``--lockstep``), else ``""``; written before a
 device URL or emulator address, it names the simulated device (``nodes/devices/sim_link.py``)."""
+PORT_ARGS = {"free_udp_port": socket.SOCK_DGRAM, "free_udp_port_2": socket.SOCK_DGRAM, "free_tcp_port": socket.SOCK_STREAM}
+"""Built-in arguments: a port free on 127.0.0.1 when the file is loaded, by kind (the UDP ones differ)."""
 CHECK_ARG = "check"
 """``check:=true`` on the command line sets ``[launch] check`` when the file declares no such argument."""
 
@@ -275,6 +278,20 @@ def _parses(toml_line: str) -> bool:
 
 
 
+def _free_ports() -> dict[str, int]:
+    """:data:`PORT_ARGS`, each a port free now; the UDP ones are held open together so they differ."""
+    socks = []
+    try:
+        for kind in PORT_ARGS.values():
+            s = socket.socket(socket.AF_INET, kind)
+            socks.append(s)
+            s.bind(("127.0.0.1", 0))
+        return {name: s.getsockname()[1] for name, s in zip(PORT_ARGS, socks)}
+    finally:
+        for s in socks:
+            s.close()
+
+
 def free_port(kind: int = socket.SOCK_STREAM) -> int:
     """A port free on 127.0.0.1 now (TCP by default, UDP with ``socket.SOCK_DGRAM``)."""
     with socket.socket(socket.AF_INET, kind) as s:
@@ -356,6 +373,11 @@ def _check_containers(file: str, entries: list[NodeEntry]) -> None:
             )
 
 
+def _declared_topics(cls: type[Node]) -> set[str]:
+    """The default topics of a node type's inputs and outputs (what a namespace prefixes)."""
+    return {i.topic for i in cls.inputs.values()} | {o.topic for o in cls.outputs.values()}
+
+
 def _node_entry(raw: dict[str, Any], where: str) -> NodeEntry | None:
     """The entry of one substituted ``[[node]]`` table; None if it is not enabled."""
     from slipstack.nodes.catalog import node_class
@@ -375,6 +397,13 @@ def _node_entry(raw: dict[str, Any], where: str) -> NodeEntry | None:
     remap = _table(raw.get("remap", {}), f"{where}.remap")
     if not all(isinstance(v, str) for v in remap.values()):
         raise ConfigError(f"{where}.remap maps topic names to topic names; got {remap!r}")
+    namespace = raw.get("namespace", "")
+    if namespace:
+        if not isinstance(namespace, str) or not _NAMESPACE.fullmatch(namespace):
+            raise ConfigError(f"{where}.namespace must be words of letters, digits, _ and - joined by /, "
+                              f"e.g. \"finger0\"; got {namespace!r}")
+        cls = node_class(raw["type"])
+        remap = {**{t: f"{namespace}/{t}" for t in _declared_topics(cls)}, **remap}
     params = _table(raw.get("params", {}), f"{where}.params")
     return NodeEntry(
         name=name, type=raw["type"], cls=node_class(raw["type"]), params=dict(params), remap=dict(remap), respawn=read_flag(raw.get("respawn", False), f"{where}.respawn"),
@@ -400,7 +429,7 @@ def load_launch_file(
 
     ``builtins`` are arguments the launcher provides (``run_dir``: this run's private
     directory, for device links and recordings); a file cannot override them.
-    ``free_udp_port`` (a UDP port free now), ``stamp`` (the local date-time,
+    ``free_udp_port``, ``free_udp_port_2``, ``free_tcp_port`` (ports free now), ``stamp`` (the local date-time,
     ``YYYYmmdd-HHMMSS``) and ``sim`` (:data:`SIM_ARG`, ``""`` unless given) are always provided.
 
     Raises:
@@ -416,8 +445,7 @@ def load_launch_file(
         if name not in args:
             raise ConfigError(f"{p.name}: no launch argument {name!r}; declared: {', '.join(sorted(args)) or 'none'}")
         args[name] = _typed_override(args[name], text, name, endless=duration is not None and duration[1] == name)
-    args.update({"free_udp_port": free_port(socket.SOCK_DGRAM), "stamp": time.strftime("%Y%m%d-%H%M%S"),
-                 SIM_ARG: "", **(builtins or {})})
+    args.update({**_free_ports(), "stamp": time.strftime("%Y%m%d-%H%M%S"), SIM_ARG: "", **(builtins or {})})
     # an argument may refer to others ("rdt://127.0.0.1:$(rdt_port)", "$(run_dir)/ft.tty"),
     # which may refer to others again
     args = _resolve_args(args, p.name)

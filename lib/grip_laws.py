@@ -98,6 +98,8 @@ class GripInput:
             (no COR: test (11) cannot fail by rotation). Used by ``tactile14``.
         slip_state: the slip detector's latched state (``stick``, ``no-contact`` or a
             slip kind); decides the level at which ``tactile14`` counts (11) as failing.
+        demand_n: a squeeze computed outside these laws (the two-finger grasp node's,
+            ``lib/grasp.py: SqueezeLaw``), N.
     """
 
     f_t: tuple[float, float] = (_NAN, _NAN)
@@ -110,6 +112,7 @@ class GripInput:
     n_contact: int = 0
     cor_case: str = SlipCase.ROTATION
     slip_state: str = SlipState.STICK
+    demand_n: float = _NAN
 
     @property
     def f_t_abs(self) -> float:

@@ -1,5 +1,5 @@
-"""Sensor samples: one F/T reading, one tactile frame — as a device back-end decodes
-them and as the simulated rig's sensor models produce them.
+"""Sensor samples: one F/T reading, one tactile frame, one gripper force reading — as a
+device back-end decodes them and as the simulated rig's sensor models produce them.
 
 ``stamp_ns`` is the time of the sample on the clock of whoever made it: the
 simulated time for the rig's sensor models, the caller's clock at the ``poll()`` that
@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FtSample", "TactileSample", "MAX_SAMPLE_RATE_HZ"]
+__all__ = ["FtSample", "TactileSample", "GripperSample", "MAX_SAMPLE_RATE_HZ"]
 
 MAX_SAMPLE_RATE_HZ = 10_000.0
 """The fastest sensor stream accepted (Hz), simulated or read: above the fastest the drivers
@@ -31,6 +31,7 @@ class FtSample:
     status: device status word, 0 = no flag (RDT status, Bota status bits).
     saturated: some axis hit its range and the value is clipped (the simulated
         sensor says so here; a device says so in ``status``).
+    finger: which finger's sensor (0, or 1 on the simulated gripper's second finger).
     """
 
     stamp_ns: int
@@ -40,6 +41,7 @@ class FtSample:
     device_time_s: float | None = None
     status: int = 0
     saturated: bool = False
+    finger: int = 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -51,6 +53,7 @@ class TactileSample:
     device_seq: the frame counter (the simulated sensor counts from 0; no tactile
         protocol has one), or None.
     status: device flags, 0 = none.
+    finger: which finger's pad (0, or 1 on the simulated gripper's second finger).
     """
 
     stamp_ns: int
@@ -58,3 +61,20 @@ class TactileSample:
     device_time_s: float | None = None
     device_seq: int | None = None
     status: int = 0
+    finger: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class GripperSample:
+    """One reading of a gripper's grasping force.
+
+    stamp_ns: time of the sample (ns, see the module docstring).
+    force_n: the grasping force the gripper measures (N).
+    force_limit_n: the force limit it was last told, and acknowledged (N; NaN before any).
+    state: its grasping state (``holding``, ``idle``, ...; lib/protocols/wsg.py).
+    """
+
+    stamp_ns: int
+    force_n: float
+    force_limit_n: float
+    state: str

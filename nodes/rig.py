@@ -19,16 +19,16 @@ from slipstack.lib.samples import MAX_SAMPLE_RATE_HZ, FtSample, TactileSample
 from slipstack.lib.rig.simulator import Simulator, Truth, compile_kernels as compile_rig_kernels
 from slipstack.lib.protocols.crc import compile_kernels as compile_crc_kernels
 from slipstack.lib.toml_file import resolve_path
-from slipstack.messages import GripCommand, GripState, RigTruth
+from slipstack.messages import GraspTruth, GripCommand, GripState, RigTruth
 from slipstack.messages.types import MAX_GRIP_FORCE_N
 from slipstack.nodes.devices.emulators import (
-    BotaEmulator, Dsacon32Emulator, M1616Emulator, RdtSimServer, RdtUdpServer, RobotiqEmulator,
+    BotaEmulator, Dsacon32Emulator, M1616Emulator, RdtSimServer, RdtUdpServer, RobotiqEmulator, WsgEmulator,
 )
 from slipstack.nodes.devices.sim_link import SIM_PREFIX, is_simulated
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
 from slipstack.nodes.runtime.scheduling import runs_realtime
 
-__all__ = ["Rig", "RigParams", "load_scene_by_name", "truth_message", "with_rates"]
+__all__ = ["Rig", "RigParams", "load_scene_by_name", "truth_message", "grasp_truth_message", "with_rates"]
 
 _NS_PER_MS = 1_000_000
 _LATE_TICK_MS = 10
@@ -73,6 +73,18 @@ class RigParams:
     watchdog_grip_n: float = field(default=0.0, metadata={
         "help": "the watchdog raises the command towards this safe grip (N); 0: it only holds"})
     watchdog_rise_n_per_s: float = field(default=10.0, metadata={"help": "the watchdog's raise rate (N/s)"})
+    finger1_rdt_port: int = field(default=0, metadata={
+        "help": "a gripper scene: UDP port of finger 1's RDT emulator (its own F/T stream; the same host)"})
+    finger1_ft_link: str = field(default="", metadata={
+        "help": "a gripper scene: pty link of finger 1's serial F/T emulator; sim:PATH in lock-step runs"})
+    finger1_tactile_link: str = field(default="", metadata={
+        "help": "a gripper scene: pty link of finger 1's tactile emulator; sim:PATH in lock-step runs"})
+    gripper: bool = field(default=False, metadata={
+        "help": "a gripper scene: serve an emulated WSG 50 at gripper_address and squeeze as it is told; "
+                "false: the squeeze follows grip/command"})
+    gripper_address: str = field(default="127.0.0.1:1000", metadata={
+        "help": "TCP HOST:PORT of the emulated gripper (sim:HOST:PORT: the simulated device table, lock-step runs)"})
+    part_width_mm: float = field(default=20.0, metadata={"help": "the emulated gripper finds the part at this width (mm)"})
     grip_state_rate_hz: float = field(default=100.0, metadata={
         "help": "rate of the finger's report on grip/state (Hz; and at once when its mode changes)"})
 
@@ -82,7 +94,8 @@ class Rig(Node):
 
     name = "rig"
     inputs = {"grip": Input("grip/command", GripCommand)}
-    outputs = {"truth": Output("rig/truth", RigTruth), "finger": Output("grip/state", GripState)}
+    outputs = {"truth": Output("rig/truth", RigTruth), "grasp": Output("rig/grasp", GraspTruth),
+               "finger": Output("grip/state", GripState)}
     Params = RigParams
     precise_timers = True  # sensor samples leave on the simulated tick, not up to 1 ms late
 
@@ -99,8 +112,13 @@ class Rig(Node):
         self.scene = with_rates(scene, p.ft_rate_hz, p.tactile_rate_hz, p.truth_rate_hz)
         self.timers = {"tick": p.tick_ms / 1e3}
         self.sim: Simulator | None = None
-        self.ft_dev = None
-        self.tactile_dev = None
+        self.ft_devs: list = []  # per finger
+        self.tactile_devs: list = []
+        self.gripper: WsgEmulator | None = None
+        if p.gripper:
+            if self.scene.fingers != 2:
+                raise ConfigError(f"rig: gripper = true needs a gripper scene ([gripper]); {self.scene.name} has one finger")
+            self.inputs = {}  # the squeeze comes from the emulated gripper, not from grip/command
         self._powered_ns = 0
         self._t0: int | None = None
         self.late_ticks = LateTicks(round(p.tick_ms * 1e6), _LATE_TICK_MS * _NS_PER_MS,
@@ -123,20 +141,15 @@ class Rig(Node):
         compile_rig_kernels()  # loaded before the scene starts, not on its first slip or re-shape
         compile_crc_kernels()  # the device emulators frame CRCs from the first sample on
         self.sim = Simulator(scene)
+        devices = [(p.rdt_port, p.ft_link, p.tactile_link, "")]
+        if scene.fingers == 2:
+            devices.append((p.finger1_rdt_port, p.finger1_ft_link, p.finger1_tactile_link, "finger1_"))
         if scene.ft.enabled:
-            self.ft_dev = {
-                "rdt": lambda: (RdtSimServer(p.rdt_host[len(SIM_PREFIX):], p.rdt_port) if is_simulated(p.rdt_host)
-                                else RdtUdpServer(p.rdt_host, p.rdt_port)),
-                "robotiq": lambda: RobotiqEmulator(self._link(p.ft_link, "ft_link"), streaming=False),
-                "bota": lambda: BotaEmulator(self._link(p.ft_link, "ft_link"), streaming=False,
-                                             rate_hz=scene.ft.rate_hz),
-            }[p.ft_protocol]()
+            self.ft_devs = [self._ft_device(port, link, prefix) for port, link, _, prefix in devices]
+        if p.gripper:
+            self.gripper = WsgEmulator(p.gripper_address, part_width_mm=p.part_width_mm)
         if scene.tactile.enabled and p.tactile:
-            link = self._link(p.tactile_link, "tactile_link")
-            self.tactile_dev = (
-                Dsacon32Emulator(link, rows=scene.pad.rows, cols=scene.pad.cols, texel_size_m=scene.pad.pitch_m)
-                if p.tactile_protocol == "dsacon32" else M1616Emulator(link)
-            )
+            self.tactile_devs = [self._tactile_device(link, prefix) for _, _, link, prefix in devices]
             if p.calibration_out:
                 pressure, counts = self.sim.tactile.calibration_table()
                 save_calibration(Calibration(counts=counts, pressure_pa=pressure,
@@ -144,6 +157,27 @@ class Rig(Node):
                                  p.calibration_out)
         self._powered_ns = ctx.now_ns()
         ctx.log(f"scene {scene.name}: {scene.description} ({scene.duration_s:g} s, free dof {list(scene.dof.free)})")
+
+    def _ft_device(self, port: int, link: str, prefix: str):
+        """One finger's F/T emulator (``prefix`` names its parameters: "" for finger 0)."""
+        p, scene = self.params, self.scene
+        if p.ft_protocol == "rdt":
+            if port <= 0:
+                raise ConfigError(f"rig: set {prefix}rdt_port (the UDP port of that finger's RDT emulator)")
+            host = p.rdt_host
+            return RdtSimServer(host[len(SIM_PREFIX):], port) if is_simulated(host) else RdtUdpServer(host, port)
+        link = self._link(link, f"{prefix}ft_link")
+        if p.ft_protocol == "robotiq":
+            return RobotiqEmulator(link, streaming=False)
+        return BotaEmulator(link, streaming=False, rate_hz=scene.ft.rate_hz)
+
+    def _tactile_device(self, link: str, prefix: str):
+        """One finger's tactile emulator."""
+        pad = self.scene.pad
+        link = self._link(link, f"{prefix}tactile_link")
+        if self.params.tactile_protocol == "dsacon32":
+            return Dsacon32Emulator(link, rows=pad.rows, cols=pad.cols, texel_size_m=pad.pitch_m)
+        return M1616Emulator(link)
 
     @staticmethod
     def _link(path: str, name: str) -> str:
@@ -214,16 +248,28 @@ class Rig(Node):
         if report is not None:
             ctx.report_error(report)
 
+    def _devices(self) -> list:
+        return [*self.ft_devs, *self.tactile_devs]
+
     def _sensors_streaming(self) -> bool:
-        """Every emulated sensor has been started by its driver (M1616 pushes unasked)."""
-        devs = [d for d in (self.ft_dev, self.tactile_dev) if d is not None]
-        return all(getattr(d, "acquiring", getattr(d, "streaming", True)) for d in devs)
+        """Every emulated sensor has been started by its driver (M1616 pushes unasked), and the
+        emulated gripper holds the part."""
+        held = self.gripper is None or (self.gripper.holding and self.gripper.stream_period_ns > 0)
+        return held and all(getattr(d, "acquiring", getattr(d, "streaming", True)) for d in self._devices())
+
+    def _serve_gripper(self, ctx: Context) -> None:
+        """The emulated gripper answers its driver and streams the squeeze; the fingers squeeze as it says."""
+        gripper, sim = self.gripper, self.sim
+        gripper.tick(ctx.now_ns(), sim.normal_force_applied if self._t0 is not None else 0.0)
+        if self._t0 is not None and gripper.squeeze_n != sim.normal_force_command:
+            sim.command_normal_force(gripper.squeeze_n)
 
     def on_timer_tick(self, ctx: Context) -> None:
         sim = self.sim
-        for dev in (self.ft_dev, self.tactile_dev):
-            if dev is not None:
-                dev.service()
+        for dev in self._devices():
+            dev.service()
+        if self.gripper is not None:
+            self._serve_gripper(ctx)
         self._report_finger(ctx)
         if self._t0 is None:  # the experiment starts once the drivers read the sensors
             waited = (ctx.now_ns() - self._powered_ns) / 1e9
@@ -234,24 +280,29 @@ class Rig(Node):
             self._t0 = ctx.now_ns()
             ctx.log(f"sensors streaming; scene {self.scene.name} starts")
         self._tell_if_late(ctx)
-        self._guard_finger(ctx)
+        if self.gripper is None:
+            self._guard_finger(ctx)
         for sample in sim.step_until(ctx.now_ns() - self._t0):
             if isinstance(sample, FtSample):
-                if self.ft_dev is not None and not self.ft_dev.send_ft(sample.force_n, sample.torque_nm):
+                if self.ft_devs and not self.ft_devs[sample.finger].send_ft(sample.force_n, sample.torque_nm):
                     ctx.count("rig.ft_not_sent")
             elif isinstance(sample, TactileSample):
-                if self.tactile_dev is not None and not self.tactile_dev.send_tactile(sample.counts):
+                if self.tactile_devs and not self.tactile_devs[sample.finger].send_tactile(sample.counts):
                     ctx.count("rig.tactile_not_sent")
             else:
-                ctx.publish("truth", truth_message(sample), stamp_ns=self._t0 + sample.stamp_ns)
+                stamp = self._t0 + sample.stamp_ns
+                ctx.publish("truth", truth_message(sample), stamp_ns=stamp)
+                if sample.finger_loads:
+                    ctx.publish("grasp", grasp_truth_message(sample, self.params.scene), stamp_ns=stamp)
         if sim.done and (ctx.now_ns() - self._t0) / 1e9 >= self.params.run_s:
             ctx.log(f"scene {self.scene.name} finished")
             ctx.shutdown()
 
     def stop(self, ctx: Context) -> None:
-        for dev in (self.ft_dev, self.tactile_dev):
-            if dev is not None:
-                dev.close()
+        for dev in self._devices():
+            dev.close()
+        if self.gripper is not None:
+            self.gripper.close()
 
 
 def load_scene_by_name(name: str) -> Scene:
@@ -286,3 +337,10 @@ def truth_message(t: Truth) -> RigTruth:
         f_n_command=t.f_n_command, sliding_fraction=t.slip_fraction,
         load_f_t=np.array(t.load_force, dtype=float), load_tau=t.load_torque,
     )
+
+
+def grasp_truth_message(t: Truth, scene: str) -> GraspTruth:
+    """The ``rig/grasp`` message of a gripper's :class:`Truth` sample (its per-finger loads) of ``scene``."""
+    loads = np.array(t.finger_loads, dtype=float)
+    return GraspTruth(f_x=loads[:, 0].copy(), f_y=loads[:, 1].copy(), tau=loads[:, 2].copy(),
+                      weight=np.array(t.weight, dtype=float), mass_kg=t.mass_kg, scene=scene)

@@ -82,6 +82,16 @@ class CommandWatchdog:
         self._last_command_ns = now_ns
         self.expired = False
 
+    def due_ns(self, period_ns: int) -> int | None:
+        """When :meth:`step` may next change the command (ns): just past the timeout after the
+        last command, or, once expired, ``period_ns`` after the last step; None before the
+        first command or with the watchdog off."""
+        if self.timeout_ns == 0 or self._last_command_ns is None:
+            return None
+        if self.expired:
+            return (self._last_step_ns if self._last_step_ns is not None else self._last_command_ns) + period_ns
+        return self._last_command_ns + self.timeout_ns + 1
+
     def step(self, now_ns: int, command_n: float) -> float | None:
         """The command the finger should follow now (N), or ``None`` to keep ``command_n``.
 

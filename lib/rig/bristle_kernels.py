@@ -18,7 +18,7 @@ from slipstack.lib.weber import JIT
 
 __all__ = ["complex_abs", "finish_sliding", "linearise_sliding", "advance", "limit_slip_damping", "release_over_cap",
            "slide_caps", "stick_arrays", "surface_velocity", "take_normal_forces", "restart_weakening",
-           "caps_and_stick_arrays", "count_sliding", "new_normal_forces", "end_step", "deflection_square_sum",
+           "caps_and_stick_arrays", "count_sliding", "new_normal_forces", "end_step", "deflection_square_sum", "elastic_twist",
            "N_TAXEL_ROWS", "MU_S", "MU_D", "SLIP", "WEAKENING", "PHI", "CAP_STATIC", "CAP_DYNAMIC", "CAP_WEAKENING",
            "CAP_SLIDE", "CAP_SLIDE_TOL", "CAP_STICK", "DT_SLIDE_MASK", "STICK_STIFFNESS", "SPEED_N", "STICK_DAMPING",
            "DAMPING", "SLIDE_MASK", "SPEED_AVG", "N_FLAG_ROWS", "SLIDING", "CONTACT", "N_VECTOR_ROWS", "POSITION",
@@ -247,6 +247,36 @@ def stick_arrays(sliding: np.ndarray, contact: np.ndarray, phi: np.ndarray, cap_
         stick_damping_out[i] = stick_damping * stick
         stick_stiffness_out[i] = -k * stick
 
+
+
+@njit(**JIT)
+def elastic_twist(z: np.ndarray, positions: np.ndarray, contact: np.ndarray) -> tuple[complex, float]:
+    """The rigid displacement ``u(p) = t + i·ω·p`` nearest the deflections ``z_i`` of the taxels in
+    contact (least squares): ``(t`` complex m, ``ω`` rad); zero with fewer than two taxels."""
+    n = 0
+    zx = zy = px = py = 0.0
+    for i in range(z.shape[0]):
+        if contact[i]:
+            n += 1
+            zx += z[i].real
+            zy += z[i].imag
+            px += positions[i].real
+            py += positions[i].imag
+    if n < 2:
+        return 0j, 0.0
+    zx /= n
+    zy /= n
+    px /= n
+    py /= n
+    cross = spread = 0.0
+    for i in range(z.shape[0]):
+        if contact[i]:
+            dx = positions[i].real - px
+            dy = positions[i].imag - py
+            cross += dx * (z[i].imag - zy) - dy * (z[i].real - zx)
+            spread += dx * dx + dy * dy
+    omega = cross / spread if spread > 0.0 else 0.0
+    return complex(zx + omega * py, zy - omega * px), omega
 
 
 @njit(**JIT)

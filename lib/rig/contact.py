@@ -56,12 +56,14 @@ class PressureModel:
         self._pose0 = (complex(initial_pose[0], initial_pose[1]), float(initial_pose[2]))
         # A uniform pressure over the whole pad does not change when the object moves.
         self._attached = spec.attached_to_object and not (
-            spec.model == "flat" and spec.footprint == "pad")
+            spec.model == "flat" and spec.footprint == "pad" and spec.ridge_depth == 0.0)
         self._force_dependent = spec.model in ("hertz", "edge")
         reach = float(np.max(np.abs(centres))) + pad.pitch_m
         self._move_tol = _SHAPE_MOVE_FRACTION * pad.pitch_m
         self._rot_tol = self._move_tol / reach
         self._key: tuple[float, complex, float] | None = None
+        k = 2.0 * np.pi / spec.ridge_period_m if spec.ridge_depth > 0.0 else 0.0
+        self._ridge_wave = (k * np.cos(spec.ridge_angle_rad), k * np.sin(spec.ridge_angle_rad))
         self._shape = np.zeros(pad.n_taxels)
 
     @property
@@ -124,7 +126,8 @@ class PressureModel:
         else:  # flat, offset: re-evaluated whenever an attached contact moves: compiled
             weights = np.empty(points.shape[0])
             footprint_cell_means(points, complex(*spec.centre_m), _FOOTPRINTS[spec.footprint], spec.radius_m,
-                                 *spec.half_size_m, spec.model == "offset", *spec.slope_per_m, weights)
+                                 *spec.half_size_m, spec.model == "offset", *spec.slope_per_m, spec.ridge_depth,
+                                 *self._ridge_wave, weights)
         total = float(weights.sum())
         if total > 0.0:
             return weights / total

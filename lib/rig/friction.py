@@ -12,10 +12,17 @@ from __future__ import annotations
 import numpy as np
 
 from slipstack.lib.rig import bristle_kernels as kernels
-from slipstack.lib.rig.plant_kernel import N_CONSTANTS, plant_step
+from slipstack.lib.rig.plant_kernel import N_CONSTANTS, force_sums, plant_step
 from slipstack.lib.rig.scene import ContactSpec
 
-__all__ = ["BristleField"]
+__all__ = ["BristleField", "friction_coefficients"]
+
+
+def friction_coefficients(spec: ContactSpec, rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(μ_s, μ_d)`` of ``n`` taxels: ``spec``'s times a factor ``1 + mu_spread·N(0,1)`` each
+    (clipped to [0.5, 1.5]), drawn from ``rng``: the surface's heterogeneity."""
+    factor = np.clip(1.0 + spec.mu_spread * rng.standard_normal(n), 0.5, 1.5)
+    return spec.mu_s * factor, spec.mu_d * factor
 
 
 class BristleField:
@@ -31,15 +38,18 @@ class BristleField:
         dt_s: internal step (s).
         rng: draws the per-taxel friction factors ``1 + mu_spread·N(0,1)``.
         positions: taxel centres ``p_i`` (complex, m, pad frame), shape (N,).
+        friction: ``(μ_s, μ_d)`` per taxel, shape (N,) each, instead of drawing them from
+            ``spec`` and ``rng`` (:func:`friction_coefficients`; a gripper's two fingers).
     """
 
     def __init__(self, spec: ContactSpec, taxel_area_m2: float, dt_s: float,
-                 rng: np.random.Generator, positions: np.ndarray) -> None:
+                 rng: np.random.Generator, positions: np.ndarray,
+                 friction: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         self.k = spec.stiffness_N_per_m3 * taxel_area_m2
         self.c = spec.damping_Ns_per_m3 * taxel_area_m2
         self.dt = dt_s
         n = positions.shape[0]
-        factor = np.clip(1.0 + spec.mu_spread * rng.standard_normal(n), 0.5, 1.5)
+        mu_s, mu_d = friction_coefficients(spec, rng, n) if friction is None else friction
         self._v_stick = spec.stick_speed_m_s
         self._v_reg = spec.regularisation_speed_m_s
         # the per-taxel state the kernels share, one row per quantity (rows and units:
@@ -48,8 +58,8 @@ class BristleField:
         self._flags = np.zeros((kernels.N_FLAG_ROWS, n), dtype=bool)
         self._vectors = np.zeros((kernels.N_VECTOR_ROWS, n), dtype=complex)
         t = self._taxels
-        t[kernels.MU_S] = spec.mu_s * factor
-        t[kernels.MU_D] = spec.mu_d * factor
+        t[kernels.MU_S] = mu_s
+        t[kernels.MU_D] = mu_d
         t[kernels.CAP_SLIDE_TOL] = np.inf
         t[kernels.WEAKENING] = 1.0
         self._vectors[kernels.POSITION] = positions
@@ -81,6 +91,17 @@ class BristleField:
         object at rest it falls back to the share of ``f_n``; 0 with no contact.
         """
         return self._slip_share
+
+    def load_of(self, taxels: slice) -> tuple[complex, float]:
+        """``(Σ q_i, Σ p_i × q_i)`` over ``taxels`` in the last step: the force (complex N) and
+        torque about the pad origin (N·m) those patches exerted on the object (one finger's share)."""
+        return force_sums(self.q[taxels], self._vectors[kernels.POSITION][taxels])
+
+    def elastic_twist(self) -> tuple[complex, float]:
+        """The rigid displacement ``(t, ω)`` (complex m, rad; ``u(p) = t + i·ω·p``) nearest the
+        deflections of the taxels in contact: how far the object is off the pose at which its
+        contact last stuck, elastically (lib/rig/bristle_kernels.py ``elastic_twist``)."""
+        return kernels.elastic_twist(self.z, self._vectors[kernels.POSITION], self._contact)
 
     def potential_energy(self) -> float:
         """Elastic energy stored in the bristles ``Σ ½ k |z_i|²`` (J)."""

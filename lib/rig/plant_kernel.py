@@ -18,7 +18,7 @@ from slipstack.lib.rig.bristle_kernels import (
 from slipstack.lib.rig.body import mid_point_twist
 from slipstack.lib.weber import JIT
 
-__all__ = ["MAX_CAP_PASSES", "N_CONSTANTS", "plant_step", "compile_kernels"]
+__all__ = ["MAX_CAP_PASSES", "N_CONSTANTS", "force_sums", "plant_step", "compile_kernels"]
 
 MAX_CAP_PASSES = 4
 """Solves per step at most: the last one is taken even if a cap is still exceeded."""
@@ -44,7 +44,7 @@ def _damping_sums(damping: np.ndarray, positions: np.ndarray) -> tuple[float, co
 
 
 @njit(**JIT)
-def _force_sums(forces: np.ndarray, positions: np.ndarray) -> tuple[complex, float]:
+def force_sums(forces: np.ndarray, positions: np.ndarray) -> tuple[complex, float]:
     """``(Σ f_i, Σ p_i × f_i)`` of per-taxel forces (complex N, N·m about the pad origin)."""
     fx = fy = tau = 0.0
     for i in range(forces.shape[0]):
@@ -129,7 +129,7 @@ def plant_step(taxels: np.ndarray, flags: np.ndarray, vectors: np.ndarray, const
                           taxels[STICK_DAMPING], v_reg, taxels[SPEED_N], damping)
     else:
         damping[:] = taxels[STICK_DAMPING]
-    f_e, tau_e = _force_sums(e, positions)
+    f_e, tau_e = force_sums(e, positions)
     force = f_e + force_ext
     tau = tau_e + tau_ext
     v_mid = v_ref
@@ -153,7 +153,7 @@ def plant_step(taxels: np.ndarray, flags: np.ndarray, vectors: np.ndarray, const
                 s_slid[i] += speed_avg[i] * dt_slide_mask[i]
                 weakening[i] = math.exp(s_slid[i] * neg_inv_d_c)
     n_sliding = end_step(n_sliding, stick_damping, k, dt, v_stick, taxels, flags, vectors)
-    f_q, tau_q = _force_sums(q, positions)
+    f_q, tau_q = force_sums(q, positions)
     return n_sliding, v_mid, w_mid, slip_share, f_q, tau_q
 
 
@@ -171,3 +171,4 @@ def compile_kernels() -> None:
     new_normal_forces(1.0, np.ones(n), 1, 1.0, 1.0, 1e-3, taxels, flags, vectors)
     plant_step(taxels, flags, vectors, constants, 1, True, 0j, 0j, 1.0, 0.0, 0j, 0.0, 0.0, 0j, 0.0)
     deflection_square_sum(vectors[DEFLECTION], flags[CONTACT])
+    force_sums(vectors[FORCE][:1], vectors[POSITION][:1])  # a finger's share (a view: its own specialisation)

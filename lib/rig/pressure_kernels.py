@@ -80,14 +80,16 @@ FOOTPRINT_PAD, FOOTPRINT_DISC, FOOTPRINT_RECT = 0, 1, 2
 
 @njit(**JIT)
 def footprint_cell_means(points: np.ndarray, centre: complex, footprint: int, radius_m: float, half_x_m: float,
-                         half_y_m: float, sloped: bool, slope_x: float, slope_y: float, out: np.ndarray) -> None:
+                         half_y_m: float, sloped: bool, slope_x: float, slope_y: float, ridge_depth: float,
+                         ridge_kx: float, ridge_ky: float, out: np.ndarray) -> None:
     """Mean pressure of the flat and offset models over each cell's points.
 
     At a point ``d = q − c`` from the centre: 1 inside the footprint (``|d| ≤ radius``
     for a disc, ``|d_x| ≤ half_x`` and ``|d_y| ≤ half_y`` for a rectangle, everywhere
     for the pad), 0 outside; ``sloped`` (the offset model) multiplies it by
-    ``max(1 + slope_x d_x + slope_y d_y, 0)``. The expressions and the order of each
-    cell's sum are numpy's, so the means are bit for bit those of the numpy code.
+    ``max(1 + slope_x d_x + slope_y d_y, 0)``; ridges (``ridge_depth > 0``) multiply it by
+    ``1 + ridge_depth·cos(k_x d_x + k_y d_y)``. The expressions and the order of each
+    cell's sum are numpy's, so the means without ridges are bit for bit those of the numpy code.
 
     Args:
         points: sample points, shape (N, s²) (complex, m), ``s² ≤ MAX_POINTS_PER_CELL``.
@@ -95,6 +97,8 @@ def footprint_cell_means(points: np.ndarray, centre: complex, footprint: int, ra
         footprint: ``FOOTPRINT_PAD``, ``FOOTPRINT_DISC`` or ``FOOTPRINT_RECT``.
         radius_m, half_x_m, half_y_m: the disc's radius, the rectangle's half sizes (m).
         sloped, slope_x, slope_y: the offset model's slope (1/m).
+        ridge_depth, ridge_kx, ridge_ky: the ridges' relative depth (0: none) and wave
+            vector (rad/m).
         out: receives the N cell means (dimensionless).
     """
     n_cells, n_points = points.shape
@@ -112,6 +116,8 @@ def footprint_cell_means(points: np.ndarray, centre: complex, footprint: int, ra
             if sloped:
                 level = 1.0 + (slope_x * d.real + slope_y * d.imag)
                 value *= level if not level < 0.0 else 0.0  # np.clip(level, 0, None): NaN stays NaN
+            if ridge_depth > 0.0:
+                value *= 1.0 + ridge_depth * math.cos(ridge_kx * d.real + ridge_ky * d.imag)
             row[j] = value
         out[k] = numpy_pairwise_sum(row, n_points) / n_points
 
@@ -120,4 +126,4 @@ def compile_kernels() -> None:
     """Compile these kernels, or load them from numba's cache."""
     hertz_cell_means(np.zeros((2, 4), dtype=complex), 0j, 1e-3, np.empty(2))
     footprint_cell_means(np.zeros((2, 4), dtype=complex), 0j, FOOTPRINT_RECT, 1e-3, 1e-3, 1e-3, True, 1.0, 1.0,
-                         np.empty(2))
+                         0.5, 1e3, 0.0, np.empty(2))

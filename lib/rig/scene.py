@@ -12,6 +12,7 @@ More in docs/modules.md, `lib/rig/scene.py`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Mapping
@@ -35,6 +36,8 @@ __all__ = [
     "TactileSpec",
     "SimSpec",
     "ExpectSpec",
+    "MassStep",
+    "GripperSpec",
     "Scene",
     "load_scene",
     "parse_scene",
@@ -42,6 +45,7 @@ __all__ = [
     "SEGMENT_KINDS",
     "RIG_MATERIALS",
     "with_rig_material",
+    "mirrored_contact",
 ]
 
 MAX_SUBSAMPLES = 11
@@ -99,6 +103,9 @@ class ContactSpec:
         edge: an object edge, a strip of length ``length_m`` at ``angle_rad`` through
             ``centre_m`` with a Hertzian line-contact profile across it of half-width
             ``b = b_ref_m·(f_n/f_ref_N)^{1/2}``.
+    The flat and offset models may carry ridges (a grooved face): the pressure times
+    ``1 + ridge_depth·cos(2π d·n/ridge_period_m)``, ``n`` at ``ridge_angle_rad`` across the
+    ridges; ``ridge_depth = 0`` (default) has none.
     ``moves_with_object`` (default: true except hertz) makes the footprint a part of the
     object, so the pressure image translates and rotates on the pad when it slips.
     ``subsamples``² points per taxel sample the pressure (small contacts do not alias);
@@ -126,6 +133,9 @@ class ContactSpec:
     f_ref_N: float = 5.0
     length_m: float = 15e-3
     angle_rad: float = 0.0
+    ridge_depth: float = 0.0
+    ridge_period_m: float = 5e-3
+    ridge_angle_rad: float = 0.0
 
     @property
     def attached_to_object(self) -> bool:
@@ -283,6 +293,42 @@ class ExpectSpec:
 
 
 @dataclass(frozen=True)
+class MassStep:
+    """Mass added to the object at its centre of mass: ``mass_kg`` (kg) from ``at_s`` (s), at
+    a steady rate over ``over_s`` (s; 0: at once)."""
+
+    at_s: float
+    mass_kg: float
+    over_s: float = 0.0
+
+    def added(self, t_s: float) -> float:
+        """The mass this step has added by ``t_s`` (kg)."""
+        if t_s < self.at_s:
+            return 0.0
+        if self.over_s <= 0.0 or t_s >= self.at_s + self.over_s:
+            return self.mass_kg
+        return self.mass_kg * (t_s - self.at_s) / self.over_s
+
+
+@dataclass(frozen=True)
+class GripperSpec:
+    """A parallel gripper: finger 1 presses the object's opposite face with the same squeeze.
+
+    Finger 0 is the pad of the scene (``[contact]``, frame ``F``); finger 1's pad frame is
+    ``F`` turned by 180° about ``y`` (``x → −x``, ``z → −z``), its contact ``contact`` given
+    in that frame (docs/math.md §9). ``gravity_m_s2`` acts on the object's centre of mass,
+    in ``F``; a support (the table) carries the whole weight until ``weight_on_s[0]`` and
+    none from ``weight_on_s[1]``, linearly between (a pick-up). ``added_mass`` steps add
+    mass at the centre of mass (the moment of inertia grows in proportion).
+    """
+
+    contact: ContactSpec
+    gravity_m_s2: Vec2 = (0.0, -9.81)
+    weight_on_s: Vec2 = (0.0, 0.0)
+    added_mass: tuple[MassStep, ...] = ()
+
+
+@dataclass(frozen=True)
 class Scene:
     """A whole simulated experiment; build with :func:`load_scene` or :func:`parse_scene`."""
 
@@ -301,6 +347,12 @@ class Scene:
     tactile: TactileSpec = field(default_factory=TactileSpec)
     sim: SimSpec = field(default_factory=SimSpec)
     expect: ExpectSpec = field(default_factory=ExpectSpec)
+    gripper: GripperSpec | None = None
+
+    @property
+    def fingers(self) -> int:
+        """Fingers pressing the object: 1 (the paper's rig) or 2 (a parallel gripper)."""
+        return 1 if self.gripper is None else 2
 
 
 # ----------------------------------------------------------------------------- loader
@@ -316,12 +368,14 @@ def _object(t: ConfigTable) -> ObjectSpec:
     return spec
 
 
-def _contact(t: ConfigTable) -> ContactSpec:
-    d = ContactSpec()
-    model = t.text("model", choices=PRESSURE_MODELS)
+def _contact(t: ConfigTable, base: ContactSpec | None = None) -> ContactSpec:
+    """A ``[contact]`` table; keys it leaves out come from ``base`` (``model`` is required without one)."""
+    d = base or ContactSpec()
+    model = t.text("model", REQUIRED if base is None else base.model, choices=PRESSURE_MODELS)
+    named = t.has("material")
     material = RIG_MATERIALS[t.text("material", "rubber", choices=tuple(RIG_MATERIALS))]
-    mu_s = t.real("mu_s", material[0], lo=0.0, lo_open=True)
-    mu_d = t.real("mu_d", min(material[1], mu_s), lo=0.0, lo_open=True)
+    mu_s = t.real("mu_s", material[0] if named or base is None else d.mu_s, lo=0.0, lo_open=True)
+    mu_d = t.real("mu_d", min(material[1] if named or base is None else d.mu_d, mu_s), lo=0.0, lo_open=True)
     if mu_d > mu_s:
         raise t.error("mu_d", f"must be <= {t.key('mu_s')} ({mu_s}), got {mu_d}")
     spec = ContactSpec(
@@ -336,7 +390,7 @@ def _contact(t: ConfigTable) -> ContactSpec:
         regularisation_speed_m_s=t.real(
             "regularisation_speed_m_s", d.regularisation_speed_m_s, lo=0.0, lo_open=True),
         subsamples=t.integer("subsamples", d.subsamples, lo=1, hi=MAX_SUBSAMPLES),
-        moves_with_object=t.flag("moves_with_object", None),
+        moves_with_object=t.flag("moves_with_object", d.moves_with_object),
         footprint=t.text("footprint", d.footprint, choices=("pad", "disc", "rect")),
         centre_m=t.vector("centre_m", 2, d.centre_m),
         radius_m=t.real("radius_m", d.radius_m, lo=0.0, lo_open=True),
@@ -347,7 +401,49 @@ def _contact(t: ConfigTable) -> ContactSpec:
         f_ref_N=t.real("f_ref_N", d.f_ref_N, lo=0.0, lo_open=True),
         length_m=t.real("length_m", d.length_m, lo=0.0, lo_open=True),
         angle_rad=t.real("angle_rad", d.angle_rad),
+        ridge_depth=t.real("ridge_depth", d.ridge_depth, lo=0.0, hi=1.0),
+        ridge_period_m=t.real("ridge_period_m", d.ridge_period_m, lo=0.0, lo_open=True),
+        ridge_angle_rad=t.real("ridge_angle_rad", d.ridge_angle_rad),
     )
+    if spec.ridge_depth > 0.0 and model not in ("flat", "offset"):
+        raise t.error("ridge_depth", f"ridges are a flat or offset face's; the {model} model has none")
+    t.finish()
+    return spec
+
+
+def mirrored_contact(spec: ContactSpec) -> ContactSpec:
+    """``spec`` seen from the object's opposite face, in finger 1's pad frame (``x → −x``):
+    the same footprint, slope and edge mirrored."""
+    return replace(spec, centre_m=(-spec.centre_m[0], spec.centre_m[1]),
+                   slope_per_m=(-spec.slope_per_m[0], spec.slope_per_m[1]), angle_rad=-spec.angle_rad,
+                   ridge_angle_rad=math.pi - spec.ridge_angle_rad)
+
+
+_SHARED_BRISTLE = ("stiffness_N_per_m3", "damping_Ns_per_m3", "slip_weakening_m", "stick_speed_m_s",
+                   "regularisation_speed_m_s")
+"""Bristle parameters both fingers of a gripper share (one field of bristles, lib/rig/friction.py)."""
+
+
+def _gripper(t: ConfigTable, finger0: ContactSpec) -> GripperSpec:
+    contact = _contact(t.table("contact"), mirrored_contact(finger0))
+    for name in _SHARED_BRISTLE:
+        if getattr(contact, name) != getattr(finger0, name):
+            raise t.error("contact", f"{name} must equal [contact]'s ({getattr(finger0, name)!r}): both "
+                                     f"fingers share one bristle model; give only friction and pressure keys here")
+    raw = t.raw("added_mass", [])
+    if not isinstance(raw, list):
+        raise t.error("added_mass", "must be an array of tables [[gripper.added_mass]]")
+    steps = []
+    for i, item in enumerate(raw):
+        step_t = t.child(item, f"added_mass[{i}]")
+        steps.append(MassStep(at_s=step_t.real("at_s", lo=0.0), mass_kg=step_t.real("mass_kg", lo=0.0, lo_open=True),
+                              over_s=step_t.real("over_s", 0.0, lo=0.0)))
+        step_t.finish()
+    weight_on = t.vector("weight_on_s", 2, (0.0, 0.0), lo=0.0)
+    if weight_on[1] < weight_on[0]:
+        raise t.error("weight_on_s", f"must be [start, end] with end >= start, got {list(weight_on)}")
+    spec = GripperSpec(contact=contact, gravity_m_s2=t.vector("gravity_m_s2", 2, (0.0, -9.81)),
+                       weight_on_s=weight_on, added_mass=tuple(sorted(steps, key=lambda m: m.at_s)))
     t.finish()
     return spec
 
@@ -499,12 +595,16 @@ def _expect(t: ConfigTable) -> ExpectSpec:
 
 
 def with_rig_material(scene: Scene, material: str) -> Scene:
-    """``scene`` with its contact made of the rig material ``material`` (see
-    :data:`RIG_MATERIALS`), everything else unchanged; its name gets ``@material``."""
+    """``scene`` with its contact (both fingers' on a gripper) made of the rig material ``material``
+    (see :data:`RIG_MATERIALS`), everything else unchanged; its name gets ``@material``."""
     if material not in RIG_MATERIALS:
         raise ConfigError(f"unknown rig material {material!r}; known: {', '.join(RIG_MATERIALS)}")
     mu_s, mu_d = RIG_MATERIALS[material]
-    return replace(scene, name=f"{scene.name}@{material}", contact=replace(scene.contact, mu_s=mu_s, mu_d=mu_d))
+    gripper = scene.gripper
+    if gripper is not None:
+        gripper = replace(gripper, contact=replace(gripper.contact, mu_s=mu_s, mu_d=mu_d))
+    return replace(scene, name=f"{scene.name}@{material}", contact=replace(scene.contact, mu_s=mu_s, mu_d=mu_d),
+                   gripper=gripper)
 
 
 def parse_scene(data: Mapping[str, Any], *, source: str = "<scene>") -> Scene:
@@ -539,6 +639,8 @@ def parse_scene(data: Mapping[str, Any], *, source: str = "<scene>") -> Scene:
         raise ConfigError(f"{source}: sensors.tactile.dead_taxels: {list(bad)} is outside the "
                           f"{pad.rows}x{pad.cols} pad")
     finger = _finger(top.table("finger"))
+    contact = _contact(top.table("contact", required=True))
+    gripper = _gripper(top.table("gripper"), contact) if top.has("gripper") else None
     scene = Scene(
         name=top.text("name", Path(source).stem),
         description=top.text("description", ""),
@@ -546,7 +648,7 @@ def parse_scene(data: Mapping[str, Any], *, source: str = "<scene>") -> Scene:
         duration_s=top.real("duration_s", 10.0, lo=0.0, lo_open=True),
         pad=pad,
         object=_object(top.table("object", required=True)),
-        contact=_contact(top.table("contact", required=True)),
+        contact=contact,
         dof=_dof(top.table("dof", required=True)),
         finger=finger,
         disturbance=_disturbance(top.table("disturbance", required=True)),
@@ -556,6 +658,7 @@ def parse_scene(data: Mapping[str, Any], *, source: str = "<scene>") -> Scene:
         tactile=tactile,
         sim=sim,
         expect=_expect(top.table("expect")),
+        gripper=gripper,
     )
     top.finish()
     return scene

@@ -27,10 +27,12 @@ class FtSensorModel:
         spec: sensor parameters (origin ``p_S`` in ``F``, yaw of ``S`` about ``z``).
         pad: the taxel grid (for the moments of the normal forces).
         rng: noise generator.
+        finger: the finger it sits in (its samples say so).
     """
 
-    def __init__(self, spec: FtSpec, pad: PadGeometry, rng: np.random.Generator) -> None:
+    def __init__(self, spec: FtSpec, pad: PadGeometry, rng: np.random.Generator, finger: int = 0) -> None:
         self.spec = spec
+        self.finger = finger
         self._px = pad.positions[:, 0].copy()
         self._py = pad.positions[:, 1].copy()
         self._rng = rng
@@ -71,7 +73,7 @@ class FtSensorModel:
         force, torque = np.empty(3), np.empty(3)
         saturated = sensor_kernels.ft_reading(phi, self._px, self._py, f_n, load_force, load_torque,
                                               self._constants, noise, force, torque)
-        return FtSample(t_ns, force, torque, device_seq=seq, saturated=saturated)
+        return FtSample(t_ns, force, torque, device_seq=seq, saturated=saturated, finger=self.finger)
 
     def pad_load(self, force_S: np.ndarray, torque_S: np.ndarray) -> tuple[float, float, float, float]:
         """Map a reading to docs/math.md §1: returns ``(f_x N, f_y N, τ N·m, f_n N)`` in ``F``.
@@ -98,11 +100,13 @@ class TactileSensorModel:
         pad: the taxel grid.
         rng_init: draws gains and random dead taxels once.
         rng_noise: per-frame noise.
+        finger: the finger it sits in (its frames say so).
     """
 
     def __init__(self, spec: TactileSpec, pad: PadGeometry, rng_init: np.random.Generator,
-                 rng_noise: np.random.Generator) -> None:
+                 rng_noise: np.random.Generator, finger: int = 0) -> None:
         self.spec = spec
+        self.finger = finger
         self.pad = pad
         n = pad.n_taxels
         self.gains = np.clip(1.0 + spec.gain_spread * rng_init.standard_normal(n), 0.1, None)
@@ -124,7 +128,7 @@ class TactileSensorModel:
         noise = self._rng.normal(0.0, spec.noise_counts, level.shape[0]) if spec.noise_counts > 0.0 else _NO_NOISE
         counts = np.empty(level.shape[0], dtype=np.uint16)
         tactile_counts(level, float(spec.full_scale_counts), float(spec.baseline_counts), noise, self._alive, counts)
-        return TactileSample(t_ns, counts.reshape(self.pad.rows, self.pad.cols), device_seq=seq)
+        return TactileSample(t_ns, counts.reshape(self.pad.rows, self.pad.cols), device_seq=seq, finger=self.finger)
 
     def _leak(self, phi: np.ndarray) -> np.ndarray:
         grid = phi.reshape(self.pad.rows, self.pad.cols)

@@ -5,7 +5,9 @@ motor disturbs the object. :class:`Simulator` integrates the plant (finger
 actuator, pressure model, per-taxel bristle friction, planar body in its free
 degrees of freedom, disturbance motor) with a fixed internal step and samples the
 sensors and the truth at their own rates. Everything is deterministic given the
-scene seed.
+scene seed. A scene with ``[gripper]`` is a parallel gripper: a second finger, with its
+own sensors, presses the opposite face with the same squeeze, and gravity acts
+(docs/math.md §9).
 
 More in docs/modules.md, `lib/rig/simulator.py`.
 """
@@ -25,12 +27,13 @@ from slipstack.lib.rig.body import PlanarBody
 from slipstack.lib.rig import plant_kernel, pressure_kernels, sensor_kernels
 from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.disturbance import DisturbanceMotor
-from slipstack.lib.rig.friction import BristleField
+from slipstack.lib.rig.friction import BristleField, friction_coefficients
 from slipstack.lib.rig.scene import Scene
 from slipstack.lib.rig.sensors import FtSensorModel, TactileSensorModel
 from slipstack.lib.samples import FtSample, TactileSample
 
-__all__ = ["Truth", "TaxelState", "Sample", "Simulator", "GROSS_SLIP_FRACTION", "MAX_OMEGA_DT", "compile_kernels"]
+__all__ = ["Truth", "TaxelState", "Sample", "Simulator", "GROSS_SLIP_FRACTION", "MAX_OMEGA_DT", "MAX_DAMPING_DT",
+           "compile_kernels"]
 
 GROSS_SLIP_FRACTION = 0.95
 """Gross slip ⇔ slipping taxels, each at the share of its cap it transmits, account for
@@ -40,6 +43,10 @@ rotation (they barely move), so the share never reaches exactly 1 there; below t
 threshold the contact is in partial slip (edges slipping, core sticking)."""
 MAX_OMEGA_DT = 1.0
 """Accuracy guard: the stiffest contact mode ``ω_c`` must satisfy ``ω_c·dt ≤ 1``."""
+MAX_DAMPING_DT = 4.0
+"""Stability guard: the fastest contact damping rate ``c ω_c²/k`` times ``dt`` at most (the
+mid-point rule's factor ``(1 − x/2)/(1 + x/2)`` stays above −1/3: a contact damped harder
+than the step resolves chatters)."""
 _COR_MIN_OMEGA = 1e-4
 """Below this rate (rad/s) the motion is reported as a translation: no COR."""
 _COR_MAX_DISTANCE = 1.0
@@ -73,7 +80,13 @@ class Truth:
             application point and torque (N·m).
         motor_displacement: motor encoder ``(dx m, dy m, dθ rad)`` of the object point.
         energy_J: kinetic plus elastic bristle energy (J).
-        work_J: work of the motor's active load since t = 0 (J).
+        work_J: work of the motor's active load (and of gravity) since t = 0 (J).
+        finger_loads: on a gripper, per finger ``(f_x N, f_y N, τ N·m)``: the load that
+            finger's contact transmits, in the finger's own pad frame (what its ideal F/T
+            reads); ``load_force``/``load_torque`` are then both fingers' in ``F``. Empty
+            for one finger.
+        weight: the object's weight the grasp carries now (N, ``F``; the support's share
+            taken off), and mass_kg: its mass (kg).
     """
 
     stamp_ns: int
@@ -98,6 +111,9 @@ class Truth:
     motor_displacement: tuple[float, float, float]
     energy_J: float
     work_J: float
+    finger_loads: tuple[tuple[float, float, float], ...] = ()
+    weight: tuple[float, float] = (0.0, 0.0)
+    mass_kg: float = 0.0
 
 
 Sample = Union[FtSample, TactileSample, Truth]
@@ -140,6 +156,33 @@ class _Clock:
         return n
 
 
+class _Finger:
+    """One finger's contact and sensors. Finger 1 of a gripper faces the other way: its pad
+    frame is ``F`` turned by 180° about ``y``, so a planar point ``z`` of ``F`` is ``−z̄`` in it
+    (docs/math.md §9)."""
+
+    def __init__(self, index: int, scene: Scene, contact, rngs: tuple[np.random.Generator, ...]) -> None:
+        self.index = index
+        self.mirrored = index == 1
+        pad = scene.pad
+        x, y, theta = scene.object.pose
+        self.pressure = PressureModel(contact, pad, (-x, y, -theta) if self.mirrored else (x, y, theta))
+        rng_ft, rng_tac_init, rng_tac = rngs
+        self.ft = FtSensorModel(scene.ft, pad, rng_ft, index)
+        self.tactile = TactileSensorModel(scene.tactile, pad, rng_tac_init, rng_tac, index)
+        self.taxels = slice(index * pad.n_taxels, (index + 1) * pad.n_taxels)
+
+    def own(self, z: complex) -> complex:
+        """A planar point or vector of ``F`` in this finger's pad frame."""
+        return -z.conjugate() if self.mirrored else z
+
+    def shape(self, f_n: float, origin: complex, theta: float) -> np.ndarray:
+        """The normalised pressure shape on this pad at the object pose (``F``)."""
+        if self.mirrored:
+            return self.pressure.shape(f_n, -origin.conjugate(), -theta)
+        return self.pressure.shape(f_n, origin, theta)
+
+
 class Simulator:
     """The rig, stepped in lock-step.
 
@@ -159,21 +202,36 @@ class Simulator:
         self._dt = self.dt_ns * 1e-9
         self._t_ns = 0
         self._end_ns = round(scene.duration_s * 1e9)
-        seeds = np.random.SeedSequence(scene.seed).spawn(4)
-        rng_friction, rng_ft, rng_tac_init, rng_tac = (np.random.default_rng(s) for s in seeds)
-
-        self._P = pad.positions[:, 0] + 1j * pad.positions[:, 1]
+        root = np.random.SeedSequence(scene.seed)
+        rng_friction, *rngs = (np.random.default_rng(s) for s in root.spawn(4))
+        p = pad.positions[:, 0] + 1j * pad.positions[:, 1]
+        self._fingers = [_Finger(0, scene, scene.contact, tuple(rngs))]
         self._finger = FingerActuator(scene.finger)
         self._body = PlanarBody(scene.object, scene.dof)
-        self._pressure = PressureModel(scene.contact, pad, scene.object.pose)
+        self._pressure = self._fingers[0].pressure
         self._pressure.check_touches_pad(scene.finger.f_initial_N)
-        self._bristles = BristleField(scene.contact, pad.taxel_area_m2, self._dt, rng_friction, self._P)
+        friction = None
+        self._gripper = scene.gripper
+        if scene.gripper is not None:  # finger 1: its own draws, after finger 0's (which stay those of one finger)
+            rng_friction_1, *rngs_1 = (np.random.default_rng(s) for s in root.spawn(4))
+            finger1 = _Finger(1, scene, scene.gripper.contact, tuple(rngs_1))
+            finger1.pressure.check_touches_pad(scene.finger.f_initial_N)
+            self._fingers.append(finger1)
+            mu_0 = friction_coefficients(scene.contact, rng_friction, pad.n_taxels)
+            mu_1 = friction_coefficients(scene.gripper.contact, rng_friction_1, pad.n_taxels)
+            friction = (np.concatenate([mu_0[0], mu_1[0]]), np.concatenate([mu_0[1], mu_1[1]]))
+            p = np.concatenate([p, -p.conjugate()])  # finger 1's taxels in F
+        self._P = p
+        self._bristles = BristleField(scene.contact, pad.taxel_area_m2, self._dt, rng_friction, self._P, friction)
         self._plant_constants = self._bristles.plant_constants(self._body.mass, self._body.inertia,
                                                                self._body.free_mask)
         self._point0 = complex(*scene.disturbance.point_m)
         self._motor = DisturbanceMotor(scene.disturbance, self._point0, self._body.theta)
-        self.ft = FtSensorModel(scene.ft, pad, rng_ft)
-        self.tactile = TactileSensorModel(scene.tactile, pad, rng_tac_init, rng_tac)
+        self.ft = self._fingers[0].ft
+        self.tactile = self._fingers[0].tactile
+        self._mass_steps = list(scene.gripper.added_mass) if scene.gripper is not None else []
+        self._weight = 0j  # gravity's force on the object now (N, F)
+        self._finger_loads: list[tuple[complex, float]] | None = None  # per finger, own frame; of this step
         self._clocks = [
             (kind, _Clock(rate))
             for kind, rate, on in (("ft", scene.ft.rate_hz, scene.ft.enabled),
@@ -193,6 +251,8 @@ class Simulator:
         self._slip_angle = 0.0
         self._gross = False
         self._slip_fraction = 0.0
+        self._shapes: list[np.ndarray | None] = [None] * len(self._fingers)
+        self._attached = any(f.pressure.attached for f in self._fingers)
         self._update_pressure(self._finger.force)
         self.contact_mode_rad_s = self._stiffest_mode()
         if self.contact_mode_rad_s * self._dt > MAX_OMEGA_DT:
@@ -202,6 +262,17 @@ class Simulator:
                 f"(stiffest mode {self.contact_mode_rad_s:.0f} rad/s, ω·dt = "
                 f"{self.contact_mode_rad_s * self._dt:.2f} > {MAX_OMEGA_DT}); use step_us <= "
                 f"{limit_us} or a softer contact.stiffness_N_per_m3")
+        # the same geometry damps as it stiffens: the fastest damping rate is c·ω²/k; the mid-point
+        # rule multiplies a damped velocity by (1 − x/2)/(1 + x/2) a step, x = rate·dt: beyond
+        # MAX_DAMPING_DT it flips sign and barely decays (the contact chatters)
+        damping_rate = self._bristles.c * self.contact_mode_rad_s ** 2 / self._bristles.k
+        if damping_rate * self._dt > MAX_DAMPING_DT:
+            raise ConfigError(
+                f"contact.damping_Ns_per_m3: {scene.contact.damping_Ns_per_m3:g} damps the object faster than "
+                f"the step resolves ({damping_rate:.0f} 1/s, rate·dt = {damping_rate * self._dt:.2f} > "
+                f"{MAX_DAMPING_DT:g}: the contact would chatter); use damping_Ns_per_m3 <= "
+                f"{scene.contact.damping_Ns_per_m3 * MAX_DAMPING_DT / (damping_rate * self._dt):.3g} or a "
+                "shorter sim.step_us")
 
     # ------------------------------------------------------------------ public API
 
@@ -224,6 +295,11 @@ class Simulator:
     def rejected_commands(self) -> int:
         """Number of non-finite normal-force commands ignored."""
         return self._finger.rejected
+
+    @property
+    def normal_force_applied(self) -> float:
+        """The normal force the finger (a gripper: each finger) applies now, N."""
+        return self._finger.force
 
     @property
     def normal_force_command(self) -> float:
@@ -280,6 +356,9 @@ class Simulator:
         v_com = body.com_velocity
         force, torque = self._load
         lf, lt = self._contact_load
+        finger_loads: tuple[tuple[float, float, float], ...] = ()
+        if self._gripper is not None:
+            finger_loads = tuple((f.real, f.imag, tau) for f, tau in self._loads_by_finger())
         return Truth(
             stamp_ns=self._t_ns,
             x=body.origin.real, y=body.origin.imag, theta=body.theta,
@@ -299,6 +378,9 @@ class Simulator:
             motor_displacement=self._motor.encoder(point, body.theta),
             energy_J=body.kinetic_energy() + br.potential_energy(),
             work_J=self._work,
+            finger_loads=finger_loads,
+            weight=(self._weight.real, self._weight.imag),
+            mass_kg=body.mass,
         )
 
     # ------------------------------------------------------------------ internals
@@ -312,21 +394,46 @@ class Simulator:
             if not n:
                 continue
             if kind == "ft":  # a sensor faster than the step samples the held state n times
+                if self._gripper is None:
+                    for k in range(n - 1, -1, -1):
+                        out.append(self.ft.measure(t - k * clock.period_ns, clock.seq, self._bristles.phi,
+                                                   self._f_phi, *self._contact_load))
+                        clock.seq += 1
+                    continue
+                loads = self._loads_by_finger()
                 for k in range(n - 1, -1, -1):
-                    out.append(self.ft.measure(t - k * clock.period_ns, clock.seq, self._bristles.phi, self._f_phi,
-                                               *self._contact_load))
+                    for finger, load in zip(self._fingers, loads):
+                        out.append(finger.ft.measure(t - k * clock.period_ns, clock.seq,
+                                                     self._bristles.phi[finger.taxels], self._f_phi, *load))
                     clock.seq += 1
                 continue
             seq = clock.seq
             clock.seq += 1
             if kind == "tactile":
-                out.append(self.tactile.measure(t, seq, self._bristles.phi))
+                if self._gripper is None:
+                    out.append(self.tactile.measure(t, seq, self._bristles.phi))
+                else:
+                    out.extend(f.tactile.measure(t, seq, self._bristles.phi[f.taxels]) for f in self._fingers)
             else:
                 out.append(self.truth())
         self._next_due_ns = min(clock.next_ns for _, clock in self._clocks)
 
+    def _loads_by_finger(self) -> list[tuple[complex, float]]:
+        """Each finger's transmitted load of this step, ``(f_t complex N, τ N·m)`` in its own pad
+        frame (the negated force and torque its patches exerted on the object)."""
+        if self._finger_loads is None:
+            loads = []
+            for finger in self._fingers:
+                f_q, tau_q = self._bristles.load_of(finger.taxels)
+                loads.append((-finger.own(f_q), tau_q if finger.mirrored else -tau_q))
+            self._finger_loads = loads
+        return self._finger_loads
+
     def _update_pressure(self, f_n: float) -> None:
         body = self._body
+        if self._gripper is not None:
+            self._update_pressures(f_n)
+            return
         if f_n == self._f_phi and not self._pressure.attached:
             return
         shape = self._pressure.shape(f_n, body.origin, body.theta)
@@ -335,6 +442,26 @@ class Simulator:
         self._shape = shape
         self._f_phi = f_n
         self._bristles.set_normal_forces(max(f_n, 0.0), shape)
+
+    def _update_pressures(self, f_n: float) -> None:
+        """A gripper's two pads: each presses the object with the squeeze ``f_n``. A footprint
+        attached to the object follows its slip, not its elastic twist on the pads: a stuck
+        rubber patch moves with the face it touches (docs/math.md §9)."""
+        fingers = self._fingers
+        attached = self._attached
+        if f_n == self._f_phi and not attached:
+            return
+        body = self._body
+        origin, theta = body.origin, body.theta
+        if attached:
+            t, omega = self._bristles.elastic_twist()
+            origin, theta = origin - (t + 1j * omega * origin), theta - omega
+        shapes = [f.shape(f_n, origin, theta) for f in fingers]
+        if f_n == self._f_phi and all(a is b for a, b in zip(shapes, self._shapes)):
+            return
+        self._shapes = shapes
+        self._f_phi = f_n
+        self._bristles.set_normal_forces(max(f_n, 0.0), np.concatenate(shapes))
 
     def _step(self) -> None:
         """One internal step: the finger and the pressure in Python, then the bristles
@@ -350,16 +477,39 @@ class Simulator:
         if self._has_support:
             s, sp, spp, s_rot = self._support(s, sp, spp, s_rot)
         ref = body.reference
+        force_ext, tau_ext = force, (point.conjugate() * force).imag + torque
+        if self._gripper is not None:
+            weight = self._gravity()
+            force_ext += weight
+            tau_ext += (body.origin.conjugate() * weight).imag
+            self._finger_loads = None
         v_mid, w_mid, f_q, tau_q = self._bristles.step(
-            self._plant_constants, ref, body.v_ref, body.omega, s, sp, spp, s_rot, force,
-            (point.conjugate() * force).imag + torque)
+            self._plant_constants, ref, body.v_ref, body.omega, s, sp, spp, s_rot, force_ext, tau_ext)
         self._contact_load = (-f_q, -tau_q)
         v0_mid = v_mid - 1j * w_mid * ref  # mid velocity at the pad origin
         v_point = v0_mid + 1j * w_mid * point
         self._work += dt * ((force.conjugate() * v_point).real + torque * w_mid)
+        if self._gripper is not None:  # gravity's work, at the centre of mass
+            self._work += dt * (self._weight.conjugate() * (v0_mid + 1j * w_mid * body.origin)).real
         body.commit(dt, v_mid, w_mid)
         self._t_ns += self.dt_ns
         self._track_slip(dt, v0_mid, w_mid)
+
+    def _gravity(self) -> complex:
+        """Gravity's force on the object now (complex N, ``F``): the mass added so far, the
+        share of the weight the support no longer carries (docs/math.md §9)."""
+        gripper, body = self._gripper, self._body
+        t = self._t_ns * 1e-9
+        if self._mass_steps:
+            mass = self.scene.object.mass_kg + sum(step.added(t) for step in self._mass_steps)
+            if mass != body.mass:
+                body.inertia *= mass / body.mass
+                body.mass = mass
+                self._plant_constants = self._bristles.plant_constants(body.mass, body.inertia, body.free_mask)
+        start, end = gripper.weight_on_s
+        share = 1.0 if t >= end else 0.0 if t <= start else (t - start) / (end - start)
+        self._weight = share * body.mass * complex(*gripper.gravity_m_s2)
+        return self._weight
 
     def _support(self, s: float, sp: complex, spp: float,
                  s_rot: float) -> tuple[float, complex, float, float]:
@@ -389,10 +539,17 @@ class Simulator:
 
     def _stiffest_mode(self) -> float:
         """Highest natural frequency (rad/s) of the body on a fully stuck, fully
-        pressed pad (an upper bound over contact shapes), free coordinates only."""
+        pressed pad (an upper bound over contact shapes), free coordinates only. A
+        gripper's two pads count the taxels their footprints cover at ``f_max`` (a small
+        footprint on two whole pads would demand a step far shorter than it needs)."""
         body = self._body
         k = self._bristles.k
         d = self._P - body.reference
+        if self._gripper is not None:
+            f_max = self.scene.finger.f_max_N
+            x, y, theta = self.scene.object.pose
+            pressed = np.concatenate([f.shape(f_max, complex(x, y), theta) > 0 for f in self._fingers])
+            d = d[pressed]
         K = k * np.array([
             [d.size, 0.0, -d.imag.sum()],
             [0.0, d.size, d.real.sum()],

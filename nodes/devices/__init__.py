@@ -133,6 +133,11 @@ class ReconnectingLink(ABC, Generic[H]):
             self._disconnect(handle)
         self.backoff.failed(now_ns)
 
+    def drop(self, now_ns: int, reason: str) -> None:
+        """Close the link because the protocol gave up on it (``reason``); reopen after the back-off."""
+        if self._handle is not None:
+            self._lost(now_ns, OSError(reason))
+
     def status(self, now_ns: int) -> LinkStatus:
         """ok / stale (nothing received for stale_after_s) / disconnected."""
         if self._handle is None:

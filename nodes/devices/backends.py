@@ -7,6 +7,7 @@ More in docs/modules.md, `nodes/devices/backends.py`.
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from enum import Enum
 from typing import ClassVar, Union
@@ -16,25 +17,26 @@ import numpy as np
 
 from slipstack.lib.config import ConfigTable
 from slipstack.lib.errors import ConfigError
-from slipstack.lib.protocols import ati_rdt, bota, dsacon32, m1616, robotiq
+from slipstack.lib.protocols import ati_rdt, bota, dsacon32, m1616, robotiq, wsg
 from slipstack.lib.protocols.crc import compile_kernels as compile_crc_kernels
 from slipstack.lib.protocols.framed import FramedCodec, FramedFormat
 from slipstack.lib.protocols.stream import Deframer
-from slipstack.lib.samples import MAX_SAMPLE_RATE_HZ, FtSample, TactileSample
+from slipstack.lib.samples import MAX_SAMPLE_RATE_HZ, FtSample, GripperSample, TactileSample
 from slipstack.lib.sequence import SeqTracker
 
 from . import Freshness, LinkStatus
 from .serial_link import SerialLink
 from .sim_link import SIM_PREFIX, SimLink, is_simulated, sim_twin
+from .tcp_link import TcpLink
 from .udp_link import UdpLink
 
 __all__ = [
-    "Sample", "Backend", "RdtBackend", "RobotiqBackend",
+    "Sample", "Backend", "RdtBackend", "RobotiqBackend", "WsgBackend",
     "BotaBackend", "Dsacon32Backend", "FramedBackend", "backend_from_url", "SCHEMES",
 ]
 
 
-Sample = Union[FtSample, TactileSample]
+Sample = Union[FtSample, TactileSample, GripperSample]
 
 DEFAULT_STALE_PERIODS = 2.5
 """Default stale limit (``stale_ms`` not given), in nominal sample periods, but at least
@@ -48,7 +50,7 @@ periods of a 7 kHz sensor (0.36 ms) flagged every gap between two bursts as stal
 class Backend(ABC):
     """Common state machine: link, staleness, counters (module docstring)."""
 
-    kind: ClassVar[str]  # "ft" or "tactile"
+    kind: ClassVar[str]  # "ft", "tactile" or "gripper"
     default_rate_hz: ClassVar[float] = 100.0
 
     def __init__(self, url: str, params: ConfigTable) -> None:
@@ -114,7 +116,7 @@ class Backend(ABC):
         return c
 
     # --- for subclasses ---------------------------------------------------------
-    _link: Union[SerialLink, UdpLink, SimLink]
+    _link: Union[SerialLink, UdpLink, TcpLink, SimLink]
 
     @abstractmethod
     def _poll(self, now_ns: int) -> list[Sample]: ...
@@ -438,6 +440,201 @@ class RdtBackend(Backend):
         return max(self._last_request_ns, last if last is not None else 0) + quiet
 
 
+class _WsgStep(Enum):
+    ACK = "ack"
+    STATE = "state"
+    FORCE_LIMIT = "force-limit"
+    SET_GRASP_FORCE = "set-grasp-force"
+    GRASP = "grasp"
+    STREAM = "stream"
+    READY = "ready"
+
+
+class WsgBackend(Backend):
+    """Weiss WSG 50 over TCP (docs/protocols.md §9): on connect, acknowledge a fast stop, read
+    the grasping state, take the force limit it holds (or set ``grasp_n`` and grasp the part
+    of ``width_mm``), then ask for the grasping force every sample period; the readings are
+    its samples. :meth:`set_force` sends the grasping force limit, one command at a time, the
+    newest value waiting for the reply to the one before.
+
+    A reply that does not come within ``reply_ms`` is counted (``reply_timeouts``); three in
+    a row, or a handshake that stalls, close the link and reconnect. Replies with a status
+    other than success are counted (``command_errors``) and said (``last_error``); malformed
+    ones are counted as the deframer's ``crc_errors``, ``bad_frames`` (a reply too short for
+    its command) or ``ignored_packets`` (an answer to nothing asked)."""
+
+    kind = "gripper"
+    default_rate_hz = 100.0
+    _TIMEOUTS_TO_RECONNECT = 3
+
+    def __init__(self, url: str, host: str, port: int, params: ConfigTable) -> None:
+        super().__init__(url, params)
+        self.reply_ns = int(params.real("reply_ms", 100.0, lo=0.0, lo_open=True) * 1e6)
+        self.width_mm = params.real("width_mm", 20.0, lo=0.0)
+        self.speed_mm_s = params.real("speed_mm_s", 20.0, lo=0.0, lo_open=True)
+        self.grasp_n = params.real("grasp_n", 10.0, lo=wsg.FORCE_RANGE_N[0], hi=wsg.FORCE_RANGE_N[1])
+        self.period_ms = max(1, round(1e3 / self.rate_hz))
+        self._link = TcpLink(host, port, stale_after_s=self.stale_after_s, backoff_min_s=self.backoff_min_s,
+                             backoff_max_s=self.backoff_max_s, on_open=self._on_open)
+        self._deframer = Deframer(wsg.MessageCodec())
+        for name in ("reply_timeouts", "command_errors", "commands_sent", "commands_acknowledged"):
+            self._own[name] = 0
+        self.state = "unknown"
+        self.force_limit_n = math.nan  # the newest limit the gripper acknowledged (N)
+        self._step = _WsgStep.ACK
+        self._waiting: tuple[int, int] | None = None  # (command id, reply deadline ns)
+        self._sent_force = math.nan
+        self._wanted_force: float | None = None
+        self._timeouts = 0
+        self._polled_ns = 0
+        self.command_error = ""
+
+    @property
+    def counters(self) -> dict[str, int]:
+        c = super().counters
+        d = self._deframer.counts
+        c["crc_errors"] += d.crc_errors
+        c["rejected_bytes"] += d.rejected_bytes
+        c["write_shortfall"] = self._link.write_shortfall
+        return c
+
+    @property
+    def ready(self) -> bool:
+        """The handshake is done: force commands go out."""
+        return self._step is _WsgStep.READY
+
+    def set_force(self, force_n: float, now_ns: int) -> None:
+        """Ask for grasping force limit ``force_n`` (N; the caller bounds it to
+        :data:`~slipstack.lib.protocols.wsg.FORCE_RANGE_N`); sent once the link is ready and
+        no command waits for its reply, the newest value winning."""
+        self._wanted_force = force_n
+        self._send_wanted(now_ns)
+
+    def _on_open(self, now_ns: int) -> None:
+        self._deframer.reset()
+        self._waiting, self._timeouts = None, 0
+        self.state = "unknown"
+        self._ask(wsg.ack_fast_stop(), _WsgStep.ACK, now_ns)
+
+    def _ask(self, message: bytes, step: _WsgStep, now_ns: int) -> None:
+        self._step = step
+        self._send(message, now_ns)
+
+    def _send(self, message: bytes, now_ns: int) -> None:
+        self._link.write(message, now_ns)
+        self._waiting = (message[3], now_ns + self.reply_ns)
+
+    def _send_wanted(self, now_ns: int) -> None:
+        force = self._wanted_force
+        if self._step is not _WsgStep.READY or self._waiting is not None or force is None or force == self._sent_force:
+            return
+        self._send(wsg.set_force_limit(force), now_ns)
+        self._sent_force = force
+        self._own["commands_sent"] += 1
+
+    def _timer_ns(self) -> int | None:
+        if not self._link.is_open:
+            return None
+        if not getattr(self._link, "connected", True):  # a TCP connect under way: look again in a millisecond
+            return self._polled_ns + 1_000_000
+        return None if self._waiting is None else self._waiting[1]
+
+    def _goodbye(self) -> None:
+        self._link.write(wsg.encode_message(wsg.Command.DISCONNECT), 0)
+
+    def _poll(self, now_ns: int) -> list[Sample]:
+        self._polled_ns = now_ns
+        out: list[Sample] = []
+        for message in self._deframer.feed(self._link.read(now_ns)):
+            sample = self._handle(message, now_ns)
+            if sample is not None:
+                out.append(sample)
+        if self._waiting is not None and now_ns >= self._waiting[1] and self._link.is_open:
+            self._waiting = None
+            self._own["reply_timeouts"] += 1
+            self._timeouts += 1
+            if self._step is not _WsgStep.READY or self._timeouts >= self._TIMEOUTS_TO_RECONNECT:
+                self._own["handshake_failures"] += self._step is not _WsgStep.READY
+                self._link.drop(now_ns, f"the gripper did not answer within {self.reply_ns / 1e6:g} ms "
+                                        f"({self._timeouts} time(s) in a row)")
+            else:
+                self._sent_force = math.nan  # unanswered: send it again
+        self._send_wanted(now_ns)
+        self._own["frames"] += len(out)
+        return out
+
+    def _handle(self, message: wsg.Message, now_ns: int) -> GripperSample | None:
+        reply = wsg.reply_status(message.payload)
+        if reply is None:
+            self._own["bad_frames"] += 1
+            return None
+        status, values = reply
+        if message.id == wsg.Command.GET_FORCE and self._step in (_WsgStep.STREAM, _WsgStep.READY):
+            force = wsg.f32(values) if status == wsg.Status.E_SUCCESS else None
+            if force is None or not math.isfinite(force):
+                self._own["bad_frames"] += 1
+                return None
+            if self._step is _WsgStep.STREAM:
+                self._answered()
+                self._step = _WsgStep.READY
+            return GripperSample(now_ns, force, self.force_limit_n, self.state)
+        if self._waiting is None or message.id != self._waiting[0]:
+            self._own["ignored_packets"] += 1
+            return None
+        if status == wsg.Status.E_CMD_PENDING:
+            self._waiting = (message.id, now_ns + 10 * self.reply_ns)  # a grasp takes its time
+            return None
+        self._answered()
+        if status != wsg.Status.E_SUCCESS and message.id != wsg.Command.ACK_FAST_STOP:
+            self._own["command_errors"] += 1
+            self.command_error = f"{wsg.Command(message.id).name}: {_status_name(status)}"
+            if self._step is not _WsgStep.READY:
+                self._own["handshake_failures"] += 1
+                self._link.drop(now_ns, f"the gripper refused the start: {self.command_error}")
+            return None
+        self._advance(message.id, values, now_ns)
+        return None
+
+    def _answered(self) -> None:
+        self._waiting, self._timeouts = None, 0
+
+    def _advance(self, command: int, values: bytes, now_ns: int) -> None:
+        """The handshake's next step after a successful reply to ``command``."""
+        step = self._step
+        if step is _WsgStep.READY:
+            if command == wsg.Command.SET_FORCE_LIMIT:
+                self.force_limit_n = self._sent_force
+                self._own["commands_acknowledged"] += 1
+        elif step is _WsgStep.ACK:
+            self._ask(wsg.get_grasping_state(), _WsgStep.STATE, now_ns)
+        elif step is _WsgStep.STATE:
+            state = values[0] if len(values) == 1 else None
+            self.state = wsg.GraspingState(state).name.lower() if state in iter(wsg.GraspingState) else "unknown"
+            if state == wsg.GraspingState.HOLDING:
+                self._ask(wsg.get_force_limit(), _WsgStep.FORCE_LIMIT, now_ns)
+            else:
+                force = self._wanted_force if self._wanted_force is not None else self.grasp_n
+                self._sent_force = force
+                self._ask(wsg.set_force_limit(force), _WsgStep.SET_GRASP_FORCE, now_ns)
+        elif step is _WsgStep.FORCE_LIMIT:
+            limit = wsg.f32(values)
+            self.force_limit_n = self._sent_force = limit if limit is not None else math.nan
+            self._ask(wsg.get_force(self.period_ms), _WsgStep.STREAM, now_ns)
+        elif step is _WsgStep.SET_GRASP_FORCE:
+            self.force_limit_n = self._sent_force
+            self._ask(wsg.grasp(self.width_mm, self.speed_mm_s), _WsgStep.GRASP, now_ns)
+        elif step is _WsgStep.GRASP:
+            self.state = "holding"
+            self._ask(wsg.get_force(self.period_ms), _WsgStep.STREAM, now_ns)
+
+
+def _status_name(status: int) -> str:
+    try:
+        return wsg.Status(status).name
+    except ValueError:
+        return f"status {status}"
+
+
 def _serial_path(url: str, netloc: str, path: str) -> str:
     if netloc or not path.startswith("/"):
         raise ConfigError(f"{url}: a serial back-end needs an absolute path, e.g. robotiq:///dev/ttyUSB0")
@@ -475,6 +672,14 @@ def backend_from_url(url: str) -> Backend:
         except ValueError as e:
             raise ConfigError(f"{url}: bad port") from e
         backend: Backend = RdtBackend(url, parts.hostname, port, params)
+    elif scheme == "wsg":
+        if not parts.hostname:
+            raise ConfigError(f"{url}: wsg needs a host, e.g. wsg://192.168.1.20:1000")
+        try:
+            port = parts.port or wsg.DEFAULT_PORT
+        except ValueError as e:
+            raise ConfigError(f"{url}: bad port") from e
+        backend = WsgBackend(url, parts.hostname, port, params)
     elif scheme in ("robotiq", "bota", "dsacon32"):
         cls = {"robotiq": RobotiqBackend, "bota": BotaBackend, "dsacon32": Dsacon32Backend}[scheme]
         backend = cls(url, _serial_path(url, parts.netloc, parts.path), params)
@@ -497,4 +702,5 @@ def backend_from_url(url: str) -> Backend:
 
 
 #: URL schemes and the kind of sample each yields.
-SCHEMES = {"rdt": "ft", "robotiq": "ft", "bota": "ft", "dsacon32": "tactile", "m1616": "tactile", "framed": "tactile"}
+SCHEMES = {"rdt": "ft", "robotiq": "ft", "bota": "ft", "dsacon32": "tactile", "m1616": "tactile", "framed": "tactile",
+           "wsg": "gripper"}

@@ -14,21 +14,22 @@ from __future__ import annotations
 import os
 import shutil
 import socket
+import struct
 import tempfile
 import tty
 from typing import Sequence
 
 import numpy as np
 
-from slipstack.lib.protocols import ati_rdt, bota, dsacon32, m1616, robotiq
+from slipstack.lib.protocols import ati_rdt, bota, dsacon32, m1616, robotiq, wsg
 from slipstack.lib.protocols.framed import FramedFormat, encode_frame as encode_framed
 from slipstack.lib.protocols.stream import Deframer
 
-from .sim_link import SimDevice, is_simulated, udp_address
+from .sim_link import SIM_PREFIX, SimDevice, is_simulated, tcp_address, udp_address
 
 __all__ = [
     "PtyDevice", "SerialEmulator", "RobotiqEmulator", "BotaEmulator", "Dsacon32Emulator",
-    "FramedEmulator", "M1616Emulator", "RdtUdpServer", "RdtSimServer",
+    "FramedEmulator", "M1616Emulator", "RdtUdpServer", "RdtSimServer", "TcpServerDevice", "WsgEmulator",
 ]
 
 
@@ -419,3 +420,225 @@ class RdtSimServer(RdtUdpServer):
     @property
     def url(self) -> str:
         return f"sim:rdt://{self.host}:{self.port}"
+
+
+class TcpServerDevice:
+    """A TCP server on ``(host, port)`` standing in for a network device, with
+    :class:`PtyDevice`'s interface: one client at a time; a newer one replaces it.
+    Nothing blocks: ``write`` drops (and counts) what the socket cannot take now."""
+
+    def __init__(self, host: str, port: int) -> None:
+        self.host, self.port = host, port
+        self.path = f"{host}:{port}"
+        self.dropped_bytes = 0
+        self._server: socket.socket | None = None
+        self._client: socket.socket | None = None
+
+    @property
+    def plugged(self) -> bool:
+        return self._server is not None
+
+    def plug(self) -> None:
+        """Listen (again) at the same address."""
+        if self._server is not None:
+            return
+        server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        server.bind((self.host, self.port))
+        server.listen(1)
+        server.setblocking(False)
+        self.port = server.getsockname()[1]
+        self.path = f"{self.host}:{self.port}"
+        self._server = server
+
+    def unplug(self) -> None:
+        """Close the client and stop listening (the host reads the connection lost)."""
+        for sock in (self._client, self._server):
+            if sock is not None:
+                sock.close()
+        self._client = self._server = None
+
+    def _accept(self) -> None:
+        try:
+            client, _ = self._server.accept()
+        except (BlockingIOError, OSError):
+            return
+        client.setblocking(False)
+        client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        if self._client is not None:
+            self._client.close()
+        self._client = client
+
+    def read(self) -> bytes:
+        """Bytes the client sent, b"" if none (accepting a client first if one waits)."""
+        if self._server is None:
+            return b""
+        self._accept()
+        if self._client is None:
+            return b""
+        try:
+            data = self._client.recv(1 << 16)
+        except BlockingIOError:
+            return b""
+        except OSError:
+            data = b""
+        if not data:
+            self._client.close()
+            self._client = None
+        return data
+
+    def write(self, data: bytes) -> bool:
+        """To the client; False (bytes counted as dropped) with none, or when it is full."""
+        if self._client is None:
+            self.dropped_bytes += len(data)
+            return False
+        try:
+            n = self._client.send(data)
+        except BlockingIOError:
+            n = 0
+        except OSError:
+            n = 0
+        self.dropped_bytes += len(data) - n
+        return n == len(data)
+
+    def fileno(self) -> int | None:
+        return None if self._server is None else self._server.fileno()
+
+    def close(self) -> None:
+        self.unplug()
+
+
+class WsgEmulator:
+    """A Weiss WSG 50 answering its binary command protocol (docs/protocols.md §9).
+
+    Powers up idle, fingers open, force limit 10 N. Answers: loop (echo), disconnect,
+    acknowledge fast stop, grasp (pending, then held: a part of ``part_width_mm`` is found
+    within ``travel_mm`` of the width asked, else ``E_CMD_FAILED``), release, set and get
+    the force limit (``E_RANGE_ERROR`` outside :data:`~slipstack.lib.protocols.wsg.FORCE_RANGE_N`),
+    get the grasping state and the grasping force (once, or every period with the
+    auto-update flag); ``E_CMD_UNKNOWN`` for any other command, ``E_CMD_FORMAT_ERROR`` for a
+    payload of the wrong size. A message whose CRC fails is dropped unanswered (counted).
+
+    ``squeeze_n``: what the fingers press the part with (the force limit while holding, 0
+    otherwise). Faults for tests: ``silent`` (reads and answers nothing), ``corrupt(n)``
+    (the next ``n`` messages go out with a broken CRC).
+    """
+
+    GRASP_TIME_NS = 50_000_000
+
+    def __init__(self, address: str = "127.0.0.1:0", *, part_width_mm: float = 20.0, travel_mm: float = 10.0) -> None:
+        simulated = is_simulated(address)
+        host, _, port = address[len(SIM_PREFIX) if simulated else 0:].rpartition(":")
+        self.device: TcpServerDevice | SimDevice = (SimDevice(tcp_address(host, int(port))) if simulated
+                                                    else TcpServerDevice(host, int(port)))
+        self.part_width_mm = part_width_mm
+        self.travel_mm = travel_mm
+        self.silent = False
+        self._corrupt = 0
+        self._requests = Deframer(wsg.MessageCodec())
+        self.device.plug()
+        self._power_up()
+
+    @property
+    def path(self) -> str:
+        return self.device.path
+
+    @property
+    def squeeze_n(self) -> float:
+        return self.force_limit_n if self.state == wsg.GraspingState.HOLDING else 0.0
+
+    @property
+    def holding(self) -> bool:
+        return self.state == wsg.GraspingState.HOLDING
+
+    @property
+    def rejected(self) -> int:
+        """Messages dropped for a failed CRC (and bytes in none)."""
+        return self._requests.counts.crc_errors
+
+    def _power_up(self) -> None:
+        self.state = wsg.GraspingState.IDLE
+        self.force_limit_n = 10.0
+        self.stream_period_ns = 0
+        self._next_stream_ns = 0
+        self._pending: tuple[int, int, int] | None = None  # (command, done at ns, final state)
+        self._requests.reset()
+
+    def corrupt(self, n: int) -> None:
+        self._corrupt += n
+
+    def tick(self, now_ns: int, force_n: float) -> None:
+        """Handle what the host sent, finish a grasp or release that is due, stream the force."""
+        if self.silent:
+            self.device.read()
+            return
+        for message in self._requests.feed(self.device.read()):
+            self._answer(message, now_ns, force_n)
+        if self._pending is not None and now_ns >= self._pending[1]:
+            command, _, final = self._pending
+            self._pending = None
+            self.state = final
+            failed = final == wsg.GraspingState.NO_PART_FOUND
+            self._send(wsg.encode_reply(command, wsg.Status.E_CMD_FAILED if failed else wsg.Status.E_SUCCESS))
+        if self.stream_period_ns and now_ns >= self._next_stream_ns:
+            self._next_stream_ns = now_ns + self.stream_period_ns
+            self._send(wsg.encode_reply(wsg.Command.GET_FORCE, wsg.Status.E_SUCCESS, struct.pack("<f", force_n)))
+
+    def _send(self, message: bytes) -> None:
+        if self._corrupt:
+            self._corrupt -= 1
+            message = message[:-1] + bytes([message[-1] ^ 0xFF])
+        self.device.write(message)
+
+    def _answer(self, m: wsg.Message, now_ns: int, force_n: float) -> None:
+        C, S = wsg.Command, wsg.Status
+        sizes = {C.LOOP: None, C.DISCONNECT: 0, C.ACK_FAST_STOP: 3, C.GRASP: 8, C.RELEASE: 8, C.SET_FORCE_LIMIT: 4,
+                 C.GET_FORCE_LIMIT: 0, C.GET_GRASPING_STATE: 3, C.GET_FORCE: 3}
+        if m.id not in sizes:
+            self._send(wsg.encode_reply(m.id, S.E_CMD_UNKNOWN))
+            return
+        size = sizes[m.id]
+        if size is not None and len(m.payload) != size:
+            self._send(wsg.encode_reply(m.id, S.E_CMD_FORMAT_ERROR))
+            return
+        if m.id == C.LOOP:
+            self._send(wsg.encode_reply(m.id, S.E_SUCCESS, m.payload))
+        elif m.id == C.ACK_FAST_STOP:
+            ok = m.payload == wsg.ACK_PAYLOAD
+            self._send(wsg.encode_reply(m.id, S.E_SUCCESS if ok else S.E_CMD_FORMAT_ERROR))
+        elif m.id in (C.GRASP, C.RELEASE):
+            width, _ = struct.unpack("<ff", m.payload)
+            if self._pending is not None:
+                self._send(wsg.encode_reply(m.id, S.E_ALREADY_RUNNING))
+                return
+            if m.id == C.GRASP:
+                found = abs(width - self.part_width_mm) <= self.travel_mm
+                final = wsg.GraspingState.HOLDING if found else wsg.GraspingState.NO_PART_FOUND
+                self.state = wsg.GraspingState.GRASPING
+            else:
+                final, self.state = wsg.GraspingState.IDLE, wsg.GraspingState.RELEASING
+            self._pending = (m.id, now_ns + self.GRASP_TIME_NS, final)
+            self._send(wsg.encode_reply(m.id, S.E_CMD_PENDING))
+        elif m.id == C.SET_FORCE_LIMIT:
+            (force,) = struct.unpack("<f", m.payload)
+            lo, hi = wsg.FORCE_RANGE_N
+            if not lo <= force <= hi:
+                self._send(wsg.encode_reply(m.id, S.E_RANGE_ERROR))
+                return
+            self.force_limit_n = force
+            self._send(wsg.encode_reply(m.id, S.E_SUCCESS))
+        elif m.id == C.GET_FORCE_LIMIT:
+            self._send(wsg.encode_reply(m.id, S.E_SUCCESS, struct.pack("<f", self.force_limit_n)))
+        elif m.id == C.GET_GRASPING_STATE:
+            self._send(wsg.encode_reply(m.id, S.E_SUCCESS, bytes([self.state])))
+        elif m.id == C.GET_FORCE:
+            flags, period_ms = struct.unpack("<BH", m.payload)
+            self.stream_period_ns = period_ms * 1_000_000 if flags & wsg.AUTO_UPDATE and period_ms else 0
+            self._next_stream_ns = now_ns + self.stream_period_ns
+            self._send(wsg.encode_reply(m.id, S.E_SUCCESS, struct.pack("<f", force_n)))
+        else:  # disconnect: the host leaves; a new one starts afresh
+            self._send(wsg.encode_reply(m.id, S.E_SUCCESS))
+            self.stream_period_ns = 0
+
+    def close(self) -> None:
+        self.device.close()

@@ -17,10 +17,11 @@ from typing import Callable
 
 from . import ReconnectingLink
 from .serial_link import SerialLink
+from .tcp_link import TcpLink
 from .udp_link import UdpLink
 
 __all__ = ["SIM_PREFIX", "PORT_MAX_BYTES", "SimPort", "SimDevice", "SimLink", "is_simulated", "udp_address",
-           "sim_twin", "plugged_ports", "host_side_changes"]
+           "tcp_address", "sim_twin", "plugged_ports", "host_side_changes"]
 
 SIM_PREFIX = "sim:"
 PORT_MAX_BYTES = 1 << 20
@@ -38,6 +39,11 @@ def is_simulated(address: str) -> bool:
 def udp_address(host: str, port: int) -> str:
     """The table address of a simulated UDP device."""
     return f"udp:{host}:{port}"
+
+
+def tcp_address(host: str, port: int) -> str:
+    """The table address of a simulated TCP device (its byte stream, like a serial port's)."""
+    return f"tcp:{host}:{port}"
 
 
 def host_side_changes() -> int:
@@ -214,9 +220,12 @@ class SimLink(ReconnectingLink[SimPort]):
         return self.write(data, now_ns) == len(data)
 
 
-def sim_twin(link: SerialLink | UdpLink) -> SimLink:
+def sim_twin(link: SerialLink | UdpLink | TcpLink) -> SimLink:
     """A :class:`SimLink` at the simulated address of ``link``'s device, with its timings and ``on_open``."""
-    address = link.port if isinstance(link, SerialLink) else udp_address(*link.address)
+    if isinstance(link, SerialLink):
+        address = link.port
+    else:
+        address = (tcp_address if isinstance(link, TcpLink) else udp_address)(*link.address)
     return SimLink(address, stale_after_s=link.freshness.stale_after_ns / 1e9,
                    backoff_min_s=link.backoff.min_ns / 1e9, backoff_max_s=link.backoff.max_ns / 1e9,
                    on_open=link.on_open)

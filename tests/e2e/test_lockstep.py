@@ -38,9 +38,13 @@ def test_every_shipped_launch_file_runs_in_lockstep(name: str, tmp_path: Path, c
     if name == "demo":
         return
     frames = list(read_recording(recording))
-    wrenches = [decode(f.payload) for f in frames if f.topic == "ft/wrench"]
-    # the driver decoded the rig's device bytes: the stream is up and the samples carry the pad's load
-    assert sum(w.status == "ok" for w in wrenches) > 20, [w.status for w in wrenches[:5]]
+    # every F/T stream (the gripper's: one per finger, finger0/ft/wrench, finger1/ft/wrench)
+    streams = {f.topic for f in frames if f.topic.split("/")[-2:] == ["ft", "wrench"]}
+    assert streams, sorted({f.topic for f in frames})
+    for topic in streams:
+        wrenches = [decode(f.payload) for f in frames if f.topic == topic]
+        # the driver decoded the rig's device bytes: the stream is up and the samples carry the pad's load
+        assert sum(w.status == "ok" for w in wrenches) > 20, (topic, [w.status for w in wrenches[:5]])
     assert any(f.topic == "rig/truth" for f in frames)
     assert "[monitor] ==== slipstack run summary ====" in out
 
@@ -85,6 +89,23 @@ def test_fig15_lockstep_writes_the_same_recording_twice(tmp_path: Path, capsys) 
     topics = {topic for topic, _, _ in runs[0]}
     assert {"ft/wrench", "tactile/frame", "slip", "grip/command", "rig/truth"} <= topics
     assert len(runs[0]) > 500
+    assert runs[0] == runs[1]
+
+
+def test_the_gripper_lockstep_writes_the_same_recording_twice(tmp_path: Path, capsys) -> None:
+    """Both fingers' streams, the grasp node, the gripper driver over TCP to the emulated WSG 50:
+    a pivot (goal at 0.1 s) in lock-step repeats byte for byte."""
+    runs = []
+    for k in range(2):
+        path = tmp_path / f"gripper-{k}.mcap"
+        assert _launch("gripper", "scene:=grasp_pivot", "goal:=pivot", "goal_at_s:=0.1", "duration_s:=0.5",
+                       f"recording:={path}", "check:=false") == 0
+        runs.append([(f.topic, f.log_time_ns, f.payload) for f in read_recording(path)])
+    topics = {topic for topic, _, _ in runs[0]}
+    assert {"finger0/ft/wrench", "finger1/ft/wrench", "finger0/slip", "finger1/slip", "grip/command",
+            "grasp/state", "gripper/state", "rig/grasp"} <= topics, sorted(topics)
+    states = [decode(p) for topic, _, p in runs[0] if topic == "grasp/state"]
+    assert any(s.mode == "pivot" for s in states)  # the goal reached the grasp node within the run
     assert runs[0] == runs[1]
 
 

@@ -80,6 +80,37 @@ def test_an_ft13_law_on_the_command_line_takes_beta_from_the_material(name):
         assert GripControllerParams(**params).beta_m == resolve_material(params["material"]).beta_s_m > 0
 
 
+def test_a_namespace_puts_every_topic_of_the_node_under_it_and_a_remap_wins(tmp_path):
+    path = tmp_path / "two.toml"
+    path.write_text('''[launch]
+description = "two slip detectors"
+
+[[node]]
+name = "left"
+type = "slip_detector"
+namespace = "finger0"
+
+[[node]]
+name = "right"
+type = "slip_detector"
+namespace = "finger1"
+remap = { "slip" = "right_slip" }
+''')
+    left, right = load_launch_file(path, builtins={"run_dir": "/tmp/x"}).nodes
+    assert left.remap == {"contact": "finger0/contact", "slip": "finger0/slip"}
+    assert right.remap == {"contact": "finger1/contact", "slip": "right_slip"}
+    with pytest.raises(ConfigError, match="namespace"):
+        path.write_text(path.read_text().replace('"finger1"', '"/finger1"'))
+        load_launch_file(path, builtins={"run_dir": "/tmp/x"})
+
+
+def test_the_gripper_graph_runs_each_finger_under_its_namespace():
+    lf = load_launch_file("gripper", builtins={"run_dir": "/tmp/x"})
+    remaps = {e.name: e.remap for e in lf.nodes}
+    assert remaps["ft_driver0"]["ft/wrench"] == "finger0/ft/wrench"
+    assert remaps["ft_driver1"]["ft/wrench"] == "finger1/ft/wrench"
+    assert remaps["fusion1"]["tactile/frame"] == "finger1/tactile/frame"
+    assert remaps["slip_detector0"]["slip"] == "finger0/slip" and remaps["grasp"] == {}
 def test_the_values_an_argument_comment_lists_are_the_codes():
     """Shell completion offers the ``a | b`` an argument's comment lists (launch/launch_command.py):
     they must be the values the nodes accept."""

@@ -110,11 +110,11 @@ _CODES = {"pad": FOOTPRINT_PAD, "disc": FOOTPRINT_DISC, "rect": FOOTPRINT_RECT}
 def test_footprint_cell_means_known_values():
     points = np.array([[0j, 2e-3 + 0j], [1e-3 + 1e-3j, -3e-3j]])
     out = np.empty(2)
-    footprint_cell_means(points, 0j, FOOTPRINT_DISC, 1.5e-3, 0.0, 0.0, False, 0.0, 0.0, out)
+    footprint_cell_means(points, 0j, FOOTPRINT_DISC, 1.5e-3, 0.0, 0.0, False, 0.0, 0.0, 0.0, 0.0, 0.0, out)
     np.testing.assert_array_equal(out, [0.5, 0.5])  # |1+1j| mm = 1.41 mm is inside
-    footprint_cell_means(points, 0j, FOOTPRINT_RECT, 0.0, 2e-3, 1e-3, True, 100.0, 0.0, out)
+    footprint_cell_means(points, 0j, FOOTPRINT_RECT, 0.0, 2e-3, 1e-3, True, 100.0, 0.0, 0.0, 0.0, 0.0, out)
     np.testing.assert_array_equal(out, [(1.0 + 1.2) / 2, 1.1 / 2])  # 1 + 100·x inside, 0 outside
-    footprint_cell_means(points, 0j, FOOTPRINT_PAD, 0.0, 0.0, 0.0, True, 0.0, -1000.0, out)
+    footprint_cell_means(points, 0j, FOOTPRINT_PAD, 0.0, 0.0, 0.0, True, 0.0, -1000.0, 0.0, 0.0, 0.0, out)
     np.testing.assert_array_equal(out, [1.0, (0.0 + 4.0) / 2])  # 1 − 1000·y, clipped at 0
 
 
@@ -125,7 +125,7 @@ def test_footprint_cell_means_match_the_numpy_formula(s, footprint, sloped, cx, 
     rng = np.random.default_rng(s * 11 + n_cells)
     points = (rng.uniform(-4e-3, 4e-3, (n_cells, s * s)) + 1j * rng.uniform(-4e-3, 4e-3, (n_cells, s * s)))
     out = np.empty(n_cells)
-    footprint_cell_means(points, complex(cx, cy), _CODES[footprint], size, size, other, sloped, sx, sy, out)
+    footprint_cell_means(points, complex(cx, cy), _CODES[footprint], size, size, other, sloped, sx, sy, 0.0, 0.0, 0.0, out)
     want = _reference_footprint_means(points, complex(cx, cy), footprint, size, (size, other),
                                       (sx, sy) if sloped else None)
     np.testing.assert_array_equal(out, want)
