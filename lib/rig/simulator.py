@@ -288,8 +288,9 @@ class Simulator:
 
     @property
     def done(self) -> bool:
-        """True once the simulated time reached the scene's duration."""
-        return self._t_ns >= self._end_ns
+        """True once no further step fits in the scene's duration (a duration between two
+        steps ends at the last step before it)."""
+        return self._t_ns + self.dt_ns > self._end_ns
 
     @property
     def rejected_commands(self) -> int:

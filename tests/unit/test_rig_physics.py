@@ -421,3 +421,16 @@ def test_tactile_counts_follow_the_rubber_curve_with_dead_taxels():
     assert np.all(np.diff(p) > 0) and np.all(np.diff(c) > 0) and p[0] == 0.0
     assert np.allclose(sim.tactile.nominal_counts(p), c)
     assert sim.tactile.nominal_counts(np.array([1e7]))[0] == pytest.approx(4095.0)
+
+
+def test_a_scene_whose_duration_falls_between_two_steps_ends_at_the_last_step_before_it():
+    # 50.5 ms on a 1 ms grid: the run ends at 50 ms (it never ended: `done` waited for t >= 50.5 ms)
+    scene = make_scene(contact={"model": "flat"}, duration=0.0505,
+                       segments=[{"kind": "hold", "duration_s": 0.0505}])
+    sim = Simulator(scene)
+    for _ in range(100):  # 10 ms at a time, as samples() advances; bounded (it spun for ever)
+        if sim.done:
+            break
+        sim.step_until(min(sim.t_ns + 10_000_000, sim.end_ns))
+    assert sim.done and sim.t_ns == 50_000_000
+    assert [t.stamp_ns for t in truths(Simulator(scene))][-1] == 50_000_000
