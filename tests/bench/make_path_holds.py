@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import tempfile
+import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -59,13 +61,19 @@ def onset_load(material: str, path: str) -> tuple[float, float, float, float]:
     peak = tuple(PROBE_SCALE * limit * d for d in direction)
     with tempfile.TemporaryDirectory() as folder:
         probe = Path(folder) / "probe.toml"
-        probe.write_text(scene_text("probe", material, path, peak, RAMP_S * PROBE_SCALE / SHARE, HOLD_S, ""))
+        # whole ms: the simulator's samples() never ends on a duration off its step grid
+        probe.write_text(scene_text("probe", material, path, peak, round(RAMP_S * PROBE_SCALE / SHARE, 3), HOLD_S, ""))
         scene = load_scene(probe)
     scene = replace(scene, ft=replace(scene.ft, enabled=False), tactile=replace(scene.tactile, enabled=False))
     most, largest = 0.0, (0.0, 0.0, 0.0, math.nan)
+    shown, t0 = -1, time.process_time()
     for sample in Simulator(scene):
         if not isinstance(sample, Truth):
             continue
+        if int(sample.stamp_ns // 100_000_000) > shown:  # every 0.1 s simulated
+            shown = int(sample.stamp_ns // 100_000_000)
+            print(f"\r  probe {material} {path}: {shown / 10:.1f} of {scene.duration_s:g} s simulated, "
+                  f"{time.process_time() - t0:.0f} s CPU", end="", file=sys.stderr, flush=True)
         if sample.gross_slip:
             return (*sample.load_force, sample.load_torque, sample.stamp_ns * 1e-9)
         along = abs(sample.load_torque) if path == "torsion" else math.hypot(*sample.load_force)
@@ -82,6 +90,7 @@ def main() -> None:
     for material in args.materials:
         for path in args.paths:
             f_x, f_y, tau, t_s = onset_load(material, path)
+            print(file=sys.stderr)
             peak = (SHARE * f_x, SHARE * f_y, SHARE * tau)
             name = f"hold95path_{path}_{material}"
             when = (f"gross slip at {t_s:.3f} s carrying" if math.isfinite(t_s) else
