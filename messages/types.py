@@ -91,6 +91,7 @@ class TactileFrame(Message):
     pressure_pa: (N,) float32 Pa, row-major (row 0 first); dead taxels carry 0.
     saturated: (N,) bool, raw counts at or above the saturation level.
     dead: (N,) bool, taxels masked out by calibration.
+    device_stamp: the device's own clock, ns; -1 for a device without one.
     """
 
     rows: int = bounded(16, **_SIDE)

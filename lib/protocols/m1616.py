@@ -14,9 +14,8 @@ from __future__ import annotations
 
 from .framed import FramedFormat
 
-__all__ = ["FORMAT", "BAUDRATE"]
+__all__ = ["FORMAT"]
 
-BAUDRATE = 115200
 FORMAT = FramedFormat(
     header=b"\xaa\xab\xac", rows=16, cols=16, dtype="u16", endian="be", order="row",
     trailer=4, checksum="none",

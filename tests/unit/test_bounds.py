@@ -12,9 +12,9 @@ import zmq
 
 from slipstack.lib.errors import ConfigError, DecodeError
 from slipstack.lib.status import SolverStatus
-from slipstack.messages import Contact, Cor, Diagnostics, GripCommand, Slip, TactileFrame, Wrench, decode, encode
+from slipstack.messages import Contact, Cor, Diagnostics, GripCommand, GripState, RigTruth, Slip, TactileFrame, Wrench, decode, encode
 from slipstack.messages.codec import MAX_PAYLOAD_BYTES, packb
-from slipstack.messages.types import MAX_COUNTERS, MAX_GRIP_FORCE_N, MAX_PITCH_M, MAX_TEXT_LEN
+from slipstack.messages.types import MAX_COUNTERS, MAX_GRIP_FORCE_N, MAX_PITCH_M, MAX_TEXT_LEN, TACTILE_PAIRING
 from slipstack.messages.json_schema import json_schema
 from slipstack.nodes.recording.bag_io import message_schema
 from slipstack.nodes.devices import LinkStatus
@@ -98,6 +98,9 @@ _NO_PAD = {"rows": 0, "cols": 0, "phi": np.zeros(0), "mask": np.zeros(0, bool)} 
     (TactileFrame, "pitch_m", [math.ulp(0.0), MAX_PITCH_M], [0.0, -0.0, math.nextafter(MAX_PITCH_M, math.inf)]),
     (Contact, "pitch_m", [0.0, MAX_PITCH_M], [-math.ulp(0.0), math.nextafter(MAX_PITCH_M, math.inf)]),
     (GripCommand, "f_n_desired", [0.0, MAX_GRIP_FORCE_N], [-math.ulp(0.0), math.nextafter(MAX_GRIP_FORCE_N, math.inf)]),
+    (GripState, "f_n_command", [0.0, MAX_GRIP_FORCE_N], [-math.ulp(0.0), math.nextafter(MAX_GRIP_FORCE_N, math.inf)]),
+    (GripState, "commanded_by", ["t" * 64], ["t" * 65]),
+    (Diagnostics, "node", ["n" * 128], ["n" * 129]),
 ])
 def test_each_bound_admits_its_edge_and_refuses_the_next_float_past_it(cls, field, legal, illegal):
     """The edge values themselves, not far-off ones: > 0 refuses 0, <= 1000 admits 1000."""
@@ -109,6 +112,59 @@ def test_each_bound_admits_its_edge_and_refuses_the_next_float_past_it(cls, fiel
             decode(_payload(cls, **arrays, **{field: value}))
 
 
+def _earlier(m: int) -> dict:
+    """A contact's fields for ``m`` earlier F/T samples."""
+    return {"earlier_samples": m, "earlier_stamp_ns": np.arange(m, dtype=np.int64), "earlier_status": np.zeros(m, np.uint8),
+            **{f: np.zeros(m) for f in ("earlier_f_n", "earlier_f_tx", "earlier_f_ty", "earlier_tau")}}
+
+
+def test_the_size_limits_are_the_wire_contracts_numbers():
+    """Written as numbers, not as the constants: recordings and the nodes of another machine are
+    written to 4096 characters of text, 4096 counters, 63 earlier samples and a 0.1 m pitch; each
+    limit passes, one more is refused."""
+    assert decode(_payload(TactileFrame, **_PAD_ARRAYS, pitch_m=0.1)).pitch_m == 0.1
+    with pytest.raises(DecodeError, match=r"TactileFrame\.pitch_m:"):
+        decode(_payload(TactileFrame, **_PAD_ARRAYS, pitch_m=math.nextafter(0.1, 1.0)))
+    assert len(decode(_payload(Diagnostics, status="s" * 4096)).status) == 4096
+    assert len(decode(_payload(Diagnostics, counters={f"c{i}": 1.0 for i in range(4096)})).counters) == 4096
+    assert decode(_payload(Contact, **_NO_PAD, **_earlier(63))).earlier_f_n.shape == (63,)
+    for cls, over in [(Diagnostics, {"status": "s" * 4097}), (Diagnostics, {"last_error": "e" * 4097}),
+                      (Diagnostics, {"counters": {f"c{i}": 1.0 for i in range(4097)}}), (Contact, {**_NO_PAD, **_earlier(64)})]:
+        with pytest.raises(DecodeError, match=rf"{cls.TYPE}\."):
+            decode(_payload(cls, **over))
+
+
+def test_a_message_published_with_only_some_fields_carries_no_load_and_no_device_time():
+    """What `topic pub` builds from a partial mapping: the fields left out are no load (0 N,
+    0 N·m, no area, no pairing offset) and no device clock (-1), never a made-up value."""
+    contact = build_message(Contact, {"rows": 0, "cols": 0})  # an F/T-only contact, every load left out
+    assert build_message(Contact, {"phi": [0.0] * 256, "mask": [False] * 256}).has_tactile  # the default pad's, paired
+    assert (contact.f_n, contact.tau, *contact.f_t, contact.area_m2, contact.pair_offset_ns) == (0.0,) * 5 + (0,)
+    pad = {"rows": 1, "cols": 1, "pressure_pa": [0.0], "saturated": [False], "dead": [False]}
+    assert build_message(TactileFrame, pad).device_stamp == -1
+    cor = build_message(Cor, {"case": "none"})
+    assert (cor.torque_capacity, cor.load_torque, cor.gamma, cor.iterations, cor.residual, cor.converged) == (0.0,) * 5 + (False,)
+    slip = build_message(Slip, {"state": "no-contact"})
+    assert (slip.margin, slip.gamma, slip.f_n, slip.tau, *slip.f_t, slip.p_c_valid) == (0.0,) * 6 + (False,)
+    assert build_message(GripCommand, {"law": "manual"}).f_n_desired == 0.0
+    assert build_message(GripState, {"mode": "initial"}).f_n_command == 0.0
+    truth = build_message(RigTruth, {})
+    assert (truth.x, truth.y, truth.theta, truth.vx, truth.vy, truth.omega, truth.slip_distance_m, truth.slip_angle_rad,
+            truth.f_n_applied, truth.f_n_command, truth.sliding_fraction, truth.load_tau) == (0.0,) * 12
+    assert not truth.gross_slip and not truth.cor_valid
+
+
+def test_a_load_no_friction_can_hold_crosses_the_wire():
+    """gamma = +inf (docs: a load no friction can hold), its margin 1 - gamma = -inf and a
+    solver's residual of +inf decode as sent; NaN stays refused."""
+    slip = decode(_payload(Slip, gamma=math.inf, margin=-math.inf))
+    assert (slip.gamma, slip.margin) == (math.inf, -math.inf)
+    cor = decode(_payload(Cor, gamma=math.inf, residual=math.inf))
+    assert (cor.gamma, cor.residual) == (math.inf, math.inf)
+    with pytest.raises(DecodeError, match=r"Slip\.gamma:"):
+        decode(_payload(Slip, gamma=math.nan))
+
+
 def test_a_10_mb_string_is_refused_by_the_decoder_without_echoing_it():
     with pytest.raises(DecodeError) as err:
         decode(_payload(Wrench, status="x" * 10_000_000))
@@ -117,7 +173,8 @@ def test_a_10_mb_string_is_refused_by_the_decoder_without_echoing_it():
 
 def test_every_status_the_code_produces_is_accepted():
     produced = ["ok", "taring", "device-status 0x0002", "device-status 0x8000ffff",
-                *(s.value for s in LinkStatus), *(s.value for s in SolverStatus)]
+                *(s.value for s in LinkStatus), *(s.value for s in SolverStatus),
+                *(f"tactile_{p}" for p in TACTILE_PAIRING if p != "ok")]  # the slip detector's, tactile_off too
     for status in produced:
         assert decode(_payload(Wrench, status=status)).status == status
         assert decode(_payload(Slip, status=status)).status == status
@@ -236,3 +293,17 @@ def test_a_node_never_publishes_a_frame_over_the_transport_limit():
     assert len(sent) == 1
     assert host.counters["out.diagnostics.oversized"] == 1
     assert "diagnostics: a frame of" in host.last_error and "not sent" in host.last_error
+
+
+def test_the_unpackers_own_limits_are_their_documented_numbers():
+    """msgpack's limits (docs: twice what a field allows, so the field's check names it first),
+    written as numbers: 2 * 4 * 4096 bytes of text, no raw bytes, lists of 1024, maps of
+    2 * 4096; one more is a DecodeError before any field is looked at. The frame: 2 MiB."""
+    from slipstack.messages.codec import unpackb
+
+    assert MAX_PAYLOAD_BYTES == 2 * 1024 * 1024
+    fits = [packb("s" * 32768), packb(list(range(1024))), packb({f"k{i}": 0 for i in range(8192)})]
+    assert [len(x) for x in map(unpackb, fits)] == [32768, 1024, 8192]
+    for over in (packb("s" * 32769), packb(b"x"), packb(list(range(1025))), packb({f"k{i}": 0 for i in range(8193)})):
+        with pytest.raises(DecodeError, match="payload: not a valid MessagePack frame"):
+            unpackb(over)

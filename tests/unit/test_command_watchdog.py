@@ -50,3 +50,32 @@ def test_zero_timeout_disables_and_bad_settings_are_refused():
     for args in ((-1,), (MS, -1.0), (MS, float("nan")), (MS, 1.0, 0.0)):
         with pytest.raises(ValueError):
             CommandWatchdog(*args)
+
+
+def test_a_new_watchdog_is_not_expired_and_one_with_defaults_only_holds():
+    dog = CommandWatchdog(50 * MS)  # the defaults: safe grip 0 N (hold only), 10 N/s
+    assert not dog.expired
+    assert dog.step(0, 0.5) is None and not dog.expired  # no command yet
+    dog.commanded(0)
+    assert dog.step(60 * MS, 0.5) == 0.5 and dog.step(70 * MS, 0.5) == 0.5  # held, never raised nor lowered
+    assert dog.expired
+    default_rate = CommandWatchdog(50 * MS, safe_grip_n=8.0)
+    default_rate.commanded(0)
+    default_rate.step(60 * MS, 2.0)
+    assert default_rate.step(160 * MS, 2.0) == pytest.approx(3.0)  # 10 N/s over 100 ms
+
+
+def test_the_raise_counts_only_time_that_passed_since_the_last_tick():
+    dog = CommandWatchdog(50 * MS, safe_grip_n=8.0, rise_n_per_s=10.0)
+    dog.commanded(0)
+    assert dog.step(200 * MS, 2.0) == 2.0  # the first tick after the silence: no earlier tick to count from
+    assert dog.step(200 * MS, 2.0) == 2.0  # the same instant again: no time passed, no raise
+    assert dog.step(190 * MS, 2.0) == 2.0  # a clock that steps back raises nothing either
+    assert dog.step(290 * MS, 2.0) == pytest.approx(3.0)
+
+
+def test_a_slow_raise_rate_is_accepted():
+    dog = CommandWatchdog(50 * MS, safe_grip_n=8.0, rise_n_per_s=0.5)
+    dog.commanded(0)
+    dog.step(60 * MS, 2.0)
+    assert dog.step(1060 * MS, 2.0) == pytest.approx(2.5)

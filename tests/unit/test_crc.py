@@ -101,3 +101,17 @@ def test_importing_the_crcs_loads_no_kernel():
             "print('numba' in sys.modules)")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0 and done.stdout.strip() == "False", done.stdout + done.stderr[-2000:]
+
+
+def test_an_msb_first_crc_other_than_ccitt_matches_the_bitwise_definition() -> None:
+    # CRC-16/UMTS (catalogue: poly 0x8005, init 0, refin false, xorout 0, check 0xFEE8): MSB-first
+    # like CCITT-FALSE but not binascii's 0x1021, so both of its paths are the table's (short
+    # data in Python, long data in the kernel).
+    umts = Crc16("CRC-16/UMTS", poly=0x8005, init=0x0000, refin=False, xorout=0x0000, check=0xFEE8)
+    for data in (b"slip", bytes(range(256)) + b"slipstack"):
+        assert umts(data) == _bitwise(data, 0x8005, 0x0000, False, 0x0000)
+
+
+def test_a_crc_built_again_equals_the_shipped_one() -> None:
+    assert Crc16("CRC-16/MODBUS", poly=0x8005, init=0xFFFF, refin=True, xorout=0x0000, check=0x4B37) == CRC16_MODBUS
+    assert CRC16_MODBUS != CRC16_X25

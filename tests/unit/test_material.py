@@ -123,3 +123,52 @@ def test_every_stack_launch_file_takes_material(tmp_path: Path) -> None:
         for entry in lf.nodes:
             if entry.type in ("slip_detector", "grip_controller", "cor_estimator"):
                 assert entry.params["material"] == str(path), (name, entry.name)
+
+
+def test_the_band_is_at_most_half_of_the_sliding_capacity() -> None:
+    # A contact that slides at a fifth of its static friction, no onsets: 1 - (0.2 - 3 * noise)
+    # is over 0.8; the band stops at DELTA_MAX = 0.5 (docs/modules.md, lib/material.py).
+    assert detector_thresholds(Material("steep", mu_s=0.5, mu_d=0.1)).delta == 0.5
+
+
+@pytest.mark.parametrize("mu_s", [0.0, -0.1, math.inf, math.nan])
+def test_mu_s_must_be_finite_and_positive(mu_s: float) -> None:
+    with pytest.raises(ConfigError, match="mu_s must be a finite number > 0"):
+        Material("bad", mu_s=mu_s, mu_d=0.1)
+
+
+def test_each_material_bound_admits_its_edge_and_refuses_past_it() -> None:
+    slack = Material("slack", mu_s=0.45, mu_d=0.45 * (1 + 1e-9))  # mu_d = mu_s within the stated rounding
+    assert slack.sliding_level == 1.0  # never above 1, though mu_d / mu_s is
+    noisy = Material("noisy", mu_s=0.45, mu_d=0.45 * (1 + 1e-9), beta_s_m=0.010, beta_d_m=0.011)
+    assert noisy.sliding_level == 1.0  # nor where beta_d / beta_s is too (identified within their errors)
+    assert Material("top", mu_s=0.45, mu_d=0.3, onset_gamma=(1.5,)).onset_gamma == (1.5,)
+    for kwargs, what in [({"mu_d": 0.0}, "mu_d"), ({"onset_gamma": (0.0,)}, "onset_gamma"),
+                         ({"onset_gamma": (math.nextafter(1.5, 2.0),)}, "onset_gamma"),
+                         ({"onset_gamma": (2.0,)}, "onset_gamma")]:
+        with pytest.raises(ConfigError, match=f"{what} (entries )?must"):
+            Material("bad", **{"mu_s": 0.45, "mu_d": 0.3, **kwargs})
+
+
+def test_a_zero_beta_s_is_taken_as_not_identified() -> None:
+    assert Material("flat", mu_s=0.5, mu_d=0.4, beta_s_m=0.0, beta_d_m=0.0).sliding_level == pytest.approx(0.8)
+
+
+def test_onsets_above_one_put_the_band_edge_at_one() -> None:
+    # Every identified onset above gamma = 1 (the load passed the static limit before slipping):
+    # the edge is 1 less the onsets' spread below the lowest (0.1 / 3) and 3 x the noise floor.
+    late = Material("late", mu_s=0.45, mu_d=0.45, onset_gamma=(1.2, 1.3))
+    assert detector_thresholds(late).delta == pytest.approx(0.1 / 3 + 3 * 0.002, abs=1e-12)
+
+
+@pytest.mark.parametrize("data, message", [
+    ({"material": {"mu_s": "0.45", "mu_d": 0.3}}, "material.mu_s: must be a number"),
+    ({"material": {"mu_s": True, "mu_d": 0.3}}, "material.mu_s: must be a number"),
+    ({"material": {"mu_s": 0.45, "mu_d": 0.3}, "extra": {}}, "exactly one table"),
+    ({"material": {"mu_s": 0.45, "mu_d": 0.3, "name": 5}}, "must be strings"),
+    ({"material": {"mu_s": 0.45, "mu_d": 0.3, "onset_gamma": 0.9}}, "must be a list of numbers"),
+    ({"material": {"mu_s": 0.45, "mu_d": 0.3, "onset_gamma": [True]}}, "must be a list of numbers"),
+])
+def test_a_file_of_the_wrong_types_is_refused_naming_the_key(data: dict, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        parse_material(data, source="m.toml")

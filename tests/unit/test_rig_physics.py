@@ -328,7 +328,18 @@ def test_finger_actuator_lag_rate_limit_and_saturation():
     slow.command(50.0)  # saturates at f_max
     assert slow.command_N == 10.0
     assert [slow.step(0.01) for _ in range(10)][-1] == pytest.approx(2.0)
-    assert not slow.command(float("nan")) and slow.rejected == 1 and slow.command_N == 10.0
+    assert slow.command(float("nan")) is False and slow.rejected == 1 and slow.command_N == 10.0
+    assert slow.command(4.0) is True and slow.command_N == 4.0
+    assert slow.command(-3.0) is True and slow.command_N == 0.0  # clipped to 0 N, not refused
+
+
+def test_finger_actuator_releases_no_faster_than_its_rate_and_lags_small_steps():
+    act = FingerActuator(FingerSpec(f_initial_N=8.0, bandwidth_hz=1e3, rate_N_per_s=20.0, f_max_N=10.0))
+    act.command(2.0)
+    assert act.step(0.01) == pytest.approx(7.8)  # down at 20 N/s, never a jump to the command
+    lag = FingerActuator(FingerSpec(f_initial_N=1.0, bandwidth_hz=10.0, rate_N_per_s=1e6, f_max_N=10.0))
+    lag.command(1.5)  # half a newton above: the first-order lag, not a snap to the command
+    assert lag.step(1e-3) == pytest.approx(1.0 + 0.5 * (1 - math.exp(-2 * math.pi * 10.0 * 1e-3)), rel=1e-9)
 
 
 def test_disturbance_profile_segments():

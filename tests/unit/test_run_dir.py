@@ -135,3 +135,29 @@ def test_finished_run_directories_keep_their_reports_and_only_the_newest_are_kep
     live = make_run_dir()
     assert live.is_dir()
     assert [r for r in runs if r.exists()] == runs[-KEEP_FINISHED_RUNS:]
+    assert KEEP_FINISHED_RUNS == 20  # the documented 20 (docs/modules.md, run_dir.py)
+
+
+def test_a_run_root_is_made_with_its_missing_parents(tmp_path, monkeypatch):
+    root = tmp_path / "a" / "b" / "root"
+    monkeypatch.setenv("SLIPSTACK_RUN_ROOT", str(root))
+    assert run_root() == root and stat.S_IMODE(root.stat().st_mode) == 0o700
+
+
+def test_finishing_removes_folders_and_links_but_never_what_a_link_points_to(root, tmp_path):
+    from slipstack.nodes.runtime.run_dir import finish_run_dir, remove_run_dir, write_private_file
+
+    run = make_run_dir()
+    (run / "logs").mkdir()
+    (run / "logs" / "node.log").write_text("x")
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (outside / "keep.txt").write_text("y")
+    (run / "linked").symlink_to(outside, target_is_directory=True)
+    assert write_private_file(run, "report.json", "{}") == run / "report.json"
+    finish_run_dir(run, keep=("report.json",))
+    assert sorted(p.name for p in run.iterdir()) == [".finished", "report.json"]
+    assert (outside / "keep.txt").read_text() == "y"
+    remove_run_dir(run)
+    remove_run_dir(run)  # a second clean-up (the launcher's, after an error) finds nothing and does not raise
+    assert not run.exists()
