@@ -54,6 +54,7 @@ KILL_AFTER_S = 2.5       # from the start of shutdown: SIGKILL whoever is left
 RESPAWN_PRIORITY = 1     # SCHED_FIFO of a restarting process until it is ready (where the launcher may set it)
 FINISH_LIMIT_S = 60.0    # then the recorder and the monitor: time to write what they hold (docs/safety.md)
 FINISH_NOTE_S = 3.0      # said on the terminal once it takes this long
+STOP_REPORT_WAIT_S = 2.0  # after the graph stopped: how long its stop reports may still be on their way
 CLOCK_EXCHANGES = 10     # ping exchanges with the first machine before its clock offset is used
 DRIFT_CHECK_S = 5.0      # how often the clock offset in use is compared with a fresh estimate
 EVENTS_FILE = "launch_events.json"
@@ -756,6 +757,16 @@ class Launcher:
                                                  f"{', '.join(elsewhere)}, where the monitor runs" if elsewhere else "")
                       + details)
 
+    def _read_stop_reports(self, nodes: set[str]) -> None:
+        """Read the control socket until each of ``nodes`` sent its stop report, for at most
+        :data:`STOP_REPORT_WAIT_S`: a process may exit before its report reached this socket (one
+        read at once missed a driver's and left the recording's count of it inexact)."""
+        deadline = time.monotonic() + STOP_REPORT_WAIT_S
+        self._read_control()
+        while not nodes <= self._numbered.keys() and time.monotonic() < deadline:
+            if self.control.poll(50):
+                self._read_control()
+
     def _stop_order(self, started: list[str]) -> list[_Process]:
         """Processes marked ``stop_first`` (the simulated world), then the rest in reverse start order."""
         return [self.processes[n] for n in self.plan.stop_order(started)]
@@ -765,8 +776,9 @@ class Launcher:
         for c in self.processes.values():
             self._dismiss_standby(c)
         live = [p for p in self._stop_order(started) if p.proc is not None]
-        self._stop_graph([c for c in live if not c.outlives_graph])
-        self._read_control()
+        stopped = [c for c in live if not c.outlives_graph]
+        self._stop_graph(stopped)
+        self._read_stop_reports({n for c in stopped for n in c.node_names})
         try:  # the recorder counts what its file misses against it
             write_private_file(self.run_dir, NUMBERED_REPORT, json.dumps(self._numbered))
         except OSError as exc:

@@ -6,7 +6,8 @@ slip-weakening tip lower (it slips progressively from its lightly pressed edges)
 identified onset carries its load path :func:`load_path` and pressure spread
 :func:`pressure_spread`; :class:`OnsetBand` gives the edge from the onsets of the same
 kind (lib/material.py's prediction bound, on them alone), and the bound over all onsets
-where none of that kind was identified.
+where its onsets carry no load path, and the worst case (the sliding level) for a load path
+none of them covers.
 """
 
 from __future__ import annotations
@@ -81,11 +82,16 @@ class OnsetBand:
     kinds: tuple[OnsetKind, ...]
     mu_s: float
     beta_s_m: float
+    unidentified: float = math.nan
+    """δ for a load path none of the identified onsets covers: the worst case (the sliding
+    level, as without onsets), at least ``lowest`` — the onsets of other paths say nothing of it."""
 
     @classmethod
     def of(cls, material: Material) -> OnsetBand:
         """The band of ``material``'s identified onsets."""
-        return cls(band_delta(material, material.onset_gamma), _kinds(material), material.mu_s, material.beta_s_m)
+        lowest = band_delta(material, material.onset_gamma)
+        return cls(lowest, _kinds(material), material.mu_s, material.beta_s_m,
+                   max(lowest, band_delta(material, ())))
 
     def delta_of_load(self, f_t: np.ndarray, tau: float, spread: float) -> float:
         """δ for the load ``f_t`` (2,) N, ``tau`` N·m about the pad origin, with a pressure of
@@ -103,7 +109,7 @@ class OnsetBand:
         for kind in self.kinds:
             if kind.covers(path, spread) and (best is None or abs(path - kind.path) < abs(path - best.path)):
                 best = kind
-        return self.lowest if best is None else best.delta
+        return self.unidentified if best is None else best.delta
 
 
 def _kinds(material: Material) -> tuple[OnsetKind, ...]:

@@ -54,7 +54,7 @@ def test_a_frozen_recorder_writes_what_it_holds_and_counts_what_it_missed(launch
     assert info.finished, g.log()[-3000:]  # not killed
     in_file = sum(1 for _ in read_recording(recording, ["ft/wrench"]))
     wrench = info.topics["ft/wrench"]
-    assert published > 2000 and wrench.loss["exact"], (published, wrench)
+    assert published > 2000 and wrench.loss["exact"], (published, wrench, g.log()[-4000:])
     assert in_file + wrench.missing == published, (in_file, wrench, published)
     assert wrench.missing > 0  # the frozen recorder's queue overflowed: the count is not vacuous
     assert json.loads(summary.read_text())["recording_loss"]["ft/wrench"]["missing"] == wrench.missing

@@ -8,6 +8,7 @@ More in docs/modules.md, `tests/property/test_node_fuzz_budget.py`.
 from __future__ import annotations
 
 import gc
+import socket
 import time
 import tracemalloc
 from dataclasses import dataclass
@@ -16,6 +17,7 @@ from typing import Callable
 
 import numpy as np
 import pytest
+from free_ports import free_port
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from msg_strategies import valid_message
@@ -85,7 +87,8 @@ CASES = {
     "monitor": _Case("monitor"),
     "relay": _Case("relay"),
     "sink": _Case("sink"),
-    "rig": _Case("rig", lambda tmp: {"rdt_port": 0, "tactile_link": str(tmp / "tactile.tty")}),
+    # the rig refuses rdt_port 0 (a driver could not find its emulator): a port free now
+    "rig": _Case("rig", lambda tmp: {"rdt_port": free_port(socket.SOCK_DGRAM), "tactile_link": str(tmp / "tactile.tty")}),
 }
 
 
@@ -209,7 +212,7 @@ def test_every_frame_is_handled_or_rejected_within_its_budget(name, nominal, tmp
         except DecodeError:
             valid = False
         cpu, mem = harness.feed(input_name, payload)
-        assert counters["handler_errors"] == 0, harness.ex.logs[-1:]
+        assert counters["handler_errors"] == 0, harness.ex.logs[-3:]
         assert counters[f"in.{topic}.received"] == before[0] + 1
         assert counters[f"in.{topic}.rejected"] == before[1] + (0 if valid else 1)
         worst["cpu"], worst["mem"] = max(worst["cpu"], cpu), max(worst["mem"], mem)

@@ -46,12 +46,24 @@ def test_each_kind_of_load_gets_the_bound_of_its_own_onsets() -> None:
     assert off_centre == pytest.approx(0.81 - 3 * SIGMA)
     lowest = 1.0 - detector_thresholds(RUBBER).delta
     assert lowest == pytest.approx(0.81 - 0.18 / 6 - 3 * SIGMA)
-    # Where no onset of the load's kind was identified, the lowest: a pull on a curved tip,
-    # a path between the identified ones, a load without a pressure frame or without a load.
+    # Where no onset of the load's kind was identified, the wider of the lowest and the worst
+    # case (here the lowest): a pull on a curved tip, a path between the identified ones, a
+    # load without a pressure frame or without a load.
     for path, spread in ((0.0, 0.4), (0.6, 0.38), (0.0, math.nan), (math.nan, 0.05)):
         assert 1.0 - band.delta(path, spread) == pytest.approx(lowest)
     # the load itself: 0.4 N and 0.1 mN·m is a pull (path 0.03)
     assert band.delta_of_load(np.array([0.4, 0.0]), 1e-7, 0.06) == band.delta(0.0, 0.05)
+
+
+def test_a_load_path_no_onset_covers_gets_the_worst_case_not_the_other_paths_onsets() -> None:
+    # a file identified from a pull and a twist only (docs/materials.md's two ramps): a
+    # combined load lets go lower than either (fig15 dropped its object with their band)
+    pure = Material("pure", mu_s=0.45, mu_d=0.36, beta_s_m=1.3e-3, gamma_noise_stick=SIGMA,
+                    onset_gamma=(0.99, 0.97), onset_path=(0.0, 1.0), onset_spread=(0.05, 0.05))
+    band = OnsetBand.of(pure)
+    assert 1.0 - band.delta(0.0, 0.05) == pytest.approx(0.99 - 3 * SIGMA)
+    assert 1.0 - band.delta(0.5, 0.05) == pytest.approx(0.36 / 0.45 - 3 * SIGMA)  # the sliding level
+    assert 1.0 - band.delta(0.0, 0.4) == pytest.approx(0.36 / 0.45 - 3 * SIGMA)
 
 
 def test_a_file_without_paths_has_one_band_for_every_load() -> None:
