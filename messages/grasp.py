@@ -30,8 +30,9 @@ class GraspGoal(Message):
     mode: one of :data:`GRASP_MODES`. pivot: turn by ``angle_rad`` (≥ 0; the load
     decides the sense) at ``rate_rad_s``; slide: translate by ``distance_m`` at
     ``speed_m_s`` (the load decides the direction); then grip again. ``hold`` ends a
-    mode at once. ``slipstack topic pub grasp/goal "{mode: pivot, angle_rad: 0.52,
-    rate_rad_s: 0.52}"`` starts a 30° pivot at 30 °/s.
+    mode at once. ``slipstack topic pub --once grasp/goal "{mode: pivot, angle_rad: 0.52,
+    rate_rad_s: 0.52}"`` starts a 30° pivot at 30 °/s (each goal starts its mode anew:
+    without ``--once``, topic pub repeats it every second).
     """
 
     mode: str = bounded("hold", choices=GRASP_MODES)

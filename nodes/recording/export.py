@@ -11,6 +11,7 @@ import base64
 import itertools
 import json
 import os
+import sys
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
@@ -166,4 +167,7 @@ def _export_ros2(frames: Iterable[RecordedFrame], out: str | os.PathLike, offset
     with Ros2RecordingWriter(out, wall_minus_monotonic_ns=offset_ns) as writer:
         for frame in frames:
             writer.write(frame.topic, frame.payload, frame.log_time_ns)
+    if writer.skipped:
+        left = ", ".join(f"{t} ({n})" for t, n in sorted(writer.skipped.items()))
+        print(f"bag export: left out, no ROS 2 message for their type or not decodable: {left}", file=sys.stderr)
     return sum(writer.counts.values())

@@ -52,7 +52,8 @@ class Ros2RecordingWriter(RecordingWriter):
 
     ``log_time`` stays the receive time (wall clock); ``publish_time`` is ``pub_ns`` put on the
     wall clock with ``wall_minus_monotonic_ns``; header stamps stay on the graph's time base. A
-    frame that does not decode is not written; :attr:`skipped` counts it per topic.
+    frame that does not decode, or whose type has no ROS 2 message, is not written; :attr:`skipped`
+    counts it per topic.
     """
 
     PROFILE = PROFILE
@@ -86,7 +87,7 @@ class Ros2RecordingWriter(RecordingWriter):
         try:
             msg = decode(payload)
             outs = self._codec.to_ros(msg)
-        except DecodeError:
+        except (DecodeError, KeyError):  # KeyError: a message type with no ROS 2 counterpart yet
             self.skipped[topic] += 1
             return
         log_time_ns = int(log_time_ns)

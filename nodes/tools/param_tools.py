@@ -102,7 +102,12 @@ def main_set(args: argparse.Namespace) -> int:
     if entry.get("pid") is None:
         raise ConfigError(f"{args.node} does not run on this machine (or has not started): set it where its "
                           "launcher runs")
-    make_params(cls.Params, {**given, args.name: args.value}, args.node)  # a wrong name or value fails here
+    params = make_params(cls.Params, {**given, args.name: args.value}, args.node)  # a wrong name or type
+    try:  # a value the node refuses fails here, as its restarted process would: never a crash loop of it
+        cls(params)
+    except Exception as exc:  # noqa: BLE001 - any refusal of the node, said in one line
+        raise ConfigError(f"{args.node} refuses {args.name} := {args.value}: {exc or type(exc).__name__}; "
+                          "nothing was changed") from None
     before = entry.get("restarts", 0)
     reply = run_dir / f"{PARAM_REPLY}{os.getpid()}.json"
     _ask_launcher(graph, {"event": "set_param", "node": args.node, "name": args.name, "value": args.value,

@@ -496,6 +496,11 @@ def test_param_get_and_set_on_a_running_node(launch):
     wrong = g.cli("param", "set", "source", "rate_hz", "fast")
     assert wrong.returncode == 2 and "source.rate_hz: must be a number, got 'fast'" in wrong.stderr, wrong.stderr
     assert "param set: source rate_hz := '250'" in g.log() and "rate_hz := 'fast'" not in g.log()
+    # a value of the right type that the node refuses: said at once, the running process untouched
+    # (it restarted into a crash loop, then the launch abandoned it)
+    refused = g.cli("param", "set", "source", "rate_hz", "0")
+    assert refused.returncode == 2 and "source refuses rate_hz := 0" in refused.stderr, refused.stderr
+    assert g.graph()["nodes"]["source"]["restarts"] == 1
 
 
 def test_param_set_is_refused_for_a_process_that_may_not_restart(launch):
