@@ -9,7 +9,6 @@ from __future__ import annotations
 import os
 import signal
 import sys
-import threading
 import time
 from collections import deque
 from collections.abc import Sequence
@@ -43,7 +42,7 @@ _OVER_RATE_READS = 64  # frames over the injection rate read (and dropped) per w
 _INJECT_PAUSE_NS = 10_000_000  # how long a node over its injection rate leaves the injection socket unread
 _TIMER_CATCH_UP = 20  # late ticks of one timer fired per loop turn before ticks are skipped
 _CLOSE_LINGER_MS = 200  # at exit, how long frames still queued for a subscriber may take to leave
-_EXIT_DELIVERY_S = 1.0  # at exit, how long the lingering frames and the stop report may take to leave
+_REPORT_LINGER_MS = 1000  # how long a report to the launcher may take to leave before the process goes on
 _FINAL_QUIET_MS = 200  # at exit, a node that outlives the graph reads its inputs until none came for this long,
 _FINAL_DRAIN_S = 10.0  # or for this long at most (its inputs' depths bound the frames)
 _now_ns = graph_clock()  # monotonic ns, on the reference machine's time base (nodes/runtime/time_base.py)
@@ -219,11 +218,17 @@ class _Member:
         """Tell the launcher ``event`` (``ready``; ``stopped`` with what it published)."""
         if not self.spec.control:
             return
-        sock = bound_socket(self.zctx, zmq.PUSH, sndhwm=10, rcvhwm=10, max_msg_bytes=1024)
-        sock.setsockopt(zmq.LINGER, 1000)
-        sock.connect(self.spec.control)
-        sock.send(msgpack.packb({"node": self.spec.name, "event": event, "pid": os.getpid(), **details}))
-        sock.close()
+        # a context of its own, terminated here: the report has left when this returns (Python's
+        # exit does not wait for ZeroMQ's I/O thread: a stop report was lost about one run in five)
+        zctx = zmq.Context()
+        try:
+            sock = bound_socket(zctx, zmq.PUSH, sndhwm=10, rcvhwm=10, max_msg_bytes=1024)
+            sock.setsockopt(zmq.LINGER, _REPORT_LINGER_MS)
+            sock.connect(self.spec.control)
+            sock.send(msgpack.packb({"node": self.spec.name, "event": event, "pid": os.getpid(), **details}))
+            sock.close()
+        finally:
+            zctx.term()
 
     def drain_delivered(self, clock: Callable[[], int]) -> None:
         """Handle what was delivered to the inputs before ``stop``: frames are read until none came
@@ -455,15 +460,6 @@ class _Member:
         self._keep_due()
 
 
-def _deliver_lingering(zctx: zmq.Context) -> None:
-    """Let the frames closed sockets still hold (the last diagnostics, the stop report) leave
-    before the process exits: Python's exit does not wait for ZeroMQ's I/O thread, so without
-    this a launcher could miss a node's stop report. Bounded by :data:`_EXIT_DELIVERY_S`."""
-    ending = threading.Thread(target=zctx.term, name="zmq-term", daemon=True)
-    ending.start()
-    ending.join(_EXIT_DELIVERY_S)
-
-
 class ProcessExecutor:
     """Run the nodes of ``members`` (one, or a container's) in this process, each wired by its spec.
 
@@ -615,7 +611,6 @@ class ProcessExecutor:
                     m.report("stopped", numbered=m.host.numbered())  # what a recording of it must hold
             for sock in self._sockets():  # the last frames and diagnostics leave, if their subscribers take them
                 sock.close(linger=_CLOSE_LINGER_MS if sock.type == zmq.XPUB else 0)
-            _deliver_lingering(self.zctx)
         return 0
 
     def _loop(self) -> None:
