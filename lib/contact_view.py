@@ -52,7 +52,8 @@ def pad_positions(rows: int, cols: int, pitch_m: float, pool: int = 1) -> np.nda
 class ContactView:
     """``f_n`` N, ``f_t`` (2,) N, ``tau`` N·m, ``phi`` (N,) N, ``positions`` (N, 2) m.
 
-    Without tactile data (``has_tactile`` false) ``phi`` and ``positions`` are empty,
+    Without tactile data (``has_tactile`` false, or a pad pitch that is not > 0: a contact the
+    decoder admits but no pad has) ``phi`` and ``positions`` are empty,
     so only the F/T tests (with a configured β) can judge it. With ``pool > 1`` the
     taxels are summed in ``pool × pool`` blocks (``PadGeometry.pool``): the accuracy/
     speed knob measured in ``tests/bench/bench_pooling.py``.
@@ -64,7 +65,7 @@ class ContactView:
         self.f_n = contact.f_n
         self.f_t = contact.f_t
         self.tau = contact.tau
-        if contact.has_tactile and contact.phi.size:
+        if contact.has_tactile and contact.phi.size and contact.pitch_m > 0.0:  # a pad without a pitch has no geometry
             if pool > 1:
                 self.phi = PadGeometry(contact.rows, contact.cols, contact.pitch_m).pool(contact.phi, pool)
             else:
