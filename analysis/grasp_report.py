@@ -1,16 +1,6 @@
 """``slipstack report`` on a two-finger recording: the grasp's figure (docs/math.md §9).
 
-Panels on one time axis (s from the scene start, the first ``rig/truth`` sample):
-
-1. the object's motion against the goal: a pivot's angle (deg) or a slide's distance (mm)
-   since the goal came, as the rig's truth has it and as the pads saw it (``grasp/state``),
-   with the target; without a goal, the rig's gross slip (mm) and turn (deg);
-2. the squeeze: applied (``rig/truth``), commanded (``grip/command``), the grasp node's least
-   holding squeeze from the two F/T sensors (``grasp/state``), and the oracle's
-   (:func:`~slipstack.analysis.grip_oracle.grasp_oracle_series` from each finger's true load
-   on ``rig/grasp`` and the scene it names);
-3. each finger's load factor γ (``finger0/slip``, ``finger1/slip``), its slip spans shaded;
-4. each finger's share of the tangential load, as the two F/T sensors measure it.
+More in docs/modules.md, `analysis/grasp_report.py`.
 """
 
 from __future__ import annotations

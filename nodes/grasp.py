@@ -1,17 +1,6 @@
 """grasp: two fingers' slip verdicts → one verdict and one squeeze command (docs/math.md §9).
 
-Inputs: each finger's ``slip`` verdict (a step on each) and ``contact`` (newest), and
-``grasp/goal`` (``hold``, ``pivot``, ``slide``; ``slipstack topic pub grasp/goal ...``).
-Outputs: ``grip/command`` (the squeeze), ``slip`` (both fingers' verdict as one, for the
-monitor and the recorder) and ``grasp/state`` (mode, phase, progress, each finger's γ).
-
-``hold``: the least squeeze that keeps both contacts inside their limit sets for the loads
-the two F/T sensors measure, ``max_i γ_i f_n,i``, over the margin ``sigma``. ``pivot`` and
-``slide``: :class:`~slipstack.lib.grasp.TrackControl` around the squeeze the exact limit set
-of both pads predicts, the object's angle from the pads' footprints, its translation from
-the ridges of its face; then grip again. The safety contract is grip_controller's
-(docs/safety.md): either finger's verdict or contact missing, stale, future-stamped or not
-``ok`` holds the squeeze (``fail-safe``, and ends a pivot or slide), blind and loaded it rises.
+More in docs/modules.md, `nodes/grasp.py`.
 """
 
 from __future__ import annotations

@@ -1,17 +1,6 @@
 """gripper_driver: ``grip/command`` → a gripper's force command (URL-chosen back-end) → ``gripper/state``.
 
-Each ``grip/command`` sets the squeeze the gripper is told (its grasping force limit, kept in
-``[f_min_n, f_max_n]``: the WSG 50 takes 5–80 N) at most ``max_command_hz`` times a second
-(the newest value wins; a value within ``deadband_n`` of the one sent is not sent again);
-the back-end sends one command at a time and waits for its reply (docs/protocols.md §9).
-Its readings of the grasping force are published on ``gripper/state`` with its state and
-the link's status (``stale``, ``disconnected`` while it is silent or gone: the readings it
-streams stop; :mod:`slipstack.nodes.device_driver`).
-
-The driver's own watchdog (docs/safety.md): once a first command came, no ``grip/command``
-for ``command_timeout_ms`` holds the last squeeze and raises it towards ``watchdog_grip_n``
-at ``watchdog_rise_n_per_s`` (:class:`~slipstack.lib.rig.actuator.CommandWatchdog`, the
-simulated finger's): the gripper keeps its grip when the controller dies or hangs.
+More in docs/modules.md, `nodes/gripper_driver.py`.
 """
 
 from __future__ import annotations

@@ -1,21 +1,6 @@
 """Weiss Robotics WSG 50 gripper: its binary command protocol over TCP (docs/protocols.md §9).
 
-Every message, both directions, little-endian::
-
-    AA AA AA | u8 command id | u16 payload size | payload | u16 CRC
-
-The CRC (:data:`~slipstack.lib.protocols.crc.CRC16_DSACON32`, the Weiss CRC) covers the
-whole message before it, preamble included. A reply carries the command's id, and its
-payload starts with a u16 status code (:class:`Status`); command-specific values follow
-only with ``E_SUCCESS``. A command that takes time (grasp, release) is answered
-``E_CMD_PENDING`` at once and again with its result when it is done. Floats are f32.
-
-Commands the driver uses: 0x24 acknowledge a fast stop (payload ``"ack"``), 0x25 grasp a
-part (``f32 width mm, f32 speed mm/s``), 0x32 set the grasping force limit (``f32 N``),
-0x33 get it (reply ``f32 N``), 0x41 get the grasping state (reply ``u8``), 0x45 get the
-grasping force (payload ``u8 flags, u16 period ms``: flag b0 asks for a reply every
-period, the auto-update; reply ``f32 N``). The emulator also answers 0x06 loop (echo),
-0x26 release (``f32 width, f32 speed``) and 0x07 disconnect.
+More in docs/modules.md, `lib/protocols/wsg.py`.
 """
 
 from __future__ import annotations

@@ -1,27 +1,7 @@
 #!/usr/bin/env python3
 """The two-finger gripper against the truth: holds, pivots and slides, in lock-step.
 
-Runs ``launch/files/gripper.toml`` in lock-step (``slipstack launch gripper --lockstep``:
-the rig, both fingers' drivers over their emulated devices, fusion, slip detectors, the grasp
-node) on each scene and reports, from the rig's truth:
-
-- holds (grasp_rising, grasp_pickup, grasp_add_mass): gross slip (mm, deg), the time-mean
-  squeeze applied, the oracle's least holding squeeze (``analysis/grip_oracle.py:
-  grasp_oracle_series``: the larger of the two fingers' least squeezes for their true loads,
-  true pressure and ``μ_s``) and their ratio, also with the oracle floored at the gripper's
-  least force (5 N: with no load the oracle is 0, no gripper squeezes less); beside it the
-  squeeze a controller assuming an even split of the load would have used (the least for
-  half the total load on each finger);
-- pivots (grasp_pivot, ``goal:=pivot``) by 30°, 60°, 90° at 20, 40, 60 °/s: the final angle
-  error (the bar's true turn from the goal to the end of the run, minus the target), the
-  rate error (the mean rate from the moment it had turned 0.5° to the moment the grasp node
-  ended the pivot, against the rate asked), the translational slip while pivoting
-  (the rig's gross-slip path length of the point on the grasp axis), and whether it was
-  dropped (it moved on by more than 2° or 2 mm in the run's last second);
-- slides (grasp_slide, ``goal:=slide``) by 20 mm at 10 and 20 mm/s: the final distance error.
-
-    python tests/bench/bench_gripper.py                       # everything, default rates (~10 min)
-    python tests/bench/bench_gripper.py --only holds --paper  # F/T 1 kHz, tactile 500 Hz
+More in docs/modules.md, `tests/bench/bench_gripper.py`.
 """
 
 from __future__ import annotations

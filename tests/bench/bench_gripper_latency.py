@@ -1,23 +1,7 @@
 #!/usr/bin/env python3
 """Two fingers against one, in real time, in the same run: every F/T sample examined, sample → squeeze command, CPU.
 
-Launches, one after the other (``--rounds`` times each, alternated, so both see the same
-machine), the one-finger stack (``slipstack launch``: its default graph) and the two-finger
-gripper (``slipstack launch gripper``: two F/T drivers, two tactile drivers, two fusions and
-slip detectors, the grasp node, the gripper driver to the emulated WSG 50) at the paper's
-rates (every F/T sensor at ``--ft-rate``, every pad at ``--tactile-rate``), no recorder or
-monitor, on a held scene that lasts the run; taps the F/T topics, ``grip/command`` and
-``diagnostics`` live and reports over ``--duration`` seconds after ``--warmup``:
-
-- every F/T sample examined: per fusion node, the samples received and carried in contacts
-  (``in.<topic>.received``, ``fusion.samples``); their difference is *not examined*;
-- sample → squeeze command: for each F/T sample the tap saw, the first ``grip/command``
-  derived from it or a later sample of the same sensor (its header source ``ft`` for one
-  finger, ``ft0``/``ft1`` for two), publish time minus the sample's stamp; p50, p99, and the
-  two-finger p99 over the one-finger p99 of the same run (the ratio);
-- CPU of the drivers and the control path (every node process but the rig), cores.
-
-    python tests/bench/bench_gripper_latency.py --duration 20 --rounds 2
+More in docs/modules.md, `tests/bench/bench_gripper_latency.py`.
 """
 
 from __future__ import annotations
