@@ -193,3 +193,16 @@ def test_a_run_interrupted_while_it_is_built_finishes_its_recording_and_its_writ
         lockstep.LockstepRun(launch, tmp_path, echo=lambda line: None)
     assert list(read_recording(path, tolerant=False)) == []  # finished: summary and footer written
     assert _writer_children() == []
+
+
+def test_a_run_root_too_deep_for_sockets_still_runs_in_lockstep(tmp_path: Path, monkeypatch, capsys) -> None:
+    """Lock-step binds no socket, so the 107-character limit of an ipc path does not apply to it
+    (a deep checkout, or pytest-xdist's longer temporary folders, was refused); a real-time
+    launch from the same run root is still refused before anything starts, saying what to do."""
+    deep = tmp_path / ("d" * 90)
+    deep.mkdir(mode=0o700)
+    monkeypatch.setenv("SLIPSTACK_RUN_ROOT", str(deep))
+    assert _launch("fig15", f"duration_s:={SHORT_S}", "check:=false", f"recording:={tmp_path / 'deep.mcap'}") == 0
+    assert "[lockstep]" in capsys.readouterr().out
+    assert main(["launch", "fig15", "duration_s:=0.1"]) == 2
+    assert "Linux allows 107. Set SLIPSTACK_RUN_ROOT to a shorter directory" in capsys.readouterr().err
