@@ -170,16 +170,17 @@ def test_lowpass_step_response_matches_the_exact_discretisation(bota):
 
 
 def test_stale_within_three_periods_then_disconnected_then_recovers(bota):
-    h = _ft(bota, to_pad=False, stale_status_period_ms=10.0)
+    h = _ft(bota, to_pad=False)  # the default stale_status_period_ms: 10 ms, inside the grip's 20 ms timeout
     for _ in range(5):
         last = h.send(bota.send_ft, [1.0, 2.0, 3.0], [0.1, 0.2, 0.3], dt_ns=5 * MS)
     n = len(h.out)
     h.advance(60 * MS)  # the device goes silent
     held = h.out[n:]
     assert held and {m.status for m in held} == {"stale"}
+    assert h.host.status == "stale" and h.host.detail == f"bota://{bota.path}"  # diagnostics says so too
     assert held[0].header.stamp_ns - last.header.stamp_ns <= 3 * 5 * MS  # 3 sample periods at 200 Hz
     gaps = np.diff([m.header.stamp_ns for m in held])
-    assert np.all(gaps <= 10 * MS) and np.all(gaps >= 9 * MS)  # repeated every stale_status_period_ms
+    assert np.all(gaps <= 10 * MS) and np.all(gaps >= 9 * MS)  # repeated every 10 ms (the default)
     np.testing.assert_allclose(held[-1].force, [1.0, 2.0, 3.0], atol=1e-6)  # the last good values, held
 
     bota.unplug()
