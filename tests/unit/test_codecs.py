@@ -187,6 +187,18 @@ def test_deframer_recovers_frame_behind_truncated_frame() -> None:
     assert d.counts.rejected_bytes == 20
 
 
+def test_deframer_waits_for_a_header_split_across_reads_behind_a_frame() -> None:
+    """A read that ends inside the next packet's 6-byte header (the length is in bytes 4-5)
+    keeps the partial header for the next read: nothing rejected, no packet lost."""
+    first = dsacon32.encode_query_matrix_info(0)
+    second = dsacon32.encode_query_matrix_info(1)
+    d = Deframer(dsacon32.PacketCodec(allow_empty=False))
+    assert [p.payload for p in d.feed(first + second[:4])] == [b"\x00"]
+    assert d.pending == 4
+    assert [p.payload for p in d.feed(second[4:])] == [b"\x01"]
+    assert (d.counts.frames, d.counts.crc_errors, d.counts.rejected_bytes, d.pending) == (2, 0, 0, 0)
+
+
 # ---------------------------------------------------------------- calibration
 
 
