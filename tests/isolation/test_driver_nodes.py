@@ -169,6 +169,14 @@ def test_lowpass_step_response_matches_the_exact_discretisation(bota):
         assert msg.torque[2] == pytest.approx(-2.0 * (1.0 - (1.0 - alpha) ** k), abs=1e-9)
 
 
+def test_device_counters_reach_diagnostics_every_50_ms_while_running(bota):
+    h = _ft(bota)
+    for _ in range(10):  # one sample every 5 ms from the start t0
+        h.send(bota.send_ft, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], dt_ns=5 * MS)
+    # mirrored at t0 and at t0 + 50 ms, just before the 10th sample came
+    assert h.host.counters.get("device.frames") == 9
+
+
 def test_stale_within_three_periods_then_disconnected_then_recovers(bota):
     h = _ft(bota, to_pad=False)  # the default stale_status_period_ms: 10 ms, inside the grip's 20 ms timeout
     for _ in range(5):
