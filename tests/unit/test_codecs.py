@@ -71,6 +71,24 @@ def test_rdt_request_and_records() -> None:
         ati_rdt.encode_record(3, 1, 0, [0.0, 0.0, float("nan"), 0.0, 0.0, 0.0])
 
 
+def test_rdt_stop_request_and_default_port() -> None:
+    # ATI's RDT: command 0x0000 stops streaming; the sensor listens on UDP port 49152
+    assert ati_rdt.encode_request(ati_rdt.Command.STOP) == H("12 34 00 00 00 00 00 00")
+    assert backend_from_url("rdt://10.0.0.2")._link.address == ("10.0.0.2", 49152)
+
+
+def _rdt(rdt_sequence: int, ft_sequence: int) -> ati_rdt.RdtRecord:
+    return ati_rdt.RdtRecord(rdt_sequence, ft_sequence, 0, np.zeros(6, dtype=np.int64))
+
+
+def test_rdt_sequences_wrap_at_2_to_the_32_and_a_repeated_record_does_not_follow() -> None:
+    last = _rdt(2**32 - 1, 2**32 - 1)
+    assert ati_rdt.follows(last, _rdt(0, 0))  # both counters wrap to 0
+    assert ati_rdt.follows(last, _rdt(1000, 5))
+    assert not ati_rdt.follows(_rdt(1000, 7000), _rdt(1000, 7001))  # the same record number again
+    assert ati_rdt.follows(_rdt(1000, 7000), _rdt(1001, 7001))
+
+
 # ---------------------------------------------------------------- Bota
 
 
