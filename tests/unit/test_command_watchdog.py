@@ -47,6 +47,7 @@ def test_zero_timeout_disables_and_bad_settings_are_refused():
     off = CommandWatchdog(0, safe_grip_n=20.0)
     off.commanded(0)
     assert off.step(10_000 * MS, 1.0) is None
+    assert off.due_ns(10 * MS) is None  # no wake-up asked of the driver either
     for args in ((-1,), (MS, -1.0), (MS, float("nan")), (MS, 1.0, 0.0)):
         with pytest.raises(ValueError):
             CommandWatchdog(*args)
@@ -79,3 +80,12 @@ def test_a_slow_raise_rate_is_accepted():
     dog.commanded(0)
     dog.step(60 * MS, 2.0)
     assert dog.step(1060 * MS, 2.0) == pytest.approx(2.5)
+
+
+def test_the_driver_is_woken_just_past_the_timeout_then_every_period_while_expired():
+    dog = CommandWatchdog(1, safe_grip_n=8.0)  # the shortest timeout: 1 ns
+    assert dog.due_ns(10 * MS) is None  # no command yet
+    dog.commanded(100)
+    assert dog.due_ns(10 * MS) == 102  # the first instant at which step() acts
+    dog.step(102, 2.0)
+    assert dog.expired and dog.due_ns(10 * MS) == 102 + 10 * MS
