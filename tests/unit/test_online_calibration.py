@@ -115,3 +115,38 @@ def test_without_calibration_the_latch_is_the_plain_one() -> None:
     latch = CalibratedLatch(DetectorConfig(t.delta, t.gamma_release))
     assert latch.calibration is None
     assert latch.update(0, 0.1) == (False, 0.1) and latch.update(MS, 0.1) == (True, pytest.approx(0.1))
+
+
+def _slip(cal: OnlineCalibration, gammas: list[float], start_ms: int) -> None:
+    """The latch's flag up for one frame per ms at ``gammas``, then down."""
+    for k, g in enumerate(gammas):
+        cal.step((start_ms + k) * MS, g, True)
+    cal.step((start_ms + len(gammas)) * MS, 0.0, False)
+
+
+def test_only_a_flag_up_for_the_confirm_time_is_an_episode() -> None:
+    cal = OnlineCalibration(DEFAULT)
+    start = cal.learned
+    _slip(cal, [0.9] * 50, start_ms=0)  # up from 0 to 49 ms: 1 ms short of 50 ms
+    assert cal.learned == start and cal.revision == 0
+    _slip(cal, [0.9] * 51, start_ms=100)  # up for 50 ms
+    assert cal.learned.episodes == 1
+
+
+def test_an_episode_releases_at_the_sliding_level_of_its_second_half_less_its_noise() -> None:
+    """Onset 1.0, then 0.9 and 0.97: the sliding level is the median of the run's second
+    half (0.97, not 0.935 of its last two thirds); release 0.97 − 4σ, resume 0.97 − 2σ
+    (σ = 0.005), both under the band's edge."""
+    cal = OnlineCalibration(DEFAULT)
+    _slip(cal, [1.0] * 20 + [0.9] * 20 + [0.97] * 20, start_ms=0)
+    learned = cal.learned
+    assert learned.episodes == 1
+    assert learned.gamma_release == pytest.approx(0.95, abs=1e-12)
+    assert learned.gamma_resume == pytest.approx(0.96, abs=1e-12) and learned.gamma_resume < 1.0 - learned.delta
+
+
+def test_without_a_measured_noise_mu_rises_to_the_mean_less_3_sigma_of_0_002() -> None:
+    cal = OnlineCalibration(Material("no noise measured", mu_s=0.45, mu_d=0.36))  # gamma_noise_stick NaN
+    for k in range(8):
+        cal.step(k * MS, 1.2, False)
+    assert cal.learned.mu_scale == pytest.approx(1.2 - 3.0 * 0.002 / math.sqrt(8), abs=1e-12)
