@@ -113,6 +113,17 @@ def test_dsacon32_commands_match_protocol_vectors() -> None:
     assert dsacon32.encode_configure_acquisition(0, 0) == H("AA AA AA 03 03 00 00 00 00 8D 00")
     assert dsacon32.encode_query_matrix_info(0) == H("AA AA AA 0B 01 00 00 CB FB")
     assert dsacon32.encode_packet(0x01) == H("AA AA AA 01 00 00")  # no CRC without payload
+    # start push mode: flags 0xA0 (bit 7 acquire, bit 5 internal trigger), 100 frames/s (u16 LE)
+    start = dsacon32.AcquisitionFlags.ACQUIRE | dsacon32.AcquisitionFlags.INTERNAL_TRIGGER
+    assert dsacon32.encode_configure_acquisition(start, 100)[:9] == H("AA AA AA 03 03 00 A0 64 00")
+    assert backend_from_url("dsacon32:///dev/ttyACM0")._link.baudrate == 115200
+
+
+def test_dsacon32_a_packet_longer_than_the_codecs_bound_is_rejected() -> None:
+    d = Deframer(dsacon32.PacketCodec(max_payload=4))
+    assert [p.payload for p in d.feed(dsacon32.encode_packet(0x0B, b"abcd"))] == [b"abcd"]
+    assert d.feed(dsacon32.encode_packet(0x0B, b"abcde")) == []  # 6 + 5 + 2 bytes: one over
+    assert d.counts.frames == 1 and d.counts.crc_errors == 0
 
 
 def test_dsacon32_matrix_info_round_trip() -> None:
@@ -121,7 +132,7 @@ def test_dsacon32_matrix_info_round_trip() -> None:
     assert p.id == 0x0B and len(p.payload) == 52
     got = dsacon32.decode_matrix_info(p.payload)
     assert (got.cells_x, got.cells_y, got.error) == (6, 14, 0)
-    assert got.texel_width_m == pytest.approx(3.4e-3)
+    assert got.texel_width_m == pytest.approx(3.4e-3) and got.texel_height_m == pytest.approx(3.4e-3)
 
 
 @pytest.mark.parametrize("rle", [False, True])
