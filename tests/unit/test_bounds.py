@@ -165,6 +165,30 @@ def test_a_load_no_friction_can_hold_crosses_the_wire():
         decode(_payload(Slip, gamma=math.nan))
 
 
+def test_a_string_without_a_limit_of_its_own_holds_256_characters():
+    """Wrench.frame declares only its choices: the default limit applies, 256 characters."""
+    with pytest.raises(DecodeError, match="must be one of"):
+        decode(_payload(Wrench, frame="f" * 256))
+    with pytest.raises(DecodeError, match="at most 256 characters, got 257"):
+        decode(_payload(Wrench, frame="f" * 257))
+
+
+def test_a_refused_string_is_quoted_whole_up_to_40_characters():
+    for n, shown in [(40, repr("f" * 40)), (41, repr("f" * 40) + "… (41 characters)")]:
+        with pytest.raises(DecodeError) as err:
+            decode(_payload(Wrench, frame="f" * n))
+        assert str(err.value).endswith(f"got {shown}")
+
+
+def test_the_full_check_admits_every_edge_the_fast_test_admits():
+    """An int where a float is declared fails the generated fast test (strict about types);
+    the full check then converts it, and must admit the other fields at their edges."""
+    slip = decode(_payload(Slip, margin=1, verdicts={"v" * 128: [True, 0.5]}))
+    assert type(slip.margin) is float and slip.margin == 1.0 and list(slip.verdicts["v" * 128]) == [True, 0.5]
+    grip = decode(_payload(GripState, f_n_command=5, commanded_by="t" * 64))
+    assert type(grip.f_n_command) is float and grip.commanded_by == "t" * 64
+
+
 def test_a_10_mb_string_is_refused_by_the_decoder_without_echoing_it():
     with pytest.raises(DecodeError) as err:
         decode(_payload(Wrench, status="x" * 10_000_000))
