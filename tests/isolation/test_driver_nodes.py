@@ -169,6 +169,14 @@ def test_lowpass_step_response_matches_the_exact_discretisation(bota):
         assert msg.torque[2] == pytest.approx(-2.0 * (1.0 - (1.0 - alpha) ** k), abs=1e-9)
 
 
+def test_a_driver_started_at_time_zero_reports_its_link_at_once(bota):
+    h = Harness(FtDriver(FtDriverParams(url=f"bota://{bota.path}")), bota)
+    h.now = 0  # a clock that starts at 0, as the in-process executor's does by default
+    h.start()
+    h.advance(1 * MS)
+    assert [(m.header.stamp_ns, m.status) for m in h.out] == [(0, "stale")]  # no sample yet: flagged at once
+
+
 def test_device_counters_reach_diagnostics_every_50_ms_while_running(bota):
     h = _ft(bota)
     for _ in range(10):  # one sample every 5 ms from the start t0
