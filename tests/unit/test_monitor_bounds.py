@@ -7,7 +7,7 @@ import json
 import tracemalloc
 
 from slipstack.messages import Diagnostics, Header, RigTruth, encode
-from slipstack.nodes.monitor import MAX_OTHER_NODES, Monitor, MonitorParams
+from slipstack.nodes.monitor import MAX_OTHER_NODES, Monitor, MonitorParams, check_problems
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 
 S = 1_000_000_000
@@ -93,6 +93,8 @@ def test_forged_device_data_and_an_implausible_ft_sensor_are_named(tmp_path):
     assert "the F/T sensor read implausibly low against the pad in 2400 of 5000 samples" in health, health
     assert s["device_rejects"] == {"ft_driver": {"implausible_records": 120, "rejected_bytes": 595000}}
     assert s["ft_samples"]["implausible"] == 2400
+    reported = [x for x in check_problems(s, MonitorParams()) if "device link" in x or "F/T sensor" in x]
+    assert reported == []  # reported only: they do not fail the run's check
 
 
 def test_a_clean_driver_says_nothing(tmp_path):

@@ -18,7 +18,11 @@ from slipstack.lib.errors import ConfigError
 from slipstack.messages import Diagnostics, GripCommand, Header, RigTruth, Slip, decode, encode
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.launch.lockstep import run_launch_file
-from slipstack.nodes.monitor import Monitor, MonitorParams, format_summary
+from slipstack.nodes.monitor import _bus_row, _clip, _losses  # the summary's rows and loss table
+from slipstack.nodes.monitor import (
+    SILENT_SHOWN, CommandStats, Coverage, Monitor, MonitorParams, NodeWatch, check_problems, format_summary,
+    status_line,
+)
 
 MS = 1_000_000
 TOPICS = ("slip", "grip/command", "rig/truth")
@@ -611,3 +615,88 @@ def test_the_live_line_says_when_the_detector_runs_without_an_identified_materia
     assert line.endswith("UNCALIBRATED"), line
     line = status_line({"slip": slip}, 500.0, calibration="calibrated-online: from 2 confirmed slip(s)")
     assert line.endswith("CALIBRATED-ONLINE"), line
+
+
+def test_a_command_is_late_only_past_its_deadline():
+    stats = CommandStats()
+    assert stats.late_while_running(with_rig=True) == (0, 0)  # no command yet: none late, no age
+    deadline = 20 * MS
+    for k, age in enumerate([deadline, deadline + 1]):  # exactly at the deadline, then 1 ns past it
+        stamp = (k + 1) * 100 * MS
+        stats.add(GripCommand(f_n_desired=5.0, header=Header(stamp, k, stamp + age, {"slip": stamp})), deadline)
+    assert stats.late_while_running(with_rig=False) == (1, deadline + 1)
+
+
+def test_coverage_dates_the_seen_and_the_published_frames_at_the_seen_rate():
+    cov = Coverage()
+    assert cov.up_to_s(21) == (None, None)
+    for seq in (2, 6, 10):  # every 10 ms from seq 2 at 1 s: seq 0 would have been at 0.98 s
+        cov.add(Slip(header=Header(1_000 * MS + (seq - 2) * 10 * MS, seq, 0, {})), sender="")
+    cov.add(Slip(header=Header(0, 99, 0, {})), sender="topic_pub")  # a tool's frame is not the graph's
+    assert cov.seen == 3
+    assert cov.up_to_s(21) == pytest.approx((0.1, 0.2), abs=1e-12)  # to seq 10; seqs 0..20 published
+
+
+def test_a_silence_is_a_gap_longer_than_the_limit():
+    watch = NodeWatch()
+    for stamp in (0, 100 * MS, 201 * MS):  # gaps of exactly the limit, then 1 ms past it
+        watch.report(Diagnostics(node="fusion", header=Header(stamp, 0, stamp, {})), stamp, silent_after_ns=100 * MS)
+    assert (watch.silences, watch.longest_silence_ns) == (1, 101 * MS)
+
+
+def test_the_status_line_names_five_silent_nodes_and_counts_the_rest():
+    five = [f"n{k}" for k in range(SILENT_SHOWN)]
+    assert status_line({}, 0.0, silent=five).endswith("SILENT n0,n1,n2,n3,n4")
+    assert status_line({}, 0.0, silent=[*five, "n5", "n6"]).endswith("SILENT n0,n1,n2,n3,n4 +2")
+
+
+def test_the_first_status_line_has_no_interval_to_rate_and_the_next_says_the_rate(tmp_path):
+    events = [(t, "slip", Slip(state="stick", header=Header(t, k, t, {}))) for k, t in enumerate(range(0, 2_000 * MS, 10 * MS))]
+    _, logs, _ = monitor_over(events, tmp_path, status_period_s=1.0)
+    rates = [line.split("rate=")[1].split("Hz")[0].strip() for line in logs if "STATUS" in line]
+    assert rates[:2] == ["0", "100"]  # 100 frames a second
+
+
+def test_frames_missed_in_the_middle_are_unseen_but_not_the_streams_tail(tmp_path):
+    """The detector published slip frames 0..149 every 10 ms (its diagnostics say so); the
+    monitor saw 0..49 and 100..149: 50 unseen, none of them after the last one it saw."""
+    seqs = [*range(50), *range(100, 150)]
+    events = [(k * 10 * MS, "slip", Slip(state="stick", header=Header(k * 10 * MS, k, k * 10 * MS, {}))) for k in seqs]
+    events.append((1_500 * MS, "diagnostics", Diagnostics(node="slip_detector", counters={"out.slip.published": 150.0},
+                                                          header=Header(1_500 * MS, 0, 1_500 * MS, {}))))
+    s, logs, _ = monitor_over(events, tmp_path)
+    assert "the monitor did not see 50 of 150 slip verdicts" in health(logs)  # the check judged part of the run only
+    unseen = s["monitor_unseen"]["slip"]
+    assert (unseen["seen"], unseen["published"], unseen["unseen"], unseen["tail_unseen"]) == (100, 150, 50, False)
+    assert (unseen["seen_up_to_s"], unseen["published_up_to_s"]) == pytest.approx((1.49, 1.49), abs=1e-9)
+
+
+def test_send_queue_drops_are_counted_of_all_the_node_tried_to_send():
+    losses = _losses({"out.slip.published": 90.0, "out.slip.dropped_hwm": 10.0})
+    assert (losses["out.slip.dropped_hwm"]["lost"], losses["out.slip.dropped_hwm"]["of"]) == (10.0, 100.0)
+
+
+def test_the_check_fails_only_past_the_allowed_slip_and_turn(tmp_path):
+    s, _, _ = monitor_over([(0, "slip", Slip(state="stick", header=Header(0, 0, 0, {})))], tmp_path)
+    p = MonitorParams()  # allowed: 0.5 mm, 0.5 deg
+
+    def moved(slid_mm: float, turned_deg: float) -> list[str]:
+        problems = check_problems({**s, "slip_distance_mm": slid_mm, "slip_angle_deg": turned_deg}, p)
+        return [x.split(" (")[0] for x in problems if x.startswith("the object")]
+
+    assert moved(0.5, -0.5) == []
+    assert moved(0.51, -0.51) == ["the object slid 0.51 mm", "the object turned 0.51 deg"]
+
+
+def test_a_row_too_long_for_the_summary_is_cut_to_its_width_with_an_ellipsis():
+    assert _clip("x" * 90) == "x" * 90
+    assert _clip("x" * 91) == "x" * 89 + "…"
+
+
+def test_the_bus_row_names_the_worst_loss_and_counts_the_others():
+    fusion = _losses({"in.cor.received": 95.0, "in.cor.lost": 5.0})
+    s = {"losses": {"fusion": fusion, "grip": _losses({"in.slip.received": 99.0, "in.slip.lost": 1.0})},
+         "skipped_for_newer": {}, "observers": []}
+    assert _bus_row(s) == "bus: 6 frames lost (most: fusion cor 5 of 100, +1 more); every sensor sample examined"
+    s["losses"] = {"fusion": fusion}
+    assert _bus_row(s) == "bus: 5 frames lost (most: fusion cor 5 of 100); every sensor sample examined"
