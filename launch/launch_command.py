@@ -103,6 +103,7 @@ def main_launch(args: argparse.Namespace) -> int:
     from slipstack.launch.run_log import log_path_for
     from slipstack.launch.run_node import parse_assignments
     from slipstack.lib.errors import ConfigError
+    from slipstack.lib.toml_file import toml_value
     from slipstack.nodes.devices.sim_link import SIM_PREFIX
     from slipstack.nodes.runtime.logs import LOG_LEVEL_ENV, parse_log_levels
     from slipstack.nodes.runtime.run_dir import make_run_dir, remove_run_dir
@@ -124,7 +125,7 @@ def main_launch(args: argparse.Namespace) -> int:
             for name, value in launch.args.items():
                 if name not in _BUILTIN_ARGS:
                     note = f"  # {comments[name]}" if name in comments else ""
-                    print(f"{name} := {value!r}{note}")
+                    print(f"{name} := {toml_value(value)}{note}")
             remove_run_dir(run_dir)
             return 0
         if args.lockstep:
