@@ -128,13 +128,13 @@ def main_launch(args: argparse.Namespace) -> int:
                     print(f"{name} := {toml_value(value)}{note}")
             remove_run_dir(run_dir)
             return 0
+        log_file = Path(args.log_file) if args.log_file else log_path_for(launch)
         if args.lockstep:
             if args.machine is not None:
                 raise ConfigError("--lockstep runs every machine's nodes in this one process; "
                                   "drop --machine (or drop --lockstep to run one machine's share)")
-            return run_lockstep(launch, run_dir)
-        launcher = Launcher(launch, run_dir, log_file=Path(args.log_file) if args.log_file else log_path_for(launch),
-                            machine=args.machine)
+            return run_lockstep(launch, run_dir, log_file=log_file)
+        launcher = Launcher(launch, run_dir, log_file=log_file, machine=args.machine)
     except BaseException:  # a bad launch file leaves no run directory behind
         remove_run_dir(run_dir)
         raise

@@ -942,12 +942,14 @@ def _check_machine(launch: LaunchFile, machine: str | None) -> str | None:
     return machine
 
 
-def run_lockstep(launch: LaunchFile, run_dir: Path, echo: Callable[[str], None] | None = None) -> int:
-    """``--lockstep``: ``launch`` in this process on the simulated clock (``launch/lockstep.py``);
-    the exit code, 1 if ``check`` is on and the monitor's check failed."""
+def run_lockstep(launch: LaunchFile, run_dir: Path, echo: Callable[[str], None] | None = None,
+                 log_file: Path | None = None) -> int:
+    """``--lockstep``: ``launch`` in this process on the simulated clock (``launch/lockstep.py``),
+    every line also into ``log_file`` as the real-time launch writes it; the exit code, 1 if
+    ``check`` is on and the monitor's check failed."""
     from slipstack.launch.lockstep import LockstepRun  # the real-time launch does not import the nodes
 
-    echo = echo or Console()
+    echo = RunLog(echo or Console(), log_file)
     try:
         exit_code = LockstepRun(launch, run_dir, echo=echo).run()
         if launch.check:
@@ -956,4 +958,5 @@ def run_lockstep(launch: LaunchFile, run_dir: Path, echo: Callable[[str], None] 
             exit_code = exit_code or int(bool(problems))
     finally:
         finish_run_dir(run_dir, keep=(CHECK_FILE,))
+        echo.close()
     return exit_code

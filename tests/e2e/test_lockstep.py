@@ -49,6 +49,15 @@ def test_every_shipped_launch_file_runs_in_lockstep(name: str, tmp_path: Path, c
     assert "[monitor] ==== slipstack run summary ====" in out
 
 
+def test_a_lockstep_launch_keeps_its_lines_in_the_log_file(tmp_path: Path, capsys) -> None:
+    """--log-file as the real-time launch honours it (lock-step wrote no log at all)."""
+    log = tmp_path / "lockstep.log"
+    assert main(["launch", "demo", f"duration_s:={SHORT_S}", "--lockstep", "--log-file", str(log)]) == 0
+    shown = [line for line in capsys.readouterr().out.splitlines() if line.startswith("[lockstep]")]
+    kept = log.read_text()
+    assert shown and all(line in kept for line in shown), (shown, kept[-2000:])
+
+
 @pytest.mark.parametrize("name", ["fig15", "fig10", "default"])
 def test_a_launch_starts_by_holding_what_the_finger_holds(name: str, tmp_path: Path, capsys) -> None:
     # Issue 29: every launch began with 2 N commands (f_nom, from the first verdict's measured
@@ -156,7 +165,9 @@ def test_a_lockstep_recording_it_cannot_write_is_refused_before_the_run(tmp_path
     """The recording is written by a child process; a path it could not write fails at once, saying
     what to do, rather than after the whole scene has run."""
     (tmp_path / "a_file").write_text("not a folder")
-    assert _launch("fig15", f"recording:={tmp_path / 'a_file' / 'run.mcap'}") != 0
+    # --log-file elsewhere: the log beside that recording is refused first, in the same words
+    # as the real-time launch's (tests/e2e/test_operator_cli.py)
+    assert _launch("fig15", f"recording:={tmp_path / 'a_file' / 'run.mcap'}", "--log-file", str(tmp_path / "run.log")) != 0
     out, err = capsys.readouterr()
     assert "cannot write the recording" in err and "in a folder you may write" in err
     assert "simulated in" not in out  # refused before the run
