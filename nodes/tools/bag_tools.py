@@ -110,6 +110,10 @@ def format_info(info) -> str:  # noqa: ANN001 — a bag_io.RecordingInfo
         f"size:       {info.size_bytes / 1e6:.3f} MB",
         f"finished:   {'yes (summary and indexes written)' if info.finished else 'NO — unfinished; read up to the last intact chunk'}",
     ]
+    if info.ros2:
+        lines.append("format:     ros2 (rosbag2 MCAP): each topic below is /slipstack/<topic> with its …/info, "
+                     "counted as the bus frames they were made of")
+    lines += [f"not read:   {topic} ({why})" for topic, why in sorted(info.left_out.items())]
     if info.damage:
         lines.append(f"damage:     {info.damage}")
     lines += [
