@@ -461,7 +461,7 @@ class TopicInfo:
 
 @dataclass(frozen=True)
 class RecordingInfo:
-    """What ``slipstack bag info`` prints. Times are wall-clock ns (log time); topics are bus
+    """What ``slipstack bag info`` prints. Times are log times (wall-clock ns, or simulated); topics are bus
     topics (a rosbag2 file's ``/slipstack/<topic>`` and its ``…/info`` are one)."""
 
     path: Path
@@ -477,6 +477,9 @@ class RecordingInfo:
     """A rosbag2 file's channels not read as frames → why (``Ros2Frames.left_out``)."""
     ros2: bool = False
     """Its messages are ROS 2 (CDR) ones; counted as the frames they make, one per bus frame."""
+    simulated_clock: bool = False
+    """Its log times are ns of the simulated clock from the run's start, not wall-clock time (a
+    lock-step run's, whose :data:`CLOCK_METADATA` offset is 0)."""
 
     @property
     def duration_s(self) -> float:
@@ -540,6 +543,7 @@ def recording_info(path: str | os.PathLike, progress: Callable[[int], None] | No
         Path(path), os.path.getsize(path), state.finished, state.chunks, sum(counts.values()),
         min(first.values(), default=0), max(last.values(), default=0), topics, state.error,
         ros2.left_out if ros2 is not None else {}, ros2 is not None,
+        state.metadata.get(CLOCK_METADATA, {}).get("wall_minus_monotonic_ns") == "0",
     )
 
 

@@ -121,7 +121,11 @@ def format_info(info) -> str:  # noqa: ANN001 — a bag_io.RecordingInfo
         f"messages:   {info.message_count}",
         f"duration:   {info.duration_s:.3f} s",
     ]
-    if info.message_count:
+    if info.message_count and info.simulated_clock:
+        lines += [f"start:      {info.start_ns / 1e9:.3f} s, simulated clock (lock-step: from the run's start, "
+                  f"no date) ({info.start_ns})",
+                  f"end:        {info.end_ns / 1e9:.3f} s, simulated clock ({info.end_ns})"]
+    elif info.message_count:
         lines += [f"start:      {_fmt_time(info.start_ns)} ({info.start_ns})",
                   f"end:        {_fmt_time(info.end_ns)} ({info.end_ns})"]
     lines.append("topics:")

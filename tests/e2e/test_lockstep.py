@@ -58,6 +58,18 @@ def test_a_lockstep_launch_keeps_its_lines_in_the_log_file(tmp_path: Path, capsy
     assert shown and all(line in kept for line in shown), (shown, kept[-2000:])
 
 
+def test_bag_info_gives_a_lockstep_recording_s_times_on_the_simulated_clock(tmp_path: Path, capsys) -> None:
+    """Log times of a lock-step run are simulated ns from its start (docs/modules.md, launch/lockstep.py):
+    bag info showed them as dates in 1970."""
+    recording = tmp_path / "run.mcap"
+    assert _launch("fig15", f"duration_s:={SHORT_S}", "check:=false", f"recording:={recording}") == 0
+    capsys.readouterr()
+    assert main(["bag", "info", str(recording)]) == 0
+    out = capsys.readouterr().out
+    assert "1970" not in out, out
+    assert "start:      0.000 s, simulated clock" in out and "end:        0.149 s, simulated clock" in out, out
+
+
 @pytest.mark.parametrize("name", ["fig15", "fig10", "default"])
 def test_a_launch_starts_by_holding_what_the_finger_holds(name: str, tmp_path: Path, capsys) -> None:
     # Issue 29: every launch began with 2 N commands (f_nom, from the first verdict's measured
