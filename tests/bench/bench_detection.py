@@ -11,6 +11,7 @@ More in docs/modules.md, `tests/bench/bench_detection.py`.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 import sys
@@ -43,7 +44,7 @@ from slipstack.nodes.recording.bag_io import RecordingWriter, read_recording
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.nodes.slip_detector import SlipDetector, SlipDetectorParams
 from slipstack.nodes.rig import load_scene_by_name, with_rates
-from _versions import print_versions
+from _versions import code_digest, print_versions
 
 DETECTION_SCENES = ["fig4a", "fig4b", "fig10", "fig11", "fig12", "fig13", "fig14", "fig15", "default"]
 IDENT_SCENES = ["ident_force", "ident_torsion", "ident_combined"]
@@ -532,6 +533,7 @@ def engine_run(path: Path, cache: Path) -> dict[str, np.ndarray]:
 
 def engine_tables(folder: Path, cache: Path, default: Material, period_ns: float) -> list[str]:
     """The identification and detection tables on the engine's recordings (one block per μ)."""
+    cache.mkdir(parents=True, exist_ok=True)
     scenarios = {p: json.loads(p.with_suffix(".json").read_text())["scenario"] for p in sorted(folder.glob("*.mcap"))
                  if p.with_suffix(".json").exists()}
     ident_rows, det_rows = [], []
@@ -576,15 +578,17 @@ def main() -> None:
     ap.add_argument("--ft-rate", type=float, default=500.0, help="F/T rate (Hz), default the stack's 500")
     ap.add_argument("--tactile-rate", type=float, default=250.0, help="tactile rate (Hz), default 250")
     ap.add_argument("--cache", type=Path, default=Path("/tmp/slipstack-bench-detection"),
-                    help="recordings, material files and per-scene runs (delete to re-run)")
+                    help="recordings, material files and per-scene runs, in a folder named by the code's "
+                         "digest and the rates (other code, scenes or rates: a new folder)")
     ap.add_argument("--engine", type=Path, help="a folder of the second engine's recordings "
                     "(tests/bench/engine_mujoco.py writes them, a .json beside each)")
     ap.add_argument("--explain", action="store_true", help="also: the (b) false alarms by the load their flag "
                     "rose on and the band it got, and the detector with the scenes' own onsets in the file")
     args = ap.parse_args()
     print_versions()
-    args.cache.mkdir(parents=True, exist_ok=True)
     rates = (args.ft_rate, args.tactile_rate)
+    args.cache = args.cache / f"{code_digest()}-{rates[0]:g}-{rates[1]:g}"
+    args.cache.mkdir(parents=True, exist_ok=True)
     period_ns = 1e9 / args.ft_rate
     t0 = time.monotonic()
     default = resolve_material("")
@@ -634,7 +638,8 @@ def main() -> None:
         print("\n".join(["| contact | true load at or above μ_d/μ_s | under it |", "| --- | ---: | ---: |",
                          *bound_rows]))
     if args.engine is not None:
-        print("\n".join(engine_tables(args.engine, args.cache, default, period_ns)))
+        folder = hashlib.sha256(str(args.engine.resolve()).encode()).hexdigest()[:8]
+        print("\n".join(engine_tables(args.engine, args.cache / f"engine-{folder}", default, period_ns)))
 
 
 if __name__ == "__main__":
