@@ -80,7 +80,7 @@ class LockstepRun:
         check_lockstep(launch)
         self.launch = launch
         self.echo = echo
-        self.plan: LaunchPlan = plan_launch(launch, run_dir)
+        self.plan: LaunchPlan = plan_launch(launch, run_dir, lockstep=True)
         self.recordings: list[_Recording] = []
         self.stage_cpu = stage_cpu_from_env("lockstep")
         nodes: list[Node] = []

@@ -169,9 +169,10 @@ def launcher_pub_endpoints(launch: LaunchFile, run_dir: Path, machine: str | Non
             for name, m in launch.machines.items()}
 
 
-def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -> LaunchPlan:
+def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None, *, lockstep: bool = False) -> LaunchPlan:
     """The plan of ``launch`` in ``run_dir`` (the share of ``machine`` of a graph with
-    machines; None: every node here); nothing is bound or written.
+    machines; None: every node here); nothing is bound or written. A ``lockstep`` plan's
+    endpoints are never bound, so the length limit of an ipc path does not apply to them.
 
     Raises:
         ConfigError: ``after`` constraints that form a cycle; a machine the file does not declare.
@@ -192,7 +193,7 @@ def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -
         elif e.transport == "tcp":
             ep = f"tcp://127.0.0.1:{free_port()}"
         else:
-            ep = ipc_endpoint(run_dir, e.name)
+            ep = ipc_endpoint(run_dir, e.name, bound=not lockstep)
         child = NodePlan(e, ep, e.container or e.name, remote_endpoint=remote.get(e.name))
         child.outputs = {t: nodes[e.name].outputs[n].type.TYPE for n, t in e.output_topics(nodes[e.name]).items()}
         child.outputs[DIAGNOSTICS_TOPIC] = Diagnostics.TYPE  # every node publishes it
@@ -203,7 +204,7 @@ def plan_launch(launch: LaunchFile, run_dir: Path, machine: str | None = None) -
         if not runs_here:  # another machine's launcher runs it; tools here inject through it
             child.inject = {t: relay_endpoint(launch.machines[e.machine]) for t in injectable}
             continue
-        child.inject = {t: ipc_endpoint(run_dir, f"{e.name}.in") for t in injectable}
+        child.inject = {t: ipc_endpoint(run_dir, f"{e.name}.in", bound=not lockstep) for t in injectable}
         proc = processes.setdefault(child.process, ProcessPlan(child.process, [], run_dir / f"{child.process}.spec.json"))
         proc.members.append(child)
     publishers: dict[str, list[str]] = {}

@@ -35,14 +35,15 @@ MAX_ORIGIN_BYTES = 64
 longer ones are cut."""
 
 
-def ipc_endpoint(run_dir: Path, name: str) -> str:
+def ipc_endpoint(run_dir: Path, name: str, *, bound: bool = True) -> str:
     """The ``ipc://`` endpoint of node ``name`` inside ``run_dir``.
 
     Raises:
-        ConfigError: if the path exceeds the 107-character limit of Linux.
+        ConfigError: if the path exceeds the 107-character limit of Linux and a socket will be
+            ``bound`` to it (a lock-step plan binds none).
     """
     path = str(run_dir / f"{name}.pub")
-    if len(path) > IPC_PATH_MAX:
+    if bound and len(path) > IPC_PATH_MAX:
         raise ConfigError(
             f"ipc path {path} is {len(path)} characters; Linux allows {IPC_PATH_MAX}. "
             f"Set {RUN_ROOT_ENV} to a shorter directory."

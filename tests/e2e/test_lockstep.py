@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from slipstack.launch.cli import main
@@ -193,3 +194,40 @@ def test_a_run_interrupted_while_it_is_built_finishes_its_recording_and_its_writ
         lockstep.LockstepRun(launch, tmp_path, echo=lambda line: None)
     assert list(read_recording(path, tolerant=False)) == []  # finished: summary and footer written
     assert _writer_children() == []
+
+
+def test_a_run_root_too_deep_for_sockets_still_runs_in_lockstep(tmp_path: Path, monkeypatch, capsys) -> None:
+    """Lock-step binds no socket, so the 107-character limit of an ipc path does not apply to it
+    (a deep checkout, or pytest-xdist's longer temporary folders, was refused); a real-time
+    launch from the same run root is still refused before anything starts, saying what to do."""
+    deep = tmp_path / ("d" * 90)
+    deep.mkdir(mode=0o700)
+    monkeypatch.setenv("SLIPSTACK_RUN_ROOT", str(deep))
+    assert _launch("fig15", f"duration_s:={SHORT_S}", "check:=false", f"recording:={tmp_path / 'deep.mcap'}") == 0
+    assert "[lockstep]" in capsys.readouterr().out
+    assert main(["launch", "fig15", "duration_s:=0.1"]) == 2
+    assert "Linux allows 107. Set SLIPSTACK_RUN_ROOT to a shorter directory" in capsys.readouterr().err
+
+
+def test_the_report_of_a_gripper_pivot_draws_every_panel_with_the_oracle(tmp_path: Path, capsys) -> None:
+    """``slipstack report`` on a two-finger recording (issue 25, item 5): the motion against its
+    target, the squeeze against the oracle's least holding squeeze, each finger's γ, the load
+    split; a readable PNG with ink in every panel's band."""
+    from matplotlib.image import imread
+
+    from slipstack.analysis.grasp_report import _oracle, load_grasp_series
+
+    recording, figure = tmp_path / "pivot.mcap", tmp_path / "pivot.png"
+    assert _launch("gripper", "scene:=grasp_pivot", "goal:=pivot", "goal_at_s:=0.2", "duration_s:=1.0",
+                   f"recording:={recording}", "check:=false") == 0  # a pivot moves the object on purpose
+    capsys.readouterr()
+    assert main(["report", str(recording), "-o", str(figure)]) == 0
+    out = capsys.readouterr().out
+    assert "panels: motion, squeeze, load factors, load split" in out and "no oracle" not in out, out
+    t, least, why = _oracle(load_grasp_series(recording))
+    assert why == "" and least.size > 10 and np.all(np.isfinite(least)) and np.all(least >= 0) and least.max() > 1.0
+    image = imread(figure)
+    assert image.shape[0] >= 1000 and image.shape[1] >= 1000, image.shape  # 10 x 10.4 in at 110 dpi
+    ink = (image[..., :3] < 0.9).any(axis=-1)
+    bands = np.array_split(ink[int(0.05 * ink.shape[0]):], 4)  # below the title: one band per panel
+    assert all(band.mean() > 0.02 for band in bands), [round(float(b.mean()), 4) for b in bands]

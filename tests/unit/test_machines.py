@@ -133,7 +133,7 @@ def test_each_machine_knows_which_other_machine_its_topics_come_from(tmp_path, k
      rf"\[machines.a\].ports \[{FIRST}, {FIRST + 4}\] holds 5 ports; it needs 6"),
     ({"relay": 'container = "box"', "extra": '[[node]]\nname = "z"\ntype = "sink"\ncontainer = "box"\n'},
      r"share container 'box' but differ in .*machine"),
-])
+], ids=["no-keys-off-loopback", "tcp-without-keys", "unknown-machine", "too-few-ports", "container-across-machines"])
 def test_bad_machine_tables_are_refused_with_what_to_do(tmp_path, change, message):
     with pytest.raises(ConfigError, match=message):
         _load(tmp_path, **change)
