@@ -503,6 +503,38 @@ def own_onset_bound(runs: dict[str, dict], onsets: dict[str, list], material: Ma
     return (f"| {material.name} | {_share(above, stick)} | {_share(under, stick)} |")
 
 
+NO_SLIDING = 1e-9
+"""A truth ``sliding_fraction`` at or under this is no sliding at all (the rig writes 0.0
+exactly when every taxel sticks; under 0.1 % of its sticking frames lie in (1e-9, 1e-3])."""
+
+
+def by_truth_state(data: dict[str, np.ndarray], f: np.ndarray) -> tuple[int, int, int, int]:
+    """False alarms (``lib/episodes`` ``detection_quality``) and sticking frames, each split by
+    the truth's state at the frame: (false, no sliding; false, partial slip; sticking, no
+    sliding; sticking, partial slip). No sliding: ``sliding_fraction`` ≤ NO_SLIDING; partial
+    slip: above it, not gross."""
+    k = np.clip(np.searchsorted(data["truth_t"], data["t"]), 0, data["truth_t"].size - 1)
+    none = data["slip_share"][k] <= NO_SLIDING
+    q = [detection_quality(data["truth_t"], data["gross"], data["t"], f, in_contact=data["contact"] & frames)
+         for frames in (none, ~none)]
+    return q[0].false_alarm_frames, q[1].false_alarm_frames, q[0].stick_frames, q[1].stick_frames
+
+
+def truth_state_row(runs: dict[str, dict], material: Material, label: str) -> str:
+    """One row of the split of :func:`by_truth_state` over every run, ``material``'s file,
+    path band, calibrate off."""
+    fn, fp, sn, sp = np.sum([by_truth_state(data, flags(data, material, False)) for data in runs.values()], axis=0)
+    stick = sn + sp
+    return (f"| {label} | {_share(fn + fp, stick)} ({fn + fp}) | {_share(fn, stick)} ({fn}) | "
+            f"{_share(fp, stick)} ({fp}) | {_share(sp, stick)} ({sp} of {stick}) |")
+
+
+TRUTH_STATE_HEADER = [
+    "| contact | false alarms (frames) | on frames with no true sliding | on frames of true partial slip | "
+    "sticking frames in partial slip |",
+    "| --- | ---: | ---: | ---: | ---: |"]
+
+
 EXPLAIN_HEADER = [
     "| contact | path the flag rose on | its band | (b) share | scenes (points) | band edge used | identified "
     "onsets of that kind | measured onsets the scenes show on that path: min–max (count) |",
@@ -531,12 +563,13 @@ def engine_run(path: Path, cache: Path) -> dict[str, np.ndarray]:
     return data
 
 
-def engine_tables(folder: Path, cache: Path, default: Material, period_ns: float) -> list[str]:
-    """The identification and detection tables on the engine's recordings (one block per μ)."""
+def engine_tables(folder: Path, cache: Path, default: Material, period_ns: float, explain: bool) -> list[str]:
+    """The identification and detection tables on the engine's recordings (one block per μ;
+    ``explain``: also the false alarms by the truth's slip state, :func:`truth_state_row`)."""
     cache.mkdir(parents=True, exist_ok=True)
     scenarios = {p: json.loads(p.with_suffix(".json").read_text())["scenario"] for p in sorted(folder.glob("*.mcap"))
                  if p.with_suffix(".json").exists()}
-    ident_rows, det_rows = [], []
+    ident_rows, det_rows, state_rows = [], [], []
     for mu in sorted({sc["mu"] for sc in scenarios.values()}):
         tag = f"engine μ {mu:g}"
         own = {p: sc for p, sc in scenarios.items() if sc["mu"] == mu}
@@ -560,6 +593,10 @@ def engine_tables(folder: Path, cache: Path, default: Material, period_ns: float
                 (f"{tag}, **no file**, calibrate online", default, True, "path")):
             det_rows.append(detection_row(label, material, evaluate(runs, hold_kinds, material, online, period_ns,
                                                                     1.0, detector=detector), online))
+        state_rows.append(truth_state_row(runs, files["identified (truth)"], tag))
+    state = ["", "The same split of the false alarms by the truth's state (the engine's sliding_fraction: the share "
+             "of Σ φ|u| on contacts at the friction cone, tests/bench/engine_mujoco.py):", "",
+             *TRUTH_STATE_HEADER, *state_rows] if explain else []
     return (["", f"Second engine ({folder}): identification from its force_flat and torque_flat sessions (press, "
              "twice: ramp past slip, hold, unload, rest; β truth: μ × the mean taxel distance of a uniform pressure):", "",
              "| contact | file | quantity | truth | identified | ± 2 sigma | error |",
@@ -567,7 +604,7 @@ def engine_tables(folder: Path, cache: Path, default: Material, period_ns: float
              "Detection on every other recording (force, torque, combined, pivot ramps on flat, curved, tilted pads, "
              "grip steps; holds: "
              "hold95_* under '95 %', the rest of the never-slipping ones under the second column):", "",
-             *DETECTION_HEADER, *det_rows])
+             *DETECTION_HEADER, *det_rows, *state])
 
 
 def main() -> None:
@@ -583,7 +620,8 @@ def main() -> None:
     ap.add_argument("--engine", type=Path, help="a folder of the second engine's recordings "
                     "(tests/bench/engine_mujoco.py writes them, a .json beside each)")
     ap.add_argument("--explain", action="store_true", help="also: the (b) false alarms by the load their flag "
-                    "rose on and the band it got, and the detector with the scenes' own onsets in the file")
+                    "rose on and the band it got, the detector with the scenes' own onsets in the file, and "
+                    "all its false alarms by the truth's slip state (none / partial) at the flagged frame")
     args = ap.parse_args()
     print_versions()
     rates = (args.ft_rate, args.tactile_rate)
@@ -592,7 +630,7 @@ def main() -> None:
     period_ns = 1e9 / args.ft_rate
     t0 = time.monotonic()
     default = resolve_material("")
-    ident_rows, det_rows, why_rows, covered_rows, bound_rows = [], [], [], [], []
+    ident_rows, det_rows, why_rows, covered_rows, bound_rows, state_rows = [], [], [], [], [], []
     for m in args.materials:
         paths = ident_recordings(m, args.cache, rates)
         every = [paths[n] for n in IDENT_SCENES]
@@ -618,6 +656,7 @@ def main() -> None:
             why_rows += rows
             covered_rows += tallies
             bound_rows.append(bound)
+            state_rows.append(truth_state_row(runs, files["identified (truth)"], m))
     print(f"\nwall time {time.monotonic() - t0:.0f} s (cache {args.cache})\n")
     print("Identification (ident_force, ident_torsion, ident_combined as a user records them; lock-step, F/T "
           f"{args.ft_rate:g} Hz, tactile {args.tactile_rate:g} Hz; ± 2·√(SE² + model²)):\n")
@@ -637,9 +676,13 @@ def main() -> None:
               "(a threshold per scene; what catching every onset costs any γ threshold):\n")
         print("\n".join(["| contact | true load at or above μ_d/μ_s | under it |", "| --- | ---: | ---: |",
                          *bound_rows]))
+        print("\nThe false alarms of each contact's own file (path band, calibrate off) by the truth's state at the "
+              f"flagged frame: no sliding (rig/truth sliding_fraction ≤ {NO_SLIDING:g}) or partial slip (above it, "
+              "not gross); and the share of all sticking frames in partial slip (shares of all sticking frames):\n")
+        print("\n".join(TRUTH_STATE_HEADER + state_rows))
     if args.engine is not None:
         folder = hashlib.sha256(str(args.engine.resolve()).encode()).hexdigest()[:8]
-        print("\n".join(engine_tables(args.engine, args.cache / f"engine-{folder}", default, period_ns)))
+        print("\n".join(engine_tables(args.engine, args.cache / f"engine-{folder}", default, period_ns, args.explain)))
 
 
 if __name__ == "__main__":
