@@ -20,7 +20,7 @@ from slipstack.lib.errors import DecodeError
 from slipstack.lib.limit_set import load_factor
 from slipstack.lib.onset_band import load_path, pressure_spread
 from slipstack.lib.identify import RampEstimate
-from slipstack.lib.material import DELTA_MAX, Material, detector_thresholds, material_toml
+from slipstack.lib.material import DELTA_MAX, Material, detector_thresholds, implausible, material_toml
 from slipstack.lib.output_file import output_file
 from slipstack.lib.material_fit import (beta_from_pressure, frame_noise, interval_half_width, onset_frames,
                                          pooled, pooled_model)
@@ -306,10 +306,13 @@ def _implausible(material: Material, values: dict[str, _Pooled], force_ests: lis
                  torsion_ests: list[RampEstimate]) -> list[str]:
     """Why the material cannot be trusted, each with what to record instead (empty: plausible).
 
-    An interval (± 2·√(SE² + model²)) as wide as its value; a band δ at its cap (the data
+    A coefficient outside its plausible range (lib/material.py); an interval
+    (± 2·√(SE² + model²)) as wide as its value; a band δ at its cap (the data
     say the contact can let go at half its capacity); loadings whose sliding levels differ by
     more than :data:`_MAX_LEVEL_SPREAD` (the same contact keeps one sliding level)."""
-    reasons = []
+    reasons = [f"{key} = {getattr(material, key):.4g} lies {why}; " + (_RECORD_TORQUE if key.startswith("beta")
+               else _RECORD_FORCE) for key in ("mu_s", "mu_d", "beta_s_m", "beta_d_m")
+               if (why := implausible(key, getattr(material, key)))]
     for key, v in values.items():
         record = _RECORD_TORQUE if key.startswith("beta") else _RECORD_FORCE
         half = interval_half_width(v.se, v.model)

@@ -18,7 +18,7 @@ from slipstack.lib.defaults import MU
 from slipstack.lib.limit_set import torsional_coefficient
 from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.scene import Scene
-from slipstack.lib.toml_file import SHIPPED_ROOT, read_toml
+from slipstack.lib.toml_file import SHIPPED_ROOT, read_toml, toml_value
 from slipstack.analysis.figure_keys import parse_variant
 from slipstack.launch.launch_file import load_launch_file
 from slipstack.launch.lockstep import run_launch_file
@@ -174,19 +174,9 @@ def with_contact_beta(exp: Experiment, scene: Scene) -> Experiment:
     return dataclasses.replace(exp, config={**exp.config, "beta_m": contact_beta_s(scene)}, beta_from_contact=False)
 
 
-def _toml_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(value, list):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    return repr(value)
-
-
 def _toml_table(table: dict[str, Any], name: str = "") -> list[str]:
     """``table`` as TOML lines (scalars and lists first, then tables and arrays of tables)."""
-    lines = [f"{key} = {_toml_value(v)}" for key, v in table.items()
+    lines = [f"{key} = {toml_value(v)}" for key, v in table.items()
              if not isinstance(v, dict) and not (isinstance(v, list) and v and isinstance(v[0], dict))]
     for key, v in table.items():
         full = f"{name}.{key}" if name else key

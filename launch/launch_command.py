@@ -103,6 +103,7 @@ def main_launch(args: argparse.Namespace) -> int:
     from slipstack.launch.run_log import log_path_for
     from slipstack.launch.run_node import parse_assignments
     from slipstack.lib.errors import ConfigError
+    from slipstack.lib.toml_file import toml_value
     from slipstack.nodes.devices.sim_link import SIM_PREFIX
     from slipstack.nodes.runtime.logs import LOG_LEVEL_ENV, parse_log_levels
     from slipstack.nodes.runtime.run_dir import make_run_dir, remove_run_dir
@@ -124,16 +125,16 @@ def main_launch(args: argparse.Namespace) -> int:
             for name, value in launch.args.items():
                 if name not in _BUILTIN_ARGS:
                     note = f"  # {comments[name]}" if name in comments else ""
-                    print(f"{name} := {value!r}{note}")
+                    print(f"{name} := {toml_value(value)}{note}")
             remove_run_dir(run_dir)
             return 0
+        log_file = Path(args.log_file) if args.log_file else log_path_for(launch)
         if args.lockstep:
             if args.machine is not None:
                 raise ConfigError("--lockstep runs every machine's nodes in this one process; "
                                   "drop --machine (or drop --lockstep to run one machine's share)")
-            return run_lockstep(launch, run_dir)
-        launcher = Launcher(launch, run_dir, log_file=Path(args.log_file) if args.log_file else log_path_for(launch),
-                            machine=args.machine)
+            return run_lockstep(launch, run_dir, log_file=log_file)
+        launcher = Launcher(launch, run_dir, log_file=log_file, machine=args.machine)
     except BaseException:  # a bad launch file leaves no run directory behind
         remove_run_dir(run_dir)
         raise

@@ -236,25 +236,32 @@ _ARG_LINE = re.compile(r"\s*([A-Za-z_][\w-]*)\s*=")
 def arg_comments(path: Path) -> dict[str, str]:
     """The comment of each ``[args]`` entry of a launch file and the files it extends
     (the file's own comment wins): the ``# ...`` after the value, else the comment lines
-    right above it. For ``--show-args``; a file that does not parse gives what it can."""
+    right above it; indented comment lines right below continue it. For ``--show-args``;
+    a file that does not parse gives what it can."""
     text = path.read_text()
     comments: dict[str, str] = {}
     above: list[str] = []
-    section = ""
+    section, last = "", ""  # last: the argument an indented comment line continues
     for line in text.splitlines():
         stripped = line.strip()
         if stripped.startswith("["):
-            section, above = stripped, []
+            section, above, last = stripped, [], ""
             continue
         if stripped.startswith("#"):
-            above.append(stripped.lstrip("#").strip())
+            if last and line[0].isspace():
+                comments[last] = (comments.get(last, "") + " " + stripped.lstrip("#").strip()).strip()
+            else:
+                above.append(stripped.lstrip("#").strip())
+                last = ""
             continue
         m = _ARG_LINE.match(line)
+        last = ""
         if section == "[args]" and m:
             inline = next((line[i + 1:].strip() for i in range(len(line)) if line[i] == "#"
                            and _parses(line[:i])), "")
             if inline or above:
                 comments[m.group(1)] = inline or " ".join(above)
+            last = m.group(1)
         above = []
     try:
         base_name = toml_loads(text).get("launch", {}).get("extends")

@@ -48,6 +48,7 @@ from slipstack.nodes.runtime.transport import LISTEN_FDS_ENV, listening_socket
 __all__ = ["Launcher", "run_lockstep", "monitor_check_problems"]
 
 READY_TIMEOUT_S = 20.0
+INTERRUPTED_EXIT = 130   # the launch stopped by Ctrl-C before its graph ran (as a shell's 128 + SIGINT)
 STOP_GRACE_S = 0.4       # per node, after SIGINT, before the next node is told to stop
 TERM_AFTER_S = 1.5       # from the start of shutdown: SIGTERM whoever is left
 KILL_AFTER_S = 2.5       # from the start of shutdown: SIGKILL whoever is left
@@ -147,6 +148,8 @@ class Launcher:
         self.order: list[str] = self.plan.order  # process names, in start order
         self._stop_requested = False
         self._signals = 0
+        self._starting: _Process | None = None
+        """The process the start waits on: it may not handle SIGINT yet (a traceback from its imports)."""
         self._numbered: dict[str, dict[str, int]] = {}
         self._summary_gap = ""
         """What the run's summary misses (the monitor died and nothing was recorded); "" if nothing."""
@@ -522,7 +525,9 @@ class Launcher:
                 self._spawn(self.processes[name])
                 started.append(name)
                 self._write_graph("starting")  # its pid: `node list` shows it up while the others start
+                self._starting = self.processes[name]
                 self._wait_ready(self.processes[name], READY_TIMEOUT_S)
+                self._starting = None
                 if self.peers is not None:
                     self.peers.ready = sorted(n for p in started for n in self.processes[p].node_names)
             self._write_graph()
@@ -538,9 +543,13 @@ class Launcher:
                 self.echo(f"[launch] no nodes{where}; the graph's tools attach here, run dir {self.run_dir}")
             self._supervise()
         except SlipstackError as exc:
-            self.echo(f"[launch] error: {exc}")
-            self.exit_code = 1
-            self.error = str(exc)
+            if self._stop_requested:  # Ctrl-C (or SIGTERM) before the graph ran: the operator's stop
+                self.echo(f"[launch] {exc}")
+                self.exit_code = INTERRUPTED_EXIT
+            else:
+                self.echo(f"[launch] error: {exc}")
+                self.exit_code = 1
+                self.error = str(exc)
         finally:
             self._shutdown(started)
             for s, h in old.items():
@@ -557,7 +566,9 @@ class Launcher:
         self._summary_from_recording(recording)
         self._report_recording(recording)
         self._report_events()
-        if self.launch.check:
+        if self.launch.check and self.exit_code == INTERRUPTED_EXIT:
+            self.echo("[launch] no check: the graph never ran")
+        elif self.launch.check:
             self._report_check()
         finish_run_dir(self.run_dir, keep=(EVENTS_FILE, CHECK_FILE))
         self.echo.close()
@@ -791,12 +802,18 @@ class Launcher:
         if closing:
             self.echo(closing)
 
+    def _stop_signal(self, c: _Process) -> signal.Signals:
+        """SIGINT, its stop; SIGTERM to the process the start waits on, which may be importing
+        still: Python's SIGINT would print a traceback there, SIGTERM ends it silently (and is
+        handled as SIGINT once the node runs, ``nodes/runtime/process.py``)."""
+        return signal.SIGTERM if c is self._starting else signal.SIGINT
+
     def _stop_graph(self, live: list[_Process]) -> None:
         """Stop ``live`` in order: SIGINT, then SIGTERM and SIGKILL to whoever is left."""
         t0 = time.monotonic()
         for c in live:
             if c.proc.poll() is None:
-                c.proc.send_signal(signal.SIGINT)
+                c.proc.send_signal(self._stop_signal(c))
                 deadline = time.monotonic() + STOP_GRACE_S
                 while c.proc.poll() is None and time.monotonic() < deadline:
                     self._forward_logs(0.01)
@@ -814,7 +831,7 @@ class Launcher:
         what they still hold, up to :data:`FINISH_LIMIT_S` (a further Ctrl-C cuts it short)."""
         running = [c for c in live if c.proc.poll() is None]
         for c in running:
-            c.proc.send_signal(signal.SIGINT)
+            c.proc.send_signal(self._stop_signal(c))
         t0, signals, said = time.monotonic(), self._signals, False
         while any(c.proc.poll() is None for c in running):
             waited = time.monotonic() - t0
@@ -942,12 +959,14 @@ def _check_machine(launch: LaunchFile, machine: str | None) -> str | None:
     return machine
 
 
-def run_lockstep(launch: LaunchFile, run_dir: Path, echo: Callable[[str], None] | None = None) -> int:
-    """``--lockstep``: ``launch`` in this process on the simulated clock (``launch/lockstep.py``);
-    the exit code, 1 if ``check`` is on and the monitor's check failed."""
+def run_lockstep(launch: LaunchFile, run_dir: Path, echo: Callable[[str], None] | None = None,
+                 log_file: Path | None = None) -> int:
+    """``--lockstep``: ``launch`` in this process on the simulated clock (``launch/lockstep.py``),
+    every line also into ``log_file`` as the real-time launch writes it; the exit code, 1 if
+    ``check`` is on and the monitor's check failed."""
     from slipstack.launch.lockstep import LockstepRun  # the real-time launch does not import the nodes
 
-    echo = echo or Console()
+    echo = RunLog(echo or Console(), log_file)
     try:
         exit_code = LockstepRun(launch, run_dir, echo=echo).run()
         if launch.check:
@@ -956,4 +975,5 @@ def run_lockstep(launch: LaunchFile, run_dir: Path, echo: Callable[[str], None] 
             exit_code = exit_code or int(bool(problems))
     finally:
         finish_run_dir(run_dir, keep=(CHECK_FILE,))
+        echo.close()
     return exit_code

@@ -17,11 +17,16 @@ from slipstack.lib.errors import ConfigError
 from slipstack.lib.toml_file import read_toml
 
 __all__ = ["Material", "DetectorThresholds", "band_delta", "detector_thresholds", "load_material", "material_toml",
-           "NOISE_FLOOR", "DELTA_MIN", "DELTA_MAX"]
+           "implausible", "NOISE_FLOOR", "DELTA_MIN", "DELTA_MAX", "PLAUSIBLE"]
 
 NOISE_FLOOR = 0.002
 DELTA_MIN = 0.005
 DELTA_MAX = 0.5
+PLAUSIBLE = {"mu": (0.02, 3.0), "beta_m": (0.0, 0.1), "delta": (0.0, DELTA_MAX)}
+"""The plausible range (inclusive) of a friction coefficient μ (μ_s, μ_d; dimensionless), a
+torsional coefficient β (m) and a band δ (dimensionless); outside it a value is a typo
+(docs/materials.md)."""
+_QUANTITY = {"mu_s": "mu", "mu_d": "mu", "beta_s_m": "beta_m", "beta_d_m": "beta_m", "delta": "delta"}
 _BAND_SIGMAS = 3.0
 _RELEASE_SIGMAS = 4.0
 _RESUME_SIGMAS = 2.0
@@ -101,6 +106,16 @@ class DetectorThresholds:
     stuck_margin: float = math.nan
 
 
+def implausible(key: str, value: float) -> str:
+    """Why ``value`` of ``key`` (``mu_s``, ``mu_d``, ``beta_s_m``, ``beta_d_m`` or ``delta``)
+    is no plausible one, as ``outside …``; "" if it is, or is NaN (not given)."""
+    quantity = _QUANTITY[key]
+    low, high = PLAUSIBLE[quantity]
+    if math.isnan(value) or low <= value <= high:
+        return ""
+    return f"outside the plausible {quantity} [{low:g}, {high:g}] (docs/materials.md)"
+
+
 def _noise(value: float) -> float:
     return max(value, NOISE_FLOOR) if math.isfinite(value) else NOISE_FLOOR
 
@@ -165,10 +180,15 @@ def parse_material(data: dict[str, Any], *, source: str = "<material>") -> Mater
         raise ConfigError(f"{source}: material.{sorted(table)[0]}: unknown key (known: name, provenance, "
                           f"refused, {', '.join(_LISTS)}, {', '.join(_FLOATS)})")
     try:
-        return Material(name=name, provenance=provenance, refused=refused,
-                        **{key: tuple(float(g) for g in v) for key, v in lists.items()}, **values)
+        material = Material(name=name, provenance=provenance, refused=refused,
+                            **{key: tuple(float(g) for g in v) for key, v in lists.items()}, **values)
     except ConfigError as exc:
         raise ConfigError(f"{source}: {exc}") from None
+    for key in () if refused else _QUANTITY.keys() & values.keys():  # identify --force writes an
+        if why := implausible(key, values[key]):  # implausible one marked refused; the detector says so
+            raise ConfigError(f"{source}: material.{key} = {values[key]:g} lies {why}: a typo? Correct it, or "
+                              "identify the contact: slipstack identify RAMP.mcap... -o FILE")
+    return material
 
 
 def load_material(path: str | Path) -> Material:

@@ -105,11 +105,17 @@ class OnsetBand:
         """The band's width δ for this load (:func:`load_path`, :func:`pressure_spread`)."""
         if math.isnan(path):
             return self.lowest
+        kind = self.kind_of(path, spread)
+        return self.unidentified if kind is None else kind.delta
+
+    def kind_of(self, path: float, spread: float) -> OnsetKind | None:
+        """The identified kind whose band a load of this path and spread gets: the one nearest
+        in path among those that cover it; None where none does (or without a path)."""
         best = None
         for kind in self.kinds:
             if kind.covers(path, spread) and (best is None or abs(path - kind.path) < abs(path - best.path)):
                 best = kind
-        return self.unidentified if best is None else best.delta
+        return best
 
 
 def _kinds(material: Material) -> tuple[OnsetKind, ...]:

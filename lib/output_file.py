@@ -57,10 +57,15 @@ def output_file(path: Path, **claim: object) -> Iterator[Path]:
 
 
 def why_unwritable(path: Path, exc: OSError) -> str:
-    """Why ``path`` cannot be written, in words (a file where a folder should be, not "File exists")."""
+    """Why ``path`` cannot be written, in words (a file where a folder should be, not "File exists";
+    a missing folder above the one level that is made, not "No such file or directory")."""
+    below = path
     for folder in path.parents:
         if os.path.lexists(folder):
-            return exc.strerror if folder.is_dir() else f"{folder} is a file, not a folder"
+            if not folder.is_dir():
+                return f"{folder} is a file, not a folder"
+            return exc.strerror if below in (path, path.parent) else f"the folder {below} does not exist"
+        below = folder
     return exc.strerror
 
 

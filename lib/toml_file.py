@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import json
+import math
 import tomllib
 from pathlib import Path
 from typing import Any
 
 from slipstack.lib.errors import ConfigError
 
-__all__ = ["read_toml", "resolve_path", "loads", "SHIPPED_ROOT"]
+__all__ = ["read_toml", "resolve_path", "loads", "toml_value", "SHIPPED_ROOT"]
 
 #: Where the shipped launch files (``files/``), scenes and materials live.
 SHIPPED_ROOT = Path(__file__).resolve().parents[1] / "launch"
@@ -21,6 +23,24 @@ def loads(text: str) -> dict[str, Any]:
         return tomllib.loads(text)
     except RecursionError:
         raise tomllib.TOMLDecodeError("arrays or tables nested too deeply") from None
+
+
+def toml_value(value: Any) -> str:
+    """``value`` as a TOML file writes it (``true``, ``3.0``, ``nan``, ``"text"``, ``[1, 2]``,
+    ``{a = 1}``); ``None``, which TOML has not, as ``none`` (what ``name:=none`` gives)."""
+    if value is None:
+        return "none"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)  # JSON's escapes are TOML's basic string's
+    if isinstance(value, float) and not math.isfinite(value):
+        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k} = {toml_value(v)}" for k, v in value.items()) + "}"
+    return repr(value)
 
 
 def read_toml(path: str | Path, kind: str) -> dict[str, Any]:

@@ -16,16 +16,18 @@ import math
 from pathlib import Path
 from typing import Any
 
-from slipstack.lib.material import Material, detector_thresholds, load_material
+from slipstack.lib.errors import ConfigError
+from slipstack.lib.material import Material, detector_thresholds, implausible, load_material
 from slipstack.lib.toml_file import resolve_path
 
-__all__ = ["DEFAULT_MATERIAL", "resolve_material", "fill_from_material"]
+__all__ = ["DEFAULT_MATERIAL", "resolve_material", "fill_from_material", "refuse_implausible"]
 
 DEFAULT_MATERIAL = "rubber"
 """What a run without a material file uses (``launch/materials/rubber.toml``, the simulated
 rig's rubber; its provenance is in the file)."""
 
 _CACHE_SIZE = 16
+_CHECKED = ("mu_s", "mu_d", "beta_s_m", "delta")
 
 
 @functools.lru_cache(maxsize=_CACHE_SIZE)
@@ -49,13 +51,28 @@ def _value(material: Material, source: str) -> float:
     return float(getattr(material, source))
 
 
+def refuse_implausible(params: Any, **sources: str) -> None:
+    """Refuse each given (not NaN) field ``name`` of ``params`` whose value lies outside the
+    plausible range of the material quantity ``sources[name]`` (``mu_s``, ``beta_s_m``, ``delta``…).
+
+    Raises:
+        ConfigError: naming the field, the range and what to do.
+    """
+    for name, src in sources.items():
+        if why := implausible(src, getattr(params, name)):
+            raise ConfigError(f"{name} := {getattr(params, name):g} lies {why}: a typo? Correct it, or leave "
+                              f"{name} at nan to take the material's")
+
+
 def fill_from_material(params: Any, **sources: str) -> None:
     """Set each NaN field ``name`` of the frozen dataclass ``params`` from its material.
 
     ``sources`` maps a field to the material quantity it takes: a :class:`Material`
     attribute (``mu_s``, ``beta_s_m``, …) or ``delta`` / ``gamma_release`` / ``gamma_resume`` (derived).
-    The material is read only if some field is NaN.
+    The material is read only if some field is NaN. A friction value given implausible is
+    refused (:func:`refuse_implausible`).
     """
+    refuse_implausible(params, **{name: src for name, src in sources.items() if src in _CHECKED})
     missing = {name: src for name, src in sources.items() if math.isnan(getattr(params, name))}
     if not missing:
         return

@@ -26,7 +26,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.lib.material import Material, detector_thresholds
 from slipstack.lib.onset_band import OnsetBand
 from slipstack.lib.online_calibration import Learned
-from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material, resolve_material
+from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material, refuse_implausible, resolve_material
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
 __all__ = ["SlipDetector", "SlipDetectorParams"]
@@ -72,6 +72,7 @@ class SlipDetectorParams:
             raise ConfigError(f"slip_detector calibrate must be one of {CALIBRATE}, got {self.calibrate!r}")
         if self.band not in BANDS:
             raise ConfigError(f"slip_detector band must be one of {BANDS}, got {self.band!r}")
+        refuse_implausible(self, beta_m="beta_s_m")
         fill_from_material(self, mu="mu_s", delta="delta", gamma_release="gamma_release",
                            gamma_resume="gamma_resume")
 

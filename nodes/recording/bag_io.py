@@ -461,7 +461,8 @@ class TopicInfo:
 
 @dataclass(frozen=True)
 class RecordingInfo:
-    """What ``slipstack bag info`` prints. Times are wall-clock ns (log time)."""
+    """What ``slipstack bag info`` prints. Times are log times (wall-clock ns, or simulated); topics are bus
+    topics (a rosbag2 file's ``/slipstack/<topic>`` and its ``…/info`` are one)."""
 
     path: Path
     size_bytes: int
@@ -472,6 +473,13 @@ class RecordingInfo:
     end_ns: int
     topics: dict[str, TopicInfo]
     damage: str = ""
+    left_out: dict[str, str] = field(default_factory=dict)
+    """A rosbag2 file's channels not read as frames → why (``Ros2Frames.left_out``)."""
+    ros2: bool = False
+    """Its messages are ROS 2 (CDR) ones; counted as the frames they make, one per bus frame."""
+    simulated_clock: bool = False
+    """Its log times are ns of the simulated clock from the run's start, not wall-clock time (a
+    lock-step run's, whose :data:`CLOCK_METADATA` offset is 0)."""
 
     @property
     def duration_s(self) -> float:
@@ -490,19 +498,35 @@ def recording_info(path: str | os.PathLike, progress: Callable[[int], None] | No
     seq_last: dict[str, int] = {}
     gaps: dict[str, int] = defaultdict(int)
     seq_tracker = SeqTracker()
-    for m in _scan(path, state, tolerant=True, progress=progress):
-        ch = state.channels[m.channel_id]
-        topic = ch.topic
+    ros2 = None  # a rosbag2 layout's reader: its messages counted as the frames they make (read_recording)
+
+    def count(frame: RecordedFrame, type_name: str) -> None:
+        topic = frame.topic
         counts[topic] += 1
-        first.setdefault(topic, m.log_time)
-        last[topic] = m.log_time
-        schema = state.schemas.get(ch.schema_id)
-        types[topic].add(ch.metadata.get("type") or (schema.name if schema is not None else ""))
-        head = peek_header(m.data)
-        seq = head.seq if head else m.sequence
+        first.setdefault(topic, frame.log_time_ns)
+        last[topic] = frame.log_time_ns
+        types[topic].add(type_name)
+        head = peek_header(frame.payload)
+        seq = head.seq if head else frame.sequence
         seq_first.setdefault(topic, seq)
         seq_last[topic] = seq
-        gaps[topic] += seq_tracker.update(seq, publisher_key(topic, m.data, head))
+        gaps[topic] += seq_tracker.update(seq, publisher_key(topic, frame.payload, head))
+
+    for m in _scan(path, state, tolerant=True, progress=progress):
+        ch = state.channels[m.channel_id]
+        schema = state.schemas.get(ch.schema_id)
+        if ch.message_encoding == ROS2_MESSAGE_ENCODING:
+            if ros2 is None:
+                from slipstack.nodes.recording.ros2_bag import Ros2Frames
+
+                ros2 = Ros2Frames(state.channels, state.schemas)
+            for frame in ros2.frames(m, None):
+                count(frame, ros2.topic_types.get(frame.topic, ""))
+        else:
+            count(RecordedFrame(m.log_time, ch.topic, m.data, m.publish_time, m.sequence),
+                  ch.metadata.get("type") or (schema.name if schema is not None else ""))
+    for frame in ros2.flush() if ros2 is not None else ():
+        count(frame, ros2.topic_types.get(frame.topic, ""))
     loss = _loss_record(state.metadata.get(LOSS_METADATA))
     topics = {
         t: TopicInfo(
@@ -518,6 +542,8 @@ def recording_info(path: str | os.PathLike, progress: Callable[[int], None] | No
     return RecordingInfo(
         Path(path), os.path.getsize(path), state.finished, state.chunks, sum(counts.values()),
         min(first.values(), default=0), max(last.values(), default=0), topics, state.error,
+        ros2.left_out if ros2 is not None else {}, ros2 is not None,
+        state.metadata.get(CLOCK_METADATA, {}).get("wall_minus_monotonic_ns") == "0",
     )
 
 

@@ -151,7 +151,9 @@ class LossLedger:
 
 def written_loss(writer: RecordingWriter) -> dict[str, dict[str, str]]:
     """The loss record (:data:`~slipstack.nodes.recording.bag_io.LOSS_METADATA`) of a writer that was
-    handed every frame of its run (the lock-step run's): what misses is what it could not write."""
+    handed every frame of its run (the lock-step run's): what misses is what it could not write.
+    Flushes the chunk in progress first: a frame is counted once its chunk is written."""
+    writer.flush()
     ledger = LossLedger()
     return {LOSS_METADATA: {"topics": json.dumps(ledger.report(dict(writer.counts), dict(writer.not_written)))}}
 

@@ -147,6 +147,8 @@ class Ros2Frames:
         self._seq: dict[int, int] = defaultdict(int)
         self.left_out: dict[str, str] = {}
         """ROS 2 topic → why it was not read."""
+        self.topic_types: dict[str, str] = {}
+        """Slipstack topic → the ROS 2 type it is read from."""
 
     def _route(self, channel_id: int) -> tuple[str, str, bool, bool] | None:
         if channel_id in self._routes:
@@ -168,6 +170,7 @@ class Ros2Frames:
             else:  # a writer registers a message's /info channel before the message (Ros2RecordingWriter)
                 has_info = any(c.topic == ch.topic + INFO_SUFFIX for c in self._channels.values())
                 route = (topic, ros_type, False, has_info)
+                self.topic_types[topic] = ros_type
         self._routes[channel_id] = route
         return route
 

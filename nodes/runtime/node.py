@@ -18,6 +18,7 @@ from typing import Any, ClassVar, Protocol
 
 from slipstack.lib.config import read_typed
 from slipstack.lib.errors import ConfigError
+from slipstack.lib.toml_file import toml_value
 from slipstack.messages import Message
 
 __all__ = ["INPUT_POLICIES", "Input", "Output", "Node", "Context", "IoSource", "NoParams", "make_params", "param_help"]
@@ -184,14 +185,14 @@ def make_params(params_cls: type, values: dict[str, Any], node_name: str = "node
 
 
 def param_help(params_cls: type) -> list[tuple[str, str, str, str]]:
-    """Rows ``(name, type, default, help)`` for ``--help`` output."""
+    """Rows ``(name, type, default, help)`` for ``--help`` output (the default as TOML writes it)."""
     hints = typing.get_type_hints(params_cls)
     rows = []
     for f in dataclasses.fields(params_cls):
-        default = f.default if f.default is not dataclasses.MISSING else (
-            f.default_factory() if f.default_factory is not dataclasses.MISSING else "(required)"
+        default = toml_value(f.default) if f.default is not dataclasses.MISSING else (
+            toml_value(f.default_factory()) if f.default_factory is not dataclasses.MISSING else "(required)"
         )
         hint = hints[f.name]
         type_name = getattr(hint, "__name__", str(hint).replace("typing.", ""))
-        rows.append((f.name, type_name, repr(default), f.metadata.get("help", "")))
+        rows.append((f.name, type_name, default, f.metadata.get("help", "")))
     return rows

@@ -110,6 +110,10 @@ def format_info(info) -> str:  # noqa: ANN001 — a bag_io.RecordingInfo
         f"size:       {info.size_bytes / 1e6:.3f} MB",
         f"finished:   {'yes (summary and indexes written)' if info.finished else 'NO — unfinished; read up to the last intact chunk'}",
     ]
+    if info.ros2:
+        lines.append("format:     ros2 (rosbag2 MCAP): each topic below is /slipstack/<topic> with its …/info, "
+                     "counted as the bus frames they were made of")
+    lines += [f"not read:   {topic} ({why})" for topic, why in sorted(info.left_out.items())]
     if info.damage:
         lines.append(f"damage:     {info.damage}")
     lines += [
@@ -117,7 +121,11 @@ def format_info(info) -> str:  # noqa: ANN001 — a bag_io.RecordingInfo
         f"messages:   {info.message_count}",
         f"duration:   {info.duration_s:.3f} s",
     ]
-    if info.message_count:
+    if info.message_count and info.simulated_clock:
+        lines += [f"start:      {info.start_ns / 1e9:.3f} s, simulated clock (lock-step: from the run's start, "
+                  f"no date) ({info.start_ns})",
+                  f"end:        {info.end_ns / 1e9:.3f} s, simulated clock ({info.end_ns})"]
+    elif info.message_count:
         lines += [f"start:      {_fmt_time(info.start_ns)} ({info.start_ns})",
                   f"end:        {_fmt_time(info.end_ns)} ({info.end_ns})"]
     lines.append("topics:")

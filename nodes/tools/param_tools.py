@@ -15,10 +15,12 @@ import argparse
 import json
 import os
 import time
+import typing
 from pathlib import Path
 from typing import Any
 
 from slipstack.lib.errors import ConfigError
+from slipstack.lib.toml_file import toml_value
 from slipstack.nodes.runtime.graph_info import PARAM_REPLY, RUN_DIR_HELP, find_run_dir, read_graph
 from slipstack.nodes.tools.node_tools import newest_diagnostics, node_params
 
@@ -66,10 +68,13 @@ def _node(run_dir: Path, graph: dict[str, Any], name: str) -> tuple[dict[str, An
 
 
 def _values(cls: type, given: dict[str, Any]) -> dict[str, tuple[str, str]]:
-    """name → (value in effect, help), the given ones over the type's defaults."""
+    """name → (value in effect as a launch file writes it, help), the given ones (read as the
+    node reads them: ``param set`` stores its text) over the type's defaults."""
+    from slipstack.lib.config import read_typed
     from slipstack.nodes.runtime.node import param_help
 
-    return {name: (repr(given[name]) if name in given else default, text)
+    hints = typing.get_type_hints(cls.Params)
+    return {name: (toml_value(read_typed(given[name], hints[name], name)) if name in given else default, text)
             for name, _, default, text in param_help(cls.Params)}
 
 

@@ -11,6 +11,7 @@ More in docs/modules.md, `tests/bench/bench_detection.py`.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 import sys
@@ -43,7 +44,7 @@ from slipstack.nodes.recording.bag_io import RecordingWriter, read_recording
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.nodes.slip_detector import SlipDetector, SlipDetectorParams
 from slipstack.nodes.rig import load_scene_by_name, with_rates
-from _versions import print_versions
+from _versions import code_digest, print_versions
 
 DETECTION_SCENES = ["fig4a", "fig4b", "fig10", "fig11", "fig12", "fig13", "fig14", "fig15", "default"]
 IDENT_SCENES = ["ident_force", "ident_torsion", "ident_combined"]
@@ -245,13 +246,17 @@ def flags(data: dict[str, np.ndarray], material: Material, online: bool, record_
         margin[below_noise(data, material)] = np.nan
     band = OnsetBand.of(material)
     if detector == "path" and band.kinds and "spread" in data:
-        force = np.hypot(data["f_t"][:, 0], data["f_t"][:, 1])
-        deltas = [band.delta(load_path(f, t, material.mu_s, material.beta_s_m), k)
-                  for f, t, k in zip(force.tolist(), data["tau"].tolist(), data["spread"].tolist())]
+        deltas = [band.delta(p, k) for p, k in zip(frame_paths(data, material), data["spread"].tolist())]
     else:
         deltas = [None] * margin.size
     return np.array([latch.update(int(t), float(m), in_contact=bool(c), delta=d)[0]
                      for t, m, c, d in zip(data["t"], margin, data["contact"], deltas)])
+
+
+def frame_paths(data: dict[str, np.ndarray], material: Material) -> list[float]:
+    """The load path (``lib/onset_band.load_path``) of every frame's judged load."""
+    force = np.hypot(data["f_t"][:, 0], data["f_t"][:, 1])
+    return [load_path(f, t, material.mu_s, material.beta_s_m) for f, t in zip(force.tolist(), data["tau"].tolist())]
 
 
 def below_noise(data: dict[str, np.ndarray], material: Material) -> np.ndarray:
@@ -391,7 +396,152 @@ def evaluate(runs: dict[str, dict], hold_kinds: dict[str, str], material: Materi
     return tally
 
 
-# -- 3. the second engine ---------------------------------------------------------------
+# -- 3. where the false alarms at the sliding level come from (--explain) ---------------
+
+def path_name(path: float) -> str:
+    """A load path in words: force (p < 0.15), torque (p > 0.85), combined, none (no load)."""
+    return "none" if math.isnan(path) else "force" if path < 0.15 else "torque" if path > 0.85 else "combined"
+
+
+def band_source(band: OnsetBand, path: float, spread: float) -> str:
+    """Which band ``lib/onset_band.py`` gives a load of this path and spread, in words."""
+    kind = band.kind_of(path, spread)
+    if math.isnan(path):
+        return "no load path: all onsets"
+    if kind is None:
+        return "no onset of its kind"
+    return f"its kind (path {kind.path:.2f}, spread {kind.spread:.2f}; {kind.count} onsets)"
+
+
+def scene_onsets(data: dict[str, np.ndarray], material: Material) -> list[tuple[float, float, float]]:
+    """(measured γ, load path, pressure spread) of the last frame before each true episode,
+    as ``identify`` keeps an onset."""
+    gamma = data["gamma"] * RECORD_MU / material.mu_s
+    paths = frame_paths(data, material)
+    out = []
+    for ep in find_episodes(data["truth_t"], data["gross"], min_gap_ns=MIN_GAP_NS):
+        i = int(np.searchsorted(data["t"], ep.start_ns)) - 1
+        if i >= 0 and 0.0 < gamma[i] and math.isfinite(gamma[i]) and math.isfinite(paths[i]):
+            out.append((min(float(gamma[i]), 1.5), paths[i], float(data["spread"][i])))
+    return out
+
+
+def explain(runs: dict[str, dict], hold_kinds: dict[str, str], material: Material, level: float,
+            label: str, period_ns: float) -> tuple[list[str], list[str], str]:
+    """The (b) false alarms (stuck, true load at or above ``level``) by the load their flag
+    rose on: its path, the band it got and that band's edge, beside the onsets the scenes
+    themselves show on that path; then the detector with those onsets in the file, and the
+    bound of :func:`own_onset_bound`."""
+    band = OnsetBand.of(material)
+    parts: dict[tuple[str, str], dict] = {}
+    stick = 0
+    seen: dict[str, list[float]] = {}
+    onsets = {scene: scene_onsets(data, material) for scene, data in runs.items()}
+    for scene, data in runs.items():
+        f = flags(data, material, False)
+        k = np.clip(np.searchsorted(data["truth_t"], data["t"]), 0, data["truth_t"].size - 1)
+        at_level = data["true_gamma"][k] >= level
+        stick += int(np.count_nonzero(data["contact"] & ~data["gross"][k]))
+        paths, index = frame_paths(data, material), np.arange(f.size)
+        rose_at = np.maximum.accumulate(np.where(f & ~np.concatenate([[False], f[:-1]]), index, 0))
+        for r in np.unique(rose_at[f]):
+            spread = float(data["spread"][r])
+            frames = _outside_latch(data, f, (rose_at == r) & at_level)
+            if frames:
+                part = parts.setdefault((path_name(paths[r]), band_source(band, paths[r], spread)),
+                                        {"frames": 0, "scenes": {}, "edges": set()})
+                part["frames"] += frames
+                part["scenes"][scene] = part["scenes"].get(scene, 0) + frames
+                part["edges"].add(round(1.0 - (band.delta(paths[r], spread) if band.kinds else band.lowest), 3))
+        for g, p, _ in onsets[scene]:
+            seen.setdefault(path_name(p), []).append(g)
+    rows = []
+    for (path, source), part in sorted(parts.items(), key=lambda x: -x[1]["frames"]):
+        kind_onsets = [g for g, p, k in zip(material.onset_gamma, material.onset_path or (), material.onset_spread or ())
+                       if band.kind_of(p, k) is not None and band_source(band, p, k) == source]
+        shown = seen.get(path, [])
+        scenes = ", ".join(f"{s} {100 * n / stick:.2f}" for s, n in sorted(part["scenes"].items(), key=lambda x: -x[1]))
+        rows.append(f"| {label} | {path} | {source} | {_share(part['frames'], stick)} | {scenes} | "
+                    f"{' / '.join(f'{e:.3f}' for e in sorted(part['edges']))} | "
+                    f"{', '.join(f'{g:.3f}' for g in kind_onsets) or '-'} | "
+                    f"{f'{min(shown):.3f}–{max(shown):.3f} ({len(shown)})' if shown else '-'} |")
+    tallies = []
+    for how, extra in (("+ every scene's own onsets", lambda s: [o for v in onsets.values() for o in v]),
+                       ("+ the other scenes' onsets", lambda s: [o for t, v in onsets.items() if t != s for o in v])):
+        tally = Tally()
+        for scene, data in runs.items():
+            more = extra(scene)
+            covered = replace(material, onset_gamma=(*material.onset_gamma, *[o[0] for o in more]),
+                              onset_path=(*material.onset_path, *[o[1] for o in more]),
+                              onset_spread=(*material.onset_spread, *[o[2] for o in more]))
+            f = flags(data, covered, False)
+            if scene in hold_kinds:
+                tally.add_hold(hold_kinds[scene], f)
+            tally.add(data, f, period_ns, level)
+        tallies.append(detection_row(f"{label}, its file {how}", material, tally, False))
+    return rows, tallies, own_onset_bound(runs, onsets, material, level)
+
+
+def own_onset_bound(runs: dict[str, dict], onsets: dict[str, list], material: Material, level: float) -> str:
+    """Stuck frames outside every window at or above the edge of each scene's own lowest
+    measured onset less 3σ (a threshold per scene that knows where that scene lets go), by
+    the true load against ``level``: what no γ threshold that catches the onsets avoids."""
+    sigma = max(material.gamma_noise_stick, 0.002)
+    stick = above = under = 0
+    for scene, data in runs.items():
+        k = np.clip(np.searchsorted(data["truth_t"], data["t"]), 0, data["truth_t"].size - 1)
+        sticking = data["contact"] & ~data["gross"][k]
+        stick += int(np.count_nonzero(sticking))
+        if not onsets[scene]:
+            continue
+        q = detection_quality(data["truth_t"], data["gross"], data["t"], np.zeros(data["t"].size, dtype=bool))
+        edge = min(g for g, _, _ in onsets[scene]) - 3.0 * sigma
+        over = sticking & ~_excused(data, q) & (data["gamma"] * RECORD_MU / material.mu_s >= edge)
+        at_level = data["true_gamma"][k] >= level
+        above += int(np.count_nonzero(over & at_level))
+        under += int(np.count_nonzero(over & ~at_level))
+    return (f"| {material.name} | {_share(above, stick)} | {_share(under, stick)} |")
+
+
+NO_SLIDING = 1e-9
+"""A truth ``sliding_fraction`` at or under this is no sliding at all (the rig writes 0.0
+exactly when every taxel sticks; under 0.1 % of its sticking frames lie in (1e-9, 1e-3])."""
+
+
+def by_truth_state(data: dict[str, np.ndarray], f: np.ndarray) -> tuple[int, int, int, int]:
+    """False alarms (``lib/episodes`` ``detection_quality``) and sticking frames, each split by
+    the truth's state at the frame: (false, no sliding; false, partial slip; sticking, no
+    sliding; sticking, partial slip). No sliding: ``sliding_fraction`` ≤ NO_SLIDING; partial
+    slip: above it, not gross."""
+    k = np.clip(np.searchsorted(data["truth_t"], data["t"]), 0, data["truth_t"].size - 1)
+    none = data["slip_share"][k] <= NO_SLIDING
+    q = [detection_quality(data["truth_t"], data["gross"], data["t"], f, in_contact=data["contact"] & frames)
+         for frames in (none, ~none)]
+    return q[0].false_alarm_frames, q[1].false_alarm_frames, q[0].stick_frames, q[1].stick_frames
+
+
+def truth_state_row(runs: dict[str, dict], material: Material, label: str) -> str:
+    """One row of the split of :func:`by_truth_state` over every run, ``material``'s file,
+    path band, calibrate off."""
+    fn, fp, sn, sp = np.sum([by_truth_state(data, flags(data, material, False)) for data in runs.values()], axis=0)
+    stick = sn + sp
+    return (f"| {label} | {_share(fn + fp, stick)} ({fn + fp}) | {_share(fn, stick)} ({fn}) | "
+            f"{_share(fp, stick)} ({fp}) | {_share(sp, stick)} ({sp} of {stick}) |")
+
+
+TRUTH_STATE_HEADER = [
+    "| contact | false alarms (frames) | on frames with no true sliding | on frames of true partial slip | "
+    "sticking frames in partial slip |",
+    "| --- | ---: | ---: | ---: | ---: |"]
+
+
+EXPLAIN_HEADER = [
+    "| contact | path the flag rose on | its band | (b) share | scenes (points) | band edge used | identified "
+    "onsets of that kind | measured onsets the scenes show on that path: min–max (count) |",
+    "| --- | --- | --- | ---: | --- | ---: | --- | --- |"]
+
+
+# -- 4. the second engine ---------------------------------------------------------------
 
 def engine_run(path: Path, cache: Path) -> dict[str, np.ndarray]:
     """γ of the exact test on every frame of an engine recording, through the real fusion and
@@ -413,11 +563,13 @@ def engine_run(path: Path, cache: Path) -> dict[str, np.ndarray]:
     return data
 
 
-def engine_tables(folder: Path, cache: Path, default: Material, period_ns: float) -> list[str]:
-    """The identification and detection tables on the engine's recordings (one block per μ)."""
+def engine_tables(folder: Path, cache: Path, default: Material, period_ns: float, explain: bool) -> list[str]:
+    """The identification and detection tables on the engine's recordings (one block per μ;
+    ``explain``: also the false alarms by the truth's slip state, :func:`truth_state_row`)."""
+    cache.mkdir(parents=True, exist_ok=True)
     scenarios = {p: json.loads(p.with_suffix(".json").read_text())["scenario"] for p in sorted(folder.glob("*.mcap"))
                  if p.with_suffix(".json").exists()}
-    ident_rows, det_rows = [], []
+    ident_rows, det_rows, state_rows = [], [], []
     for mu in sorted({sc["mu"] for sc in scenarios.values()}):
         tag = f"engine μ {mu:g}"
         own = {p: sc for p, sc in scenarios.items() if sc["mu"] == mu}
@@ -441,6 +593,10 @@ def engine_tables(folder: Path, cache: Path, default: Material, period_ns: float
                 (f"{tag}, **no file**, calibrate online", default, True, "path")):
             det_rows.append(detection_row(label, material, evaluate(runs, hold_kinds, material, online, period_ns,
                                                                     1.0, detector=detector), online))
+        state_rows.append(truth_state_row(runs, files["identified (truth)"], tag))
+    state = ["", "The same split of the false alarms by the truth's state (the engine's sliding_fraction: the share "
+             "of Σ φ|u| on contacts at the friction cone, tests/bench/engine_mujoco.py):", "",
+             *TRUTH_STATE_HEADER, *state_rows] if explain else []
     return (["", f"Second engine ({folder}): identification from its force_flat and torque_flat sessions (press, "
              "twice: ramp past slip, hold, unload, rest; β truth: μ × the mean taxel distance of a uniform pressure):", "",
              "| contact | file | quantity | truth | identified | ± 2 sigma | error |",
@@ -448,7 +604,7 @@ def engine_tables(folder: Path, cache: Path, default: Material, period_ns: float
              "Detection on every other recording (force, torque, combined, pivot ramps on flat, curved, tilted pads, "
              "grip steps; holds: "
              "hold95_* under '95 %', the rest of the never-slipping ones under the second column):", "",
-             *DETECTION_HEADER, *det_rows])
+             *DETECTION_HEADER, *det_rows, *state])
 
 
 def main() -> None:
@@ -459,17 +615,22 @@ def main() -> None:
     ap.add_argument("--ft-rate", type=float, default=500.0, help="F/T rate (Hz), default the stack's 500")
     ap.add_argument("--tactile-rate", type=float, default=250.0, help="tactile rate (Hz), default 250")
     ap.add_argument("--cache", type=Path, default=Path("/tmp/slipstack-bench-detection"),
-                    help="recordings, material files and per-scene runs (delete to re-run)")
+                    help="recordings, material files and per-scene runs, in a folder named by the code's "
+                         "digest and the rates (other code, scenes or rates: a new folder)")
     ap.add_argument("--engine", type=Path, help="a folder of the second engine's recordings "
                     "(tests/bench/engine_mujoco.py writes them, a .json beside each)")
+    ap.add_argument("--explain", action="store_true", help="also: the (b) false alarms by the load their flag "
+                    "rose on and the band it got, the detector with the scenes' own onsets in the file, and "
+                    "all its false alarms by the truth's slip state (none / partial) at the flagged frame")
     args = ap.parse_args()
     print_versions()
-    args.cache.mkdir(parents=True, exist_ok=True)
     rates = (args.ft_rate, args.tactile_rate)
+    args.cache = args.cache / f"{code_digest()}-{rates[0]:g}-{rates[1]:g}"
+    args.cache.mkdir(parents=True, exist_ok=True)
     period_ns = 1e9 / args.ft_rate
     t0 = time.monotonic()
     default = resolve_material("")
-    ident_rows, det_rows = [], []
+    ident_rows, det_rows, why_rows, covered_rows, bound_rows, state_rows = [], [], [], [], [], []
     for m in args.materials:
         paths = ident_recordings(m, args.cache, rates)
         every = [paths[n] for n in IDENT_SCENES]
@@ -490,6 +651,12 @@ def main() -> None:
             level = RIG_MATERIALS[m][1] / RIG_MATERIALS[m][0]
             det_rows.append(detection_row(label, material, evaluate(runs, hold_kinds, material, online, period_ns,
                                                                     level, detector=detector), online))
+        if args.explain:
+            rows, tallies, bound = explain(runs, hold_kinds, files["identified (truth)"], level, m, period_ns)
+            why_rows += rows
+            covered_rows += tallies
+            bound_rows.append(bound)
+            state_rows.append(truth_state_row(runs, files["identified (truth)"], m))
     print(f"\nwall time {time.monotonic() - t0:.0f} s (cache {args.cache})\n")
     print("Identification (ident_force, ident_torsion, ident_combined as a user records them; lock-step, F/T "
           f"{args.ft_rate:g} Hz, tactile {args.tactile_rate:g} Hz; ± 2·√(SE² + model²)):\n")
@@ -498,8 +665,24 @@ def main() -> None:
     print(f"\nDetection, controller off, scenes: {', '.join(args.scenes)} and the holds; F/T period "
           f"{period_ns / 1e6:g} ms\n")
     print("\n".join(DETECTION_HEADER + det_rows))
+    if args.explain:
+        print("\nThe (b) false alarms (stuck, true load at or above the true μ_d/μ_s) of each contact's own file, "
+              "by the load their flag rose on (shares of all sticking frames):\n")
+        print("\n".join(EXPLAIN_HEADER + why_rows))
+        print("\nThe same file with the measured onsets of the detection scenes added (every scene's, and all but "
+              "the scene judged): what covering every path the scenes use would give (a bound, not a recipe):\n")
+        print("\n".join(DETECTION_HEADER + covered_rows))
+        print("\nStuck frames outside the windows at or above each scene's own lowest measured onset less 3σ "
+              "(a threshold per scene; what catching every onset costs any γ threshold):\n")
+        print("\n".join(["| contact | true load at or above μ_d/μ_s | under it |", "| --- | ---: | ---: |",
+                         *bound_rows]))
+        print("\nThe false alarms of each contact's own file (path band, calibrate off) by the truth's state at the "
+              f"flagged frame: no sliding (rig/truth sliding_fraction ≤ {NO_SLIDING:g}) or partial slip (above it, "
+              "not gross); and the share of all sticking frames in partial slip (shares of all sticking frames):\n")
+        print("\n".join(TRUTH_STATE_HEADER + state_rows))
     if args.engine is not None:
-        print("\n".join(engine_tables(args.engine, args.cache, default, period_ns)))
+        folder = hashlib.sha256(str(args.engine.resolve()).encode()).hexdigest()[:8]
+        print("\n".join(engine_tables(args.engine, args.cache / f"engine-{folder}", default, period_ns, args.explain)))
 
 
 if __name__ == "__main__":

@@ -13,6 +13,7 @@ writes from that object's force and torque sessions, run as a user runs it.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 import subprocess
@@ -30,6 +31,7 @@ from slipstack.lib.status import SlipState
 from slipstack.messages import decode
 from slipstack.nodes.recording.bag_io import read_recording
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
+from _versions import code_digest
 
 REPLAYED = ("fusion", "slip_detector")
 NOT_SLIP = (SlipState.STICK.value, SlipState.NO_CONTACT.value)
@@ -175,9 +177,13 @@ def main() -> None:
     ap.add_argument("--launch-arg", action="append", default=[], metavar="NAME=VALUE",
                     help="a further stack.toml argument for the replay (repeatable)")
     ap.add_argument("--json", type=Path, help="write every scenario's scores here")
-    ap.add_argument("--cache", type=Path, help="keep each replay's flags here (delete it after changing the code)")
+    ap.add_argument("--cache", type=Path, help="keep each replay's flags here, in a folder named by the code's "
+                    "digest and the recordings' folder (other code: a new folder)")
     ap.add_argument("--per-scenario", action="store_true", help="also print one row per recording")
     args = ap.parse_args()
+    if args.cache is not None:
+        folder = hashlib.sha256(str(args.recordings.resolve()).encode()).hexdigest()[:8]
+        args.cache = args.cache / f"{code_digest()}-{folder}"
     metas = {p.with_suffix(".mcap"): json.loads(p.read_text()) for p in sorted(args.recordings.glob("*.json"))}
     metas = {p: m for p, m in metas.items() if p.exists() and not p.name.startswith("ident_")
              and (not args.scenarios or any(p.stem.startswith(s) for s in args.scenarios))}

@@ -353,3 +353,29 @@ def test_a_warm_standby_prepares_at_normal_scheduling_and_takes_the_realtime_pri
     assert _all_threads_fifo_at(standby, 2)
     assert "not granted" not in g.log()
     assert g.stop() == 0, g.log()
+
+
+def test_ctrl_c_while_the_simulated_rig_starts_is_a_clean_interrupted_exit(launch, tmp_path):
+    """Ctrl-C while the launch starts (here: as the rig's process is importing) printed the node's
+    Python traceback and ended as a failed launch (exit 1, CHECK FAILED); it is the operator's
+    stop: one line, exit 130, nothing left running. Default arguments (the rig and its recorder)."""
+    g = launch(f"recording:={tmp_path / 'run.mcap'}")
+    graph_path = g.run_root / "current" / "graph.json"
+    deadline = g.deadline(60)
+
+    def rig_spawned() -> bool:
+        try:
+            graph = json.loads(graph_path.read_text())
+        except (OSError, ValueError):  # not yet written, or being replaced
+            return False
+        return graph.get("state") == "starting" and graph["nodes"].get("rig", {}).get("pid") is not None
+
+    while not rig_spawned():
+        assert g.proc.poll() is None and not deadline.expired(), g.log()
+        time.sleep(0.005)
+    g.proc.send_signal(signal.SIGINT)
+    assert g.wait_exit(30) == 130, g.log()
+    log = g.log()
+    assert "[launch] interrupted while starting" in log and "[launch] no check: the graph never ran" in log, log
+    assert "Traceback" not in log and "error:" not in log and "CHECK FAILED" not in log, log
+    _wait_until(lambda: not _processes_of(g.run_root), "processes left after the interrupted start", g)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from slipstack.launch.cli import main
@@ -47,6 +48,27 @@ def test_every_shipped_launch_file_runs_in_lockstep(name: str, tmp_path: Path, c
         assert sum(w.status == "ok" for w in wrenches) > 20, (topic, [w.status for w in wrenches[:5]])
     assert any(f.topic == "rig/truth" for f in frames)
     assert "[monitor] ==== slipstack run summary ====" in out
+
+
+def test_a_lockstep_launch_keeps_its_lines_in_the_log_file(tmp_path: Path, capsys) -> None:
+    """--log-file as the real-time launch honours it (lock-step wrote no log at all)."""
+    log = tmp_path / "lockstep.log"
+    assert main(["launch", "demo", f"duration_s:={SHORT_S}", "--lockstep", "--log-file", str(log)]) == 0
+    shown = [line for line in capsys.readouterr().out.splitlines() if line.startswith("[lockstep]")]
+    kept = log.read_text()
+    assert shown and all(line in kept for line in shown), (shown, kept[-2000:])
+
+
+def test_bag_info_gives_a_lockstep_recording_s_times_on_the_simulated_clock(tmp_path: Path, capsys) -> None:
+    """Log times of a lock-step run are simulated ns from its start (docs/modules.md, launch/lockstep.py):
+    bag info showed them as dates in 1970."""
+    recording = tmp_path / "run.mcap"
+    assert _launch("fig15", f"duration_s:={SHORT_S}", "check:=false", f"recording:={recording}") == 0
+    capsys.readouterr()
+    assert main(["bag", "info", str(recording)]) == 0
+    out = capsys.readouterr().out
+    assert "1970" not in out, out
+    assert "start:      0.000 s, simulated clock" in out and "end:        0.149 s, simulated clock" in out, out
 
 
 @pytest.mark.parametrize("name", ["fig15", "fig10", "default"])
@@ -156,7 +178,9 @@ def test_a_lockstep_recording_it_cannot_write_is_refused_before_the_run(tmp_path
     """The recording is written by a child process; a path it could not write fails at once, saying
     what to do, rather than after the whole scene has run."""
     (tmp_path / "a_file").write_text("not a folder")
-    assert _launch("fig15", f"recording:={tmp_path / 'a_file' / 'run.mcap'}") != 0
+    # --log-file elsewhere: the log beside that recording is refused first, in the same words
+    # as the real-time launch's (tests/e2e/test_operator_cli.py)
+    assert _launch("fig15", f"recording:={tmp_path / 'a_file' / 'run.mcap'}", "--log-file", str(tmp_path / "run.log")) != 0
     out, err = capsys.readouterr()
     assert "cannot write the recording" in err and "in a folder you may write" in err
     assert "simulated in" not in out  # refused before the run
@@ -206,3 +230,27 @@ def test_a_run_root_too_deep_for_sockets_still_runs_in_lockstep(tmp_path: Path, 
     assert "[lockstep]" in capsys.readouterr().out
     assert main(["launch", "fig15", "duration_s:=0.1"]) == 2
     assert "Linux allows 107. Set SLIPSTACK_RUN_ROOT to a shorter directory" in capsys.readouterr().err
+
+
+def test_the_report_of_a_gripper_pivot_draws_every_panel_with_the_oracle(tmp_path: Path, capsys) -> None:
+    """``slipstack report`` on a two-finger recording (issue 25, item 5): the motion against its
+    target, the squeeze against the oracle's least holding squeeze, each finger's γ, the load
+    split; a readable PNG with ink in every panel's band."""
+    from matplotlib.image import imread
+
+    from slipstack.analysis.grasp_report import _oracle, load_grasp_series
+
+    recording, figure = tmp_path / "pivot.mcap", tmp_path / "pivot.png"
+    assert _launch("gripper", "scene:=grasp_pivot", "goal:=pivot", "goal_at_s:=0.2", "duration_s:=1.0",
+                   f"recording:={recording}", "check:=false") == 0  # a pivot moves the object on purpose
+    capsys.readouterr()
+    assert main(["report", str(recording), "-o", str(figure)]) == 0
+    out = capsys.readouterr().out
+    assert "panels: motion, squeeze, load factors, load split" in out and "no oracle" not in out, out
+    t, least, why = _oracle(load_grasp_series(recording))
+    assert why == "" and least.size > 10 and np.all(np.isfinite(least)) and np.all(least >= 0) and least.max() > 1.0
+    image = imread(figure)
+    assert image.shape[0] >= 1000 and image.shape[1] >= 1000, image.shape  # 10 x 10.4 in at 110 dpi
+    ink = (image[..., :3] < 0.9).any(axis=-1)
+    bands = np.array_split(ink[int(0.05 * ink.shape[0]):], 4)  # below the title: one band per panel
+    assert all(band.mean() > 0.02 for band in bands), [round(float(b.mean()), 4) for b in bands]

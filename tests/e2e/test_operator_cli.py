@@ -491,7 +491,7 @@ def test_param_get_and_set_on_a_running_node(launch):
     assert out.returncode == 0, out.stderr
     assert "source: rate_hz := 250; restarting node source (wrench_source)" in out.stdout, out.stdout
     assert "source is back: ok" in out.stdout, out.stdout
-    assert g.cli("param", "get", "source", "rate_hz").stdout == "'250'\n"
+    assert g.cli("param", "get", "source", "rate_hz").stdout == "250.0\n"  # as the node reads it (was '250')
     assert g.graph()["nodes"]["source"]["restarts"] == 1
     wrong = g.cli("param", "set", "source", "rate_hz", "fast")
     assert wrong.returncode == 2 and "source.rate_hz: must be a number, got 'fast'" in wrong.stderr, wrong.stderr

@@ -172,6 +172,25 @@ def test_a_run_recorded_as_ros2_reads_back_as_the_same_run_recorded_as_slipstack
         assert same_output(x, y, check_seq=True) is None and x.header == y.header
 
 
+def test_bag_info_describes_a_ros2_recording_as_the_same_run_recorded_as_slipstack(tmp_path: Path, capsys) -> None:
+    """A ros2 file's info listed /slipstack/<topic> and its /info apart, "missing ?" on each, and
+    the recorder's loss record (keyed by bus topic) as ghost topics of 0 messages."""
+    rows = {}
+    for fmt in ("slipstack", "ros2"):  # lock-step: the same run twice
+        path = tmp_path / f"{fmt}.mcap"
+        assert main(["launch", "fig15", "--lockstep", "duration_s:=0.3", "monitor:=false", f"record_format:={fmt}",
+                     f"recording:={path}"]) == 0
+        capsys.readouterr()
+        assert main(["bag", "info", str(path)]) == 0
+        out = capsys.readouterr().out
+        rows[fmt] = {line.split()[0]: line.split()[1:-1] for line in out.split("topics:\n")[1].splitlines()
+                     if line.startswith("  ")}
+        assert "missing ?" not in out, out
+    assert "ros2 (rosbag2 MCAP)" in out and rows["ros2"] == rows["slipstack"], (rows, out)
+    assert {"ft/wrench", "tactile/frame", "slip"} <= rows["ros2"].keys()
+    assert all(row[-1] == "0" and row[-2] == "missing" for row in rows["ros2"].values()), rows
+
+
 def test_a_gripper_recording_exports_what_has_a_ros2_type_and_names_what_it_left_out(tmp_path: Path,
                                                                                      capsys) -> None:
     # the gripper's grasp messages have no ROS 2 counterpart yet: the export raised a KeyError

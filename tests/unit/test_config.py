@@ -76,3 +76,22 @@ def test_node_parameters_are_read_in_the_same_words():
     assert (p.pool, p.warm_start, p.paper_gain) == (2, False, 0.3)
     with pytest.raises(ConfigError, match=r"^cor_estimator\.pool: must be an integer, got 'two'$"):
         make_params(CorParams, {"pool": "two"}, "cor_estimator")
+
+
+def test_parameter_values_are_shown_as_a_launch_file_writes_them():
+    """``param get/list`` and ``launch --show-args`` show TOML (a value ``param set`` stored as
+    text was shown quoted, '3.0', 'nan'); what they show reads back as the same value."""
+    import math
+    import tomllib
+
+    from slipstack.lib.toml_file import toml_value
+    from slipstack.nodes.slip_detector import SlipDetector
+    from slipstack.nodes.tools.param_tools import _values
+
+    shown = {name: value for name, (value, _) in _values(SlipDetector, {"mu": "3.0", "delta": "nan"}).items()}
+    assert (shown["mu"], shown["delta"], shown["method"]) == ("3.0", "nan", '"exact"')
+    assert shown["gamma_release"] == "nan" and shown["also"].startswith("[")  # defaults alike
+    for value in (True, 3.0, -0.25, 7, 1e-9, "a \"quoted\" \\ path\n", [1.0, 2.0], ["x", "y"], {"a": 1}):
+        assert tomllib.loads(f"v = {toml_value(value)}")["v"] == value, value
+    assert math.isnan(tomllib.loads(f"v = {toml_value(math.nan)}")["v"])
+    assert tomllib.loads(f"v = {toml_value(-math.inf)}")["v"] == -math.inf

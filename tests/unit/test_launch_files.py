@@ -131,3 +131,17 @@ def test_the_values_an_argument_comment_lists_are_the_codes():
     assert listed["ft_protocol"] == set(FT_PROTOCOLS) and listed["tactile_protocol"] == set(TACTILE_PROTOCOLS)
     assert listed["increment"] == set(INCREMENTS)
     assert listed["rig_material"] == {p.stem for p in (default_launch_file().parents[1] / "materials").glob("*.toml")}
+
+
+def test_an_indented_comment_line_continues_the_argument_above_it():
+    """stack.toml's band comment runs on over an indented line; --show-args gave that line to
+    f_nom_n (no comment of its own), and the gripper's gripper_driver line to gripper_port."""
+    from slipstack.launch.launch_file import arg_comments, default_launch_file
+
+    comments = arg_comments(default_launch_file())
+    assert "f_nom_n" not in comments
+    assert comments["band"].endswith("identified its kind, and release once the load proves a stick; fixed: delta")
+    assert comments["record_topics"].endswith("[] records every topic (contact too: ~2 MB/s more)")
+    gripper = arg_comments(default_launch_file().with_name("gripper.toml"))
+    assert "gripper_port" not in gripper
+    assert gripper["gripper_driver"].endswith("false: the rig's fingers follow grip/command directly")

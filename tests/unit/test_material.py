@@ -172,3 +172,37 @@ def test_onsets_above_one_put_the_band_edge_at_one() -> None:
 def test_a_file_of_the_wrong_types_is_refused_naming_the_key(data: dict, message: str) -> None:
     with pytest.raises(ConfigError, match=message):
         parse_material(data, source="m.toml")
+
+
+@pytest.mark.parametrize("key, value", [("mu_s", 4.5), ("mu_d", 0.001), ("beta_s_m", 3.44), ("beta_d_m", -1e-3)])
+def test_a_material_file_with_an_implausible_coefficient_is_refused_naming_it(key: str, value: float) -> None:
+    """A typo (mu_s = 4.5 for 0.45, beta in mm) was loaded silently; refused, with what to do.
+    A file identify --force wrote (marked refused) still loads: the detector says so."""
+    table = {"mu_s": 0.45, "mu_d": 0.3, "beta_s_m": 3e-3, "beta_d_m": 2e-3, key: value}
+    with pytest.raises(ConfigError, match=rf"m.toml: material.{key} = {value:g} lies outside the plausible .* "
+                                          r"\(docs/materials.md\): a typo\? .*slipstack identify"):
+        parse_material({"material": table}, source="m.toml")
+    assert getattr(parse_material({"material": {**table, "refused": "why"}}, source="m.toml"), key) == value
+    edges = parse_material({"material": {"mu_s": 3.0, "mu_d": 0.02, "beta_s_m": 0.1, "beta_d_m": 0.0}})
+    assert (edges.mu_s, edges.mu_d, edges.beta_s_m) == (3.0, 0.02, 0.1)  # the range is inclusive
+
+
+@pytest.mark.parametrize("cls, kwargs", [(SlipDetectorParams, {"mu": 4.5}), (SlipDetectorParams, {"delta": 0.9}),
+                                         (SlipDetectorParams, {"beta_m": 3.44}), (CorParams, {"mu": 0.0101}),
+                                         (GripControllerParams, {"beta_m": 3.44, "law": "ft13"}),
+                                         (GripControllerParams, {"mu": 45.0})])
+def test_an_implausible_friction_parameter_is_refused_naming_it(cls: type, kwargs: dict) -> None:
+    name, value = next(iter(kwargs.items()))
+    with pytest.raises(ConfigError, match=rf"{name} := {value:g} lies outside the plausible .*: a typo\? Correct "
+                                          rf"it, or leave {name} at nan"):
+        cls(**kwargs)
+    assert getattr(cls(**{**kwargs, name: {"mu": 3.0, "delta": 0.5, "beta_m": 0.1}[name]}), name) > 0  # edges
+
+
+def test_identify_refuses_an_implausible_coefficient() -> None:
+    from slipstack.analysis.identify_cli import _implausible
+
+    reasons = _implausible(Material("slick", mu_s=4.5, mu_d=3.6), {}, [], [])
+    assert any(r.startswith("mu_s = 4.5 lies outside the plausible") for r in reasons), reasons
+    assert any(r.startswith("mu_d = 3.6 lies outside") for r in reasons), reasons
+    assert _implausible(Material("ok", mu_s=0.45, mu_d=0.36), {}, [], []) == []

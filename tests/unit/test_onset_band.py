@@ -51,6 +51,8 @@ def test_each_kind_of_load_gets_the_bound_of_its_own_onsets() -> None:
     # load without a pressure frame or without a load.
     for path, spread in ((0.0, 0.4), (0.6, 0.38), (0.0, math.nan), (math.nan, 0.05)):
         assert 1.0 - band.delta(path, spread) == pytest.approx(lowest)
+        assert band.kind_of(path, spread) is None
+    assert band.kind_of(0.9, 0.36).count == 3  # the twists' kind (path 0.993, spread 0.377)
     # the load itself: 0.4 N and 0.1 mN·m is a pull (path 0.03)
     assert band.delta_of_load(np.array([0.4, 0.0]), 1e-7, 0.06) == band.delta(0.0, 0.05)
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from slipstack.messages import Diagnostics, Header, TactileFrame, Wrench, encode
-from slipstack.nodes.recording.bag_io import RecordingError, RecordingWriter, read_recording
+from slipstack.nodes.recording.bag_io import RecordingError, RecordingWriter, read_recording, recording_info
 from slipstack.nodes.recording.loss import written_loss
 from slipstack.nodes.recording.writer_process import BATCH_BYTES, RecordingWriterProcess
 
@@ -167,3 +167,15 @@ def test_ctrl_c_during_a_blocked_write_loses_no_frame_and_repeats_none(tmp_path)
     assert 0 < len(got) <= sent + 1  # the frame being appended when Ctrl-C came may be in too
     assert all(f.payload == f.log_time_ns.to_bytes(8, "little") * 100 for f in got)
     assert "interrupted" in done.stderr and str(path) in done.stderr
+
+
+def test_a_lock_step_recording_counts_every_frame_it_was_handed(tmp_path):
+    """written_loss was taken before the last chunk was written: a short lock-step run's file said
+    nothing of its loss (bag info: "missing ?" on every topic, "the recorder did not close the file")."""
+    sent = frames(50)  # one chunk
+    with RecordingWriterProcess(tmp_path / "child.mcap", wall_minus_monotonic_ns=OFFSET) as child:
+        for topic, payload, t in sent:
+            child.write(topic, payload, t)
+    info = recording_info(tmp_path / "child.mcap")
+    assert {t: (i.count, i.missing) for t, i in info.topics.items()} \
+        == {t: (sum(s == t for s, _, _ in sent), 0) for t in {s for s, _, _ in sent}}
