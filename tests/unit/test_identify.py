@@ -190,3 +190,11 @@ def test_never_raises_on_garbage(data: np.ndarray, motion: bool) -> None:
     t = np.arange(n) * DT
     est = identify_mu(t, data, data[::-1].copy(), displacement_m=data if motion else None)
     assert isinstance(est.status, IdentifyStatus) and est.message
+
+
+def test_ten_valid_samples_are_enough_to_look_for_an_onset_and_nine_are_not() -> None:
+    """Two fits of at least 5 samples each: a rising ratio of 10 samples is judged (it has no
+    onset), one of 9 is too short to judge."""
+    for n, status in [(9, IdentifyStatus.INSUFFICIENT_DATA), (10, IdentifyStatus.NO_ONSET)]:
+        t = np.arange(n) * DT
+        assert identify_mu(t, np.full(n, 10.0), np.linspace(0.0, 4.0, n)).status is status
