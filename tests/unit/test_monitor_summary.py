@@ -700,3 +700,11 @@ def test_the_bus_row_names_the_worst_loss_and_counts_the_others():
     assert _bus_row(s) == "bus: 6 frames lost (most: fusion cor 5 of 100, +1 more); every sensor sample examined"
     s["losses"] = {"fusion": fusion}
     assert _bus_row(s) == "bus: 5 frames lost (most: fusion cor 5 of 100); every sensor sample examined"
+
+
+def test_the_status_line_names_a_driver_whose_device_is_disconnected(tmp_path):
+    events = [(t, "diagnostics", Diagnostics(node="ft_driver", status="disconnected", header=Header(t, k, t, {})))
+              for k, t in enumerate(range(0, 2_000 * MS, 100 * MS))]
+    _, logs, monitor = monitor_over(events, tmp_path, status_period_s=1.0)
+    assert any(line.endswith("DISCONNECTED ft_driver") for line in logs if "STATUS" in line)
+    assert monitor.disconnected_nodes() == {"ft_driver": "disconnected"}
