@@ -708,3 +708,21 @@ def test_the_status_line_names_a_driver_whose_device_is_disconnected(tmp_path):
     _, logs, monitor = monitor_over(events, tmp_path, status_period_s=1.0)
     assert any(line.endswith("DISCONNECTED ft_driver") for line in logs if "STATUS" in line)
     assert monitor.disconnected_nodes() == {"ft_driver": "disconnected"}
+
+
+def test_the_bus_row_judges_skips_of_sensor_samples_only():
+    s = {"losses": {}, "observers": [], "skipped_for_newer": {
+        "grip_controller": {"slip": {"skipped": 5, "received": 10}},  # a verdict superseded: not a sensor sample
+        "fusion": {"ft/wrench": {"skipped": 0, "received": 0}}}}  # nothing received yet: no share to tell
+    assert _bus_row(s) == "bus: no frame lost; every sensor sample examined"
+    s["skipped_for_newer"]["fusion"]["ft/wrench"] = {"skipped": 1, "received": 4}
+    assert _bus_row(s) == "bus: no frame lost; fusion skipped 25.0% of ft/wrench"
+
+
+def test_the_short_summary_judges_the_object_by_the_run_s_own_limits(tmp_path):
+    events = [(t, "rig/truth", RigTruth(f_n_applied=5.0, header=Header(t, k, t, {})))
+              for k, t in enumerate(range(0, 1_000 * MS, 10 * MS))]
+    s, _, _ = monitor_over(events, tmp_path)
+    s["slip_distance_mm"] = 0.7  # past the default 0.5 mm, within this run's 1 mm
+    assert format_summary(s)[1].startswith("object: MOVED, slid 0.70 mm")
+    assert format_summary(s, MonitorParams(check_slip_mm=1.0))[1].startswith("object: held, slid 0.70 mm")
