@@ -21,6 +21,7 @@ from slipstack.launch.lockstep import run_launch_file
 from slipstack.nodes.monitor import _bus_row, _clip, _losses  # the summary's rows and loss table
 from slipstack.nodes.monitor import (
     SILENT_SHOWN, CommandStats, Coverage, Monitor, MonitorParams, NodeWatch, check_problems, format_summary,
+    health_problems,
     status_line,
 )
 
@@ -726,3 +727,11 @@ def test_the_short_summary_judges_the_object_by_the_run_s_own_limits(tmp_path):
     s["slip_distance_mm"] = 0.7  # past the default 0.5 mm, within this run's 1 mm
     assert format_summary(s)[1].startswith("object: MOVED, slid 0.70 mm")
     assert format_summary(s, MonitorParams(check_slip_mm=1.0))[1].startswith("object: held, slid 0.70 mm")
+
+
+def test_an_observer_that_fell_behind_is_reported_but_does_not_fail_the_check(tmp_path):
+    s, _, _ = monitor_over([(0, "slip", Slip(state="stick", header=Header(0, 0, 0, {})))], tmp_path)
+    s = {**s, "behind_real_time": {"recorder": {"timer.flush": 3.0}}, "observers": ["recorder"]}
+    p = MonitorParams()
+    assert any(x.startswith("recorder fell behind") for x in [x.text for x in health_problems(s, p)])
+    assert not any("recorder" in x for x in check_problems(s, p))
