@@ -18,12 +18,11 @@ from slipstack.lib.errors import ConfigError
 from slipstack.messages import Diagnostics, GripCommand, Header, RigTruth, Slip, decode, encode
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.launch.lockstep import run_launch_file
-from slipstack.nodes.monitor import _bus_row, _clip, _losses  # the summary's rows and loss table
 from slipstack.nodes.monitor import (
-    SILENT_SHOWN, CommandStats, Coverage, Monitor, MonitorParams, NodeWatch, check_problems, format_summary,
-    health_problems,
-    status_line,
+    SILENT_SHOWN, SUMMARY_WIDTH, CommandStats, Coverage, Monitor, MonitorParams, NodeWatch, check_problems,
+    format_summary, health_problems, status_line,
 )
+from slipstack.nodes.monitor import _bus_row, _clip, _health_rows, _losses  # the summary's rows and loss table
 
 MS = 1_000_000
 TOPICS = ("slip", "grip/command", "rig/truth")
@@ -652,7 +651,8 @@ def test_the_status_line_names_five_silent_nodes_and_counts_the_rest():
 
 
 def test_the_first_status_line_has_no_interval_to_rate_and_the_next_says_the_rate(tmp_path):
-    events = [(t, "slip", Slip(state="stick", header=Header(t, k, t, {}))) for k, t in enumerate(range(0, 2_000 * MS, 10 * MS))]
+    events = [(t, "slip", Slip(state="stick", header=Header(t, k, t, {})))
+              for k, t in enumerate(range(0, 2_000 * MS, 10 * MS))]
     _, logs, _ = monitor_over(events, tmp_path, status_period_s=1.0)
     rates = [line.split("rate=")[1].split("Hz")[0].strip() for line in logs if "STATUS" in line]
     assert rates[:2] == ["0", "100"]  # 100 frames a second
@@ -735,3 +735,9 @@ def test_an_observer_that_fell_behind_is_reported_but_does_not_fail_the_check(tm
     p = MonitorParams()
     assert any(x.startswith("recorder fell behind") for x in [x.text for x in health_problems(s, p)])
     assert not any("recorder" in x for x in check_problems(s, p))
+
+
+def test_health_problems_that_fill_a_line_exactly_share_it():
+    rows = _health_rows(["a" * 40, "b" * 40, "c" * 5], room=2)  # 8 + 40 + 2 + 40 = 90 characters
+    assert rows == ["HEALTH: " + "a" * 40 + "; " + "b" * 40, "HEALTH: " + "c" * 5]
+    assert len(rows[0]) == SUMMARY_WIDTH
