@@ -82,10 +82,13 @@ def main(argv: list[str] | None = None) -> int:
         # spares the interpreter's last garbage collection over every one of them (0.08 s after
         # a lock-step run, of 0.11 s of exit). Files are closed by the code that opened them.
         atexit.register(gc.freeze)
-    complete(build_parser)  # the shell asking for completions: answered, then exits
-    argv = sys.argv[1:] if argv is None else argv
-    parser = build_parser(argv)
-    args, extra = parser.parse_known_args(argv)
+    try:
+        complete(build_parser)  # the shell asking for completions: answered, then exits
+        argv = sys.argv[1:] if argv is None else argv
+        parser = build_parser(argv)  # imports the command's module
+        args, extra = parser.parse_known_args(argv)
+    except KeyboardInterrupt:  # a stop before the command runs: nothing was done
+        return 130
     # `name:=value` may follow options (`run rig --pub X a:=1`): argparse leaves those over
     assignments = [e for e in extra if ":=" in e and not e.startswith("-")]
     if len(assignments) != len(extra) or (assignments and not hasattr(args, "assignments")):

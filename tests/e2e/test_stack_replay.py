@@ -82,7 +82,8 @@ def test_recorded_contact_replays_into_slip_detector_exactly(launch, run_root):
     detector = entry.instance()
 
     recorded = [decode(f.payload) for f in read_recording(recording, ["slip"])]
-    handled = handled_contacts(list(read_recording(recording, ["contact"])), recorded)
+    every_contact = list(read_recording(recording, ["contact"]))
+    handled = handled_contacts(every_contact, recorded)
     # every slip the detector published (by its last diagnostics report) is in the recording, and
     # came from a contact it handled; a batch of contacts gives one verdict (nodes/slip_detector.py),
     # so how many contacts each verdict covers depends on the machine's load
@@ -94,14 +95,26 @@ def test_recorded_contact_replays_into_slip_detector_exactly(launch, run_root):
     published = counted["out.slip.published"]
     assert len(handled) == len(recorded) == published >= 1, (len(handled), len(recorded), published, contacts.count)
     assert accepted >= published, (accepted, published)
+    # Replayed: every contact from the first judged to the last, in order. Under load the live
+    # detector's batch input folds a contact into the next one's verdict (nodes/slip_detector.py):
+    # that contact gave no verdict of its own but did move the detector's state, so the replay
+    # hands it over too (one verdict more each), and only the folded verdict itself may differ.
+    stamps = [decode(f.payload).header.stamp_ns for f in every_contact]
+    judged = {decode(f.payload).header.stamp_ns for f in handled}
+    first, last = stamps.index(min(judged)), stamps.index(max(judged))
+    fed = every_contact[first:last + 1]
+    folded = {t for before, t in zip(stamps[first:last], stamps[first + 1:last + 1]) if t in judged and before not in judged}
+    assert len(fed) - len(handled) <= counted["in.contact.received"] - published, (len(fed), len(handled), counted)
     inputs = run_root / "handled_contacts.mcap"
     with RecordingWriter(inputs, wall_minus_monotonic_ns=clock_offset_ns(recording)) as writer:
-        for f in handled:
+        for f in fed:
             writer.write(f.topic, f.payload, f.log_time_ns)
 
     replayed = replay_into(detector, inputs)["slip"]
     result = match_outputs(recorded, replayed)
-    assert result.mismatches == [], result.mismatches[:5]
-    assert result.matched == len(recorded) == len(replayed), result
+    unexplained = [m for m in result.mismatches if m[0] not in folded]
+    assert unexplained == [], unexplained[:5]
+    assert result.only_replayed == len(fed) - len(handled), result
+    assert result.matched == len(recorded) and result.only_recorded == 0, result
     states = {m.state for m in recorded}
     assert "stick" in states and states & {"translation", "rotation", "combined"}, states  # it saw a slip
