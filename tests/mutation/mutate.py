@@ -527,6 +527,13 @@ def _run_mutant(sandbox: _Sandbox, mutant: Mutant, tests: list[str], shared_cach
         shutil.rmtree(cache, ignore_errors=True)
 
 
+def runs_interpreted(mutants: list[Mutant], asked: bool) -> bool:
+    """Whether a module's mutants run under NUMBA_DISABLE_JIT: ``--interpreted`` applies to a
+    module with numba kernels; one without has none to recompile, and interpreting the kernels
+    its tests call only slows them (lib/rig/actuator.py: timeouts, counted as kills)."""
+    return asked and any(m.in_kernel for m in mutants)
+
+
 def run_module(sandbox: _Sandbox, path: str, tests: list[str], mutants: list[Mutant], equivalent: dict[str, str],
                log, *, interpreted: bool = False) -> tuple[list[Outcome], float]:
     """Runs every mutant of one module in the copy; returns the outcomes and the clean run's time (s)."""
@@ -605,7 +612,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="run the mutants under NUMBA_DISABLE_JIT=1 (a mutated file's kernels would "
                              "otherwise be recompiled for every mutant: 1.5-3 s instead of 10-30 s per mutant "
                              "on 2 busy cores); a kill by ZeroDivisionError or a math domain error, which "
-                             "compiled kernels do not raise, is re-checked compiled")
+                             "compiled kernels do not raise, is re-checked compiled; a module without "
+                             "kernels runs compiled")
     parser.add_argument("--sample", type=int, default=1, metavar="K",
                         help="only every K-th mutant of each module (in source order, starting with the first): "
                              "a fixed, repeatable subset for a machine too busy for the whole run")
@@ -658,7 +666,8 @@ def main(argv: list[str] | None = None) -> int:
         sandbox = _Sandbox(Path(tmp))
         for path in modules:
             results[path], _ = run_module(sandbox, path, config[path]["tests"], selected[path], equivalent,
-                                          lambda msg: print(msg, flush=True), interpreted=args.interpreted)
+                                          lambda msg: print(msg, flush=True),
+                                          interpreted=runs_interpreted(everything[path], args.interpreted))
     text = report(results, time.monotonic() - started, stale, equivalent)
     (args.report / "report.md").write_text(text)
     (args.report / "results.json").write_text(json.dumps(

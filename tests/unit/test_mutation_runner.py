@@ -154,3 +154,14 @@ def test_a_stale_entry_is_named():
     live = mutants["m.py"][0].key
     assert mutate.stale_entries({live: "why", "m.py f cmp: «gone» -> (x)": "why", "n.py x": "other module"},
                                 mutants) == ["m.py f cmp: «gone» -> (x)"]
+
+
+def test_interpreted_applies_only_to_a_module_with_kernels():
+    """``--interpreted`` (``make mutation``) runs a kernel module's mutants under NUMBA_DISABLE_JIT; a
+    module without kernels runs compiled: interpreted, the rig physics tests that the actuator's
+    mutants run took over the timeout, and each counted as a kill."""
+    root = _PATH.parents[2]
+    kernels = mutate.collect_mutants("lib/limit_set.py", (root / "lib/limit_set.py").read_text())
+    plain = mutate.collect_mutants("lib/rig/actuator.py", (root / "lib/rig/actuator.py").read_text())
+    assert mutate.runs_interpreted(kernels, True) and not mutate.runs_interpreted(kernels, False)
+    assert not mutate.runs_interpreted(plain, True)
