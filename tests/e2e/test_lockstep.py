@@ -63,6 +63,7 @@ def test_bag_info_gives_a_lockstep_recording_s_times_on_the_simulated_clock(tmp_
     """Log times of a lock-step run are simulated ns from its start (docs/modules.md, launch/lockstep.py):
     bag info showed them as dates in 1970."""
     recording = tmp_path / "run.mcap"
+    # check:=false: a 0.15 s cut is no run to judge (fig15 with its check: tests/e2e/test_stack.py)
     assert _launch("fig15", f"duration_s:={SHORT_S}", "check:=false", f"recording:={recording}") == 0
     capsys.readouterr()
     assert main(["bag", "info", str(recording)]) == 0
@@ -226,9 +227,10 @@ def test_a_run_root_too_deep_for_sockets_still_runs_in_lockstep(tmp_path: Path, 
     deep = tmp_path / ("d" * 90)
     deep.mkdir(mode=0o700)
     monkeypatch.setenv("SLIPSTACK_RUN_ROOT", str(deep))
+    # check:=false: a 0.15 s cut is no run to judge (fig15 with its check: tests/e2e/test_stack.py)
     assert _launch("fig15", f"duration_s:={SHORT_S}", "check:=false", f"recording:={tmp_path / 'deep.mcap'}") == 0
     assert "[lockstep]" in capsys.readouterr().out
-    assert main(["launch", "fig15", "duration_s:=0.1"]) == 2
+    assert main(["launch", "fig15", "duration_s:=0.1"]) == 2  # refused before anything starts; the duration bounds it if not
     assert "Linux allows 107. Set SLIPSTACK_RUN_ROOT to a shorter directory" in capsys.readouterr().err
 
 

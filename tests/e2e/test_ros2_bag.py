@@ -178,6 +178,8 @@ def test_bag_info_describes_a_ros2_recording_as_the_same_run_recorded_as_slipsta
     rows = {}
     for fmt in ("slipstack", "ros2"):  # lock-step: the same run twice
         path = tmp_path / f"{fmt}.mcap"
+        # monitor:=false: a 0.3 s cut of fig15 is no run for the monitor to judge (fig15 with its
+        # monitor and check: tests/e2e/test_stack.py); the recording is the point here
         assert main(["launch", "fig15", "--lockstep", "duration_s:=0.3", "monitor:=false", f"record_format:={fmt}",
                      f"recording:={path}"]) == 0
         capsys.readouterr()
