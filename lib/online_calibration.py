@@ -118,7 +118,7 @@ class OnlineCalibration:
         self._onsets.append(min(max(float(smooth.max()), _LEAST), 1.0))
         self._slides.append(min(max(float(np.median(run[run.size // 2:])), _LEAST), 1.0))
         seen = replace(self.material, mu_d=self.material.mu_s * min(self._slides), beta_s_m=math.nan,
-                       onset_gamma=tuple(self._onsets))
+                       onset_gamma=tuple(self._onsets), onset_path=(), onset_spread=())
         new = detector_thresholds(seen)
         old = self.learned
         delta = min(old.delta, new.delta)

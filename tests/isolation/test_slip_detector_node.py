@@ -91,6 +91,27 @@ def test_online_calibration_says_what_it_learned():
     assert last.status.startswith("calibrated-online:") and "mu 0.49" in last.status, last.status
 
 
+def test_online_calibration_from_an_identified_file_learns_a_slip_and_loses_no_verdict(tmp_path):
+    """A file as ``identify`` writes it (each onset with its load path and pressure spread),
+    calibrate online, a pull past μ held 100 ms then let go: the confirmed slip is learned,
+    every wrench gets its verdict, no handler error (it raised there, and the verdict that
+    ended the slip was lost)."""
+    from dataclasses import replace
+
+    from slipstack.lib.material import material_toml
+    from slipstack.nodes.material_param import resolve_material
+
+    path = tmp_path / "identified.toml"
+    path.write_text(material_toml(replace(resolve_material("rubber"), onset_gamma=(0.97, 0.98, 0.81),
+                                          onset_path=(0.02, 0.99, 0.34), onset_spread=(0.05, 0.38, 0.39))))
+    loads = [0.2 * k for k in range(10)] + [4.0 * 0.4527 * 1.05] * 100 + [0.2] * 40
+    ex = _run_with(SlipDetectorParams(material=str(path), calibrate="online"), loads)
+    last = [d for d in ex.published["diagnostics"] if d.node == "slip_detector"][-1]
+    assert last.counters.get("handler_errors", 0) == 0, last.last_error
+    assert last.status.startswith("calibrated-online:") and "1 confirmed slip" in last.status, last.status
+    assert len(ex.published["slip"]) == len(loads)
+
+
 def test_a_material_written_by_identify_force_is_reported_as_refused(tmp_path):
     from dataclasses import replace
 

@@ -150,3 +150,16 @@ def test_without_a_measured_noise_mu_rises_to_the_mean_less_3_sigma_of_0_002() -
     for k in range(8):
         cal.step(k * MS, 1.2, False)
     assert cal.learned.mu_scale == pytest.approx(1.2 - 3.0 * 0.002 / math.sqrt(8), abs=1e-12)
+
+
+def test_an_identified_file_with_load_paths_calibrates_without_error() -> None:
+    """`identify` writes each onset's load path and pressure spread; learning the first
+    confirmed slip from such a file must not build a material whose lists disagree (it raised
+    ConfigError there: onset_path 3 entries, onset_gamma 1)."""
+    identified = Material("identified", mu_s=0.45, mu_d=0.36, gamma_noise_stick=0.005, gamma_noise_slide=0.005,
+                          onset_gamma=(0.97, 0.98, 0.81), onset_path=(0.02, 0.99, 0.34),
+                          onset_spread=(0.05, 0.38, 0.39))
+    latch = _latch(identified)
+    flags = _feed(latch, _episode(1.0, 0.8, np.random.default_rng(3)))
+    assert flags.any()
+    assert latch.calibration.learned.episodes == 1
