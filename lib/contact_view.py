@@ -15,7 +15,7 @@ import numpy as np
 
 from slipstack.lib.pad import PadGeometry
 
-__all__ = ["FusedContact", "ContactView", "pad_positions"]
+__all__ = ["FusedContact", "ContactView", "pad_positions", "pool_misfit"]
 
 _NO_POSITIONS = np.zeros((0, 2))
 
@@ -49,6 +49,16 @@ def pad_positions(rows: int, cols: int, pitch_m: float, pool: int = 1) -> np.nda
     return (pad.pooled(pool) if pool > 1 else pad).positions
 
 
+def pool_misfit(contact: FusedContact, pool: int) -> str:
+    """Why ``pool`` cannot pool this contact's pad (it does not divide both its rows and cols:
+    :class:`ContactView` then keeps the full resolution), or "" where it can or the contact
+    has no pressure frame; a node learns its pad only from the frames."""
+    if pool == 1 or not contact.has_tactile or not (contact.rows % pool or contact.cols % pool):
+        return ""
+    return (f"pool {pool} does not divide the pad's {contact.rows}x{contact.cols}: its contacts are judged at full "
+            "resolution; set pool to a divisor of both (1: off)")
+
+
 class ContactView:
     """``f_n`` N, ``f_t`` (2,) N, ``tau`` N·m, ``phi`` (N,) N, ``positions`` (N, 2) m.
 
@@ -56,7 +66,8 @@ class ContactView:
     decoder admits but no pad has) ``phi`` and ``positions`` are empty,
     so only the F/T tests (with a configured β) can judge it. With ``pool > 1`` the
     taxels are summed in ``pool × pool`` blocks (``PadGeometry.pool``): the accuracy/
-    speed knob measured in ``tests/bench/bench_pooling.py``.
+    speed knob measured in ``tests/bench/bench_pooling.py``; a pad it does not divide is
+    kept at full resolution (:func:`pool_misfit` says so).
     """
 
     __slots__ = ("f_n", "f_t", "tau", "phi", "positions")
@@ -66,6 +77,8 @@ class ContactView:
         self.f_t = contact.f_t
         self.tau = contact.tau
         if contact.has_tactile and contact.phi.size and contact.pitch_m > 0.0:  # a pad without a pitch has no geometry
+            if pool > 1 and pool_misfit(contact, pool):
+                pool = 1
             if pool > 1:
                 self.phi = PadGeometry(contact.rows, contact.cols, contact.pitch_m).pool(contact.phi, pool)
             else:

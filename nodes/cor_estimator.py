@@ -21,7 +21,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.lib.status import CorSolver, SlipCase
 from slipstack.lib.limit_set import compile_kernels, load_factor
 from slipstack.messages import STATUS_OK, Contact, Cor
-from slipstack.lib.contact_view import ContactView
+from slipstack.lib.contact_view import ContactView, pool_misfit
 from slipstack.nodes.material_param import DEFAULT_MATERIAL, fill_from_material
 from slipstack.nodes.runtime.node import Context, Input, Node, Output
 
@@ -59,6 +59,7 @@ class CorEstimator(Node):
             raise ConfigError(f"cor_estimator solver must be one of {SOLVERS}, got {self.params.solver!r}")
         self._last_pc: tuple[float, float] | None = None
         self._last_frame: int | None = None
+        self._said_pool_misfit = False
 
     def start(self, ctx: Context) -> None:
         compile_kernels()  # before the node reports ready, so its first contact runs at full speed
@@ -75,6 +76,9 @@ class CorEstimator(Node):
                 ctx.count("cor.skipped_same_tactile_frame")
                 return
             self._last_frame = frame
+        if not self._said_pool_misfit and (misfit := pool_misfit(msg, self.params.pool)):
+            self._said_pool_misfit = True
+            ctx.report_error(misfit)
         view = ContactView(msg, self.params.pool)
         c0 = self._last_pc if self.params.warm_start else None
         p = self.params

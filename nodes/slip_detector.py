@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from slipstack.lib.contact_view import pool_misfit
 from slipstack.lib.detection import DetectorConfig
 from slipstack.lib.detector import BELOW_NOISE, CONTACT_LOST, FT_TESTS, NOISE_CAPACITY, VALID, Detector, DetectorSettings
 from slipstack.lib.known_cor import KNOWN_COR_METHOD
@@ -117,6 +118,7 @@ class SlipDetector(Node):
             calibrate_from=material if p.calibrate == "online" else None, force_noise_n=material.force_noise_n,
             torque_noise_nm=material.torque_noise_nm, **path))
         self._said_without_tactile = False
+        self._said_pool_misfit = False
         self._revision = 0
         self._said = (0, self.detector.settings.mu)  # (episodes, mu) of the last calibration line
         self._status = self._calibration_status(material)
@@ -199,6 +201,9 @@ class SlipDetector(Node):
             ctx.report_error(f"method {self.params.method} needs the tactile pad, but fusion runs F/T-only "
                              "(tactile:=false): every verdict holds the grip (fail-safe). Pick an F/T test, e.g. "
                              f"method:=coulomb law:=linear as `slipstack launch fig10` does ({', '.join(FT_TESTS)})")
+        if not self._said_pool_misfit and (misfit := pool_misfit(msg, self.params.pool)):
+            self._said_pool_misfit = True
+            ctx.report_error(misfit)
         ctx.publish("slip", Slip(state=v.state, margin=v.margin, method=v.method,
                                  verdicts={name: list(pair) for name, pair in v.verdicts.items()},
                                  gamma=v.gamma, status=status, f_n=msg.f_n, f_t=msg.f_t, tau=msg.tau,

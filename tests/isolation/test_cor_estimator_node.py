@@ -91,3 +91,20 @@ def test_a_cor_the_solver_could_not_compute_is_counted_by_its_status():
     _, cors, counters = run(CorParams(solver="paper", mu=MU, warm_start=False), events)
     assert cors[0].status == "converged" and cors[1].status == "singular" and not cors[1].converged
     assert {k: v for k, v in counters.items() if k.startswith("cor.")} == {"cor.singular": 1}
+
+
+def test_a_pool_that_does_not_divide_the_pad_solves_it_unpooled_and_says_so():
+    """``pool`` 3 on the 16×16 pad: the contact is solved at its full resolution and the
+    node says once which pools fit (it raised on every contact: no ``cor`` at all)."""
+    ex = InProcessExecutor([Fusion(), CorEstimator(CorParams(solver="exact", mu=MU, pool=3))],
+                           diagnostics_period_s=0.001)
+    ex.feed(twisted() + [wrench(2, 2.0, 0.3, tau=2e-3)])
+    ex.run(until_ns=4 * MS)
+    contacts, cors = ex.published["contact"], ex.published["cor"]
+    last = [d for d in ex.published["diagnostics"] if d.node == "cor_estimator"][-1]
+    assert last.counters.get("handler_errors", 0) == 0, last.last_error
+    assert len(cors) == len(contacts) == 2
+    # the unpooled COR (the second warm-started from the first: to 1 nm)
+    assert np.allclose([c.p_c for c in cors], [solve("exact", c).p_c for c in contacts], rtol=0.0, atol=1e-9)
+    assert "pool 3 does not divide the pad's 16x16" in last.last_error, last.last_error
+    assert len([line for line in ex.logs if "pool 3 does not divide" in line]) == 1, ex.logs

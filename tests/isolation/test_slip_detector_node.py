@@ -112,6 +112,24 @@ def test_online_calibration_from_an_identified_file_learns_a_slip_and_loses_no_v
     assert len(ex.published["slip"]) == len(loads)
 
 
+def test_a_pool_that_does_not_divide_the_pad_judges_it_unpooled_and_says_so():
+    """``pool`` 3 on the 16×16 pad (``slipstack param set slip_detector pool 3``; the pad is
+    known only from its frames): every contact gets the verdict of the full resolution, and
+    the detector says once, on ``diagnostics`` and in the log, which pools fit (it raised on
+    every contact: every verdict lost, the F/T tests' too)."""
+    loads = [0.2 * k for k in range(10)] + [4.0 * 0.4527 * 1.1] * 30
+    for method in ("exact", "coulomb"):
+        plain = _run_with(SlipDetectorParams(method=method, material="rubber"), loads).published["slip"]
+        ex = _run_with(SlipDetectorParams(method=method, material="rubber", pool=3), loads)
+        last = [d for d in ex.published["diagnostics"] if d.node == "slip_detector"][-1]
+        assert last.counters.get("handler_errors", 0) == 0, last.last_error
+        slips = ex.published["slip"]
+        assert [(s.state, s.status) for s in slips] == [(s.state, s.status) for s in plain]
+        assert np.allclose([s.gamma for s in slips], [s.gamma for s in plain], rtol=1e-9, atol=1e-12)
+        assert "pool 3 does not divide the pad's 16x16" in last.last_error, last.last_error
+        assert len([line for line in ex.logs if "pool 3 does not divide" in line]) == 1, ex.logs
+
+
 def test_a_material_written_by_identify_force_is_reported_as_refused(tmp_path):
     from dataclasses import replace
 
