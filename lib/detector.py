@@ -25,7 +25,7 @@ from slipstack.lib.known_cor import KNOWN_COR_METHOD, known_cor_test
 from slipstack.lib.material import Material, detector_thresholds
 from slipstack.lib.online_calibration import CalibratedLatch
 from slipstack.lib.onset_band import OnsetBand, pressure_spread
-from slipstack.lib.slip_tests import FT_TESTS, SlipParams, SlipVerdict, ft_beta, ft_stick_margins, get_slip_test
+from slipstack.lib.slip_tests import BETA_TESTS, FT_TESTS, SlipParams, SlipVerdict, ft_beta, ft_stick_margins, get_slip_test
 from slipstack.lib.status import SAMPLE_NO_CONTACT, SAMPLE_OK, SLIP_STATES, SlipState, SolverStatus
 
 __all__ = [
@@ -204,6 +204,8 @@ class Detector:
         judged together, by :func:`ft_stick_margins` on the load they share, in ``_ft_others``."""
         self._ft_others = [name for name, test in self._others if test is None]
         self._deciding_ft = s.method in FT_TESTS
+        self._needs_pad = not self._deciding_ft or (s.method in BETA_TESTS and not s.beta_m)
+        """Whether the deciding test needs a pressure frame: a tactile one, or an F/T one whose β comes from it."""
         self._params = SlipParams(mu=s.mu, beta_m=s.beta_m or None, delta=s.delta)
         self._ft_params = self._params  # with β_s of the current pressure frame when beta_m is 0
         self._beta_frame: object = None
@@ -327,11 +329,11 @@ class Detector:
 
     def _verdict_status(self, sample_status: str, contact: FusedContact, v: SlipVerdict) -> str:
         """``ok`` when the verdict judged valid data; otherwise the sample's status (the
-        contact's, for its newest), ``tactile_<why>`` for a tactile test without a paired
-        frame, or the solver's."""
+        contact's, for its newest), ``tactile_<why>`` for a test that needs a pressure frame
+        (a tactile one, or an F/T one with β from the frame) without a paired one, or the solver's."""
         if sample_status != VALID:
             return sample_status
-        if not contact.has_tactile and not self._deciding_ft:
+        if not contact.has_tactile and self._needs_pad:
             # a contact without a frame that claims its pairing was fine contradicts itself
             why = contact.tactile_status if contact.tactile_status != VALID else "fault"
             return f"tactile_{why}"

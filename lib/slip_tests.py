@@ -30,6 +30,7 @@ __all__ = [
     "ft_beta",
     "ft_stick_margins",
     "FT_TESTS",
+    "BETA_TESTS",
     "get_slip_test",
     "coulomb",
     "decoupled",
@@ -281,6 +282,8 @@ _FT_COMBINE: dict[str, Callable[[float, float], float]] = {
 FT_TESTS: tuple[str, ...] = ("coulomb", *_FT_COMBINE)
 """The slip tests that read only the wrench (and β): valid without a pressure frame
 (:func:`ft_stick_margins` judges any of them)."""
+BETA_TESTS: tuple[str, ...] = tuple(_FT_COMBINE)
+"""The F/T tests that need β: without a configured one, that of a pressure frame (:func:`ft_beta`)."""
 
 
 def _rotation_share(contact: ContactLike, p_c: tuple[float, float] | None,

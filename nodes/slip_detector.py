@@ -21,7 +21,7 @@ from slipstack.lib.detection import DetectorConfig
 from slipstack.lib.detector import BELOW_NOISE, CONTACT_LOST, FT_TESTS, NOISE_CAPACITY, VALID, Detector, DetectorSettings
 from slipstack.lib.known_cor import KNOWN_COR_METHOD
 from slipstack.lib.limit_set import compile_kernels
-from slipstack.lib.slip_tests import SLIP_TESTS
+from slipstack.lib.slip_tests import BETA_TESTS, SLIP_TESTS
 from slipstack.messages import Contact, Slip
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.material import Material, detector_thresholds
@@ -176,6 +176,19 @@ class SlipDetector(Node):
         else:
             ctx.set_status(*self._status[:2])
 
+    def _without_tactile_advice(self) -> str:
+        """What to do when the deciding test needs the pad that fusion runs without."""
+        p = self.params
+        if p.method in BETA_TESTS:
+            beta = resolve_material(p.material).beta_s_m
+            given = f"e.g. the material's {beta:.3g} m" if math.isfinite(beta) else "in m"
+            return (f"method {p.method} takes beta from the tactile pad unless beta_m is given, but fusion runs "
+                    f"F/T-only (tactile:=false): every verdict holds the grip (fail-safe). Set beta_m:= ({given}) "
+                    "as `slipstack launch fig11` does, or method:=coulomb")
+        return (f"method {p.method} needs the tactile pad, but fusion runs F/T-only (tactile:=false): every verdict "
+                "holds the grip (fail-safe). Pick an F/T test, e.g. method:=coulomb law:=linear as `slipstack launch "
+                f"fig10` does, or {', '.join(BETA_TESTS)} with beta_m:= (m)")
+
     def on_contact(self, msgs: tuple[Contact, ...], ctx: Context) -> None:
         detector = self.detector
         judged = detector.samples_judged
@@ -198,9 +211,7 @@ class SlipDetector(Node):
             self._say_below_noise(v.status == BELOW_NOISE, msg.f_n, ctx)
         if v.status == _WITHOUT_TACTILE and not self._said_without_tactile:
             self._said_without_tactile = True
-            ctx.report_error(f"method {self.params.method} needs the tactile pad, but fusion runs F/T-only "
-                             "(tactile:=false): every verdict holds the grip (fail-safe). Pick an F/T test, e.g. "
-                             f"method:=coulomb law:=linear as `slipstack launch fig10` does ({', '.join(FT_TESTS)})")
+            ctx.report_error(self._without_tactile_advice())
         if not self._said_pool_misfit and (misfit := pool_misfit(msg, self.params.pool)):
             self._said_pool_misfit = True
             ctx.report_error(misfit)

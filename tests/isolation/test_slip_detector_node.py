@@ -52,6 +52,23 @@ def test_a_tactile_test_on_a_stack_without_tactile_says_which_test_to_use():
     assert len(said) == 1, said  # once, not per contact
 
 
+def test_an_ft_test_with_beta_on_a_stack_without_tactile_and_without_beta_says_to_set_it():
+    """``slipstack launch tactile:=false method:=linear_ls`` leaves beta_m at 0 (β from the
+    pressure frames, and there are none): no verdict is valid, resting or loaded, and the
+    detector says once to set beta_m (a verdict said ``ok`` at rest and ``invalid_input``
+    under load, with nothing on ``diagnostics``)."""
+    from slipstack.nodes.fusion import FusionParams
+
+    detector = SlipDetector(SlipDetectorParams(method="linear_ls", material="rubber"))
+    ex = InProcessExecutor([Fusion(FusionParams(use_tactile=False)), detector], diagnostics_period_s=0.001)
+    ex.feed([wrench(1, 4.0, 0.0), wrench(2, 4.0, 0.0)] + [wrench(k, 4.0, 0.2) for k in range(3, 6)])
+    ex.run(until_ns=10 * MS)
+    assert {s.status for s in ex.published["slip"]} == {"tactile_off"}
+    last = [d for d in ex.published["diagnostics"] if d.node == "slip_detector"][-1]
+    assert "beta_m:=" in last.last_error and "0.00131 m" in last.last_error, last.last_error
+    assert len([line for line in ex.logs if "beta_m:=" in line]) == 1, ex.logs
+
+
 def _run_with(params: SlipDetectorParams, loads: list[float]) -> InProcessExecutor:
     """A flat pad pressed with 4 N (a pressure frame every 5 ms) and pulled with ``loads`` (N),
     one per ms, through fusion, the detector (``params``) and the monitor; the executor, running."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -78,6 +79,21 @@ def test_a_tactile_test_without_a_pressure_frame_is_not_valid_an_ft_test_is() ->
                                    beta_m=0.003)).step(wrench_only, 0)
     assert (ft.status, ft.method) == ("ok", "coulomb")
     assert ft.gamma == pytest.approx(1.0 / 4.5)
+
+
+@pytest.mark.parametrize("method", ["decoupled", "linear_ls", "elliptic_ls"])
+def test_an_ft_test_with_beta_from_tactile_needs_the_pressure_frame_as_a_tactile_test_does(method: str) -> None:
+    """beta_m 0 (the launch files' default): β is β_s of each pressure frame, so without one
+    the test has no verdict, loaded or not, and says why as a tactile test does (it said
+    ``invalid_input`` when loaded and ``ok`` when not: a run that never judged a load looked
+    healthy); with β given, or for the Coulomb test, which needs none, the verdict is valid."""
+    settings = DetectorSettings(mu=MU, delta=DELTA, gamma_release=GAMMA_RELEASE, method=method)
+    for f_x in (0.0, 1.0):
+        v = Detector(settings).step(PadContact(f_n=10.0, f_t=np.array([f_x, 0.0]), tau=0.0), 0)
+        assert (v.status, v.state) == ("tactile_none", "stick"), f_x
+    wrench_only = PadContact(f_n=10.0, f_t=np.array([1.0, 0.0]), tau=1e-3)
+    for given in (replace(settings, beta_m=0.003), replace(settings, method="coulomb")):
+        assert Detector(given).step(wrench_only, 0).status == "ok", given
 
 
 @pytest.mark.parametrize("bad", [{"method": "magic"}, {"also": ("coulomb", "magic")}, {"delta": 1.0},
