@@ -43,15 +43,17 @@ class SlipDetectorParams:
                 f"given; '': none, the shipped {DEFAULT_MATERIAL} (reported as uncalibrated)"})
     band: str = field(default="path", metadata={
         "help": "path: the onset band of each load's path and pressure spread where the material identified "
-                "onsets of that kind (else delta), and a slip is released when the load proves the contact "
-                "sticks (lib/onset_band.py); fixed: delta for every load, released only below gamma_release"})
+                "onsets of that kind (a material without load paths: delta), and a slip is released when the "
+                "load proves the contact sticks (lib/onset_band.py); fixed: delta for every load, released only "
+                "below gamma_release"})
     calibrate: str = field(default="off", metadata={
         "help": "online: learn mu, the band and the release level from the contact's confirmed slips "
                 "(lib/online_calibration.py); off: keep the material's"})
     mu: float = field(default=math.nan, metadata={"help": "static friction coefficient; nan: the material's mu_s"})
     beta_m: float = field(default=0.0, metadata={"help": "torsional coefficient for F/T tests (m); 0: from tactile"})
     delta: float = field(default=math.nan, metadata={
-        "help": "onset band: slip when gamma >= 1 - delta; nan: from the material (lib/material.py)"})
+        "help": "onset band: slip when gamma >= 1 - delta; nan: from the material (lib/material.py); with "
+                "band path used only where the material has no load paths"})
     gamma_release: float = field(default=math.nan, metadata={
         "help": "slip stays latched while gamma >= this (just below mu_d/mu_s); nan: from the material"})
     release_ms: float = field(default=DetectorConfig.release_ns / 1e6,
@@ -74,8 +76,13 @@ class SlipDetectorParams:
         if self.band not in BANDS:
             raise ConfigError(f"slip_detector band must be one of {BANDS}, got {self.band!r}")
         refuse_implausible(self, beta_m="beta_s_m")
+        delta_given = not math.isnan(self.delta)
         fill_from_material(self, mu="mu_s", delta="delta", gamma_release="gamma_release",
                            gamma_resume="gamma_resume")
+        if delta_given and self.band == "path" and OnsetBand.of(resolve_material(self.material)).kinds:
+            raise ConfigError(f"slip_detector delta := {self.delta:g} is not used with band path: the material "
+                              f"{self.material!r} identified the band of each load path. Give band:=fixed to use "
+                              "delta for every load, or leave delta at nan")
 
 
 CALIBRATE = ("online", "off")

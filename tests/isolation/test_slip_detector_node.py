@@ -147,6 +147,29 @@ def test_a_pool_that_does_not_divide_the_pad_judges_it_unpooled_and_says_so():
         assert len([line for line in ex.logs if "pool 3 does not divide" in line]) == 1, ex.logs
 
 
+def test_a_delta_given_with_the_band_of_each_load_path_is_refused_not_ignored(tmp_path):
+    """``delta:=0.3`` with a file that identified load paths and the default ``band`` path:
+    the band of each load path would be used and the given delta never (a pull got 0.05),
+    so the detector refuses it and says what to give; with ``band:=fixed``, or a file
+    without load paths, the given delta is the band of every load."""
+    import pytest
+    from dataclasses import replace
+
+    from slipstack.lib.errors import ConfigError
+    from slipstack.lib.material import material_toml
+    from slipstack.nodes.material_param import resolve_material
+
+    path = tmp_path / "identified.toml"
+    path.write_text(material_toml(replace(resolve_material("rubber"), onset_gamma=(0.97, 0.98, 0.81),
+                                          onset_path=(0.02, 0.99, 0.34), onset_spread=(0.05, 0.38, 0.39))))
+    with pytest.raises(ConfigError, match=r"delta := 0\.3 .*band:=fixed"):
+        SlipDetectorParams(material=str(path), delta=0.3)
+    for params in (SlipDetectorParams(material=str(path), delta=0.3, band="fixed"),
+                   SlipDetectorParams(material="rubber", delta=0.3)):
+        slips = _run_with(params, [0.2 * k for k in range(10)] + [4.0 * 0.4527 * 0.75] * 5).published["slip"]
+        assert slips[-1].state == "translation", params  # γ 0.75 is in the band 1 - 0.3
+
+
 def test_a_material_written_by_identify_force_is_reported_as_refused(tmp_path):
     from dataclasses import replace
 
