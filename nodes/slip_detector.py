@@ -75,6 +75,8 @@ class SlipDetectorParams:
             raise ConfigError(f"slip_detector calibrate must be one of {CALIBRATE}, got {self.calibrate!r}")
         if self.band not in BANDS:
             raise ConfigError(f"slip_detector band must be one of {BANDS}, got {self.band!r}")
+        if not (math.isfinite(self.release_ms) and self.release_ms >= 0.0):
+            raise ConfigError(f"slip_detector release_ms must be a time >= 0 ms, got {self.release_ms!r}")
         refuse_implausible(self, beta_m="beta_s_m")
         delta_given = not math.isnan(self.delta)
         fill_from_material(self, mu="mu_s", delta="delta", gamma_release="gamma_release",

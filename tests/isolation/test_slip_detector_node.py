@@ -170,6 +170,18 @@ def test_a_delta_given_with_the_band_of_each_load_path_is_refused_not_ignored(tm
         assert slips[-1].state == "translation", params  # γ 0.75 is in the band 1 - 0.3
 
 
+def test_a_release_time_that_is_no_time_is_a_config_error_naming_it():
+    """``release_ms`` nan or inf (``param set``, a launch file) is refused naming the parameter
+    (the node raised ValueError / OverflowError converting it to ns), as a negative one is."""
+    import pytest
+
+    from slipstack.lib.errors import ConfigError
+
+    for bad in (math.nan, math.inf, -1.0):
+        with pytest.raises(ConfigError, match=r"release_ms must be a time >= 0 ms"):
+            SlipDetector(SlipDetectorParams(release_ms=bad))
+
+
 def test_a_material_written_by_identify_force_is_reported_as_refused(tmp_path):
     from dataclasses import replace
 
