@@ -42,6 +42,8 @@ class CorParams:
         "help": "solve once per tactile frame (its rate) instead of once per contact (the F/T rate)"})
 
     def __post_init__(self) -> None:
+        if not (isinstance(self.pool, int) and self.pool >= 1):
+            raise ConfigError(f"cor_estimator pool must be an integer >= 1 (1: off), got {self.pool!r}")
         fill_from_material(self, mu="mu_s")
 
 

@@ -11,6 +11,7 @@ from sensor_frames import MS, PITCH_M, tactile, wrench
 
 from slipstack.lib.contact_view import pad_positions
 from slipstack.lib.cor import paper_cor, robust_cor
+from slipstack.lib.errors import ConfigError
 from slipstack.lib.limit_set import load_factor
 from slipstack.messages import Contact, Cor
 from slipstack.nodes.cor_estimator import CorEstimator, CorParams
@@ -91,6 +92,13 @@ def test_a_cor_the_solver_could_not_compute_is_counted_by_its_status():
     _, cors, counters = run(CorParams(solver="paper", mu=MU, warm_start=False), events)
     assert cors[0].status == "converged" and cors[1].status == "singular" and not cors[1].converged
     assert {k: v for k, v in counters.items() if k.startswith("cor.")} == {"cor.singular": 1}
+
+
+@pytest.mark.parametrize("pool", [0, -2])
+def test_a_pool_under_one_is_a_config_error(pool):
+    """As the slip detector's (it was taken for 1, silently)."""
+    with pytest.raises(ConfigError, match=r"cor_estimator pool must be an integer >= 1"):
+        CorParams(pool=pool)
 
 
 def test_a_pool_that_does_not_divide_the_pad_solves_it_unpooled_and_says_so():
