@@ -30,7 +30,7 @@ from slipstack.lib.detector import NOISE_CAPACITY, ONSET_NS_PER_FRAME
 from slipstack.lib.episodes import LEAD_NS, MARGIN_NS, MIN_GAP_NS, RELEASE_NS, detection_quality, find_episodes
 from slipstack.lib.limit_set import load_factor, torsional_coefficient
 from slipstack.lib.material import Material, detector_thresholds, load_material, material_toml
-from slipstack.lib.onset_band import OnsetBand, load_path, pressure_spread
+from slipstack.lib.onset_band import PATH_TOLERANCE, SPREAD_TOLERANCE, OnsetBand, load_path, pressure_spread
 from slipstack.lib.online_calibration import CalibratedLatch
 from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.scene import RIG_MATERIALS, Scene, with_rig_material
@@ -427,11 +427,11 @@ def scene_onsets(data: dict[str, np.ndarray], material: Material) -> list[tuple[
 
 
 def explain(runs: dict[str, dict], hold_kinds: dict[str, str], material: Material, level: float,
-            label: str, period_ns: float) -> tuple[list[str], list[str], str]:
+            label: str, period_ns: float) -> tuple[list[str], list[str], str, str]:
     """The (b) false alarms (stuck, true load at or above ``level``) by the load their flag
     rose on: its path, the band it got and that band's edge, beside the onsets the scenes
     themselves show on that path; then the detector with those onsets in the file, and the
-    bound of :func:`own_onset_bound`."""
+    bounds of :func:`own_onset_bound` and :func:`oracle_row`."""
     band = OnsetBand.of(material)
     parts: dict[tuple[str, str], dict] = {}
     stick = 0
@@ -479,7 +479,7 @@ def explain(runs: dict[str, dict], hold_kinds: dict[str, str], material: Materia
                 tally.add_hold(hold_kinds[scene], f)
             tally.add(data, f, period_ns, level)
         tallies.append(detection_row(f"{label}, its file {how}", material, tally, False))
-    return rows, tallies, own_onset_bound(runs, onsets, material, level)
+    return rows, tallies, own_onset_bound(runs, onsets, material, level), oracle_row(runs, onsets, material)
 
 
 def own_onset_bound(runs: dict[str, dict], onsets: dict[str, list], material: Material, level: float) -> str:
@@ -501,6 +501,50 @@ def own_onset_bound(runs: dict[str, dict], onsets: dict[str, list], material: Ma
         above += int(np.count_nonzero(over & at_level))
         under += int(np.count_nonzero(over & ~at_level))
     return (f"| {material.name} | {_share(above, stick)} | {_share(under, stick)} |")
+
+
+def above_own_onsets(data: dict[str, np.ndarray], onsets: list[tuple[float, float, float]], material: Material,
+                     by_kind: bool) -> tuple[int, int]:
+    """Sticking frames outside every episode's window at or above the run's own lowest measured
+    onset less 3σ (``by_kind``: the lowest of its onsets of the frame's kind, path within
+    PATH_TOLERANCE and spread within SPREAD_TOLERANCE of it, lib/onset_band.py), split by the
+    truth (no sliding, partial slip): what an oracle threshold that knows where this very run
+    lets go, per load kind or not, cannot avoid flagging."""
+    if not onsets:
+        return 0, 0
+    sigma = max(material.gamma_noise_stick, 0.002)
+    k = np.clip(np.searchsorted(data["truth_t"], data["t"]), 0, data["truth_t"].size - 1)
+    q = detection_quality(data["truth_t"], data["gross"], data["t"], np.zeros(data["t"].size, dtype=bool))
+    stuck = data["contact"] & ~data["gross"][k] & ~_excused(data, q)
+    gamma = data["gamma"] * RECORD_MU / material.mu_s
+    paths, spread = np.array(frame_paths(data, material)), data["spread"]
+    above = np.zeros(gamma.size, dtype=bool)
+    for level, path, onset_spread in onsets:
+        same = np.ones(gamma.size, dtype=bool)
+        if by_kind:
+            same = np.abs(paths - path) <= PATH_TOLERANCE
+            same &= np.isnan(spread) if math.isnan(onset_spread) else np.abs(spread - onset_spread) <= SPREAD_TOLERANCE
+        above |= same & (gamma >= level - 3.0 * sigma)
+    none = data["slip_share"][k] <= NO_SLIDING
+    return int(np.count_nonzero(stuck & above & none)), int(np.count_nonzero(stuck & above & ~none))
+
+
+def oracle_row(runs: dict[str, dict], onsets: dict[str, list], material: Material) -> str:
+    """:func:`above_own_onsets` over every run, per run and per run and load kind, as shares of
+    all sticking frames."""
+    stick = sum(int(np.count_nonzero(d["contact"] & ~d["gross"][np.clip(np.searchsorted(d["truth_t"], d["t"]), 0,
+                                                                       d["truth_t"].size - 1)]))
+                for d in runs.values())
+    cells = []
+    for by_kind in (False, True):
+        none, partial = np.sum([above_own_onsets(d, onsets[s], material, by_kind) for s, d in runs.items()], axis=0)
+        cells += [_share(int(none + partial), stick), _share(int(none), stick), _share(int(partial), stick)]
+    return f"| {material.name} | {' | '.join(cells)} |"
+
+
+ORACLE_HEADER = [
+    "| contact | per run: all | no true sliding | true partial slip | per run and load kind: all | no true sliding | "
+    "true partial slip |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
 
 
 NO_SLIDING = 1e-9
@@ -630,7 +674,7 @@ def main() -> None:
     period_ns = 1e9 / args.ft_rate
     t0 = time.monotonic()
     default = resolve_material("")
-    ident_rows, det_rows, why_rows, covered_rows, bound_rows, state_rows = [], [], [], [], [], []
+    ident_rows, det_rows, why_rows, covered_rows, bound_rows, state_rows, oracle_rows = [], [], [], [], [], [], []
     for m in args.materials:
         paths = ident_recordings(m, args.cache, rates)
         every = [paths[n] for n in IDENT_SCENES]
@@ -646,13 +690,15 @@ def main() -> None:
                 (f"{m}, fixed band", files["identified (truth)"], False, "fixed"),
                 (f"{m}, path band", files["identified (truth)"], False, "path"),
                 (f"{m}, its file from the pure ramps, path band", files["pure ramps (truth)"], False, "path"),
+                (f"{m}, path band, calibrate online", files["identified (truth)"], True, "path"),
                 (f"{m}, **no file**, calibrate off", default, False, "path"),
                 (f"{m}, **no file**, calibrate online", default, True, "path")):
             level = RIG_MATERIALS[m][1] / RIG_MATERIALS[m][0]
             det_rows.append(detection_row(label, material, evaluate(runs, hold_kinds, material, online, period_ns,
                                                                     level, detector=detector), online))
         if args.explain:
-            rows, tallies, bound = explain(runs, hold_kinds, files["identified (truth)"], level, m, period_ns)
+            rows, tallies, bound, oracle = explain(runs, hold_kinds, files["identified (truth)"], level, m, period_ns)
+            oracle_rows.append(oracle)
             why_rows += rows
             covered_rows += tallies
             bound_rows.append(bound)
@@ -680,6 +726,10 @@ def main() -> None:
               f"flagged frame: no sliding (rig/truth sliding_fraction ≤ {NO_SLIDING:g}) or partial slip (above it, "
               "not gross); and the share of all sticking frames in partial slip (shares of all sticking frames):\n")
         print("\n".join(TRUTH_STATE_HEADER + state_rows))
+        print("\nStuck frames outside the windows at or above the run's own lowest measured onset less 3σ, per run and "
+              "per run and load kind (path within 0.15, pressure spread within 0.1): an oracle threshold that knows "
+              "where each run lets go on each load kind, by the truth's state (shares of all sticking frames):\n")
+        print("\n".join(ORACLE_HEADER + oracle_rows))
     if args.engine is not None:
         folder = hashlib.sha256(str(args.engine.resolve()).encode()).hexdigest()[:8]
         print("\n".join(engine_tables(args.engine, args.cache / f"engine-{folder}", default, period_ns, args.explain)))
