@@ -32,8 +32,8 @@ from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.logs import DETAIL_PREFIX
 from slipstack.nodes.runtime.node import Context, Input, Node
 
-__all__ = ["Monitor", "MonitorParams", "Problem", "summarise", "health_problems", "check_problems", "format_summary",
-           "format_details", "status_line", "summary_from_recording", "CALIBRATION_STATUSES"]
+__all__ = ["Monitor", "MonitorParams", "Problem", "summarise", "health_problems", "check_problems", "held_motion",
+           "format_summary", "format_details", "status_line", "summary_from_recording", "CALIBRATION_STATUSES"]
 
 CALIBRATION_STATUSES = ("uncalibrated", "calibrated-online", "refused-material")
 """The slip detector's statuses when no identified material gives its thresholds."""
@@ -402,7 +402,7 @@ class Monitor(Node):
         if len(self.goals) >= MAX_GOALS:
             self.goals_not_kept += 1
             return
-        target = math.degrees(msg.angle_rad) if msg.mode == "pivot" else msg.distance_m * 1e3
+        target = {"pivot": math.degrees(msg.angle_rad), "slide": msg.distance_m * 1e3}.get(msg.mode, 0.0)
         leg = GoalLeg(msg.mode, target, msg.header.stamp_ns)
         self.goals.append(leg)
         if not self.marks or self.marks[-1][0] < leg.stamp_ns:
@@ -672,7 +672,7 @@ def _goal_legs(m: Monitor) -> list[dict]:
     out = []
     for k, leg in enumerate(m.goals):
         a = leg.start
-        b = m.goals[k + 1].start if k + 1 < len(m.goals) and m.goals[k + 1].start else end
+        b = m.goals[k + 1].start if k + 1 < len(m.goals) and m.goals[k + 1].start is not None else end
         row = {"mode": leg.mode, "target": leg.target, "slid_mm": None, "turned_deg": None, "moved": None,
                "at_s": (leg.stamp_ns - m.first_truth_ns) / 1e9 if m.first_truth_ns is not None else None,
                "dated": leg.dated}
@@ -803,14 +803,14 @@ def check_problems(s: dict, p: MonitorParams) -> list[str]:
 def _check_problems(s: dict, p: MonitorParams) -> list[Problem]:
     out = []
     slid, turned = held_motion(s)
-    apart = " apart from the goals" if motion_legs(s) else ""
+    apart = " apart from the goals" if _motion_legs(s) else ""
     if slid is not None and slid > p.check_slip_mm:
         out.append(Problem(f"object slid {slid:.2f} mm{apart} (allowed {p.check_slip_mm:g})",
                            f"the object slid {slid:.2f} mm{apart} (allowed {p.check_slip_mm:g} mm)"))
     if turned is not None and abs(turned) > p.check_turn_deg:
         out.append(Problem(f"object turned {abs(turned):.2f} deg{apart} (allowed {p.check_turn_deg:g})",
                            f"the object turned {abs(turned):.2f} deg{apart} (allowed {p.check_turn_deg:g} deg)"))
-    for leg in motion_legs(s):
+    for leg in _motion_legs(s):
         out += _goal_problems(leg, p)
     if s.get("goals_not_kept"):
         out.append(Problem(f"{s['goals_not_kept']} goals after the first {MAX_GOALS} not judged one by one",
@@ -838,7 +838,7 @@ def _check_problems(s: dict, p: MonitorParams) -> list[Problem]:
     return out
 
 
-def motion_legs(s: dict) -> list[dict]:
+def _motion_legs(s: dict) -> list[dict]:
     """The pivot and slide goals' legs with truth: the check judges them against their goal."""
     return [leg for leg in s.get("goals") or [] if leg["mode"] in MOTIONS and leg["moved"] is not None]
 
@@ -849,7 +849,7 @@ def held_motion(s: dict) -> tuple[float | None, float | None]:
     slid, turned = s["slip_distance_mm"], s["slip_angle_deg"]
     if slid is None or turned is None:
         return None, None
-    legs = motion_legs(s)
+    legs = _motion_legs(s)
     return slid - sum(leg["slid_mm"] for leg in legs), turned - sum(leg["turned_deg"] for leg in legs)
 
 
@@ -1079,7 +1079,7 @@ def format_summary(s: dict, p: MonitorParams | None = None, *, verbose: bool = F
 def _truth_rows(s: dict, p: MonitorParams) -> list[str]:
     held_slid, held_turned = held_motion(s)
     held = "held" if held_slid <= p.check_slip_mm and abs(held_turned) <= p.check_turn_deg else "MOVED"
-    legs = motion_legs(s)
+    legs = _motion_legs(s)
     rows = [f"object: {held}{' apart from the goals' if legs else ''}, slid {_num(s['slip_distance_mm'], '.2f')} mm "
             f"and turned {_num(s['slip_angle_deg'], '.2f')} deg in all"]
     if legs:
@@ -1187,7 +1187,7 @@ def format_details(s: dict, problems: list[Problem], p: MonitorParams | None = N
             f"object slid {_num(s['slip_distance_mm'], '.2f')} mm and turned {_num(s['slip_angle_deg'], '.2f')} deg in all",
         ]
         lines += [f"goal {_goal_text(leg, p)} (the truth from this goal to the next or the end)"
-                  for leg in motion_legs(s)]
+                  for leg in _motion_legs(s)]
     else:
         lines += [
             "slip: no ground truth on this run (no rig/truth topic: real hardware), so no true episodes, missed "
