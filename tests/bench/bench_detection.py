@@ -542,6 +542,42 @@ def oracle_row(runs: dict[str, dict], onsets: dict[str, list], material: Materia
     return f"| {material.name} | {' | '.join(cells)} |"
 
 
+FOLLOW_NS = 500_000_000
+"""How soon a true gross slip must follow a frame for the frame to count as followed by one."""
+
+
+def followed_by_slip(data: dict[str, np.ndarray], f: np.ndarray) -> np.ndarray:
+    """Counts over the sticking frames outside every episode's window (``lib/episodes``):
+    (flagged, and of those a true gross-slip onset follows within FOLLOW_NS; all, and of those
+    followed) for frames in true partial slip, then the same for frames with no true sliding."""
+    k = np.clip(np.searchsorted(data["truth_t"], data["t"]), 0, data["truth_t"].size - 1)
+    q = detection_quality(data["truth_t"], data["gross"], data["t"], f, in_contact=data["contact"])
+    stuck = data["contact"] & ~data["gross"][k] & ~_excused(data, q)
+    onsets = np.array([ep.start_ns for ep in q.episodes], dtype=np.int64)
+    after = np.searchsorted(onsets, data["t"], side="right")
+    soon = np.zeros(f.size, dtype=bool)
+    has_next = after < onsets.size
+    soon[has_next] = onsets[after[has_next]] - data["t"][has_next] <= FOLLOW_NS
+    none = data["slip_share"][k] <= NO_SLIDING
+    out = []
+    for state in (~none, none):
+        for frames in (stuck & state & f, stuck & state):
+            out += [int(np.count_nonzero(frames)), int(np.count_nonzero(frames & soon))]
+    return np.array(out)
+
+
+def follow_row(runs: dict[str, dict], material: Material) -> str:
+    """:func:`followed_by_slip` over every run with ``material``'s own file (path band, calibrate off)."""
+    c = np.sum([followed_by_slip(d, flags(d, material, False)) for d in runs.values()], axis=0)
+    return (f"| {material.name} | {_share(c[1], c[0])} of {c[0]} | {_share(c[3], c[2])} of {c[2]} | "
+            f"{_share(c[5], c[4])} of {c[4]} | {_share(c[7], c[6])} of {c[6]} |")
+
+
+FOLLOW_HEADER = [
+    "| contact | flagged, true partial slip | all, true partial slip | flagged, no true sliding | "
+    "all, no true sliding |", "| --- | ---: | ---: | ---: | ---: |"]
+
+
 ORACLE_HEADER = [
     "| contact | per run: all | no true sliding | true partial slip | per run and load kind: all | no true sliding | "
     "true partial slip |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
@@ -674,7 +710,7 @@ def main() -> None:
     period_ns = 1e9 / args.ft_rate
     t0 = time.monotonic()
     default = resolve_material("")
-    ident_rows, det_rows, why_rows, covered_rows, bound_rows, state_rows, oracle_rows = [], [], [], [], [], [], []
+    ident_rows, det_rows, why_rows, covered_rows, bound_rows, state_rows, oracle_rows, follow_rows = ([], [], [], [], [], [], [], [])
     for m in args.materials:
         paths = ident_recordings(m, args.cache, rates)
         every = [paths[n] for n in IDENT_SCENES]
@@ -703,6 +739,7 @@ def main() -> None:
             covered_rows += tallies
             bound_rows.append(bound)
             state_rows.append(truth_state_row(runs, files["identified (truth)"], m))
+            follow_rows.append(follow_row(runs, files["identified (truth)"]))
     print(f"\nwall time {time.monotonic() - t0:.0f} s (cache {args.cache})\n")
     print("Identification (ident_force, ident_torsion, ident_combined as a user records them; lock-step, F/T "
           f"{args.ft_rate:g} Hz, tactile {args.tactile_rate:g} Hz; ± 2·√(SE² + model²)):\n")
@@ -726,6 +763,9 @@ def main() -> None:
               f"flagged frame: no sliding (rig/truth sliding_fraction ≤ {NO_SLIDING:g}) or partial slip (above it, "
               "not gross); and the share of all sticking frames in partial slip (shares of all sticking frames):\n")
         print("\n".join(TRUTH_STATE_HEADER + state_rows))
+        print(f"\nSticking frames outside the windows that a true gross slip follows within {FOLLOW_NS / 1e9:g} s, "
+              "flagged by each contact's own file and all, by the truth's state: are the flags warnings?\n")
+        print("\n".join(FOLLOW_HEADER + follow_rows))
         print("\nStuck frames outside the windows at or above the run's own lowest measured onset less 3σ, per run and "
               "per run and load kind (path within 0.15, pressure spread within 0.1): an oracle threshold that knows "
               "where each run lets go on each load kind, by the truth's state (shares of all sticking frames):\n")
