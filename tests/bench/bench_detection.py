@@ -287,6 +287,7 @@ class Tally:
     later_missed: int = 0
     later_delays: list[float] = field(default_factory=list)
     later_false: int = 0
+    later_latch: int = 0
     later_stick: int = 0
     hold_scenes: dict[str, list[int]] = field(default_factory=dict)  # kind -> [rises, flagged, frames]
 
@@ -319,8 +320,10 @@ class Tally:
             self.later_episodes += len(ql.episodes)
             self.later_missed += ql.missed
             self.later_delays += [d / period_ns for d in ql.delays_ns]
-            self.later_false += int(np.count_nonzero(false & after))
-            self.later_stick += int(np.count_nonzero(sticking & after))
+            qa = detection_quality(data["truth_t"], data["gross"], data["t"], f, in_contact=data["contact"] & after)
+            self.later_false += qa.false_alarm_frames
+            self.later_latch += qa.latch_hold_frames
+            self.later_stick += qa.stick_frames
 
     def add_hold(self, kind: str, f: np.ndarray) -> None:
         rises = int(np.count_nonzero(f & ~np.concatenate([[False], f[:-1]])))
@@ -364,7 +367,7 @@ def detection_row(label: str, material: Material, t: Tally, online: bool) -> str
     holds_text = " / ".join(f"{r[0]} ({100 * r[1] / max(r[2], 1):.1f} %)" if r[2] else "-"
                             for r in (t.hold_scenes.get(kind, [0, 0, 0]) for kind in HOLD_KINDS))
     later = (f"{t.later_missed} of {t.later_episodes}, {_pct(t.later_delays, 95)}, "
-             f"{_share(t.later_false, t.later_stick)}" if online else "")
+             f"{_share(t.later_false, t.later_stick)} ({_share(t.later_latch, t.later_stick)})" if online else "")
     return (f"| {label} | {thr.delta:.3f} / {thr.gamma_release:.3f} | {t.episodes} | {t.missed} | "
             f"{_pct(t.delays, 50)} / {_pct(t.delays, 95)} | {_share(t.false, t.stick)} ({_share(t.latch, t.stick)}; "
             + (f"{_share(t.at_or_above_level, t.stick)}; {_share(rest, t.stick)}, of which "
@@ -378,7 +381,7 @@ DETECTION_HEADER = [
     "((a) latch hold after a true slip; (b) stuck, true load at or above the true sliding level μ_d/μ_s; (c) the "
     "rest, of which within 0.02 under that level) | false alarms: tactile / F/T tests | latch hold "
     "p50 / p95 ms | holds at 95 % of their path / 95 % of μ_s / 90 % of μ_d: alarms (flagged) | online, each run "
-    "after its first episode: missed, delay p95, false alarms |",
+    "after its first episode: missed, delay p95, false alarms ((a) the latch hold after a true slip) |",
     "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
 ]
 
