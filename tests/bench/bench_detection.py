@@ -713,7 +713,8 @@ def main() -> None:
     period_ns = 1e9 / args.ft_rate
     t0 = time.monotonic()
     default = resolve_material("")
-    ident_rows, det_rows, why_rows, covered_rows, bound_rows, state_rows, oracle_rows, follow_rows = ([], [], [], [], [], [], [], [])
+    ident_rows, det_rows, why_rows, covered_rows, bound_rows = [], [], [], [], []
+    state_rows, oracle_rows, follow_rows = [], [], []
     for m in args.materials:
         paths = ident_recordings(m, args.cache, rates)
         every = [paths[n] for n in IDENT_SCENES]
@@ -736,7 +737,8 @@ def main() -> None:
             det_rows.append(detection_row(label, material, evaluate(runs, hold_kinds, material, online, period_ns,
                                                                     level, detector=detector), online))
         if args.explain:
-            rows, tallies, bound, oracle = explain(runs, hold_kinds, files["identified (truth)"], level, m, period_ns)
+            rows, tallies, bound, oracle = explain(runs, hold_kinds, files["identified (truth)"], level, m,
+                                                   period_ns)
             oracle_rows.append(oracle)
             why_rows += rows
             covered_rows += tallies
