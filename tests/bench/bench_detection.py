@@ -287,6 +287,7 @@ class Tally:
     later_missed: int = 0
     later_delays: list[float] = field(default_factory=list)
     later_false: int = 0
+    later_latch: int = 0
     later_stick: int = 0
     hold_scenes: dict[str, list[int]] = field(default_factory=dict)  # kind -> [rises, flagged, frames]
 
@@ -319,8 +320,10 @@ class Tally:
             self.later_episodes += len(ql.episodes)
             self.later_missed += ql.missed
             self.later_delays += [d / period_ns for d in ql.delays_ns]
-            self.later_false += int(np.count_nonzero(false & after))
-            self.later_stick += int(np.count_nonzero(sticking & after))
+            qa = detection_quality(data["truth_t"], data["gross"], data["t"], f, in_contact=data["contact"] & after)
+            self.later_false += qa.false_alarm_frames
+            self.later_latch += qa.latch_hold_frames
+            self.later_stick += qa.stick_frames
 
     def add_hold(self, kind: str, f: np.ndarray) -> None:
         rises = int(np.count_nonzero(f & ~np.concatenate([[False], f[:-1]])))
@@ -364,7 +367,7 @@ def detection_row(label: str, material: Material, t: Tally, online: bool) -> str
     holds_text = " / ".join(f"{r[0]} ({100 * r[1] / max(r[2], 1):.1f} %)" if r[2] else "-"
                             for r in (t.hold_scenes.get(kind, [0, 0, 0]) for kind in HOLD_KINDS))
     later = (f"{t.later_missed} of {t.later_episodes}, {_pct(t.later_delays, 95)}, "
-             f"{_share(t.later_false, t.later_stick)}" if online else "")
+             f"{_share(t.later_false, t.later_stick)} ({_share(t.later_latch, t.later_stick)})" if online else "")
     return (f"| {label} | {thr.delta:.3f} / {thr.gamma_release:.3f} | {t.episodes} | {t.missed} | "
             f"{_pct(t.delays, 50)} / {_pct(t.delays, 95)} | {_share(t.false, t.stick)} ({_share(t.latch, t.stick)}; "
             + (f"{_share(t.at_or_above_level, t.stick)}; {_share(rest, t.stick)}, of which "
@@ -378,7 +381,7 @@ DETECTION_HEADER = [
     "((a) latch hold after a true slip; (b) stuck, true load at or above the true sliding level μ_d/μ_s; (c) the "
     "rest, of which within 0.02 under that level) | false alarms: tactile / F/T tests | latch hold "
     "p50 / p95 ms | holds at 95 % of their path / 95 % of μ_s / 90 % of μ_d: alarms (flagged) | online, each run "
-    "after its first episode: missed, delay p95, false alarms |",
+    "after its first episode: missed, delay p95, false alarms ((a) the latch hold after a true slip) |",
     "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
 ]
 
@@ -542,6 +545,42 @@ def oracle_row(runs: dict[str, dict], onsets: dict[str, list], material: Materia
     return f"| {material.name} | {' | '.join(cells)} |"
 
 
+FOLLOW_NS = 500_000_000
+"""How soon a true gross slip must follow a frame for the frame to count as followed by one."""
+
+
+def followed_by_slip(data: dict[str, np.ndarray], f: np.ndarray) -> np.ndarray:
+    """Counts over the sticking frames outside every episode's window (``lib/episodes``):
+    (flagged, and of those a true gross-slip onset follows within FOLLOW_NS; all, and of those
+    followed) for frames in true partial slip, then the same for frames with no true sliding."""
+    k = np.clip(np.searchsorted(data["truth_t"], data["t"]), 0, data["truth_t"].size - 1)
+    q = detection_quality(data["truth_t"], data["gross"], data["t"], f, in_contact=data["contact"])
+    stuck = data["contact"] & ~data["gross"][k] & ~_excused(data, q)
+    onsets = np.array([ep.start_ns for ep in q.episodes], dtype=np.int64)
+    after = np.searchsorted(onsets, data["t"], side="right")
+    soon = np.zeros(f.size, dtype=bool)
+    has_next = after < onsets.size
+    soon[has_next] = onsets[after[has_next]] - data["t"][has_next] <= FOLLOW_NS
+    none = data["slip_share"][k] <= NO_SLIDING
+    out = []
+    for state in (~none, none):
+        for frames in (stuck & state & f, stuck & state):
+            out += [int(np.count_nonzero(frames)), int(np.count_nonzero(frames & soon))]
+    return np.array(out)
+
+
+def follow_row(runs: dict[str, dict], material: Material) -> str:
+    """:func:`followed_by_slip` over every run with ``material``'s own file (path band, calibrate off)."""
+    c = np.sum([followed_by_slip(d, flags(d, material, False)) for d in runs.values()], axis=0)
+    return (f"| {material.name} | {_share(c[1], c[0])} of {c[0]} | {_share(c[3], c[2])} of {c[2]} | "
+            f"{_share(c[5], c[4])} of {c[4]} | {_share(c[7], c[6])} of {c[6]} |")
+
+
+FOLLOW_HEADER = [
+    "| contact | flagged, true partial slip | all, true partial slip | flagged, no true sliding | "
+    "all, no true sliding |", "| --- | ---: | ---: | ---: | ---: |"]
+
+
 ORACLE_HEADER = [
     "| contact | per run: all | no true sliding | true partial slip | per run and load kind: all | no true sliding | "
     "true partial slip |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
@@ -674,7 +713,8 @@ def main() -> None:
     period_ns = 1e9 / args.ft_rate
     t0 = time.monotonic()
     default = resolve_material("")
-    ident_rows, det_rows, why_rows, covered_rows, bound_rows, state_rows, oracle_rows = [], [], [], [], [], [], []
+    ident_rows, det_rows, why_rows, covered_rows, bound_rows = [], [], [], [], []
+    state_rows, oracle_rows, follow_rows = [], [], []
     for m in args.materials:
         paths = ident_recordings(m, args.cache, rates)
         every = [paths[n] for n in IDENT_SCENES]
@@ -697,12 +737,14 @@ def main() -> None:
             det_rows.append(detection_row(label, material, evaluate(runs, hold_kinds, material, online, period_ns,
                                                                     level, detector=detector), online))
         if args.explain:
-            rows, tallies, bound, oracle = explain(runs, hold_kinds, files["identified (truth)"], level, m, period_ns)
+            rows, tallies, bound, oracle = explain(runs, hold_kinds, files["identified (truth)"], level, m,
+                                                   period_ns)
             oracle_rows.append(oracle)
             why_rows += rows
             covered_rows += tallies
             bound_rows.append(bound)
             state_rows.append(truth_state_row(runs, files["identified (truth)"], m))
+            follow_rows.append(follow_row(runs, files["identified (truth)"]))
     print(f"\nwall time {time.monotonic() - t0:.0f} s (cache {args.cache})\n")
     print("Identification (ident_force, ident_torsion, ident_combined as a user records them; lock-step, F/T "
           f"{args.ft_rate:g} Hz, tactile {args.tactile_rate:g} Hz; ± 2·√(SE² + model²)):\n")
@@ -726,6 +768,9 @@ def main() -> None:
               f"flagged frame: no sliding (rig/truth sliding_fraction ≤ {NO_SLIDING:g}) or partial slip (above it, "
               "not gross); and the share of all sticking frames in partial slip (shares of all sticking frames):\n")
         print("\n".join(TRUTH_STATE_HEADER + state_rows))
+        print(f"\nSticking frames outside the windows that a true gross slip follows within {FOLLOW_NS / 1e9:g} s, "
+              "flagged by each contact's own file and all, by the truth's state: are the flags warnings?\n")
+        print("\n".join(FOLLOW_HEADER + follow_rows))
         print("\nStuck frames outside the windows at or above the run's own lowest measured onset less 3σ, per run and "
               "per run and load kind (path within 0.15, pressure spread within 0.1): an oracle threshold that knows "
               "where each run lets go on each load kind, by the truth's state (shares of all sticking frames):\n")

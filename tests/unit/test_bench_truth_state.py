@@ -1,5 +1,6 @@
 """The bench's split of false alarms and sticking frames by the truth's slip state
-(tests/bench/bench_detection.py ``by_truth_state``, ``above_own_onsets``), on hand-made runs."""
+(tests/bench/bench_detection.py ``by_truth_state``, ``above_own_onsets``, ``followed_by_slip``), on
+hand-made runs."""
 
 import sys
 from pathlib import Path
@@ -7,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
-from bench_detection import NO_SLIDING, above_own_onsets, by_truth_state  # noqa: E402
+from bench_detection import NO_SLIDING, above_own_onsets, by_truth_state, followed_by_slip  # noqa: E402
 
 from slipstack.lib.material import Material  # noqa: E402
 
@@ -67,3 +68,15 @@ def test_the_oracle_threshold_counts_stuck_frames_at_or_above_the_runs_own_onset
     assert above_own_onsets(data, onsets, material, by_kind=False) == (20, 5)
     assert above_own_onsets(data, onsets, material, by_kind=True) == (10, 5)
     assert above_own_onsets(data, [], material, by_kind=True) == (0, 0)
+
+
+def test_flags_followed_by_a_gross_slip_within_half_a_second_are_counted_by_the_truths_state():
+    # 10 ms frames; a gross slip at frames 60-64 (onset 600 ms; window 580-665 ms: frames 58-66).
+    # Partial slip at frames 5-14, flagged: 10-14 lie within 500 ms of the onset, 5-9 do not.
+    # Flags at 70-74 with no sliding, after the slip: nothing follows them.
+    share = [0.0] * 5 + [0.3] * 10 + [0.0] * 45 + [0.97] * 5 + [0.0] * 35
+    flag = [False] * 5 + [True] * 10 + [False] * 55 + [True] * 5 + [False] * 25
+    data, f = _run(share, [s >= 0.95 for s in share], flag, [True] * len(share))
+    counts = followed_by_slip(data, f)
+    # partial: flagged 10 (5 followed), all 10 (5); no sliding: flagged 5 (0), all 0-4, 15-57, 67-99 = 81 (15-57: 43)
+    assert counts.tolist() == [10, 5, 10, 5, 5, 0, 81, 43]
