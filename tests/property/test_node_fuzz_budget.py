@@ -86,6 +86,8 @@ CASES = {
     "grip_controller": _Case("grip_controller"),
     "grip_controller-tactile14": _Case("grip_controller", lambda tmp: {"law": "tactile14"}),
     "monitor": _Case("monitor"),
+    "grasp": _Case("grasp"),
+    "grasp_planner": _Case("grasp_planner"),
     "relay": _Case("relay"),
     "sink": _Case("sink"),
     # the rig refuses rdt_port 0 (a driver could not find its emulator): a port free now
