@@ -17,7 +17,7 @@ from slipstack.lib.errors import ConfigError
 from slipstack.lib.toml_file import read_toml
 
 __all__ = ["Material", "DetectorThresholds", "band_delta", "detector_thresholds", "load_material", "material_toml",
-           "implausible", "NOISE_FLOOR", "DELTA_MIN", "DELTA_MAX", "PLAUSIBLE"]
+           "implausible", "NOISE_FLOOR", "DELTA_MIN", "DELTA_MAX", "PLAUSIBLE", "QUANTITY"]
 
 NOISE_FLOOR = 0.002
 DELTA_MIN = 0.005
@@ -26,7 +26,8 @@ PLAUSIBLE = {"mu": (0.02, 3.0), "beta_m": (0.0, 0.1), "delta": (0.0, DELTA_MAX)}
 """The plausible range (inclusive) of a friction coefficient μ (μ_s, μ_d; dimensionless), a
 torsional coefficient β (m) and a band δ (dimensionless); outside it a value is a typo
 (docs/materials.md)."""
-_QUANTITY = {"mu_s": "mu", "mu_d": "mu", "beta_s_m": "beta_m", "beta_d_m": "beta_m", "delta": "delta"}
+QUANTITY = {"mu_s": "mu", "mu_d": "mu", "beta_s_m": "beta_m", "beta_d_m": "beta_m", "delta": "delta"}
+"""The material fields with a plausible range, and the quantity (a key of PLAUSIBLE) each is."""
 _BAND_SIGMAS = 3.0
 _RELEASE_SIGMAS = 4.0
 _RESUME_SIGMAS = 2.0
@@ -109,7 +110,7 @@ class DetectorThresholds:
 def implausible(key: str, value: float) -> str:
     """Why ``value`` of ``key`` (``mu_s``, ``mu_d``, ``beta_s_m``, ``beta_d_m`` or ``delta``)
     is no plausible one, as ``outside …``; "" if it is, or is NaN (not given)."""
-    quantity = _QUANTITY[key]
+    quantity = QUANTITY[key]
     low, high = PLAUSIBLE[quantity]
     if math.isnan(value) or low <= value <= high:
         return ""
@@ -184,7 +185,7 @@ def parse_material(data: dict[str, Any], *, source: str = "<material>") -> Mater
                             **{key: tuple(float(g) for g in v) for key, v in lists.items()}, **values)
     except ConfigError as exc:
         raise ConfigError(f"{source}: {exc}") from None
-    for key in () if refused else _QUANTITY.keys() & values.keys():  # identify --force writes an
+    for key in () if refused else QUANTITY.keys() & values.keys():  # identify --force writes an
         if why := implausible(key, values[key]):  # implausible one marked refused; the detector says so
             raise ConfigError(f"{source}: material.{key} = {values[key]:g} lies {why}: a typo? Correct it, or "
                               "identify the contact: slipstack identify RAMP.mcap... -o FILE")

@@ -31,6 +31,13 @@ _SETTLE_NS = 300_000_000
 """After a pivot or slide ends, the regrip squeeze is kept this long before the hold law takes over."""
 
 
+def _one_pad_geometry(c0: Contact | None, c1: Contact | None) -> bool:
+    """Both fingers' contacts carry a pressure frame of one pad geometry (rows, cols, a pitch > 0):
+    what the pads' joint view of the object needs. The decoder admits others (pitch 0, unlike pads)."""
+    return (c0 is not None and c1 is not None and c0.has_tactile and c1.has_tactile and c0.phi.size > 0
+            and c0.pitch_m > 0.0 and (c0.rows, c0.cols, c0.pitch_m) == (c1.rows, c1.cols, c1.pitch_m))
+
+
 @dataclass(frozen=True)
 class GraspParams:
     material: str = field(default=DEFAULT_MATERIAL, metadata={
@@ -162,7 +169,7 @@ class Grasp(Node):
         if self.control is not None:
             c0, c1 = self.contacts
             stamps += [c.header.stamp_ns for c in (c0, c1) if c is not None]
-            ok = ok and c0 is not None and c1 is not None and c0.has_tactile and c1.has_tactile
+            ok = ok and _one_pad_geometry(c0, c1)
         demand = self._demand(now, least) if ok else math.nan
         known = [s.f_n for s in (s0, s1) if s is not None]
         f_n = sum(known) / len(known) if known else math.nan  # both pads feel the one squeeze
@@ -276,8 +283,8 @@ class Grasp(Node):
         """Start ``goal``'s mode; the reason it cannot start ('' if it did)."""
         s0, s1 = self.slips
         c0, c1 = self.contacts
-        if s0 is None or s1 is None or c0 is None or c1 is None or not (c0.has_tactile and c1.has_tactile):
-            return "both fingers' verdicts and pressure frames are needed first"
+        if s0 is None or s1 is None or not _one_pad_geometry(c0, c1):
+            return "both fingers' verdicts and pressure frames of one pad geometry are needed first"
         if goal.mode == "pivot" and not (goal.angle_rad > 0.0 and goal.rate_rad_s > 0.0):
             return "a pivot needs angle_rad > 0 and rate_rad_s > 0"
         if goal.mode == "slide" and not (goal.distance_m > 0.0 and goal.speed_m_s > 0.0):
@@ -345,6 +352,10 @@ class Grasp(Node):
         if k == 0 or other is None or not other.has_tactile:
             return  # finger 1's frame completes the pair (both pads are sampled together)
         c0, c1 = self.contacts
+        if not _one_pad_geometry(c0, c1):
+            ctx.count("grasp.pads_unlike")  # no joint view of the object: what it saw is forgotten
+            self._watch.reset()
+            return
         now = ctx.now_ns()
         positions = pad_positions(c0.rows, c0.cols, c0.pitch_m)
         poses = (pad_pose(c0.phi, positions), pad_pose(c1.phi, positions))

@@ -196,8 +196,8 @@ class GripController(Node):
     @staticmethod
     def _rotation_inputs(c: Contact, r: Cor) -> dict[str, object]:
         """Law (14)'s inputs about the COR ``r`` on the pressure frame of ``c``; a COR
-        needs that frame (without one the case is ``none``)."""
-        if not c.phi.size:
+        needs that frame (without one, or on a pad without a pitch, the case is ``none``)."""
+        if not c.phi.size or not c.pitch_m > 0.0:
             return {"cor_case": SlipCase.NONE}
         positions = pad_positions(c.rows, c.cols, c.pitch_m)
         p_x, p_y = r.p_c  # each column masked on its own: cheaper than the (N, 2) rows, the same numbers

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from slipstack.lib.errors import ConfigError
-from slipstack.lib.material import Material, detector_thresholds, implausible, load_material
+from slipstack.lib.material import QUANTITY, Material, detector_thresholds, implausible, load_material
 from slipstack.lib.toml_file import resolve_path
 
 __all__ = ["DEFAULT_MATERIAL", "resolve_material", "fill_from_material", "refuse_implausible"]
@@ -27,7 +27,6 @@ DEFAULT_MATERIAL = "rubber"
 rig's rubber; its provenance is in the file)."""
 
 _CACHE_SIZE = 16
-_CHECKED = ("mu_s", "mu_d", "beta_s_m", "delta")
 
 
 @functools.lru_cache(maxsize=_CACHE_SIZE)
@@ -72,7 +71,7 @@ def fill_from_material(params: Any, **sources: str) -> None:
     The material is read only if some field is NaN. A friction value given implausible is
     refused (:func:`refuse_implausible`).
     """
-    refuse_implausible(params, **{name: src for name, src in sources.items() if src in _CHECKED})
+    refuse_implausible(params, **{name: src for name, src in sources.items() if src in QUANTITY})
     missing = {name: src for name, src in sources.items() if math.isnan(getattr(params, name))}
     if not missing:
         return

@@ -1,9 +1,9 @@
 """The monitor: a live one-line status and, on exit, the run's summary and its health.
 
-It listens to ``slip``, ``grip/command``, ``rig/truth`` and every node's ``diagnostics``, not to
-the 1 kHz ``contact`` stream, to keep its share of the CPU small. It logs a ``STATUS`` line every
-``status_period_s``. When it stops, it logs the summary's short form (at most 12 lines), then the
-long form as ``detail:`` lines for the run log. It writes the summary as JSON (``summary_path``)
+It listens to ``slip``, ``grip/command``, ``rig/truth``, ``grasp/goal`` and every node's ``diagnostics``,
+not to the 1 kHz ``contact`` stream, to keep its share of the CPU small. It logs a ``STATUS`` line
+every ``status_period_s``. When it stops, it logs the summary's short form (at most 12 lines), then
+the long form as ``detail:`` lines for the run log. It writes the summary as JSON (``summary_path``)
 and the check's verdict (``check_path``). docs/summary.md gives the layout, what each count
 means (false alarms by the one definition of docs/math.md §3.2) and what fails the check.
 Memory stays bounded: running sums and counts, the detection quality streamed by
@@ -17,6 +17,7 @@ import json
 import math
 import os
 import tempfile
+from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -25,14 +26,14 @@ from slipstack.lib.episodes import EpisodeTracker
 from slipstack.lib.errors import ConfigError
 from slipstack.lib.late_ticks import behind_real_time_advice
 from slipstack.lib.status import SLIP_STATES, SlipState
-from slipstack.messages import Diagnostics, GripCommand, Message, RigTruth, Slip
+from slipstack.messages import Diagnostics, GraspGoal, GripCommand, Message, RigTruth, Slip
 from slipstack.nodes.runtime.graph_info import RUN_DIR_ENV, read_graph
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC
 from slipstack.nodes.runtime.logs import DETAIL_PREFIX
 from slipstack.nodes.runtime.node import Context, Input, Node
 
-__all__ = ["Monitor", "MonitorParams", "Problem", "summarise", "health_problems", "check_problems", "format_summary",
-           "format_details", "status_line", "summary_from_recording", "CALIBRATION_STATUSES"]
+__all__ = ["Monitor", "MonitorParams", "Problem", "summarise", "health_problems", "check_problems", "held_motion",
+           "format_summary", "format_details", "status_line", "summary_from_recording", "CALIBRATION_STATUSES"]
 
 CALIBRATION_STATUSES = ("uncalibrated", "calibrated-online", "refused-material")
 """The slip detector's statuses when no identified material gives its thresholds."""
@@ -61,6 +62,14 @@ published must reach the monitor, or the summary says which it did not see (:cla
 SUSPECT_DEVICE_COUNTERS = {"rejected_bytes": "bytes rejected", "crc_errors": "frames failing their check",
                            "implausible_records": "records out of the stream", "bad_frames": "inconsistent frames"}
 """Driver counters (``device.<name>``, nodes/devices/backends.py) that mean the link carried what no sensor sent."""
+MOTIONS = ("pivot", "slide")
+"""The goals that move the object on purpose: the check judges the motion against what they command."""
+MAX_GOALS = 64
+"""Goals kept one by one; further ones are counted, and the check does not pass a run it judged in part."""
+MARK_PERIOD_NS = 4_000_000
+MARKS_KEPT = 4096
+"""The truth is kept at most every 4 ms, for the last 4096 marks (16 s at 250 Hz), to find it at a goal's
+stamp: a monitor that waited for a core reads a backlog of truth before the goal that came meanwhile."""
 
 
 @dataclass(frozen=True)
@@ -77,13 +86,21 @@ class MonitorParams:
     check_slip_mm: float = field(default=0.5, metadata={"help": "check fails if the object slid more (mm; rig only)"})
     check_turn_deg: float = field(default=0.5, metadata={
         "help": "check fails if the object turned more (deg; rig only)"})
+    check_pivot_deg: float = field(default=2.0, metadata={
+        "help": "a pivot goal fails the check unless the object turned within this of its angle (deg; rig only)"})
+    check_pivot_slip_mm: float = field(default=1.0, metadata={
+        "help": "a pivot goal fails the check if the object slid more while it pivoted (mm; rig only)"})
+    check_slide_mm: float = field(default=2.0, metadata={
+        "help": "a slide goal fails the check unless the object moved within this of its distance (mm; rig only) "
+                "and turned at most check_turn_deg"})
     check_fail_safe_share: float = field(default=0.01, metadata={
         "help": "check fails if a larger share (0..1) of the grip commands was fail-safe"})
     verbose: bool = field(default=False, metadata={
         "help": "print the summary's long form (default: at most 12 short lines; the long form goes to the run log)"})
 
     def __post_init__(self) -> None:
-        for name in ("status_period_s", "command_deadline_ms", "silent_after_s", "check_slip_mm", "check_turn_deg"):
+        for name in ("status_period_s", "command_deadline_ms", "silent_after_s", "check_slip_mm", "check_turn_deg",
+                     "check_pivot_deg", "check_pivot_slip_mm", "check_slide_mm"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ConfigError(f"monitor: {name} must be a finite number > 0, got {value!r}")
@@ -214,6 +231,36 @@ class Coverage:
         return (self.last[1] - start) / 1e9, (published - 1) * period / 1e9
 
 
+@dataclass(frozen=True, slots=True)
+class TruthMark:
+    """The rig's truth at one instant: the slip totals (mm, deg) and the object's pose (deg, mm)."""
+
+    slid_mm: float
+    turned_deg: float
+    theta_deg: float
+    x_mm: float
+    y_mm: float
+
+    @classmethod
+    def of(cls, msg: RigTruth) -> TruthMark:
+        return cls(msg.slip_distance_m * 1e3, math.degrees(msg.slip_angle_rad), math.degrees(msg.theta),
+                   msg.x * 1e3, msg.y * 1e3)
+
+
+@dataclass
+class GoalLeg:
+    """One ``grasp/goal`` and the truth at its stamp (``None`` until a truth that late came): the
+    goal's leg of the run lasts until the next goal or the end. ``target``: a pivot's angle (deg)
+    or a slide's distance (mm); ``dated``: False when the truth kept no longer reached back to
+    the goal's stamp (it starts at the oldest mark kept)."""
+
+    mode: str
+    target: float
+    stamp_ns: int
+    start: TruthMark | None = None
+    dated: bool = True
+
+
 @dataclass
 class NodeWatch:
     """One node's diagnostics: its latest counters, when the last report arrived
@@ -284,6 +331,7 @@ class Monitor(Node):
         "slip": Input("slip", Slip, policy="queue", depth=10000),
         "grip": Input("grip/command", GripCommand, policy="queue", depth=10000),
         "truth": Input("rig/truth", RigTruth, policy="queue", depth=10000),
+        "goal": Input("grasp/goal", GraspGoal, policy="queue", depth=64),
         "diagnostics": Input("diagnostics", Diagnostics, policy="queue", depth=1000),
     }
     Params = MonitorParams
@@ -303,6 +351,11 @@ class Monitor(Node):
         self.slip_verdicts = 0  # slip frames whose state is a slip
         self.truth_frames = 0
         self.applied_f_n_sum = 0.0
+        self.first_truth_ns: int | None = None
+        self.marks: deque[tuple[int, TruthMark]] = deque(maxlen=MARKS_KEPT)
+        self.goals: list[GoalLeg] = []
+        self.undated: deque[GoalLeg] = deque()  # goals stamped after the newest truth so far, oldest first
+        self.goals_not_kept = 0
         self.last: dict[str, object] = {}
         self.nodes: dict[str, NodeWatch] = {}
         self.coverage = {name: Coverage() for name in JUDGED_INPUTS}
@@ -337,6 +390,27 @@ class Monitor(Node):
         self.episodes.add_truth(msg.header.stamp_ns, msg.gross_slip)
         self.last["truth"] = msg
         self.commands.truth_seen()
+        stamp = msg.header.stamp_ns
+        if self.first_truth_ns is None:
+            self.first_truth_ns = stamp
+        if not self.marks or stamp - self.marks[-1][0] >= MARK_PERIOD_NS:
+            self.marks.append((stamp, TruthMark.of(msg)))
+        while self.undated and self.undated[0].stamp_ns <= stamp:
+            self.undated.popleft().start = TruthMark.of(msg)
+
+    def on_goal(self, msg: GraspGoal, ctx: Context) -> None:
+        if len(self.goals) >= MAX_GOALS:
+            self.goals_not_kept += 1
+            return
+        target = {"pivot": math.degrees(msg.angle_rad), "slide": msg.distance_m * 1e3}.get(msg.mode, 0.0)
+        leg = GoalLeg(msg.mode, target, msg.header.stamp_ns)
+        self.goals.append(leg)
+        if not self.marks or self.marks[-1][0] < leg.stamp_ns:
+            self.undated.append(leg)  # dated by the first truth at or after its stamp
+            return
+        leg.start = next((mark for stamp, mark in reversed(self.marks) if stamp <= leg.stamp_ns), None)
+        if leg.start is None:
+            leg.start, leg.dated = self.marks[0][1], False
 
     def start(self, ctx: Context) -> None:
         self.topics = {name: ctx.input_topic(name) for name in JUDGED_INPUTS}
@@ -560,6 +634,8 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "applied_f_n_mean_n": m.applied_f_n_sum / m.truth_frames if m.truth_frames else None,
         "slip_distance_mm": truth.slip_distance_m * 1e3 if truth else None,
         "slip_angle_deg": math.degrees(truth.slip_angle_rad) if truth else None,
+        "goals": _goal_legs(m),
+        "goals_not_kept": m.goals_not_kept,
         "losses": {n: v for n, v in losses.items() if v},
         "monitor_unseen": unseen,
         "skipped_for_newer": {n: v for n, v in skipped.items() if v},
@@ -584,6 +660,28 @@ def summarise(m: Monitor, now_ns: int) -> dict:
         "injected": {what: sum(w.counters.get(key, 0) for w in m.nodes.values()) for what, key in INJECTED.items()},
         "steps_without_a_start": sum(w.counters.get("grip.waiting_to_start", 0) for w in m.nodes.values()),
     }
+
+
+def _goal_legs(m: Monitor) -> list[dict]:
+    """Each goal's leg of the run, from the truth at its stamp to the truth at the next one's (or the
+    last): ``at_s`` from the first truth; ``slid_mm``, ``turned_deg``: the slip totals' growth
+    (path length, signed angle); ``moved``: the pose's change, a pivot's turn (deg), a slide's
+    distance (mm); ``None`` without truth."""
+    truth = m.last.get("truth")
+    end = TruthMark.of(truth) if truth else None
+    out = []
+    for k, leg in enumerate(m.goals):
+        a = leg.start
+        b = m.goals[k + 1].start if k + 1 < len(m.goals) and m.goals[k + 1].start is not None else end
+        row = {"mode": leg.mode, "target": leg.target, "slid_mm": None, "turned_deg": None, "moved": None,
+               "at_s": (leg.stamp_ns - m.first_truth_ns) / 1e9 if m.first_truth_ns is not None else None,
+               "dated": leg.dated}
+        if a is not None and b is not None:
+            row["slid_mm"], row["turned_deg"] = b.slid_mm - a.slid_mm, b.turned_deg - a.turned_deg
+            row["moved"] = (abs(b.theta_deg - a.theta_deg) if leg.mode == "pivot"
+                            else math.hypot(b.x_mm - a.x_mm, b.y_mm - a.y_mm))
+        out.append(row)
+    return out
 
 
 def _unseen(m: Monitor) -> dict[str, dict]:
@@ -704,13 +802,21 @@ def check_problems(s: dict, p: MonitorParams) -> list[str]:
 
 def _check_problems(s: dict, p: MonitorParams) -> list[Problem]:
     out = []
-    slid, turned = s["slip_distance_mm"], s["slip_angle_deg"]
+    slid, turned = held_motion(s)
+    apart = " apart from the goals" if _motion_legs(s) else ""
     if slid is not None and slid > p.check_slip_mm:
-        out.append(Problem(f"object slid {slid:.2f} mm (allowed {p.check_slip_mm:g})",
-                           f"the object slid {slid:.2f} mm (allowed {p.check_slip_mm:g} mm)"))
+        out.append(Problem(f"object slid {slid:.2f} mm{apart} (allowed {p.check_slip_mm:g})",
+                           f"the object slid {slid:.2f} mm{apart} (allowed {p.check_slip_mm:g} mm)"))
     if turned is not None and abs(turned) > p.check_turn_deg:
-        out.append(Problem(f"object turned {abs(turned):.2f} deg (allowed {p.check_turn_deg:g})",
-                           f"the object turned {abs(turned):.2f} deg (allowed {p.check_turn_deg:g} deg)"))
+        out.append(Problem(f"object turned {abs(turned):.2f} deg{apart} (allowed {p.check_turn_deg:g})",
+                           f"the object turned {abs(turned):.2f} deg{apart} (allowed {p.check_turn_deg:g} deg)"))
+    for leg in _motion_legs(s):
+        out += _goal_problems(leg, p)
+    if s.get("goals_not_kept"):
+        out.append(Problem(f"{s['goals_not_kept']} goals after the first {MAX_GOALS} not judged one by one",
+                           f"{s['goals_not_kept']} grasp goals came after the first {MAX_GOALS}: the check judged "
+                           "the last kept goal up to the end of the run, theirs included; send fewer goals (`topic "
+                           "pub` without --once repeats its goal every second)"))
     share = s["fail_safe_share"]
     if share is not None and share > p.check_fail_safe_share:
         out.append(Problem(f"fail-safe {share * 100:.1f}% of commands (allowed {p.check_fail_safe_share * 100:g}%)",
@@ -729,6 +835,53 @@ def _check_problems(s: dict, p: MonitorParams) -> list[Problem]:
                            "the controller sent no grip command: it never had trusted sensor data nor the finger's "
                            "report (grip/state), so the finger kept its own grip (are the sensors connected and "
                            "streaming? docs/safety.md, clause 4)"))
+    return out
+
+
+def _motion_legs(s: dict) -> list[dict]:
+    """The pivot and slide goals' legs with truth: the check judges them against their goal."""
+    return [leg for leg in s.get("goals") or [] if leg["mode"] in MOTIONS and leg["moved"] is not None]
+
+
+def held_motion(s: dict) -> tuple[float | None, float | None]:
+    """How far the object slid (mm) and turned (deg, signed) outside the pivot and slide goals:
+    the truth's totals less those goals' legs; ``None`` without truth."""
+    slid, turned = s["slip_distance_mm"], s["slip_angle_deg"]
+    if slid is None or turned is None:
+        return None, None
+    legs = _motion_legs(s)
+    return slid - sum(leg["slid_mm"] for leg in legs), turned - sum(leg["turned_deg"] for leg in legs)
+
+
+def _goal_problems(leg: dict, p: MonitorParams) -> list[Problem]:
+    """A pivot goal's leg must turn the object by its angle (± ``check_pivot_deg``) and slide it at
+    most ``check_pivot_slip_mm``; a slide goal's must move it by its distance (± ``check_slide_mm``)
+    and turn it at most ``check_turn_deg``: short of the goal, past it (a drop), or off its axis."""
+    at, target, moved = _num(leg["at_s"], ".1f"), leg["target"], leg["moved"]
+    pivot = leg["mode"] == "pivot"
+    tol, unit, verb = (p.check_pivot_deg, "deg", "turned") if pivot else (p.check_slide_mm, "mm", "moved")
+    out = []
+    if not leg.get("dated", True):
+        out.append(Problem(f"{leg['mode']} goal at {at} s came too late to date: judged in part",
+                           f"the {leg['mode']} goal stamped {at} s reached the monitor when the truth it keeps no "
+                           "longer reached back to that time (it waited for a CPU core), so its motion was judged "
+                           "from the oldest truth kept; free a CPU core, or give the monitor a real-time priority "
+                           "(its `realtime_priority` in the launch file)"))
+    if abs(moved - target) > tol:
+        out.append(Problem(f"{leg['mode']} {target:g} {unit} at {at} s: {verb} {moved:.2f} {unit} (allowed ±{tol:g})",
+                           f"the object {verb} {moved:.2f} {unit} after the {leg['mode']} goal at {at} s (commanded "
+                           f"{target:g} {unit}, allowed ±{tol:g}): short of it (the load could not move it so far, "
+                           "the run ended, or a later goal came first) or past it (the grasp lost it); grasp/state's "
+                           "`ended` says how the motion ended"))
+    if pivot and leg["slid_mm"] > p.check_pivot_slip_mm:
+        out.append(Problem(f"pivot at {at} s: object slid {leg['slid_mm']:.2f} mm (allowed {p.check_pivot_slip_mm:g})",
+                           f"the object slid {leg['slid_mm']:.2f} mm after the pivot goal at {at} s (allowed "
+                           f"{p.check_pivot_slip_mm:g} mm): it did not only turn"))
+    if not pivot and abs(leg["turned_deg"]) > p.check_turn_deg:
+        out.append(Problem(f"slide at {at} s: object turned {abs(leg['turned_deg']):.2f} deg "
+                           f"(allowed {p.check_turn_deg:g})",
+                           f"the object turned {abs(leg['turned_deg']):.2f} deg after the slide goal at {at} s "
+                           f"(allowed {p.check_turn_deg:g} deg): it did not only slide"))
     return out
 
 
@@ -905,10 +1058,10 @@ def format_summary(s: dict, p: MonitorParams | None = None, *, verbose: bool = F
     """The summary: at most :data:`SUMMARY_MAX_LINES` lines of at most :data:`SUMMARY_WIDTH`
     characters, one subject a line (docs/summary.md); ``verbose``: the long form, every count
     with its denominator and a HEALTH line per problem with what to do."""
-    problems = health_problems(s, p or MonitorParams())
-    if verbose:
-        return format_details(s, problems)
     p = p or MonitorParams()
+    problems = health_problems(s, p)
+    if verbose:
+        return format_details(s, problems, p)
     rows = [TITLE, *(_truth_rows(s, p) if s["has_truth"] else _no_truth_rows(s)), _control_row(s), _bus_row(s)]
     clocks = [f"{peer} {c['offset_ms']:+.3f} ms ± {c['uncertainty_ms']:.3f}"
               for peers in s.get("clock_offsets", {}).values() for peer, c in sorted(peers.items())]
@@ -924,9 +1077,13 @@ def format_summary(s: dict, p: MonitorParams | None = None, *, verbose: bool = F
 
 
 def _truth_rows(s: dict, p: MonitorParams) -> list[str]:
-    slid, turned = s["slip_distance_mm"], s["slip_angle_deg"]
-    held = "held" if slid <= p.check_slip_mm and abs(turned) <= p.check_turn_deg else "MOVED"
-    rows = [f"object: {held}, slid {_num(slid, '.2f')} mm and turned {_num(turned, '.2f')} deg in all"]
+    held_slid, held_turned = held_motion(s)
+    held = "held" if held_slid <= p.check_slip_mm and abs(held_turned) <= p.check_turn_deg else "MOVED"
+    legs = _motion_legs(s)
+    rows = [f"object: {held}{' apart from the goals' if legs else ''}, slid {_num(s['slip_distance_mm'], '.2f')} mm "
+            f"and turned {_num(s['slip_angle_deg'], '.2f')} deg in all"]
+    if legs:
+        rows.append(_goal_row(legs, p))
     n, found = s["true_episodes"], s["detected_episodes"]
     if not n:
         slip = "no true slip episode"
@@ -942,6 +1099,25 @@ def _truth_rows(s: dict, p: MonitorParams) -> list[str]:
     rows.append(f"grip: commanded mean {_num(s['grip_command_mean_n'], '.2f')} N, peak "
                 f"{_num(s['grip_command_peak_n'], '.2f')} N; applied mean {_num(s['applied_f_n_mean_n'], '.2f')} N")
     return rows
+
+
+def _goal_row(legs: list[dict], p: MonitorParams) -> str:
+    """The pivot and slide goals: the one goal's motion against its command, or how many went as commanded."""
+    missed = [leg for leg in legs if _goal_problems(leg, p)]
+    if len(legs) == 1:
+        return "goal: " + _goal_text(legs[0], p) + (": NOT as commanded" if missed else ": as commanded")
+    row = f"goal: {len(legs) - len(missed)} of {len(legs)} pivots and slides as commanded"
+    return row + (f"; not: {_goal_text(missed[0], p)}" if missed else "")
+
+
+def _goal_text(leg: dict, p: MonitorParams) -> str:
+    """``pivot 30 deg at 1.5 s: turned 29.00 deg (±2), slid 0.17 mm`` (or a slide's, moved and turned)."""
+    head = f"{leg['mode']} {leg['target']:g} "
+    if leg["mode"] == "pivot":
+        return (head + f"deg at {_num(leg['at_s'], '.1f')} s: turned {leg['moved']:.2f} deg (±{p.check_pivot_deg:g}),"
+                f" slid {leg['slid_mm']:.2f} mm")
+    return (head + f"mm at {_num(leg['at_s'], '.1f')} s: moved {leg['moved']:.2f} mm (±{p.check_slide_mm:g}), "
+            f"turned {abs(leg['turned_deg']):.2f} deg")
 
 
 def _no_truth_rows(s: dict) -> list[str]:
@@ -997,8 +1173,9 @@ def _health_rows(shorts: list[str], room: int) -> list[str]:
     return rows
 
 
-def format_details(s: dict, problems: list[Problem]) -> list[str]:
+def format_details(s: dict, problems: list[Problem], p: MonitorParams | None = None) -> list[str]:
     """The long form: every count with its denominator, a HEALTH line per problem with what to do."""
+    p = p or MonitorParams()
     lines = [TITLE]
     if s["has_truth"]:
         lines += [
@@ -1009,6 +1186,8 @@ def format_details(s: dict, problems: list[Problem]) -> list[str]:
             f"{_num(s['grip_command_peak_n'], '.2f')} N; applied mean {_num(s['applied_f_n_mean_n'], '.2f')} N",
             f"object slid {_num(s['slip_distance_mm'], '.2f')} mm and turned {_num(s['slip_angle_deg'], '.2f')} deg in all",
         ]
+        lines += [f"goal {_goal_text(leg, p)} (the truth from this goal to the next or the end)"
+                  for leg in _motion_legs(s)]
     else:
         lines += [
             "slip: no ground truth on this run (no rig/truth topic: real hardware), so no true episodes, missed "

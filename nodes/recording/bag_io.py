@@ -35,7 +35,7 @@ from slipstack.nodes.runtime.node import Node
 __all__ = [
     "SCHEMA_ENCODING", "MESSAGE_ENCODING", "ROS2_MESSAGE_ENCODING", "CLOCK_METADATA", "LOSS_METADATA", "RecordingError",
     "RecordedFrame", "RecordingWriter", "RECORDING_FORMATS", "recording_writer", "claim_recording_path",
-    "read_recording", "TopicInfo", "RecordingInfo", "recording_info",
+    "read_recording", "TopicInfo", "RecordingInfo", "recording_info", "recorded_loss",
     "message_schema", "clock_offset_ns", "recorded_clock_offset_ns",
     "replay_into", "FLOAT_RTOL", "FLOAT_ATOL", "same_value", "same_output", "match_outputs",
 ]
@@ -404,6 +404,7 @@ def _chunks_after(fh: Any, offset: int, state: _ScanState) -> Iterator[McapMessa
 def read_recording(
     path: str | os.PathLike, topics: Iterable[str] | None = None, *, tolerant: bool = True,
     progress: Callable[[int], None] | None = None, on_damage: Callable[[str], None] | None = None,
+    metadata: dict[str, dict[str, str]] | None = None,
 ) -> Iterator[RecordedFrame]:
     """Iterate the recorded frames in file (= receive) order.
 
@@ -417,6 +418,7 @@ def read_recording(
             its last intact chunk; ``False`` raises :class:`RecordingError` instead.
         progress: called with the bytes of the file read so far, after each chunk.
         on_damage: called once at the end with what was damaged, if anything was (tolerant).
+        metadata: filled at the end with the file's metadata records (name → key → value).
     """
     wanted = None if topics is None else set(topics)
     state = _ScanState()
@@ -433,6 +435,8 @@ def read_recording(
             yield RecordedFrame(m.log_time, channel.topic, m.data, m.publish_time, m.sequence)
     if ros2 is not None:
         yield from ros2.flush()
+    if metadata is not None:
+        metadata.update(state.metadata)
     if state.error and on_damage is not None:
         on_damage(state.error)
 
@@ -527,7 +531,7 @@ def recording_info(path: str | os.PathLike, progress: Callable[[int], None] | No
                   ch.metadata.get("type") or (schema.name if schema is not None else ""))
     for frame in ros2.flush() if ros2 is not None else ():
         count(frame, ros2.topic_types.get(frame.topic, ""))
-    loss = _loss_record(state.metadata.get(LOSS_METADATA))
+    loss = recorded_loss(state.metadata) or {}
     topics = {
         t: TopicInfo(
             t, tuple(sorted(types[t])), counts[t],
@@ -547,10 +551,14 @@ def recording_info(path: str | os.PathLike, progress: Callable[[int], None] | No
     )
 
 
-def _loss_record(record: dict[str, str] | None) -> dict[str, dict[str, Any]]:
-    """Topic → its loss (:data:`LOSS_METADATA`); empty if the file has none or it is unreadable."""
+def recorded_loss(metadata: dict[str, dict[str, str]]) -> dict[str, dict[str, Any]] | None:
+    """Topic → its loss, from a file's metadata records (:data:`LOSS_METADATA`); ``None`` if it has
+    none (no recorder closed it), empty if it is unreadable."""
+    record = metadata.get(LOSS_METADATA)
+    if record is None:
+        return None
     try:
-        topics = json.loads((record or {}).get("topics", "{}"))
+        topics = json.loads(record.get("topics", "{}"))
         return {str(t): v for t, v in topics.items() if isinstance(v, dict) and isinstance(v.get("missing"), int)}
     except (ValueError, AttributeError):
         return {}

@@ -24,8 +24,8 @@ from slipstack.messages import Cor, TactileFrame, Wrench, decode
 from slipstack.messages.json_schema import TIME_SCHEMA, json_schema, to_json, wall_time
 from slipstack.nodes.recording.foxglove_scene import PAD_FRAME, SCENE_TOPIC, SCENE_UPDATE_SCHEMA, ContactScene
 from slipstack.nodes.recording.bag_io import (
-    CLOCK_METADATA, DEFAULT_CHUNK_SIZE, RecordedFrame, RecordingError, clock_offset_ns, read_recording,
-    recorded_clock_offset_ns,
+    CLOCK_METADATA, DEFAULT_CHUNK_SIZE, LOSS_METADATA, RecordedFrame, RecordingError, clock_offset_ns, read_recording,
+    recorded_clock_offset_ns, recorded_loss,
 )
 
 __all__ = ["export_recording", "pad_image", "foxglove_topic", "RAW_IMAGE_SCHEMA", "PAD_IMAGE_TOPIC", "EXPORT_FORMATS"]
@@ -134,13 +134,14 @@ def export_recording(path: str | os.PathLike, out: str | os.PathLike, fmt: str =
         raise RecordingError(f"unknown export format {fmt!r}; use {', '.join(EXPORT_FORMATS)}")
     if Path(out).resolve() == Path(path).resolve():
         raise RecordingError(f"export output {out} is the recording itself; choose another path")
-    frames = read_recording(path, progress=progress, on_damage=on_damage)
+    metadata: dict[str, dict[str, str]] = {}  # filled once every frame is read: the loss record is at the end
+    frames = read_recording(path, progress=progress, on_damage=on_damage, metadata=metadata)
     first = next(frames, None)  # an unreadable input raises here, before the output exists
     recorded = recorded_clock_offset_ns(path)
     offset = recorded if recorded is not None else clock_offset_ns(path)
     if fmt == "ros2":
         with output_file(Path(out), force=force):
-            return _export_ros2(itertools.chain([first] if first is not None else [], frames), out, offset)
+            return _export_ros2(itertools.chain([first] if first is not None else [], frames), out, offset, metadata)
     n = 0
     with output_file(Path(out), force=force), open(out, "wb") as fh:
         mcap = _McapJson(fh, path, offset, recorded is not None) if fmt == "mcap-json" else None
@@ -161,12 +162,20 @@ def export_recording(path: str | os.PathLike, out: str | os.PathLike, fmt: str =
     return n
 
 
-def _export_ros2(frames: Iterable[RecordedFrame], out: str | os.PathLike, offset_ns: int) -> int:
+def _export_ros2(frames: Iterable[RecordedFrame], out: str | os.PathLike, offset_ns: int,
+                 metadata: dict[str, dict[str, str]]) -> int:
+    """Write ``frames`` as rosbag2 MCAP with the source's loss record (``metadata``, filled as ``frames``
+    are read), counting what the export leaves out as missing too."""
+    from slipstack.nodes.recording.loss import exported_loss
     from slipstack.nodes.recording.ros2_bag import Ros2RecordingWriter
 
     with Ros2RecordingWriter(out, wall_minus_monotonic_ns=offset_ns) as writer:
         for frame in frames:
             writer.write(frame.topic, frame.payload, frame.log_time_ns)
+        writer.flush()  # counts: the frames in the file
+        loss = recorded_loss(metadata)
+        if loss is not None:  # none: a file no recorder closed, whose export says "not known" alike
+            writer.close({LOSS_METADATA: {"topics": json.dumps(exported_loss(loss, writer.counts))}})
     if writer.skipped:
         left = ", ".join(f"{t} ({n})" for t, n in sorted(writer.skipped.items()))
         print(f"bag export: left out, no ROS 2 message for their type or not decodable: {left}", file=sys.stderr)

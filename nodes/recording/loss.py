@@ -19,7 +19,8 @@ from slipstack.messages.frame import FrameHeader, publisher_key
 from slipstack.nodes.recording.bag_io import LOSS_METADATA, RecordingWriter
 from slipstack.nodes.runtime.host import DIAGNOSTICS_TOPIC as DIAGNOSTICS, STOPPED_COUNTER
 
-__all__ = ["LossLedger", "MAX_STREAMS", "NUMBERED_REPORT", "RECORDING_REPORT", "loss_text", "written_loss"]
+__all__ = ["LossLedger", "MAX_STREAMS", "NUMBERED_REPORT", "RECORDING_REPORT", "exported_loss", "loss_text",
+           "written_loss"]
 
 NUMBERED_REPORT = "numbered.json"
 """Written into the run directory by the launcher once the graph's other processes stopped and
@@ -156,6 +157,19 @@ def written_loss(writer: RecordingWriter) -> dict[str, dict[str, str]]:
     writer.flush()
     ledger = LossLedger()
     return {LOSS_METADATA: {"topics": json.dumps(ledger.report(dict(writer.counts), dict(writer.not_written)))}}
+
+
+def exported_loss(loss: dict[str, dict], exported: dict[str, int]) -> dict[str, dict]:
+    """The loss of a copy of a recording (``bag export``) holding ``exported`` frames per topic: the
+    recording's ``loss`` (:meth:`LossLedger.report`), with its recorded frames the copy lacks (no
+    ROS 2 type, undecodable, damaged, not written) as one more part, ``not_exported``."""
+    out = {}
+    for topic, v in loss.items():
+        kept = exported.get(topic, 0)
+        recorded = v.get("recorded")
+        lacks = max(0, recorded - kept) if isinstance(recorded, int) else 0
+        out[topic] = {**v, "recorded": kept, "missing": v["missing"] + lacks, "not_exported": lacks}
+    return out
 
 
 _PARTS = (("sequence_gaps", "gaps"), ("before_first", "before the first"), ("after_last", "after the last"),

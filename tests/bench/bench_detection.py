@@ -30,7 +30,7 @@ from slipstack.lib.detector import NOISE_CAPACITY, ONSET_NS_PER_FRAME
 from slipstack.lib.episodes import LEAD_NS, MARGIN_NS, MIN_GAP_NS, RELEASE_NS, detection_quality, find_episodes
 from slipstack.lib.limit_set import load_factor, torsional_coefficient
 from slipstack.lib.material import Material, detector_thresholds, load_material, material_toml
-from slipstack.lib.onset_band import OnsetBand, load_path, pressure_spread
+from slipstack.lib.onset_band import PATH_TOLERANCE, SPREAD_TOLERANCE, OnsetBand, load_path, pressure_spread
 from slipstack.lib.online_calibration import CalibratedLatch
 from slipstack.lib.rig.contact import PressureModel
 from slipstack.lib.rig.scene import RIG_MATERIALS, Scene, with_rig_material
@@ -287,6 +287,7 @@ class Tally:
     later_missed: int = 0
     later_delays: list[float] = field(default_factory=list)
     later_false: int = 0
+    later_latch: int = 0
     later_stick: int = 0
     hold_scenes: dict[str, list[int]] = field(default_factory=dict)  # kind -> [rises, flagged, frames]
 
@@ -319,8 +320,10 @@ class Tally:
             self.later_episodes += len(ql.episodes)
             self.later_missed += ql.missed
             self.later_delays += [d / period_ns for d in ql.delays_ns]
-            self.later_false += int(np.count_nonzero(false & after))
-            self.later_stick += int(np.count_nonzero(sticking & after))
+            qa = detection_quality(data["truth_t"], data["gross"], data["t"], f, in_contact=data["contact"] & after)
+            self.later_false += qa.false_alarm_frames
+            self.later_latch += qa.latch_hold_frames
+            self.later_stick += qa.stick_frames
 
     def add_hold(self, kind: str, f: np.ndarray) -> None:
         rises = int(np.count_nonzero(f & ~np.concatenate([[False], f[:-1]])))
@@ -364,7 +367,7 @@ def detection_row(label: str, material: Material, t: Tally, online: bool) -> str
     holds_text = " / ".join(f"{r[0]} ({100 * r[1] / max(r[2], 1):.1f} %)" if r[2] else "-"
                             for r in (t.hold_scenes.get(kind, [0, 0, 0]) for kind in HOLD_KINDS))
     later = (f"{t.later_missed} of {t.later_episodes}, {_pct(t.later_delays, 95)}, "
-             f"{_share(t.later_false, t.later_stick)}" if online else "")
+             f"{_share(t.later_false, t.later_stick)} ({_share(t.later_latch, t.later_stick)})" if online else "")
     return (f"| {label} | {thr.delta:.3f} / {thr.gamma_release:.3f} | {t.episodes} | {t.missed} | "
             f"{_pct(t.delays, 50)} / {_pct(t.delays, 95)} | {_share(t.false, t.stick)} ({_share(t.latch, t.stick)}; "
             + (f"{_share(t.at_or_above_level, t.stick)}; {_share(rest, t.stick)}, of which "
@@ -378,7 +381,7 @@ DETECTION_HEADER = [
     "((a) latch hold after a true slip; (b) stuck, true load at or above the true sliding level μ_d/μ_s; (c) the "
     "rest, of which within 0.02 under that level) | false alarms: tactile / F/T tests | latch hold "
     "p50 / p95 ms | holds at 95 % of their path / 95 % of μ_s / 90 % of μ_d: alarms (flagged) | online, each run "
-    "after its first episode: missed, delay p95, false alarms |",
+    "after its first episode: missed, delay p95, false alarms ((a) the latch hold after a true slip) |",
     "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
 ]
 
@@ -427,11 +430,11 @@ def scene_onsets(data: dict[str, np.ndarray], material: Material) -> list[tuple[
 
 
 def explain(runs: dict[str, dict], hold_kinds: dict[str, str], material: Material, level: float,
-            label: str, period_ns: float) -> tuple[list[str], list[str], str]:
+            label: str, period_ns: float) -> tuple[list[str], list[str], str, str]:
     """The (b) false alarms (stuck, true load at or above ``level``) by the load their flag
     rose on: its path, the band it got and that band's edge, beside the onsets the scenes
     themselves show on that path; then the detector with those onsets in the file, and the
-    bound of :func:`own_onset_bound`."""
+    bounds of :func:`own_onset_bound` and :func:`oracle_row`."""
     band = OnsetBand.of(material)
     parts: dict[tuple[str, str], dict] = {}
     stick = 0
@@ -479,7 +482,7 @@ def explain(runs: dict[str, dict], hold_kinds: dict[str, str], material: Materia
                 tally.add_hold(hold_kinds[scene], f)
             tally.add(data, f, period_ns, level)
         tallies.append(detection_row(f"{label}, its file {how}", material, tally, False))
-    return rows, tallies, own_onset_bound(runs, onsets, material, level)
+    return rows, tallies, own_onset_bound(runs, onsets, material, level), oracle_row(runs, onsets, material)
 
 
 def own_onset_bound(runs: dict[str, dict], onsets: dict[str, list], material: Material, level: float) -> str:
@@ -501,6 +504,86 @@ def own_onset_bound(runs: dict[str, dict], onsets: dict[str, list], material: Ma
         above += int(np.count_nonzero(over & at_level))
         under += int(np.count_nonzero(over & ~at_level))
     return (f"| {material.name} | {_share(above, stick)} | {_share(under, stick)} |")
+
+
+def above_own_onsets(data: dict[str, np.ndarray], onsets: list[tuple[float, float, float]], material: Material,
+                     by_kind: bool) -> tuple[int, int]:
+    """Sticking frames outside every episode's window at or above the run's own lowest measured
+    onset less 3σ (``by_kind``: the lowest of its onsets of the frame's kind, path within
+    PATH_TOLERANCE and spread within SPREAD_TOLERANCE of it, lib/onset_band.py), split by the
+    truth (no sliding, partial slip): what an oracle threshold that knows where this very run
+    lets go, per load kind or not, cannot avoid flagging."""
+    if not onsets:
+        return 0, 0
+    sigma = max(material.gamma_noise_stick, 0.002)
+    k = np.clip(np.searchsorted(data["truth_t"], data["t"]), 0, data["truth_t"].size - 1)
+    q = detection_quality(data["truth_t"], data["gross"], data["t"], np.zeros(data["t"].size, dtype=bool))
+    stuck = data["contact"] & ~data["gross"][k] & ~_excused(data, q)
+    gamma = data["gamma"] * RECORD_MU / material.mu_s
+    paths, spread = np.array(frame_paths(data, material)), data["spread"]
+    above = np.zeros(gamma.size, dtype=bool)
+    for level, path, onset_spread in onsets:
+        same = np.ones(gamma.size, dtype=bool)
+        if by_kind:
+            same = np.abs(paths - path) <= PATH_TOLERANCE
+            same &= np.isnan(spread) if math.isnan(onset_spread) else np.abs(spread - onset_spread) <= SPREAD_TOLERANCE
+        above |= same & (gamma >= level - 3.0 * sigma)
+    none = data["slip_share"][k] <= NO_SLIDING
+    return int(np.count_nonzero(stuck & above & none)), int(np.count_nonzero(stuck & above & ~none))
+
+
+def oracle_row(runs: dict[str, dict], onsets: dict[str, list], material: Material) -> str:
+    """:func:`above_own_onsets` over every run, per run and per run and load kind, as shares of
+    all sticking frames."""
+    stick = sum(int(np.count_nonzero(d["contact"] & ~d["gross"][np.clip(np.searchsorted(d["truth_t"], d["t"]), 0,
+                                                                       d["truth_t"].size - 1)]))
+                for d in runs.values())
+    cells = []
+    for by_kind in (False, True):
+        none, partial = np.sum([above_own_onsets(d, onsets[s], material, by_kind) for s, d in runs.items()], axis=0)
+        cells += [_share(int(none + partial), stick), _share(int(none), stick), _share(int(partial), stick)]
+    return f"| {material.name} | {' | '.join(cells)} |"
+
+
+FOLLOW_NS = 500_000_000
+"""How soon a true gross slip must follow a frame for the frame to count as followed by one."""
+
+
+def followed_by_slip(data: dict[str, np.ndarray], f: np.ndarray) -> np.ndarray:
+    """Counts over the sticking frames outside every episode's window (``lib/episodes``):
+    (flagged, and of those a true gross-slip onset follows within FOLLOW_NS; all, and of those
+    followed) for frames in true partial slip, then the same for frames with no true sliding."""
+    k = np.clip(np.searchsorted(data["truth_t"], data["t"]), 0, data["truth_t"].size - 1)
+    q = detection_quality(data["truth_t"], data["gross"], data["t"], f, in_contact=data["contact"])
+    stuck = data["contact"] & ~data["gross"][k] & ~_excused(data, q)
+    onsets = np.array([ep.start_ns for ep in q.episodes], dtype=np.int64)
+    after = np.searchsorted(onsets, data["t"], side="right")
+    soon = np.zeros(f.size, dtype=bool)
+    has_next = after < onsets.size
+    soon[has_next] = onsets[after[has_next]] - data["t"][has_next] <= FOLLOW_NS
+    none = data["slip_share"][k] <= NO_SLIDING
+    out = []
+    for state in (~none, none):
+        for frames in (stuck & state & f, stuck & state):
+            out += [int(np.count_nonzero(frames)), int(np.count_nonzero(frames & soon))]
+    return np.array(out)
+
+
+def follow_row(runs: dict[str, dict], material: Material) -> str:
+    """:func:`followed_by_slip` over every run with ``material``'s own file (path band, calibrate off)."""
+    c = np.sum([followed_by_slip(d, flags(d, material, False)) for d in runs.values()], axis=0)
+    return (f"| {material.name} | {_share(c[1], c[0])} of {c[0]} | {_share(c[3], c[2])} of {c[2]} | "
+            f"{_share(c[5], c[4])} of {c[4]} | {_share(c[7], c[6])} of {c[6]} |")
+
+
+FOLLOW_HEADER = [
+    "| contact | flagged, true partial slip | all, true partial slip | flagged, no true sliding | "
+    "all, no true sliding |", "| --- | ---: | ---: | ---: | ---: |"]
+
+
+ORACLE_HEADER = [
+    "| contact | per run: all | no true sliding | true partial slip | per run and load kind: all | no true sliding | "
+    "true partial slip |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
 
 
 NO_SLIDING = 1e-9
@@ -630,7 +713,8 @@ def main() -> None:
     period_ns = 1e9 / args.ft_rate
     t0 = time.monotonic()
     default = resolve_material("")
-    ident_rows, det_rows, why_rows, covered_rows, bound_rows, state_rows = [], [], [], [], [], []
+    ident_rows, det_rows, why_rows, covered_rows, bound_rows = [], [], [], [], []
+    state_rows, oracle_rows, follow_rows = [], [], []
     for m in args.materials:
         paths = ident_recordings(m, args.cache, rates)
         every = [paths[n] for n in IDENT_SCENES]
@@ -646,17 +730,21 @@ def main() -> None:
                 (f"{m}, fixed band", files["identified (truth)"], False, "fixed"),
                 (f"{m}, path band", files["identified (truth)"], False, "path"),
                 (f"{m}, its file from the pure ramps, path band", files["pure ramps (truth)"], False, "path"),
+                (f"{m}, path band, calibrate online", files["identified (truth)"], True, "path"),
                 (f"{m}, **no file**, calibrate off", default, False, "path"),
                 (f"{m}, **no file**, calibrate online", default, True, "path")):
             level = RIG_MATERIALS[m][1] / RIG_MATERIALS[m][0]
             det_rows.append(detection_row(label, material, evaluate(runs, hold_kinds, material, online, period_ns,
                                                                     level, detector=detector), online))
         if args.explain:
-            rows, tallies, bound = explain(runs, hold_kinds, files["identified (truth)"], level, m, period_ns)
+            rows, tallies, bound, oracle = explain(runs, hold_kinds, files["identified (truth)"], level, m,
+                                                   period_ns)
+            oracle_rows.append(oracle)
             why_rows += rows
             covered_rows += tallies
             bound_rows.append(bound)
             state_rows.append(truth_state_row(runs, files["identified (truth)"], m))
+            follow_rows.append(follow_row(runs, files["identified (truth)"]))
     print(f"\nwall time {time.monotonic() - t0:.0f} s (cache {args.cache})\n")
     print("Identification (ident_force, ident_torsion, ident_combined as a user records them; lock-step, F/T "
           f"{args.ft_rate:g} Hz, tactile {args.tactile_rate:g} Hz; ± 2·√(SE² + model²)):\n")
@@ -680,6 +768,13 @@ def main() -> None:
               f"flagged frame: no sliding (rig/truth sliding_fraction ≤ {NO_SLIDING:g}) or partial slip (above it, "
               "not gross); and the share of all sticking frames in partial slip (shares of all sticking frames):\n")
         print("\n".join(TRUTH_STATE_HEADER + state_rows))
+        print(f"\nSticking frames outside the windows that a true gross slip follows within {FOLLOW_NS / 1e9:g} s, "
+              "flagged by each contact's own file and all, by the truth's state: are the flags warnings?\n")
+        print("\n".join(FOLLOW_HEADER + follow_rows))
+        print("\nStuck frames outside the windows at or above the run's own lowest measured onset less 3σ, per run and "
+              "per run and load kind (path within 0.15, pressure spread within 0.1): an oracle threshold that knows "
+              "where each run lets go on each load kind, by the truth's state (shares of all sticking frames):\n")
+        print("\n".join(ORACLE_HEADER + oracle_rows))
     if args.engine is not None:
         folder = hashlib.sha256(str(args.engine.resolve()).encode()).hexdigest()[:8]
         print("\n".join(engine_tables(args.engine, args.cache / f"engine-{folder}", default, period_ns, args.explain)))

@@ -244,7 +244,7 @@ def test_the_report_of_a_gripper_pivot_draws_every_panel_with_the_oracle(tmp_pat
 
     recording, figure = tmp_path / "pivot.mcap", tmp_path / "pivot.png"
     assert _launch("gripper", "scene:=grasp_pivot", "goal:=pivot", "goal_at_s:=0.2", "duration_s:=1.0",
-                   f"recording:={recording}", "check:=false") == 0  # a pivot moves the object on purpose
+                   f"recording:={recording}", "check:=false") == 0  # ends 0.8 s into a 1 s pivot
     capsys.readouterr()
     assert main(["report", str(recording), "-o", str(figure)]) == 0
     out = capsys.readouterr().out

@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import tomllib
 from pathlib import Path
@@ -23,8 +24,11 @@ from mcap_ros2.decoder import DecoderFactory
 
 from slipstack.launch.cli import main
 from slipstack.messages import Header, Message, TactileFrame, Wrench, decode, encode
+from slipstack.messages.frame import peek_header
 from slipstack.nodes.fusion import Fusion
-from slipstack.nodes.recording.bag_io import RecordingWriter, clock_offset_ns, read_recording, same_output
+from slipstack.nodes.recording.bag_io import (LOSS_METADATA, RecordingWriter, clock_offset_ns, read_recording,
+                                              same_output)
+from slipstack.nodes.recording.loss import LossLedger
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 from slipstack.nodes.slip_detector import SlipDetector, SlipDetectorParams
 
@@ -205,6 +209,48 @@ def test_a_gripper_recording_exports_what_has_a_ros2_type_and_names_what_it_left
     with open(out, "rb") as fh:
         topics = {c.topic for c in make_reader(fh).get_summary().channels.values()}
     assert {"/slipstack/finger0/ft/wrench", "/slipstack/finger1/slip"} <= topics, topics
+
+
+def _info_rows(capsys, path: Path) -> dict[str, tuple[int, str]]:
+    """``bag info``'s topic rows: topic → (msgs, missing as printed: N, ≥N or ?)."""
+    capsys.readouterr()
+    assert main(["bag", "info", str(path)]) == 0
+    out = capsys.readouterr().out
+    rows = [line.split() for line in out.split("topics:\n")[1].splitlines() if line.startswith("  ")]
+    return {row[0]: (int(row[1]), row[row.index("missing") + 1]) for row in rows}
+
+
+def test_an_export_to_ros2_carries_what_the_recording_misses(tmp_path: Path, capsys) -> None:
+    """``bag info`` of the export shows the recording's loss, and what the export left out (the grasp
+    messages: no ROS 2 type) as missing too; it showed "missing ?" on every topic (no loss record)."""
+    run, lossy, out = tmp_path / "gripper.mcap", tmp_path / "lossy.mcap", tmp_path / "lossy_ros2.mcap"
+    assert main(["launch", "gripper", "--lockstep", "duration_s:=0.3", "check:=false", f"recording:={run}"]) == 0
+    # a lock-step recorder loses nothing: its frames go through the recorder's ledger and writer once more,
+    # every 10th wrench of finger0 lost on the way, as frames a live recorder's full queue dropped
+    ledger, dropped, wrenches = LossLedger(), 0, 0
+    with RecordingWriter(lossy, wall_minus_monotonic_ns=clock_offset_ns(run)) as writer:
+        for frame in read_recording(run):
+            if frame.topic == "finger0/ft/wrench":
+                wrenches += 1
+                if wrenches % 10 == 5:
+                    dropped += 1
+                    continue
+            ledger.frame(frame.topic, frame.payload, peek_header(frame.payload))
+            writer.write(frame.topic, frame.payload, frame.log_time_ns)
+        writer.flush()
+        writer.close({LOSS_METADATA: {"topics": json.dumps(ledger.report(writer.counts, writer.not_written))}})
+    source = _info_rows(capsys, lossy)
+    # ≥: the nodes' last diagnostics (what they sent) are not recorded in lock-step
+    assert dropped > 10 and source["finger0/ft/wrench"][1] == f"≥{dropped}", (dropped, source)
+    assert main(["bag", "export", str(lossy), "--to", "ros2", "-o", str(out)]) == 0
+    exported = _info_rows(capsys, out)
+    assert exported["finger0/ft/wrench"] == source["finger0/ft/wrench"], (exported, source)
+    left_out = {"grasp/state", "gripper/state", "rig/grasp"}  # GraspState, GripperState, GraspTruth: no ROS 2 type
+    assert left_out < source.keys() and exported.keys() == source.keys(), (source, exported)
+    for topic, (count, missing) in source.items():
+        at_least = missing.rstrip("0123456789")
+        want = (0, f"{at_least}{int(missing[len(at_least):]) + count}") if topic in left_out else (count, missing)
+        assert exported[topic] == want, (topic, source, exported)
 
 
 # -- a rosbag2 MCAP from rosbags, through identify and the detector -------------------------

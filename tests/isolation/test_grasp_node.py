@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from slipstack.messages import Header, Slip
+from slipstack.messages import Contact, GraspGoal, Header, Slip
 from slipstack.nodes.grasp import Grasp, GraspParams
 from slipstack.nodes.runtime.inprocess import InProcessExecutor
 
@@ -108,3 +108,35 @@ def test_every_new_verdict_gets_a_command_and_one_instant_gets_one():
     for c in cmds:
         first.setdefault(c.header.sources.get("slip1"), c.header.pub_ns)
     assert [first[k * MS + 200_000] for k in range(1, 11)] == [k * MS + 100_000 for k in range(1, 11)]
+
+
+@pytest.mark.parametrize("pads", [
+    ((4, 4, 0.0), (4, 4, 1.25e-3)),        # a pitch of 0 (the decoder admits it for F/T-only contacts)
+    ((16, 16, 1.25e-3), (4, 4, 1.25e-3)),  # unlike pads
+    ((4, 4, 1.25e-3), (4, 4, 2.5e-3)),     # unlike pitches: finger 1's taxels taken at finger 0's positions
+])
+def test_pressure_frames_of_no_common_pad_geometry_hold_and_refuse_a_pivot_without_error(pads):
+    # Both fingers' contacts with pressure frames each ms, then a pivot goal. The pads' joint
+    # view of the object needs one geometry: else no view (no error), a goal refused saying why.
+    # (The first two raised in on_contact on every frame pair; the third judged silently wrong.)
+    def contact(k: int, rows: int, cols: int, pitch: float) -> Contact:
+        phi = np.zeros(rows * cols)
+        phi[: rows * cols // 4] = 1.0
+        return Contact(rows=rows, cols=cols, pitch_m=pitch, phi=phi, f_n=10.0, f_t=np.array([0.0, -3.0]),
+                       mask=phi > 0, header=Header(k * MS, k, k * MS, {"tactile": k * MS}))
+
+    events = []
+    for k in range(1, 30):
+        events += [(k * MS, "finger0/contact", contact(k, *pads[0])), (k * MS, "finger1/contact", contact(k, *pads[1])),
+                   *_both(k, -3.0, -1.0)]
+        if k == 15:
+            events.append((k * MS, "grasp/goal", GraspGoal(mode="pivot", angle_rad=0.5, rate_rad_s=0.5,
+                                                           header=Header(k * MS, 1, k * MS, {}))))
+    node = Grasp(GraspParams(mu=MU, mu_d=0.36, sigma=0.8))
+    ex = InProcessExecutor([node])
+    ex.feed(events)
+    ex.run(until_ns=30 * MS)
+    host = ex.hosts[0]
+    assert host.counters.get("handler_errors", 0) == 0, host.last_error
+    assert len(ex.published["grip/command"]) == 29
+    assert "pivot goal refused" in host.last_error and "one pad geometry" in host.last_error, host.last_error

@@ -117,6 +117,21 @@ def test_an_ft_only_contact_gives_law_14_no_rotation_to_act_on():
     assert all(c.f_n_desired == F_N and c.reason != "fail-safe" for c in cmds)
 
 
+def test_a_pressure_frame_without_a_pad_pitch_gives_law_14_no_rotation_to_act_on():
+    # The decoder admits a contact whose taxels have pitch 0 (the pitch of an F/T-only one):
+    # no pad has that geometry, so it is judged as one without a frame (lib/contact_view.py),
+    # never raised on (the handler raised ConfigError on every verdict; found by the fuzz test).
+    events = []
+    for k in range(1, 6):
+        c = contact(k)
+        events += [(k * MS, "contact", Contact(rows=ROWS, cols=COLS, pitch_m=0.0, phi=c.phi, f_n=F_N, f_t=np.zeros(2),
+                                               mask=c.mask, header=header(k))),
+                   (k * MS, "cor", cor(k, T_C + 0.01)), (k * MS, "slip", slip(k))]
+    cmds = run(events, until_ms=5)
+    assert len(cmds) == 5
+    assert all(c.f_n_desired == F_N and c.reason != "fail-safe" for c in cmds)
+
+
 def test_law_14_follows_each_new_cor_on_the_same_tactile_frame():
     # Fusion passes one frame's read-only mask on to every contact paired with that frame, and
     # the controller reuses the distances it computed for that mask and COR: a new COR on the

@@ -24,8 +24,8 @@ from msg_strategies import valid_message
 
 from slipstack.lib.errors import DecodeError
 from slipstack.messages import (
-    Contact, Cor, Diagnostics, GripCommand, GripState, Header, Message, RigTruth, Slip, TactileFrame, Wrench, decode,
-    encode,
+    Contact, Cor, Diagnostics, GraspGoal, GripCommand, GripState, Header, Message, RigTruth, Slip, TactileFrame,
+    Wrench, decode, encode,
 )
 from slipstack.messages.codec import packb
 from slipstack.nodes.catalog import node_class
@@ -69,6 +69,7 @@ def _nominal_frames() -> dict[type[Message], Message]:
         GripState: GripState(f_n_command=6.0, mode="following"),
         RigTruth: RigTruth(f_n_applied=6.0, f_n_command=6.0),
         Diagnostics: Diagnostics(node="fusion", counters={"in.contact.received": 10}),
+        GraspGoal: GraspGoal(mode="pivot", angle_rad=0.52, rate_rad_s=0.52),
     }
 
 
@@ -85,6 +86,8 @@ CASES = {
     "grip_controller": _Case("grip_controller"),
     "grip_controller-tactile14": _Case("grip_controller", lambda tmp: {"law": "tactile14"}),
     "monitor": _Case("monitor"),
+    "grasp": _Case("grasp"),
+    "grasp_planner": _Case("grasp_planner"),
     "relay": _Case("relay"),
     "sink": _Case("sink"),
     # the rig refuses rdt_port 0 (a driver could not find its emulator): a port free now
