@@ -127,6 +127,7 @@ class SlipDetector(Node):
             calibrate_from=material if p.calibrate == "online" else None, force_noise_n=material.force_noise_n,
             torque_noise_nm=material.torque_noise_nm, **path))
         self._said_without_tactile = False
+        self._material_beta_m = material.beta_s_m  # for the advice when β is needed and there is no pad
         self._said_pool_misfit = False
         self._revision = 0
         self._said = (0, self.detector.settings.mu)  # (episodes, mu) of the last calibration line
@@ -189,7 +190,7 @@ class SlipDetector(Node):
         """What to do when the deciding test needs the pad that fusion runs without."""
         p = self.params
         if p.method in BETA_TESTS:
-            beta = resolve_material(p.material).beta_s_m
+            beta = self._material_beta_m
             given = f"e.g. the material's {beta:.3g} m" if math.isfinite(beta) else "in m"
             return (f"method {p.method} takes beta from the tactile pad unless beta_m is given, but fusion runs "
                     f"F/T-only (tactile:=false): every verdict holds the grip (fail-safe). Set beta_m:= ({given}) "
