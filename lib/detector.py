@@ -25,7 +25,8 @@ from slipstack.lib.known_cor import KNOWN_COR_METHOD, known_cor_test
 from slipstack.lib.material import Material, detector_thresholds
 from slipstack.lib.online_calibration import CalibratedLatch
 from slipstack.lib.onset_band import OnsetBand, pressure_spread
-from slipstack.lib.slip_tests import BETA_TESTS, FT_TESTS, SlipParams, SlipVerdict, ft_beta, ft_stick_margins, get_slip_test
+from slipstack.lib.slip_tests import (BETA_TESTS, FT_TESTS, SlipParams, SlipVerdict, ft_beta, ft_stick_margins,
+                                      get_slip_test)
 from slipstack.lib.status import SAMPLE_NO_CONTACT, SAMPLE_OK, SLIP_STATES, SlipState, SolverStatus
 
 __all__ = [
