@@ -29,7 +29,7 @@ from slipstack.lib.contact_view import pad_positions
 from slipstack.lib.detector import NOISE_CAPACITY, ONSET_NS_PER_FRAME
 from slipstack.lib.episodes import LEAD_NS, MARGIN_NS, MIN_GAP_NS, RELEASE_NS, detection_quality, find_episodes
 from slipstack.lib.limit_set import load_factor, torsional_coefficient
-from slipstack.lib.material import Material, detector_thresholds, load_material, material_toml
+from slipstack.lib.material import NOISE_FLOOR, Material, detector_thresholds, load_material, material_toml
 from slipstack.lib.onset_band import PATH_TOLERANCE, SPREAD_TOLERANCE, OnsetBand, load_path, pressure_spread
 from slipstack.lib.online_calibration import CalibratedLatch
 from slipstack.lib.rig.contact import PressureModel
@@ -204,6 +204,11 @@ def _pressure_shape(contact) -> tuple[float, float]:
     return pressure_spread(contact.phi), tor.beta_m if tor.status.usable else math.nan
 
 
+def truth_index(data: dict[str, np.ndarray]) -> np.ndarray:
+    """Per verdict frame, the index of the truth sample at or after its stamp (the last one past the end)."""
+    return np.clip(np.searchsorted(data["truth_t"], data["t"]), 0, data["truth_t"].size - 1)
+
+
 def truths(truth: list) -> dict[str, np.ndarray]:
     """Per ``rig/truth`` message: stamp, gross slip, the slip share, the applied f_n (N)."""
     return {"truth_t": np.array([m.header.stamp_ns for m in truth], dtype=np.int64),
@@ -293,7 +298,7 @@ class Tally:
 
     def add(self, data: dict[str, np.ndarray], f: np.ndarray, period_ns: float, sliding_level: float) -> None:
         q = detection_quality(data["truth_t"], data["gross"], data["t"], f, in_contact=data["contact"])
-        k = np.clip(np.searchsorted(data["truth_t"], data["t"]), 0, data["truth_t"].size - 1)
+        k = truth_index(data)
         sticking = data["contact"] & ~data["gross"][k]
         false = f & sticking & ~_excused(data, q)
         if "true_gamma" in data:  # the false alarms outside the latch hold, by the true load against the sliding level
@@ -442,7 +447,7 @@ def explain(runs: dict[str, dict], hold_kinds: dict[str, str], material: Materia
     onsets = {scene: scene_onsets(data, material) for scene, data in runs.items()}
     for scene, data in runs.items():
         f = flags(data, material, False)
-        k = np.clip(np.searchsorted(data["truth_t"], data["t"]), 0, data["truth_t"].size - 1)
+        k = truth_index(data)
         at_level = data["true_gamma"][k] >= level
         stick += int(np.count_nonzero(data["contact"] & ~data["gross"][k]))
         paths, index = frame_paths(data, material), np.arange(f.size)
@@ -485,14 +490,20 @@ def explain(runs: dict[str, dict], hold_kinds: dict[str, str], material: Materia
     return rows, tallies, own_onset_bound(runs, onsets, material, level), oracle_row(runs, onsets, material)
 
 
+def stick_sigma(material: Material) -> float:
+    """The γ noise of a stuck contact the oracle thresholds stand 3σ under an onset by: the
+    material's, at least lib/material.py's NOISE_FLOOR."""
+    return max(material.gamma_noise_stick, NOISE_FLOOR)
+
+
 def own_onset_bound(runs: dict[str, dict], onsets: dict[str, list], material: Material, level: float) -> str:
     """Stuck frames outside every window at or above the edge of each scene's own lowest
     measured onset less 3σ (a threshold per scene that knows where that scene lets go), by
     the true load against ``level``: what no γ threshold that catches the onsets avoids."""
-    sigma = max(material.gamma_noise_stick, 0.002)
+    sigma = stick_sigma(material)
     stick = above = under = 0
     for scene, data in runs.items():
-        k = np.clip(np.searchsorted(data["truth_t"], data["t"]), 0, data["truth_t"].size - 1)
+        k = truth_index(data)
         sticking = data["contact"] & ~data["gross"][k]
         stick += int(np.count_nonzero(sticking))
         if not onsets[scene]:
@@ -515,8 +526,8 @@ def above_own_onsets(data: dict[str, np.ndarray], onsets: list[tuple[float, floa
     lets go, per load kind or not, cannot avoid flagging."""
     if not onsets:
         return 0, 0
-    sigma = max(material.gamma_noise_stick, 0.002)
-    k = np.clip(np.searchsorted(data["truth_t"], data["t"]), 0, data["truth_t"].size - 1)
+    sigma = stick_sigma(material)
+    k = truth_index(data)
     q = detection_quality(data["truth_t"], data["gross"], data["t"], np.zeros(data["t"].size, dtype=bool))
     stuck = data["contact"] & ~data["gross"][k] & ~_excused(data, q)
     gamma = data["gamma"] * RECORD_MU / material.mu_s
@@ -535,9 +546,7 @@ def above_own_onsets(data: dict[str, np.ndarray], onsets: list[tuple[float, floa
 def oracle_row(runs: dict[str, dict], onsets: dict[str, list], material: Material) -> str:
     """:func:`above_own_onsets` over every run, per run and per run and load kind, as shares of
     all sticking frames."""
-    stick = sum(int(np.count_nonzero(d["contact"] & ~d["gross"][np.clip(np.searchsorted(d["truth_t"], d["t"]), 0,
-                                                                       d["truth_t"].size - 1)]))
-                for d in runs.values())
+    stick = sum(int(np.count_nonzero(d["contact"] & ~d["gross"][truth_index(d)])) for d in runs.values())
     cells = []
     for by_kind in (False, True):
         none, partial = np.sum([above_own_onsets(d, onsets[s], material, by_kind) for s, d in runs.items()], axis=0)
@@ -553,7 +562,7 @@ def followed_by_slip(data: dict[str, np.ndarray], f: np.ndarray) -> np.ndarray:
     """Counts over the sticking frames outside every episode's window (``lib/episodes``):
     (flagged, and of those a true gross-slip onset follows within FOLLOW_NS; all, and of those
     followed) for frames in true partial slip, then the same for frames with no true sliding."""
-    k = np.clip(np.searchsorted(data["truth_t"], data["t"]), 0, data["truth_t"].size - 1)
+    k = truth_index(data)
     q = detection_quality(data["truth_t"], data["gross"], data["t"], f, in_contact=data["contact"])
     stuck = data["contact"] & ~data["gross"][k] & ~_excused(data, q)
     onsets = np.array([ep.start_ns for ep in q.episodes], dtype=np.int64)
@@ -596,7 +605,7 @@ def by_truth_state(data: dict[str, np.ndarray], f: np.ndarray) -> tuple[int, int
     the truth's state at the frame: (false, no sliding; false, partial slip; sticking, no
     sliding; sticking, partial slip). No sliding: ``sliding_fraction`` ≤ NO_SLIDING; partial
     slip: above it, not gross."""
-    k = np.clip(np.searchsorted(data["truth_t"], data["t"]), 0, data["truth_t"].size - 1)
+    k = truth_index(data)
     none = data["slip_share"][k] <= NO_SLIDING
     q = [detection_quality(data["truth_t"], data["gross"], data["t"], f, in_contact=data["contact"] & frames)
          for frames in (none, ~none)]
