@@ -201,6 +201,7 @@ def test_a_gripper_recording_exports_what_has_a_ros2_type_and_names_what_it_left
                                                                                      capsys) -> None:
     # the gripper's grasp messages have no ROS 2 counterpart yet: the export raised a KeyError
     recording, out = tmp_path / "gripper.mcap", tmp_path / "gripper_ros2.mcap"
+    # check:=false: a 0.3 s cut is no run to judge; the gripper's check at its defaults: test_gripper_goal.py
     assert main(["launch", "gripper", "--lockstep", "duration_s:=0.3", "check:=false", f"recording:={recording}"]) == 0
     capsys.readouterr()
     assert main(["bag", "export", str(recording), "--to", "ros2", "-o", str(out)]) == 0
@@ -224,6 +225,7 @@ def test_an_export_to_ros2_carries_what_the_recording_misses(tmp_path: Path, cap
     """``bag info`` of the export shows the recording's loss, and what the export left out (the grasp
     messages: no ROS 2 type) as missing too; it showed "missing ?" on every topic (no loss record)."""
     run, lossy, out = tmp_path / "gripper.mcap", tmp_path / "lossy.mcap", tmp_path / "lossy_ros2.mcap"
+    # check:=false: a 0.3 s cut is no run to judge (the recording is what this test needs)
     assert main(["launch", "gripper", "--lockstep", "duration_s:=0.3", "check:=false", f"recording:={run}"]) == 0
     # a lock-step recorder loses nothing: its frames go through the recorder's ledger and writer once more,
     # every 10th wrench of finger0 lost on the way, as frames a live recorder's full queue dropped
