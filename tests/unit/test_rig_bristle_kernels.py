@@ -249,8 +249,11 @@ def test_a_step_end_matches_the_numpy_formula(t, dt):
         cap_stick, cap_static, t["k"], t["v_stick"])
     _close(q, ref_q)
     _close(z_new, ref_z)
-    np.testing.assert_array_equal(sliding, ref_sliding)
-    np.testing.assert_array_equal(s, ref_s)
+    # A velocity at right angles to the last one (Re(ū·conj(u_n)) = 0 to rounding) is a tie the
+    # compiled sum and numpy's complex product may round to either side: either verdict is right.
+    tie = np.abs((t["u_avg"] * t["u_n"].conj()).real) <= 1e-12 * np.abs(t["u_avg"]) * np.abs(t["u_n"])
+    np.testing.assert_array_equal(sliding[~tie], ref_sliding[~tie])
+    np.testing.assert_array_equal(s[~tie], ref_s[~tie])
 
 
 @given(_taxel_state(), st.floats(1e-5, 1e-3))
